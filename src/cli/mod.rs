@@ -1,0 +1,99 @@
+//! Command-line interface: clap types here, one handler per subcommand in its own file. Results go to
+//! stdout, warnings and errors to stderr.
+
+mod dynamics_cmd;
+mod params_cmd;
+mod values;
+
+pub use values::{parse_set, parse_vector};
+
+use crate::Error;
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+/// ribbon: bound envelopes of robot motion under interval-uncertain masses, inertias and lengths.
+#[derive(Debug, Parser)]
+#[command(name = "ribbon", version, about)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// List every value of the robot that can be declared uncertain, with its nominal and unit.
+    Params(ParamsArgs),
+    /// Rigid-body dynamics at one state: mass matrix, bias forces, forward and inverse dynamics,
+    /// frame placements.
+    Dynamics(DynamicsArgs),
+}
+
+/// `ribbon params`.
+#[derive(Debug, Args)]
+pub struct ParamsArgs {
+    /// The robot's URDF file.
+    pub urdf: PathBuf,
+    /// Print JSON (`[{path, nominal, unit}]`) instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Put the root link on a floating joint (`root_joint`).
+    #[arg(long)]
+    pub floating: bool,
+}
+
+/// `ribbon dynamics`.
+#[derive(Debug, Args)]
+pub struct DynamicsArgs {
+    /// The robot's URDF file.
+    pub urdf: PathBuf,
+    /// Joint positions, comma-separated, one per coordinate (default: neutral configuration).
+    #[arg(long, allow_hyphen_values = true, value_name = "Q1,Q2,…")]
+    pub q: Option<String>,
+    /// Joint velocities, comma-separated (default: zero).
+    #[arg(long, allow_hyphen_values = true, value_name = "V1,V2,…")]
+    pub v: Option<String>,
+    /// Joint torques: also compute forward dynamics `qdd`.
+    #[arg(long, allow_hyphen_values = true, value_name = "T1,T2,…")]
+    pub tau: Option<String>,
+    /// Joint accelerations: also compute inverse dynamics `tau`.
+    #[arg(long, allow_hyphen_values = true, value_name = "A1,A2,…")]
+    pub qdd: Option<String>,
+    /// Override one parameter (repeatable), e.g. `--set link.forearm_link.mass=2.4`.
+    #[arg(long = "set", value_name = "PATH=VALUE", allow_hyphen_values = true)]
+    pub set: Vec<String>,
+    /// Put the root link on a floating joint (`root_joint`).
+    #[arg(long)]
+    pub floating: bool,
+    /// Print JSON instead of a readable report.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs one parsed command line.
+pub fn run(cli: Cli) -> Result<(), Error> {
+    match cli.command {
+        Command::Params(args) => params_cmd::run(&args),
+        Command::Dynamics(args) => dynamics_cmd::run(&args),
+    }
+}
+
+/// Prints the model's load warnings on stderr.
+fn print_warnings(model: &crate::model::Model) {
+    for warning in &model.warnings {
+        eprintln!("warning: {warning}");
+    }
+}
+
+/// Writes `text` to stdout, turning a closed pipe into an error instead of a panic.
+fn write_stdout(text: &str) -> Result<(), Error> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|_| out.flush())
+        .map_err(|source| Error::Output {
+            what: "to standard output".to_string(),
+            source,
+        })
+}

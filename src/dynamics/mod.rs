@@ -1,0 +1,92 @@
+//! Rigid-body dynamics on a [`Model`](crate::model::Model) in joint coordinates:
+//! - [`forward_kinematics`] — body placements;
+//! - [`rnea`] — inverse dynamics `τ = M(q) q̈ + C(q, q̇) q̇ + g(q)` and [`nonlinear_effects`] (`q̈ = 0`);
+//! - [`crba`] — the joint-space mass matrix `M(q)`;
+//! - [`forward_dynamics`] — `q̈ = M⁻¹ (τ − C q̇ − g)` through CRBA, RNEA and an in-place Cholesky
+//!   factorisation (for the small dense systems of robot arms this is as fast as ABA and reuses the
+//!   pieces the implicit integrator needs anyway);
+//! - [`frame_placements`] — every URDF link in the world frame.
+//!
+//! Every algorithm is `algorithm(model, data, …)`: the model is read only, results and scratch live
+//! in a per-thread [`Data`] allocated once; the hot path allocates nothing. Only rigid-body terms
+//! are computed here: damping, friction, springs and drives are scene effects.
+
+mod cholesky;
+mod crba;
+mod data;
+mod kinematics;
+mod rnea;
+
+pub use cholesky::{cholesky_factor_in_place, cholesky_solve_in_place};
+pub use crba::crba;
+pub use data::Data;
+pub use kinematics::{forward_kinematics, frame_placements};
+pub use rnea::{nonlinear_effects, rnea};
+
+use crate::model::Model;
+use thiserror::Error;
+
+/// Why a dynamics computation failed.
+#[derive(Debug, Error)]
+pub enum DynamicsError {
+    /// `M(q)` is not positive definite: some coordinate moves nothing with inertia.
+    #[error("the mass matrix is singular at this state: coordinate {coordinate} (joint '{joint}') moves no mass or inertia (pivot {pivot:.3e}); give the links below it an <inertial>")]
+    SingularMassMatrix {
+        /// Index of the velocity coordinate whose pivot vanished.
+        coordinate: usize,
+        /// The joint owning that coordinate.
+        joint: String,
+        /// The pivot found.
+        pivot: f64,
+    },
+    /// A NaN or infinity appeared in a result.
+    #[error("non-finite value in {quantity} at coordinate {coordinate}")]
+    NonFinite {
+        /// What was being computed.
+        quantity: &'static str,
+        /// Where.
+        coordinate: usize,
+    },
+}
+
+/// Name of the joint owning velocity coordinate `v_index`.
+pub fn joint_of_velocity(model: &Model, v_index: usize) -> &str {
+    model
+        .joints
+        .iter()
+        .find(|j| (j.v_index..j.v_index + j.nv()).contains(&v_index))
+        .map_or("?", |j| j.name.as_str())
+}
+
+/// Forward dynamics: `data.qdd = M(q)⁻¹ (τ − C(q, v) v − g(q))`.
+///
+/// `q: dim nq`, `v: dim nv`, `tau: dim nv`. Overwrites `data.mass_matrix` (with its Cholesky factor
+/// in the lower triangle), `data.bias` and `data.qdd`; returns `data.qdd`.
+pub fn forward_dynamics<'a>(
+    model: &Model,
+    data: &'a mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+) -> Result<&'a [f64], DynamicsError> {
+    nonlinear_effects(model, data, q, v);
+    crba(model, data, q);
+    for i in 0..model.nv {
+        data.qdd[i] = tau[i] - data.bias[i];
+    }
+    if let Err((coordinate, pivot)) = cholesky_factor_in_place(&mut data.mass_matrix) {
+        return Err(DynamicsError::SingularMassMatrix {
+            coordinate,
+            joint: joint_of_velocity(model, coordinate).to_string(),
+            pivot,
+        });
+    }
+    cholesky_solve_in_place(&data.mass_matrix, &mut data.qdd);
+    if let Some(coordinate) = data.qdd.iter().position(|x| !x.is_finite()) {
+        return Err(DynamicsError::NonFinite {
+            quantity: "joint accelerations",
+            coordinate,
+        });
+    }
+    Ok(data.qdd.as_slice())
+}

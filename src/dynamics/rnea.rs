@@ -1,0 +1,85 @@
+//! Recursive Newton–Euler inverse dynamics, in body frames (Featherstone, *Rigid Body Dynamics
+//! Algorithms*, §5.3):
+//!
+//! forward pass, for every body `i` with parent `p` and `X = parent_from_body`:
+//!   `v_i = X⁻¹ v_p + S q̇_i`,   `a_i = X⁻¹ a_p + S q̈_i + v_i ×ₘ (S q̇_i)`,   `a_world = −g`
+//!   `f_i = I_i a_i + v_i ×* (I_i v_i)`
+//! backward pass: `τ_i = Sᵀ f_i`, `f_p += X f_i`.
+
+use super::Data;
+use crate::model::Model;
+use crate::spatial::{Motion, Vec3};
+
+/// Inverse dynamics: `data.tau = M(q) q̈ + C(q, v) v + g(q)`, rigid-body terms only.
+///
+/// `q: dim nq`, `v, qdd: dim nv`. Overwrites `data.parent_from_body`, `data.world_from_body`,
+/// `data.velocity`, `data.acceleration`, `data.force` and `data.tau`; returns `data.tau`.
+pub fn rnea<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64], qdd: &[f64]) -> &'a [f64] {
+    run(model, data, q, v, Some(qdd));
+    let Data {
+        parent_from_body,
+        force,
+        tau,
+        ..
+    } = data;
+    backward(model, parent_from_body, force, tau.as_mut_slice());
+    data.tau.as_slice()
+}
+
+/// Bias forces: `data.bias = C(q, v) v + g(q)` (Pinocchio's `nle`).
+///
+/// `q: dim nq`, `v: dim nv`. Overwrites the same kinematic buffers as [`rnea`] and `data.bias`.
+pub fn nonlinear_effects<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64]) -> &'a [f64] {
+    run(model, data, q, v, None);
+    let Data {
+        parent_from_body,
+        force,
+        bias,
+        ..
+    } = data;
+    backward(model, parent_from_body, force, bias.as_mut_slice());
+    data.bias.as_slice()
+}
+
+fn run(model: &Model, data: &mut Data, q: &[f64], v: &[f64], qdd: Option<&[f64]>) {
+    let base_acceleration = Motion::new(-model.gravity, Vec3::zeros());
+    for (i, joint) in model.joints.iter().enumerate() {
+        let (qi, vi) = (joint.q_index, joint.v_index);
+        let parent_from_body = joint.parent_from_child(&q[qi..qi + joint.nq()]);
+        let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
+        let (parent_velocity, parent_acceleration, world_from_parent) = match joint.parent {
+            Some(p) => (data.velocity[p], data.acceleration[p], Some(data.world_from_body[p])),
+            None => (Motion::zero(), base_acceleration, None),
+        };
+        let velocity = parent_from_body.inv_act_motion(&parent_velocity) + joint_velocity;
+        let mut acceleration = parent_from_body.inv_act_motion(&parent_acceleration)
+            + velocity.cross_motion(&joint_velocity);
+        if let Some(qdd) = qdd {
+            acceleration += joint.motion(&qdd[vi..vi + joint.nv()]);
+        }
+        let inertia = &model.bodies[i].inertia;
+        data.force[i] = inertia.apply(&acceleration) + velocity.cross_force(&inertia.apply(&velocity));
+        data.velocity[i] = velocity;
+        data.acceleration[i] = acceleration;
+        data.parent_from_body[i] = parent_from_body;
+        data.world_from_body[i] = match world_from_parent {
+            Some(w) => w.compose(&parent_from_body),
+            None => parent_from_body,
+        };
+    }
+}
+
+fn backward(
+    model: &Model,
+    parent_from_body: &[crate::spatial::Transform],
+    force: &mut [crate::spatial::Force],
+    out: &mut [f64],
+) {
+    for (i, joint) in model.joints.iter().enumerate().rev() {
+        joint.project_force(&force[i], &mut out[joint.v_index..joint.v_index + joint.nv()]);
+        if let Some(p) = joint.parent {
+            let in_parent = parent_from_body[i].act_force(&force[i]);
+            force[p] += in_parent;
+        }
+    }
+}

@@ -1,0 +1,48 @@
+//! The crate-level error: every module's error, plus bad command-line values, each mapped to the
+//! documented exit code (0 ok, 1 failure, 2 bad arguments or bad input).
+
+use crate::dynamics::DynamicsError;
+use crate::model::ModelError;
+use crate::params::ParamError;
+use thiserror::Error;
+
+/// Any error ribbon reports.
+#[derive(Debug, Error)]
+pub enum Error {
+    /// The URDF could not be loaded.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// A parameter path or value was refused.
+    #[error(transparent)]
+    Param(#[from] ParamError),
+    /// A dynamics computation failed.
+    #[error(transparent)]
+    Dynamics(#[from] DynamicsError),
+    /// A command-line value is malformed or inconsistent with the robot.
+    #[error("{flag}: {message}")]
+    BadArgument {
+        /// The flag (`--q`, `--set`, …).
+        flag: String,
+        /// What is wrong and what to do.
+        message: String,
+    },
+    /// Writing a result failed.
+    #[error("cannot write {what}: {source}")]
+    Output {
+        /// What was being written.
+        what: String,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+}
+
+impl Error {
+    /// The process exit code for this error: 2 for bad arguments or bad input, 1 otherwise.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            Error::Model(_) | Error::Param(_) | Error::BadArgument { .. } => 2,
+            Error::Dynamics(DynamicsError::SingularMassMatrix { .. }) => 2,
+            Error::Dynamics(_) | Error::Output { .. } => 1,
+        }
+    }
+}

@@ -1,0 +1,31 @@
+//! # ribbon
+//!
+//! How far can a robot's motion drift when its CAD masses, inertias and link lengths are only known
+//! to a few percent? ribbon loads a URDF, lets any inertial or geometric value be declared an
+//! interval parameter, and computes bound envelopes of joint motion, frames and efforts over time.
+//!
+//! Modules, in data-flow order:
+//! - [`model`] — URDF → kinematic tree ([`model::Model`]);
+//! - [`params`] — the parameter registry (dotted paths such as `link.forearm_link.mass`);
+//! - [`spatial`] — 6D spatial algebra;
+//! - [`dynamics`] — CRBA, RNEA, forward dynamics and frame placements on a per-thread
+//!   [`dynamics::Data`];
+//! - [`integrate`] — the second-order HHT-I3 integrator for index-3 DAEs;
+//! - [`uq`] — quadrature, Legendre/Chebyshev surrogates and their bounds (pure mathematics);
+//! - [`cli`] — the `ribbon` command line.
+//!
+//! ## Limitations
+//! - URDF planar and spherical joints are refused with a clear message (not supported yet).
+//! - Visual and collision geometry, materials, transmissions and Gazebo tags are ignored.
+
+pub mod cli;
+pub mod dynamics;
+mod error;
+// pub mod integrate;
+pub mod model;
+pub mod params;
+pub mod spatial;
+pub mod text;
+// pub mod uq;
+
+pub use error::Error;

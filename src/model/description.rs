@@ -1,0 +1,130 @@
+//! The URDF-level description of a robot: every value a parameter can address, exactly as the file
+//! states it (link frames, `<inertial>` blocks, joint origins and axes). The compiled [`Model`]
+//! derives its tree quantities from this and is refreshed whenever a value here changes.
+//!
+//! [`Model`]: super::Model
+
+/// The kind of a URDF joint that ribbon supports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UrdfJointType {
+    /// Rotation about `axis` within limits.
+    Revolute,
+    /// Rotation about `axis` without limits (one coordinate: the angle).
+    Continuous,
+    /// Translation along `axis`.
+    Prismatic,
+    /// No motion: the child link is merged into its parent body and kept as a frame.
+    Fixed,
+    /// Six degrees of freedom (position and unit quaternion).
+    Floating,
+}
+
+impl UrdfJointType {
+    /// The URDF spelling of the type.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Revolute => "revolute",
+            Self::Continuous => "continuous",
+            Self::Prismatic => "prismatic",
+            Self::Fixed => "fixed",
+            Self::Floating => "floating",
+        }
+    }
+
+    /// Whether the joint has an axis (and so damping and friction parameters).
+    pub fn has_axis(self) -> bool {
+        matches!(self, Self::Revolute | Self::Continuous | Self::Prismatic)
+    }
+}
+
+/// A link's `<inertial>`: mass, centre of mass and inertia tensor about it.
+///
+/// Policy for a link without `<inertial>`: it is massless (all zero), like Pinocchio and the URDF
+/// specification; [`LinkSpec::has_inertial`] keeps the distinction for warnings and listings.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct InertialSpec {
+    /// Mass (kg).
+    pub mass: f64,
+    /// `<origin xyz>`: the centre of mass in the link frame (m).
+    pub com: [f64; 3],
+    /// `<origin rpy>`: orientation of the inertia frame relative to the link frame (rad).
+    pub rpy: [f64; 3],
+    /// `ixx ixy ixz iyy iyz izz` about the centre of mass, in the inertia frame (kg·m²).
+    pub inertia: [f64; 6],
+}
+
+/// One URDF `<link>`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinkSpec {
+    /// The link's name.
+    pub name: String,
+    /// Whether the file gives an `<inertial>` element.
+    pub has_inertial: bool,
+    /// The inertial values (all zero without `<inertial>`).
+    pub inertial: InertialSpec,
+    /// 1-based line of the `<link>` element in the file.
+    pub line: u32,
+}
+
+/// A `<mimic>` element: `q_self = multiplier · q_leader + offset`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MimicSpec {
+    /// Name of the leading joint.
+    pub joint: String,
+    /// Multiplier (default 1).
+    pub multiplier: f64,
+    /// Offset (default 0).
+    pub offset: f64,
+}
+
+/// One URDF `<joint>`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointSpec {
+    /// The joint's name.
+    pub name: String,
+    /// The joint's type.
+    pub joint_type: UrdfJointType,
+    /// Index of the parent link in [`Description::links`].
+    pub parent: usize,
+    /// Index of the child link in [`Description::links`].
+    pub child: usize,
+    /// `<origin>` as `x y z roll pitch yaw` (m, rad): the joint frame in the parent link frame.
+    pub origin: [f64; 6],
+    /// `<axis xyz>` in the joint frame (normalised by the model; default `1 0 0`).
+    pub axis: [f64; 3],
+    /// `<dynamics damping>` (N·m·s/rad or N·s/m; 0 when absent).
+    pub damping: f64,
+    /// `<dynamics friction>` (N·m or N; 0 when absent).
+    pub friction: f64,
+    /// `<limit lower upper>` (rad or m); infinite when the file gives none.
+    pub limits: [f64; 2],
+    /// `<limit effort velocity>` (N·m or N, rad/s or m/s); infinite when the file gives none.
+    pub effort_velocity: [f64; 2],
+    /// `<mimic>`, when present on a moving joint.
+    pub mimic: Option<MimicSpec>,
+    /// 1-based line of the `<joint>` element in the file.
+    pub line: u32,
+}
+
+/// A whole URDF robot as values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Description {
+    /// `<robot name>`.
+    pub robot_name: String,
+    /// Links in file order.
+    pub links: Vec<LinkSpec>,
+    /// Joints in file order.
+    pub joints: Vec<JointSpec>,
+}
+
+impl Description {
+    /// Index of the link with this name.
+    pub fn link_index(&self, name: &str) -> Option<usize> {
+        self.links.iter().position(|l| l.name == name)
+    }
+
+    /// Index of the joint with this name.
+    pub fn joint_index(&self, name: &str) -> Option<usize> {
+        self.joints.iter().position(|j| j.name == name)
+    }
+}

@@ -1,0 +1,622 @@
+//! URDF → [`Model`]: the kinematic tree in joint coordinates.
+//!
+//! A [`Model`] is a constant description of the robot (per-thread work buffers live in
+//! [`crate::dynamics::Data`]). It keeps the URDF-level values ([`Description`]) that parameters
+//! address, and the tree quantities derived from them ([`Model::refresh`] recomputes those after a
+//! parameter change, without allocating).
+//!
+//! Tree rules:
+//! - every link reached through a moving joint starts a **body**; links reached through fixed joints
+//!   are merged into their parent's body (inertia rotated and shifted) and kept as frames;
+//! - with a fixed base, the root link and everything fixed to it are the world (they carry no
+//!   dynamics); with a floating base ([`LoadOptions::floating_base`]) the root link is a body on a
+//!   6-dof joint named `root_joint`;
+//! - coordinates are ordered by a depth-first traversal of the tree, children in file order;
+//! - a continuous joint has one coordinate (the angle); a floating joint has 7 (x y z, quaternion
+//!   x y z w) and 6 velocities (linear then angular, in the body frame) — Pinocchio's convention;
+//! - mimic joints are kept as independent coordinates here, with their relation recorded.
+//!
+//! Not supported yet: planar and spherical joints (refused with a clear error).
+
+mod consistency;
+mod description;
+mod error;
+mod urdf;
+
+pub use consistency::{check_inertia, InertiaViolation, INERTIA_RELATIVE_TOLERANCE};
+pub use description::{Description, InertialSpec, JointSpec, LinkSpec, MimicSpec, UrdfJointType};
+pub use error::ModelError;
+pub use urdf::{parse_description, read_description};
+
+use crate::spatial::{rotation_about_axis, rotation_from_rpy, Force, Inertia, Mat3, Motion, Transform, Vec3};
+use std::path::Path;
+
+/// Name of the 6-dof joint that `--floating` puts between the world and the root link.
+pub const ROOT_JOINT_NAME: &str = "root_joint";
+
+/// Standard gravity used when nothing else is said (m/s², along −z).
+pub const DEFAULT_GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
+
+/// How to turn a URDF into a model.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LoadOptions {
+    /// Put the root link on a floating (6-dof) joint named [`ROOT_JOINT_NAME`] (default: fixed).
+    pub floating_base: bool,
+}
+
+/// The motion a joint allows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JointKind {
+    /// Rotation about the joint axis (URDF revolute or continuous): one coordinate (rad).
+    Revolute,
+    /// Translation along the joint axis: one coordinate (m).
+    Prismatic,
+    /// Free motion: position and unit quaternion (x y z w); velocity linear then angular in the
+    /// child frame.
+    Floating,
+}
+
+/// A moving joint of the tree; joint `i` moves body `i`.
+#[derive(Clone, Debug)]
+pub struct Joint {
+    /// The joint's name (`root_joint` for the floating base).
+    pub name: String,
+    /// What motion it allows.
+    pub kind: JointKind,
+    /// The URDF type name (`revolute`, `continuous`, `prismatic`, `floating`).
+    pub type_name: &'static str,
+    /// The parent body, `None` for the world.
+    pub parent: Option<usize>,
+    /// Index of the first coordinate in `q`.
+    pub q_index: usize,
+    /// Index of the first velocity coordinate in `v`.
+    pub v_index: usize,
+    /// The URDF joint it comes from (`None` for `root_joint`).
+    pub source: Option<usize>,
+    /// Placement of the joint frame in the parent body frame (derived; see [`Model::refresh`]).
+    pub parent_from_joint: Transform,
+    /// Unit axis in the joint frame (derived).
+    pub axis: Vec3,
+    /// `q = multiplier · q_leader + offset` for a URDF mimic joint (leader: a joint index).
+    pub mimic: Option<(usize, f64, f64)>,
+}
+
+/// A moving rigid body: one link plus every link fixed to it.
+#[derive(Clone, Debug)]
+pub struct Body {
+    /// The link that starts the body.
+    pub link: usize,
+    /// Merged spatial inertia about the body origin, in the body frame (derived).
+    pub inertia: Inertia,
+}
+
+/// Where a URDF link sits in the tree.
+#[derive(Clone, Copy, Debug)]
+pub struct LinkPlacement {
+    /// The body the link belongs to, `None` for the world.
+    pub body: Option<usize>,
+    /// The fixed joint that attaches it to its parent link, if it was merged.
+    pub fixed_parent: Option<(usize, usize)>,
+    /// The link frame in its body's frame (derived).
+    pub body_from_link: Transform,
+}
+
+/// A robot as a kinematic tree with its parameters' values.
+#[derive(Clone, Debug)]
+pub struct Model {
+    /// The URDF values every parameter addresses.
+    pub description: Description,
+    /// Gravity in the world frame (m/s²).
+    pub gravity: Vec3,
+    /// Moving joints in coordinate order.
+    pub joints: Vec<Joint>,
+    /// Moving bodies; body `i` is moved by joint `i`.
+    pub bodies: Vec<Body>,
+    /// One entry per URDF link, same order as `description.links`.
+    pub links: Vec<LinkPlacement>,
+    /// Link indices in an order where every link comes after its parent.
+    link_order: Vec<usize>,
+    /// Index of the root link.
+    pub root_link: usize,
+    /// Number of position coordinates.
+    pub nq: usize,
+    /// Number of velocity coordinates.
+    pub nv: usize,
+    /// Whether the root is on a floating joint.
+    pub floating_base: bool,
+    /// Non-fatal findings of loading (inertia violations, massless moving links, ignored mimics).
+    pub warnings: Vec<String>,
+}
+
+impl Joint {
+    /// Number of position coordinates (1, or 7 for a floating joint).
+    pub fn nq(&self) -> usize {
+        match self.kind {
+            JointKind::Floating => 7,
+            _ => 1,
+        }
+    }
+
+    /// Number of velocity coordinates (1, or 6 for a floating joint).
+    pub fn nv(&self) -> usize {
+        match self.kind {
+            JointKind::Floating => 6,
+            _ => 1,
+        }
+    }
+
+    /// The joint's own motion `joint_from_child` for coordinates `q` (`q: dim self.nq()`).
+    #[inline]
+    pub fn joint_transform(&self, q: &[f64]) -> Transform {
+        match self.kind {
+            JointKind::Revolute => Transform::new(rotation_about_axis(&self.axis, q[0]), Vec3::zeros()),
+            JointKind::Prismatic => Transform::new(Mat3::identity(), self.axis * q[0]),
+            JointKind::Floating => {
+                let quaternion = nalgebra::Quaternion::new(q[6], q[3], q[4], q[5]);
+                let rotation = nalgebra::UnitQuaternion::new_unchecked(quaternion);
+                Transform::new(
+                    *rotation.to_rotation_matrix().matrix(),
+                    Vec3::new(q[0], q[1], q[2]),
+                )
+            }
+        }
+    }
+
+    /// `parent_from_child` for coordinates `q` (`q: dim self.nq()`).
+    #[inline]
+    pub fn parent_from_child(&self, q: &[f64]) -> Transform {
+        self.parent_from_joint.compose(&self.joint_transform(q))
+    }
+
+    /// Joint motion `S v` in the child frame (`v: dim self.nv()`).
+    #[inline]
+    pub fn motion(&self, v: &[f64]) -> Motion {
+        match self.kind {
+            JointKind::Revolute => Motion::new(Vec3::zeros(), self.axis * v[0]),
+            JointKind::Prismatic => Motion::new(self.axis * v[0], Vec3::zeros()),
+            JointKind::Floating => {
+                Motion::new(Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]))
+            }
+        }
+    }
+
+    /// Column `k` of the motion subspace `S` (`k < self.nv()`).
+    #[inline]
+    pub fn subspace_column(&self, k: usize) -> Motion {
+        match self.kind {
+            JointKind::Revolute => Motion::new(Vec3::zeros(), self.axis),
+            JointKind::Prismatic => Motion::new(self.axis, Vec3::zeros()),
+            JointKind::Floating => {
+                let mut m = Motion::zero();
+                if k < 3 {
+                    m.linear[k] = 1.0;
+                } else {
+                    m.angular[k - 3] = 1.0;
+                }
+                m
+            }
+        }
+    }
+
+    /// Generalised force `Sᵀ f` written into `out` (`out: dim self.nv()`).
+    #[inline]
+    pub fn project_force(&self, force: &Force, out: &mut [f64]) {
+        match self.kind {
+            JointKind::Revolute => out[0] = self.axis.dot(&force.angular),
+            JointKind::Prismatic => out[0] = self.axis.dot(&force.linear),
+            JointKind::Floating => {
+                out[..3].copy_from_slice(force.linear.as_slice());
+                out[3..6].copy_from_slice(force.angular.as_slice());
+            }
+        }
+    }
+}
+
+/// Spatial inertia of a link's `<inertial>` in the link frame: the tensor rotated by the inertial
+/// frame's rpy (`R I Rᵀ`) and shifted to the link origin.
+pub fn link_inertia(inertial: &InertialSpec) -> Inertia {
+    let [ixx, ixy, ixz, iyy, iyz, izz] = inertial.inertia;
+    let in_inertia_frame = Mat3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz);
+    let rotation = rotation_from_rpy(inertial.rpy[0], inertial.rpy[1], inertial.rpy[2]);
+    let about_com = rotation * in_inertia_frame * rotation.transpose();
+    let com = Vec3::new(inertial.com[0], inertial.com[1], inertial.com[2]);
+    Inertia::from_com(inertial.mass, com, about_com)
+}
+
+/// The `<origin>` of a URDF joint as a transform.
+pub fn joint_origin(spec: &JointSpec) -> Transform {
+    let o = spec.origin;
+    Transform::from_xyz_rpy([o[0], o[1], o[2]], [o[3], o[4], o[5]])
+}
+
+impl Model {
+    /// Loads a URDF file.
+    pub fn from_urdf_file(path: &Path, options: LoadOptions) -> Result<Model, ModelError> {
+        let description = read_description(path)?;
+        Model::from_description(description, options, &path.display().to_string())
+    }
+
+    /// Builds the tree from a description; `path` is only used in messages.
+    pub fn from_description(
+        description: Description,
+        options: LoadOptions,
+        path: &str,
+    ) -> Result<Model, ModelError> {
+        let n_links = description.links.len();
+        if n_links == 0 {
+            return Err(ModelError::NotUrdf {
+                path: path.to_string(),
+                message: "the robot has no <link>".to_string(),
+            });
+        }
+        // Parent joint of every link; a link may have only one.
+        let mut parent_joint: Vec<Option<usize>> = vec![None; n_links];
+        for (j, joint) in description.joints.iter().enumerate() {
+            if let Some(first) = parent_joint[joint.child] {
+                return Err(ModelError::TwoParents {
+                    path: path.to_string(),
+                    line: joint.line,
+                    link: description.links[joint.child].name.clone(),
+                    first: description.joints[first].name.clone(),
+                    second: joint.name.clone(),
+                });
+            }
+            parent_joint[joint.child] = Some(j);
+        }
+        let roots: Vec<usize> = (0..n_links).filter(|&l| parent_joint[l].is_none()).collect();
+        let link_names: Vec<String> = description.links.iter().map(|l| format!("'{}'", l.name)).collect();
+        let name_list = |indices: &[usize]| {
+            indices
+                .iter()
+                .map(|&l| link_names[l].as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let root_link = match roots.as_slice() {
+            [] => {
+                let all: Vec<usize> = (0..n_links).collect();
+                return Err(ModelError::Cycle {
+                    path: path.to_string(),
+                    links: name_list(&all),
+                });
+            }
+            [root] => *root,
+            several => {
+                return Err(ModelError::SeveralRoots {
+                    path: path.to_string(),
+                    count: several.len(),
+                    links: name_list(several),
+                })
+            }
+        };
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); n_links];
+        for (j, joint) in description.joints.iter().enumerate() {
+            children[joint.parent].push(j);
+        }
+
+        let mut model = Model {
+            description,
+            gravity: Vec3::from(DEFAULT_GRAVITY),
+            joints: Vec::new(),
+            bodies: Vec::new(),
+            links: vec![
+                LinkPlacement {
+                    body: None,
+                    fixed_parent: None,
+                    body_from_link: Transform::identity(),
+                };
+                n_links
+            ],
+            link_order: Vec::with_capacity(n_links),
+            root_link,
+            nq: 0,
+            nv: 0,
+            floating_base: options.floating_base,
+            warnings: Vec::new(),
+        };
+        let root_body = if options.floating_base {
+            model.push_joint(ROOT_JOINT_NAME.to_string(), JointKind::Floating, "floating", None, None, root_link);
+            Some(0)
+        } else {
+            None
+        };
+        model.links[root_link].body = root_body;
+        // Depth-first traversal, children in file order.
+        let mut stack = vec![root_link];
+        while let Some(link) = stack.pop() {
+            model.link_order.push(link);
+            let body = model.links[link].body;
+            for &j in &children[link] {
+                let spec = &model.description.joints[j];
+                let child = spec.child;
+                if spec.joint_type == UrdfJointType::Fixed {
+                    model.links[child].body = body;
+                    model.links[child].fixed_parent = Some((j, link));
+                    if spec.mimic.is_some() {
+                        model.warnings.push(format!(
+                            "{path}:{}: the <mimic> on fixed joint '{}' is ignored (a fixed joint has no coordinate)",
+                            spec.line, spec.name
+                        ));
+                    }
+                } else {
+                    let (kind, type_name) = match spec.joint_type {
+                        UrdfJointType::Prismatic => (JointKind::Prismatic, "prismatic"),
+                        UrdfJointType::Floating => (JointKind::Floating, "floating"),
+                        UrdfJointType::Continuous => (JointKind::Revolute, "continuous"),
+                        _ => (JointKind::Revolute, "revolute"),
+                    };
+                    let name = spec.name.clone();
+                    let new_body = model.bodies.len();
+                    model.push_joint(name, kind, type_name, body, Some(j), child);
+                    model.links[child].body = Some(new_body);
+                }
+            }
+            // Push in reverse so the first child is visited first.
+            for &j in children[link].iter().rev() {
+                stack.push(model.description.joints[j].child);
+            }
+        }
+        if model.link_order.len() < n_links {
+            let unreached: Vec<usize> = (0..n_links).filter(|l| !model.link_order.contains(l)).collect();
+            return Err(ModelError::Cycle {
+                path: path.to_string(),
+                links: name_list(&unreached),
+            });
+        }
+        model.resolve_mimics(path)?;
+        model.refresh();
+        model.check_nominal_consistency(path);
+        Ok(model)
+    }
+
+    fn push_joint(
+        &mut self,
+        name: String,
+        kind: JointKind,
+        type_name: &'static str,
+        parent: Option<usize>,
+        source: Option<usize>,
+        link: usize,
+    ) {
+        let joint = Joint {
+            name,
+            kind,
+            type_name,
+            parent,
+            q_index: self.nq,
+            v_index: self.nv,
+            source,
+            parent_from_joint: Transform::identity(),
+            axis: Vec3::x(),
+            mimic: None,
+        };
+        self.nq += joint.nq();
+        self.nv += joint.nv();
+        self.joints.push(joint);
+        self.bodies.push(Body {
+            link,
+            inertia: Inertia::zero(),
+        });
+    }
+
+    fn resolve_mimics(&mut self, path: &str) -> Result<(), ModelError> {
+        for i in 0..self.joints.len() {
+            let Some(source) = self.joints[i].source else { continue };
+            let spec = &self.description.joints[source];
+            let Some(mimic) = &spec.mimic else { continue };
+            let leader = self.joints.iter().position(|j| j.name == mimic.joint);
+            match leader {
+                Some(leader) if leader != i && self.joints[leader].nv() == 1 => {
+                    self.joints[i].mimic = Some((leader, mimic.multiplier, mimic.offset));
+                }
+                _ => {
+                    return Err(ModelError::BadMimic {
+                        path: path.to_string(),
+                        line: spec.line,
+                        joint: spec.name.clone(),
+                        leader: mimic.joint.clone(),
+                        suggestion: crate::text::closest_suggestion(
+                            &mimic.joint,
+                            self.joints.iter().map(|j| j.name.as_str()),
+                        ),
+                    })
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Recomputes every derived quantity (link placements in their bodies, joint placements and
+    /// axes, merged body inertias) from [`Model::description`]. Call after changing a value there.
+    /// Allocates nothing.
+    pub fn refresh(&mut self) {
+        for &link in &self.link_order {
+            self.links[link].body_from_link = match self.links[link].fixed_parent {
+                None => Transform::identity(),
+                Some((joint, parent_link)) => self.links[parent_link]
+                    .body_from_link
+                    .compose(&joint_origin(&self.description.joints[joint])),
+            };
+        }
+        for body in &mut self.bodies {
+            body.inertia = Inertia::zero();
+        }
+        for (spec, placement) in self.description.links.iter().zip(&self.links) {
+            if let Some(body) = placement.body {
+                let inertia = placement.body_from_link.act_inertia(&link_inertia(&spec.inertial));
+                self.bodies[body].inertia += inertia;
+            }
+        }
+        for joint in &mut self.joints {
+            let Some(source) = joint.source else { continue };
+            let spec = &self.description.joints[source];
+            joint.parent_from_joint = self.links[spec.parent]
+                .body_from_link
+                .compose(&joint_origin(spec));
+            let axis = Vec3::from(spec.axis);
+            let norm = axis.norm();
+            if norm > 0.0 {
+                joint.axis = axis / norm;
+            }
+        }
+    }
+
+    /// Index of the moving joint with this name.
+    pub fn joint_index(&self, name: &str) -> Option<usize> {
+        self.joints.iter().position(|j| j.name == name)
+    }
+
+    /// The neutral configuration: all coordinates 0, identity quaternions (`dim nq`).
+    pub fn neutral_configuration(&self) -> Vec<f64> {
+        let mut q = vec![0.0; self.nq];
+        for joint in &self.joints {
+            if joint.kind == JointKind::Floating {
+                q[joint.q_index + 6] = 1.0;
+            }
+        }
+        q
+    }
+
+    /// The robot's name (`<robot name>`).
+    pub fn name(&self) -> &str {
+        &self.description.robot_name
+    }
+
+    /// Warnings for inertias that are not physical at the nominal values, and for moving bodies
+    /// without mass (method.md §6: warn, do not refuse — Pinocchio loads these files).
+    fn check_nominal_consistency(&mut self, path: &str) {
+        for spec in &self.description.links {
+            if !spec.has_inertial {
+                continue;
+            }
+            if let Some(about_com) = link_inertia(&spec.inertial).inertia_about_com() {
+                if let Some(violation) = check_inertia(&about_com) {
+                    self.warnings.push(format!(
+                        "{path}:{}: the inertia of link '{}' {violation}; no rigid body has it (loaded anyway, as Pinocchio does)",
+                        spec.line, spec.name
+                    ));
+                }
+            }
+        }
+        for (b, body) in self.bodies.iter().enumerate() {
+            let merged: Vec<&str> = self
+                .links
+                .iter()
+                .enumerate()
+                .filter(|(l, p)| p.body == Some(b) && self.description.links[*l].inertial.mass > 0.0)
+                .map(|(l, _)| self.description.links[l].name.as_str())
+                .collect();
+            let link = &self.description.links[body.link];
+            if body.inertia.mass == 0.0 && body.inertia.rotational.abs().max() == 0.0 {
+                self.warnings.push(format!(
+                    "{path}:{}: link '{}' moves (joint '{}') but has no mass and no inertia; the mass matrix is singular unless bodies below it carry inertia",
+                    link.line, link.name, self.joints[b].name
+                ));
+            } else if merged.len() > 1 {
+                if let Some(violation) = body.inertia.inertia_about_com().and_then(|i| check_inertia(&i)) {
+                    self.warnings.push(format!(
+                        "{path}: the merged inertia of links {} (body of link '{}') {violation}",
+                        merged.join(", "),
+                        link.name
+                    ));
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(text: &str, floating_base: bool) -> Result<Model, ModelError> {
+        let description = parse_description(text, "t.urdf")?;
+        Model::from_description(description, LoadOptions { floating_base }, "t.urdf")
+    }
+
+    const CHAIN: &str = r#"<robot name="chain">
+  <link name="base"/>
+  <link name="a"><inertial><origin xyz="0.5 0 0" rpy="0 0 0"/><mass value="2"/>
+    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.2"/></inertial></link>
+  <link name="a_tip"><inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="1"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <link name="b"/>
+  <joint name="ja" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 2"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="fix" type="fixed"><parent link="a"/><child link="a_tip"/><origin xyz="1 0 0"/></joint>
+  <joint name="jb" type="prismatic"><parent link="a_tip"/><child link="b"/><origin xyz="0 0 0.5"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"#;
+
+    #[test]
+    fn fixed_children_merge_with_parallel_axis_inertia() {
+        let model = load(CHAIN, false).unwrap();
+        assert_eq!((model.nq, model.nv, model.bodies.len()), (2, 2, 2));
+        let a = &model.bodies[0].inertia;
+        assert_eq!(a.mass, 3.0);
+        // COM: (2·0.5 + 1·1)/3.
+        assert!((a.com().unwrap() - Vec3::new(2.0 / 3.0, 0.0, 0.0)).norm() < 1e-15);
+        // Joint jb hangs off the merged body at (1, 0, 0.5); its axis is normalised.
+        let jb = &model.joints[1];
+        assert_eq!(jb.parent, Some(0));
+        assert!((jb.parent_from_joint.translation - Vec3::new(1.0, 0.0, 0.5)).norm() < 1e-15);
+        assert!((model.joints[0].axis - Vec3::z()).norm() < 1e-15);
+        // The massless moving link b is reported.
+        assert!(model.warnings.iter().any(|w| w.contains("link 'b' moves")), "{:?}", model.warnings);
+    }
+
+    #[test]
+    fn floating_base_adds_root_joint() {
+        let model = load(CHAIN, true).unwrap();
+        assert_eq!(model.joints[0].name, ROOT_JOINT_NAME);
+        assert_eq!((model.nq, model.nv), (9, 8));
+        assert_eq!(model.neutral_configuration()[6], 1.0);
+    }
+
+    #[test]
+    fn inertial_rotation_is_applied() {
+        // A rod along the inertial frame's x, turned 90° about z, lies along the link's y axis.
+        let text = r#"<robot name="r"><link name="w"/>
+          <link name="rod"><inertial><origin xyz="0 0 0" rpy="0 0 1.5707963267948966"/><mass value="1"/>
+          <inertia ixx="0" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+          <joint name="j" type="continuous"><parent link="w"/><child link="rod"/></joint></robot>"#;
+        let model = load(text, false).unwrap();
+        let i = model.bodies[0].inertia.rotational;
+        assert!((i[(0, 0)] - 1.0).abs() < 1e-15 && i[(1, 1)].abs() < 1e-15);
+    }
+
+    #[test]
+    fn structural_errors_are_named() {
+        let two_parents = r#"<robot name="r"><link name="a"/><link name="b"/><link name="c"/>
+          <joint name="j1" type="fixed"><parent link="a"/><child link="c"/></joint>
+          <joint name="j2" type="fixed"><parent link="b"/><child link="c"/></joint></robot>"#;
+        let msg = load(two_parents, false).unwrap_err().to_string();
+        assert!(msg.contains("link 'c' is the child of two joints, 'j1' and 'j2'"), "{msg}");
+        let cycle = r#"<robot name="r"><link name="a"/><link name="b"/>
+          <joint name="j1" type="fixed"><parent link="a"/><child link="b"/></joint>
+          <joint name="j2" type="fixed"><parent link="b"/><child link="a"/></joint></robot>"#;
+        let msg = load(cycle, false).unwrap_err().to_string();
+        assert!(msg.contains("form a cycle"), "{msg}");
+        let cycle_beside_root = r#"<robot name="r"><link name="root"/><link name="a"/><link name="b"/>
+          <joint name="j1" type="fixed"><parent link="a"/><child link="b"/></joint>
+          <joint name="j2" type="fixed"><parent link="b"/><child link="a"/></joint></robot>"#;
+        let msg = load(cycle_beside_root, false).unwrap_err().to_string();
+        assert!(msg.contains("form a cycle through the links 'a', 'b'"), "{msg}");
+        let two_roots = r#"<robot name="r"><link name="a"/><link name="b"/></robot>"#;
+        let msg = load(two_roots, false).unwrap_err().to_string();
+        assert!(msg.contains("2 root links ('a', 'b')"), "{msg}");
+    }
+
+    #[test]
+    fn mimic_on_fixed_joint_warns_and_unknown_leader_fails() {
+        let fixed = r#"<robot name="r"><link name="a"/><link name="b"/>
+          <joint name="j" type="fixed"><parent link="a"/><child link="b"/><mimic joint="x"/></joint></robot>"#;
+        let model = load(fixed, false).unwrap();
+        assert!(model.warnings.iter().any(|w| w.contains("<mimic> on fixed joint 'j' is ignored")));
+        let bad = r#"<robot name="r"><link name="a"/><link name="b"/><link name="c"/>
+          <joint name="j1" type="continuous"><parent link="a"/><child link="b"/></joint>
+          <joint name="j2" type="continuous"><parent link="b"/><child link="c"/><mimic joint="j0"/></joint></robot>"#;
+        let msg = load(bad, false).unwrap_err().to_string();
+        assert!(msg.contains("joint 'j2' mimics 'j0'") && msg.contains("did you mean 'j1'"), "{msg}");
+    }
+}

@@ -1,0 +1,333 @@
+//! The parameter registry: every value of a model that can be declared uncertain, addressed by a
+//! dotted path (design contract):
+//!
+//! - `link.NAME.mass`, `link.NAME.com.{x,y,z}`, `link.NAME.inertia.{ixx,ixy,ixz,iyy,iyz,izz}` — the
+//!   URDF `<inertial>` (inertia about the COM, in the inertial frame);
+//! - `joint.NAME.origin.{x,y,z,roll,pitch,yaw}`, `joint.NAME.axis.{x,y,z}`, `joint.NAME.damping`,
+//!   `joint.NAME.friction` (axis, damping and friction only on moving joints);
+//! - `scene.gravity.{x,y,z}`.
+//!
+//! `NAME` is everything between the kind prefix and a known field suffix, so names containing dots
+//! or slashes (`joint_0.0`, `iris__/imu_link`) work. A path resolves once to a [`ParamTarget`];
+//! writing values through targets ([`apply`]) allocates nothing.
+
+use crate::model::{Model, UrdfJointType};
+use crate::text::closest_suggestion;
+use thiserror::Error;
+
+/// A resolved parameter: which value of the model it writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ParamTarget {
+    /// Mass of link `0` (index into `description.links`).
+    LinkMass(usize),
+    /// Component `1` (x, y, z) of link `0`'s centre of mass.
+    LinkCom(usize, usize),
+    /// Component `1` (ixx, ixy, ixz, iyy, iyz, izz) of link `0`'s inertia.
+    LinkInertia(usize, usize),
+    /// Component `1` (x, y, z, roll, pitch, yaw) of joint `0`'s origin (index into
+    /// `description.joints`).
+    JointOrigin(usize, usize),
+    /// Component `1` of joint `0`'s axis.
+    JointAxis(usize, usize),
+    /// Joint `0`'s viscous damping.
+    JointDamping(usize),
+    /// Joint `0`'s Coulomb friction.
+    JointFriction(usize),
+    /// Component `0` of gravity.
+    Gravity(usize),
+}
+
+/// One listed parameter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamInfo {
+    /// Its dotted path.
+    pub path: String,
+    /// What it writes.
+    pub target: ParamTarget,
+    /// Its unit (`kg`, `m`, `rad`, `kg·m²`, …; `""` for unitless).
+    pub unit: &'static str,
+}
+
+/// Why a parameter path or value was refused.
+#[derive(Debug, Error)]
+pub enum ParamError {
+    /// No such parameter.
+    #[error("unknown parameter '{path}'{suggestion}; `ribbon params ROBOT.urdf` lists them all")]
+    Unknown {
+        /// The path given.
+        path: String,
+        /// "; did you mean '…'?" or empty.
+        suggestion: String,
+    },
+    /// The path names a real element that does not have that value.
+    #[error("parameter '{path}' does not exist: {reason}")]
+    NotApplicable {
+        /// The path given.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+    /// A value that no model can have.
+    #[error("parameter '{path}' cannot be {value}: {reason}")]
+    InvalidValue {
+        /// The path.
+        path: String,
+        /// The value.
+        value: f64,
+        /// Why.
+        reason: &'static str,
+    },
+}
+
+const COM_FIELDS: [&str; 3] = ["x", "y", "z"];
+const INERTIA_FIELDS: [&str; 6] = ["ixx", "ixy", "ixz", "iyy", "iyz", "izz"];
+const ORIGIN_FIELDS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
+
+/// The dotted path of a target.
+pub fn path_of(model: &Model, target: ParamTarget) -> String {
+    let link = |l: usize| &model.description.links[l].name;
+    let joint = |j: usize| &model.description.joints[j].name;
+    match target {
+        ParamTarget::LinkMass(l) => format!("link.{}.mass", link(l)),
+        ParamTarget::LinkCom(l, c) => format!("link.{}.com.{}", link(l), COM_FIELDS[c]),
+        ParamTarget::LinkInertia(l, c) => format!("link.{}.inertia.{}", link(l), INERTIA_FIELDS[c]),
+        ParamTarget::JointOrigin(j, c) => format!("joint.{}.origin.{}", joint(j), ORIGIN_FIELDS[c]),
+        ParamTarget::JointAxis(j, c) => format!("joint.{}.axis.{}", joint(j), COM_FIELDS[c]),
+        ParamTarget::JointDamping(j) => format!("joint.{}.damping", joint(j)),
+        ParamTarget::JointFriction(j) => format!("joint.{}.friction", joint(j)),
+        ParamTarget::Gravity(c) => format!("scene.gravity.{}", COM_FIELDS[c]),
+    }
+}
+
+/// The unit of a target's value.
+pub fn unit_of(model: &Model, target: ParamTarget) -> &'static str {
+    let prismatic = |j: usize| model.description.joints[j].joint_type == UrdfJointType::Prismatic;
+    match target {
+        ParamTarget::LinkMass(_) => "kg",
+        ParamTarget::LinkCom(..) => "m",
+        ParamTarget::LinkInertia(..) => "kg·m²",
+        ParamTarget::JointOrigin(_, c) if c < 3 => "m",
+        ParamTarget::JointOrigin(..) => "rad",
+        ParamTarget::JointAxis(..) => "",
+        ParamTarget::JointDamping(j) if prismatic(j) => "N·s/m",
+        ParamTarget::JointDamping(_) => "N·m·s/rad",
+        ParamTarget::JointFriction(j) if prismatic(j) => "N",
+        ParamTarget::JointFriction(_) => "N·m",
+        ParamTarget::Gravity(_) => "m/s²",
+    }
+}
+
+/// Every parameter of the model, in a stable order: links (file order) with mass, COM and inertia;
+/// joints (file order) with origin, then axis, damping and friction for moving joints; gravity.
+///
+/// Links without `<inertial>` are listed too (nominal 0): declaring their mass is how a payload is
+/// added to a frame such as `tool0`.
+pub fn list(model: &Model) -> Vec<ParamInfo> {
+    let mut targets = Vec::new();
+    for l in 0..model.description.links.len() {
+        targets.push(ParamTarget::LinkMass(l));
+        targets.extend((0..3).map(|c| ParamTarget::LinkCom(l, c)));
+        targets.extend((0..6).map(|c| ParamTarget::LinkInertia(l, c)));
+    }
+    for (j, spec) in model.description.joints.iter().enumerate() {
+        targets.extend((0..6).map(|c| ParamTarget::JointOrigin(j, c)));
+        if spec.joint_type.has_axis() {
+            targets.extend((0..3).map(|c| ParamTarget::JointAxis(j, c)));
+            targets.push(ParamTarget::JointDamping(j));
+            targets.push(ParamTarget::JointFriction(j));
+        }
+    }
+    targets.extend((0..3).map(ParamTarget::Gravity));
+    targets
+        .into_iter()
+        .map(|target| ParamInfo {
+            path: path_of(model, target),
+            target,
+            unit: unit_of(model, target),
+        })
+        .collect()
+}
+
+/// Resolves a dotted path.
+pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
+    let unknown = || ParamError::Unknown {
+        path: path.to_string(),
+        suggestion: closest_suggestion(path, list(model).iter().map(|p| p.path.as_str()).collect::<Vec<_>>()),
+    };
+    if let Some(field) = path.strip_prefix("scene.gravity.") {
+        return COM_FIELDS
+            .iter()
+            .position(|f| *f == field)
+            .map(ParamTarget::Gravity)
+            .ok_or_else(unknown);
+    }
+    if let Some(rest) = path.strip_prefix("link.") {
+        let mut fields: Vec<(String, u8, usize)> = vec![("mass".to_string(), 0, 0)];
+        fields.extend(COM_FIELDS.iter().enumerate().map(|(c, f)| (format!("com.{f}"), 1, c)));
+        fields.extend(INERTIA_FIELDS.iter().enumerate().map(|(c, f)| (format!("inertia.{f}"), 2, c)));
+        for (field, kind, c) in fields {
+            let Some(l) = name_before(rest, &field).and_then(|n| model.description.link_index(n)) else {
+                continue;
+            };
+            return Ok(match kind {
+                0 => ParamTarget::LinkMass(l),
+                1 => ParamTarget::LinkCom(l, c),
+                _ => ParamTarget::LinkInertia(l, c),
+            });
+        }
+        return Err(unknown());
+    }
+    if let Some(rest) = path.strip_prefix("joint.") {
+        let description = &model.description;
+        let mut fields: Vec<(String, u8, usize)> = ORIGIN_FIELDS
+            .iter()
+            .enumerate()
+            .map(|(c, f)| (format!("origin.{f}"), 0u8, c))
+            .collect();
+        fields.extend(COM_FIELDS.iter().enumerate().map(|(c, f)| (format!("axis.{f}"), 1u8, c)));
+        fields.push(("damping".to_string(), 2, 0));
+        fields.push(("friction".to_string(), 3, 0));
+        for (field, kind, c) in fields {
+            let Some(j) = name_before(rest, &field).and_then(|n| description.joint_index(n)) else {
+                continue;
+            };
+            let spec = &description.joints[j];
+            if kind > 0 && !spec.joint_type.has_axis() {
+                return Err(ParamError::NotApplicable {
+                    path: path.to_string(),
+                    reason: format!(
+                        "joint '{}' is {} and has no axis, damping or friction",
+                        spec.name,
+                        spec.joint_type.as_str()
+                    ),
+                });
+            }
+            return Ok(match kind {
+                0 => ParamTarget::JointOrigin(j, c),
+                1 => ParamTarget::JointAxis(j, c),
+                2 => ParamTarget::JointDamping(j),
+                _ => ParamTarget::JointFriction(j),
+            });
+        }
+        return Err(unknown());
+    }
+    Err(unknown())
+}
+
+/// `NAME` in `NAME.field`, when `rest` ends with `.field`.
+fn name_before<'a>(rest: &'a str, field: &str) -> Option<&'a str> {
+    rest.strip_suffix(field).and_then(|n| n.strip_suffix('.'))
+}
+
+/// The current value of a target.
+pub fn get(model: &Model, target: ParamTarget) -> f64 {
+    let d = &model.description;
+    match target {
+        ParamTarget::LinkMass(l) => d.links[l].inertial.mass,
+        ParamTarget::LinkCom(l, c) => d.links[l].inertial.com[c],
+        ParamTarget::LinkInertia(l, c) => d.links[l].inertial.inertia[c],
+        ParamTarget::JointOrigin(j, c) => d.joints[j].origin[c],
+        ParamTarget::JointAxis(j, c) => d.joints[j].axis[c],
+        ParamTarget::JointDamping(j) => d.joints[j].damping,
+        ParamTarget::JointFriction(j) => d.joints[j].friction,
+        ParamTarget::Gravity(c) => model.gravity[c],
+    }
+}
+
+/// Writes one value into the model's description (not yet into the derived tree: call
+/// [`Model::refresh`] after the last write, or use [`apply`]).
+#[inline]
+pub fn set(model: &mut Model, target: ParamTarget, value: f64) {
+    let d = &mut model.description;
+    match target {
+        ParamTarget::LinkMass(l) => d.links[l].inertial.mass = value,
+        ParamTarget::LinkCom(l, c) => d.links[l].inertial.com[c] = value,
+        ParamTarget::LinkInertia(l, c) => d.links[l].inertial.inertia[c] = value,
+        ParamTarget::JointOrigin(j, c) => d.joints[j].origin[c] = value,
+        ParamTarget::JointAxis(j, c) => d.joints[j].axis[c] = value,
+        ParamTarget::JointDamping(j) => d.joints[j].damping = value,
+        ParamTarget::JointFriction(j) => d.joints[j].friction = value,
+        ParamTarget::Gravity(c) => model.gravity[c] = value,
+    }
+}
+
+/// Writes `values[i]` into `targets[i]` for all `i`, then refreshes the tree. Allocates nothing.
+pub fn apply(model: &mut Model, targets: &[ParamTarget], values: &[f64]) {
+    for (target, value) in targets.iter().zip(values) {
+        set(model, *target, *value);
+    }
+    model.refresh();
+}
+
+/// Checks that a single value is possible for its target (finite; mass, damping and friction ≥ 0).
+pub fn validate_value(model: &Model, target: ParamTarget, value: f64) -> Result<(), ParamError> {
+    let invalid = |reason| ParamError::InvalidValue {
+        path: path_of(model, target),
+        value,
+        reason,
+    };
+    if !value.is_finite() {
+        return Err(invalid("every parameter must be a finite number"));
+    }
+    match target {
+        ParamTarget::LinkMass(_) if value < 0.0 => Err(invalid("a mass must be ≥ 0")),
+        ParamTarget::JointDamping(_) if value < 0.0 => Err(invalid("damping must be ≥ 0")),
+        ParamTarget::JointFriction(_) if value < 0.0 => Err(invalid("friction must be ≥ 0")),
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{parse_description, LoadOptions};
+
+    fn model() -> Model {
+        let text = r#"<robot name="r"><link name="world"/>
+          <link name="iris__/imu_link"><inertial><mass value="2"/><origin xyz="0.1 0 0"/>
+          <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+          <joint name="joint_0.0" type="prismatic"><parent link="world"/><child link="iris__/imu_link"/>
+          <origin xyz="0 0 1"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+          <link name="tip"/><joint name="fix" type="fixed"><parent link="iris__/imu_link"/><child link="tip"/></joint>
+          </robot>"#;
+        Model::from_description(parse_description(text, "r.urdf").unwrap(), LoadOptions::default(), "r.urdf").unwrap()
+    }
+
+    #[test]
+    fn names_with_dots_and_slashes_resolve() {
+        let m = model();
+        assert_eq!(resolve(&m, "link.iris__/imu_link.mass").unwrap(), ParamTarget::LinkMass(1));
+        assert_eq!(resolve(&m, "link.iris__/imu_link.com.x").unwrap(), ParamTarget::LinkCom(1, 0));
+        assert_eq!(resolve(&m, "link.iris__/imu_link.inertia.iyz").unwrap(), ParamTarget::LinkInertia(1, 4));
+        assert_eq!(resolve(&m, "joint.joint_0.0.origin.z").unwrap(), ParamTarget::JointOrigin(0, 2));
+        assert_eq!(resolve(&m, "joint.joint_0.0.damping").unwrap(), ParamTarget::JointDamping(0));
+        assert_eq!(resolve(&m, "scene.gravity.z").unwrap(), ParamTarget::Gravity(2));
+    }
+
+    #[test]
+    fn every_listed_path_resolves_to_itself() {
+        let m = model();
+        for p in list(&m) {
+            assert_eq!(resolve(&m, &p.path).unwrap(), p.target, "{}", p.path);
+        }
+    }
+
+    #[test]
+    fn unknown_paths_get_suggestions() {
+        let m = model();
+        let msg = resolve(&m, "joint.joint_0.0.orgin.z").unwrap_err().to_string();
+        assert!(msg.contains("did you mean 'joint.joint_0.0.origin.z'"), "{msg}");
+        let msg = resolve(&m, "joint.fix.axis.x").unwrap_err().to_string();
+        assert!(msg.contains("joint 'fix' is fixed"), "{msg}");
+    }
+
+    #[test]
+    fn apply_changes_the_tree() {
+        let mut m = model();
+        let targets = [resolve(&m, "link.iris__/imu_link.mass").unwrap(), resolve(&m, "joint.joint_0.0.origin.z").unwrap()];
+        apply(&mut m, &targets, &[3.0, 2.0]);
+        assert_eq!(m.bodies[0].inertia.mass, 3.0);
+        assert_eq!(m.joints[0].parent_from_joint.translation.z, 2.0);
+        assert!(validate_value(&m, targets[0], -1.0).is_err());
+    }
+}

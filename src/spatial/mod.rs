@@ -1,0 +1,23 @@
+//! Spatial algebra on nalgebra fixed-size types: 6D motion and force vectors, rigid transforms and
+//! rigid-body inertia.
+//!
+//! Conventions (the same as Pinocchio's, so that results compare directly):
+//! - a 6D vector is stored as its linear part then its angular part;
+//! - a [`Transform`] named `parent_from_child` maps coordinates of the child frame into the parent frame:
+//!   `point_in_parent = parent_from_child.rotation * point_in_child + parent_from_child.translation`;
+//! - an [`Inertia`] is expressed about the origin of the frame it lives in.
+//!
+//! This module does no allocation and knows nothing about robots.
+
+mod inertia;
+mod motion;
+mod transform;
+
+pub use inertia::Inertia;
+pub use motion::{Force, Motion};
+pub use transform::{rotation_about_axis, rotation_from_rpy, Transform};
+
+/// A 3-vector of `f64`.
+pub type Vec3 = nalgebra::Vector3<f64>;
+/// A 3×3 matrix of `f64`.
+pub type Mat3 = nalgebra::Matrix3<f64>;

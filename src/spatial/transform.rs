@@ -1,0 +1,222 @@
+//! Rigid transforms and the rotations URDF needs (roll-pitch-yaw, axis-angle).
+
+use super::{Force, Inertia, Mat3, Motion, Vec3};
+
+/// A rigid transform `parent_from_child`: `point_in_parent = rotation * point_in_child + translation`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transform {
+    /// Rotation taking child coordinates to parent coordinates.
+    pub rotation: Mat3,
+    /// Position of the child origin in the parent frame (m).
+    pub translation: Vec3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self::identity()
+    }
+}
+
+/// URDF's roll-pitch-yaw rotation: `Rz(yaw) · Ry(pitch) · Rx(roll)` (fixed axes x, y, z).
+pub fn rotation_from_rpy(roll: f64, pitch: f64, yaw: f64) -> Mat3 {
+    let (sr, cr) = roll.sin_cos();
+    let (sp, cp) = pitch.sin_cos();
+    let (sy, cy) = yaw.sin_cos();
+    Mat3::new(
+        cy * cp,
+        cy * sp * sr - sy * cr,
+        cy * sp * cr + sy * sr,
+        sy * cp,
+        sy * sp * sr + cy * cr,
+        sy * sp * cr - cy * sr,
+        -sp,
+        cp * sr,
+        cp * cr,
+    )
+}
+
+/// Rotation by `angle` (rad) about the unit vector `axis` (Rodrigues' formula).
+#[inline]
+pub fn rotation_about_axis(axis: &Vec3, angle: f64) -> Mat3 {
+    let (s, c) = angle.sin_cos();
+    let t = 1.0 - c;
+    let (x, y, z) = (axis.x, axis.y, axis.z);
+    Mat3::new(
+        t * x * x + c,
+        t * x * y - s * z,
+        t * x * z + s * y,
+        t * x * y + s * z,
+        t * y * y + c,
+        t * y * z - s * x,
+        t * x * z - s * y,
+        t * y * z + s * x,
+        t * z * z + c,
+    )
+}
+
+impl Transform {
+    /// The identity transform.
+    pub fn identity() -> Self {
+        Self {
+            rotation: Mat3::identity(),
+            translation: Vec3::zeros(),
+        }
+    }
+
+    /// Builds a transform from a rotation and a translation.
+    pub fn new(rotation: Mat3, translation: Vec3) -> Self {
+        Self {
+            rotation,
+            translation,
+        }
+    }
+
+    /// A URDF `<origin xyz rpy>`.
+    pub fn from_xyz_rpy(xyz: [f64; 3], rpy: [f64; 3]) -> Self {
+        Self {
+            rotation: rotation_from_rpy(rpy[0], rpy[1], rpy[2]),
+            translation: Vec3::new(xyz[0], xyz[1], xyz[2]),
+        }
+    }
+
+    /// `self * child_from_x`: composes `parent_from_child` with `child_from_x` into `parent_from_x`.
+    #[inline]
+    pub fn compose(&self, child_from_x: &Transform) -> Transform {
+        Transform {
+            rotation: self.rotation * child_from_x.rotation,
+            translation: self.rotation * child_from_x.translation + self.translation,
+        }
+    }
+
+    /// The inverse transform (`child_from_parent`).
+    #[inline]
+    pub fn inverse(&self) -> Transform {
+        let rt = self.rotation.transpose();
+        Transform {
+            rotation: rt,
+            translation: -(rt * self.translation),
+        }
+    }
+
+    /// Maps a point from child to parent coordinates.
+    #[inline]
+    pub fn transform_point(&self, point_in_child: &Vec3) -> Vec3 {
+        self.rotation * point_in_child + self.translation
+    }
+
+    /// Expresses a child-frame motion in the parent frame.
+    #[inline]
+    pub fn act_motion(&self, m: &Motion) -> Motion {
+        let angular = self.rotation * m.angular;
+        Motion {
+            linear: self.rotation * m.linear + self.translation.cross(&angular),
+            angular,
+        }
+    }
+
+    /// Expresses a parent-frame motion in the child frame.
+    #[inline]
+    pub fn inv_act_motion(&self, m: &Motion) -> Motion {
+        let rt = self.rotation.transpose();
+        Motion {
+            linear: rt * (m.linear - self.translation.cross(&m.angular)),
+            angular: rt * m.angular,
+        }
+    }
+
+    /// Expresses a child-frame force in the parent frame.
+    #[inline]
+    pub fn act_force(&self, f: &Force) -> Force {
+        let linear = self.rotation * f.linear;
+        Force {
+            linear,
+            angular: self.rotation * f.angular + self.translation.cross(&linear),
+        }
+    }
+
+    /// Expresses a parent-frame force in the child frame.
+    #[inline]
+    pub fn inv_act_force(&self, f: &Force) -> Force {
+        let rt = self.rotation.transpose();
+        Force {
+            linear: rt * f.linear,
+            angular: rt * (f.angular - self.translation.cross(&f.linear)),
+        }
+    }
+
+    /// Expresses a child-frame inertia in the parent frame (about the parent origin).
+    ///
+    /// With `h_r = R h` and `p` the translation: `h' = h_r + m p` and
+    /// `I' = R I Rᵀ + (2 h_r·p + m|p|²) 1 − (h_r pᵀ + p h_rᵀ + m p pᵀ)`.
+    #[inline]
+    pub fn act_inertia(&self, inertia: &Inertia) -> Inertia {
+        let r = &self.rotation;
+        let p = &self.translation;
+        let m = inertia.mass;
+        let h_r = r * inertia.first_moment;
+        let outer = h_r * p.transpose() + p * h_r.transpose() + (p * p.transpose()) * m;
+        let diag = 2.0 * h_r.dot(p) + m * p.norm_squared();
+        Inertia {
+            mass: m,
+            first_moment: h_r + p * m,
+            rotational: r * inertia.rotational * r.transpose() + Mat3::from_diagonal_element(diag)
+                - outer,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const EXACT: f64 = 1e-12;
+
+    #[test]
+    fn rpy_matches_nalgebra_euler_angles() {
+        let (r, p, y) = (0.3, -1.1, 2.4);
+        let ours = rotation_from_rpy(r, p, y);
+        let theirs = *nalgebra::Rotation3::from_euler_angles(r, p, y).matrix();
+        assert!((ours - theirs).abs().max() < EXACT);
+    }
+
+    #[test]
+    fn axis_rotation_matches_nalgebra() {
+        let axis = Vec3::new(0.2, -0.5, 0.9).normalize();
+        let ours = rotation_about_axis(&axis, 0.77);
+        let unit = nalgebra::Unit::new_normalize(axis);
+        let theirs = *nalgebra::Rotation3::from_axis_angle(&unit, 0.77).matrix();
+        assert!((ours - theirs).abs().max() < EXACT);
+    }
+
+    #[test]
+    fn motion_and_force_actions_invert_and_preserve_power() {
+        let x = Transform::from_xyz_rpy([0.1, -0.4, 0.7], [0.3, 0.2, -1.0]);
+        let m = Motion::new(Vec3::new(1.0, 2.0, 3.0), Vec3::new(-0.5, 0.4, 0.2));
+        let f = Force::new(Vec3::new(0.3, -0.2, 1.0), Vec3::new(2.0, 0.1, -0.7));
+        let back = x.inv_act_motion(&x.act_motion(&m));
+        assert!((back.linear - m.linear).norm() < EXACT);
+        let fb = x.inv_act_force(&x.act_force(&f));
+        assert!((fb.angular - f.angular).norm() < EXACT);
+        // Power is frame independent.
+        assert!((x.act_motion(&m).dot(&x.act_force(&f)) - m.dot(&f)).abs() < EXACT);
+        let composed = x.compose(&x.inverse());
+        assert!((composed.rotation - Mat3::identity()).abs().max() < EXACT);
+        assert!(composed.translation.norm() < EXACT);
+    }
+
+    #[test]
+    fn inertia_action_is_consistent_with_force_and_motion_actions() {
+        // (X I) (X m) = X (I m) for every motion m.
+        let x = Transform::from_xyz_rpy([0.4, 0.1, -0.3], [-0.6, 0.9, 0.2]);
+        let body = Inertia::from_com(
+            2.5,
+            Vec3::new(0.1, -0.2, 0.05),
+            Mat3::new(0.3, 0.01, 0.02, 0.01, 0.2, -0.03, 0.02, -0.03, 0.25),
+        );
+        let m = Motion::new(Vec3::new(0.7, -1.0, 0.2), Vec3::new(0.3, 0.5, -0.9));
+        let lhs = x.act_inertia(&body).apply(&x.act_motion(&m));
+        let rhs = x.act_force(&body.apply(&m));
+        assert!((lhs.linear - rhs.linear).norm() < EXACT);
+        assert!((lhs.angular - rhs.angular).norm() < EXACT);
+    }
+}

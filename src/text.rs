@@ -1,0 +1,60 @@
+//! Small text helpers for error messages: "did you mean …?" suggestions.
+
+/// Edit distance (insertions, deletions, substitutions) between two strings, by characters.
+pub fn edit_distance(a: &str, b: &str) -> usize {
+    let b_chars: Vec<char> = b.chars().collect();
+    let mut previous: Vec<usize> = (0..=b_chars.len()).collect();
+    let mut current = vec![0; b_chars.len() + 1];
+    for (i, ca) in a.chars().enumerate() {
+        current[0] = i + 1;
+        for (j, cb) in b_chars.iter().enumerate() {
+            let substitution = previous[j] + usize::from(ca != *cb);
+            current[j + 1] = substitution.min(previous[j + 1] + 1).min(current[j] + 1);
+        }
+        std::mem::swap(&mut previous, &mut current);
+    }
+    previous[b_chars.len()]
+}
+
+/// The candidate closest to `wanted`, if it is close enough to be a plausible typo (at most a third
+/// of the longer name, and at least one character, differs).
+pub fn closest<'a>(wanted: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    let best = candidates
+        .into_iter()
+        .map(|c| (edit_distance(wanted, c), c))
+        .min_by_key(|(distance, _)| *distance)?;
+    let limit = (wanted.chars().count().max(best.1.chars().count()) / 3).max(1);
+    (best.0 <= limit).then_some(best.1)
+}
+
+/// `"; did you mean 'x'?"` for the closest candidate, or an empty string.
+pub fn closest_suggestion<'a>(
+    wanted: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+) -> String {
+    closest(wanted, candidates)
+        .map(|c| format!("; did you mean '{c}'?"))
+        .unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distances() {
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(edit_distance("", "abc"), 3);
+        assert_eq!(edit_distance("same", "same"), 0);
+    }
+
+    #[test]
+    fn suggestions_only_for_near_misses() {
+        let names = ["link.upper_arm_link.mass", "link.forearm_link.mass"];
+        assert_eq!(
+            closest("link.forarm_link.mass", names),
+            Some("link.forearm_link.mass")
+        );
+        assert_eq!(closest("something.else", names), None);
+    }
+}
