@@ -2,8 +2,10 @@
 //! documented exit code (0 ok, 1 failure, 2 bad arguments or bad input).
 
 use crate::dynamics::DynamicsError;
+use crate::integrate::IntegrateError;
 use crate::model::ModelError;
 use crate::params::ParamError;
+use crate::scene::SceneError;
 use thiserror::Error;
 
 /// Any error ribbon reports.
@@ -15,6 +17,12 @@ pub enum Error {
     /// A parameter path or value was refused.
     #[error(transparent)]
     Param(#[from] ParamError),
+    /// The sidecar or a scene value is bad.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// The integrator failed (names time, step and what diverged).
+    #[error("simulation failed: {0}")]
+    Integrate(#[from] IntegrateError),
     /// A dynamics computation failed.
     #[error(transparent)]
     Dynamics(#[from] DynamicsError),
@@ -40,7 +48,14 @@ impl Error {
     /// The process exit code for this error: 2 for bad arguments or bad input, 1 otherwise.
     pub fn exit_code(&self) -> u8 {
         match self {
-            Error::Model(_) | Error::Param(_) | Error::BadArgument { .. } => 2,
+            Error::Model(_) | Error::Param(_) | Error::Scene(_) | Error::BadArgument { .. } => 2,
+            Error::Integrate(
+                IntegrateError::InvalidAlpha { .. }
+                | IntegrateError::AlphaZeroWithConstraints { .. }
+                | IntegrateError::InvalidStep { .. }
+                | IntegrateError::InvalidSetting { .. },
+            ) => 2,
+            Error::Integrate(_) => 1,
             Error::Dynamics(DynamicsError::SingularMassMatrix { .. }) => 2,
             Error::Dynamics(_) | Error::Output { .. } => 1,
         }

@@ -20,10 +20,14 @@
 
 pub mod cli;
 pub mod dynamics;
+pub mod effects;
 mod error;
-// pub mod integrate;
+pub mod integrate;
 pub mod model;
+pub mod output;
 pub mod params;
+pub mod scene;
+pub mod simulate;
 pub mod spatial;
 pub mod text;
 // pub mod uq;

@@ -17,13 +17,13 @@ pub fn edit_distance(a: &str, b: &str) -> usize {
 }
 
 /// The candidate closest to `wanted`, if it is close enough to be a plausible typo (at most a third
-/// of the longer name, and at least one character, differs).
+/// of the longer name, or two characters for short names, differ).
 pub fn closest<'a>(wanted: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
     let best = candidates
         .into_iter()
         .map(|c| (edit_distance(wanted, c), c))
         .min_by_key(|(distance, _)| *distance)?;
-    let limit = (wanted.chars().count().max(best.1.chars().count()) / 3).max(1);
+    let limit = (wanted.chars().count().max(best.1.chars().count()) / 3).max(2);
     (best.0 <= limit).then_some(best.1)
 }
 

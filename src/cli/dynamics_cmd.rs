@@ -52,7 +52,9 @@ pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
         Some(tau) => Some(forward_dynamics(&model, &mut data, &q, &v, tau)?.to_vec()),
         None => None,
     };
-    let tau_out = qdd.as_ref().map(|a| rnea(&model, &mut data, &q, &v, a).to_vec());
+    let tau_out = qdd
+        .as_ref()
+        .map(|a| rnea(&model, &mut data, &q, &v, a).to_vec());
 
     let joints: Vec<Value> = model
         .joints
@@ -117,15 +119,16 @@ fn coordinate_names(model: &Model) -> (String, String) {
             .collect::<Vec<_>>()
             .join(", ")
     };
-    (
-        describe("x y z qx qy qz qw"),
-        describe("vx vy vz wx wy wz"),
-    )
+    (describe("x y z qx qy qz qw"), describe("vx vy vz wx wy wz"))
 }
 
 /// Normalises each floating joint's quaternion when within [`QUATERNION_NORM_TOLERANCE`] of unit.
 fn normalise_quaternions(model: &Model, q: &mut [f64]) -> Result<(), Error> {
-    for joint in model.joints.iter().filter(|j| j.kind == JointKind::Floating) {
+    for joint in model
+        .joints
+        .iter()
+        .filter(|j| j.kind == JointKind::Floating)
+    {
         let quaternion = &mut q[joint.q_index + 3..joint.q_index + 7];
         let norm = quaternion.iter().map(|x| x * x).sum::<f64>().sqrt();
         if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
@@ -151,7 +154,12 @@ fn readable_report(model: &Model, out: &Map<String, Value>) -> String {
                 .join(" ")
         })
     };
-    let mut text = format!("robot '{}': nq = {}, nv = {}\n", model.name(), model.nq, model.nv);
+    let mut text = format!(
+        "robot '{}': nq = {}, nv = {}\n",
+        model.name(),
+        model.nq,
+        model.nv
+    );
     for joint in &model.joints {
         text.push_str(&format!(
             "  {:<28} {:<10} q[{}..{}] v[{}..{}]\n",
@@ -173,7 +181,11 @@ fn readable_report(model: &Model, out: &Map<String, Value>) -> String {
         for row in rows {
             let cells: Vec<String> = row
                 .as_array()
-                .map(|r| r.iter().map(|x| format!("{:>12.6}", x.as_f64().unwrap_or(f64::NAN))).collect())
+                .map(|r| {
+                    r.iter()
+                        .map(|x| format!("{:>12.6}", x.as_f64().unwrap_or(f64::NAN)))
+                        .collect()
+                })
                 .unwrap_or_default();
             text.push_str(&format!("      {}\n", cells.join(" ")));
         }

@@ -3,6 +3,7 @@
 
 mod dynamics_cmd;
 mod params_cmd;
+mod simulate_cmd;
 mod values;
 
 pub use values::{parse_set, parse_vector};
@@ -28,6 +29,39 @@ pub enum Command {
     /// Rigid-body dynamics at one state: mass matrix, bias forces, forward and inverse dynamics,
     /// frame placements.
     Dynamics(DynamicsArgs),
+    /// One nominal trajectory with the scene of the sidecar (`ROBOT.uncertainty.toml`).
+    Simulate(SimulateArgs),
+}
+
+/// `ribbon simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// The robot's URDF file.
+    pub urdf: PathBuf,
+    /// The sidecar file (default: `ROBOT.uncertainty.toml` beside the URDF, when it exists).
+    #[arg(long, value_name = "FILE")]
+    pub uncertainty: Option<PathBuf>,
+    /// Override one parameter (repeatable), e.g. `--set joint.elbow_joint.origin.z=0.43`.
+    #[arg(long = "set", value_name = "PATH=VALUE", allow_hyphen_values = true)]
+    pub set: Vec<String>,
+    /// Simulated time, s (overrides `[scene] duration`).
+    #[arg(long, value_name = "SECONDS")]
+    pub duration: Option<f64>,
+    /// Fixed step, s (overrides `[scene] step`).
+    #[arg(long, value_name = "SECONDS")]
+    pub step: Option<f64>,
+    /// HHT α in [-1/3, 0] (overrides `[scene] alpha`).
+    #[arg(long, allow_hyphen_values = true)]
+    pub alpha: Option<f64>,
+    /// Put the root link on a floating joint (same as `[scene] base = "floating"`).
+    #[arg(long)]
+    pub floating: bool,
+    /// Write the recorded series as CSV (`t`, then one column per output).
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Write the summary JSON (method "nominal", lower = upper = nominal).
+    #[arg(long, value_name = "FILE")]
+    pub summary: Option<PathBuf>,
 }
 
 /// `ribbon params`.
@@ -76,6 +110,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
     match cli.command {
         Command::Params(args) => params_cmd::run(&args),
         Command::Dynamics(args) => dynamics_cmd::run(&args),
+        Command::Simulate(args) => simulate_cmd::run(&args),
     }
 }
 

@@ -27,7 +27,11 @@ pub fn run(args: &ParamsArgs) -> Result<(), Error> {
             .collect();
         format!("{}\n", serde_json::Value::Array(rows))
     } else {
-        let width = listed.iter().map(|p| p.path.chars().count()).max().unwrap_or(4);
+        let width = listed
+            .iter()
+            .map(|p| p.path.chars().count())
+            .max()
+            .unwrap_or(4);
         let mut out = format!("{:<width$}  {:>14}  unit\n", "path", "nominal");
         for p in &listed {
             out.push_str(&format!(

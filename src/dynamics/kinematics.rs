@@ -7,7 +7,8 @@ use crate::spatial::Transform;
 /// Computes `data.parent_from_body` and `data.world_from_body` for `q` (`dim nq`).
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
     for (i, joint) in model.joints.iter().enumerate() {
-        let parent_from_body = joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()]);
+        let parent_from_body =
+            joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()]);
         data.parent_from_body[i] = parent_from_body;
         data.world_from_body[i] = match joint.parent {
             Some(p) => data.world_from_body[p].compose(&parent_from_body),

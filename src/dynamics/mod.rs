@@ -71,8 +71,8 @@ pub fn forward_dynamics<'a>(
 ) -> Result<&'a [f64], DynamicsError> {
     nonlinear_effects(model, data, q, v);
     crba(model, data, q);
-    for i in 0..model.nv {
-        data.qdd[i] = tau[i] - data.bias[i];
+    for ((qdd, tau), bias) in data.qdd.iter_mut().zip(tau).zip(data.bias.iter()) {
+        *qdd = tau - bias;
     }
     if let Err((coordinate, pivot)) = cholesky_factor_in_place(&mut data.mass_matrix) {
         return Err(DynamicsError::SingularMassMatrix {

@@ -48,7 +48,11 @@ fn run(model: &Model, data: &mut Data, q: &[f64], v: &[f64], qdd: Option<&[f64]>
         let parent_from_body = joint.parent_from_child(&q[qi..qi + joint.nq()]);
         let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
         let (parent_velocity, parent_acceleration, world_from_parent) = match joint.parent {
-            Some(p) => (data.velocity[p], data.acceleration[p], Some(data.world_from_body[p])),
+            Some(p) => (
+                data.velocity[p],
+                data.acceleration[p],
+                Some(data.world_from_body[p]),
+            ),
             None => (Motion::zero(), base_acceleration, None),
         };
         let velocity = parent_from_body.inv_act_motion(&parent_velocity) + joint_velocity;
@@ -58,7 +62,8 @@ fn run(model: &Model, data: &mut Data, q: &[f64], v: &[f64], qdd: Option<&[f64]>
             acceleration += joint.motion(&qdd[vi..vi + joint.nv()]);
         }
         let inertia = &model.bodies[i].inertia;
-        data.force[i] = inertia.apply(&acceleration) + velocity.cross_force(&inertia.apply(&velocity));
+        data.force[i] =
+            inertia.apply(&acceleration) + velocity.cross_force(&inertia.apply(&velocity));
         data.velocity[i] = velocity;
         data.acceleration[i] = acceleration;
         data.parent_from_body[i] = parent_from_body;
@@ -76,7 +81,10 @@ fn backward(
     out: &mut [f64],
 ) {
     for (i, joint) in model.joints.iter().enumerate().rev() {
-        joint.project_force(&force[i], &mut out[joint.v_index..joint.v_index + joint.nv()]);
+        joint.project_force(
+            &force[i],
+            &mut out[joint.v_index..joint.v_index + joint.nv()],
+        );
         if let Some(p) = joint.parent {
             let in_parent = parent_from_body[i].act_force(&force[i]);
             force[p] += in_parent;

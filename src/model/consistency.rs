@@ -48,8 +48,7 @@ impl std::fmt::Display for InertiaViolation {
 /// Checks a rotational inertia about the centre of mass; `None` when it is physical.
 pub fn check_inertia(inertia_about_com: &Mat3) -> Option<InertiaViolation> {
     let i = inertia_about_com;
-    if i.iter().any(|v| !v.is_finite()) || (i - i.transpose()).abs().max() > 1e-12 * i.abs().max()
-    {
+    if i.iter().any(|v| !v.is_finite()) || (i - i.transpose()).abs().max() > 1e-12 * i.abs().max() {
         return Some(InertiaViolation::NotSymmetric);
     }
     let mut moments: Vec<f64> = i.symmetric_eigenvalues().iter().copied().collect();
@@ -72,7 +71,10 @@ mod tests {
 
     #[test]
     fn slender_bar_and_point_mass_are_physical() {
-        assert_eq!(check_inertia(&Mat3::from_diagonal(&[0.0, 1.0 / 12.0, 1.0 / 12.0].into())), None);
+        assert_eq!(
+            check_inertia(&Mat3::from_diagonal(&[0.0, 1.0 / 12.0, 1.0 / 12.0].into())),
+            None
+        );
         assert_eq!(check_inertia(&Mat3::zeros()), None);
     }
 

@@ -135,7 +135,9 @@ pub enum ModelError {
         joint_type: String,
     },
     /// A moving joint with a zero axis.
-    #[error("{path}:{line}: joint '{joint}' has the zero axis (0 0 0); give a non-zero <axis xyz>")]
+    #[error(
+        "{path}:{line}: joint '{joint}' has the zero axis (0 0 0); give a non-zero <axis xyz>"
+    )]
     ZeroAxis {
         /// The file.
         path: String,

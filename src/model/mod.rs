@@ -28,7 +28,9 @@ pub use description::{Description, InertialSpec, JointSpec, LinkSpec, MimicSpec,
 pub use error::ModelError;
 pub use urdf::{parse_description, read_description};
 
-use crate::spatial::{rotation_about_axis, rotation_from_rpy, Force, Inertia, Mat3, Motion, Transform, Vec3};
+use crate::spatial::{
+    rotation_about_axis, rotation_from_rpy, Force, Inertia, Mat3, Motion, Transform, Vec3,
+};
 use std::path::Path;
 
 /// Name of the 6-dof joint that `--floating` puts between the world and the root link.
@@ -149,7 +151,9 @@ impl Joint {
     #[inline]
     pub fn joint_transform(&self, q: &[f64]) -> Transform {
         match self.kind {
-            JointKind::Revolute => Transform::new(rotation_about_axis(&self.axis, q[0]), Vec3::zeros()),
+            JointKind::Revolute => {
+                Transform::new(rotation_about_axis(&self.axis, q[0]), Vec3::zeros())
+            }
             JointKind::Prismatic => Transform::new(Mat3::identity(), self.axis * q[0]),
             JointKind::Floating => {
                 let quaternion = nalgebra::Quaternion::new(q[6], q[3], q[4], q[5]);
@@ -263,8 +267,14 @@ impl Model {
             }
             parent_joint[joint.child] = Some(j);
         }
-        let roots: Vec<usize> = (0..n_links).filter(|&l| parent_joint[l].is_none()).collect();
-        let link_names: Vec<String> = description.links.iter().map(|l| format!("'{}'", l.name)).collect();
+        let roots: Vec<usize> = (0..n_links)
+            .filter(|&l| parent_joint[l].is_none())
+            .collect();
+        let link_names: Vec<String> = description
+            .links
+            .iter()
+            .map(|l| format!("'{}'", l.name))
+            .collect();
         let name_list = |indices: &[usize]| {
             indices
                 .iter()
@@ -315,7 +325,14 @@ impl Model {
             warnings: Vec::new(),
         };
         let root_body = if options.floating_base {
-            model.push_joint(ROOT_JOINT_NAME.to_string(), JointKind::Floating, "floating", None, None, root_link);
+            model.push_joint(
+                ROOT_JOINT_NAME.to_string(),
+                JointKind::Floating,
+                "floating",
+                None,
+                None,
+                root_link,
+            );
             Some(0)
         } else {
             None
@@ -357,7 +374,9 @@ impl Model {
             }
         }
         if model.link_order.len() < n_links {
-            let unreached: Vec<usize> = (0..n_links).filter(|l| !model.link_order.contains(l)).collect();
+            let unreached: Vec<usize> = (0..n_links)
+                .filter(|l| !model.link_order.contains(l))
+                .collect();
             return Err(ModelError::Cycle {
                 path: path.to_string(),
                 links: name_list(&unreached),
@@ -401,7 +420,9 @@ impl Model {
 
     fn resolve_mimics(&mut self, path: &str) -> Result<(), ModelError> {
         for i in 0..self.joints.len() {
-            let Some(source) = self.joints[i].source else { continue };
+            let Some(source) = self.joints[i].source else {
+                continue;
+            };
             let spec = &self.description.joints[source];
             let Some(mimic) = &spec.mimic else { continue };
             let leader = self.joints.iter().position(|j| j.name == mimic.joint);
@@ -443,7 +464,9 @@ impl Model {
         }
         for (spec, placement) in self.description.links.iter().zip(&self.links) {
             if let Some(body) = placement.body {
-                let inertia = placement.body_from_link.act_inertia(&link_inertia(&spec.inertial));
+                let inertia = placement
+                    .body_from_link
+                    .act_inertia(&link_inertia(&spec.inertial));
                 self.bodies[body].inertia += inertia;
             }
         }
@@ -503,7 +526,9 @@ impl Model {
                 .links
                 .iter()
                 .enumerate()
-                .filter(|(l, p)| p.body == Some(b) && self.description.links[*l].inertial.mass > 0.0)
+                .filter(|(l, p)| {
+                    p.body == Some(b) && self.description.links[*l].inertial.mass > 0.0
+                })
                 .map(|(l, _)| self.description.links[l].name.as_str())
                 .collect();
             let link = &self.description.links[body.link];
@@ -513,7 +538,11 @@ impl Model {
                     link.line, link.name, self.joints[b].name
                 ));
             } else if merged.len() > 1 {
-                if let Some(violation) = body.inertia.inertia_about_com().and_then(|i| check_inertia(&i)) {
+                if let Some(violation) = body
+                    .inertia
+                    .inertia_about_com()
+                    .and_then(|i| check_inertia(&i))
+                {
                     self.warnings.push(format!(
                         "{path}: the merged inertia of links {} (body of link '{}') {violation}",
                         merged.join(", "),
@@ -562,7 +591,11 @@ mod tests {
         assert!((jb.parent_from_joint.translation - Vec3::new(1.0, 0.0, 0.5)).norm() < 1e-15);
         assert!((model.joints[0].axis - Vec3::z()).norm() < 1e-15);
         // The massless moving link b is reported.
-        assert!(model.warnings.iter().any(|w| w.contains("link 'b' moves")), "{:?}", model.warnings);
+        assert!(
+            model.warnings.iter().any(|w| w.contains("link 'b' moves")),
+            "{:?}",
+            model.warnings
+        );
     }
 
     #[test]
@@ -591,7 +624,10 @@ mod tests {
           <joint name="j1" type="fixed"><parent link="a"/><child link="c"/></joint>
           <joint name="j2" type="fixed"><parent link="b"/><child link="c"/></joint></robot>"#;
         let msg = load(two_parents, false).unwrap_err().to_string();
-        assert!(msg.contains("link 'c' is the child of two joints, 'j1' and 'j2'"), "{msg}");
+        assert!(
+            msg.contains("link 'c' is the child of two joints, 'j1' and 'j2'"),
+            "{msg}"
+        );
         let cycle = r#"<robot name="r"><link name="a"/><link name="b"/>
           <joint name="j1" type="fixed"><parent link="a"/><child link="b"/></joint>
           <joint name="j2" type="fixed"><parent link="b"/><child link="a"/></joint></robot>"#;
@@ -601,7 +637,10 @@ mod tests {
           <joint name="j1" type="fixed"><parent link="a"/><child link="b"/></joint>
           <joint name="j2" type="fixed"><parent link="b"/><child link="a"/></joint></robot>"#;
         let msg = load(cycle_beside_root, false).unwrap_err().to_string();
-        assert!(msg.contains("form a cycle through the links 'a', 'b'"), "{msg}");
+        assert!(
+            msg.contains("form a cycle through the links 'a', 'b'"),
+            "{msg}"
+        );
         let two_roots = r#"<robot name="r"><link name="a"/><link name="b"/></robot>"#;
         let msg = load(two_roots, false).unwrap_err().to_string();
         assert!(msg.contains("2 root links ('a', 'b')"), "{msg}");
@@ -612,11 +651,17 @@ mod tests {
         let fixed = r#"<robot name="r"><link name="a"/><link name="b"/>
           <joint name="j" type="fixed"><parent link="a"/><child link="b"/><mimic joint="x"/></joint></robot>"#;
         let model = load(fixed, false).unwrap();
-        assert!(model.warnings.iter().any(|w| w.contains("<mimic> on fixed joint 'j' is ignored")));
+        assert!(model
+            .warnings
+            .iter()
+            .any(|w| w.contains("<mimic> on fixed joint 'j' is ignored")));
         let bad = r#"<robot name="r"><link name="a"/><link name="b"/><link name="c"/>
           <joint name="j1" type="continuous"><parent link="a"/><child link="b"/></joint>
           <joint name="j2" type="continuous"><parent link="b"/><child link="c"/><mimic joint="j0"/></joint></robot>"#;
         let msg = load(bad, false).unwrap_err().to_string();
-        assert!(msg.contains("joint 'j2' mimics 'j0'") && msg.contains("did you mean 'j1'"), "{msg}");
+        assert!(
+            msg.contains("joint 'j2' mimics 'j0'") && msg.contains("did you mean 'j1'"),
+            "{msg}"
+        );
     }
 }

@@ -8,7 +8,9 @@
 //! Ignored URDF content: visuals, collisions, materials, `<calibration>`, `<safety_controller>`,
 //! transmissions and Gazebo extensions.
 
-use super::description::{Description, InertialSpec, JointSpec, LinkSpec, MimicSpec, UrdfJointType};
+use super::description::{
+    Description, InertialSpec, JointSpec, LinkSpec, MimicSpec, UrdfJointType,
+};
 use super::error::ModelError;
 use crate::text::closest_suggestion;
 use std::collections::HashMap;
@@ -69,8 +71,20 @@ pub fn parse_description(text: &str, path: &str) -> Result<Description, ModelErr
         };
         let element = || format!("link '{}'", link.name);
         check_finite(path, info.line, &element, "<mass value>", &[inertial.mass])?;
-        check_finite(path, info.line, &element, "<inertial><origin>", &inertial.com)?;
-        check_finite(path, info.line, &element, "<inertial><origin rpy>", &inertial.rpy)?;
+        check_finite(
+            path,
+            info.line,
+            &element,
+            "<inertial><origin>",
+            &inertial.com,
+        )?;
+        check_finite(
+            path,
+            info.line,
+            &element,
+            "<inertial><origin rpy>",
+            &inertial.rpy,
+        )?;
         check_finite(path, info.line, &element, "<inertia>", &inertial.inertia)?;
         if inertial.mass < 0.0 {
             return Err(ModelError::NegativeMass {
@@ -136,9 +150,7 @@ pub fn parse_description(text: &str, path: &str) -> Result<Description, ModelErr
         let parent = find_link(&joint.parent.link, &joint.name, line, "parent")?;
         let child = find_link(&joint.child.link, &joint.name, line, "child")?;
         let o = &joint.origin;
-        let origin = [
-            o.xyz[0], o.xyz[1], o.xyz[2], o.rpy[0], o.rpy[1], o.rpy[2],
-        ];
+        let origin = [o.xyz[0], o.xyz[1], o.xyz[2], o.rpy[0], o.rpy[1], o.rpy[2]];
         let axis = joint.axis.xyz.0;
         let (damping, friction) = joint
             .dynamics
@@ -279,8 +291,11 @@ mod tests {
 
     #[test]
     fn malformed_xml_names_line() {
-        let err = parse_description("<robot name=\"x\">\n<link name=\"a\">\n</robot>", "bad.urdf")
-            .unwrap_err();
+        let err = parse_description(
+            "<robot name=\"x\">\n<link name=\"a\">\n</robot>",
+            "bad.urdf",
+        )
+        .unwrap_err();
         let msg = err.to_string();
         assert!(msg.starts_with("bad.urdf:"), "{msg}");
         assert!(msg.contains("malformed XML"), "{msg}");
@@ -317,7 +332,10 @@ mod tests {
              <limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>",
         );
         let msg = parse_description(&text, "t.urdf").unwrap_err().to_string();
-        assert!(msg.contains("t.urdf:4: joint 'j' names parent link 'bas'"), "{msg}");
+        assert!(
+            msg.contains("t.urdf:4: joint 'j' names parent link 'bas'"),
+            "{msg}"
+        );
         assert!(msg.contains("did you mean 'base'"), "{msg}");
     }
 
@@ -334,7 +352,10 @@ mod tests {
              <inertia ixx=\"1\" ixy=\"0\" ixz=\"0\" iyy=\"1\" iyz=\"0\" izz=\"1\"/></inertial></link>",
         );
         let msg = parse_description(&nan, "t.urdf").unwrap_err().to_string();
-        assert!(msg.contains("non-finite value NaN in <mass value>"), "{msg}");
+        assert!(
+            msg.contains("non-finite value NaN in <mass value>"),
+            "{msg}"
+        );
     }
 
     #[test]

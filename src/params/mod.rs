@@ -152,7 +152,13 @@ pub fn list(model: &Model) -> Vec<ParamInfo> {
 pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
     let unknown = || ParamError::Unknown {
         path: path.to_string(),
-        suggestion: closest_suggestion(path, list(model).iter().map(|p| p.path.as_str()).collect::<Vec<_>>()),
+        suggestion: closest_suggestion(
+            path,
+            list(model)
+                .iter()
+                .map(|p| p.path.as_str())
+                .collect::<Vec<_>>(),
+        ),
     };
     if let Some(field) = path.strip_prefix("scene.gravity.") {
         return COM_FIELDS
@@ -163,10 +169,21 @@ pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
     }
     if let Some(rest) = path.strip_prefix("link.") {
         let mut fields: Vec<(String, u8, usize)> = vec![("mass".to_string(), 0, 0)];
-        fields.extend(COM_FIELDS.iter().enumerate().map(|(c, f)| (format!("com.{f}"), 1, c)));
-        fields.extend(INERTIA_FIELDS.iter().enumerate().map(|(c, f)| (format!("inertia.{f}"), 2, c)));
+        fields.extend(
+            COM_FIELDS
+                .iter()
+                .enumerate()
+                .map(|(c, f)| (format!("com.{f}"), 1, c)),
+        );
+        fields.extend(
+            INERTIA_FIELDS
+                .iter()
+                .enumerate()
+                .map(|(c, f)| (format!("inertia.{f}"), 2, c)),
+        );
         for (field, kind, c) in fields {
-            let Some(l) = name_before(rest, &field).and_then(|n| model.description.link_index(n)) else {
+            let Some(l) = name_before(rest, &field).and_then(|n| model.description.link_index(n))
+            else {
                 continue;
             };
             return Ok(match kind {
@@ -184,7 +201,12 @@ pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
             .enumerate()
             .map(|(c, f)| (format!("origin.{f}"), 0u8, c))
             .collect();
-        fields.extend(COM_FIELDS.iter().enumerate().map(|(c, f)| (format!("axis.{f}"), 1u8, c)));
+        fields.extend(
+            COM_FIELDS
+                .iter()
+                .enumerate()
+                .map(|(c, f)| (format!("axis.{f}"), 1u8, c)),
+        );
         fields.push(("damping".to_string(), 2, 0));
         fields.push(("friction".to_string(), 3, 0));
         for (field, kind, c) in fields {
@@ -290,18 +312,41 @@ mod tests {
           <origin xyz="0 0 1"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
           <link name="tip"/><joint name="fix" type="fixed"><parent link="iris__/imu_link"/><child link="tip"/></joint>
           </robot>"#;
-        Model::from_description(parse_description(text, "r.urdf").unwrap(), LoadOptions::default(), "r.urdf").unwrap()
+        Model::from_description(
+            parse_description(text, "r.urdf").unwrap(),
+            LoadOptions::default(),
+            "r.urdf",
+        )
+        .unwrap()
     }
 
     #[test]
     fn names_with_dots_and_slashes_resolve() {
         let m = model();
-        assert_eq!(resolve(&m, "link.iris__/imu_link.mass").unwrap(), ParamTarget::LinkMass(1));
-        assert_eq!(resolve(&m, "link.iris__/imu_link.com.x").unwrap(), ParamTarget::LinkCom(1, 0));
-        assert_eq!(resolve(&m, "link.iris__/imu_link.inertia.iyz").unwrap(), ParamTarget::LinkInertia(1, 4));
-        assert_eq!(resolve(&m, "joint.joint_0.0.origin.z").unwrap(), ParamTarget::JointOrigin(0, 2));
-        assert_eq!(resolve(&m, "joint.joint_0.0.damping").unwrap(), ParamTarget::JointDamping(0));
-        assert_eq!(resolve(&m, "scene.gravity.z").unwrap(), ParamTarget::Gravity(2));
+        assert_eq!(
+            resolve(&m, "link.iris__/imu_link.mass").unwrap(),
+            ParamTarget::LinkMass(1)
+        );
+        assert_eq!(
+            resolve(&m, "link.iris__/imu_link.com.x").unwrap(),
+            ParamTarget::LinkCom(1, 0)
+        );
+        assert_eq!(
+            resolve(&m, "link.iris__/imu_link.inertia.iyz").unwrap(),
+            ParamTarget::LinkInertia(1, 4)
+        );
+        assert_eq!(
+            resolve(&m, "joint.joint_0.0.origin.z").unwrap(),
+            ParamTarget::JointOrigin(0, 2)
+        );
+        assert_eq!(
+            resolve(&m, "joint.joint_0.0.damping").unwrap(),
+            ParamTarget::JointDamping(0)
+        );
+        assert_eq!(
+            resolve(&m, "scene.gravity.z").unwrap(),
+            ParamTarget::Gravity(2)
+        );
     }
 
     #[test]
@@ -315,8 +360,13 @@ mod tests {
     #[test]
     fn unknown_paths_get_suggestions() {
         let m = model();
-        let msg = resolve(&m, "joint.joint_0.0.orgin.z").unwrap_err().to_string();
-        assert!(msg.contains("did you mean 'joint.joint_0.0.origin.z'"), "{msg}");
+        let msg = resolve(&m, "joint.joint_0.0.orgin.z")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("did you mean 'joint.joint_0.0.origin.z'"),
+            "{msg}"
+        );
         let msg = resolve(&m, "joint.fix.axis.x").unwrap_err().to_string();
         assert!(msg.contains("joint 'fix' is fixed"), "{msg}");
     }
@@ -324,7 +374,10 @@ mod tests {
     #[test]
     fn apply_changes_the_tree() {
         let mut m = model();
-        let targets = [resolve(&m, "link.iris__/imu_link.mass").unwrap(), resolve(&m, "joint.joint_0.0.origin.z").unwrap()];
+        let targets = [
+            resolve(&m, "link.iris__/imu_link.mass").unwrap(),
+            resolve(&m, "joint.joint_0.0.origin.z").unwrap(),
+        ];
         apply(&mut m, &targets, &[3.0, 2.0]);
         assert_eq!(m.bodies[0].inertia.mass, 3.0);
         assert_eq!(m.joints[0].parent_from_joint.translation.z, 2.0);

@@ -1,0 +1,132 @@
+//! `ribbon simulate ROBOT.urdf [--uncertainty F] [--set …] [--duration T] [--step H] [--alpha A]
+//! [--csv F] [--summary F]`: one nominal trajectory. Statistics go to stderr, a table to stdout.
+
+use super::{print_warnings, write_stdout, SimulateArgs};
+use crate::cli::values::apply_set_flags;
+use crate::model::{LoadOptions, Model};
+use crate::output::{write_csv, EnvelopeSeries, Summary};
+use crate::scene::{
+    default_sidecar_path, read_sidecar, wants_floating_base, Scene, SceneOverrides, SidecarFile,
+};
+use crate::simulate::{simulate, Trajectory};
+use crate::Error;
+use std::time::Instant;
+
+/// Runs `ribbon simulate`.
+pub fn run(args: &SimulateArgs) -> Result<(), Error> {
+    let started = Instant::now();
+    let sidecar_path = args
+        .uncertainty
+        .clone()
+        .or_else(|| Some(default_sidecar_path(&args.urdf)).filter(|p| p.exists()));
+    let (sidecar, sidecar_name) = match &sidecar_path {
+        Some(path) => (read_sidecar(path)?.0, path.display().to_string()),
+        None => (SidecarFile::default(), "(no sidecar)".to_string()),
+    };
+    let floating_base = args.floating || wants_floating_base(&sidecar, &sidecar_name)?;
+    let mut model = Model::from_urdf_file(&args.urdf, LoadOptions { floating_base })?;
+    print_warnings(&model);
+    let overrides = SceneOverrides {
+        duration_s: args.duration,
+        step_s: args.step,
+        alpha: args.alpha,
+    };
+    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, overrides)?;
+    scene.apply_gravity(&mut model);
+    apply_set_flags(&mut model, &args.set)?;
+    let robot = model.name().to_string();
+    let trajectory = simulate(model, &scene)?;
+    let wall_seconds = started.elapsed().as_secs_f64();
+    print_statistics(&trajectory, &scene, wall_seconds);
+
+    if let Some(path) = &args.csv {
+        let names: Vec<&str> = trajectory.outputs.iter().map(|o| o.name.as_str()).collect();
+        let columns: Vec<&[f64]> = trajectory.values.iter().map(Vec::as_slice).collect();
+        write_csv(path, &trajectory.times, &names, &columns)?;
+    }
+    if let Some(path) = &args.summary {
+        summary(&robot, &trajectory, wall_seconds).write(path)?;
+    }
+    write_stdout(&table(&trajectory))
+}
+
+fn print_statistics(trajectory: &Trajectory, scene: &Scene, wall_seconds: f64) {
+    let s = &trajectory.stats;
+    eprintln!(
+        "simulated {} s in {} steps of {} s (alpha {}): {} Newton iterations ({:.2} per step, at most {}), {} factorisations, {} refreshes; {:.3} s wall",
+        scene.duration_s,
+        s.steps,
+        scene.step_s,
+        scene.alpha,
+        s.newton_iterations,
+        s.newton_iterations as f64 / (s.steps.max(1)) as f64,
+        s.max_iterations_in_a_step,
+        s.factorisations,
+        s.refreshes,
+        wall_seconds
+    );
+}
+
+fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
+    let s = &trajectory.stats;
+    Summary {
+        robot: robot.to_string(),
+        method: "nominal".to_string(),
+        order: None,
+        design: None,
+        bound_kind: "nominal".to_string(),
+        parameters: Vec::new(),
+        samples: 1,
+        excluded_samples: Vec::new(),
+        wall_seconds,
+        outputs: trajectory
+            .outputs
+            .iter()
+            .zip(&trajectory.values)
+            .map(|(output, values)| EnvelopeSeries {
+                name: output.name.clone(),
+                unit: output.unit.to_string(),
+                time: trajectory.times.clone(),
+                lower: values.clone(),
+                upper: values.clone(),
+                nominal: values.clone(),
+                error_estimate: None,
+            })
+            .collect(),
+        stats: serde_json::json!({
+            "steps": s.steps,
+            "newton_iterations": s.newton_iterations,
+            "factorisations": s.factorisations,
+            "refreshes": s.refreshes,
+            "max_iterations_in_a_step": s.max_iterations_in_a_step,
+        }),
+    }
+}
+
+fn table(trajectory: &Trajectory) -> String {
+    let width = trajectory
+        .outputs
+        .iter()
+        .map(|o| o.name.chars().count())
+        .max()
+        .unwrap_or(6)
+        .max(6);
+    let mut text = format!(
+        "{:<width$}  {:>8}  {:>13}  {:>13}  {:>13}  {:>13}\n",
+        "output", "unit", "initial", "final", "min", "max"
+    );
+    for (output, values) in trajectory.outputs.iter().zip(&trajectory.values) {
+        let min = values.iter().copied().fold(f64::INFINITY, f64::min);
+        let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        text.push_str(&format!(
+            "{:<width$}  {:>8}  {:>13.6e}  {:>13.6e}  {:>13.6e}  {:>13.6e}\n",
+            output.name,
+            output.unit,
+            values.first().copied().unwrap_or(f64::NAN),
+            values.last().copied().unwrap_or(f64::NAN),
+            min,
+            max
+        ));
+    }
+    text
+}

@@ -1,0 +1,206 @@
+//! Generalised forces of the scene's declared effects, assembled once per run: a scene that does not
+//! declare an effect never evaluates it. One file per effect.
+//!
+//! `(q, v) ⇒ Q_effects` (added to the right-hand side `Q`), and the diagonal stiffness and damping the
+//! modified Newton matrix of the integrator needs (method.md §5: `+β'h² k_j`, `+γ'h c_j`).
+//!
+//! Gravity is not here: it enters the rigid-body bias as a base acceleration in RNEA through the
+//! model's gravity ([`crate::scene::Scene::apply_gravity`]; zero when the scene does not declare it).
+//! Values that parameters can change (URDF damping, friction, limits) are read from the model at each
+//! evaluation, so a sample's parameter values take effect without re-assembly.
+
+mod damping;
+mod friction;
+mod limits;
+mod springs;
+
+pub use friction::FRICTION_SMOOTHING_VELOCITY;
+pub use limits::{JOINT_LIMIT_DAMPING, JOINT_LIMIT_STIFFNESS};
+
+use crate::model::{JointKind, Model};
+use crate::scene::Scene;
+
+/// A 1-dof joint an effect acts on: its coordinates and its URDF joint.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct JointSlot {
+    q_index: usize,
+    v_index: usize,
+    source: usize,
+}
+
+/// Every 1-dof joint that comes from the URDF.
+fn one_dof_joints(model: &Model) -> Vec<JointSlot> {
+    model
+        .joints
+        .iter()
+        .filter(|j| j.kind != JointKind::Floating)
+        .filter_map(|j| {
+            j.source.map(|source| JointSlot {
+                q_index: j.q_index,
+                v_index: j.v_index,
+                source,
+            })
+        })
+        .collect()
+}
+
+/// The assembled effects of one scene.
+#[derive(Clone, Debug, Default)]
+pub struct Effects {
+    damping: Option<damping::JointDamping>,
+    friction: Option<friction::JointFriction>,
+    springs: Option<springs::JointSprings>,
+    limits: Option<limits::JointLimits>,
+}
+
+impl Effects {
+    /// Assembles the effects `scene` declares for `model`.
+    pub fn assemble(model: &Model, scene: &Scene) -> Effects {
+        let joints = one_dof_joints(model);
+        let e = &scene.effects;
+        Effects {
+            damping: e.joint_damping.then(|| damping::JointDamping::new(&joints)),
+            friction: e
+                .joint_friction
+                .then(|| friction::JointFriction::new(&joints)),
+            springs: e
+                .joint_springs
+                .then(|| springs::JointSprings::new(model, &scene.springs)),
+            limits: e
+                .joint_limits
+                .then(|| limits::JointLimits::new(model, &joints)),
+        }
+    }
+
+    /// Whether no effect besides gravity is simulated.
+    pub fn is_empty(&self) -> bool {
+        self.damping.is_none()
+            && self.friction.is_none()
+            && self.springs.is_none()
+            && self.limits.is_none()
+    }
+
+    /// Adds the effects' generalised forces to `out` (`q: dim nq`, `v, out: dim nv`).
+    pub fn add_forces(&self, model: &Model, q: &[f64], v: &[f64], out: &mut [f64]) {
+        if let Some(e) = &self.damping {
+            e.add_forces(model, v, out);
+        }
+        if let Some(e) = &self.friction {
+            e.add_forces(model, v, out);
+        }
+        if let Some(e) = &self.springs {
+            e.add_forces(q, out);
+        }
+        if let Some(e) = &self.limits {
+            e.add_forces(model, q, v, out);
+        }
+    }
+
+    /// Adds the effects' diagonal stiffness `k_j = −∂Q_j/∂q_j` and damping `c_j = −∂Q_j/∂q̇_j` to
+    /// `stiffness` and `damping` (`dim nv`).
+    pub fn add_newton_diagonal(
+        &self,
+        model: &Model,
+        q: &[f64],
+        v: &[f64],
+        stiffness: &mut [f64],
+        damping: &mut [f64],
+    ) {
+        if let Some(e) = &self.damping {
+            e.add_diagonal(model, damping);
+        }
+        if let Some(e) = &self.friction {
+            e.add_diagonal(model, v, damping);
+        }
+        if let Some(e) = &self.springs {
+            e.add_diagonal(stiffness);
+        }
+        if let Some(e) = &self.limits {
+            e.add_diagonal(model, q, stiffness, damping);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{parse_description, LoadOptions};
+    use crate::scene::{parse_sidecar, SceneOverrides};
+
+    fn setup(sidecar: &str) -> (Model, Scene) {
+        let text = r#"<robot name="p"><link name="w"/>
+          <link name="bar"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+          <inertia ixx="0" ixy="0" ixz="0" iyy="0.08" iyz="0" izz="0.08"/></inertial></link>
+          <joint name="hinge" type="revolute"><parent link="w"/><child link="bar"/><axis xyz="0 0 1"/>
+          <limit lower="-1" upper="1" effort="1" velocity="1"/><dynamics damping="0.5" friction="0.2"/></joint></robot>"#;
+        let model = Model::from_description(
+            parse_description(text, "p.urdf").unwrap(),
+            LoadOptions::default(),
+            "p.urdf",
+        )
+        .unwrap();
+        let scene = Scene::resolve(
+            &parse_sidecar(sidecar).unwrap(),
+            &model,
+            "s.toml",
+            SceneOverrides::default(),
+        )
+        .unwrap();
+        (model, scene)
+    }
+
+    /// Central difference of the effects' force with respect to q (or v) at coordinate 0.
+    fn numeric_derivative(
+        effects: &Effects,
+        model: &Model,
+        q: f64,
+        v: f64,
+        of_velocity: bool,
+    ) -> f64 {
+        let h = 1e-7;
+        let eval = |dq: f64, dv: f64| {
+            let mut out = [0.0];
+            effects.add_forces(model, &[q + dq], &[v + dv], &mut out);
+            out[0]
+        };
+        if of_velocity {
+            -(eval(0.0, h) - eval(0.0, -h)) / (2.0 * h)
+        } else {
+            -(eval(h, 0.0) - eval(-h, 0.0)) / (2.0 * h)
+        }
+    }
+
+    #[test]
+    fn only_declared_effects_are_assembled() {
+        let (model, scene) = setup("");
+        assert!(Effects::assemble(&model, &scene).is_empty());
+        let (model, scene) = setup("[scene]\neffects = []");
+        assert!(!scene.effects.gravity);
+        assert!(Effects::assemble(&model, &scene).is_empty());
+    }
+
+    #[test]
+    fn diagonal_terms_match_the_forces_derivatives() {
+        let sidecar = "[scene]\neffects = [\"joint_damping\", \"joint_friction\", \"joint_springs\", \"joint_limits\"]\n\
+                       [[scene.spring]]\njoint = \"hinge\"\nstiffness = 30.0\nrest = 0.2";
+        let (model, scene) = setup(sidecar);
+        let effects = Effects::assemble(&model, &scene);
+        // Inside the limits and beyond the upper one; slow and fast.
+        for (q, v) in [(0.3, 0.004), (1.05, 0.5), (-1.2, -2.0)] {
+            let (mut k, mut c) = ([0.0], [0.0]);
+            effects.add_newton_diagonal(&model, &[q], &[v], &mut k, &mut c);
+            let k_numeric = numeric_derivative(&effects, &model, q, v, false);
+            let c_numeric = numeric_derivative(&effects, &model, q, v, true);
+            assert!(
+                (k[0] - k_numeric).abs() <= 1e-5 * k_numeric.abs().max(1.0),
+                "k at {q}: {} vs {k_numeric}",
+                k[0]
+            );
+            assert!(
+                (c[0] - c_numeric).abs() <= 1e-5 * c_numeric.abs().max(1.0),
+                "c at {q},{v}: {} vs {c_numeric}",
+                c[0]
+            );
+        }
+    }
+}

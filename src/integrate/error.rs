@@ -1,0 +1,207 @@
+//! Errors of the integrator: one `thiserror` enum with structured variants.
+//!
+//! Every variant raised while stepping names the time and the step number, so that a failed sample of
+//! a study can be reported precisely ("sample 17: Newton did not converge at t = 0.412 s, step 412,
+//! worst: constraint row 1").
+
+use std::fmt;
+
+/// An error reported by a [`DaeSystem`](super::DaeSystem) implementation (an invalid state, a NaN in
+/// its own computations, a method it does not provide, …). Boxed so that a robot model can return its
+/// own error type with `?`; it is only allocated on the error path.
+pub type SystemError = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// Which unknown of the Newton system stopped convergence (the entry with the largest weighted
+/// correction in the last iteration).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WorstEntry {
+    /// A velocity coordinate (index into `v`, `0..nv`): its position-level correction `β'h² Δq̈_i`,
+    /// multiplied by its error weight, was the largest.
+    Coordinate {
+        /// Velocity-coordinate index, `0..nv`.
+        index: usize,
+        /// `|β'h² Δq̈_i| · ewt_i` (converged entries are < 1).
+        weighted_correction: f64,
+    },
+    /// A constraint row (index into `Φ`, `0..n_constraints`): its multiplier correction `Δλ_j`,
+    /// multiplied by its error weight, was the largest.
+    Constraint {
+        /// Constraint-row index, `0..n_constraints`.
+        index: usize,
+        /// `|Δλ_j| · ewt_j` (converged entries are < 1).
+        weighted_correction: f64,
+        /// `Φ_j` at the last iterate (m or rad, as the row is written).
+        violation: f64,
+    },
+}
+
+impl fmt::Display for WorstEntry {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            WorstEntry::Coordinate {
+                index,
+                weighted_correction,
+            } => write!(
+                f,
+                "velocity coordinate {index} (weighted correction {weighted_correction:.3e})"
+            ),
+            WorstEntry::Constraint {
+                index,
+                weighted_correction,
+                violation,
+            } => write!(
+                f,
+                "constraint row {index} (weighted multiplier correction {weighted_correction:.3e}, \
+                 Φ = {violation:.3e})"
+            ),
+        }
+    }
+}
+
+/// Everything that can go wrong in `integrate`: invalid settings, inconsistent dimensions, an initial
+/// state that cannot be made consistent, a failed Newton iteration, non-finite numbers, or an error
+/// reported by the system itself.
+#[derive(Debug, thiserror::Error)]
+pub enum IntegrateError {
+    /// `alpha` is outside `[-1/3, 0]` (or not finite).
+    #[error("HHT alpha = {alpha} is outside [-1/3, 0]")]
+    InvalidAlpha {
+        /// The rejected value.
+        alpha: f64,
+    },
+    /// `alpha = 0` was requested for a system with constraint rows: the trapezoidal member of the
+    /// family does not converge in `q̈` and `λ` on index-3 problems (method.md §5).
+    #[error(
+        "HHT alpha = 0 is refused with {n_constraints} constraint row(s): accelerations and \
+         multipliers do not converge (they oscillate with growing amplitude); use alpha < 0, e.g. -0.1"
+    )]
+    AlphaZeroWithConstraints {
+        /// Number of constraint rows of the system.
+        n_constraints: usize,
+    },
+    /// The step `h` is not a finite positive number.
+    #[error("step h = {step_s} s must be finite and > 0")]
+    InvalidStep {
+        /// The rejected value, s.
+        step_s: f64,
+    },
+    /// A tolerance or iteration limit of [`HhtSettings`](super::HhtSettings) is invalid.
+    #[error("setting `{name}` = {value} is invalid: {reason}")]
+    InvalidSetting {
+        /// Field name in `HhtSettings`.
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+        /// What the valid range is.
+        reason: &'static str,
+    },
+    /// An argument or a system output has the wrong size.
+    #[error("dimension mismatch for {what}: expected {expected}, got {got}")]
+    DimensionMismatch {
+        /// Which vector or matrix.
+        what: &'static str,
+        /// Expected size.
+        expected: usize,
+        /// Actual size.
+        got: usize,
+    },
+    /// The system reported an error from one of its methods.
+    #[error("system error in `{call}` at t = {t} s (step {step}): {source}")]
+    System {
+        /// Time at which the system was evaluated, s.
+        t: f64,
+        /// Step number being computed (0 = consistent start).
+        step: u64,
+        /// Name of the trait method that failed.
+        call: &'static str,
+        /// The system's own error.
+        source: SystemError,
+    },
+    /// A NaN or infinity appeared in a quantity (system output, initial state or Newton update).
+    #[error("non-finite value in {quantity}[{index}] at t = {t} s (step {step})")]
+    NonFinite {
+        /// Time, s.
+        t: f64,
+        /// Step number being computed (0 = consistent start).
+        step: u64,
+        /// Which quantity (`"forces"`, `"mass_matrix"`, `"newton_update"`, …).
+        quantity: &'static str,
+        /// Index of the first non-finite entry (column-major for a matrix).
+        index: usize,
+    },
+    /// A linear system was singular to working precision (a pivot below
+    /// `SINGULAR_PIVOT_RELATIVE` times the matrix's largest entry).
+    #[error(
+        "singular {matrix} at t = {t} s (step {step}): pivot {index} is {pivot_relative:.3e} of the \
+         largest entry (M not positive definite, or constraint rows dependent?)"
+    )]
+    SingularMatrix {
+        /// Time, s.
+        t: f64,
+        /// Step number being computed (0 = consistent start).
+        step: u64,
+        /// Which matrix (`"Newton iteration matrix"`, `"velocity projection matrix"`, …).
+        matrix: &'static str,
+        /// Row at which elimination broke down.
+        index: usize,
+        /// |pivot| / max |entry|.
+        pivot_relative: f64,
+    },
+    /// The constraint Jacobian `Φ_q` is rank deficient: some rows are redundant (a loop declared with
+    /// more rows than it really constrains, or a singular configuration).
+    #[error(
+        "redundant constraint rows at t = {t} s: smallest singular value of Φ_q is {smallest:.3e} vs \
+         largest {largest:.3e} (relative tolerance {tolerance:.1e}); row {row} contributes most to the \
+         dependent combination"
+    )]
+    RedundantConstraints {
+        /// Time, s.
+        t: f64,
+        /// Smallest singular value of `Φ_q`.
+        smallest: f64,
+        /// Largest singular value of `Φ_q`.
+        largest: f64,
+        /// Relative tolerance below which rows count as dependent.
+        tolerance: f64,
+        /// The row with the largest weight in the left singular vector of the smallest singular value.
+        row: usize,
+    },
+    /// The initial positions cannot be projected onto `Φ(q, t0) = 0` ("the loop cannot close").
+    #[error(
+        "cannot close the constraints at t = {t} s: |Φ| = {violation:.3e} after {iterations} \
+         Gauss–Newton iterations (worst row {worst_row}; tolerance {tolerance:.1e})"
+    )]
+    CannotClose {
+        /// Initial time, s.
+        t: f64,
+        /// Gauss–Newton iterations performed.
+        iterations: usize,
+        /// max |Φ_j| at the last iterate.
+        violation: f64,
+        /// Row with the largest |Φ_j|.
+        worst_row: usize,
+        /// The tolerance that was not reached.
+        tolerance: f64,
+    },
+    /// Newton did not converge within `max_newton_iterations`, even after refreshing the iteration
+    /// matrix at the current iterate.
+    #[error(
+        "Newton did not converge at t = {t} s (step {step}) after {iterations} iterations and one \
+         matrix refresh: correction WRMS {correction_wrms:.3e} (needs < 1), residual max-norm \
+         {residual_inf:.3e}; worst: {worst}"
+    )]
+    NewtonNotConverged {
+        /// The time the step was advancing to, s.
+        t: f64,
+        /// Step number (1-based).
+        step: u64,
+        /// Iterations performed in total (both passes).
+        iterations: usize,
+        /// Largest of the position and multiplier WRMS norms of the last correction.
+        correction_wrms: f64,
+        /// max-norm of the last evaluated residual `[M q̈ + Φ_qᵀλ − Q; Φ/(β'h²)]`.
+        residual_inf: f64,
+        /// The entry that stopped convergence.
+        worst: WorstEntry,
+    },
+}

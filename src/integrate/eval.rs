@@ -1,0 +1,188 @@
+//! Checked calls into a [`DaeSystem`]: each wrapper maps the system's error to
+//! [`IntegrateError::System`] with the time, step and method name, and checks the output for NaN/Inf
+//! where it arises ([`IntegrateError::NonFinite`]). Allocation-free on the success path.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::error::IntegrateError;
+use super::linalg::first_non_finite;
+use super::system::DaeSystem;
+
+/// Where an evaluation happens: time and step number (0 = consistent start).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct At {
+    /// Time, s.
+    pub t: f64,
+    /// Step number (0 = consistent start).
+    pub step: u64,
+}
+
+impl At {
+    pub fn system_error(
+        self,
+        call: &'static str,
+    ) -> impl FnOnce(super::error::SystemError) -> IntegrateError {
+        move |source| IntegrateError::System {
+            t: self.t,
+            step: self.step,
+            call,
+            source,
+        }
+    }
+
+    /// `Err(NonFinite)` naming `quantity` if any entry of `x` is NaN or infinite.
+    pub fn check_finite<'a>(
+        self,
+        quantity: &'static str,
+        x: impl IntoIterator<Item = &'a f64>,
+    ) -> Result<(), IntegrateError> {
+        match first_non_finite(x) {
+            None => Ok(()),
+            Some(index) => Err(IntegrateError::NonFinite {
+                t: self.t,
+                step: self.step,
+                quantity,
+                index,
+            }),
+        }
+    }
+}
+
+/// `out (nv × nv) = M(q)`.
+pub(crate) fn mass_matrix<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    out: &mut DMatrix<f64>,
+) -> Result<(), IntegrateError> {
+    sys.mass_matrix(at.t, q, out)
+        .map_err(at.system_error("mass_matrix"))?;
+    at.check_finite("mass_matrix", out.iter())
+}
+
+/// `out (nv) = Q(t, q, v)`.
+pub(crate) fn forces<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    out: &mut DVector<f64>,
+) -> Result<(), IntegrateError> {
+    sys.forces(at.t, q, v, out)
+        .map_err(at.system_error("forces"))?;
+    at.check_finite("forces", out.iter())
+}
+
+/// `out (nv) = M q̈ − Q` through the system's inverse dynamics.
+pub(crate) fn dynamics_residual<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    qdd: &DVector<f64>,
+    out: &mut DVector<f64>,
+) -> Result<(), IntegrateError> {
+    sys.dynamics_residual(at.t, q, v, qdd, out)
+        .map_err(at.system_error("dynamics_residual"))?;
+    at.check_finite("dynamics_residual", out.iter())
+}
+
+/// `stiffness (nv), damping (nv)` = diagonal spring and damper terms.
+pub(crate) fn newton_diagonal<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    stiffness: &mut DVector<f64>,
+    damping: &mut DVector<f64>,
+) -> Result<(), IntegrateError> {
+    sys.newton_diagonal(at.t, q, v, stiffness, damping)
+        .map_err(at.system_error("newton_diagonal"))?;
+    at.check_finite("newton_diagonal.stiffness", stiffness.iter())?;
+    at.check_finite("newton_diagonal.damping", damping.iter())
+}
+
+/// `out (m) = Φ(q, t)`.
+pub(crate) fn constraints<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    out: &mut DVector<f64>,
+) -> Result<(), IntegrateError> {
+    sys.constraints(at.t, q, out)
+        .map_err(at.system_error("constraints"))?;
+    at.check_finite("constraints", out.iter())
+}
+
+/// `out (m × nv) = Φ_q(q, t)`.
+pub(crate) fn constraint_jacobian<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    out: &mut DMatrix<f64>,
+) -> Result<(), IntegrateError> {
+    sys.constraint_jacobian(at.t, q, out)
+        .map_err(at.system_error("constraint_jacobian"))?;
+    at.check_finite("constraint_jacobian", out.iter())
+}
+
+/// `out (m) = Φ_t(q, t)`.
+pub(crate) fn constraint_time_derivative<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    out: &mut DVector<f64>,
+) -> Result<(), IntegrateError> {
+    sys.constraint_time_derivative(at.t, q, out)
+        .map_err(at.system_error("constraint_time_derivative"))?;
+    at.check_finite("constraint_time_derivative", out.iter())
+}
+
+/// `out (m) = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt`.
+pub(crate) fn constraint_acceleration_bias<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    out: &mut DVector<f64>,
+) -> Result<(), IntegrateError> {
+    sys.constraint_acceleration_bias(at.t, q, v, out)
+        .map_err(at.system_error("constraint_acceleration_bias"))?;
+    at.check_finite("constraint_acceleration_bias", out.iter())
+}
+
+/// `out (nq) = q ⊕ dq`.
+pub(crate) fn integrate_position<S: DaeSystem + ?Sized>(
+    sys: &S,
+    at: At,
+    q: &DVector<f64>,
+    dq: &DVector<f64>,
+    out: &mut DVector<f64>,
+) -> Result<(), IntegrateError> {
+    sys.integrate_position(q, dq, out)
+        .map_err(at.system_error("integrate_position"))?;
+    at.check_finite("integrate_position", out.iter())
+}
+
+/// Checks the system's declared dimensions against the sizes the caller holds.
+pub(crate) fn check_dimensions<S: DaeSystem + ?Sized>(
+    sys: &S,
+    nq: usize,
+    nv: usize,
+    m: usize,
+) -> Result<(), IntegrateError> {
+    for (what, expected, got) in [
+        ("system nq", nq, sys.nq()),
+        ("system nv", nv, sys.nv()),
+        ("system n_constraints", m, sys.n_constraints()),
+    ] {
+        if expected != got {
+            return Err(IntegrateError::DimensionMismatch {
+                what,
+                expected,
+                got,
+            });
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,817 @@
+//! The HHT-I3 stepper: [`HhtIntegrator`] (method.md §5, second-order form of Arnold & Brüls 2007 with
+//! `α_m = 0`, `α_f = −α`).
+//!
+//! One step, as data flow:
+//!
+//! ```text
+//! (t_n, q_n, q̇_n, a_n, q̈_n, λ_n) => predictor q̈ = q̈_n, λ = λ_n
+//!   => factorise the iteration matrix at the predicted (q, q̇)          (modified Newton)
+//!   => iterate: residual at (q(q̈), q̇(q̈)), solve, correct, WRMS test   (≤ max_newton_iterations)
+//!   => not converged: refactorise at the current iterate, iterate again; then fail loudly
+//!   => (q_{n+1}, q̇_{n+1}, a_{n+1}, q̈_{n+1}, λ_{n+1})
+//!   => with constraint rows: record |Φ| and |Φ_q q̇ + Φ_t|; project q̇ if enabled
+//! ```
+//!
+//! Every buffer lives in a workspace sized at construction: a step allocates nothing.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::error::{IntegrateError, WorstEntry};
+use super::eval::{self, At};
+use super::linalg::{DenseSolver, FactorKind};
+use super::settings::{HhtCoefficients, HhtSettings};
+use super::start::{consistent_start, ConsistentStart};
+use super::system::DaeSystem;
+
+/// The integrator's state at time `t` (all vectors in the system's coordinates).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HhtState {
+    /// Time, s.
+    pub t: f64,
+    /// Number of steps taken since the start (0 at the consistent start).
+    pub step: u64,
+    /// Positions, dim `nq`.
+    pub q: DVector<f64>,
+    /// Velocities, dim `nv`. With constraint rows and `velocity_projection` on, this is the projected
+    /// velocity (`Φ_q q̇ + Φ_t = 0` to rounding); the integrator's own recursion keeps the unprojected
+    /// Newmark velocity (see [`HhtSettings::velocity_projection`]).
+    pub v: DVector<f64>,
+    /// Acceleration-like variable `a` of the generalized-α scheme, dim `nv` (`a_0 = q̈_0`,
+    /// `a_{n+1} = (1 + α) q̈_{n+1} − α q̈_n`). Not a physical acceleration: report `qdd`.
+    pub a: DVector<f64>,
+    /// True accelerations `q̈` satisfying the equations of motion at `t`, dim `nv`.
+    pub qdd: DVector<f64>,
+    /// Constraint multipliers `λ`, dim `m` (sign: `M q̈ + Φ_qᵀ λ = Q`; a drive's effort is `−λ`).
+    pub lambda: DVector<f64>,
+}
+
+/// Counters and constraint drift since the last (re)start.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct HhtStats {
+    /// Accepted steps.
+    pub steps: u64,
+    /// Newton iterations (residual evaluations + solves), all passes.
+    pub newton_iterations: u64,
+    /// Factorisations of the Newton iteration matrix (one per step, plus refreshes).
+    pub factorisations: u64,
+    /// Steps whose first Newton pass failed and that refreshed the matrix.
+    pub refreshes: u64,
+    /// Factorisations of `[M Φ_qᵀ; Φ_q 0]` for the velocity projection.
+    pub projection_factorisations: u64,
+    /// Steps accepted with the multiplier correction at its rounding floor (positions converged, `Δλ`
+    /// stagnating above the multiplier tolerance; see `LAMBDA_STAGNATION_RATIO`). Non-zero means the
+    /// multiplier tolerance is tighter than `Φ`'s rounding allows at this step size.
+    pub rounding_limited_steps: u64,
+    /// Most Newton iterations any single step needed.
+    pub max_iterations_in_a_step: usize,
+    /// Gauss–Newton iterations of the consistent start.
+    pub start_projection_iterations: usize,
+    /// Largest `max_j |Φ_j|` over the start and every accepted step (m or rad).
+    pub max_constraint_violation: f64,
+    /// Largest `max_j |Φ_q q̇ + Φ_t|_j` of the state returned (after projection when enabled).
+    pub max_velocity_violation: f64,
+    /// Largest `max_j |Φ_q q̇ + Φ_t|_j` before the velocity projection (the drift plain I3 would have).
+    pub max_velocity_violation_unprojected: f64,
+}
+
+/// Which form of the constraint rows [`iteration_matrix`] returns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConstraintRowScaling {
+    /// Rows `[Φ_q 0]` with right-hand side `−Φ/(β'h²)`: what the integrator factorises. Condition
+    /// number bounded as `h → 0`.
+    Scaled,
+    /// Rows `[β'h² Φ_q 0]` with right-hand side `−Φ` (the plain derivative of `Φ(q(q̈))`). Condition
+    /// number grows like `h⁻²`.
+    Unscaled,
+}
+
+/// Preallocated buffers of one integrator (sizes `nq`, `nv`, `m`, `n = nv + m`).
+#[derive(Debug, Clone)]
+struct Workspace {
+    /// Current Newton iterate q̈_{n+1}, dim nv.
+    qdd: DVector<f64>,
+    /// Current Newton iterate λ_{n+1}, dim m.
+    lambda: DVector<f64>,
+    /// a_{n+1}(q̈), dim nv.
+    a: DVector<f64>,
+    /// q_{n+1}(q̈), dim nq.
+    q: DVector<f64>,
+    /// q̇_{n+1}(q̈), dim nv.
+    v: DVector<f64>,
+    /// Tangent increment h q̇_n + h²[(½−β) a_n + β a_{n+1}], dim nv.
+    dq: DVector<f64>,
+    /// M, nv × nv.
+    mass: DMatrix<f64>,
+    /// Q, dim nv.
+    forces: DVector<f64>,
+    /// M q̈ + Φ_qᵀλ − Q, dim nv.
+    dyn_residual: DVector<f64>,
+    /// Diagonal stiffness k_j, dim nv.
+    stiffness: DVector<f64>,
+    /// Diagonal damping c_j, dim nv.
+    damping: DVector<f64>,
+    /// Position magnitudes for error weights, dim nv.
+    scale: DVector<f64>,
+    /// Φ, dim m.
+    phi: DVector<f64>,
+    /// Φ_q, m × nv.
+    phi_q: DMatrix<f64>,
+    /// Φ_t then Φ_q q̇ + Φ_t, dim m.
+    phi_dot: DVector<f64>,
+    /// Assembled iteration (or projection) matrix, n × n.
+    matrix: DMatrix<f64>,
+    /// Right-hand side, then solution, dim n.
+    rhs: DVector<f64>,
+    /// Factorisation of `matrix`.
+    solver: DenseSolver,
+    /// `mass` holds M at the current iterate.
+    mass_fresh: bool,
+    /// `phi_q` holds Φ_q at the current iterate.
+    phi_q_fresh: bool,
+}
+
+impl Workspace {
+    fn new(nq: usize, nv: usize, m: usize) -> Self {
+        let n = nv + m;
+        let kind = if m == 0 {
+            FactorKind::Cholesky
+        } else {
+            FactorKind::Lu
+        };
+        Self {
+            qdd: DVector::zeros(nv),
+            lambda: DVector::zeros(m),
+            a: DVector::zeros(nv),
+            q: DVector::zeros(nq),
+            v: DVector::zeros(nv),
+            dq: DVector::zeros(nv),
+            mass: DMatrix::zeros(nv, nv),
+            forces: DVector::zeros(nv),
+            dyn_residual: DVector::zeros(nv),
+            stiffness: DVector::zeros(nv),
+            damping: DVector::zeros(nv),
+            scale: DVector::zeros(nv),
+            phi: DVector::zeros(m),
+            phi_q: DMatrix::zeros(m, nv),
+            phi_dot: DVector::zeros(m),
+            matrix: DMatrix::zeros(n, n),
+            rhs: DVector::zeros(n),
+            solver: DenseSolver::new(n, kind),
+            mass_fresh: false,
+            phi_q_fresh: false,
+        }
+    }
+}
+
+/// Result of the last Newton iteration, for the convergence test and the failure report.
+#[derive(Debug, Clone, Copy)]
+struct IterationReport {
+    /// ‖β'h² Δq̈‖_WRMS.
+    wrms_position: f64,
+    /// ‖Δλ‖_WRMS (0 without constraints).
+    wrms_multiplier: f64,
+    /// max-norm of the residual the correction was computed from.
+    residual_inf: f64,
+    /// Largest weighted entry of the correction.
+    worst: WorstEntry,
+}
+
+impl IterationReport {
+    /// The convergence measure: converged when < 1.
+    fn wrms(&self) -> f64 {
+        self.wrms_position.max(self.wrms_multiplier)
+    }
+}
+
+/// When the position-level correction has passed the test in two consecutive iterations but the
+/// multiplier correction shrank by less than this factor, `Δλ` is rounding noise: `Φ` is evaluated to
+/// ~1e-16 (relative to the mechanism's size), and the scaled row turns that into a `Δλ` of
+/// ~1e-16 · m_eff / (β'h²) — 1e-9 N at h = 5e-4, 1e-5 N at h = 1e-5 — which no tolerance below it can
+/// pass. A genuinely converging modified Newton shrinks `Δλ` by far more than 2× per iteration.
+const LAMBDA_STAGNATION_RATIO: f64 = 0.5;
+
+/// The HHT-I3 integrator for one trajectory of one [`DaeSystem`].
+///
+/// ```text
+/// M(q_{n+1}) q̈_{n+1} + Φ_q(q_{n+1})ᵀ λ_{n+1} = Q(q_{n+1}, q̇_{n+1}, t_{n+1}),  Φ(q_{n+1}, t_{n+1}) = 0
+/// a_{n+1} = (1+α) q̈_{n+1} − α q̈_n                                            (a_0 = q̈_0)
+/// q_{n+1} = q_n ⊕ (h q̇_n + h² [(½ − β) a_n + β a_{n+1}])
+/// q̇_{n+1} = q̇_n + h [(1 − γ) a_n + γ a_{n+1}]
+/// ```
+///
+/// The system is passed to each call rather than owned, so that a study can keep its per-sample
+/// models where it likes; it must be the same system (same dimensions, checked) on every call.
+///
+/// ```
+/// use nalgebra::{DMatrix, DVector};
+/// use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, SystemError};
+///
+/// /// A unit mass on a spring of stiffness 4 N/m: q̈ = −4 q.
+/// struct Spring;
+/// impl DaeSystem for Spring {
+///     fn nq(&self) -> usize { 1 }
+///     fn nv(&self) -> usize { 1 }
+///     fn mass_matrix(&mut self, _t: f64, _q: &DVector<f64>, out: &mut DMatrix<f64>)
+///         -> Result<(), SystemError> { out[(0, 0)] = 1.0; Ok(()) }
+///     fn forces(&mut self, _t: f64, q: &DVector<f64>, _v: &DVector<f64>, out: &mut DVector<f64>)
+///         -> Result<(), SystemError> { out[0] = -4.0 * q[0]; Ok(()) }
+/// }
+///
+/// let mut sys = Spring;
+/// let q0 = DVector::from_element(1, 1.0);
+/// let v0 = DVector::zeros(1);
+/// let mut hht = HhtIntegrator::new(&mut sys, HhtSettings::default(), 0.0, &q0, &v0).unwrap();
+/// for _ in 0..1000 {
+///     hht.step(&mut sys).unwrap();
+/// }
+/// let exact = (2.0_f64 * 1.0).cos();
+/// assert!((hht.state().q[0] - exact).abs() < 1e-5);
+/// ```
+#[derive(Debug, Clone)]
+pub struct HhtIntegrator {
+    settings: HhtSettings,
+    coeffs: HhtCoefficients,
+    nq: usize,
+    nv: usize,
+    m: usize,
+    t0: f64,
+    state: HhtState,
+    /// The Newmark velocity the recursion uses, dim nv (equals `state.v` unless the reported velocity
+    /// was projected).
+    v_newmark: DVector<f64>,
+    /// Feed the projected velocity back into the recursion (the textbook post-step projection).
+    /// Test-only: it makes q̈ and λ first order (tests.rs pins it).
+    projection_feedback: bool,
+    stats: HhtStats,
+    ws: Workspace,
+}
+
+impl HhtIntegrator {
+    /// Validates `settings` for `system`, computes the consistent start from `(t0, q0, v0)` and
+    /// allocates the workspace.
+    ///
+    /// - `t0`: s; `q0`: dim `nq`; `v0`: dim `nv` (both projected onto the constraints).
+    ///
+    /// Errors: settings errors (see [`HhtSettings::validate`]) and consistent-start errors (see
+    /// [`consistent_start`]).
+    pub fn new<S: DaeSystem + ?Sized>(
+        system: &mut S,
+        settings: HhtSettings,
+        t0: f64,
+        q0: &DVector<f64>,
+        v0: &DVector<f64>,
+    ) -> Result<Self, IntegrateError> {
+        let (nq, nv, m) = (system.nq(), system.nv(), system.n_constraints());
+        let coeffs = settings.validate(m)?;
+        let mut integrator = Self {
+            settings,
+            coeffs,
+            nq,
+            nv,
+            m,
+            t0,
+            state: HhtState {
+                t: t0,
+                step: 0,
+                q: DVector::zeros(nq),
+                v: DVector::zeros(nv),
+                a: DVector::zeros(nv),
+                qdd: DVector::zeros(nv),
+                lambda: DVector::zeros(m),
+            },
+            v_newmark: DVector::zeros(nv),
+            projection_feedback: false,
+            stats: HhtStats::default(),
+            ws: Workspace::new(nq, nv, m),
+        };
+        integrator.restart(system, t0, q0, v0)?;
+        Ok(integrator)
+    }
+
+    /// Starts a new trajectory from `(t0, q0, v0)` reusing the workspace (e.g. the next sample of a
+    /// study with the same dimensions). Resets the statistics.
+    ///
+    /// - `t0`: s; `q0`: dim `nq`; `v0`: dim `nv`.
+    pub fn restart<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        t0: f64,
+        q0: &DVector<f64>,
+        v0: &DVector<f64>,
+    ) -> Result<(), IntegrateError> {
+        eval::check_dimensions(system, self.nq, self.nv, self.m)?;
+        let start: ConsistentStart = consistent_start(system, t0, q0, v0)?;
+        self.t0 = t0;
+        self.state.t = t0;
+        self.state.step = 0;
+        self.state.q.copy_from(&start.q);
+        self.state.v.copy_from(&start.v);
+        self.v_newmark.copy_from(&start.v);
+        self.state.qdd.copy_from(&start.qdd);
+        self.state.a.copy_from(&start.qdd);
+        self.state.lambda.copy_from(&start.lambda);
+        self.stats = HhtStats {
+            start_projection_iterations: start.projection_iterations,
+            max_constraint_violation: start.final_violation,
+            ..HhtStats::default()
+        };
+        if self.m > 0 {
+            let at = At { t: t0, step: 0 };
+            let violation = self.velocity_violation(system, at)?;
+            self.stats.max_velocity_violation = violation;
+            self.stats.max_velocity_violation_unprojected = violation;
+        }
+        Ok(())
+    }
+
+    /// The current state.
+    pub fn state(&self) -> &HhtState {
+        &self.state
+    }
+
+    /// Statistics since the last (re)start.
+    pub fn stats(&self) -> &HhtStats {
+        &self.stats
+    }
+
+    /// The validated settings.
+    pub fn settings(&self) -> &HhtSettings {
+        &self.settings
+    }
+
+    /// The derived coefficients (`γ`, `β`, `β'`, `γ'`, `h`).
+    pub fn coefficients(&self) -> &HhtCoefficients {
+        &self.coeffs
+    }
+
+    /// Advances by one step `h` to `t_{n+1} = t0 + (n+1) h` (computed from the step count, so time
+    /// does not drift). On error the state is left at `t_n`.
+    ///
+    /// Errors: [`IntegrateError::NewtonNotConverged`], [`IntegrateError::SingularMatrix`],
+    /// [`IntegrateError::NonFinite`], [`IntegrateError::System`],
+    /// [`IntegrateError::DimensionMismatch`]. Allocation-free on success.
+    pub fn step<S: DaeSystem + ?Sized>(&mut self, system: &mut S) -> Result<(), IntegrateError> {
+        eval::check_dimensions(system, self.nq, self.nv, self.m)?;
+        let step = self.state.step + 1;
+        let t1 = self.t0 + step as f64 * self.coeffs.h;
+        let at = At { t: t1, step };
+
+        // Predictor: q̈_{n+1} = q̈_n, λ_{n+1} = λ_n.
+        self.ws.qdd.copy_from(&self.state.qdd);
+        self.ws.lambda.copy_from(&self.state.lambda);
+        self.update_iterate(system, at)?;
+
+        let max_iterations = self.settings.max_newton_iterations;
+        let mut iterations = 0;
+        let mut converged = false;
+        let mut last: Option<IterationReport> = None;
+        for pass in 0..2 {
+            if pass == 1 {
+                self.stats.refreshes += 1;
+            }
+            self.factorise_at_iterate(system, at)?;
+            let mut previous: Option<IterationReport> = None;
+            for _ in 0..max_iterations {
+                iterations += 1;
+                let report = self.newton_iteration(system, at)?;
+                last = Some(report);
+                if report.wrms() < 1.0 {
+                    converged = true;
+                    break;
+                }
+                if let Some(prev) = previous {
+                    // Multipliers at the rounding floor of Φ/(β'h²): positions converged twice in a
+                    // row and Δλ stopped shrinking. Accept and count it.
+                    if report.wrms_position < 1.0
+                        && prev.wrms_position < 1.0
+                        && report.wrms_multiplier > LAMBDA_STAGNATION_RATIO * prev.wrms_multiplier
+                    {
+                        self.stats.rounding_limited_steps += 1;
+                        converged = true;
+                        break;
+                    }
+                    if report.wrms() > prev.wrms() {
+                        // Diverging: refresh now rather than after the remaining iterations.
+                        break;
+                    }
+                }
+                previous = Some(report);
+            }
+            if converged {
+                break;
+            }
+        }
+        self.stats.newton_iterations += iterations as u64;
+        if !converged {
+            let report =
+                last.expect("at least one Newton iteration runs (max_newton_iterations >= 1)");
+            return Err(IntegrateError::NewtonNotConverged {
+                t: t1,
+                step,
+                iterations,
+                correction_wrms: report.wrms(),
+                residual_inf: report.residual_inf,
+                worst: report.worst,
+            });
+        }
+
+        // Accept.
+        let ws = &self.ws;
+        let state = &mut self.state;
+        state.t = t1;
+        state.step = step;
+        state.q.copy_from(&ws.q);
+        state.v.copy_from(&ws.v);
+        self.v_newmark.copy_from(&ws.v);
+        state.a.copy_from(&ws.a);
+        state.qdd.copy_from(&ws.qdd);
+        state.lambda.copy_from(&ws.lambda);
+        self.stats.steps += 1;
+        self.stats.max_iterations_in_a_step = self.stats.max_iterations_in_a_step.max(iterations);
+
+        if self.m > 0 {
+            self.finish_constrained_step(system, at)?;
+        }
+        Ok(())
+    }
+
+    /// From the iterate `ws.qdd` (and the state at `t_n`), computes `a_{n+1}`, `q_{n+1}`, `q̇_{n+1}`:
+    ///
+    /// ```text
+    /// a_{n+1} = (1+α) q̈_{n+1} − α q̈_n
+    /// q_{n+1} = q_n ⊕ (h q̇_n + h² [(½ − β) a_n + β a_{n+1}])
+    /// q̇_{n+1} = q̇_n + h [(1 − γ) a_n + γ a_{n+1}]
+    /// ```
+    fn update_iterate<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        at: At,
+    ) -> Result<(), IntegrateError> {
+        let c = self.coeffs;
+        let (h, alpha, beta, gamma) = (c.h, c.alpha, c.beta, c.gamma);
+        let s = &self.state;
+        let v_n = &self.v_newmark;
+        let ws = &mut self.ws;
+        for i in 0..self.nv {
+            let a_new = (1.0 + alpha) * ws.qdd[i] - alpha * s.qdd[i];
+            ws.a[i] = a_new;
+            ws.dq[i] = h * v_n[i] + h * h * ((0.5 - beta) * s.a[i] + beta * a_new);
+            ws.v[i] = v_n[i] + h * ((1.0 - gamma) * s.a[i] + gamma * a_new);
+        }
+        eval::integrate_position(system, at, &s.q, &ws.dq, &mut ws.q)?;
+        ws.mass_fresh = false;
+        ws.phi_q_fresh = false;
+        Ok(())
+    }
+
+    /// Evaluates `M`, the diagonal spring/damper terms and `Φ_q` at the current iterate and factorises
+    /// the iteration matrix (see [`assemble_iteration_matrix`]).
+    fn factorise_at_iterate<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<(), IntegrateError> {
+        let ws = &mut self.ws;
+        eval::mass_matrix(system, at, &ws.q, &mut ws.mass)?;
+        let diagonal = if self.settings.newton_diagonal_terms {
+            eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)?;
+            Some((&ws.stiffness, &ws.damping))
+        } else {
+            None
+        };
+        if self.m > 0 {
+            eval::constraint_jacobian(system, at, &ws.q, &mut ws.phi_q)?;
+        }
+        assemble_iteration_matrix(
+            &ws.mass,
+            diagonal,
+            &ws.phi_q,
+            self.coeffs.beta_h2(),
+            self.coeffs.gamma_h(),
+            1.0,
+            &mut ws.matrix,
+        );
+        ws.solver
+            .factor(&ws.matrix)
+            .map_err(|b| IntegrateError::SingularMatrix {
+                t: at.t,
+                step: at.step,
+                matrix: "Newton iteration matrix",
+                index: b.index,
+                pivot_relative: b.pivot_relative,
+            })?;
+        ws.mass_fresh = true;
+        ws.phi_q_fresh = true;
+        self.stats.factorisations += 1;
+        Ok(())
+    }
+
+    /// One modified-Newton iteration at the current iterate: residual, solve with the stored
+    /// factorisation, correction, convergence measure.
+    ///
+    /// ```text
+    /// r = [ M q̈ + Φ_qᵀ λ − Q ]      J [Δq̈; Δλ] = −r,   q̈ += Δq̈,  λ += Δλ
+    ///     [ Φ / (β'h²)       ]
+    /// converged ⇔ ‖β'h² Δq̈‖_WRMS < 1 and ‖Δλ‖_WRMS < 1,   ewt_i = 1 / (reltol |x_i| + abstol)
+    /// ```
+    fn newton_iteration<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<IterationReport, IntegrateError> {
+        let (nv, m) = (self.nv, self.m);
+        let beta_h2 = self.coeffs.beta_h2();
+        {
+            let ws = &mut self.ws;
+            // Dynamics rows: M q̈ − Q (+ Φ_qᵀ λ below).
+            if system.provides_dynamics_residual() {
+                eval::dynamics_residual(system, at, &ws.q, &ws.v, &ws.qdd, &mut ws.dyn_residual)?;
+            } else {
+                if !ws.mass_fresh {
+                    eval::mass_matrix(system, at, &ws.q, &mut ws.mass)?;
+                    ws.mass_fresh = true;
+                }
+                eval::forces(system, at, &ws.q, &ws.v, &mut ws.forces)?;
+                ws.dyn_residual.copy_from(&ws.forces);
+                ws.dyn_residual.gemv(1.0, &ws.mass, &ws.qdd, -1.0);
+            }
+            if m > 0 {
+                eval::constraints(system, at, &ws.q, &mut ws.phi)?;
+                if !ws.phi_q_fresh {
+                    eval::constraint_jacobian(system, at, &ws.q, &mut ws.phi_q)?;
+                    ws.phi_q_fresh = true;
+                }
+                ws.dyn_residual.gemv_tr(1.0, &ws.phi_q, &ws.lambda, 1.0);
+            }
+        }
+        let ws = &mut self.ws;
+        let mut residual_inf: f64 = 0.0;
+        for i in 0..nv {
+            let r = ws.dyn_residual[i];
+            residual_inf = residual_inf.max(r.abs());
+            ws.rhs[i] = -r;
+        }
+        for j in 0..m {
+            let r = ws.phi[j] / beta_h2;
+            residual_inf = residual_inf.max(r.abs());
+            ws.rhs[nv + j] = -r;
+        }
+        ws.solver.solve_in_place(&mut ws.rhs);
+        at.check_finite("newton_update", ws.rhs.iter())?;
+
+        // Weighted RMS of the position-level correction β'h² Δq̈ and of Δλ, at the iterate before
+        // the correction; the worst weighted entry is kept for the failure report.
+        system.position_scale(&ws.q, &mut ws.scale);
+        let reltol = self.settings.reltol;
+        let mut worst = WorstEntry::Coordinate {
+            index: 0,
+            weighted_correction: 0.0,
+        };
+        let mut worst_value = -1.0;
+        let mut sum_q = 0.0;
+        for i in 0..nv {
+            let ewt = 1.0 / (reltol * ws.scale[i] + self.settings.abstol_position);
+            let x = (beta_h2 * ws.rhs[i] * ewt).abs();
+            sum_q += x * x;
+            if x > worst_value {
+                worst_value = x;
+                worst = WorstEntry::Coordinate {
+                    index: i,
+                    weighted_correction: x,
+                };
+            }
+        }
+        let mut sum_l = 0.0;
+        for j in 0..m {
+            let ewt = 1.0 / (reltol * ws.lambda[j].abs() + self.settings.abstol_multiplier);
+            let x = (ws.rhs[nv + j] * ewt).abs();
+            sum_l += x * x;
+            if x > worst_value {
+                worst_value = x;
+                worst = WorstEntry::Constraint {
+                    index: j,
+                    weighted_correction: x,
+                    violation: ws.phi[j],
+                };
+            }
+        }
+        let wrms_q = if nv > 0 {
+            (sum_q / nv as f64).sqrt()
+        } else {
+            0.0
+        };
+        let wrms_l = if m > 0 {
+            (sum_l / m as f64).sqrt()
+        } else {
+            0.0
+        };
+
+        for i in 0..nv {
+            ws.qdd[i] += ws.rhs[i];
+        }
+        for j in 0..m {
+            ws.lambda[j] += ws.rhs[nv + j];
+        }
+        self.update_iterate(system, at)?;
+        Ok(IterationReport {
+            wrms_position: wrms_q,
+            wrms_multiplier: wrms_l,
+            residual_inf,
+            worst,
+        })
+    }
+
+    /// After an accepted step with constraint rows: records `max |Φ|` and the velocity-level drift,
+    /// and projects the reported `q̇` (`state.v`) when enabled; the recursion keeps the Newmark
+    /// velocity (see [`HhtSettings::velocity_projection`]):
+    ///
+    /// ```text
+    /// [ M    Φ_qᵀ ] [Δq̇]   [ 0                ]
+    /// [ Φ_q  0    ] [μ  ] = [ −(Φ_q q̇ + Φ_t)   ],   q̇ += Δq̇
+    /// ```
+    fn finish_constrained_step<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<(), IntegrateError> {
+        let (nv, m) = (self.nv, self.m);
+        {
+            let ws = &mut self.ws;
+            eval::constraints(system, at, &self.state.q, &mut ws.phi)?;
+        }
+        self.stats.max_constraint_violation =
+            self.stats.max_constraint_violation.max(self.ws.phi.amax());
+        let before = self.velocity_violation(system, at)?;
+        self.stats.max_velocity_violation_unprojected =
+            self.stats.max_velocity_violation_unprojected.max(before);
+        if !self.settings.velocity_projection {
+            self.stats.max_velocity_violation = self.stats.max_velocity_violation.max(before);
+            return Ok(());
+        }
+        // velocity_violation left Φ_q(q_{n+1}) in ws.phi_q and Φ_q q̇ + Φ_t in ws.phi_dot.
+        let ws = &mut self.ws;
+        eval::mass_matrix(system, at, &self.state.q, &mut ws.mass)?;
+        ws.mass_fresh = false;
+        assemble_iteration_matrix(&ws.mass, None, &ws.phi_q, 0.0, 0.0, 1.0, &mut ws.matrix);
+        ws.solver
+            .factor(&ws.matrix)
+            .map_err(|b| IntegrateError::SingularMatrix {
+                t: at.t,
+                step: at.step,
+                matrix: "velocity projection matrix [M Φ_qᵀ; Φ_q 0]",
+                index: b.index,
+                pivot_relative: b.pivot_relative,
+            })?;
+        self.stats.projection_factorisations += 1;
+        for i in 0..nv {
+            ws.rhs[i] = 0.0;
+        }
+        for j in 0..m {
+            ws.rhs[nv + j] = -ws.phi_dot[j];
+        }
+        ws.solver.solve_in_place(&mut ws.rhs);
+        at.check_finite("velocity_projection", ws.rhs.iter())?;
+        for i in 0..nv {
+            self.state.v[i] += ws.rhs[i];
+        }
+        if self.projection_feedback {
+            self.v_newmark.copy_from(&self.state.v);
+        }
+        let after = self.velocity_violation(system, at)?;
+        self.stats.max_velocity_violation = self.stats.max_velocity_violation.max(after);
+        Ok(())
+    }
+
+    /// Test-only: feed the projected velocity back into the recursion (the textbook post-step
+    /// projection), to measure what that costs.
+    #[cfg(test)]
+    pub(crate) fn set_projection_feedback(&mut self, on: bool) {
+        self.projection_feedback = on;
+    }
+
+    /// `max_j |Φ_q q̇ + Φ_t|_j` at the current state; leaves `Φ_q` in `ws.phi_q` and the vector in
+    /// `ws.phi_dot`.
+    fn velocity_violation<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<f64, IntegrateError> {
+        let ws = &mut self.ws;
+        let s = &self.state;
+        eval::constraint_jacobian(system, at, &s.q, &mut ws.phi_q)?;
+        ws.phi_q_fresh = false;
+        eval::constraint_time_derivative(system, at, &s.q, &mut ws.phi_dot)?;
+        ws.phi_dot.gemv(1.0, &ws.phi_q, &s.v, 1.0);
+        Ok(ws.phi_dot.amax())
+    }
+}
+
+/// Assembles the Newton iteration matrix of method.md §5 into `out` (`(nv + m) × (nv + m)`).
+///
+/// The Newton system for the unknowns `(q̈_{n+1}, λ_{n+1})`, with `β' = (1+α)β`, `γ' = (1+α)γ`:
+///
+/// ```text
+/// [ M + β'h² K_t − γ'h C_t    Φ_qᵀ ] [Δq̈]      [ M q̈ + Φ_qᵀλ − Q ]
+/// [ c · Φ_q                   0    ] [Δλ ]  = − [ c · Φ / (β'h²)    ]
+///
+/// K_t = ∂(M q̈ + Φ_qᵀλ − Q)/∂q,  C_t = ∂Q/∂q̇
+/// ```
+///
+/// Modified Newton keeps only `M` and the diagonal spring/damper parts of `K_t` and `C_t`: a spring
+/// `Q_j = −k_j q_j` gives `K_t,jj = +k_j`, a damper `Q_j = −c_j q̇_j` gives `C_t,jj = −c_j`, so the
+/// diagonal gets `+β'h² k_j + γ'h c_j`.
+///
+/// The constraint rows are written with `c = 1` (`constraint_row_factor = 1`): that is the plain
+/// derivative of `Φ(q(q̈))` (`Φ_q β'h²`) divided by `β'h²`, which keeps the condition number bounded
+/// as `h → 0`. `constraint_row_factor = β'h²` gives the unscaled rows (condition ∝ h⁻²), exposed only
+/// for [`iteration_matrix`]. With `beta_h2 = gamma_h = 0` and no diagonal this is the saddle-point
+/// matrix `[M Φ_qᵀ; Φ_q 0]` of the consistent start and the velocity projection.
+///
+/// - `mass`: `nv × nv`; `diagonal`: `(stiffness, damping)`, each dim `nv` (`None` = no diagonal
+///   terms); `phi_q`: `m × nv`; `out`: overwritten.
+pub(crate) fn assemble_iteration_matrix(
+    mass: &DMatrix<f64>,
+    diagonal: Option<(&DVector<f64>, &DVector<f64>)>,
+    phi_q: &DMatrix<f64>,
+    beta_h2: f64,
+    gamma_h: f64,
+    constraint_row_factor: f64,
+    out: &mut DMatrix<f64>,
+) {
+    let nv = mass.nrows();
+    let m = phi_q.nrows();
+    out.fill(0.0);
+    out.view_mut((0, 0), (nv, nv)).copy_from(mass);
+    if let Some((k, c)) = diagonal {
+        for j in 0..nv {
+            out[(j, j)] += beta_h2 * k[j] + gamma_h * c[j];
+        }
+    }
+    for r in 0..m {
+        for j in 0..nv {
+            let g = phi_q[(r, j)];
+            out[(j, nv + r)] = g;
+            out[(nv + r, j)] = constraint_row_factor * g;
+        }
+    }
+}
+
+/// The iteration matrix the integrator would factorise at `(t, q, v)`, for diagnostics (condition
+/// numbers). Allocates.
+///
+/// - `t`: s; `q`: dim `nq`; `v`: dim `nv`; returns `(nv + m) × (nv + m)`.
+/// - `scaling`: [`ConstraintRowScaling::Scaled`] is what [`HhtIntegrator`] uses.
+///
+/// Errors: settings errors, dimension mismatches, system errors and non-finite outputs.
+pub fn iteration_matrix<S: DaeSystem + ?Sized>(
+    system: &mut S,
+    settings: &HhtSettings,
+    t: f64,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    scaling: ConstraintRowScaling,
+) -> Result<DMatrix<f64>, IntegrateError> {
+    let (nq, nv, m) = (system.nq(), system.nv(), system.n_constraints());
+    let coeffs = settings.validate(m)?;
+    if q.len() != nq {
+        return Err(IntegrateError::DimensionMismatch {
+            what: "q",
+            expected: nq,
+            got: q.len(),
+        });
+    }
+    if v.len() != nv {
+        return Err(IntegrateError::DimensionMismatch {
+            what: "v",
+            expected: nv,
+            got: v.len(),
+        });
+    }
+    let at = At { t, step: 0 };
+    let mut mass = DMatrix::zeros(nv, nv);
+    eval::mass_matrix(system, at, q, &mut mass)?;
+    let mut stiffness = DVector::zeros(nv);
+    let mut damping = DVector::zeros(nv);
+    if settings.newton_diagonal_terms {
+        eval::newton_diagonal(system, at, q, v, &mut stiffness, &mut damping)?;
+    }
+    let mut phi_q = DMatrix::zeros(m, nv);
+    if m > 0 {
+        eval::constraint_jacobian(system, at, q, &mut phi_q)?;
+    }
+    let factor = match scaling {
+        ConstraintRowScaling::Scaled => 1.0,
+        ConstraintRowScaling::Unscaled => coeffs.beta_h2(),
+    };
+    let mut out = DMatrix::zeros(nv + m, nv + m);
+    assemble_iteration_matrix(
+        &mass,
+        Some((&stiffness, &damping)),
+        &phi_q,
+        coeffs.beta_h2(),
+        coeffs.gamma_h(),
+        factor,
+        &mut out,
+    );
+    Ok(out)
+}

@@ -1,0 +1,232 @@
+//! Small dense factorisations done in place in preallocated storage, so that a time step allocates
+//! nothing (nalgebra's `LU::new` / `Cholesky::new` take their matrix by value).
+//!
+//! Sizes here are `nv + m ≤ ~50`: a plain right-looking LU with partial pivoting and a plain
+//! Cholesky are as fast as anything for these sizes and keep the workspace explicit.
+
+use nalgebra::{DMatrix, DVector};
+
+/// A pivot smaller than this fraction of the matrix's largest entry means "singular to working
+/// precision". A matrix that close to singular (condition ≳ 1e13) leaves no correct digits at the
+/// Newton tolerances we use, and dependent constraint rows give pivots at the 1e-16 rounding level,
+/// well below it.
+pub const SINGULAR_PIVOT_RELATIVE: f64 = 1e-13;
+
+/// Where a factorisation broke down.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Breakdown {
+    /// Elimination step (row) at which the pivot was too small.
+    pub index: usize,
+    /// |pivot| / max |entry| (for Cholesky: the diagonal before its square root, relative).
+    pub pivot_relative: f64,
+}
+
+/// Which factorisation a [`DenseSolver`] uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum FactorKind {
+    /// LU with partial pivoting: general square matrices (saddle-point systems with constraints).
+    Lu,
+    /// Cholesky `L Lᵀ`: symmetric positive definite matrices (the Newton matrix of a tree).
+    Cholesky,
+}
+
+/// An `n × n` factorisation held in preallocated storage.
+#[derive(Debug, Clone)]
+pub(crate) struct DenseSolver {
+    factors: DMatrix<f64>,
+    pivots: Vec<usize>,
+    kind: FactorKind,
+}
+
+impl DenseSolver {
+    /// Storage for `n × n` systems (the only allocation).
+    pub fn new(n: usize, kind: FactorKind) -> Self {
+        Self {
+            factors: DMatrix::zeros(n, n),
+            pivots: vec![0; n],
+            kind,
+        }
+    }
+
+    /// Factorises `a` (dimension `n × n`; only the lower triangle is read for Cholesky), overwriting
+    /// the stored factors. Allocation-free.
+    pub fn factor(&mut self, a: &DMatrix<f64>) -> Result<(), Breakdown> {
+        self.factors.copy_from(a);
+        let scale = a.iter().fold(0.0_f64, |acc, x| acc.max(x.abs()));
+        if scale == 0.0 && !a.is_empty() {
+            return Err(Breakdown {
+                index: 0,
+                pivot_relative: 0.0,
+            });
+        }
+        match self.kind {
+            FactorKind::Lu => self.factor_lu(scale),
+            FactorKind::Cholesky => self.factor_cholesky(scale),
+        }
+    }
+
+    fn factor_lu(&mut self, scale: f64) -> Result<(), Breakdown> {
+        let a = &mut self.factors;
+        let n = a.nrows();
+        for k in 0..n {
+            let mut p = k;
+            let mut best = a[(k, k)].abs();
+            for i in (k + 1)..n {
+                let v = a[(i, k)].abs();
+                if v > best {
+                    best = v;
+                    p = i;
+                }
+            }
+            if best.is_nan() || best <= SINGULAR_PIVOT_RELATIVE * scale {
+                return Err(Breakdown {
+                    index: k,
+                    pivot_relative: best / scale,
+                });
+            }
+            self.pivots[k] = p;
+            if p != k {
+                a.swap_rows(k, p);
+            }
+            let inv = 1.0 / a[(k, k)];
+            for i in (k + 1)..n {
+                a[(i, k)] *= inv;
+            }
+            for j in (k + 1)..n {
+                let akj = a[(k, j)];
+                if akj != 0.0 {
+                    for i in (k + 1)..n {
+                        let lik = a[(i, k)];
+                        a[(i, j)] -= lik * akj;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn factor_cholesky(&mut self, scale: f64) -> Result<(), Breakdown> {
+        let a = &mut self.factors;
+        let n = a.nrows();
+        for j in 0..n {
+            let mut d = a[(j, j)];
+            for k in 0..j {
+                d -= a[(j, k)] * a[(j, k)];
+            }
+            if d.is_nan() || d <= SINGULAR_PIVOT_RELATIVE * scale {
+                return Err(Breakdown {
+                    index: j,
+                    pivot_relative: d / scale,
+                });
+            }
+            let ljj = d.sqrt();
+            a[(j, j)] = ljj;
+            for i in (j + 1)..n {
+                let mut s = a[(i, j)];
+                for k in 0..j {
+                    s -= a[(i, k)] * a[(j, k)];
+                }
+                a[(i, j)] = s / ljj;
+            }
+        }
+        Ok(())
+    }
+
+    /// Solves `A x = b` in place (`b` of dimension `n`, overwritten with `x`) with the last successful
+    /// factorisation. Allocation-free.
+    pub fn solve_in_place(&self, b: &mut DVector<f64>) {
+        let a = &self.factors;
+        let n = a.nrows();
+        match self.kind {
+            FactorKind::Lu => {
+                for k in 0..n {
+                    let p = self.pivots[k];
+                    if p != k {
+                        b.swap_rows(k, p);
+                    }
+                }
+                // L y = P b (unit lower triangle)
+                for j in 0..n {
+                    let bj = b[j];
+                    if bj != 0.0 {
+                        for i in (j + 1)..n {
+                            b[i] -= a[(i, j)] * bj;
+                        }
+                    }
+                }
+                // U x = y
+                for j in (0..n).rev() {
+                    b[j] /= a[(j, j)];
+                    let bj = b[j];
+                    if bj != 0.0 {
+                        for i in 0..j {
+                            b[i] -= a[(i, j)] * bj;
+                        }
+                    }
+                }
+            }
+            FactorKind::Cholesky => {
+                // L y = b
+                for j in 0..n {
+                    b[j] /= a[(j, j)];
+                    let bj = b[j];
+                    for i in (j + 1)..n {
+                        b[i] -= a[(i, j)] * bj;
+                    }
+                }
+                // Lᵀ x = y
+                for i in (0..n).rev() {
+                    let mut s = b[i];
+                    for k in (i + 1)..n {
+                        s -= a[(k, i)] * b[k];
+                    }
+                    b[i] = s / a[(i, i)];
+                }
+            }
+        }
+    }
+}
+
+/// Index of the first non-finite entry (column-major for matrices), if any.
+pub(crate) fn first_non_finite<'a>(x: impl IntoIterator<Item = &'a f64>) -> Option<usize> {
+    x.into_iter().position(|v| !v.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Agreement of an in-place solve with nalgebra's own LU on a well-conditioned matrix.
+    const SOLVE_TOL: f64 = 1e-12;
+
+    #[test]
+    fn lu_and_cholesky_solve_small_systems() {
+        let a = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]);
+        let b = DVector::from_column_slice(&[1.0, -2.0, 0.5]);
+        let expected = a.clone().lu().solve(&b).expect("invertible");
+        for kind in [FactorKind::Lu, FactorKind::Cholesky] {
+            let mut s = DenseSolver::new(3, kind);
+            s.factor(&a).expect("regular");
+            let mut x = b.clone();
+            s.solve_in_place(&mut x);
+            assert!((x - &expected).amax() < SOLVE_TOL, "{kind:?}");
+        }
+        // A saddle-point matrix needs the pivoting.
+        let k = DMatrix::from_row_slice(3, 3, &[0.0, 0.0, 1.0, 0.0, 2.0, 1.0, 1.0, 1.0, 0.0]);
+        let mut s = DenseSolver::new(3, FactorKind::Lu);
+        s.factor(&k).expect("regular");
+        let mut x = b.clone();
+        s.solve_in_place(&mut x);
+        assert!((&k * x - &b).amax() < SOLVE_TOL);
+    }
+
+    #[test]
+    fn singular_matrices_are_reported() {
+        let a = DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 4.0]);
+        let mut s = DenseSolver::new(2, FactorKind::Lu);
+        let e = s.factor(&a).unwrap_err();
+        assert_eq!(e.index, 1);
+        let mut c = DenseSolver::new(2, FactorKind::Cholesky);
+        assert!(c.factor(&a).is_err());
+    }
+}

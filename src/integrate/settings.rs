@@ -1,0 +1,155 @@
+//! [`HhtSettings`]: every option of the integrator, with its default, range and reason; and the
+//! derived Newmark coefficients [`HhtCoefficients`].
+
+use super::error::IntegrateError;
+
+/// Options of the HHT-I3 integrator. Build with `HhtSettings::default()` and override fields.
+///
+/// Validated by [`HhtSettings::validate`] (called by the integrator's constructor).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HhtSettings {
+    /// HHT `α`, range `[−1/3, 0]`, default `−0.1`. `0` = trapezoidal rule (no numerical damping; refused
+    /// when the system has constraint rows), `−1/3` = most high-frequency damping. Sets
+    /// `γ = ½ − α`, `β = (1 − α)²/4`.
+    pub alpha: f64,
+    /// Fixed step `h`, s, finite and `> 0`, default `1e-3`. Shared by every sample of a study so that
+    /// trajectories stay smooth in the parameters.
+    pub step_s: f64,
+    /// Relative tolerance of the Newton test, `> 0`, default `1e-6`: error weight
+    /// `ewt_i = 1 / (reltol · |x_i| + abstol)`, converged when the weighted RMS norm of the
+    /// correction is `< 1`.
+    pub reltol: f64,
+    /// Absolute tolerance on the position-level correction `β'h² Δq̈`, m or rad, `> 0`, default
+    /// `1e-10`: well below the ~1e-6 discretisation error of a 1 ms step, so that Newton noise does not
+    /// roughen the parameter-to-trajectory map the surrogates fit.
+    pub abstol_position: f64,
+    /// Absolute tolerance on the multiplier correction `Δλ`, N or N·m, `> 0`, default `1e-8`.
+    pub abstol_multiplier: f64,
+    /// Newton iterations per pass, `≥ 1`, default `10`. A pass that does not converge is followed by
+    /// one refresh of the iteration matrix at the current iterate and a second pass; then the step
+    /// fails with [`IntegrateError::NewtonNotConverged`].
+    pub max_newton_iterations: usize,
+    /// Post-step projection of the reported `q̇` onto `Φ_q q̇ + Φ_t = 0` (default `true`), by
+    /// `[M Φ_qᵀ; Φ_q 0][Δq̇; μ] = [0; −(Φ_q q̇ + Φ_t)]`. Only meaningful with constraint rows; without
+    /// it the velocity-level constraint of the reported velocity is off by O(h²) (bounded, no drift
+    /// growth: plain I3 enforces only `Φ = 0`).
+    ///
+    /// The projection changes what [`HhtState::v`](super::HhtState::v) reports, **not** the velocity
+    /// the recursion carries: generalized-α's velocity carries an O(h²) offset that keeps `q̈` and `λ`
+    /// second order, and resetting it every step pushes an O(h) error into `a`, `q̈` and `λ`.
+    /// Measured on the Cartesian pendulum (α = −0.1, t = 1 s, h = 2e-3 → 5e-4): with the projected
+    /// velocity fed back, λ errors 2.4e-3 → 6.0e-4 (ratio 2.0); kept out of the recursion, 1.4e-5 →
+    /// 9.2e-7 (ratio 4.0). Positions are second order either way.
+    pub velocity_projection: bool,
+    /// Add the diagonal spring and damper terms `β'h² k_j + γ'h c_j` of
+    /// [`DaeSystem::newton_diagonal`](super::DaeSystem::newton_diagonal) to the iteration matrix
+    /// (default `true`). Turning it off only serves to measure what the terms buy: a stiff spring on
+    /// a light link then diverges.
+    pub newton_diagonal_terms: bool,
+}
+
+impl Default for HhtSettings {
+    fn default() -> Self {
+        Self {
+            alpha: -0.1,
+            step_s: 1e-3,
+            reltol: 1e-6,
+            abstol_position: 1e-10,
+            abstol_multiplier: 1e-8,
+            max_newton_iterations: 10,
+            velocity_projection: true,
+            newton_diagonal_terms: true,
+        }
+    }
+}
+
+/// The lower end of the HHT range of `α`.
+pub const ALPHA_MIN: f64 = -1.0 / 3.0;
+
+/// Coefficients derived from `α` and `h` (method.md §5, Arnold–Brüls generalized-α with
+/// `α_m = 0`, `α_f = −α`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HhtCoefficients {
+    /// `α` ∈ [−1/3, 0].
+    pub alpha: f64,
+    /// `γ = ½ − α`.
+    pub gamma: f64,
+    /// `β = (1 − α)² / 4`.
+    pub beta: f64,
+    /// `β' = (1 + α) β` = `∂q_{n+1}/∂q̈_{n+1} / h²`.
+    pub beta_prime: f64,
+    /// `γ' = (1 + α) γ` = `∂q̇_{n+1}/∂q̈_{n+1} / h`.
+    pub gamma_prime: f64,
+    /// Step `h`, s.
+    pub h: f64,
+}
+
+impl HhtCoefficients {
+    /// Coefficients for `alpha` and step `h` (not validated; see [`HhtSettings::validate`]).
+    pub fn new(alpha: f64, h: f64) -> Self {
+        let gamma = 0.5 - alpha;
+        let beta = 0.25 * (1.0 - alpha) * (1.0 - alpha);
+        Self {
+            alpha,
+            gamma,
+            beta,
+            beta_prime: (1.0 + alpha) * beta,
+            gamma_prime: (1.0 + alpha) * gamma,
+            h,
+        }
+    }
+
+    /// `β' h²`: derivative of `q_{n+1}` with respect to `q̈_{n+1}`.
+    pub fn beta_h2(&self) -> f64 {
+        self.beta_prime * self.h * self.h
+    }
+
+    /// `γ' h`: derivative of `q̇_{n+1}` with respect to `q̈_{n+1}`.
+    pub fn gamma_h(&self) -> f64 {
+        self.gamma_prime * self.h
+    }
+}
+
+impl HhtSettings {
+    /// Checks every field for a system with `n_constraints` rows and returns the derived coefficients.
+    ///
+    /// Errors: `α ∉ [−1/3, 0]` → [`IntegrateError::InvalidAlpha`]; `α = 0` with constraints →
+    /// [`IntegrateError::AlphaZeroWithConstraints`]; `h ≤ 0` or not finite →
+    /// [`IntegrateError::InvalidStep`]; a non-positive tolerance or zero iterations →
+    /// [`IntegrateError::InvalidSetting`].
+    pub fn validate(&self, n_constraints: usize) -> Result<HhtCoefficients, IntegrateError> {
+        let alpha = self.alpha;
+        if !alpha.is_finite() || !(ALPHA_MIN..=0.0).contains(&alpha) {
+            return Err(IntegrateError::InvalidAlpha { alpha });
+        }
+        if alpha == 0.0 && n_constraints > 0 {
+            return Err(IntegrateError::AlphaZeroWithConstraints { n_constraints });
+        }
+        if !self.step_s.is_finite() || self.step_s <= 0.0 {
+            return Err(IntegrateError::InvalidStep {
+                step_s: self.step_s,
+            });
+        }
+        for (name, value) in [
+            ("reltol", self.reltol),
+            ("abstol_position", self.abstol_position),
+            ("abstol_multiplier", self.abstol_multiplier),
+        ] {
+            if !value.is_finite() || value <= 0.0 {
+                return Err(IntegrateError::InvalidSetting {
+                    name,
+                    value,
+                    reason: "must be finite and > 0",
+                });
+            }
+        }
+        if self.max_newton_iterations == 0 {
+            return Err(IntegrateError::InvalidSetting {
+                name: "max_newton_iterations",
+                value: 0.0,
+                reason: "must be >= 1",
+            });
+        }
+        Ok(HhtCoefficients::new(alpha, self.step_s))
+    }
+}

@@ -1,0 +1,480 @@
+//! Scenes: what a run simulates and records, read from the sidecar `ROBOT.uncertainty.toml` and checked
+//! against the robot.
+//!
+//! A [`Scene`] is fully resolved: joint names are indices, effects are flags, outputs know where their
+//! numbers come from. Only what the scene declares is assembled by [`crate::effects`]. Drives and
+//! closed loops (`[[scene.drive]]`, `[[scene.loop]]`) are refused with a clear message until
+//! constraint rows land.
+
+mod outputs;
+mod sidecar;
+
+pub use outputs::{Output, OutputKind};
+pub use sidecar::{parse_sidecar, JointSelection, SidecarFile};
+
+use crate::model::{JointKind, Model};
+use crate::spatial::rotation_from_rpy;
+use crate::text::closest_suggestion;
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// Default simulated time, s.
+pub const DEFAULT_DURATION_S: f64 = 1.0;
+/// Default fixed step, s.
+pub const DEFAULT_STEP_S: f64 = 1e-3;
+/// Default HHT α.
+pub const DEFAULT_ALPHA: f64 = -0.1;
+/// Default recording rate, Hz.
+pub const DEFAULT_RATE_HZ: f64 = 100.0;
+/// Relative tolerance for "the rate divides 1/step" and "the step divides the duration": the values
+/// are decimal fractions typed by people (0.001, 100), exact up to rounding.
+pub const DIVISIBILITY_TOLERANCE: f64 = 1e-9;
+
+/// The effects a scene can declare.
+pub const EFFECT_NAMES: [&str; 5] = [
+    "gravity",
+    "joint_damping",
+    "joint_friction",
+    "joint_springs",
+    "joint_limits",
+];
+
+/// A bad sidecar or scene value. Names the file, the key and what to do.
+#[derive(Debug, Error)]
+pub enum SceneError {
+    /// The sidecar could not be read.
+    #[error("cannot read '{path}': {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// Not valid TOML, or a key the sidecar format does not have.
+    #[error("{path}: {message}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// The TOML parser's message, with line and column.
+        message: String,
+    },
+    /// A value that does not fit the robot or the rules.
+    #[error("{path}: {key}: {message}")]
+    Invalid {
+        /// The file (or "command line").
+        path: String,
+        /// The key, e.g. `[scene] step`.
+        key: String,
+        /// What is wrong and what to do.
+        message: String,
+    },
+}
+
+/// Effects that are simulated (only these are assembled).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EffectSet {
+    /// Gravity (`[scene] gravity`).
+    pub gravity: bool,
+    /// URDF `<dynamics damping>`: `τ = −c q̇`.
+    pub joint_damping: bool,
+    /// URDF `<dynamics friction>`: smoothed Coulomb friction.
+    pub joint_friction: bool,
+    /// `[[scene.spring]]` joint springs.
+    pub joint_springs: bool,
+    /// Penalty spring-dampers at the URDF `<limit lower upper>`.
+    pub joint_limits: bool,
+}
+
+/// A linear joint spring `τ = −stiffness · (q − rest)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointSpring {
+    /// Model joint index.
+    pub joint: usize,
+    /// N·m/rad or N/m.
+    pub stiffness: f64,
+    /// rad or m.
+    pub rest: f64,
+}
+
+/// Command-line values that override the sidecar.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SceneOverrides {
+    /// `--duration`, s.
+    pub duration_s: Option<f64>,
+    /// `--step`, s.
+    pub step_s: Option<f64>,
+    /// `--alpha`.
+    pub alpha: Option<f64>,
+}
+
+/// A resolved scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// Fixed step, s.
+    pub step_s: f64,
+    /// Number of steps (`duration / step`).
+    pub n_steps: usize,
+    /// HHT α.
+    pub alpha: f64,
+    /// Post-step velocity projection (with constraint rows).
+    pub velocity_projection: bool,
+    /// Gravity in the world frame, m/s² (applied only when `effects.gravity`).
+    pub gravity: [f64; 3],
+    /// Simulated effects.
+    pub effects: EffectSet,
+    /// Joint springs.
+    pub springs: Vec<JointSpring>,
+    /// Initial positions, dim `nq`.
+    pub initial_q: Vec<f64>,
+    /// Initial velocities, dim `nv`.
+    pub initial_v: Vec<f64>,
+    /// Recorded outputs, in order.
+    pub outputs: Vec<Output>,
+    /// Recording rate, Hz.
+    pub rate_hz: f64,
+    /// Steps between records.
+    pub record_every: usize,
+}
+
+/// The sidecar beside a URDF: `robots/ur5/ur5.urdf` → `robots/ur5/ur5.uncertainty.toml`.
+pub fn default_sidecar_path(urdf: &Path) -> PathBuf {
+    urdf.with_extension("uncertainty.toml")
+}
+
+/// Reads a sidecar file.
+pub fn read_sidecar(path: &Path) -> Result<(SidecarFile, String), SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    let file = parse_sidecar(&text).map_err(|message| SceneError::Parse {
+        path: path.display().to_string(),
+        message,
+    })?;
+    Ok((file, text))
+}
+
+/// Whether the sidecar asks for a floating base (`[scene] base`).
+pub fn wants_floating_base(file: &SidecarFile, path: &str) -> Result<bool, SceneError> {
+    match file.scene.base.as_deref() {
+        None | Some("fixed") => Ok(false),
+        Some("floating") => Ok(true),
+        Some(other) => Err(SceneError::Invalid {
+            path: path.to_string(),
+            key: "[scene] base".to_string(),
+            message: format!("'{other}' is not a base type; use \"fixed\" or \"floating\""),
+        }),
+    }
+}
+
+impl Scene {
+    /// Resolves the sidecar's `[scene]` and `[outputs]` against `model`; `path` names the sidecar in
+    /// messages.
+    pub fn resolve(
+        file: &SidecarFile,
+        model: &Model,
+        path: &str,
+        overrides: SceneOverrides,
+    ) -> Result<Scene, SceneError> {
+        let invalid = |key: &str, message: String| SceneError::Invalid {
+            path: path.to_string(),
+            key: key.to_string(),
+            message,
+        };
+        let s = &file.scene;
+        let duration_s = overrides
+            .duration_s
+            .or(s.duration)
+            .unwrap_or(DEFAULT_DURATION_S);
+        let step_s = overrides.step_s.or(s.step).unwrap_or(DEFAULT_STEP_S);
+        let alpha = overrides.alpha.or(s.alpha).unwrap_or(DEFAULT_ALPHA);
+        if !(duration_s.is_finite() && duration_s > 0.0) {
+            return Err(invalid(
+                "[scene] duration",
+                format!("{duration_s} s must be a finite number > 0"),
+            ));
+        }
+        if !(step_s.is_finite() && step_s > 0.0) {
+            return Err(invalid(
+                "[scene] step",
+                format!("{step_s} s must be a finite number > 0"),
+            ));
+        }
+        if !(-1.0 / 3.0..=0.0).contains(&alpha) {
+            return Err(invalid(
+                "[scene] alpha",
+                format!("{alpha} is outside the HHT range [-1/3, 0] (default -0.1)"),
+            ));
+        }
+        let steps = duration_s / step_s;
+        let n_steps = steps.round() as usize;
+        if n_steps == 0 || (steps - n_steps as f64).abs() > DIVISIBILITY_TOLERANCE * steps {
+            return Err(invalid(
+                "[scene] duration",
+                format!("{duration_s} s is not a whole number of steps of {step_s} s"),
+            ));
+        }
+        let rate_hz = file.outputs.rate.unwrap_or(DEFAULT_RATE_HZ);
+        let per_record = 1.0 / (rate_hz * step_s);
+        let record_every = per_record.round() as usize;
+        if !(rate_hz.is_finite() && rate_hz > 0.0)
+            || record_every == 0
+            || (per_record - record_every as f64).abs() > DIVISIBILITY_TOLERANCE * per_record
+        {
+            return Err(invalid(
+                "[outputs] rate",
+                format!(
+                    "{rate_hz} Hz must divide 1/step = {} Hz (a whole number of steps between records)",
+                    1.0 / step_s
+                ),
+            ));
+        }
+        let gravity = s.gravity.unwrap_or(crate::model::DEFAULT_GRAVITY);
+        if gravity.iter().any(|g| !g.is_finite()) {
+            return Err(invalid(
+                "[scene] gravity",
+                "every component must be finite".to_string(),
+            ));
+        }
+        let mut effects = EffectSet::default();
+        for name in s
+            .effects
+            .clone()
+            .unwrap_or_else(|| vec!["gravity".to_string()])
+        {
+            match name.as_str() {
+                "gravity" => effects.gravity = true,
+                "joint_damping" => effects.joint_damping = true,
+                "joint_friction" => effects.joint_friction = true,
+                "joint_springs" => effects.joint_springs = true,
+                "joint_limits" => effects.joint_limits = true,
+                other => {
+                    return Err(invalid(
+                        "[scene] effects",
+                        format!(
+                            "unknown effect '{other}'{}; known: {}",
+                            closest_suggestion(other, EFFECT_NAMES),
+                            EFFECT_NAMES.join(", ")
+                        ),
+                    ))
+                }
+            }
+        }
+        if !s.drive.is_empty() || !s.loops.is_empty() {
+            let key = if s.drive.is_empty() {
+                "[[scene.loop]]"
+            } else {
+                "[[scene.drive]]"
+            };
+            return Err(invalid(
+                key,
+                "drives and closed loops (constraint rows) are not supported yet; remove them to simulate the open tree"
+                    .to_string(),
+            ));
+        }
+        let one_dof_joint = |key: &str, name: &str| -> Result<usize, SceneError> {
+            let index = model.joint_index(name).ok_or_else(|| {
+                invalid(
+                    key,
+                    format!(
+                        "unknown joint '{name}'{}",
+                        closest_suggestion(name, model.joints.iter().map(|j| j.name.as_str()))
+                    ),
+                )
+            })?;
+            if model.joints[index].kind == JointKind::Floating {
+                return Err(invalid(
+                    key,
+                    format!("joint '{name}' is floating; set its state with initial.base"),
+                ));
+            }
+            Ok(index)
+        };
+        let mut springs = Vec::with_capacity(s.spring.len());
+        for spring in &s.spring {
+            let joint = one_dof_joint("[[scene.spring]] joint", &spring.joint)?;
+            if !(spring.stiffness.is_finite() && spring.stiffness >= 0.0 && spring.rest.is_finite())
+            {
+                return Err(invalid(
+                    "[[scene.spring]]",
+                    format!(
+                        "joint '{}': stiffness must be finite and ≥ 0, rest finite",
+                        spring.joint
+                    ),
+                ));
+            }
+            springs.push(JointSpring {
+                joint,
+                stiffness: spring.stiffness,
+                rest: spring.rest,
+            });
+        }
+        if !springs.is_empty() && !effects.joint_springs {
+            return Err(invalid(
+                "[scene] effects",
+                "[[scene.spring]] entries are declared but 'joint_springs' is not in effects; add it (or remove the springs)"
+                    .to_string(),
+            ));
+        }
+        let mut initial_q = model.neutral_configuration();
+        let mut initial_v = vec![0.0; model.nv];
+        for (name, value) in &s.initial.q {
+            let j = one_dof_joint("[scene] initial.q", name)?;
+            initial_q[model.joints[j].q_index] = *value;
+        }
+        for (name, value) in &s.initial.v {
+            let j = one_dof_joint("[scene] initial.v", name)?;
+            initial_v[model.joints[j].v_index] = *value;
+        }
+        if let Some(base) = &s.initial.base {
+            let root = model
+                .joints
+                .iter()
+                .find(|j| j.kind == JointKind::Floating && j.parent.is_none())
+                .ok_or_else(|| {
+                    invalid(
+                        "[scene] initial.base",
+                        "the robot has no floating base; set base = \"floating\" or remove initial.base".to_string(),
+                    )
+                })?;
+            let rotation = nalgebra::Rotation3::from_matrix_unchecked(rotation_from_rpy(
+                base.rpy[0],
+                base.rpy[1],
+                base.rpy[2],
+            ));
+            let quaternion = nalgebra::UnitQuaternion::from_rotation_matrix(&rotation);
+            let (qi, vi) = (root.q_index, root.v_index);
+            initial_q[qi..qi + 3].copy_from_slice(&base.xyz);
+            initial_q[qi + 3..qi + 7].copy_from_slice(&[
+                quaternion.i,
+                quaternion.j,
+                quaternion.k,
+                quaternion.w,
+            ]);
+            initial_v[vi..vi + 3].copy_from_slice(&base.v);
+            initial_v[vi + 3..vi + 6].copy_from_slice(&base.w);
+        }
+        if initial_q.iter().chain(&initial_v).any(|x| !x.is_finite()) {
+            return Err(invalid(
+                "[scene] initial",
+                "every value must be finite".to_string(),
+            ));
+        }
+        let outputs = outputs::resolve(&file.outputs, model, path)?;
+        Ok(Scene {
+            duration_s,
+            step_s,
+            n_steps,
+            alpha,
+            velocity_projection: s.velocity_projection.unwrap_or(true),
+            gravity,
+            effects,
+            springs,
+            initial_q,
+            initial_v,
+            outputs,
+            rate_hz,
+            record_every,
+        })
+    }
+
+    /// Gives the model the scene's gravity (before parameters, which may override it).
+    pub fn apply_gravity(&self, model: &mut Model) {
+        model.gravity = crate::spatial::Vec3::from(self.gravity);
+    }
+
+    /// Whether step `k` (0 ..= n_steps) is recorded: every `record_every` steps, plus the last.
+    pub fn records_step(&self, k: usize) -> bool {
+        k % self.record_every == 0 || k == self.n_steps
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{parse_description, LoadOptions};
+
+    fn pendulum() -> Model {
+        let text = r#"<robot name="p"><link name="w"/>
+          <link name="bar"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+          <inertia ixx="0" ixy="0" ixz="0" iyy="0.08" iyz="0" izz="0.08"/></inertial></link>
+          <joint name="hinge" type="revolute"><parent link="w"/><child link="bar"/><axis xyz="0 0 1"/>
+          <limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"#;
+        Model::from_description(
+            parse_description(text, "p.urdf").unwrap(),
+            LoadOptions::default(),
+            "p.urdf",
+        )
+        .unwrap()
+    }
+
+    fn resolve(text: &str) -> Result<Scene, SceneError> {
+        let file = parse_sidecar(text).map_err(|message| SceneError::Parse {
+            path: "s.toml".into(),
+            message,
+        })?;
+        Scene::resolve(&file, &pendulum(), "s.toml", SceneOverrides::default())
+    }
+
+    #[test]
+    fn defaults() {
+        let scene = resolve("").unwrap();
+        assert_eq!((scene.n_steps, scene.record_every), (1000, 10));
+        assert!(scene.effects.gravity && !scene.effects.joint_damping);
+        assert_eq!(scene.outputs.len(), 1);
+        assert_eq!(scene.outputs[0].name, "q.hinge");
+    }
+
+    #[test]
+    fn bad_values_are_named() {
+        let cases = [
+            (
+                "[scene]\nstep = 0.0",
+                "[scene] step: 0 s must be a finite number > 0",
+            ),
+            ("[scene]\nduration = -1.0", "[scene] duration: -1 s must be"),
+            (
+                "[scene]\nalpha = 0.2",
+                "[scene] alpha: 0.2 is outside the HHT range",
+            ),
+            (
+                "[outputs]\nrate = 300",
+                "[outputs] rate: 300 Hz must divide 1/step = 1000 Hz",
+            ),
+            (
+                "[scene]\neffects = [\"gravity\", \"joint_dampin\"]",
+                "unknown effect 'joint_dampin'; did you mean 'joint_damping'?",
+            ),
+            (
+                "[scene]\ninitial.q = { hinj = 0.1 }",
+                "[scene] initial.q: unknown joint 'hinj'; did you mean 'hinge'?",
+            ),
+            (
+                "[[scene.drive]]\njoint = \"hinge\"",
+                "[[scene.drive]]: drives and closed loops",
+            ),
+            (
+                "[[scene.spring]]\njoint = \"hinge\"\nstiffness = 10.0",
+                "'joint_springs' is not in effects",
+            ),
+            ("[scene]\nduration = 0.0015", "not a whole number of steps"),
+        ];
+        for (text, expected) in cases {
+            let msg = resolve(text).unwrap_err().to_string();
+            assert!(msg.contains(expected), "for {text:?}: {msg}");
+        }
+        let msg = resolve("[scene]\nstpe = 0.1").unwrap_err().to_string();
+        assert!(msg.contains("stpe") && msg.contains("line 2"), "{msg}");
+    }
+
+    #[test]
+    fn records_every_step_and_the_last() {
+        let scene = resolve("[scene]\nduration = 0.025\n[outputs]\nrate = 100").unwrap();
+        let recorded: Vec<usize> = (0..=scene.n_steps)
+            .filter(|k| scene.records_step(*k))
+            .collect();
+        assert_eq!(recorded, vec![0, 10, 20, 25]);
+    }
+}

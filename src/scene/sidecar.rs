@@ -1,0 +1,150 @@
+//! The sidecar file `ROBOT.uncertainty.toml` as written (design contract), before it is checked
+//! against a robot. Unknown keys are errors, so a typo never silently does nothing.
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+
+/// The whole sidecar file.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SidecarFile {
+    /// `[parameters]`: interval parameters (paths and free symbols) in order of appearance.
+    #[serde(default)]
+    pub parameters: toml::Table,
+    /// `[bind]`: model paths bound to expressions of the free symbols.
+    #[serde(default)]
+    pub bind: toml::Table,
+    /// `[scene]`.
+    #[serde(default)]
+    pub scene: SceneSection,
+    /// `[outputs]`.
+    #[serde(default)]
+    pub outputs: OutputsSection,
+    /// `[analysis]`.
+    #[serde(default)]
+    pub analysis: AnalysisSection,
+}
+
+/// `[scene]`: what is simulated. Every key is optional (defaults in [`super::Scene`]).
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSection {
+    /// Simulated time, s.
+    pub duration: Option<f64>,
+    /// Fixed step, s.
+    pub step: Option<f64>,
+    /// HHT α in [−1/3, 0].
+    pub alpha: Option<f64>,
+    /// `"fixed"` or `"floating"`.
+    pub base: Option<String>,
+    /// Post-step velocity projection when there are constraint rows.
+    pub velocity_projection: Option<bool>,
+    /// Gravity in the world frame, m/s².
+    pub gravity: Option<[f64; 3]>,
+    /// Effect names.
+    pub effects: Option<Vec<String>>,
+    /// Initial state.
+    #[serde(default)]
+    pub initial: InitialSection,
+    /// `[[scene.spring]]`.
+    #[serde(default)]
+    pub spring: Vec<SpringSection>,
+    /// `[[scene.drive]]` (kept raw until drives are supported).
+    #[serde(default)]
+    pub drive: Vec<toml::Table>,
+    /// `[[scene.loop]]` (kept raw until loops are supported).
+    #[serde(default, rename = "loop")]
+    pub loops: Vec<toml::Table>,
+}
+
+/// `initial.q`, `initial.v`, `initial.base`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSection {
+    /// Joint positions by joint name (rad or m).
+    #[serde(default)]
+    pub q: BTreeMap<String, f64>,
+    /// Joint velocities by joint name (rad/s or m/s).
+    #[serde(default)]
+    pub v: BTreeMap<String, f64>,
+    /// A floating base's initial pose and velocity.
+    pub base: Option<BaseSection>,
+}
+
+/// `initial.base = { xyz, rpy, v, w }`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BaseSection {
+    /// Position in the world frame, m.
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    /// Orientation as URDF roll-pitch-yaw, rad.
+    #[serde(default)]
+    pub rpy: [f64; 3],
+    /// Linear velocity in the base frame, m/s.
+    #[serde(default)]
+    pub v: [f64; 3],
+    /// Angular velocity in the base frame, rad/s.
+    #[serde(default)]
+    pub w: [f64; 3],
+}
+
+/// `[[scene.spring]]`: a linear joint spring `τ = −stiffness · (q − rest)`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringSection {
+    /// The joint.
+    pub joint: String,
+    /// N·m/rad or N/m.
+    pub stiffness: f64,
+    /// Rest position, rad or m (default 0).
+    #[serde(default)]
+    pub rest: f64,
+}
+
+/// `joints = "all"` or a list of names.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub enum JointSelection {
+    /// `"all"` (any other string is refused during validation).
+    Keyword(String),
+    /// Named joints.
+    List(Vec<String>),
+}
+
+/// `[outputs]`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputsSection {
+    /// Which joints' positions are recorded (default all).
+    pub joints: Option<JointSelection>,
+    /// Record velocities `v.JOINT`.
+    pub velocities: Option<bool>,
+    /// Record accelerations `qdd.JOINT`.
+    pub accelerations: Option<bool>,
+    /// Record drive efforts `effort.DRIVE`.
+    pub efforts: Option<bool>,
+    /// Record constraint forces `lambda.LOOP.i`.
+    pub constraint_forces: Option<bool>,
+    /// Links whose world position is recorded (`frame.LINK.x|y|z`).
+    pub frames: Option<Vec<String>>,
+    /// Recording rate, Hz.
+    pub rate: Option<f64>,
+}
+
+/// `[analysis]`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnalysisSection {
+    /// Method name.
+    pub method: Option<String>,
+    /// Polynomial order.
+    pub order: Option<usize>,
+    /// `tensor` or `total`.
+    pub design: Option<String>,
+}
+
+/// Parses sidecar text; the error is the TOML parser's message (with line and column).
+pub fn parse_sidecar(text: &str) -> Result<SidecarFile, String> {
+    toml::from_str(text).map_err(|e| e.to_string())
+}

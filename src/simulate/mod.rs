@@ -1,0 +1,13 @@
+//! One deterministic run: a [`Model`](crate::model::Model) with its scene's effects as a
+//! [`DaeSystem`](crate::integrate::DaeSystem) ([`RobotSystem`]), integrated by HHT-I3, recorded at
+//! the scene's rate ([`Recorder`]).
+//!
+//! `(model, scene) ⇒ RobotSystem ⇒ HhtIntegrator steps ⇒ Recorder rows ⇒ Trajectory`
+
+mod recorder;
+mod run;
+mod system;
+
+pub use recorder::Recorder;
+pub use run::{hht_settings, simulate, Trajectory};
+pub use system::RobotSystem;

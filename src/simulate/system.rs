@@ -1,0 +1,234 @@
+//! [`RobotSystem`]: a robot tree plus its scene's effects, seen by the integrator through
+//! [`DaeSystem`]. No constraint rows yet (a tree needs none).
+
+use crate::dynamics::{crba, nonlinear_effects, rnea, Data};
+use crate::effects::Effects;
+use crate::integrate::{DaeSystem, SystemError};
+use crate::model::{JointKind, Model};
+use crate::scene::Scene;
+use crate::spatial::{Mat3, Vec3};
+use nalgebra::{DMatrix, DVector};
+
+/// A robot with its effects as an index-3 DAE `M(q) q̈ = Q(t, q, q̇)` (no rows yet).
+#[derive(Clone, Debug)]
+pub struct RobotSystem {
+    /// The model (its gravity is the scene's, or zero when gravity is not declared).
+    pub model: Model,
+    /// Work buffers of the dynamics algorithms.
+    pub data: Data,
+    /// The scene's assembled effects.
+    pub effects: Effects,
+    has_floating_joint: bool,
+}
+
+impl RobotSystem {
+    /// Assembles `model` with the effects `scene` declares. The model keeps its gravity (set it from
+    /// the scene with [`Scene::apply_gravity`], then let parameters override it) unless the scene does
+    /// not declare the `gravity` effect: then it is zero.
+    pub fn new(mut model: Model, scene: &Scene) -> Self {
+        if !scene.effects.gravity {
+            model.gravity = Vec3::zeros();
+        }
+        let data = Data::new(&model);
+        let effects = Effects::assemble(&model, scene);
+        let has_floating_joint = model.joints.iter().any(|j| j.kind == JointKind::Floating);
+        Self {
+            model,
+            data,
+            effects,
+            has_floating_joint,
+        }
+    }
+}
+
+/// `exp` of a body twist `(v, ω)` as `(translation, rotation)` (SE(3) exponential map).
+fn se3_exp(linear: &Vec3, angular: &Vec3) -> (Vec3, Mat3) {
+    let theta = angular.norm();
+    let skew = angular.cross_matrix();
+    let skew2 = skew * skew;
+    // Series below 1e-4 rad: the closed forms lose digits to cancellation.
+    let (a, b, c) = if theta < 1e-4 {
+        let t2 = theta * theta;
+        (1.0 - t2 / 6.0, 0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0)
+    } else {
+        let (s, co) = theta.sin_cos();
+        (
+            s / theta,
+            (1.0 - co) / (theta * theta),
+            (theta - s) / (theta * theta * theta),
+        )
+    };
+    let rotation = Mat3::identity() + skew * a + skew2 * b;
+    let v_matrix = Mat3::identity() + skew * b + skew2 * c;
+    (v_matrix * linear, rotation)
+}
+
+impl DaeSystem for RobotSystem {
+    fn nq(&self) -> usize {
+        self.model.nq
+    }
+
+    fn nv(&self) -> usize {
+        self.model.nv
+    }
+
+    fn integrate_position(
+        &self,
+        q: &DVector<f64>,
+        dq: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        if !self.has_floating_joint {
+            out.copy_from(q);
+            *out += dq;
+            return Ok(());
+        }
+        for joint in &self.model.joints {
+            let (qi, vi) = (joint.q_index, joint.v_index);
+            if joint.kind != JointKind::Floating {
+                out[qi] = q[qi] + dq[vi];
+                continue;
+            }
+            // q ⊕ δ = q · exp(δ): the twist δ = (v, ω) is in the body frame.
+            let position = Vec3::new(q[qi], q[qi + 1], q[qi + 2]);
+            let orientation = nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(
+                q[qi + 6],
+                q[qi + 3],
+                q[qi + 4],
+                q[qi + 5],
+            ));
+            let linear = Vec3::new(dq[vi], dq[vi + 1], dq[vi + 2]);
+            let angular = Vec3::new(dq[vi + 3], dq[vi + 4], dq[vi + 5]);
+            let (translation, rotation) = se3_exp(&linear, &angular);
+            let new_position = position + orientation * translation;
+            let increment = nalgebra::UnitQuaternion::from_rotation_matrix(
+                &nalgebra::Rotation3::from_matrix_unchecked(rotation),
+            );
+            let new_orientation = orientation * increment;
+            let quaternion = new_orientation.quaternion().normalize();
+            out[qi] = new_position.x;
+            out[qi + 1] = new_position.y;
+            out[qi + 2] = new_position.z;
+            out[qi + 3] = quaternion.i;
+            out[qi + 4] = quaternion.j;
+            out[qi + 5] = quaternion.k;
+            out[qi + 6] = quaternion.w;
+        }
+        Ok(())
+    }
+
+    /// Scale of each coordinate for the Newton test's relative tolerance. An angle's size says
+    /// nothing about its precision (a spinning wrist reaches 50 rad; `reltol · 50` would loosen the
+    /// test 10⁵-fold), so revolute joints and base rotations use the absolute tolerance alone;
+    /// translations scale with their size.
+    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>) {
+        for joint in &self.model.joints {
+            let (qi, vi) = (joint.q_index, joint.v_index);
+            if joint.kind == JointKind::Floating {
+                for k in 0..3 {
+                    out[vi + k] = q[qi + k].abs();
+                    out[vi + 3 + k] = 0.0;
+                }
+            } else if joint.kind == JointKind::Prismatic {
+                out[vi] = q[qi].abs();
+            } else {
+                out[vi] = 0.0;
+            }
+        }
+    }
+
+    fn mass_matrix(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        out.copy_from(crba(&self.model, &mut self.data, q.as_slice()));
+        Ok(())
+    }
+
+    fn forces(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        let bias = nonlinear_effects(&self.model, &mut self.data, q.as_slice(), v.as_slice());
+        for (o, b) in out.iter_mut().zip(bias) {
+            *o = -b;
+        }
+        self.effects
+            .add_forces(&self.model, q.as_slice(), v.as_slice(), out.as_mut_slice());
+        Ok(())
+    }
+
+    fn provides_dynamics_residual(&self) -> bool {
+        true
+    }
+
+    fn dynamics_residual(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        // out = M q̈ + C q̇ + g − Q_effects, computed as −(−τ_rnea + Q_effects).
+        let tau = rnea(
+            &self.model,
+            &mut self.data,
+            q.as_slice(),
+            v.as_slice(),
+            qdd.as_slice(),
+        );
+        for (o, t) in out.iter_mut().zip(tau) {
+            *o = -t;
+        }
+        self.effects
+            .add_forces(&self.model, q.as_slice(), v.as_slice(), out.as_mut_slice());
+        out.neg_mut();
+        Ok(())
+    }
+
+    fn newton_diagonal(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        stiffness_out: &mut DVector<f64>,
+        damping_out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        stiffness_out.fill(0.0);
+        damping_out.fill(0.0);
+        self.effects.add_newton_diagonal(
+            &self.model,
+            q.as_slice(),
+            v.as_slice(),
+            stiffness_out.as_mut_slice(),
+            damping_out.as_mut_slice(),
+        );
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn se3_exp_of_pure_rotation_and_translation() {
+        let (t, r) = se3_exp(&Vec3::new(1.0, 2.0, 3.0), &Vec3::zeros());
+        assert_eq!(t, Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(r, Mat3::identity());
+        // A screw: rotate π/2 about z while moving 1 along x (body frame) sweeps a quarter circle.
+        let (t, r) = se3_exp(
+            &Vec3::new(1.0, 0.0, 0.0),
+            &Vec3::new(0.0, 0.0, std::f64::consts::FRAC_PI_2),
+        );
+        let radius = 2.0 / std::f64::consts::PI;
+        assert!((t - Vec3::new(radius, radius, 0.0)).norm() < 1e-12, "{t}");
+        assert!((r * Vec3::x() - Vec3::y()).norm() < 1e-12);
+    }
+}

@@ -1,0 +1,244 @@
+//! End-to-end: bad input gets a clear error naming file, element and value, and exit code 2 — never a
+//! panic. Each case spawns the binary.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+struct Outcome {
+    code: Option<i32>,
+    stdout: String,
+    stderr: String,
+}
+
+fn ribbon(args: &[&str]) -> Outcome {
+    let output = Command::new(env!("CARGO_BIN_EXE_ribbon"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the ribbon binary runs");
+    Outcome {
+        code: output.status.code(),
+        stdout: String::from_utf8_lossy(&output.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
+    }
+}
+
+/// Writes a URDF into a fresh temporary directory under target/ and returns its path.
+fn temp_urdf(name: &str, text: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cli_errors");
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("write temp urdf");
+    path
+}
+
+fn assert_input_error(outcome: &Outcome, fragments: &[&str]) {
+    assert_eq!(
+        outcome.code,
+        Some(2),
+        "exit code; stderr: {}",
+        outcome.stderr
+    );
+    assert!(
+        outcome.stdout.is_empty(),
+        "nothing on stdout: {}",
+        outcome.stdout
+    );
+    for fragment in fragments {
+        assert!(
+            outcome.stderr.contains(fragment),
+            "expected '{fragment}' in: {}",
+            outcome.stderr
+        );
+    }
+}
+
+const ARM: &str = r#"<?xml version="1.0"?>
+<robot name="arm">
+  <link name="base"/>
+  <link name="upper"><inertial><origin xyz="0.5 0 0"/><mass value="MASS"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <joint name="shoulder" type="revolute"><parent link="PARENT"/><child link="upper"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="10" velocity="1"/></joint>
+</robot>
+"#;
+
+fn arm(mass: &str, parent: &str) -> String {
+    ARM.replace("MASS", mass).replace("PARENT", parent)
+}
+
+#[test]
+fn malformed_xml_names_file_and_line() {
+    let path = temp_urdf(
+        "malformed.urdf",
+        "<robot name=\"x\">\n  <link name=\"a\">\n</robot>\n",
+    );
+    let out = ribbon(&["params", path.to_str().unwrap()]);
+    assert_input_error(&out, &["malformed.urdf:3:", "malformed XML"]);
+}
+
+#[test]
+fn missing_file_is_reported() {
+    let out = ribbon(&["params", "robots/does_not_exist.urdf"]);
+    assert_input_error(&out, &["cannot read 'robots/does_not_exist.urdf'"]);
+}
+
+#[test]
+fn joint_naming_missing_link() {
+    let path = temp_urdf("missing_link.urdf", &arm("1", "bse"));
+    let out = ribbon(&["dynamics", path.to_str().unwrap()]);
+    assert_input_error(
+        &out,
+        &[
+            "missing_link.urdf:6:",
+            "joint 'shoulder' names parent link 'bse'",
+            "did you mean 'base'",
+        ],
+    );
+}
+
+#[test]
+fn cycle_is_refused() {
+    let text = r#"<robot name="c"><link name="a"/><link name="b"/>
+      <joint name="ab" type="fixed"><parent link="a"/><child link="b"/></joint>
+      <joint name="ba" type="fixed"><parent link="b"/><child link="a"/></joint></robot>"#;
+    let path = temp_urdf("cycle.urdf", text);
+    let out = ribbon(&["params", path.to_str().unwrap()]);
+    assert_input_error(&out, &["cycle.urdf", "form a cycle", "[[scene.loop]]"]);
+}
+
+#[test]
+fn negative_mass_is_refused() {
+    let path = temp_urdf("negative_mass.urdf", &arm("-2.5", "base"));
+    let out = ribbon(&["params", path.to_str().unwrap()]);
+    assert_input_error(
+        &out,
+        &[
+            "negative_mass.urdf:4:",
+            "link 'upper' has negative mass -2.5 kg",
+        ],
+    );
+}
+
+#[test]
+fn non_finite_value_is_refused() {
+    let path = temp_urdf("nan.urdf", &arm("NaN", "base"));
+    let out = ribbon(&["params", path.to_str().unwrap()]);
+    assert_input_error(
+        &out,
+        &["nan.urdf:4:", "link 'upper'", "non-finite value NaN"],
+    );
+    let path = temp_urdf("inf.urdf", &arm("1", "base").replace("0.5 0 0", "inf 0 0"));
+    let out = ribbon(&["params", path.to_str().unwrap()]);
+    assert_input_error(
+        &out,
+        &["inf.urdf:4:", "non-finite value inf in <inertial><origin>"],
+    );
+}
+
+#[test]
+fn unknown_parameter_suggests_closest() {
+    let out = ribbon(&[
+        "dynamics",
+        "robots/ur5/ur5.urdf",
+        "--set",
+        "link.forarm_link.mass=2.4",
+    ]);
+    assert_input_error(
+        &out,
+        &[
+            "unknown parameter 'link.forarm_link.mass'",
+            "did you mean 'link.forearm_link.mass'",
+        ],
+    );
+    let out = ribbon(&[
+        "dynamics",
+        "robots/ur5/ur5.urdf",
+        "--set=link.forearm_link.mass=-1",
+    ]);
+    assert_input_error(
+        &out,
+        &["'link.forearm_link.mass' cannot be -1", "mass must be ≥ 0"],
+    );
+}
+
+#[test]
+fn vector_of_wrong_length() {
+    let out = ribbon(&["dynamics", "robots/ur5/ur5.urdf", "--q=0.1,0.2"]);
+    assert_input_error(
+        &out,
+        &[
+            "--q: expected 6 comma-separated numbers",
+            "shoulder_pan_joint",
+            "got 2",
+        ],
+    );
+    let out = ribbon(&[
+        "dynamics",
+        "robots/double_pendulum/double_pendulum.urdf",
+        "--v=1,abc",
+    ]);
+    assert_input_error(&out, &["--v: element 2 ('abc') is not a number"]);
+}
+
+#[test]
+fn non_unit_quaternion_is_refused_and_near_unit_is_normalised() {
+    let base = "--q=0,0,0,0,0,0,0.9,0,0,0,0,0,0";
+    let out = ribbon(&["dynamics", "robots/ur5/ur5.urdf", "--floating", base]);
+    assert_input_error(
+        &out,
+        &[
+            "--q: the quaternion of 'root_joint'",
+            "has norm 0.9",
+            "unit quaternion",
+        ],
+    );
+    let near = "--q=0,0,0,0,0,0,1.0000001,0,0,0,0,0,0";
+    let out = ribbon(&[
+        "dynamics",
+        "robots/ur5/ur5.urdf",
+        "--floating",
+        near,
+        "--json",
+    ]);
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+}
+
+#[test]
+fn planar_joint_is_not_supported_yet() {
+    let path = temp_urdf(
+        "planar.urdf",
+        &arm("1", "base").replace("type=\"revolute\"", "type=\"planar\""),
+    );
+    let out = ribbon(&["params", path.to_str().unwrap()]);
+    assert_input_error(
+        &out,
+        &[
+            "planar.urdf:6:",
+            "joint 'shoulder' is of type 'planar'",
+            "not support yet",
+        ],
+    );
+}
+
+#[test]
+fn singular_mass_matrix_is_a_clear_error() {
+    let text = r#"<robot name="s"><link name="a"/><link name="b"/>
+      <joint name="massless" type="continuous"><parent link="a"/><child link="b"/></joint></robot>"#;
+    let path = temp_urdf("singular.urdf", text);
+    let out = ribbon(&["dynamics", path.to_str().unwrap(), "--tau=1"]);
+    assert_input_error(&out, &["mass matrix is singular", "joint 'massless'"]);
+    assert!(
+        out.stderr.contains("warning:") && out.stderr.contains("no mass and no inertia"),
+        "{}",
+        out.stderr
+    );
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    let out = ribbon(&["dynamics"]);
+    assert_eq!(out.code, Some(2), "{}", out.stderr);
+    let out = ribbon(&["frobnicate"]);
+    assert_eq!(out.code, Some(2), "{}", out.stderr);
+}
