@@ -30,6 +30,7 @@ pub mod scene;
 pub mod simulate;
 pub mod spatial;
 pub mod text;
+pub mod uncertainty;
 // pub mod uq;
 
 pub use error::Error;

@@ -1,0 +1,1 @@
+//! Interval parameters of a study (being written).
