@@ -23,6 +23,9 @@ pub enum Error {
     /// The integrator failed (names time, step and what diverged).
     #[error("simulation failed: {0}")]
     Integrate(#[from] IntegrateError),
+    /// A simulation failed or its constraints cannot hold.
+    #[error(transparent)]
+    Simulation(#[from] crate::simulate::SimulationError),
     /// A dynamics computation failed.
     #[error(transparent)]
     Dynamics(#[from] DynamicsError),
@@ -34,6 +37,9 @@ pub enum Error {
         /// What is wrong and what to do.
         message: String,
     },
+    /// Writing the MCAP log failed.
+    #[error(transparent)]
+    Mcap(#[from] crate::output::mcap::McapError),
     /// Writing a result failed.
     #[error("cannot write {what}: {source}")]
     Output {
@@ -56,8 +62,16 @@ impl Error {
                 | IntegrateError::InvalidSetting { .. },
             ) => 2,
             Error::Integrate(_) => 1,
+            Error::Simulation(crate::simulate::SimulationError::Constraints { .. }) => 2,
+            Error::Simulation(crate::simulate::SimulationError::Integrate { source, .. }) => match source {
+                IntegrateError::InvalidAlpha { .. }
+                | IntegrateError::AlphaZeroWithConstraints { .. }
+                | IntegrateError::InvalidStep { .. }
+                | IntegrateError::InvalidSetting { .. } => 2,
+                _ => 1,
+            },
             Error::Dynamics(DynamicsError::SingularMassMatrix { .. }) => 2,
-            Error::Dynamics(_) | Error::Output { .. } => 1,
+            Error::Dynamics(_) | Error::Output { .. } | Error::Mcap(_) => 1,
         }
     }
 }

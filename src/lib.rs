@@ -19,6 +19,7 @@
 //! - Visual and collision geometry, materials, transmissions and Gazebo tags are ignored.
 
 pub mod cli;
+pub mod constraints;
 pub mod dynamics;
 pub mod effects;
 mod error;
@@ -31,6 +32,6 @@ pub mod simulate;
 pub mod spatial;
 pub mod text;
 pub mod uncertainty;
-// pub mod uq;
+pub mod uq;
 
 pub use error::Error;

@@ -17,14 +17,23 @@ pub fn edit_distance(a: &str, b: &str) -> usize {
 }
 
 /// The candidate closest to `wanted`, if it is close enough to be a plausible typo (at most a third
-/// of the longer name, or two characters for short names, differ).
+/// of the longer name, or two characters for short names, differ) or an abbreviation (the shortest
+/// candidate containing `wanted`, e.g. `elbow` → `elbow_joint`).
 pub fn closest<'a>(wanted: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    let candidates: Vec<&'a str> = candidates.into_iter().collect();
     let best = candidates
-        .into_iter()
-        .map(|c| (edit_distance(wanted, c), c))
+        .iter()
+        .map(|c| (edit_distance(wanted, c), *c))
         .min_by_key(|(distance, _)| *distance)?;
     let limit = (wanted.chars().count().max(best.1.chars().count()) / 3).max(2);
-    (best.0 <= limit).then_some(best.1)
+    if best.0 <= limit {
+        return Some(best.1);
+    }
+    candidates
+        .iter()
+        .filter(|c| !wanted.is_empty() && c.contains(wanted))
+        .min_by_key(|c| c.len())
+        .copied()
 }
 
 /// `"; did you mean 'x'?"` for the closest candidate, or an empty string.
@@ -56,5 +65,6 @@ mod tests {
             Some("link.forearm_link.mass")
         );
         assert_eq!(closest("something.else", names), None);
+        assert_eq!(closest("elbow", ["shoulder_joint", "elbow_joint"]), Some("elbow_joint"));
     }
 }

@@ -62,6 +62,9 @@ pub struct SimulateArgs {
     /// Write the summary JSON (method "nominal", lower = upper = nominal).
     #[arg(long, value_name = "FILE")]
     pub summary: Option<PathBuf>,
+    /// Write an MCAP log for Foxglove and rerun (envelopes, `/tf`, `/robot_description`).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub out: Option<PathBuf>,
 }
 
 /// `ribbon params`.

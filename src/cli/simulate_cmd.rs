@@ -4,7 +4,9 @@
 use super::{print_warnings, write_stdout, SimulateArgs};
 use crate::cli::values::apply_set_flags;
 use crate::model::{LoadOptions, Model};
-use crate::output::{write_csv, EnvelopeSeries, Summary};
+use crate::dynamics::{forward_kinematics, Data};
+use crate::output::mcap::McapMetadata;
+use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, Summary};
 use crate::scene::{
     default_sidecar_path, read_sidecar, wants_floating_base, Scene, SceneOverrides, SidecarFile,
 };
@@ -35,6 +37,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
     scene.apply_gravity(&mut model);
     apply_set_flags(&mut model, &args.set)?;
     let robot = model.name().to_string();
+    let kinematic_model = model.clone();
     let trajectory = simulate(model, &scene)?;
     let wall_seconds = started.elapsed().as_secs_f64();
     print_statistics(&trajectory, &scene, wall_seconds);
@@ -47,7 +50,40 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
     if let Some(path) = &args.summary {
         summary(&robot, &trajectory, wall_seconds).write(path)?;
     }
+    if let Some(path) = &args.out {
+        write_log(path, args, sidecar_path.as_deref(), &robot, &kinematic_model, &trajectory)?;
+    }
     write_stdout(&table(&trajectory))
+}
+
+/// The MCAP log of a nominal run: lower = nominal = upper, frames on `/tf` at every record time.
+fn write_log(
+    path: &std::path::Path,
+    args: &SimulateArgs,
+    sidecar: Option<&std::path::Path>,
+    robot: &str,
+    model: &Model,
+    trajectory: &Trajectory,
+) -> Result<(), Error> {
+    let metadata = McapMetadata {
+        robot: robot.to_string(),
+        method: "nominal".to_string(),
+        order: None,
+        runs: 1,
+        parameters_json: "[]".to_string(),
+    };
+    let mut log = EnvelopeLog::create(path, &args.urdf, sidecar, metadata, &trajectory.outputs, false)?;
+    let mut data = Data::new(model);
+    let mut row = vec![0.0; trajectory.outputs.len()];
+    for (k, t) in trajectory.times.iter().enumerate() {
+        for (value, series) in row.iter_mut().zip(&trajectory.values) {
+            *value = series[k];
+        }
+        log.write_time(*t, &row, &row, &row, None)?;
+        forward_kinematics(model, &mut data, &trajectory.positions[k]);
+        log.write_frames(*t, model, &data)?;
+    }
+    log.finish(false)
 }
 
 fn print_statistics(trajectory: &Trajectory, scene: &Scene, wall_seconds: f64) {

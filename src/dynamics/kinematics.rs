@@ -26,3 +26,27 @@ pub fn frame_placements(model: &Model, data: &Data, link: usize) -> Transform {
         None => placement.body_from_link,
     }
 }
+
+/// Drift kinematics: body placements, velocities and the accelerations they would have with `q̈ = 0`
+/// and no gravity (the `J̇ q̇` terms of constraint accelerations). `q: dim nq`, `v: dim nv`.
+/// Overwrites `data.parent_from_body`, `data.world_from_body`, `data.velocity`, `data.acceleration`.
+pub fn drift_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
+    for (i, joint) in model.joints.iter().enumerate() {
+        let (qi, vi) = (joint.q_index, joint.v_index);
+        let parent_from_body = joint.parent_from_child(&q[qi..qi + joint.nq()]);
+        let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
+        let (parent_velocity, parent_acceleration, world_from_parent) = match joint.parent {
+            Some(p) => (data.velocity[p], data.acceleration[p], Some(data.world_from_body[p])),
+            None => (crate::spatial::Motion::zero(), crate::spatial::Motion::zero(), None),
+        };
+        let velocity = parent_from_body.inv_act_motion(&parent_velocity) + joint_velocity;
+        data.acceleration[i] = parent_from_body.inv_act_motion(&parent_acceleration)
+            + velocity.cross_motion(&joint_velocity);
+        data.velocity[i] = velocity;
+        data.parent_from_body[i] = parent_from_body;
+        data.world_from_body[i] = match world_from_parent {
+            Some(w) => w.compose(&parent_from_body),
+            None => parent_from_body,
+        };
+    }
+}

@@ -20,7 +20,7 @@ mod rnea;
 pub use cholesky::{cholesky_factor_in_place, cholesky_solve_in_place};
 pub use crba::crba;
 pub use data::Data;
-pub use kinematics::{forward_kinematics, frame_placements};
+pub use kinematics::{drift_kinematics, forward_kinematics, frame_placements};
 pub use rnea::{nonlinear_effects, rnea};
 
 use crate::model::Model;

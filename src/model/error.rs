@@ -146,18 +146,4 @@ pub enum ModelError {
         /// The joint.
         joint: String,
     },
-    /// A mimic joint that follows nothing usable.
-    #[error("{path}:{line}: joint '{joint}' mimics '{leader}', which is not a moving joint of this robot{suggestion}")]
-    BadMimic {
-        /// The file.
-        path: String,
-        /// Line of the joint.
-        line: u32,
-        /// The mimicking joint.
-        joint: String,
-        /// The joint it names.
-        leader: String,
-        /// "; did you mean '…'?" or empty.
-        suggestion: String,
-    },
 }

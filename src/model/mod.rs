@@ -338,17 +338,16 @@ impl Model {
             None
         };
         model.links[root_link].body = root_body;
-        // Depth-first traversal, children in file order.
-        let mut stack = vec![root_link];
-        while let Some(link) = stack.pop() {
-            model.link_order.push(link);
-            let body = model.links[link].body;
-            for &j in &children[link] {
+        // Depth-first traversal, children in file order: a body (and its coordinates) is created
+        // when its link is visited, so coordinates follow the same depth-first order.
+        let mut stack: Vec<(usize, Option<usize>)> = vec![(root_link, None)];
+        while let Some((link, via)) = stack.pop() {
+            if let Some(j) = via {
                 let spec = &model.description.joints[j];
-                let child = spec.child;
+                let parent_body = model.links[spec.parent].body;
                 if spec.joint_type == UrdfJointType::Fixed {
-                    model.links[child].body = body;
-                    model.links[child].fixed_parent = Some((j, link));
+                    model.links[link].body = parent_body;
+                    model.links[link].fixed_parent = Some((j, spec.parent));
                     if spec.mimic.is_some() {
                         model.warnings.push(format!(
                             "{path}:{}: the <mimic> on fixed joint '{}' is ignored (a fixed joint has no coordinate)",
@@ -364,13 +363,14 @@ impl Model {
                     };
                     let name = spec.name.clone();
                     let new_body = model.bodies.len();
-                    model.push_joint(name, kind, type_name, body, Some(j), child);
-                    model.links[child].body = Some(new_body);
+                    model.push_joint(name, kind, type_name, parent_body, Some(j), link);
+                    model.links[link].body = Some(new_body);
                 }
             }
+            model.link_order.push(link);
             // Push in reverse so the first child is visited first.
             for &j in children[link].iter().rev() {
-                stack.push(model.description.joints[j].child);
+                stack.push((model.description.joints[j].child, Some(j)));
             }
         }
         if model.link_order.len() < n_links {
@@ -382,7 +382,7 @@ impl Model {
                 links: name_list(&unreached),
             });
         }
-        model.resolve_mimics(path)?;
+        model.resolve_mimics(path);
         model.refresh();
         model.check_nominal_consistency(path);
         Ok(model)
@@ -418,11 +418,11 @@ impl Model {
         });
     }
 
-    fn resolve_mimics(&mut self, path: &str) -> Result<(), ModelError> {
+    /// Records each moving joint's `<mimic>` relation. A mimic naming no moving joint (or itself)
+    /// is ignored with a warning, as Pinocchio does: the joint then moves independently.
+    fn resolve_mimics(&mut self, path: &str) {
         for i in 0..self.joints.len() {
-            let Some(source) = self.joints[i].source else {
-                continue;
-            };
+            let Some(source) = self.joints[i].source else { continue };
             let spec = &self.description.joints[source];
             let Some(mimic) = &spec.mimic else { continue };
             let leader = self.joints.iter().position(|j| j.name == mimic.joint);
@@ -430,21 +430,16 @@ impl Model {
                 Some(leader) if leader != i && self.joints[leader].nv() == 1 => {
                     self.joints[i].mimic = Some((leader, mimic.multiplier, mimic.offset));
                 }
-                _ => {
-                    return Err(ModelError::BadMimic {
-                        path: path.to_string(),
-                        line: spec.line,
-                        joint: spec.name.clone(),
-                        leader: mimic.joint.clone(),
-                        suggestion: crate::text::closest_suggestion(
-                            &mimic.joint,
-                            self.joints.iter().map(|j| j.name.as_str()),
-                        ),
-                    })
-                }
+                _ => self.warnings.push(format!(
+                    "{path}:{}: joint '{}' mimics '{}', which is not a moving joint of this robot (the mimic is ignored: '{}' moves independently){}",
+                    spec.line,
+                    spec.name,
+                    mimic.joint,
+                    spec.name,
+                    crate::text::closest_suggestion(&mimic.joint, self.joints.iter().map(|j| j.name.as_str())),
+                )),
             }
         }
-        Ok(())
     }
 
     /// Recomputes every derived quantity (link placements in their bodies, joint placements and
@@ -647,7 +642,7 @@ mod tests {
     }
 
     #[test]
-    fn mimic_on_fixed_joint_warns_and_unknown_leader_fails() {
+    fn mimic_on_fixed_joint_and_unknown_leader_warn() {
         let fixed = r#"<robot name="r"><link name="a"/><link name="b"/>
           <joint name="j" type="fixed"><parent link="a"/><child link="b"/><mimic joint="x"/></joint></robot>"#;
         let model = load(fixed, false).unwrap();
@@ -658,10 +653,13 @@ mod tests {
         let bad = r#"<robot name="r"><link name="a"/><link name="b"/><link name="c"/>
           <joint name="j1" type="continuous"><parent link="a"/><child link="b"/></joint>
           <joint name="j2" type="continuous"><parent link="b"/><child link="c"/><mimic joint="j0"/></joint></robot>"#;
-        let msg = load(bad, false).unwrap_err().to_string();
-        assert!(
-            msg.contains("joint 'j2' mimics 'j0'") && msg.contains("did you mean 'j1'"),
-            "{msg}"
-        );
+        let model = load(bad, false).unwrap();
+        let warning = model
+            .warnings
+            .iter()
+            .find(|w| w.contains("joint 'j2' mimics 'j0'"))
+            .expect("warned");
+        assert!(warning.contains("did you mean 'j1'") && warning.contains("moves independently"), "{warning}");
+        assert!(model.joints[1].mimic.is_none());
     }
 }

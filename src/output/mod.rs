@@ -1,11 +1,15 @@
-//! Sinks for results: CSV series, the summary JSON of the design contract. Every file is written to a
+//! Sinks for results: CSV series, the summary JSON of the design contract, MCAP logs for Foxglove and
+//! rerun ([`mcap`]). Every file is written to a
 //! temporary name beside its target and renamed when complete, so a failure never leaves a corrupt
 //! output file.
 
 mod csv;
+mod envelope_log;
+pub mod mcap;
 mod summary;
 
 pub use csv::write_csv;
+pub use envelope_log::EnvelopeLog;
 pub use summary::{EnvelopeSeries, ParameterSummary, Summary};
 
 use crate::Error;

@@ -2,10 +2,10 @@
 //! against the robot.
 //!
 //! A [`Scene`] is fully resolved: joint names are indices, effects are flags, outputs know where their
-//! numbers come from. Only what the scene declares is assembled by [`crate::effects`]. Drives and
-//! closed loops (`[[scene.drive]]`, `[[scene.loop]]`) are refused with a clear message until
-//! constraint rows land.
+//! numbers come from. Only what the scene declares is assembled by [`crate::effects`]. Drives,
+//! loop closures and URDF mimic joints become constraint rows ([`crate::constraints`]).
 
+mod constraints;
 mod outputs;
 mod sidecar;
 
@@ -130,6 +130,8 @@ pub struct Scene {
     pub initial_q: Vec<f64>,
     /// Initial velocities, dim `nv`.
     pub initial_v: Vec<f64>,
+    /// Constraint rows: loops, URDF mimic joints, drives.
+    pub constraints: crate::constraints::ConstraintSet,
     /// Recorded outputs, in order.
     pub outputs: Vec<Output>,
     /// Recording rate, Hz.
@@ -262,16 +264,14 @@ impl Scene {
                 }
             }
         }
-        if !s.drive.is_empty() || !s.loops.is_empty() {
-            let key = if s.drive.is_empty() {
-                "[[scene.loop]]"
-            } else {
-                "[[scene.drive]]"
-            };
+        let constraints = constraints::resolve(&s.drive, &s.loops, model, path)?;
+        if !constraints.is_empty() && alpha == 0.0 {
             return Err(invalid(
-                key,
-                "drives and closed loops (constraint rows) are not supported yet; remove them to simulate the open tree"
-                    .to_string(),
+                "[scene] alpha",
+                format!(
+                    "alpha = 0 is refused with constraint rows ({} here): accelerations and multipliers do not converge; use alpha < 0, e.g. -0.1",
+                    constraints.len()
+                ),
             ));
         }
         let one_dof_joint = |key: &str, name: &str| -> Result<usize, SceneError> {
@@ -362,7 +362,7 @@ impl Scene {
                 "every value must be finite".to_string(),
             ));
         }
-        let outputs = outputs::resolve(&file.outputs, model, path)?;
+        let outputs = outputs::resolve(&file.outputs, model, &constraints, path)?;
         Ok(Scene {
             duration_s,
             step_s,
@@ -374,6 +374,7 @@ impl Scene {
             springs,
             initial_q,
             initial_v,
+            constraints,
             outputs,
             rate_hz,
             record_every,
@@ -451,10 +452,14 @@ mod tests {
                 "[scene]\ninitial.q = { hinj = 0.1 }",
                 "[scene] initial.q: unknown joint 'hinj'; did you mean 'hinge'?",
             ),
-            (
-                "[[scene.drive]]\njoint = \"hinge\"",
-                "[[scene.drive]]: drives and closed loops",
-            ),
+            ("[[scene.drive]]\njoint = \"hinj\"\nprofile = \"constant\"\nvalue = 0.0", "unknown joint 'hinj'; did you mean 'hinge'?"),
+            ("[[scene.drive]]\njoint = \"hinge\"\nprofile = \"ramp\"\nvalue = 0.0", "profile 'ramp' needs `rate`"),
+            ("[[scene.drive]]\njoint = \"hinge\"\nprofile = \"sin\"", "unknown profile 'sin'; did you mean 'sine'?"),
+            ("[scene]\nalpha = 0.0\n[[scene.drive]]\njoint = \"hinge\"\nprofile = \"constant\"\nvalue = 0.0", "alpha = 0 is refused with constraint rows"),
+            ("[[scene.loop]]\nname = \"c\"\ntype = \"planar_pin\"\nparent = \"world\"\nchild = \"bar\"", "type 'planar_pin' needs `normal`"),
+            ("[[scene.loop]]\nname = \"c\"\ntype = \"hinge\"\nparent = \"world\"\nchild = \"bar\"", "unknown type 'hinge'"),
+            ("[[scene.loop]]\nname = \"c\"\ntype = \"ball\"\nparent = \"wrld\"\nchild = \"bar\"", "unknown parent link 'wrld'"),
+            ("[[scene.loop]]\nname = \"c\"\ntype = \"ball\"\nparent = \"w\"\nchild = \"w\"", "belong to the same rigid body"),
             (
                 "[[scene.spring]]\njoint = \"hinge\"\nstiffness = 10.0",
                 "'joint_springs' is not in effects",

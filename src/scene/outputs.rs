@@ -5,11 +5,12 @@
 
 use super::sidecar::{JointSelection, OutputsSection};
 use super::SceneError;
+use crate::constraints::ConstraintSet;
 use crate::model::{JointKind, Model};
 use crate::text::closest_suggestion;
 
 /// Where a recorded number comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum OutputKind {
     /// A 1-dof joint's position `q[q_index]`.
     Position {
@@ -47,17 +48,32 @@ pub enum OutputKind {
         /// 0, 1, 2.
         axis: usize,
     },
+    /// `sign · λ[row]`: a drive's effort and a loop's reaction force use `−λ`, a mimic row `λ`.
+    Multiplier {
+        /// Constraint row.
+        row: usize,
+        /// −1 or +1.
+        sign: f64,
+    },
 }
 
 /// One recorded scalar series.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Output {
-    /// Its name, e.g. `q.elbow_joint` or `frame.tool0.z`.
+    /// Its name, e.g. `q.elbow_joint` or `frame.tool0.z`: the parts joined by dots.
     pub name: String,
+    /// The parts of the name (`["q", "joint_0.0"]`): the separating dots are the ones between parts,
+    /// so names that contain dots still map to an unambiguous MCAP topic.
+    pub parts: Vec<String>,
     /// Its unit.
     pub unit: &'static str,
     /// Where it comes from.
     pub kind: OutputKind,
+}
+
+/// Owned name parts.
+fn parts(items: &[&str]) -> Vec<String> {
+    items.iter().map(|s| s.to_string()).collect()
 }
 
 const XYZ: [&str; 3] = ["x", "y", "z"];
@@ -67,6 +83,7 @@ const ROTATION: [&str; 3] = ["rx", "ry", "rz"];
 pub fn resolve(
     section: &OutputsSection,
     model: &Model,
+    constraints: &ConstraintSet,
     path: &str,
 ) -> Result<Vec<Output>, SceneError> {
     let invalid = |key: &str, message: String| SceneError::Invalid {
@@ -109,6 +126,7 @@ pub fn resolve(
             for (axis, label) in XYZ.iter().enumerate() {
                 outputs.push(Output {
                     name: format!("q.{}.{label}", joint.name),
+                    parts: parts(&["q", &joint.name, label]),
                     unit: "m",
                     kind: OutputKind::BasePosition { joint: j, axis },
                 });
@@ -116,6 +134,7 @@ pub fn resolve(
             for (axis, label) in ROTATION.iter().enumerate() {
                 outputs.push(Output {
                     name: format!("q.{}.{label}", joint.name),
+                    parts: parts(&["q", &joint.name, label]),
                     unit: "rad",
                     kind: OutputKind::BaseRotation { joint: j, axis },
                 });
@@ -123,6 +142,7 @@ pub fn resolve(
         } else {
             outputs.push(Output {
                 name: format!("q.{}", joint.name),
+                parts: parts(&["q", &joint.name]),
                 unit: linear_unit(joint.kind, "rad", "m"),
                 kind: OutputKind::Position {
                     q_index: joint.q_index,
@@ -136,15 +156,15 @@ pub fn resolve(
                 let joint = &model.joints[j];
                 for k in 0..joint.nv() {
                     let v_index = joint.v_index + k;
-                    let (name, unit) = if joint.kind == JointKind::Floating {
+                    let (name_parts, unit) = if joint.kind == JointKind::Floating {
                         let label = if k < 3 { XYZ[k] } else { ROTATION[k - 3] };
                         (
-                            format!("{prefix}.{}.{label}", joint.name),
+                            parts(&[prefix, &joint.name, label]),
                             if k < 3 { linear } else { angular },
                         )
                     } else {
                         (
-                            format!("{prefix}.{}", joint.name),
+                            parts(&[prefix, &joint.name]),
                             linear_unit(joint.kind, angular, linear),
                         )
                     };
@@ -153,7 +173,12 @@ pub fn resolve(
                     } else {
                         OutputKind::Velocity { v_index }
                     };
-                    outputs.push(Output { name, unit, kind });
+                    outputs.push(Output {
+                        name: name_parts.join("."),
+                        parts: name_parts,
+                        unit,
+                        kind,
+                    });
                 }
             }
         };
@@ -162,6 +187,48 @@ pub fn resolve(
     }
     if section.accelerations.unwrap_or(false) {
         per_velocity("qdd", "rad/s²", "m/s²", true);
+    }
+    let unit_of_coordinate = |v_index: usize, rotational: &'static str, linear: &'static str| {
+        let joint = model.joints.iter().find(|j| j.v_index == v_index);
+        match joint.map(|j| j.kind) {
+            Some(JointKind::Prismatic) => linear,
+            _ => rotational,
+        }
+    };
+    let loop_rows: usize = constraints.loops.iter().map(|l| l.rows()).sum();
+    if section.efforts.unwrap_or(false) {
+        let first = loop_rows + constraints.mimics.len();
+        for (i, drive) in constraints.drives.iter().enumerate() {
+            outputs.push(Output {
+                name: format!("effort.{}", drive.name),
+                parts: parts(&["effort", &drive.name]),
+                unit: unit_of_coordinate(drive.v_index, "N·m", "N"),
+                kind: OutputKind::Multiplier { row: first + i, sign: -1.0 },
+            });
+        }
+    }
+    if section.constraint_forces.unwrap_or(false) {
+        let mut row = 0;
+        for closure in &constraints.loops {
+            for i in 0..closure.rows() {
+                outputs.push(Output {
+                    name: format!("lambda.{}.{i}", closure.name),
+                    parts: parts(&["lambda", &closure.name, &i.to_string()]),
+                    unit: "N",
+                    kind: OutputKind::Multiplier { row, sign: -1.0 },
+                });
+                row += 1;
+            }
+        }
+        for mimic in &constraints.mimics {
+            outputs.push(Output {
+                name: format!("lambda.mimic.{}", mimic.joint),
+                parts: parts(&["lambda", "mimic", &mimic.joint]),
+                unit: unit_of_coordinate(mimic.follower.1, "N·m", "N"),
+                kind: OutputKind::Multiplier { row, sign: 1.0 },
+            });
+            row += 1;
+        }
     }
     for name in section.frames.iter().flatten() {
         let link = model.description.link_index(name).ok_or_else(|| {
@@ -179,6 +246,7 @@ pub fn resolve(
         for (axis, label) in XYZ.iter().enumerate() {
             outputs.push(Output {
                 name: format!("frame.{name}.{label}"),
+                parts: parts(&["frame", name, label]),
                 unit: "m",
                 kind: OutputKind::FramePosition { link, axis },
             });

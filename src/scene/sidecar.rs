@@ -49,12 +49,63 @@ pub struct SceneSection {
     /// `[[scene.spring]]`.
     #[serde(default)]
     pub spring: Vec<SpringSection>,
-    /// `[[scene.drive]]` (kept raw until drives are supported).
+    /// `[[scene.drive]]`: prescribed joint motions.
     #[serde(default)]
-    pub drive: Vec<toml::Table>,
-    /// `[[scene.loop]]` (kept raw until loops are supported).
+    pub drive: Vec<DriveSection>,
+    /// `[[scene.loop]]`: loop closures.
     #[serde(default, rename = "loop")]
-    pub loops: Vec<toml::Table>,
+    pub loops: Vec<LoopSection>,
+}
+
+/// `[[scene.drive]]`: `q_joint = f(t)` with the profile's parameters.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSection {
+    /// Name of the drive (default: the joint's name); its output is `effort.NAME`.
+    pub name: Option<String>,
+    /// The driven joint.
+    pub joint: String,
+    /// `constant`, `ramp`, `sine` or `spline`.
+    pub profile: String,
+    /// constant and ramp: the value at t = 0 (rad or m).
+    pub value: Option<f64>,
+    /// ramp: rate (rad/s or m/s).
+    pub rate: Option<f64>,
+    /// sine: offset.
+    pub offset: Option<f64>,
+    /// sine: amplitude.
+    pub amplitude: Option<f64>,
+    /// sine: frequency, Hz.
+    pub frequency: Option<f64>,
+    /// sine: phase, rad.
+    pub phase: Option<f64>,
+    /// spline: `[[t, q], …]` with strictly increasing t.
+    pub points: Option<Vec<[f64; 2]>>,
+}
+
+/// `[[scene.loop]]`: a point of `child` kept on the constrained directions of a point of `parent`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoopSection {
+    /// Name (outputs `lambda.NAME.i`).
+    pub name: String,
+    /// `ball`, `planar_pin`, `planar_slider` or `slider`.
+    #[serde(rename = "type")]
+    pub loop_type: String,
+    /// A link, or `"world"`.
+    pub parent: String,
+    /// The point in the parent link's frame, m.
+    #[serde(default)]
+    pub point_in_parent: [f64; 3],
+    /// A link.
+    pub child: String,
+    /// The point in the child link's frame, m.
+    #[serde(default)]
+    pub point_in_child: [f64; 3],
+    /// Planar types: the plane's normal, in the parent frame.
+    pub normal: Option<[f64; 3]>,
+    /// Slider types: the sliding direction, in the parent frame.
+    pub axis: Option<[f64; 3]>,
 }
 
 /// `initial.q`, `initial.v`, `initial.base`.

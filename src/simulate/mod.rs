@@ -9,5 +9,5 @@ mod run;
 mod system;
 
 pub use recorder::Recorder;
-pub use run::{hht_settings, simulate, Trajectory};
+pub use run::{hht_settings, initial_violation, simulate, SimulationError, Trajectory};
 pub use system::RobotSystem;

@@ -46,7 +46,9 @@ impl Recorder {
         &self.outputs
     }
 
-    /// Writes one value per output into `row` (`dim outputs.len()`). `q: dim nq`, `v, qdd: dim nv`.
+    /// Writes one value per output into `row` (`dim outputs.len()`). `q: dim nq`, `v, qdd: dim nv`,
+    /// `lambda: dim m`.
+    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         model: &Model,
@@ -54,6 +56,7 @@ impl Recorder {
         q: &[f64],
         v: &[f64],
         qdd: &[f64],
+        lambda: &[f64],
         row: &mut [f64],
     ) {
         if self.needs_kinematics {
@@ -73,6 +76,7 @@ impl Recorder {
                     let initial = self.initial_orientation[joint].unwrap_or(now);
                     (initial.inverse() * now).scaled_axis()[axis]
                 }
+                OutputKind::Multiplier { row, sign } => sign * lambda[row],
             };
         }
     }

@@ -1,6 +1,7 @@
-//! [`RobotSystem`]: a robot tree plus its scene's effects, seen by the integrator through
-//! [`DaeSystem`]. No constraint rows yet (a tree needs none).
+//! [`RobotSystem`]: a robot tree plus its scene's effects and constraint rows (loops, mimic joints,
+//! drives), seen by the integrator through [`DaeSystem`]. A tree without rows pays nothing for them.
 
+use crate::constraints::ConstraintSet;
 use crate::dynamics::{crba, nonlinear_effects, rnea, Data};
 use crate::effects::Effects;
 use crate::integrate::{DaeSystem, SystemError};
@@ -9,7 +10,8 @@ use crate::scene::Scene;
 use crate::spatial::{Mat3, Vec3};
 use nalgebra::{DMatrix, DVector};
 
-/// A robot with its effects as an index-3 DAE `M(q) q̈ = Q(t, q, q̇)` (no rows yet).
+/// A robot with its effects and constraint rows as the index-3 DAE
+/// `M(q) q̈ + Φ_qᵀ λ = Q(t, q, q̇)`, `Φ(q, t) = 0`.
 #[derive(Clone, Debug)]
 pub struct RobotSystem {
     /// The model (its gravity is the scene's, or zero when gravity is not declared).
@@ -18,6 +20,8 @@ pub struct RobotSystem {
     pub data: Data,
     /// The scene's assembled effects.
     pub effects: Effects,
+    /// The scene's constraint rows.
+    pub constraints: ConstraintSet,
     has_floating_joint: bool,
 }
 
@@ -36,6 +40,7 @@ impl RobotSystem {
             model,
             data,
             effects,
+            constraints: scene.constraints.clone(),
             has_floating_joint,
         }
     }
@@ -70,6 +75,37 @@ impl DaeSystem for RobotSystem {
 
     fn nv(&self) -> usize {
         self.model.nv
+    }
+
+    fn n_constraints(&self) -> usize {
+        self.constraints.len()
+    }
+
+    fn constraints(&mut self, t: f64, q: &DVector<f64>, out: &mut DVector<f64>) -> Result<(), SystemError> {
+        self.constraints.evaluate(&self.model, &mut self.data, t, q.as_slice(), out);
+        Ok(())
+    }
+
+    fn constraint_jacobian(&mut self, _t: f64, q: &DVector<f64>, out: &mut DMatrix<f64>) -> Result<(), SystemError> {
+        self.constraints.jacobian(&self.model, &mut self.data, q.as_slice(), out);
+        Ok(())
+    }
+
+    fn constraint_time_derivative(&mut self, t: f64, _q: &DVector<f64>, out: &mut DVector<f64>) -> Result<(), SystemError> {
+        self.constraints.time_derivative(t, out);
+        Ok(())
+    }
+
+    fn constraint_acceleration_bias(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints
+            .acceleration_bias(&self.model, &mut self.data, t, q.as_slice(), v.as_slice(), out);
+        Ok(())
     }
 
     fn integrate_position(

@@ -1,0 +1,190 @@
+//! Loop closures: a point of a child link kept on the constrained directions of a point of a parent
+//! link (or the world). With `d = x_child − x_parent` in the world frame and `e_i` unit directions
+//! fixed in the parent link frame (`e_i,w = R_parent e_i`):
+//!
+//! `Φ_i = e_i,w · d`,
+//! `Φ_q,i = e_i,wᵀ (J_child − J_parent) + (e_i,w × d)ᵀ J_parent^ω`,
+//! `Φ̈_i = e_i,w · d̈ + 2 ė_i,w · ḋ + ë_i,w · d`, with `ė = ω × e` and `ë = α × e + ω × (ω × e)`.
+//!
+//! Directions by type: `ball` x, y, z of the parent frame (3 rows); `planar_pin` two directions in
+//! the plane of `normal` (2 rows); `planar_slider` `normal × axis` (1 row); `slider` two directions
+//! orthogonal to `axis` (2 rows).
+
+use crate::dynamics::Data;
+use crate::model::Model;
+use crate::spatial::{Mat3, Vec3};
+use nalgebra::DMatrix;
+
+/// The kind of a loop closure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoopKind {
+    /// Coincident points (3 rows).
+    Ball,
+    /// Coincident points within a plane (2 rows).
+    PlanarPin,
+    /// A point on a line within a plane (1 row).
+    PlanarSlider,
+    /// A point on a line (2 rows).
+    Slider,
+}
+
+impl LoopKind {
+    /// Parses the sidecar spelling.
+    pub fn parse(text: &str) -> Option<LoopKind> {
+        match text {
+            "ball" => Some(LoopKind::Ball),
+            "planar_pin" => Some(LoopKind::PlanarPin),
+            "planar_slider" => Some(LoopKind::PlanarSlider),
+            "slider" => Some(LoopKind::Slider),
+            _ => None,
+        }
+    }
+}
+
+/// A resolved loop closure.
+#[derive(Clone, Debug)]
+pub struct LoopClosure {
+    /// Name (outputs `lambda.NAME.i`).
+    pub name: String,
+    /// Kind.
+    pub kind: LoopKind,
+    /// Parent link (index into `description.links`), `None` for the world.
+    pub parent: Option<usize>,
+    /// The point in the parent link frame, m.
+    pub point_in_parent: Vec3,
+    /// Child link.
+    pub child: usize,
+    /// The point in the child link frame, m.
+    pub point_in_child: Vec3,
+    /// Unit constrained directions in the parent link frame (1 to 3).
+    pub directions: Vec<Vec3>,
+}
+
+/// A point of a link at the last kinematics: its body, its coordinates in the body frame and in the
+/// world frame.
+struct LinkPoint {
+    body: Option<usize>,
+    in_body: Vec3,
+    in_world: Vec3,
+}
+
+fn link_point(model: &Model, data: &Data, link: Option<usize>, point: &Vec3) -> LinkPoint {
+    let Some(link) = link else {
+        return LinkPoint {
+            body: None,
+            in_body: *point,
+            in_world: *point,
+        };
+    };
+    let placement = &model.links[link];
+    let in_body = placement.body_from_link.transform_point(point);
+    let in_world = match placement.body {
+        Some(b) => data.world_from_body[b].transform_point(&in_body),
+        None => in_body,
+    };
+    LinkPoint {
+        body: placement.body,
+        in_body,
+        in_world,
+    }
+}
+
+/// Orientation of a link in the world.
+fn world_rotation(model: &Model, data: &Data, link: Option<usize>) -> Mat3 {
+    let Some(link) = link else { return Mat3::identity() };
+    let placement = &model.links[link];
+    match placement.body {
+        Some(b) => data.world_from_body[b].rotation * placement.body_from_link.rotation,
+        None => placement.body_from_link.rotation,
+    }
+}
+
+/// Adds `sign · (row_vector · J_point)` (linear part at `point_in_world`) and `angular · J^ω` of the
+/// chain from `body` to the root into `out[row, :]`.
+fn add_chain(
+    model: &Model,
+    data: &Data,
+    body: Option<usize>,
+    point_in_world: &Vec3,
+    linear: &Vec3,
+    angular: &Vec3,
+    row: usize,
+    out: &mut DMatrix<f64>,
+) {
+    let mut current = body;
+    while let Some(b) = current {
+        let joint = &model.joints[b];
+        for k in 0..joint.nv() {
+            let column = data.world_from_body[b].act_motion(&joint.subspace_column(k));
+            let point_velocity = column.linear + column.angular.cross(point_in_world);
+            out[(row, joint.v_index + k)] += linear.dot(&point_velocity) + angular.dot(&column.angular);
+        }
+        current = joint.parent;
+    }
+}
+
+impl LoopClosure {
+    /// Number of rows.
+    pub fn rows(&self) -> usize {
+        self.directions.len()
+    }
+
+    /// `out = Φ` of this loop (`dim rows`), from the placements in `data`.
+    pub fn evaluate(&self, model: &Model, data: &Data, out: &mut [f64]) {
+        let a = link_point(model, data, self.parent, &self.point_in_parent);
+        let b = link_point(model, data, Some(self.child), &self.point_in_child);
+        let rotation = world_rotation(model, data, self.parent);
+        let d = b.in_world - a.in_world;
+        for (value, e) in out.iter_mut().zip(&self.directions) {
+            *value = (rotation * e).dot(&d);
+        }
+    }
+
+    /// Writes this loop's rows of `Φ_q` into `out` from row `first_row`, from the placements in `data`.
+    pub fn jacobian(&self, model: &Model, data: &Data, first_row: usize, out: &mut DMatrix<f64>) {
+        let a = link_point(model, data, self.parent, &self.point_in_parent);
+        let b = link_point(model, data, Some(self.child), &self.point_in_child);
+        let rotation = world_rotation(model, data, self.parent);
+        let d = b.in_world - a.in_world;
+        for (i, e) in self.directions.iter().enumerate() {
+            let row = first_row + i;
+            let e_world = rotation * e;
+            let zero = Vec3::zeros();
+            add_chain(model, data, b.body, &b.in_world, &e_world, &zero, row, out);
+            // The parent's point moves with its body, and so do the directions (rotation term).
+            add_chain(model, data, a.body, &a.in_world, &(-e_world), &e_world.cross(&d), row, out);
+        }
+    }
+
+    /// `out = −(Φ_q q̇)_q q̇` of this loop (`dim rows`), from the drift kinematics in `data`.
+    pub fn acceleration_bias(&self, model: &Model, data: &Data, out: &mut [f64]) {
+        let a = link_point(model, data, self.parent, &self.point_in_parent);
+        let b = link_point(model, data, Some(self.child), &self.point_in_child);
+        let rotation = world_rotation(model, data, self.parent);
+        let d = b.in_world - a.in_world;
+        // World velocity and drift acceleration of a point, and the angular velocity and drift
+        // angular acceleration of its body.
+        let motion = |point: &LinkPoint| match point.body {
+            None => (Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), Vec3::zeros()),
+            Some(body) => {
+                let r = data.world_from_body[body].rotation;
+                let (v, a) = (data.velocity[body], data.acceleration[body]);
+                let w = v.angular;
+                let p = point.in_body;
+                let velocity = v.linear + w.cross(&p);
+                let acceleration = a.linear + a.angular.cross(&p) + w.cross(&velocity);
+                (r * velocity, r * acceleration, r * w, r * a.angular)
+            }
+        };
+        let (velocity_a, drift_a, omega, alpha) = motion(&a);
+        let (velocity_b, drift_b, _, _) = motion(&b);
+        let d_dot = velocity_b - velocity_a;
+        let d_drift = drift_b - drift_a;
+        for (value, e) in out.iter_mut().zip(&self.directions) {
+            let e_world = rotation * e;
+            let e_dot = omega.cross(&e_world);
+            let e_drift = alpha.cross(&e_world) + omega.cross(&e_dot);
+            *value = -(e_world.dot(&d_drift) + 2.0 * e_dot.dot(&d_dot) + e_drift.dot(&d));
+        }
+    }
+}

@@ -1,0 +1,122 @@
+//! An MCAP log of envelopes, one record time at a time: a channel per output (lower, nominal,
+//! upper), optionally an error-estimate channel per output, and the nominal robot's frames on `/tf`.
+//! Used by `simulate` (lower = nominal = upper) and `analyze`.
+
+use super::mcap::{EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, WorldFromLink};
+use crate::dynamics::{frame_placements, Data};
+use crate::model::Model;
+use crate::scene::Output;
+use crate::Error;
+use std::path::Path;
+
+/// An open envelope log.
+pub struct EnvelopeLog {
+    sink: McapSink,
+    channels: Vec<EnvelopeChannel>,
+    error_channels: Vec<ErrorChannel>,
+}
+
+fn mcap_error(error: super::mcap::McapError) -> Error {
+    Error::Mcap(error)
+}
+
+/// Reads a file named in the log's attachments.
+fn read_text(path: &Path, what: &str) -> Result<String, Error> {
+    std::fs::read_to_string(path).map_err(|source| Error::Output {
+        what: format!("{what} '{}' for the MCAP attachment", path.display()),
+        source,
+    })
+}
+
+impl EnvelopeLog {
+    /// Creates the log at `path` (written to `path.tmp` until [`finish`](Self::finish)), with the
+    /// URDF and the sidecar attached, one channel per output and, when `with_errors`, one
+    /// error-estimate channel per output.
+    pub fn create(
+        path: &Path,
+        urdf: &Path,
+        sidecar: Option<&Path>,
+        metadata: McapMetadata,
+        outputs: &[Output],
+        with_errors: bool,
+    ) -> Result<EnvelopeLog, Error> {
+        let urdf_text = read_text(urdf, "URDF")?;
+        let sidecar_text = sidecar.map(|p| read_text(p, "sidecar")).transpose()?;
+        let name_of = |p: &Path| p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned());
+        let sidecar_pair = sidecar.zip(sidecar_text.as_deref()).map(|(p, text)| (name_of(p), text));
+        let mut sink = McapSink::create(
+            path,
+            &name_of(urdf),
+            &urdf_text,
+            sidecar_pair.as_ref().map(|(name, text)| (name.as_str(), *text)),
+            metadata,
+        )
+        .map_err(mcap_error)?;
+        let mut channels = Vec::with_capacity(outputs.len());
+        let mut error_channels = Vec::new();
+        for output in outputs {
+            channels.push(sink.add_output(OutputName::from_parts(&output.parts)).map_err(mcap_error)?);
+            if with_errors {
+                error_channels.push(sink.add_error_channel(OutputName::from_parts(&output.parts)).map_err(mcap_error)?);
+            }
+        }
+        Ok(EnvelopeLog {
+            sink,
+            channels,
+            error_channels,
+        })
+    }
+
+    /// Writes every output's envelope at time `t` (s); `error` per output when the log has error
+    /// channels.
+    pub fn write_time(
+        &mut self,
+        t: f64,
+        lower: &[f64],
+        nominal: &[f64],
+        upper: &[f64],
+        error: Option<&[f64]>,
+    ) -> Result<(), Error> {
+        for (i, channel) in self.channels.iter().enumerate() {
+            self.sink.write_envelope(*channel, t, lower[i], nominal[i], upper[i]).map_err(mcap_error)?;
+        }
+        if let Some(error) = error {
+            for (channel, value) in self.error_channels.iter().zip(error) {
+                self.sink.write_error(*channel, t, *value).map_err(mcap_error)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes every URDF link's placement on `/tf` at time `t`, from the body placements of the
+    /// last forward kinematics in `data`.
+    pub fn write_frames(&mut self, t: f64, model: &Model, data: &Data) -> Result<(), Error> {
+        let placements: Vec<(usize, crate::spatial::Transform)> = (0..model.description.links.len())
+            .map(|l| (l, frame_placements(model, data, l)))
+            .collect();
+        let frames: Vec<WorldFromLink> = placements
+            .iter()
+            .map(|(l, placement)| {
+                let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
+                    &nalgebra::Rotation3::from_matrix_unchecked(placement.rotation),
+                );
+                WorldFromLink {
+                    link: &model.description.links[*l].name,
+                    translation_m: [placement.translation.x, placement.translation.y, placement.translation.z],
+                    rotation_xyzw: [rotation.i, rotation.j, rotation.k, rotation.w],
+                }
+            })
+            .collect();
+        self.sink.write_transforms(t, &frames).map_err(mcap_error)
+    }
+
+    /// The metadata to be written at the end (e.g. to correct `runs` after an interruption).
+    pub fn metadata_mut(&mut self) -> &mut McapMetadata {
+        self.sink.metadata_mut()
+    }
+
+    /// Writes the metadata record, summary and index, and renames the file into place.
+    pub fn finish(self, partial: bool) -> Result<(), Error> {
+        self.sink.finish(partial).map_err(mcap_error)
+    }
+}

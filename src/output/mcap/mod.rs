@@ -1,0 +1,556 @@
+//! The MCAP sink (design contract "MCAP"): bound envelopes, error estimates, the nominal robot's
+//! frames and its URDF in one file that Foxglove and rerun open as they are.
+//!
+//! What a file holds:
+//! - per output, topic `/ribbon/envelope/<parts joined by '/'>` (see [`OutputName`]): ROS 2
+//!   `sensor_msgs/msg/JointState` in CDR with `name = ["lower", "nominal", "upper"]` and the
+//!   values in `position`; an error estimate on `/ribbon/error/…` with `name = ["estimate"]`;
+//! - `/tf`: `foxglove.FrameTransforms` (protobuf), parent `world`, child frame = link name;
+//! - `/robot_description`: the URDF text once at t = 0 as `std_msgs/msg/String`;
+//! - a metadata record `ribbon` (see [`McapMetadata`]) and the URDF and sidecar as attachments;
+//! - lz4-compressed chunks, message and chunk indexes, and the summary section.
+//!
+//! Every time stamp is simulation time from 0: log time = publish time = `header.stamp`, in
+//! nanoseconds (rounded to the nearest).
+//!
+//! Crash safety: the bytes go to `<path>.tmp`, renamed to `path` by [`McapSink::finish`]; a sink
+//! dropped without `finish` (an error, a panic) removes its temporary file, so `path` never holds a
+//! half-written file. An interrupted study calls `finish(true)`: a complete, valid file of what was
+//! computed, marked `partial = "true"`.
+//!
+//! Not done here: choosing what to log (the caller decides the outputs, times and frames), and
+//! meshes (`package://` URIs in the URDF cannot be resolved by a viewer reading a file).
+
+#![warn(missing_docs)]
+
+mod error;
+mod foxglove;
+mod name;
+mod ros2;
+
+pub use error::McapError;
+pub use name::OutputName;
+
+use ::mcap::records::{MessageHeader, Metadata};
+use ::mcap::{Attachment, Compression, WriteOptions, Writer};
+use std::borrow::Cow;
+use std::collections::{BTreeMap, HashSet};
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+/// Topic prefix of the envelope channels.
+pub const ENVELOPE_PREFIX: &str = "/ribbon/envelope/";
+/// Topic prefix of the error-estimate channels.
+pub const ERROR_PREFIX: &str = "/ribbon/error/";
+/// Topic of the nominal frames.
+pub const TF_TOPIC: &str = "/tf";
+/// Topic of the URDF text.
+pub const ROBOT_DESCRIPTION_TOPIC: &str = "/robot_description";
+/// Name of the metadata record.
+pub const METADATA_NAME: &str = "ribbon";
+/// Parent frame of every transform on `/tf`.
+pub const WORLD_FRAME: &str = "world";
+/// Series names of an envelope message, in `position` order.
+pub const ENVELOPE_SERIES: [&str; 3] = ["lower", "nominal", "upper"];
+/// Series name of an error-estimate message.
+pub const ERROR_SERIES: [&str; 1] = ["estimate"];
+
+/// Uncompressed size at which a chunk is closed. The `mcap` crate's default (1 MiB): big enough for
+/// lz4 to compress well, small enough that a reader seeking to a time decompresses little.
+const CHUNK_SIZE_BYTES: u64 = 1024 * 1024;
+
+/// Largest time the file holds: `header.stamp.sec` is an `int32`.
+const MAX_TIME_S: f64 = i32::MAX as f64;
+
+/// What the `ribbon` metadata record says about the study (MCAP metadata is string → string).
+///
+/// Written as the keys `robot`, `method`, `order` (the number, or `null`), `runs`,
+/// `ribbon_version` (this crate's version), `partial` (`true` | `false`, given to
+/// [`McapSink::finish`]) and `parameters`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct McapMetadata {
+    /// The robot's name (the URDF `<robot name>`).
+    pub robot: String,
+    /// The method, as in the summary JSON (`legendre-scan`, …, or `nominal` for `simulate`).
+    pub method: String,
+    /// Polynomial order; `None` where meaningless (written `null`).
+    pub order: Option<usize>,
+    /// Number of model runs (the summary's `samples`).
+    pub runs: usize,
+    /// The summary's `parameters` list as JSON text: `[{"name", "lower", "upper", "nominal"}, …]`.
+    pub parameters_json: String,
+}
+
+/// One frame of the nominal robot at one time: the pose of link `link` in the world frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldFromLink<'a> {
+    /// Link (frame) name; the child frame id on `/tf`.
+    pub link: &'a str,
+    /// The link origin in the world frame, m.
+    pub translation_m: [f64; 3],
+    /// The link orientation in the world frame, unit quaternion `[x, y, z, w]`.
+    pub rotation_xyzw: [f64; 4],
+}
+
+/// Handle of an envelope channel, from [`McapSink::add_output`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct EnvelopeChannel(usize);
+
+/// Handle of an error-estimate channel, from [`McapSink::add_error_channel`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ErrorChannel(usize);
+
+/// What a registered channel carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ChannelKind {
+    Envelope,
+    Error,
+    Tf,
+    RobotDescription,
+}
+
+/// One registered channel.
+#[derive(Debug)]
+struct Channel {
+    kind: ChannelKind,
+    id: u16,
+    topic: String,
+    /// Sequence number of the next message.
+    sequence: u32,
+}
+
+/// An MCAP file being written; see the [module docs](self).
+///
+/// ```no_run
+/// use ribbon::output::mcap::{McapMetadata, McapSink, WorldFromLink};
+/// # fn main() -> Result<(), ribbon::output::mcap::McapError> {
+/// let metadata = McapMetadata {
+///     robot: "double_pendulum".into(),
+///     method: "legendre-scan".into(),
+///     order: Some(4),
+///     runs: 25,
+///     parameters_json: r#"[{"name":"l1","lower":0.99,"upper":1.01,"nominal":1.0}]"#.into(),
+/// };
+/// let urdf = std::fs::read_to_string("robots/double_pendulum/double_pendulum.urdf").unwrap();
+/// let mut sink = McapSink::create("out.mcap".as_ref(), "double_pendulum.urdf", &urdf, None, metadata)?;
+/// let q1 = sink.add_output("q.j1")?;
+/// sink.write_envelope(q1, 0.0, -0.01, 0.0, 0.01)?;
+/// sink.write_transforms(0.0, &[WorldFromLink {
+///     link: "bar1",
+///     translation_m: [0.0; 3],
+///     rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
+/// }])?;
+/// sink.finish(false)?; // renames out.mcap.tmp to out.mcap
+/// # Ok(()) }
+/// ```
+pub struct McapSink {
+    /// The final path.
+    path: PathBuf,
+    /// `<path>.tmp`, where the bytes go until `finish`.
+    temporary: PathBuf,
+    /// `None` once finished or dropped.
+    writer: Option<Writer<BufWriter<File>>>,
+    metadata: McapMetadata,
+    joint_state_schema: u16,
+    /// Every channel; handles index into it.
+    channels: Vec<Channel>,
+    topics: HashSet<String>,
+    /// Set when `finish` has renamed the file: nothing left to clean up.
+    finished: bool,
+}
+
+impl McapSink {
+    /// Creates `<path>.tmp` beside `path` and writes the header, the schemas, the `/tf` and
+    /// `/robot_description` channels, the URDF message at t = 0 and the attachments: the URDF
+    /// (`urdf_name`, `application/xml`) and the sidecar if any (`(name, text)`,
+    /// `application/toml`). `metadata` is written by [`finish`](Self::finish).
+    pub fn create(
+        path: &Path,
+        urdf_name: &str,
+        urdf_text: &str,
+        sidecar: Option<(&str, &str)>,
+        metadata: McapMetadata,
+    ) -> Result<Self, McapError> {
+        let mut temporary = path.as_os_str().to_owned();
+        temporary.push(".tmp");
+        let temporary = PathBuf::from(temporary);
+        check_parameters(path, &metadata.parameters_json)?;
+        let file = File::create(&temporary).map_err(|source| McapError::Io {
+            path: path.to_path_buf(),
+            what: format!("create the temporary file {}", temporary.display()),
+            source,
+        })?;
+        let options = WriteOptions::new()
+            .compression(Some(Compression::Lz4))
+            .chunk_size(Some(CHUNK_SIZE_BYTES))
+            .library(format!(
+                "ribbon {} ({})",
+                env!("CARGO_PKG_VERSION"),
+                ::mcap::LIBRARY_IDENTIFIER
+            ));
+        // From here on a failure drops `sink`, which removes the temporary file.
+        let writer = Writer::with_options(BufWriter::new(file), options);
+        let mut sink = Self {
+            path: path.to_path_buf(),
+            temporary,
+            writer: None,
+            metadata,
+            joint_state_schema: 0,
+            channels: Vec::new(),
+            topics: HashSet::new(),
+            finished: false,
+        };
+        sink.writer = Some(writer.map_err(|source| sink.mcap_error("write the MCAP header", source))?);
+
+        sink.joint_state_schema = sink.add_schema(
+            ros2::JOINT_STATE_NAME,
+            "ros2msg",
+            ros2::JOINT_STATE_DEFINITION.as_bytes(),
+        )?;
+        let string_schema = sink.add_schema(ros2::STRING_NAME, "ros2msg", ros2::STRING_DEFINITION.as_bytes())?;
+        let tf_schema = sink.add_schema(
+            foxglove::FRAME_TRANSFORMS_NAME,
+            "protobuf",
+            &foxglove::frame_transforms_descriptor_set(),
+        )?;
+        sink.add_channel(ChannelKind::Tf, tf_schema, TF_TOPIC, "protobuf", BTreeMap::new())?;
+        let description = sink.add_channel(
+            ChannelKind::RobotDescription,
+            string_schema,
+            ROBOT_DESCRIPTION_TOPIC,
+            "cdr",
+            BTreeMap::new(),
+        )?;
+        let payload = sink.cdr(
+            &ros2::RosString { data: urdf_text },
+            "std_msgs/msg/String on /robot_description",
+        )?;
+        sink.write_message(description, 0, &payload)?;
+
+        let mut attachments = vec![(urdf_name, urdf_text, "application/xml")];
+        if let Some((name, text)) = sidecar {
+            attachments.push((name, text, "application/toml"));
+        }
+        for (name, text, media_type) in attachments {
+            let attachment = Attachment {
+                log_time: 0,
+                create_time: 0,
+                name: name.to_string(),
+                media_type: media_type.to_string(),
+                data: Cow::Borrowed(text.as_bytes()),
+            };
+            let result = sink.writer_mut().attach(&attachment);
+            result.map_err(|source| sink.mcap_error(&format!("attach {name}"), source))?;
+        }
+        Ok(sink)
+    }
+
+    /// The final path (where [`finish`](Self::finish) puts the file).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The temporary path the bytes go to until [`finish`](Self::finish).
+    pub fn temporary_path(&self) -> &Path {
+        &self.temporary
+    }
+
+    /// The study description written by [`finish`](Self::finish); change it before then when a
+    /// value is known only at the end (e.g. `runs` of a study stopped early).
+    pub fn metadata_mut(&mut self) -> &mut McapMetadata {
+        &mut self.metadata
+    }
+
+    /// Registers an output: topic `/ribbon/envelope/<parts joined by '/'>`, messages
+    /// `sensor_msgs/msg/JointState` with names `lower`, `nominal`, `upper`. A `&str` splits at
+    /// every dot (`"q.elbow_joint"` → `/ribbon/envelope/q/elbow_joint`); see [`OutputName`] for
+    /// names with dots inside. The channel's metadata holds the output name as `output`.
+    pub fn add_output(&mut self, name: impl Into<OutputName>) -> Result<EnvelopeChannel, McapError> {
+        self.add_joint_state_channel(ChannelKind::Envelope, ENVELOPE_PREFIX, &name.into())
+            .map(EnvelopeChannel)
+    }
+
+    /// Registers an output's error-estimate channel: topic `/ribbon/error/<parts joined by '/'>`,
+    /// `sensor_msgs/msg/JointState` with the one name `estimate`.
+    pub fn add_error_channel(&mut self, name: impl Into<OutputName>) -> Result<ErrorChannel, McapError> {
+        self.add_joint_state_channel(ChannelKind::Error, ERROR_PREFIX, &name.into())
+            .map(ErrorChannel)
+    }
+
+    /// Writes one envelope sample at simulation time `time_s` (s from 0).
+    pub fn write_envelope(
+        &mut self,
+        channel: EnvelopeChannel,
+        time_s: f64,
+        lower: f64,
+        nominal: f64,
+        upper: f64,
+    ) -> Result<(), McapError> {
+        self.check_handle(channel.0, ChannelKind::Envelope)?;
+        self.write_joint_state(channel.0, time_s, &ENVELOPE_SERIES, &[lower, nominal, upper])
+    }
+
+    /// Writes one error estimate at simulation time `time_s` (s from 0).
+    pub fn write_error(&mut self, channel: ErrorChannel, time_s: f64, estimate: f64) -> Result<(), McapError> {
+        self.check_handle(channel.0, ChannelKind::Error)?;
+        self.write_joint_state(channel.0, time_s, &ERROR_SERIES, &[estimate])
+    }
+
+    /// Writes the nominal robot's frames at simulation time `time_s` on `/tf`: one
+    /// `foxglove.FrameTransform` per entry, parent `world`, child the link, time stamp `time_s`.
+    pub fn write_transforms(&mut self, time_s: f64, frames: &[WorldFromLink<'_>]) -> Result<(), McapError> {
+        let nanos = self.nanos(time_s, TF_TOPIC)?;
+        let timestamp = foxglove::Timestamp {
+            seconds: (nanos / 1_000_000_000) as i64,
+            nanos: (nanos % 1_000_000_000) as i32,
+        };
+        let message = foxglove::FrameTransforms {
+            transforms: frames
+                .iter()
+                .map(|frame| foxglove::FrameTransform {
+                    timestamp: Some(timestamp),
+                    parent_frame_id: WORLD_FRAME.to_string(),
+                    child_frame_id: frame.link.to_string(),
+                    translation: Some(foxglove::Vector3 {
+                        x: frame.translation_m[0],
+                        y: frame.translation_m[1],
+                        z: frame.translation_m[2],
+                    }),
+                    rotation: Some(foxglove::Quaternion {
+                        x: frame.rotation_xyzw[0],
+                        y: frame.rotation_xyzw[1],
+                        z: frame.rotation_xyzw[2],
+                        w: frame.rotation_xyzw[3],
+                    }),
+                })
+                .collect(),
+        };
+        let payload = prost::Message::encode_to_vec(&message);
+        let tf = self.channels.iter().position(|c| c.kind == ChannelKind::Tf);
+        self.write_message(tf.expect("`create` adds /tf"), nanos, &payload)
+    }
+
+    /// Completes the file: the `ribbon` metadata record with `partial` = `"true"` or `"false"`,
+    /// the last chunk, the indexes and the summary; then syncs it and renames `<path>.tmp` to
+    /// `path` (replacing any file there). On error the temporary file is removed.
+    ///
+    /// `partial = true` is for a study stopped early (SIGINT, SIGTERM): the file is complete and
+    /// valid, holding the envelopes written so far.
+    pub fn finish(mut self, partial: bool) -> Result<(), McapError> {
+        check_parameters(&self.path, &self.metadata.parameters_json)?;
+        let m = &self.metadata;
+        let record = Metadata {
+            name: METADATA_NAME.to_string(),
+            metadata: BTreeMap::from([
+                ("robot".to_string(), m.robot.clone()),
+                ("method".to_string(), m.method.clone()),
+                (
+                    "order".to_string(),
+                    m.order.map_or_else(|| "null".to_string(), |k| k.to_string()),
+                ),
+                ("runs".to_string(), m.runs.to_string()),
+                ("ribbon_version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+                ("partial".to_string(), partial.to_string()),
+                ("parameters".to_string(), m.parameters_json.clone()),
+            ]),
+        };
+        let result = self.writer_mut().write_metadata(&record);
+        result.map_err(|source| self.mcap_error("write the `ribbon` metadata record", source))?;
+        let result = self.writer_mut().finish();
+        result.map_err(|source| self.mcap_error("write the summary and footer", source))?;
+        let writer = self.writer.take().expect("a sink holds its writer until finished");
+        let file = writer.into_inner().into_inner().map_err(|e| McapError::Io {
+            path: self.path.clone(),
+            what: format!("flush {}", self.temporary.display()),
+            source: e.into_error(),
+        })?;
+        file.sync_all().map_err(|source| self.io_error("sync", source))?;
+        drop(file);
+        std::fs::rename(&self.temporary, &self.path).map_err(|source| McapError::Io {
+            path: self.path.clone(),
+            what: format!("rename {} to {}", self.temporary.display(), self.path.display()),
+            source,
+        })?;
+        self.finished = true;
+        Ok(())
+    }
+
+    // ---- helpers ----
+
+    fn writer_mut(&mut self) -> &mut Writer<BufWriter<File>> {
+        self.writer.as_mut().expect("a sink holds its writer until finished")
+    }
+
+    fn mcap_error(&self, what: &str, source: ::mcap::McapError) -> McapError {
+        McapError::Write {
+            path: self.path.clone(),
+            what: what.to_string(),
+            source,
+        }
+    }
+
+    fn io_error(&self, verb: &str, source: std::io::Error) -> McapError {
+        McapError::Io {
+            path: self.path.clone(),
+            what: format!("{verb} {}", self.temporary.display()),
+            source,
+        }
+    }
+
+    fn cdr<T: serde::Serialize>(&self, message: &T, what: &str) -> Result<Vec<u8>, McapError> {
+        ros2::encode(message).map_err(|source| McapError::Cdr {
+            path: self.path.clone(),
+            what: what.to_string(),
+            source,
+        })
+    }
+
+    fn add_schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> Result<u16, McapError> {
+        let result = self.writer_mut().add_schema(name, encoding, data);
+        result.map_err(|source| self.mcap_error(&format!("add the schema {name}"), source))
+    }
+
+    /// Adds a channel; returns its index in `channels`.
+    fn add_channel(
+        &mut self,
+        kind: ChannelKind,
+        schema: u16,
+        topic: &str,
+        encoding: &str,
+        metadata: BTreeMap<String, String>,
+    ) -> Result<usize, McapError> {
+        if !self.topics.insert(topic.to_string()) {
+            return Err(McapError::DuplicateTopic {
+                path: self.path.clone(),
+                topic: topic.to_string(),
+            });
+        }
+        let result = self.writer_mut().add_channel(schema, topic, encoding, &metadata);
+        let id = result.map_err(|source| self.mcap_error(&format!("add the channel {topic}"), source))?;
+        self.channels.push(Channel {
+            kind,
+            id,
+            topic: topic.to_string(),
+            sequence: 0,
+        });
+        Ok(self.channels.len() - 1)
+    }
+
+    fn add_joint_state_channel(
+        &mut self,
+        kind: ChannelKind,
+        prefix: &str,
+        name: &OutputName,
+    ) -> Result<usize, McapError> {
+        if name.has_empty_part() {
+            return Err(McapError::BadOutputName {
+                path: self.path.clone(),
+                name: name.name(),
+            });
+        }
+        let topic = format!("{prefix}{}", name.topic_suffix());
+        let metadata = BTreeMap::from([("output".to_string(), name.name())]);
+        self.add_channel(kind, self.joint_state_schema, &topic, "cdr", metadata)
+    }
+
+    /// A handle must index a channel of its kind (one from another sink may not).
+    fn check_handle(&self, index: usize, kind: ChannelKind) -> Result<(), McapError> {
+        match self.channels.get(index) {
+            Some(channel) if channel.kind == kind => Ok(()),
+            _ => Err(McapError::UnknownChannel {
+                path: self.path.clone(),
+                index,
+            }),
+        }
+    }
+
+    /// Simulation time, s → nanoseconds from 0, rounded to the nearest.
+    fn nanos(&self, time_s: f64, topic: &str) -> Result<u64, McapError> {
+        if !(time_s.is_finite() && (0.0..MAX_TIME_S).contains(&time_s)) {
+            return Err(McapError::BadTime {
+                path: self.path.clone(),
+                topic: topic.to_string(),
+                time_s,
+            });
+        }
+        Ok((time_s * 1e9).round() as u64)
+    }
+
+    fn write_joint_state(
+        &mut self,
+        channel: usize,
+        time_s: f64,
+        names: &[&str],
+        values: &[f64],
+    ) -> Result<(), McapError> {
+        let topic = &self.channels[channel].topic;
+        let nanos = self.nanos(time_s, topic)?;
+        let stamp = ros2::Time::from_nanos(nanos).ok_or_else(|| McapError::BadTime {
+            path: self.path.clone(),
+            topic: topic.clone(),
+            time_s,
+        })?;
+        let message = ros2::JointState {
+            header: ros2::Header { stamp, frame_id: "" },
+            name: names,
+            position: values,
+            velocity: &[],
+            effort: &[],
+        };
+        let payload = self.cdr(&message, &format!("sensor_msgs/msg/JointState on {topic}"))?;
+        self.write_message(channel, nanos, &payload)
+    }
+
+    /// Writes one message on `channels[channel]` with log time = publish time = `nanos`.
+    fn write_message(&mut self, channel: usize, nanos: u64, payload: &[u8]) -> Result<(), McapError> {
+        let entry = &mut self.channels[channel];
+        let header = MessageHeader {
+            channel_id: entry.id,
+            sequence: entry.sequence,
+            log_time: nanos,
+            publish_time: nanos,
+        };
+        entry.sequence = entry.sequence.wrapping_add(1);
+        let result = self.writer_mut().write_to_known_channel(&header, payload);
+        result
+            .map_err(|source| self.mcap_error(&format!("write a message on {}", self.channels[channel].topic), source))
+    }
+}
+
+/// `parameters_json` must be a JSON array (the summary's `parameters` list).
+fn check_parameters(path: &Path, parameters_json: &str) -> Result<(), McapError> {
+    let message = match serde_json::from_str::<serde_json::Value>(parameters_json) {
+        Ok(serde_json::Value::Array(_)) => return Ok(()),
+        Ok(other) => format!("found {other}"),
+        Err(e) => e.to_string(),
+    };
+    Err(McapError::BadParameters {
+        path: path.to_path_buf(),
+        message,
+    })
+}
+
+impl Drop for McapSink {
+    /// An unfinished sink removes its temporary file: `path` is never left half-written.
+    fn drop(&mut self) {
+        if let Some(writer) = self.writer.take() {
+            // `into_inner` skips the summary that dropping a `Writer` would write.
+            drop(writer.into_inner());
+        }
+        if !self.finished {
+            let _ = std::fs::remove_file(&self.temporary);
+        }
+    }
+}
+
+impl std::fmt::Debug for McapSink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McapSink")
+            .field("path", &self.path)
+            .field("temporary", &self.temporary)
+            .field("channels", &self.channels)
+            .field("finished", &self.finished)
+            .finish_non_exhaustive()
+    }
+}

@@ -1,0 +1,163 @@
+//! The one error type of `uq`: every way a caller's input can be refused, with the numbers that
+//! explain why. Bugs inside `uq` are not represented here (they would be panics).
+
+use crate::uq::basis::Family;
+
+/// Why a `uq` computation refused its input.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum UqError {
+    /// A quadrature rule was asked for zero points.
+    #[error("a quadrature rule needs at least one point")]
+    NoPoints,
+
+    /// A quadrature rule was asked for more points than the tested range.
+    #[error("{points} quadrature points requested; at most {max} are supported")]
+    TooManyPoints {
+        /// Points requested.
+        points: usize,
+        /// [`crate::uq::quadrature::MAX_POINTS`].
+        max: usize,
+    },
+
+    /// A polynomial order beyond what the quadrature (order + 1 points) supports.
+    #[error("polynomial order {order} is too large: at most {max} (the fit uses order + 1 Gauss points)")]
+    OrderTooLarge {
+        /// Order requested.
+        order: usize,
+        /// [`crate::uq::basis::MAX_ORDER`].
+        max: usize,
+    },
+
+    /// A design or scan with zero parameters.
+    #[error("the number of parameters (dimension) must be at least 1")]
+    ZeroDimension,
+
+    /// A tensor grid (design or scan) whose point count exceeds the memory budget.
+    #[error("{what}: {per_dim}^{dim} points exceed the supported maximum of {max}")]
+    GridTooLarge {
+        /// Which grid ("design", "scan grid").
+        what: &'static str,
+        /// Points per dimension.
+        per_dim: usize,
+        /// Number of dimensions.
+        dim: usize,
+        /// Largest supported point count.
+        max: usize,
+    },
+
+    /// A slice had the wrong number of entries.
+    #[error("{what}: expected {expected} values, got {got}")]
+    WrongLength {
+        /// Which argument.
+        what: &'static str,
+        /// Length required.
+        expected: usize,
+        /// Length given.
+        got: usize,
+    },
+
+    /// A NaN or infinity where a finite number is required.
+    #[error("{what}: entry {index} is not finite ({value})")]
+    NonFinite {
+        /// Which argument.
+        what: &'static str,
+        /// Flat index of the offending entry.
+        index: usize,
+        /// The entry.
+        value: f64,
+    },
+
+    /// An index past the end of a design, matrix or series.
+    #[error("{what}: index {index} is out of range (there are {len})")]
+    IndexOutOfRange {
+        /// Which collection.
+        what: &'static str,
+        /// Index given.
+        index: usize,
+        /// Number of entries.
+        len: usize,
+    },
+
+    /// A physical interval with lower > upper or a non-finite end.
+    #[error("interval {index}: [{lo}, {hi}] must have finite ends with lower <= upper")]
+    InvalidInterval {
+        /// Parameter index.
+        index: usize,
+        /// Lower end given.
+        lo: f64,
+        /// Upper end given.
+        hi: f64,
+    },
+
+    /// A scan grid with an even or too small number of points per dimension.
+    #[error(
+        "scan grid needs an odd number >= 3 of points per dimension (got {points}), \
+         so that the centre and both endpoints are on it"
+    )]
+    InvalidScanGrid {
+        /// Points per dimension given.
+        points: usize,
+    },
+
+    /// A finite-difference step outside (0, 1] in standard coordinates.
+    #[error("finite-difference step must lie in (0, 1] in standard coordinates, got {step}")]
+    InvalidStep {
+        /// Step given.
+        step: f64,
+    },
+
+    /// An operation that only makes sense for one polynomial family.
+    #[error("{what} needs a {expected:?} surrogate, got a {got:?} one")]
+    WrongFamily {
+        /// The operation.
+        what: &'static str,
+        /// Family it needs.
+        expected: Family,
+        /// Family given.
+        got: Family,
+    },
+
+    /// A surrogate whose family, dimension or order does not match the tool it is given to.
+    #[error(
+        "{what}: built for {expected_family:?} d = {expected_dim} k = {expected_order}, \
+         got a surrogate with {got_family:?} d = {got_dim} k = {got_order}"
+    )]
+    SurrogateMismatch {
+        /// The tool (scanner, design, ...).
+        what: &'static str,
+        /// Family the tool was built for.
+        expected_family: Family,
+        /// Dimension the tool was built for.
+        expected_dim: usize,
+        /// Order the tool was built for.
+        expected_order: usize,
+        /// Family of the surrogate.
+        got_family: Family,
+        /// Dimension of the surrogate.
+        got_dim: usize,
+        /// Order of the surrogate.
+        got_order: usize,
+    },
+
+    /// A reference envelope whose upper bound lies below its lower bound.
+    #[error("reference envelope at time index {index}: upper {upper} < lower {lower}")]
+    InvertedReference {
+        /// Time index.
+        index: usize,
+        /// Reference lower bound.
+        lower: f64,
+        /// Reference upper bound.
+        upper: f64,
+    },
+
+    /// A reference envelope of zero width at every time: the relative error is undefined.
+    #[error("reference envelope has zero width at every time; the relative error is undefined")]
+    ZeroReferenceWidth,
+
+    /// An empty series or point set where at least one entry is needed.
+    #[error("{what} is empty")]
+    Empty {
+        /// Which argument.
+        what: &'static str,
+    },
+}

@@ -1,0 +1,53 @@
+//! Uncertainty quantification, pure mathematics (no robots): quadrature, polynomial bases, tensor
+//! designs, surrogate fitting, bounds of a surrogate's range and error measures (method.md §2–4).
+//!
+//! Data flow for one study:
+//! ```text
+//! Design::new(family, d, k, truncation)        (k+1)^d points ξ ∈ [-1,1]^d (row-major order)
+//!   └─ ParameterBox::x_from_xi_rows            physical parameter values x = c + r ξ per run
+//! model runs (caller)                          values: n_points × n_outputs, run-major
+//!   └─ Projector::fit                          coefficients: n_terms per output, output-major
+//!        └─ Surrogate::set_from_matrix         one output
+//!             ├─ interval_bound / chebyshev_inclusion   Outer (of the surrogate's range)
+//!             └─ Scanner::scan                          Inner (grid + Newton refinement)
+//! TaylorStencil (2d+1 runs) ─ bounds           Approximate (linearisation)
+//! envelope_error(lower, upper, lower_ref, upper_ref)   max / mean relative error over time
+//! ```
+//!
+//! Conventions stated once: standard coordinates ξ ∈ [-1, 1]; "order" k = highest degree per
+//! dimension (tensor) or in total (total-degree); Gauss rules with m = k + 1 nodes, ascending;
+//! design points and dense terms numbered row-major with ξ_1 slowest ([`design`]); Chebyshev
+//! coefficients carry ½ per zero index so that every surrogate is `Σ c_i Π_r φ_{i_r}(ξ_r)`.
+//!
+//! Limitations: tensor grids only (no sparse grids or regression yet), so d ≲ 6 in practice; no
+//! bound here is a rigorous enclosure of the true model (truncation and aliasing are estimated, not
+//! bounded); interval arithmetic uses round-to-nearest.
+
+pub mod basis;
+pub mod bounds;
+pub(crate) mod contract;
+pub mod design;
+pub mod error;
+pub mod error_measure;
+pub mod interval_map;
+pub mod projection;
+pub mod quadrature;
+pub(crate) mod refine;
+pub mod scan;
+pub mod surrogate;
+pub mod taylor;
+
+#[cfg(test)]
+mod test_support;
+
+pub use basis::{legendre_min, Family, MAX_ORDER};
+pub use bounds::{chebyshev_inclusion, interval_bound, Bound, BoundKind, ErrorEstimate, RangeMode};
+pub use design::{Design, Truncation};
+pub use error::UqError;
+pub use error_measure::{envelope_error, EnvelopeError};
+pub use interval_map::{IntervalMap, ParameterBox};
+pub use projection::{CoefficientMatrix, Projector};
+pub use quadrature::{gauss_chebyshev, gauss_legendre, GaussRule};
+pub use scan::{ScanOptions, ScanOutcome, Scanner};
+pub use surrogate::Surrogate;
+pub use taylor::{taylor_first_order, TaylorStencil};

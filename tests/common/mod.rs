@@ -1,0 +1,316 @@
+//! Helpers shared by the integration tests (`mod common;`): the ribbon binary, running it for
+//! JSON, and the Python reference tools (Pinocchio, example-robot-data) in a venv under the
+//! target directory.
+//!
+//! The venv is made once per target directory, under a file lock, since cargo runs test binaries
+//! and test threads in parallel. A stamp file holding the text of `tests/reference/requirements.txt`
+//! marks a finished install: a half-finished one (no stamp) is redone from scratch, and a changed
+//! requirements file reinstalls. Every failure panics with the command, its exit status and the
+//! tail of its output: a cross-check never skips in silence.
+
+#![allow(dead_code)]
+
+use std::fs::{self, File};
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitStatus, Output, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+/// Lines of a failing command's stderr (and stdout) quoted in the panic message.
+const OUTPUT_TAIL_LINES: usize = 40;
+
+/// The crate root.
+pub fn manifest_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `CARGO_TARGET_DIR` (relative to the crate root when relative) or `<crate root>/target`.
+pub fn target_dir() -> PathBuf {
+    match std::env::var_os("CARGO_TARGET_DIR").or_else(|| option_env!("CARGO_TARGET_DIR").map(Into::into)) {
+        Some(dir) if !dir.is_empty() => manifest_dir().join(dir),
+        _ => manifest_dir().join("target"),
+    }
+}
+
+/// The `ribbon` binary cargo built for this test run.
+pub fn ribbon_bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_ribbon"))
+}
+
+/// A command as one shell-pasteable line (for panic messages and reproductions).
+pub fn shell_line(program: &Path, args: &[String]) -> String {
+    fn quote(s: &str) -> String {
+        if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=,:+@%".contains(c)) {
+            s.to_string()
+        } else {
+            format!("'{}'", s.replace('\'', r"'\''"))
+        }
+    }
+    std::iter::once(quote(&program.display().to_string()))
+        .chain(args.iter().map(|a| quote(a)))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// The last `n` lines of `bytes`, as text.
+pub fn tail(bytes: &[u8], n: usize) -> String {
+    let text = String::from_utf8_lossy(bytes);
+    let lines: Vec<&str> = text.lines().collect();
+    let start = lines.len().saturating_sub(n);
+    let mut out = lines[start..].join("\n");
+    if start > 0 {
+        out = format!("[… {start} earlier lines]\n{out}");
+    }
+    out
+}
+
+fn describe_status(status: &ExitStatus) -> String {
+    match status.code() {
+        Some(code) => format!("exit code {code}"),
+        None => {
+            #[cfg(unix)]
+            {
+                use std::os::unix::process::ExitStatusExt;
+                if let Some(signal) = status.signal() {
+                    return format!("killed by signal {signal}");
+                }
+            }
+            "no exit code".to_string()
+        }
+    }
+}
+
+/// Runs a command to completion; panics (with stderr and stdout tails) if it cannot start or
+/// does not exit 0.
+pub fn run_checked(program: &Path, args: &[String], what: &str) -> Output {
+    let output = Command::new(program)
+        .args(args)
+        .current_dir(manifest_dir())
+        .stdin(Stdio::null())
+        .output()
+        .unwrap_or_else(|e| panic!("{what}: could not start `{}`: {e}", shell_line(program, args)));
+    if !output.status.success() {
+        panic!(
+            "{what} failed\n  command: {}\n  status: {}\n  stderr (tail):\n{}\n  stdout (tail):\n{}",
+            shell_line(program, args),
+            describe_status(&output.status),
+            tail(&output.stderr, OUTPUT_TAIL_LINES),
+            tail(&output.stdout, OUTPUT_TAIL_LINES),
+        );
+    }
+    output
+}
+
+/// The outcome of a command that ran to its end or was killed at its time limit.
+pub struct Finished {
+    pub status: Option<ExitStatus>,
+    pub stdout: Vec<u8>,
+    pub stderr: Vec<u8>,
+    pub timed_out: bool,
+    pub elapsed: Duration,
+}
+
+/// Runs a command with a time limit (a hang is a failure to report, not a stuck test run).
+pub fn run_with_timeout(program: &Path, args: &[String], limit: Duration) -> Finished {
+    let start = Instant::now();
+    let mut child = Command::new(program)
+        .args(args)
+        .current_dir(manifest_dir())
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("could not start `{}`: {e}", shell_line(program, args)));
+    // Drain both pipes on threads so that a chatty child never blocks on a full pipe.
+    let mut out_pipe = child.stdout.take().expect("piped stdout");
+    let mut err_pipe = child.stderr.take().expect("piped stderr");
+    let out_thread = std::thread::spawn(move || {
+        let mut buf = Vec::new();
+        let _ = out_pipe.read_to_end(&mut buf);
+        buf
+    });
+    let err_thread = std::thread::spawn(move || {
+        let mut buf = Vec::new();
+        let _ = err_pipe.read_to_end(&mut buf);
+        buf
+    });
+    let mut timed_out = false;
+    let status = loop {
+        match child.try_wait().expect("waiting for a child process") {
+            Some(status) => break Some(status),
+            None if start.elapsed() > limit => {
+                timed_out = true;
+                let _ = child.kill();
+                let _ = child.wait();
+                break None;
+            }
+            None => std::thread::sleep(Duration::from_millis(5)),
+        }
+    };
+    Finished {
+        status,
+        stdout: out_thread.join().unwrap_or_default(),
+        stderr: err_thread.join().unwrap_or_default(),
+        timed_out,
+        elapsed: start.elapsed(),
+    }
+}
+
+/// Runs `ribbon ARGS`, which must exit 0, and parses its stdout as JSON.
+pub fn ribbon_json(args: &[String]) -> serde_json::Value {
+    let bin = ribbon_bin();
+    let output = run_checked(&bin, args, "ribbon");
+    serde_json::from_slice(&output.stdout).unwrap_or_else(|e| {
+        panic!(
+            "ribbon printed invalid JSON ({e})\n  command: {}\n  stdout (tail):\n{}",
+            shell_line(&bin, args),
+            tail(&output.stdout, OUTPUT_TAIL_LINES)
+        )
+    })
+}
+
+/// Converts `&str`s to the owned argument list the helpers take.
+pub fn args<I, S>(items: I) -> Vec<String>
+where
+    I: IntoIterator<Item = S>,
+    S: Into<String>,
+{
+    items.into_iter().map(Into::into).collect()
+}
+
+/// A comma-separated vector for `--q=…` and friends; `{}` on f64 prints the shortest text that
+/// reads back to the same number, so nothing is lost on the way.
+pub fn csv(values: &[f64]) -> String {
+    values.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",")
+}
+
+/// FNV-1a 64-bit hash as 16 hex digits (tests/reference/pin_dynamics.py computes the same).
+pub fn fnv1a64(bytes: &[u8]) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}
+
+/// The requirements file of the reference venv.
+pub fn requirements_path() -> PathBuf {
+    manifest_dir().join("tests/reference/requirements.txt")
+}
+
+/// The Python interpreter of the reference venv (`<target dir>/reference-venv/bin/python`),
+/// created and installed on first use (`python3 -m venv`, `pip install -r
+/// tests/reference/requirements.txt`; measured: 15 s and 0.9 GB for Pinocchio and
+/// example-robot-data alone, under a minute with the MCAP and rerun tools). Panics, loudly and
+/// precisely, if that fails.
+pub fn reference_python() -> PathBuf {
+    static PYTHON: OnceLock<PathBuf> = OnceLock::new();
+    PYTHON.get_or_init(create_reference_venv).clone()
+}
+
+// Uses `File::lock` (stable since Rust 1.89, the crate's declared minimum).
+fn create_reference_venv() -> PathBuf {
+    let target = target_dir();
+    let venv = target.join("reference-venv");
+    let stamp = target.join("reference-venv.stamp");
+    let lock_path = target.join("reference-venv.lock");
+    let python = venv.join("bin").join("python");
+    let requirements_file = requirements_path();
+    let requirements = fs::read_to_string(&requirements_file)
+        .unwrap_or_else(|e| panic!("reference venv: cannot read {}: {e}", requirements_file.display()));
+
+    fs::create_dir_all(&target).unwrap_or_else(|e| panic!("reference venv: cannot create {}: {e}", target.display()));
+    let lock = File::options()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .unwrap_or_else(|e| panic!("reference venv: cannot open the lock file {}: {e}", lock_path.display()));
+    // Blocks while another test binary installs; released when `lock` is dropped (or the
+    // process dies), so a crashed install never leaves the lock held.
+    lock.lock()
+        .unwrap_or_else(|e| panic!("reference venv: cannot lock {}: {e}", lock_path.display()));
+
+    let installed = fs::read_to_string(&stamp).map(|s| s == requirements).unwrap_or(false);
+    if installed && python.exists() {
+        return python;
+    }
+
+    // Not installed, half-installed, or installed from another requirements file: start over.
+    let _ = fs::remove_file(&stamp);
+    if venv.exists() {
+        fs::remove_dir_all(&venv)
+            .unwrap_or_else(|e| panic!("reference venv: cannot remove the stale venv {}: {e}", venv.display()));
+    }
+    eprintln!(
+        "reference venv: creating {} from {} (once per target dir; under a minute)",
+        venv.display(),
+        requirements_file.display()
+    );
+    let system_python = PathBuf::from(std::env::var_os("RIBBON_PYTHON").unwrap_or_else(|| "python3".into()));
+    run_checked(
+        &system_python,
+        &args(["-m".to_string(), "venv".to_string(), venv.display().to_string()]),
+        "reference venv: creating the venv",
+    );
+    run_checked(
+        &python,
+        &args([
+            "-m".to_string(),
+            "pip".to_string(),
+            "install".to_string(),
+            "--disable-pip-version-check".to_string(),
+            "--no-input".to_string(),
+            "-r".to_string(),
+            requirements_file.display().to_string(),
+        ]),
+        "reference venv: pip install -r tests/reference/requirements.txt",
+    );
+    let tmp = stamp.with_extension("stamp.tmp");
+    fs::write(&tmp, &requirements)
+        .and_then(|()| fs::rename(&tmp, &stamp))
+        .unwrap_or_else(|e| panic!("reference venv: cannot write the stamp {}: {e}", stamp.display()));
+    drop(lock);
+    python
+}
+
+/// example-robot-data's `robots` directory inside the reference venv.
+pub fn example_robot_data_dir() -> PathBuf {
+    let python = reference_python();
+    let script = manifest_dir().join("tests/reference/pin_dynamics.py");
+    let out = run_checked(
+        &python,
+        &args([script.display().to_string(), "--erd-dir".to_string()]),
+        "locating example-robot-data",
+    );
+    let dir = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
+    assert!(
+        dir.is_dir(),
+        "example-robot-data's robots directory {} does not exist",
+        dir.display()
+    );
+    dir
+}
+
+/// Every file under `dir` whose name ends with `.{ext}`, sorted.
+pub fn files_with_extension(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let mut found = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let entries = fs::read_dir(&d).unwrap_or_else(|e| panic!("cannot list {}: {e}", d.display()));
+        for entry in entries {
+            let path = entry
+                .unwrap_or_else(|e| panic!("cannot list {}: {e}", d.display()))
+                .path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == ext) {
+                found.push(path);
+            }
+        }
+    }
+    found.sort();
+    found
+}

@@ -1,0 +1,371 @@
+#!/usr/bin/env python3
+"""Cross-checks an MCAP file written by ribbon against independent readers (design contract "MCAP").
+
+Usage: check_mcap.py FILE.mcap EXPECTED.json [--work-dir DIR]
+
+EXPECTED.json says what was written (numbers exactly as given to the writer):
+    {
+      "urdf_path": "...",                      # its text must be on /robot_description and attached
+      "robot": "double_pendulum",              # the URDF's robot name (rerun's entity root)
+      "envelopes": [{"name": "q.j1", "topic": "/ribbon/envelope/q/j1",
+                     "time": [...], "lower": [...], "nominal": [...], "upper": [...]}],
+      "errors":    [{"name": "q.j1", "topic": "/ribbon/error/q/j1", "time": [...], "estimate": [...]}],
+      "transforms": [{"time": t, "frames": [{"link": "bar1", "translation": [x, y, z],
+                                              "rotation": [x, y, z, w]}]}],
+      "metadata": {"robot": ..., "method": ..., "order": ..., "runs": ..., "ribbon_version": ...,
+                   "partial": "true|false", "parameters": "<JSON text>"},
+      "attachments": [{"name": ..., "media_type": ..., "path": "<file with the expected bytes>"}]
+    }
+
+Checks, each failure collected and reported (exit 1):
+- Python `mcap` reads the file through its summary (lz4 chunks, chunk indexes, statistics) and
+  decodes every message: CDR with `mcap-ros2-support`, protobuf with `mcap-protobuf-support`;
+- every JointState decodes to exactly the numbers given, names [lower, nominal, upper] or
+  [estimate], header.stamp = log time = publish time = round(time * 1e9);
+- every /tf message decodes to the frames given, and re-encoding them with foxglove-sdk's
+  `foxglove.messages.FrameTransforms` gives the same bytes;
+- the `foxglove.FrameTransforms` schema record equals, byte for byte, the one foxglove-sdk writes
+  into an MCAP of its own (and its `get_schema()`);
+- /robot_description holds the URDF once at t = 0; the `ribbon` metadata record and the attachments
+  are as given;
+- `rerun mcap convert` accepts the file and `rerun rrd print` shows `Scalars` for every envelope and
+  error channel, `Transform3D` for /tf (one row per frame given), and visual geometry for every URDF
+  link that has a <visual>.
+"""
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
+from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
+
+import foxglove
+from foxglove.channels import FrameTransformsChannel
+from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Timestamp, Vector3
+
+NANOS_PER_SECOND = 1_000_000_000
+# A time given in seconds maps to the nearest nanosecond; Python's round() breaks ties to even
+# where Rust rounds away from zero, so accept either neighbour of an exact tie.
+TIME_TOLERANCE_NS = 0.5
+# rerun archetypes that a URDF <visual> becomes.
+GEOMETRY_ARCHETYPES = ("Boxes3D", "Cylinders3D", "Ellipsoids3D", "Capsules3D", "Mesh3D", "Asset3D")
+
+failures = []
+
+
+def fail(message):
+    failures.append(message)
+
+
+def same_time(log_time_ns, time_s):
+    return abs(log_time_ns - time_s * NANOS_PER_SECOND) <= TIME_TOLERANCE_NS
+
+
+def foxglove_frame_transforms_schema(work_dir):
+    """The FrameTransforms schema record that foxglove-sdk writes into an MCAP of its own."""
+    path = Path(work_dir) / "foxglove_sdk_frame_transforms.mcap"
+    writer = foxglove.open_mcap(str(path), allow_overwrite=True)
+    channel = FrameTransformsChannel("/tf")
+    channel.log(FrameTransforms(transforms=[]), log_time=0)
+    writer.close()
+    with open(path, "rb") as f:
+        schemas = [s for s in make_reader(f).get_summary().schemas.values()]
+    named = [s for s in schemas if s.name == "foxglove.FrameTransforms"]
+    if len(named) != 1:
+        raise SystemExit(f"foxglove-sdk wrote schemas {[s.name for s in schemas]}, not one foxglove.FrameTransforms")
+    return named[0]
+
+
+def foxglove_encode(transforms_entry):
+    """What foxglove-sdk encodes for one /tf message of the expected frames."""
+    t = transforms_entry["time"]
+    ns = round(t * NANOS_PER_SECOND)
+    stamp = Timestamp(sec=ns // NANOS_PER_SECOND, nsec=ns % NANOS_PER_SECOND)
+    return FrameTransforms(
+        transforms=[
+            FrameTransform(
+                timestamp=stamp,
+                parent_frame_id="world",
+                child_frame_id=frame["link"],
+                translation=Vector3(x=frame["translation"][0], y=frame["translation"][1], z=frame["translation"][2]),
+                rotation=Quaternion(
+                    x=frame["rotation"][0], y=frame["rotation"][1], z=frame["rotation"][2], w=frame["rotation"][3]
+                ),
+            )
+            for frame in transforms_entry["frames"]
+        ]
+    ).encode()
+
+
+def check_file(mcap_path, expected, work_dir):
+    with open(mcap_path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[Ros2DecoderFactory(), ProtobufDecoderFactory()])
+        header = reader.get_header()
+        summary = reader.get_summary()
+        if summary is None:
+            fail("no summary section")
+            return {}
+        if not header.library.startswith("ribbon "):
+            fail(f"header library is {header.library!r}, expected 'ribbon <version> (...)'")
+        if not summary.chunk_indexes:
+            fail("no chunk indexes")
+        compressions = {c.compression for c in summary.chunk_indexes}
+        if compressions != {"lz4"}:
+            fail(f"chunk compressions are {compressions}, expected only lz4")
+        if summary.statistics is None:
+            fail("no statistics record")
+
+        channels_by_topic = {c.topic: c for c in summary.channels.values()}
+        schemas = summary.schemas
+        expected_topics = {e["topic"] for e in expected["envelopes"]} | {e["topic"] for e in expected["errors"]}
+        expected_topics |= {"/tf", "/robot_description"}
+        if set(channels_by_topic) != expected_topics:
+            fail(f"topics {sorted(channels_by_topic)} differ from the expected {sorted(expected_topics)}")
+
+        # Schemas.
+        def schema_of(topic):
+            channel = channels_by_topic.get(topic)
+            return schemas.get(channel.schema_id) if channel else None
+
+        for entry in expected["envelopes"] + expected["errors"]:
+            schema = schema_of(entry["topic"])
+            channel = channels_by_topic.get(entry["topic"])
+            if schema is None:
+                fail(f"{entry['topic']}: no channel or schema")
+                continue
+            if (schema.name, schema.encoding, channel.message_encoding) != (
+                "sensor_msgs/msg/JointState",
+                "ros2msg",
+                "cdr",
+            ):
+                fail(f"{entry['topic']}: schema {schema.name}/{schema.encoding}, encoding {channel.message_encoding}")
+            if channel.metadata.get("output") != entry["name"]:
+                fail(f"{entry['topic']}: channel metadata {channel.metadata}, expected output = {entry['name']}")
+        joint_state = next((s for s in schemas.values() if s.name == "sensor_msgs/msg/JointState"), None)
+        if joint_state is not None:
+            text = joint_state.data.decode()
+            separator = "=" * 80 + "\n"
+            for dependency in ("std_msgs/Header", "builtin_interfaces/Time"):
+                if f"{separator}MSG: {dependency}\n" not in text:
+                    fail(f"JointState schema lacks the dependency block 'MSG: {dependency}'")
+        tf_schema = schema_of("/tf")
+        if tf_schema is None:
+            fail("/tf: no channel or schema")
+        else:
+            reference = foxglove_frame_transforms_schema(work_dir)
+            if (tf_schema.name, tf_schema.encoding) != ("foxglove.FrameTransforms", "protobuf"):
+                fail(f"/tf schema is {tf_schema.name}/{tf_schema.encoding}")
+            if tf_schema.data != reference.data:
+                fail(
+                    f"/tf schema data ({len(tf_schema.data)} bytes) differs from foxglove-sdk's "
+                    f"({len(reference.data)} bytes); first difference at byte "
+                    f"{next((i for i, (a, b) in enumerate(zip(tf_schema.data, reference.data)) if a != b), min(len(tf_schema.data), len(reference.data)))}"
+                )
+            if reference.data != FrameTransforms.get_schema().data:
+                fail("foxglove-sdk's MCAP schema record differs from its own FrameTransforms.get_schema()")
+            if reference.encoding != tf_schema.encoding:
+                fail(f"foxglove-sdk writes schema encoding {reference.encoding}, the file {tf_schema.encoding}")
+
+        # Every message, decoded.
+        decoded = {}
+        count = 0
+        for schema, channel, message, value in reader.iter_decoded_messages():
+            decoded.setdefault(channel.topic, []).append((message, value))
+            count += 1
+        if summary.statistics is not None and count != summary.statistics.message_count:
+            fail(f"decoded {count} messages, the statistics say {summary.statistics.message_count}")
+
+        for entry, names in [(e, ["lower", "nominal", "upper"]) for e in expected["envelopes"]] + [
+            (e, ["estimate"]) for e in expected["errors"]
+        ]:
+            topic = entry["topic"]
+            got = decoded.get(topic, [])
+            if len(got) != len(entry["time"]):
+                fail(f"{topic}: {len(got)} messages, expected {len(entry['time'])}")
+                continue
+            columns = [entry[n] for n in names]
+            for i, (message, value) in enumerate(got):
+                t = entry["time"][i]
+                stamp_ns = value.header.stamp.sec * NANOS_PER_SECOND + value.header.stamp.nanosec
+                if not (same_time(message.log_time, t) and message.publish_time == message.log_time == stamp_ns):
+                    fail(
+                        f"{topic}[{i}]: log {message.log_time}, publish {message.publish_time}, stamp {stamp_ns} ns;"
+                        f" expected all = {t} s"
+                    )
+                if list(value.name) != names:
+                    fail(f"{topic}[{i}]: names {list(value.name)}, expected {names}")
+                want = [c[i] for c in columns]
+                if list(value.position) != want:
+                    fail(f"{topic}[{i}] at t = {t}: position {list(value.position)}, expected {want}")
+                if list(value.velocity) or list(value.effort):
+                    fail(f"{topic}[{i}]: velocity/effort not empty")
+
+        got = decoded.get("/tf", [])
+        if len(got) != len(expected["transforms"]):
+            fail(f"/tf: {len(got)} messages, expected {len(expected['transforms'])}")
+        for i, ((message, value), entry) in enumerate(zip(got, expected["transforms"])):
+            if not same_time(message.log_time, entry["time"]) or message.publish_time != message.log_time:
+                fail(f"/tf[{i}]: log {message.log_time} / publish {message.publish_time} ns, expected {entry['time']} s")
+            if message.data != foxglove_encode(entry):
+                fail(f"/tf[{i}]: payload differs from foxglove-sdk's encoding of the same frames")
+            if len(value.transforms) != len(entry["frames"]):
+                fail(f"/tf[{i}]: {len(value.transforms)} transforms, expected {len(entry['frames'])}")
+                continue
+            for transform, frame in zip(value.transforms, entry["frames"]):
+                stamp_ns = transform.timestamp.seconds * NANOS_PER_SECOND + transform.timestamp.nanos
+                got_frame = (
+                    transform.parent_frame_id,
+                    transform.child_frame_id,
+                    [transform.translation.x, transform.translation.y, transform.translation.z],
+                    [transform.rotation.x, transform.rotation.y, transform.rotation.z, transform.rotation.w],
+                )
+                want_frame = ("world", frame["link"], frame["translation"], frame["rotation"])
+                if got_frame != want_frame or stamp_ns != message.log_time:
+                    fail(f"/tf[{i}]: decoded {got_frame} at {stamp_ns} ns, expected {want_frame} at {message.log_time} ns")
+
+        urdf_text = Path(expected["urdf_path"]).read_text()
+        got = decoded.get("/robot_description", [])
+        if len(got) != 1:
+            fail(f"/robot_description: {len(got)} messages, expected 1")
+        else:
+            message, value = got[0]
+            if message.log_time != 0 or value.data != urdf_text:
+                fail(f"/robot_description: log time {message.log_time}, text equal to the URDF: {value.data == urdf_text}")
+            schema = schema_of("/robot_description")
+            if schema is None or (schema.name, schema.encoding) != ("std_msgs/msg/String", "ros2msg"):
+                fail(f"/robot_description schema is {schema and (schema.name, schema.encoding)}")
+
+        metadata = [m for m in reader.iter_metadata() if m.name == "ribbon"]
+        if len(metadata) != 1:
+            fail(f"{len(metadata)} `ribbon` metadata records, expected 1")
+        elif metadata[0].metadata != expected["metadata"]:
+            fail(f"metadata {metadata[0].metadata} differs from the expected {expected['metadata']}")
+        else:
+            json.loads(metadata[0].metadata["parameters"])  # must parse
+
+        attachments = {a.name: a for a in reader.iter_attachments()}
+        want_names = {a["name"] for a in expected["attachments"]}
+        if set(attachments) != want_names:
+            fail(f"attachments {sorted(attachments)}, expected {sorted(want_names)}")
+        for a in expected["attachments"]:
+            got = attachments.get(a["name"])
+            if got is not None and (got.media_type != a["media_type"] or got.data != Path(a["path"]).read_bytes()):
+                fail(f"attachment {a['name']}: media type {got.media_type}, bytes equal: {got.data == Path(a['path']).read_bytes()}")
+        return {topic: len(v) for topic, v in decoded.items()}
+
+
+def rerun_binary():
+    """The `rerun` CLI of the rerun-sdk installed beside this interpreter."""
+    candidate = Path(sys.executable).parent / "rerun"
+    return str(candidate) if candidate.exists() else "rerun"
+
+
+def run(command):
+    result = subprocess.run(command, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise SystemExit(
+            f"`{' '.join(command)}` failed with exit code {result.returncode}\n"
+            f"stderr:\n{result.stderr[-4000:]}\nstdout:\n{result.stdout[-4000:]}"
+        )
+    return result.stdout
+
+
+CHUNK_LINE = re.compile(r"^Chunk\(\S+\) with (\d+) rows \([^)]*\) - (\S+) - data columns: \[(.*)\]$")
+
+
+def check_rerun(mcap_path, expected, work_dir):
+    rerun = rerun_binary()
+    rrd = Path(work_dir) / (Path(mcap_path).stem + ".rrd")
+    run([rerun, "mcap", "convert", str(mcap_path), "-o", str(rrd)])
+    printed = run([rerun, "rrd", "print", str(rrd)])
+    (Path(work_dir) / (rrd.stem + ".print.txt")).write_text(printed)
+    # entity -> {archetype:component -> rows}
+    entities = {}
+    for line in printed.splitlines():
+        match = CHUNK_LINE.match(line.strip())
+        if not match:
+            continue
+        rows, entity, columns = int(match.group(1)), match.group(2), match.group(3).split()
+        for column in columns:
+            entities.setdefault(entity, {}).setdefault(column, 0)
+            entities[entity][column] += rows
+    if not entities:
+        fail(f"`rerun rrd print` listed no chunks; output head:\n{printed[:2000]}")
+        return entities
+
+    for entry in expected["envelopes"] + expected["errors"]:
+        entity = entry["topic"] + "/position"
+        rows = entities.get(entity, {}).get("Scalars:scalars", 0)
+        if rows != len(entry["time"]):
+            fail(f"rerun: {entity} has {rows} rows of Scalars:scalars, expected {len(entry['time'])}")
+        if "SeriesLines:names" not in entities.get(entity, {}):
+            fail(f"rerun: {entity} has no SeriesLines:names")
+
+    frames = sum(len(t["frames"]) for t in expected["transforms"])
+    tf = entities.get("/tf", {})
+    for column in ("Transform3D:child_frame", "Transform3D:parent_frame", "Transform3D:translation", "Transform3D:quaternion"):
+        if tf.get(column, 0) != frames:
+            fail(f"rerun: /tf has {tf.get(column, 0)} rows of {column}, expected {frames} (one per frame)")
+
+    root = ET.parse(expected["urdf_path"]).getroot()
+    robot = root.get("name")
+    for link in root.findall("link"):
+        if link.find("visual") is None:
+            continue
+        prefix = f"/{robot}/visual_geometries/{link.get('name')}/"
+        found = [
+            column
+            for entity, columns in entities.items()
+            if entity.startswith(prefix)
+            for column in columns
+            if column.split(":")[0] in GEOMETRY_ARCHETYPES
+        ]
+        if not found:
+            fail(f"rerun: no visual geometry under {prefix} for URDF link {link.get('name')}")
+    return entities
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("mcap")
+    parser.add_argument("expected")
+    parser.add_argument("--work-dir", help="where the .rrd and foxglove-sdk's reference MCAP go (default: a temp dir)")
+    args = parser.parse_args()
+    expected = json.loads(Path(args.expected).read_text())
+    with tempfile.TemporaryDirectory() as tmp:
+        work_dir = args.work_dir or tmp
+        os.makedirs(work_dir, exist_ok=True)
+        try:
+            counts = check_file(args.mcap, expected, work_dir)
+            readable = True
+        except Exception as e:  # a reader error is a finding, reported like the others
+            fail(f"Python mcap could not read the file: {type(e).__name__}: {e}")
+            counts, readable = {}, False
+        entities = check_rerun(args.mcap, expected, work_dir) if readable else {}
+    if failures:
+        print(f"check_mcap.py: {len(failures)} check(s) failed for {args.mcap}:", file=sys.stderr)
+        for message in failures[:50]:
+            print(f"  - {message}", file=sys.stderr)
+        if len(failures) > 50:
+            print(f"  … and {len(failures) - 50} more", file=sys.stderr)
+        sys.exit(1)
+    print(f"check_mcap.py: {args.mcap} ok")
+    print("  messages decoded per topic: " + ", ".join(f"{t} {n}" for t, n in sorted(counts.items())))
+    geometry = sorted(
+        {f"{e} {c.split(':')[0]}" for e, cs in entities.items() for c in cs if c.split(":")[0] in GEOMETRY_ARCHETYPES}
+    )
+    print("  rerun: Scalars on " + ", ".join(sorted(e for e, cs in entities.items() if "Scalars:scalars" in cs and e.endswith("/position"))))
+    print("  rerun: Transform3D rows on /tf: " + str(entities.get("/tf", {}).get("Transform3D:translation", 0)))
+    print("  rerun: visual geometry: " + "; ".join(geometry))
+
+
+if __name__ == "__main__":
+    main()
