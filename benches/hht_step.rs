@@ -1,0 +1,2 @@
+//! Placeholder: one HHT-I3 step (being written).
+fn main() {}
