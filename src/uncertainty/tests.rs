@@ -1,0 +1,406 @@
+//! Tests of the parameter space and the box check on small inline robots.
+
+use super::*;
+use crate::model::{parse_description, LoadOptions, Model};
+use crate::params::{self, ParamTarget};
+use crate::scene::parse_sidecar;
+
+/// Two bars and a link whose URDF inertia violates the triangle inequality (0.1 + 0.1 < 0.3).
+const ROBOT: &str = r#"<robot name="t">
+  <link name="world"/>
+  <link name="bar1"><inertial><origin xyz="0.5 0 0"/><mass value="2"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <link name="bar2"><inertial><origin xyz="0 0 0"/><mass value="1"/>
+    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.15" iyz="0" izz="0.2"/></inertial></link>
+  <link name="bad"><inertial><mass value="1"/>
+    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.3"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="world"/><child link="bar1"/>
+    <origin xyz="0 0 0.5"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="bar1"/><child link="bar2"/>
+    <origin xyz="1 0 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="j3" type="continuous"><parent link="bar2"/><child link="bad"/></joint>
+</robot>"#;
+
+const FILE: &str = "t.uncertainty.toml";
+
+fn model() -> Model {
+    Model::from_description(
+        parse_description(ROBOT, "t.urdf").unwrap(),
+        LoadOptions::default(),
+        "t.urdf",
+    )
+    .unwrap()
+}
+
+fn space(sidecar: &str) -> Result<ParameterSpace, UncertaintyError> {
+    let file = parse_sidecar(sidecar).unwrap();
+    ParameterSpace::from_sidecar(&file, &model(), FILE)
+}
+
+fn error(sidecar: &str) -> String {
+    let message = space(sidecar).unwrap_err().to_string();
+    assert!(message.starts_with(FILE), "{message}");
+    message
+}
+
+const ALL_FORMS: &str = r#"
+[parameters]
+"link.bar1.mass"    = [1.0, 2.5]
+"joint.j1.origin.z" = { rel = 0.1 }
+"link.bar2.com.y"   = { abs = 0.002 }
+l1                  = [0.99, 1.01]
+[bind]
+"joint.j2.origin.x" = "l1"
+"link.bar1.com.x"   = "l1 / 2"
+"#;
+
+#[test]
+fn all_forms_parse_in_order_of_appearance() {
+    let s = space(ALL_FORMS).unwrap();
+    let names: Vec<&str> = s.dimensions().iter().map(|d| d.name.as_str()).collect();
+    // Not alphabetical ("joint" < "link"): the file's order.
+    assert_eq!(
+        names,
+        [
+            "link.bar1.mass",
+            "joint.j1.origin.z",
+            "link.bar2.com.y",
+            "l1"
+        ]
+    );
+    let d = s.dimensions();
+    assert_eq!((d[0].lower, d[0].upper, d[0].nominal), (1.0, 2.5, 2.0));
+    assert_eq!(d[0].kind, DimensionKind::Path(ParamTarget::LinkMass(1)));
+    assert!((d[1].lower - 0.45).abs() < 1e-15 && (d[1].upper - 0.55).abs() < 1e-15);
+    assert_eq!(d[1].nominal, 0.5);
+    assert_eq!((d[2].lower, d[2].upper, d[2].nominal), (-0.002, 0.002, 0.0));
+    assert_eq!((d[3].lower, d[3].upper), (0.99, 1.01));
+    assert!((d[3].nominal - 1.0).abs() < 1e-15);
+    assert_eq!(d[3].kind, DimensionKind::Symbol);
+    let bound: Vec<(&str, &str)> = s
+        .bindings()
+        .iter()
+        .map(|b| (b.path.as_str(), b.expression.source()))
+        .collect();
+    assert_eq!(
+        bound,
+        [("joint.j2.origin.x", "l1"), ("link.bar1.com.x", "l1 / 2")]
+    );
+    assert!(s.warnings().is_empty(), "{:?}", s.warnings());
+}
+
+#[test]
+fn nominal_xi_and_values_at() {
+    let s = space(ALL_FORMS).unwrap();
+    let xi = s.nominal_xi();
+    // Mass: URDF 2 in [1, 2.5]: c = 1.75, r = 0.75, ξ = 1/3. The others are centred.
+    assert!((xi[0] - 1.0 / 3.0).abs() < 1e-15, "{xi:?}");
+    assert_eq!(&xi[1..], &[0.0, 0.0, 0.0]);
+    let values = s.values_at(&xi);
+    for (value, d) in values.iter().zip(s.dimensions()) {
+        assert!((value - d.nominal).abs() <= 1e-15 * d.nominal.abs().max(1.0));
+    }
+    // Bounds are hit exactly at ξ = ±1.
+    assert_eq!(s.values_at(&[-1.0; 4])[0], 1.0);
+    assert_eq!(s.values_at(&[1.0; 4])[2], 0.002);
+}
+
+#[test]
+fn apply_writes_direct_and_bound_values() {
+    let s = space(ALL_FORMS).unwrap();
+    let mut m = model();
+    s.apply(&mut m, &[1.0, -1.0, 0.5, 1.0]);
+    let get = |m: &Model, path: &str| params::get(m, params::resolve(m, path).unwrap());
+    assert_eq!(get(&m, "link.bar1.mass"), 2.5);
+    assert!((get(&m, "joint.j1.origin.z") - 0.45).abs() < 1e-15);
+    assert!((get(&m, "link.bar2.com.y") - 0.001).abs() < 1e-15);
+    assert_eq!(get(&m, "joint.j2.origin.x"), 1.01);
+    assert!((get(&m, "link.bar1.com.x") - 0.505).abs() < 1e-15);
+    // The derived tree follows (refresh): body 0 is bar1, body 1 is bar2.
+    let bar1 = &m.bodies[0].inertia;
+    assert_eq!(bar1.mass, 2.5);
+    assert!((bar1.com().unwrap().x - 0.505).abs() < 1e-15);
+    assert!((m.joints[1].parent_from_joint.translation.x - 1.01).abs() < 1e-15);
+    assert!((m.joints[0].parent_from_joint.translation.z - 0.45).abs() < 1e-15);
+    // Back to the nominal point: the URDF values again.
+    s.apply(&mut m, &s.nominal_xi());
+    assert!((get(&m, "link.bar1.mass") - 2.0).abs() < 1e-15);
+    assert!((get(&m, "joint.j2.origin.x") - 1.0).abs() < 1e-15);
+}
+
+#[test]
+fn inertia_values_written_by_apply_reach_the_body() {
+    let s = space(
+        r#"[parameters]
+        "link.bar2.inertia.izz" = [0.18, 0.22]"#,
+    )
+    .unwrap();
+    let mut m = model();
+    s.apply(&mut m, &[1.0]);
+    let about_com = m.bodies[1].inertia.inertia_about_com().unwrap();
+    // bar2 merges no fixed child, and `bad` is on its own moving joint.
+    assert!((about_com[(2, 2)] - 0.22).abs() < 1e-15);
+}
+
+#[test]
+fn bind_at_midpoints_differing_from_urdf_warns() {
+    let s = space(
+        r#"[parameters]
+        l1 = [0.99, 1.01]
+        [bind]
+        "link.bar1.com.x" = "l1 / 3""#,
+    )
+    .unwrap();
+    let w = s.warnings().join("\n");
+    assert!(
+        w.contains("[bind] \"link.bar1.com.x\"")
+            && w.contains("URDF value is 0.5")
+            && w.contains("0.333"),
+        "{w}"
+    );
+}
+
+#[test]
+fn unused_symbol_warns() {
+    let s = space("[parameters]\nl9 = [1, 2]\n").unwrap();
+    assert!(s.warnings()[0].contains("[parameters] \"l9\": the free symbol is used by no [bind]"));
+    // Integer bounds are numbers too.
+    assert_eq!(
+        (s.dimensions()[0].lower, s.dimensions()[0].upper),
+        (1.0, 2.0)
+    );
+}
+
+#[test]
+fn unknown_symbol_names_it_and_the_path() {
+    let msg = error(
+        r#"[parameters]
+        l1 = [0.99, 1.01]
+        [bind]
+        "joint.j2.origin.x" = "2 * l2""#,
+    );
+    assert!(
+        msg.contains("[bind] \"joint.j2.origin.x\" = \"2 * l2\"")
+            && msg.contains("unknown symbol 'l2'")
+            && msg.contains("did you mean 'l1'")
+            && msg.contains("declared symbols: l1"),
+        "{msg}"
+    );
+    // A path dimension is not a symbol.
+    let msg = error(
+        r#"[parameters]
+        "link.bar1.mass" = [1, 3]
+        [bind]
+        "joint.j2.origin.x" = "mass""#,
+    );
+    assert!(msg.contains("declared symbols: none"), "{msg}");
+}
+
+#[test]
+fn expression_syntax_errors_name_the_key() {
+    let msg = error(
+        r#"[parameters]
+        l1 = [0.99, 1.01]
+        [bind]
+        "joint.j2.origin.x" = "l1 *""#,
+    );
+    assert!(
+        msg.contains("[bind] \"joint.j2.origin.x\" = \"l1 *\": expected a number"),
+        "{msg}"
+    );
+    let msg = error("[bind]\n\"joint.j2.origin.x\" = 1.0\n");
+    assert!(
+        msg.contains("a binding is an expression in quotes"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn path_in_both_tables_is_refused() {
+    let msg = error(
+        r#"[parameters]
+        "joint.j2.origin.x" = [0.9, 1.1]
+        l1 = [0.9, 1.1]
+        [bind]
+        "joint.j2.origin.x" = "l1""#,
+    );
+    assert!(
+        msg.contains("[bind] \"joint.j2.origin.x\": [parameters] \"joint.j2.origin.x\" already declares this value"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn relative_interval_of_a_zero_value_is_refused() {
+    let msg = error("[parameters]\n\"link.bar2.com.y\" = { rel = 0.1 }\n");
+    assert!(
+        msg.contains("[parameters] \"link.bar2.com.y\"")
+            && msg.contains("URDF value is 0")
+            && msg.contains("abs"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn urdf_value_outside_the_interval_is_refused() {
+    let msg = error("[parameters]\n\"link.bar1.mass\" = [2.1, 2.5]\n");
+    assert!(
+        msg.contains(
+            "[parameters] \"link.bar1.mass\" = [2.1, 2.5] does not contain the URDF value 2"
+        ),
+        "{msg}"
+    );
+}
+
+#[test]
+fn unknown_keys_get_suggestions() {
+    let msg = error("[parameters]\n\"link.bar1.mas\" = [1, 3]\n");
+    assert!(
+        msg.contains("[parameters] \"link.bar1.mas\"")
+            && msg.contains("did you mean 'link.bar1.mass'"),
+        "{msg}"
+    );
+    let msg = error("[parameters]\n\"2x\" = [1, 3]\n");
+    assert!(msg.contains("a free symbol name"), "{msg}");
+    let msg = error("[parameters]\nl1 = [1, 2]\n[bind]\nl2 = \"l1\"\n");
+    assert!(msg.contains("a [bind] key is a parameter path"), "{msg}");
+    let msg = error("[parameters]\nsqrt = [1, 2]\n");
+    assert!(msg.contains("'sqrt' is the square-root function"), "{msg}");
+}
+
+#[test]
+fn bad_intervals_are_refused() {
+    let cases = [
+        (
+            "\"link.bar1.mass\" = { abs = 0 }",
+            "abs must be a finite amount > 0",
+        ),
+        (
+            "\"link.bar1.mass\" = { rel = -0.1 }",
+            "rel must be a finite fraction > 0",
+        ),
+        ("\"link.bar1.mass\" = [2.5, 1.0]", "write [1, 2.5]"),
+        ("\"link.bar1.mass\" = [2.0, 2.0]", "zero width"),
+        ("\"link.bar1.mass\" = [1.0, inf]", "finite"),
+        ("\"link.bar1.mass\" = [1, 2, 3]", "two bounds, not 3"),
+        (
+            "\"link.bar1.mass\" = { rel = 0.1, abs = 0.1 }",
+            "exactly one key",
+        ),
+        ("\"link.bar1.mass\" = \"2\"", "write [lower, upper]"),
+        ("l1 = { rel = 0.1 }", "explicit bounds only"),
+        ("\"link.bar1.mass\" = [-1, 3]", "a mass must be ≥ 0"),
+        ("\"joint.j1.damping\" = { abs = 1 }", "damping must be ≥ 0"),
+    ];
+    for (line, expected) in cases {
+        let msg = error(&format!("[parameters]\n{line}\n"));
+        assert!(msg.contains(expected), "{line}: {msg}");
+    }
+}
+
+#[test]
+fn box_creating_a_triangle_violation_is_refused_at_a_corner() {
+    // bar2: ixx 0.1, iyy 0.15, izz 0.2. At ixx = 0.05, izz = 0.3: 0.05 + 0.15 < 0.3.
+    let msg = error(
+        r#"[parameters]
+        "link.bar2.inertia.ixx" = [0.05, 0.1]
+        "link.bar2.inertia.izz" = [0.15, 0.3]"#,
+    );
+    assert!(
+        msg.contains(
+            "at the corner \"link.bar2.inertia.ixx\" = 0.05, \"link.bar2.inertia.izz\" = 0.3"
+        ) && msg.contains("link 'bar2'")
+            && msg.contains("triangle inequality"),
+        "{msg}"
+    );
+    // A box whose corners are all physical passes (affine: the corners prove it).
+    let s = space(
+        r#"[parameters]
+        "link.bar2.inertia.ixx" = [0.09, 0.1]
+        "link.bar2.inertia.izz" = [0.19, 0.21]
+        "link.bar2.mass" = [0.5, 1.5]"#,
+    )
+    .unwrap();
+    assert!(s.warnings().is_empty(), "{:?}", s.warnings());
+}
+
+#[test]
+fn off_diagonal_inertia_is_checked_on_principal_moments() {
+    // A product of inertia large enough to break the triangle inequality of principal moments while
+    // the diagonal alone passes.
+    let msg = error("[parameters]\n\"link.bar2.inertia.ixy\" = [-0.1, 0.1]\n");
+    assert!(msg.contains("link 'bar2'"), "{msg}");
+}
+
+#[test]
+fn nominal_violation_only_warns() {
+    let s = space("[parameters]\n\"link.bad.inertia.izz\" = [0.29, 0.31]\n").unwrap();
+    let w = s.warnings().join("\n");
+    assert!(
+        w.contains("the URDF inertia of link 'bad' violates the triangle inequality")
+            && w.contains("[parameters] \"link.bad.inertia.izz\""),
+        "{w}"
+    );
+}
+
+#[test]
+fn nonlinear_bind_violation_is_found_by_the_grid() {
+    // izz = 0.2 at s = -1, 0, 1 (corners and midpoint fine), 0.275 at s = ±0.5 > 0.1 + 0.15.
+    let msg = error(
+        r#"[parameters]
+        s = [-1, 1]
+        [bind]
+        "link.bar2.inertia.izz" = "0.2 + 0.4 * s^2 * (1 - s^2)""#,
+    );
+    assert!(
+        msg.contains("at the grid point s = -0.5 (giving \"link.bar2.inertia.izz\" = 0.275")
+            && msg.contains("link 'bar2'"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn bound_values_are_validated_over_the_box() {
+    let msg = error(
+        r#"[parameters]
+        l1 = [0.5, 3.5]
+        [bind]
+        "link.bar1.mass" = "l1 - 1""#,
+    );
+    assert!(
+        msg.contains("[bind] \"link.bar1.mass\" = \"l1 - 1\" is -0.5 at l1 = 0.5")
+            && msg.contains("a mass must be ≥ 0"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn no_parameters_is_an_empty_space() {
+    let s = space("").unwrap();
+    assert!(s.is_empty() && s.nominal_xi().is_empty() && s.warnings().is_empty());
+    let mut m = model();
+    s.apply(&mut m, &[]);
+    assert_eq!(m.bodies[0].inertia.mass, 2.0);
+}
+
+#[test]
+fn symbol_names() {
+    assert!(is_symbol_name("l1") && is_symbol_name("_a") && is_symbol_name("L_2b"));
+    assert!(!is_symbol_name("1l") && !is_symbol_name("a.b") && !is_symbol_name(""));
+    assert!(!is_symbol_name("a-b"));
+}
+
+#[test]
+fn a_space_is_shared_between_threads() {
+    fn shareable<T: Send + Sync>() {}
+    shareable::<ParameterSpace>();
+}
+
+#[test]
+fn a_constant_binding_is_validated_too() {
+    let msg = error("[bind]\n\"link.bar1.mass\" = \"-1/2\"\n");
+    assert!(
+        msg.contains("[bind] \"link.bar1.mass\" = \"-1/2\" is -0.5 at every point of the box"),
+        "{msg}"
+    );
+}
