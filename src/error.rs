@@ -17,6 +17,9 @@ pub enum Error {
     /// A parameter path or value was refused.
     #[error(transparent)]
     Param(#[from] ParamError),
+    /// The interval parameters of the sidecar are bad.
+    #[error(transparent)]
+    Uncertainty(#[from] crate::uncertainty::UncertaintyError),
     /// The sidecar or a scene value is bad.
     #[error(transparent)]
     Scene(#[from] SceneError),
@@ -37,6 +40,12 @@ pub enum Error {
         /// What is wrong and what to do.
         message: String,
     },
+    /// A study could not run or finish.
+    #[error(transparent)]
+    Study(#[from] crate::analysis::StudyError),
+    /// The run was interrupted (SIGINT/SIGTERM); what was computed has been written.
+    #[error("interrupted: {0}")]
+    Interrupted(String),
     /// Writing the MCAP log failed.
     #[error(transparent)]
     Mcap(#[from] crate::output::mcap::McapError),
@@ -54,7 +63,11 @@ impl Error {
     /// The process exit code for this error: 2 for bad arguments or bad input, 1 otherwise.
     pub fn exit_code(&self) -> u8 {
         match self {
-            Error::Model(_) | Error::Param(_) | Error::Scene(_) | Error::BadArgument { .. } => 2,
+            Error::Model(_)
+            | Error::Param(_)
+            | Error::Scene(_)
+            | Error::Uncertainty(_)
+            | Error::BadArgument { .. } => 2,
             Error::Integrate(
                 IntegrateError::InvalidAlpha { .. }
                 | IntegrateError::AlphaZeroWithConstraints { .. }
@@ -63,15 +76,22 @@ impl Error {
             ) => 2,
             Error::Integrate(_) => 1,
             Error::Simulation(crate::simulate::SimulationError::Constraints { .. }) => 2,
-            Error::Simulation(crate::simulate::SimulationError::Integrate { source, .. }) => match source {
-                IntegrateError::InvalidAlpha { .. }
-                | IntegrateError::AlphaZeroWithConstraints { .. }
-                | IntegrateError::InvalidStep { .. }
-                | IntegrateError::InvalidSetting { .. } => 2,
-                _ => 1,
-            },
+            Error::Simulation(crate::simulate::SimulationError::Integrate { source, .. }) => {
+                match source {
+                    IntegrateError::InvalidAlpha { .. }
+                    | IntegrateError::AlphaZeroWithConstraints { .. }
+                    | IntegrateError::InvalidStep { .. }
+                    | IntegrateError::InvalidSetting { .. } => 2,
+                    _ => 1,
+                }
+            }
             Error::Dynamics(DynamicsError::SingularMassMatrix { .. }) => 2,
-            Error::Dynamics(_) | Error::Output { .. } | Error::Mcap(_) => 1,
+            Error::Dynamics(_) | Error::Output { .. } | Error::Mcap(_) | Error::Interrupted(_) => 1,
+            Error::Study(
+                crate::analysis::StudyError::BadOptions(_) | crate::analysis::StudyError::Uq(_),
+            ) => 2,
+            Error::Study(crate::analysis::StudyError::Sink(inner)) => inner.exit_code(),
+            Error::Study(_) => 1,
         }
     }
 }

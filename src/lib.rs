@@ -18,6 +18,7 @@
 //! - URDF planar and spherical joints are refused with a clear message (not supported yet).
 //! - Visual and collision geometry, materials, transmissions and Gazebo tags are ignored.
 
+pub mod analysis;
 pub mod cli;
 pub mod constraints;
 pub mod dynamics;

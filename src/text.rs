@@ -65,6 +65,9 @@ mod tests {
             Some("link.forearm_link.mass")
         );
         assert_eq!(closest("something.else", names), None);
-        assert_eq!(closest("elbow", ["shoulder_joint", "elbow_joint"]), Some("elbow_joint"));
+        assert_eq!(
+            closest("elbow", ["shoulder_joint", "elbow_joint"]),
+            Some("elbow_joint")
+        );
     }
 }

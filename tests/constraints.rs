@@ -50,10 +50,19 @@ fn column<'a>(trajectory: &'a Trajectory, name: &str) -> &'a [f64] {
 /// Max over outputs starting with `prefix` and over common record times of |a − b|.
 fn difference(a: &Trajectory, b: &Trajectory, prefix: &str) -> f64 {
     let mut worst: f64 = 0.0;
-    for (i, output) in a.outputs.iter().enumerate().filter(|(_, o)| o.name.starts_with(prefix)) {
+    for (i, output) in a
+        .outputs
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.name.starts_with(prefix))
+    {
         let other = column(b, &output.name);
         for (k, t) in a.times.iter().enumerate() {
-            let j = b.times.iter().position(|x| (x - t).abs() < 1e-9).expect("common time");
+            let j = b
+                .times
+                .iter()
+                .position(|x| (x - t).abs() < 1e-9)
+                .expect("common time");
             worst = worst.max((a.values[i][k] - other[j]).abs());
         }
     }
@@ -61,20 +70,38 @@ fn difference(a: &Trajectory, b: &Trajectory, prefix: &str) -> f64 {
 }
 
 fn sci(values: &[f64]) -> String {
-    values.iter().map(|v| format!("{v:.3e}")).collect::<Vec<_>>().join(" ")
+    values
+        .iter()
+        .map(|v| format!("{v:.3e}"))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// Self-convergence: differences between successive halvings fall by 4 per halving.
 fn assert_second_order(name: &str, urdf: &str, sidecar: &str) {
     let model = load(urdf);
-    let runs: Vec<Trajectory> = [2e-3, 1e-3, 5e-4, 2.5e-4].iter().map(|h| run(&model, sidecar, *h, -0.1)).collect();
+    let runs: Vec<Trajectory> = [2e-3, 1e-3, 5e-4, 2.5e-4]
+        .iter()
+        .map(|h| run(&model, sidecar, *h, -0.1))
+        .collect();
     for run in &runs {
         let s = &run.stats;
-        assert!(s.max_constraint_violation <= CONSTRAINT_TOLERANCE, "{name}: |Φ| reached {}", s.max_constraint_violation);
-        assert!(s.max_velocity_violation <= CONSTRAINT_TOLERANCE, "{name}: velocity drift {}", s.max_velocity_violation);
+        assert!(
+            s.max_constraint_violation <= CONSTRAINT_TOLERANCE,
+            "{name}: |Φ| reached {}",
+            s.max_constraint_violation
+        );
+        assert!(
+            s.max_velocity_violation <= CONSTRAINT_TOLERANCE,
+            "{name}: velocity drift {}",
+            s.max_velocity_violation
+        );
     }
     for prefix in ["q.", "lambda."] {
-        let differences: Vec<f64> = runs.windows(2).map(|w| difference(&w[0], &w[1], prefix)).collect();
+        let differences: Vec<f64> = runs
+            .windows(2)
+            .map(|w| difference(&w[0], &w[1], prefix))
+            .collect();
         let ratios: Vec<f64> = differences.windows(2).map(|d| d[0] / d[1]).collect();
         println!(
             "{name} {prefix}: successive differences {}, ratios {:.3?}; max |Φ| {:.1e}, velocity drift {:.1e}",
@@ -84,7 +111,10 @@ fn assert_second_order(name: &str, urdf: &str, sidecar: &str) {
             runs.iter().map(|r| r.stats.max_velocity_violation).fold(0.0, f64::max),
         );
         for ratio in ratios {
-            assert!(ratio >= MIN_SECOND_ORDER_RATIO, "{name} {prefix}: ratio {ratio} ({differences:?})");
+            assert!(
+                ratio >= MIN_SECOND_ORDER_RATIO,
+                "{name} {prefix}: ratio {ratio} ({differences:?})"
+            );
         }
     }
 }
@@ -109,14 +139,20 @@ rate = 100
 
 #[test]
 fn slider_crank_is_second_order_and_keeps_its_constraints() {
-    assert_second_order("slider-crank", "robots/slider_crank/slider_crank.urdf", PASSIVE_SLIDER_CRANK);
+    assert_second_order(
+        "slider-crank",
+        "robots/slider_crank/slider_crank.urdf",
+        PASSIVE_SLIDER_CRANK,
+    );
 }
 
 #[test]
 fn four_bar_is_second_order_and_keeps_its_constraints() {
-    let (file, _) = read_sidecar(&manifest("robots/four_bar/four_bar.uncertainty.toml")).expect("sidecar");
+    let (file, _) =
+        read_sidecar(&manifest("robots/four_bar/four_bar.uncertainty.toml")).expect("sidecar");
     let _ = file; // the shipped scene parses; the test uses it through its text below
-    let text = std::fs::read_to_string(manifest("robots/four_bar/four_bar.uncertainty.toml")).unwrap();
+    let text =
+        std::fs::read_to_string(manifest("robots/four_bar/four_bar.uncertainty.toml")).unwrap();
     let one_second = text.replace("duration = 2.0", "duration = 1.0");
     assert_second_order("four-bar", "robots/four_bar/four_bar.urdf", &one_second);
 }
@@ -124,7 +160,10 @@ fn four_bar_is_second_order_and_keeps_its_constraints() {
 #[test]
 fn driven_slider_crank_follows_closed_form_kinematics() {
     let model = load("robots/slider_crank/slider_crank.urdf");
-    let text = std::fs::read_to_string(manifest("robots/slider_crank/slider_crank.uncertainty.toml")).unwrap();
+    let text = std::fs::read_to_string(manifest(
+        "robots/slider_crank/slider_crank.uncertainty.toml",
+    ))
+    .unwrap();
     let trajectory = run(&model, &text, 1e-3, -0.1);
     let (r, l) = (0.1_f64, 0.4_f64);
     let crank = column(&trajectory, "q.crank_joint");
@@ -132,7 +171,9 @@ fn driven_slider_crank_follows_closed_form_kinematics() {
     let worst = crank
         .iter()
         .zip(slider)
-        .map(|(theta, x)| (x - (r * theta.cos() + (l * l - (r * theta.sin()).powi(2)).sqrt())).abs())
+        .map(|(theta, x)| {
+            (x - (r * theta.cos() + (l * l - (r * theta.sin()).powi(2)).sqrt())).abs()
+        })
         .fold(0.0, f64::max);
     let s = &trajectory.stats;
     println!(
@@ -168,7 +209,12 @@ fn ur5_drives() -> (String, serde_json::Value) {
     );
     let mut drives = serde_json::Map::new();
     for (i, joint) in UR5_JOINTS.iter().enumerate() {
-        let (offset, amplitude, frequency, phase) = (0.1 * i as f64 - 0.2, 0.4 + 0.05 * i as f64, 0.6 + 0.1 * i as f64, 0.3 * i as f64);
+        let (offset, amplitude, frequency, phase) = (
+            0.1 * i as f64 - 0.2,
+            0.4 + 0.05 * i as f64,
+            0.6 + 0.1 * i as f64,
+            0.3 * i as f64,
+        );
         sidecar.push_str(&format!(
             "[[scene.drive]]\njoint = \"{joint}\"\nprofile = \"sine\"\noffset = {offset}\namplitude = {amplitude}\nfrequency = {frequency}\nphase = {phase}\n"
         ));
@@ -181,10 +227,21 @@ fn ur5_drives() -> (String, serde_json::Value) {
     let initial: Vec<String> = UR5_JOINTS
         .iter()
         .enumerate()
-        .map(|(i, j)| format!("{j} = {}", (0.1 * i as f64 - 0.2) + (0.4 + 0.05 * i as f64) * (0.3 * i as f64).sin()))
+        .map(|(i, j)| {
+            format!(
+                "{j} = {}",
+                (0.1 * i as f64 - 0.2) + (0.4 + 0.05 * i as f64) * (0.3 * i as f64).sin()
+            )
+        })
         .collect();
-    sidecar = sidecar.replace("[outputs]", &format!("initial.q = {{ {} }}\n[outputs]", initial.join(", ")));
-    (sidecar, serde_json::json!({"gravity": [0.0, 0.0, -9.81], "drives": drives, "settle_time": SETTLE_TIME_S}))
+    sidecar = sidecar.replace(
+        "[outputs]",
+        &format!("initial.q = {{ {} }}\n[outputs]", initial.join(", ")),
+    );
+    (
+        sidecar,
+        serde_json::json!({"gravity": [0.0, 0.0, -9.81], "drives": drives, "settle_time": SETTLE_TIME_S}),
+    )
 }
 
 fn drive_check(step: f64) -> (f64, f64, f64) {
@@ -207,12 +264,20 @@ fn drive_check(step: f64) -> (f64, f64, f64) {
         .arg(&spec_path)
         .output()
         .expect("python runs");
-    assert!(output.status.success(), "drive_check.py failed: {}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "drive_check.py failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let result: serde_json::Value = serde_json::from_slice(&output.stdout).expect("json");
     (
         result["relative_error_simulated_state"].as_f64().unwrap(),
-        result["relative_error_analytic_trajectory"].as_f64().unwrap(),
-        result["relative_error_analytic_after_settling"].as_f64().unwrap(),
+        result["relative_error_analytic_trajectory"]
+            .as_f64()
+            .unwrap(),
+        result["relative_error_analytic_after_settling"]
+            .as_f64()
+            .unwrap(),
     )
 }
 
@@ -229,12 +294,19 @@ fn drives_give_pinocchio_inverse_dynamics() {
     // At the simulated state the effort is the rnea torque up to the Newton test's relative
     // tolerance on the multipliers.
     let newton_reltol = HhtSettings::default().reltol;
-    assert!(simulated < newton_reltol, "effort vs rnea at simulated states: {simulated} (reltol {newton_reltol})");
+    assert!(
+        simulated < newton_reltol,
+        "effort vs rnea at simulated states: {simulated} (reltol {newton_reltol})"
+    );
     // Against the analytic trajectory the error follows (ωh)²/4: about 1e-5 for ~1 Hz at 1 ms
     // (up to 1.1 Hz here: (2π·1.1·1e-3)²/4 = 1.2e-5) …
     assert!(settled < 5e-5, "effort vs analytic rnea: {settled}");
     // … and falls by 4 per halving of h.
-    assert!(settled / settled_half >= MIN_SECOND_ORDER_RATIO, "ratio {}", settled / settled_half);
+    assert!(
+        settled / settled_half >= MIN_SECOND_ORDER_RATIO,
+        "ratio {}",
+        settled / settled_half
+    );
 }
 
 #[test]
@@ -247,14 +319,29 @@ fn mimic_pair_moves_as_declared_and_reports_its_force() {
       <joint name="leader" type="continuous"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/></joint>
       <joint name="follower" type="continuous"><parent link="a"/><child link="b"/><origin xyz="0.6 0 0"/>
         <axis xyz="0 0 1"/><mimic joint="leader" multiplier="0.5" offset="0.1"/></joint></robot>"#;
-    let model = Model::from_description(parse_description(urdf, "m.urdf").unwrap(), LoadOptions::default(), "m.urdf").unwrap();
+    let model = Model::from_description(
+        parse_description(urdf, "m.urdf").unwrap(),
+        LoadOptions::default(),
+        "m.urdf",
+    )
+    .unwrap();
     let sidecar = "[scene]\nduration = 1.0\ngravity = [0.0, -9.81, 0.0]\ninitial.q = { leader = 0.0, follower = 0.1 }\n\
                    [outputs]\nvelocities = true\naccelerations = true\nconstraint_forces = true\nrate = 100";
     let trajectory = run(&model, sidecar, 1e-3, -0.1);
-    let (q1, q2) = (column(&trajectory, "q.leader"), column(&trajectory, "q.follower"));
-    let relation = q1.iter().zip(q2).map(|(a, b)| (b - 0.5 * a - 0.1).abs()).fold(0.0, f64::max);
+    let (q1, q2) = (
+        column(&trajectory, "q.leader"),
+        column(&trajectory, "q.follower"),
+    );
+    let relation = q1
+        .iter()
+        .zip(q2)
+        .map(|(a, b)| (b - 0.5 * a - 0.1).abs())
+        .fold(0.0, f64::max);
     assert!(q1.iter().any(|x| x.abs() > 0.1), "the leader moves");
-    assert!(relation <= CONSTRAINT_TOLERANCE, "mimic relation off by {relation}");
+    assert!(
+        relation <= CONSTRAINT_TOLERANCE,
+        "mimic relation off by {relation}"
+    );
     // The row's multiplier is the generalised force the follower needs beyond the free dynamics:
     // (M q̈ − Q)_follower + λ = 0 ⇒ λ = −τ_rnea,follower.
     let lambda = column(&trajectory, "lambda.mimic.follower");
@@ -265,13 +352,21 @@ fn mimic_pair_moves_as_declared_and_reports_its_force() {
     let mut scale: f64 = 0.0;
     for k in 0..trajectory.times.len() {
         let q = [q1[k], q2[k]];
-        let v = [column(&trajectory, "v.leader")[k], column(&trajectory, "v.follower")[k]];
-        let a = [column(&trajectory, "qdd.leader")[k], column(&trajectory, "qdd.follower")[k]];
+        let v = [
+            column(&trajectory, "v.leader")[k],
+            column(&trajectory, "v.follower")[k],
+        ];
+        let a = [
+            column(&trajectory, "qdd.leader")[k],
+            column(&trajectory, "qdd.follower")[k],
+        ];
         let tau = ribbon::dynamics::rnea(&gravity_model, &mut data, &q, &v, &a);
         worst = worst.max((lambda[k] + tau[1]).abs());
         scale = scale.max(tau[1].abs());
     }
-    println!("mimic: relation off by {relation:.1e}, λ vs −τ_rnea off by {worst:.2e} (scale {scale:.3})");
+    println!(
+        "mimic: relation off by {relation:.1e}, λ vs −τ_rnea off by {worst:.2e} (scale {scale:.3})"
+    );
     assert!(worst <= 1e-7 * scale.max(1.0), "λ vs −τ: {worst}");
 }
 
@@ -286,21 +381,47 @@ fn scaled_rows_keep_the_newton_matrix_conditioned() {
     let q = DVector::from_column_slice(&scene.initial_q);
     let v = DVector::from_column_slice(&scene.initial_v);
     let condition = |system: &mut RobotSystem, h: f64, scaling| {
-        let settings = HhtSettings { step_s: h, ..hht_settings(&scene) };
+        let settings = HhtSettings {
+            step_s: h,
+            ..hht_settings(&scene)
+        };
         let matrix = iteration_matrix(system, &settings, 0.0, &q, &v, scaling).expect("matrix");
         let singular = matrix.singular_values();
         singular.max() / singular.min()
     };
     let steps = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6];
-    let scaled: Vec<f64> = steps.iter().map(|h| condition(&mut system, *h, ConstraintRowScaling::Scaled)).collect();
-    let unscaled: Vec<f64> = steps.iter().map(|h| condition(&mut system, *h, ConstraintRowScaling::Unscaled)).collect();
-    println!("four-bar iteration matrix condition, h = 1e-2 … 1e-6: scaled {}, unscaled {}", sci(&scaled), sci(&unscaled));
-    let (low, high) = (scaled.iter().copied().fold(f64::INFINITY, f64::min), scaled.iter().copied().fold(0.0, f64::max));
-    assert!(high / low < 10.0, "scaled condition varies from {low} to {high}");
+    let scaled: Vec<f64> = steps
+        .iter()
+        .map(|h| condition(&mut system, *h, ConstraintRowScaling::Scaled))
+        .collect();
+    let unscaled: Vec<f64> = steps
+        .iter()
+        .map(|h| condition(&mut system, *h, ConstraintRowScaling::Unscaled))
+        .collect();
+    println!(
+        "four-bar iteration matrix condition, h = 1e-2 … 1e-6: scaled {}, unscaled {}",
+        sci(&scaled),
+        sci(&unscaled)
+    );
+    let (low, high) = (
+        scaled.iter().copied().fold(f64::INFINITY, f64::min),
+        scaled.iter().copied().fold(0.0, f64::max),
+    );
+    assert!(
+        high / low < 10.0,
+        "scaled condition varies from {low} to {high}"
+    );
     // Unscaled: h⁻² growth, 10⁸ over four decades; assert at least 10⁷.
-    assert!(unscaled[4] / unscaled[0] > 1e7, "unscaled growth {}", unscaled[4] / unscaled[0]);
+    assert!(
+        unscaled[4] / unscaled[0] > 1e7,
+        "unscaled growth {}",
+        unscaled[4] / unscaled[0]
+    );
     // And the integrator really runs at h = 1e-5 with the scaled rows.
-    let settings = HhtSettings { step_s: 1e-5, ..hht_settings(&scene) };
+    let settings = HhtSettings {
+        step_s: 1e-5,
+        ..hht_settings(&scene)
+    };
     let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, &q, &v).expect("start");
     for _ in 0..200 {
         hht.step(&mut system).expect("step at h = 1e-5");
@@ -313,7 +434,10 @@ fn ribbon_cli(args: &[&str]) -> (Option<i32>, String) {
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .expect("ribbon runs");
-    (output.status.code(), String::from_utf8_lossy(&output.stderr).into_owned())
+    (
+        output.status.code(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
 }
 
 fn sidecar_file(name: &str, text: &str) -> PathBuf {
@@ -326,7 +450,9 @@ fn sidecar_file(name: &str, text: &str) -> PathBuf {
 
 #[test]
 fn bad_constraint_input_is_refused_clearly() {
-    let four_bar_loop = |body: &str| format!("[scene]\ninitial.q = {{ coupler_joint = 0.9479697413828937, rocker_joint = 1.8959394827657874 }}\n[[scene.loop]]\nname = \"pin\"\n{body}");
+    let four_bar_loop = |body: &str| {
+        format!("[scene]\ninitial.q = {{ coupler_joint = 0.9479697413828937, rocker_joint = 1.8959394827657874 }}\n[[scene.loop]]\nname = \"pin\"\n{body}")
+    };
     let cases: Vec<(&str, &str, String, Vec<&str>)> = vec![
         (
             "robots/four_bar/four_bar.urdf",
@@ -361,10 +487,14 @@ fn bad_constraint_input_is_refused_clearly() {
     ];
     for (urdf, name, text, fragments) in cases {
         let path = sidecar_file(name, &text);
-        let (code, stderr) = ribbon_cli(&["simulate", urdf, "--uncertainty", path.to_str().unwrap()]);
+        let (code, stderr) =
+            ribbon_cli(&["simulate", urdf, "--uncertainty", path.to_str().unwrap()]);
         assert_eq!(code, Some(2), "{name}: {stderr}");
         for fragment in fragments {
-            assert!(stderr.contains(fragment), "{name}: expected '{fragment}' in {stderr}");
+            assert!(
+                stderr.contains(fragment),
+                "{name}: expected '{fragment}' in {stderr}"
+            );
         }
     }
 }

@@ -24,7 +24,8 @@ const STEP_S: f64 = 0.01;
 fn work_dir(test: &str) -> PathBuf {
     let dir = common::target_dir().join("mcap_files").join(test);
     let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("cannot create {}: {e}", dir.display()));
+    std::fs::create_dir_all(&dir)
+        .unwrap_or_else(|e| panic!("cannot create {}: {e}", dir.display()));
     dir
 }
 
@@ -74,7 +75,11 @@ fn frames(t: f64) -> Vec<(String, [f64; 3], [f64; 4])> {
     let [q1, q2] = angles(t);
     let about_z = |angle: f64| [0.0, 0.0, (angle / 2.0).sin(), (angle / 2.0).cos()];
     let elbow = [q1.cos(), q1.sin(), 0.0];
-    let tip = [elbow[0] + 2.0 * (q1 + q2).cos(), elbow[1] + 2.0 * (q1 + q2).sin(), 0.0];
+    let tip = [
+        elbow[0] + 2.0 * (q1 + q2).cos(),
+        elbow[1] + 2.0 * (q1 + q2).sin(),
+        0.0,
+    ];
     vec![
         ("base".to_string(), [0.0; 3], [0.0, 0.0, 0.0, 1.0]),
         ("bar1".to_string(), [0.0; 3], about_z(q1)),
@@ -113,8 +118,14 @@ fn write_study(path: &Path, sidecar_path: &Path, partial: bool) -> serde_json::V
         for (i, (_, nominal, half_width)) in OUTPUTS.iter().enumerate() {
             let (n, w) = (nominal(t), half_width(t));
             let (lower, upper) = (n - w, n + w);
-            sink.write_envelope(envelope_ids[i], t, lower, n, upper).unwrap();
-            for (key, value) in [("time", t), ("lower", lower), ("nominal", n), ("upper", upper)] {
+            sink.write_envelope(envelope_ids[i], t, lower, n, upper)
+                .unwrap();
+            for (key, value) in [
+                ("time", t),
+                ("lower", lower),
+                ("nominal", n),
+                ("upper", upper),
+            ] {
                 envelopes[i].entry(key).or_default().push(value);
             }
             if i < 2 {
@@ -145,12 +156,17 @@ fn write_study(path: &Path, sidecar_path: &Path, partial: bool) -> serde_json::V
         "the sink writes to <path>.tmp until finished"
     );
     assert!(!path.exists(), "nothing at the path before finish");
-    sink.finish(partial).unwrap_or_else(|e| panic!("finish: {e}"));
+    sink.finish(partial)
+        .unwrap_or_else(|e| panic!("finish: {e}"));
     assert!(path.exists(), "finish renames the file to its path");
-    assert!(!temporary_of(path).exists(), "finish leaves no temporary file");
+    assert!(
+        !temporary_of(path).exists(),
+        "finish leaves no temporary file"
+    );
 
     std::fs::write(sidecar_path, SIDECAR_TEXT).unwrap();
-    let topic = |prefix: &str, name: &str| format!("{prefix}{}", OutputName::from(name).topic_suffix());
+    let topic =
+        |prefix: &str, name: &str| format!("{prefix}{}", OutputName::from(name).topic_suffix());
     json!({
         "urdf_path": common::manifest_dir().join(URDF),
         "robot": "double_pendulum",
@@ -212,7 +228,9 @@ type ReadBack = (u64, Vec<String>, Vec<f64>);
 
 /// The `ribbon` metadata record of the file at `path`.
 fn ribbon_metadata(bytes: &[u8]) -> BTreeMap<String, String> {
-    let summary = mcap::Summary::read(bytes).unwrap().expect("a summary section");
+    let summary = mcap::Summary::read(bytes)
+        .unwrap()
+        .expect("a summary section");
     let index = summary
         .metadata_indexes
         .iter()
@@ -229,25 +247,37 @@ fn every_reader_decodes_what_was_written() {
 
     // The Rust reader: summary, lz4 chunks, and every message.
     let bytes = std::fs::read(&path).unwrap();
-    let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary section");
+    let summary = mcap::Summary::read(&bytes)
+        .unwrap()
+        .expect("a summary section");
     assert!(!summary.chunk_indexes.is_empty(), "chunk indexes");
     assert!(
         summary.chunk_indexes.iter().all(|c| c.compression == "lz4"),
         "lz4 chunks"
     );
-    assert_eq!(summary.attachment_indexes.len(), 2, "the URDF and the sidecar attached");
+    assert_eq!(
+        summary.attachment_indexes.len(),
+        2,
+        "the URDF and the sidecar attached"
+    );
     let mut by_topic: BTreeMap<String, Vec<ReadBack>> = BTreeMap::new();
     let mut messages = 0_u64;
     for message in mcap::MessageStream::new(&bytes).unwrap() {
         let message = message.unwrap();
         messages += 1;
-        assert_eq!(message.log_time, message.publish_time, "log time = publish time");
+        assert_eq!(
+            message.log_time, message.publish_time,
+            "log time = publish time"
+        );
         let topic = message.channel.topic.clone();
         if topic.starts_with("/ribbon/") {
             let state: JointState = cdr::deserialize(&message.data).unwrap();
-            let stamp_ns =
-                u64::from(state.header.stamp.sec as u32) * 1_000_000_000 + u64::from(state.header.stamp.nanosec);
-            assert_eq!(stamp_ns, message.log_time, "{topic}: header.stamp = log time");
+            let stamp_ns = u64::from(state.header.stamp.sec as u32) * 1_000_000_000
+                + u64::from(state.header.stamp.nanosec);
+            assert_eq!(
+                stamp_ns, message.log_time,
+                "{topic}: header.stamp = log time"
+            );
             assert!(state.velocity.is_empty() && state.effort.is_empty());
             by_topic
                 .entry(topic)
@@ -260,7 +290,10 @@ fn every_reader_decodes_what_was_written() {
                 .push((message.log_time, Vec::new(), Vec::new()));
         }
     }
-    assert_eq!(Some(messages), summary.stats.as_ref().map(|s| s.message_count));
+    assert_eq!(
+        Some(messages),
+        summary.stats.as_ref().map(|s| s.message_count)
+    );
     for (group, names) in [
         ("envelopes", vec!["lower", "nominal", "upper"]),
         ("errors", vec!["estimate"]),
@@ -272,10 +305,20 @@ fn every_reader_decodes_what_was_written() {
             assert_eq!(got.len(), times.len(), "{topic}: message count");
             for (i, (log_time, got_names, values)) in got.iter().enumerate() {
                 let t = times[i].as_f64().unwrap();
-                assert_eq!(*log_time, (t * 1e9).round() as u64, "{topic}[{i}]: log time");
+                assert_eq!(
+                    *log_time,
+                    (t * 1e9).round() as u64,
+                    "{topic}[{i}]: log time"
+                );
                 assert_eq!(got_names, &names, "{topic}[{i}]: names");
-                let want: Vec<f64> = names.iter().map(|n| entry[n][i].as_f64().unwrap()).collect();
-                assert_eq!(values, &want, "{topic}[{i}]: values are the numbers given, bit for bit");
+                let want: Vec<f64> = names
+                    .iter()
+                    .map(|n| entry[n][i].as_f64().unwrap())
+                    .collect();
+                assert_eq!(
+                    values, &want,
+                    "{topic}[{i}]: values are the numbers given, bit for bit"
+                );
             }
         }
     }
@@ -286,7 +329,11 @@ fn every_reader_decodes_what_was_written() {
 
     // The Python readers, foxglove-sdk and rerun.
     let expected_path = dir.join("expected.json");
-    std::fs::write(&expected_path, serde_json::to_string_pretty(&expected).unwrap()).unwrap();
+    std::fs::write(
+        &expected_path,
+        serde_json::to_string_pretty(&expected).unwrap(),
+    )
+    .unwrap();
     let python = common::reference_python();
     let script = common::manifest_dir().join("tests/reference/check_mcap.py");
     let output = common::run_checked(
@@ -307,7 +354,14 @@ fn every_reader_decodes_what_was_written() {
 fn finish_partial_marks_the_metadata() {
     let dir = work_dir("partial");
     let path = dir.join("partial.mcap");
-    let mut sink = McapSink::create(&path, "double_pendulum.urdf", &urdf_text(), None, metadata()).unwrap();
+    let mut sink = McapSink::create(
+        &path,
+        "double_pendulum.urdf",
+        &urdf_text(),
+        None,
+        metadata(),
+    )
+    .unwrap();
     let q1 = sink.add_output("q.j1").unwrap();
     sink.write_envelope(q1, 0.0, -0.1, 0.0, 0.1).unwrap();
     sink.metadata_mut().runs = 3; // stopped early: fewer runs than planned
@@ -335,10 +389,18 @@ fn finish_partial_marks_the_metadata() {
 fn dropping_an_unfinished_sink_leaves_no_file() {
     let dir = work_dir("dropped");
     let path = dir.join("dropped.mcap");
-    let mut sink = McapSink::create(&path, "double_pendulum.urdf", &urdf_text(), None, metadata()).unwrap();
+    let mut sink = McapSink::create(
+        &path,
+        "double_pendulum.urdf",
+        &urdf_text(),
+        None,
+        metadata(),
+    )
+    .unwrap();
     let q1 = sink.add_output("q.j1").unwrap();
     for k in 0..1000 {
-        sink.write_envelope(q1, k as f64 * 1e-3, -0.1, 0.0, 0.1).unwrap();
+        sink.write_envelope(q1, k as f64 * 1e-3, -0.1, 0.0, 0.1)
+            .unwrap();
     }
     assert!(temporary_of(&path).exists());
     drop(sink);
@@ -347,7 +409,14 @@ fn dropping_an_unfinished_sink_leaves_no_file() {
 
     // An older file at the path survives an unfinished run untouched.
     std::fs::write(&path, b"previous result").unwrap();
-    let sink = McapSink::create(&path, "double_pendulum.urdf", &urdf_text(), None, metadata()).unwrap();
+    let sink = McapSink::create(
+        &path,
+        "double_pendulum.urdf",
+        &urdf_text(),
+        None,
+        metadata(),
+    )
+    .unwrap();
     drop(sink);
     assert_eq!(std::fs::read(&path).unwrap(), b"previous result");
     assert!(!temporary_of(&path).exists());
@@ -357,7 +426,14 @@ fn dropping_an_unfinished_sink_leaves_no_file() {
 fn errors_name_the_file_and_the_problem() {
     let dir = work_dir("errors");
     let path = dir.join("errors.mcap");
-    let mut sink = McapSink::create(&path, "double_pendulum.urdf", &urdf_text(), None, metadata()).unwrap();
+    let mut sink = McapSink::create(
+        &path,
+        "double_pendulum.urdf",
+        &urdf_text(),
+        None,
+        metadata(),
+    )
+    .unwrap();
     let q1 = sink.add_output("q.j1").unwrap();
 
     let e = sink.add_output("q.j1").unwrap_err();
@@ -374,7 +450,8 @@ fn errors_name_the_file_and_the_problem() {
         assert!(e.to_string().contains("errors.mcap"), "{e}");
     }
     // A dotted joint name keeps its dot when given as parts.
-    sink.add_output(OutputName::from_parts(&["q", "joint_0.0"])).unwrap();
+    sink.add_output(OutputName::from_parts(&["q", "joint_0.0"]))
+        .unwrap();
     drop(sink);
 
     let mut bad = metadata();
@@ -382,7 +459,14 @@ fn errors_name_the_file_and_the_problem() {
     let e = McapSink::create(&path, "double_pendulum.urdf", &urdf_text(), None, bad).unwrap_err();
     assert!(matches!(e, McapError::BadParameters { .. }), "{e}");
     let missing = dir.join("no/such/dir/x.mcap");
-    let e = McapSink::create(&missing, "double_pendulum.urdf", &urdf_text(), None, metadata()).unwrap_err();
+    let e = McapSink::create(
+        &missing,
+        "double_pendulum.urdf",
+        &urdf_text(),
+        None,
+        metadata(),
+    )
+    .unwrap_err();
     assert!(matches!(e, McapError::Io { .. }), "{e}");
     assert!(e.to_string().contains("x.mcap.tmp"), "{e}");
 }

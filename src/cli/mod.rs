@@ -1,6 +1,7 @@
 //! Command-line interface: clap types here, one handler per subcommand in its own file. Results go to
 //! stdout, warnings and errors to stderr.
 
+mod analyze_cmd;
 mod dynamics_cmd;
 mod params_cmd;
 mod simulate_cmd;
@@ -31,6 +32,67 @@ pub enum Command {
     Dynamics(DynamicsArgs),
     /// One nominal trajectory with the scene of the sidecar (`ROBOT.uncertainty.toml`).
     Simulate(SimulateArgs),
+    /// Bound envelopes of every output over time under the sidecar's interval parameters.
+    Analyze(AnalyzeArgs),
+}
+
+/// `ribbon analyze`.
+#[derive(Debug, Args)]
+pub struct AnalyzeArgs {
+    /// The robot's URDF file.
+    pub urdf: PathBuf,
+    /// The sidecar file (default: `ROBOT.uncertainty.toml` beside the URDF).
+    #[arg(long, value_name = "FILE")]
+    pub uncertainty: Option<PathBuf>,
+    /// legendre-scan | legendre-ia | chebyshev-scan | chebyshev-ia | taylor | scan | monte-carlo
+    /// (default: the sidecar's `[analysis] method`, else legendre-scan).
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Polynomial order k of surrogate methods (default: `[analysis] order`, else 4).
+    #[arg(long)]
+    pub order: Option<usize>,
+    /// tensor | total: truncation of surrogate methods (default tensor).
+    #[arg(long)]
+    pub design: Option<String>,
+    /// Points per dimension of the true-model `scan` (odd; default 21).
+    #[arg(long)]
+    pub grid: Option<usize>,
+    /// Points per dimension when scanning a surrogate (odd; default 21 for d ≤ 2, 11 for d ≥ 3).
+    #[arg(long)]
+    pub scan_grid: Option<usize>,
+    /// Monte Carlo runs (default 1000).
+    #[arg(long)]
+    pub samples: Option<usize>,
+    /// Monte Carlo seed (default 0).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Exclude failing samples and list them in the summary (scan and monte-carlo).
+    #[arg(long)]
+    pub keep_going: bool,
+    /// Simulated time, s (overrides `[scene] duration`).
+    #[arg(long, value_name = "SECONDS")]
+    pub duration: Option<f64>,
+    /// Fixed step, s (overrides `[scene] step`).
+    #[arg(long, value_name = "SECONDS")]
+    pub step: Option<f64>,
+    /// HHT α in [-1/3, 0] (overrides `[scene] alpha`).
+    #[arg(long, allow_hyphen_values = true)]
+    pub alpha: Option<f64>,
+    /// Put the root link on a floating joint (same as `[scene] base = "floating"`).
+    #[arg(long)]
+    pub floating: bool,
+    /// Write the summary JSON.
+    #[arg(long, value_name = "FILE")]
+    pub summary: Option<PathBuf>,
+    /// Write the envelopes as CSV (`t`, then `NAME.lower`, `NAME.nominal`, `NAME.upper` per output).
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Write an MCAP log for Foxglove and rerun.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub out: Option<PathBuf>,
 }
 
 /// `ribbon simulate`.
@@ -114,6 +176,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Command::Params(args) => params_cmd::run(&args),
         Command::Dynamics(args) => dynamics_cmd::run(&args),
         Command::Simulate(args) => simulate_cmd::run(&args),
+        Command::Analyze(args) => analyze_cmd::run(&args),
     }
 }
 

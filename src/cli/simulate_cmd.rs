@@ -3,8 +3,8 @@
 
 use super::{print_warnings, write_stdout, SimulateArgs};
 use crate::cli::values::apply_set_flags;
-use crate::model::{LoadOptions, Model};
 use crate::dynamics::{forward_kinematics, Data};
+use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
 use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, Summary};
 use crate::scene::{
@@ -51,7 +51,14 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
         summary(&robot, &trajectory, wall_seconds).write(path)?;
     }
     if let Some(path) = &args.out {
-        write_log(path, args, sidecar_path.as_deref(), &robot, &kinematic_model, &trajectory)?;
+        write_log(
+            path,
+            args,
+            sidecar_path.as_deref(),
+            &robot,
+            &kinematic_model,
+            &trajectory,
+        )?;
     }
     write_stdout(&table(&trajectory))
 }
@@ -72,7 +79,14 @@ fn write_log(
         runs: 1,
         parameters_json: "[]".to_string(),
     };
-    let mut log = EnvelopeLog::create(path, &args.urdf, sidecar, metadata, &trajectory.outputs, false)?;
+    let mut log = EnvelopeLog::create(
+        path,
+        &args.urdf,
+        sidecar,
+        metadata,
+        &trajectory.outputs,
+        false,
+    )?;
     let mut data = Data::new(model);
     let mut row = vec![0.0; trajectory.outputs.len()];
     for (k, t) in trajectory.times.iter().enumerate() {

@@ -91,7 +91,9 @@ fn link_point(model: &Model, data: &Data, link: Option<usize>, point: &Vec3) -> 
 
 /// Orientation of a link in the world.
 fn world_rotation(model: &Model, data: &Data, link: Option<usize>) -> Mat3 {
-    let Some(link) = link else { return Mat3::identity() };
+    let Some(link) = link else {
+        return Mat3::identity();
+    };
     let placement = &model.links[link];
     match placement.body {
         Some(b) => data.world_from_body[b].rotation * placement.body_from_link.rotation,
@@ -99,25 +101,27 @@ fn world_rotation(model: &Model, data: &Data, link: Option<usize>) -> Mat3 {
     }
 }
 
-/// Adds `sign · (row_vector · J_point)` (linear part at `point_in_world`) and `angular · J^ω` of the
-/// chain from `body` to the root into `out[row, :]`.
+/// Adds `linear · J_point + angular · J^ω` of the chain from the point's body to the root into
+/// `out[row, :]` (`J_point`: the point's linear velocity Jacobian in the world frame; `J^ω`: its
+/// body's angular velocity Jacobian). `weights = (linear, angular)`.
 fn add_chain(
     model: &Model,
     data: &Data,
-    body: Option<usize>,
-    point_in_world: &Vec3,
-    linear: &Vec3,
-    angular: &Vec3,
+    point: &LinkPoint,
+    weights: (Vec3, Vec3),
     row: usize,
     out: &mut DMatrix<f64>,
 ) {
-    let mut current = body;
+    let (linear, angular) = weights;
+    let point_in_world = &point.in_world;
+    let mut current = point.body;
     while let Some(b) = current {
         let joint = &model.joints[b];
         for k in 0..joint.nv() {
             let column = data.world_from_body[b].act_motion(&joint.subspace_column(k));
             let point_velocity = column.linear + column.angular.cross(point_in_world);
-            out[(row, joint.v_index + k)] += linear.dot(&point_velocity) + angular.dot(&column.angular);
+            out[(row, joint.v_index + k)] +=
+                linear.dot(&point_velocity) + angular.dot(&column.angular);
         }
         current = joint.parent;
     }
@@ -149,10 +153,9 @@ impl LoopClosure {
         for (i, e) in self.directions.iter().enumerate() {
             let row = first_row + i;
             let e_world = rotation * e;
-            let zero = Vec3::zeros();
-            add_chain(model, data, b.body, &b.in_world, &e_world, &zero, row, out);
+            add_chain(model, data, &b, (e_world, Vec3::zeros()), row, out);
             // The parent's point moves with its body, and so do the directions (rotation term).
-            add_chain(model, data, a.body, &a.in_world, &(-e_world), &e_world.cross(&d), row, out);
+            add_chain(model, data, &a, (-e_world, e_world.cross(&d)), row, out);
         }
     }
 

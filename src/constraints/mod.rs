@@ -115,7 +115,14 @@ impl ConstraintSet {
     }
 
     /// `out = Φ(q, t)` (`dim m`). Runs forward kinematics into `data` when there are loops.
-    pub fn evaluate(&self, model: &Model, data: &mut Data, t: f64, q: &[f64], out: &mut DVector<f64>) {
+    pub fn evaluate(
+        &self,
+        model: &Model,
+        data: &mut Data,
+        t: f64,
+        q: &[f64],
+        out: &mut DVector<f64>,
+    ) {
         let (mimic_start, drive_start) = self.offsets();
         if !self.loops.is_empty() {
             forward_kinematics(model, data, q);
@@ -164,7 +171,15 @@ impl ConstraintSet {
     }
 
     /// `out = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt` (`dim m`), the right-hand side of `Φ_q q̈`.
-    pub fn acceleration_bias(&self, model: &Model, data: &mut Data, t: f64, q: &[f64], v: &[f64], out: &mut DVector<f64>) {
+    pub fn acceleration_bias(
+        &self,
+        model: &Model,
+        data: &mut Data,
+        t: f64,
+        q: &[f64],
+        v: &[f64],
+        out: &mut DVector<f64>,
+    ) {
         out.fill(0.0);
         let (_, drive_start) = self.offsets();
         if !self.loops.is_empty() {

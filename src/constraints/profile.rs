@@ -69,7 +69,10 @@ impl Spline {
     /// Returns a message on invalid points.
     pub fn new(points: &[[f64; 2]]) -> Result<Spline, String> {
         if points.len() < 2 {
-            return Err(format!("a spline needs at least 2 points, got {}", points.len()));
+            return Err(format!(
+                "a spline needs at least 2 points, got {}",
+                points.len()
+            ));
         }
         if points.iter().flatten().any(|x| !x.is_finite()) {
             return Err("every point must be finite".to_string());
@@ -132,13 +135,18 @@ impl Spline {
         if t >= self.times[n - 1] {
             return (self.values[n - 1], 0.0, 0.0);
         }
-        let i = self.times.partition_point(|x| *x <= t).saturating_sub(1).min(n - 2);
+        let i = self
+            .times
+            .partition_point(|x| *x <= t)
+            .saturating_sub(1)
+            .min(n - 2);
         let h = self.times[i + 1] - self.times[i];
         let (a, b) = ((self.times[i + 1] - t) / h, (t - self.times[i]) / h);
         let (m0, m1) = (self.curvature[i], self.curvature[i + 1]);
         let (y0, y1) = (self.values[i], self.values[i + 1]);
         let value = a * y0 + b * y1 + ((a * a * a - a) * m0 + (b * b * b - b) * m1) * h * h / 6.0;
-        let velocity = (y1 - y0) / h + ((1.0 - 3.0 * a * a) * m0 + (3.0 * b * b - 1.0) * m1) * h / 6.0;
+        let velocity =
+            (y1 - y0) / h + ((1.0 - 3.0 * a * a) * m0 + (3.0 * b * b - 1.0) * m1) * h / 6.0;
         let acceleration = a * m0 + b * m1;
         (value, velocity, acceleration)
     }
@@ -162,7 +170,10 @@ mod tests {
             let (_, v, a) = spline.evaluate(t);
             let dv = (spline.evaluate(t + h).0 - spline.evaluate(t - h).0) / (2.0 * h);
             let da = (spline.evaluate(t + h).1 - spline.evaluate(t - h).1) / (2.0 * h);
-            assert!((v - dv).abs() < 1e-7 && (a - da).abs() < 1e-5, "t {t}: {v} {dv} {a} {da}");
+            assert!(
+                (v - dv).abs() < 1e-7 && (a - da).abs() < 1e-5,
+                "t {t}: {v} {dv} {a} {da}"
+            );
         }
         assert!(Spline::new(&[[0.0, 1.0]]).is_err());
         assert!(Spline::new(&[[0.0, 1.0], [0.0, 2.0]]).is_err());

@@ -36,8 +36,16 @@ pub fn drift_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
         let parent_from_body = joint.parent_from_child(&q[qi..qi + joint.nq()]);
         let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
         let (parent_velocity, parent_acceleration, world_from_parent) = match joint.parent {
-            Some(p) => (data.velocity[p], data.acceleration[p], Some(data.world_from_body[p])),
-            None => (crate::spatial::Motion::zero(), crate::spatial::Motion::zero(), None),
+            Some(p) => (
+                data.velocity[p],
+                data.acceleration[p],
+                Some(data.world_from_body[p]),
+            ),
+            None => (
+                crate::spatial::Motion::zero(),
+                crate::spatial::Motion::zero(),
+                None,
+            ),
         };
         let velocity = parent_from_body.inv_act_motion(&parent_velocity) + joint_velocity;
         data.acceleration[i] = parent_from_body.inv_act_motion(&parent_acceleration)

@@ -89,7 +89,7 @@ impl Effects {
             e.add_forces(model, v, out);
         }
         if let Some(e) = &self.springs {
-            e.add_forces(q, out);
+            e.add_forces(q, v, out);
         }
         if let Some(e) = &self.limits {
             e.add_forces(model, q, v, out);
@@ -113,7 +113,7 @@ impl Effects {
             e.add_diagonal(model, v, damping);
         }
         if let Some(e) = &self.springs {
-            e.add_diagonal(stiffness);
+            e.add_diagonal(stiffness, damping);
         }
         if let Some(e) = &self.limits {
             e.add_diagonal(model, q, stiffness, damping);
@@ -182,7 +182,7 @@ mod tests {
     #[test]
     fn diagonal_terms_match_the_forces_derivatives() {
         let sidecar = "[scene]\neffects = [\"joint_damping\", \"joint_friction\", \"joint_springs\", \"joint_limits\"]\n\
-                       [[scene.spring]]\njoint = \"hinge\"\nstiffness = 30.0\nrest = 0.2";
+                       [[scene.spring]]\njoint = \"hinge\"\nstiffness = 30.0\nrest = 0.2\ndamping = 1.5";
         let (model, scene) = setup(sidecar);
         let effects = Effects::assemble(&model, &scene);
         // Inside the limits and beyond the upper one; slow and fast.

@@ -227,6 +227,21 @@ const LAMBDA_STAGNATION_RATIO: f64 = 0.5;
 /// let exact = (2.0_f64 * 1.0).cos();
 /// assert!((hht.state().q[0] - exact).abs() < 1e-5);
 /// ```
+/// Everything that carries one trajectory from step to step — start time, state, the recursion's
+/// velocity and statistics — without the workspace. A study keeps one per sample and advances many
+/// samples in turn with one integrator per thread ([`HhtIntegrator::swap_trajectory`]).
+#[derive(Debug, Clone)]
+pub struct HhtTrajectory {
+    /// Start time, s.
+    pub t0: f64,
+    /// The state.
+    pub state: HhtState,
+    /// The Newmark velocity of the recursion (differs from `state.v` after a velocity projection).
+    pub v_newmark: DVector<f64>,
+    /// Statistics of this trajectory.
+    pub stats: HhtStats,
+}
+
 #[derive(Debug, Clone)]
 pub struct HhtIntegrator {
     settings: HhtSettings,
@@ -321,6 +336,48 @@ impl HhtIntegrator {
             self.stats.max_velocity_violation = violation;
             self.stats.max_velocity_violation_unprojected = violation;
         }
+        Ok(())
+    }
+
+    /// A copy of the trajectory this integrator carries.
+    pub fn trajectory(&self) -> HhtTrajectory {
+        HhtTrajectory {
+            t0: self.t0,
+            state: self.state.clone(),
+            v_newmark: self.v_newmark.clone(),
+            stats: self.stats,
+        }
+    }
+
+    /// Exchanges the carried trajectory with `other` (same dimensions): the integrator continues
+    /// `other`'s trajectory and `other` keeps the one it had. No allocation; the workspace's cached
+    /// matrices are marked stale.
+    pub fn swap_trajectory(&mut self, other: &mut HhtTrajectory) -> Result<(), IntegrateError> {
+        let checks = [
+            ("trajectory q", self.nq, other.state.q.len()),
+            ("trajectory v", self.nv, other.state.v.len()),
+            ("trajectory lambda", self.m, other.state.lambda.len()),
+            (
+                "trajectory Newmark velocity",
+                self.nv,
+                other.v_newmark.len(),
+            ),
+        ];
+        for (what, expected, got) in checks {
+            if expected != got {
+                return Err(IntegrateError::DimensionMismatch {
+                    what,
+                    expected,
+                    got,
+                });
+            }
+        }
+        std::mem::swap(&mut self.t0, &mut other.t0);
+        std::mem::swap(&mut self.state, &mut other.state);
+        std::mem::swap(&mut self.v_newmark, &mut other.v_newmark);
+        std::mem::swap(&mut self.stats, &mut other.stats);
+        self.ws.mass_fresh = false;
+        self.ws.phi_q_fresh = false;
         Ok(())
     }
 

@@ -38,7 +38,9 @@ mod system;
 mod tests;
 
 pub use error::{IntegrateError, SystemError, WorstEntry};
-pub use hht::{iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtState, HhtStats};
+pub use hht::{
+    iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtState, HhtStats, HhtTrajectory,
+};
 pub use linalg::SINGULAR_PIVOT_RELATIVE;
 pub use settings::{HhtCoefficients, HhtSettings, ALPHA_MIN};
 pub use start::{

@@ -422,7 +422,9 @@ impl Model {
     /// is ignored with a warning, as Pinocchio does: the joint then moves independently.
     fn resolve_mimics(&mut self, path: &str) {
         for i in 0..self.joints.len() {
-            let Some(source) = self.joints[i].source else { continue };
+            let Some(source) = self.joints[i].source else {
+                continue;
+            };
             let spec = &self.description.joints[source];
             let Some(mimic) = &spec.mimic else { continue };
             let leader = self.joints.iter().position(|j| j.name == mimic.joint);
@@ -659,7 +661,10 @@ mod tests {
             .iter()
             .find(|w| w.contains("joint 'j2' mimics 'j0'"))
             .expect("warned");
-        assert!(warning.contains("did you mean 'j1'") && warning.contains("moves independently"), "{warning}");
+        assert!(
+            warning.contains("did you mean 'j1'") && warning.contains("moves independently"),
+            "{warning}"
+        );
         assert!(model.joints[1].mimic.is_none());
     }
 }

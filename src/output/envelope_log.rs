@@ -2,7 +2,9 @@
 //! upper), optionally an error-estimate channel per output, and the nominal robot's frames on `/tf`.
 //! Used by `simulate` (lower = nominal = upper) and `analyze`.
 
-use super::mcap::{EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, WorldFromLink};
+use super::mcap::{
+    EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, WorldFromLink,
+};
 use crate::dynamics::{frame_placements, Data};
 use crate::model::Model;
 use crate::scene::Output;
@@ -42,22 +44,37 @@ impl EnvelopeLog {
     ) -> Result<EnvelopeLog, Error> {
         let urdf_text = read_text(urdf, "URDF")?;
         let sidecar_text = sidecar.map(|p| read_text(p, "sidecar")).transpose()?;
-        let name_of = |p: &Path| p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned());
-        let sidecar_pair = sidecar.zip(sidecar_text.as_deref()).map(|(p, text)| (name_of(p), text));
+        let name_of = |p: &Path| {
+            p.file_name().map_or_else(
+                || p.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            )
+        };
+        let sidecar_pair = sidecar
+            .zip(sidecar_text.as_deref())
+            .map(|(p, text)| (name_of(p), text));
         let mut sink = McapSink::create(
             path,
             &name_of(urdf),
             &urdf_text,
-            sidecar_pair.as_ref().map(|(name, text)| (name.as_str(), *text)),
+            sidecar_pair
+                .as_ref()
+                .map(|(name, text)| (name.as_str(), *text)),
             metadata,
         )
         .map_err(mcap_error)?;
         let mut channels = Vec::with_capacity(outputs.len());
         let mut error_channels = Vec::new();
         for output in outputs {
-            channels.push(sink.add_output(OutputName::from_parts(&output.parts)).map_err(mcap_error)?);
+            channels.push(
+                sink.add_output(OutputName::from_parts(&output.parts))
+                    .map_err(mcap_error)?,
+            );
             if with_errors {
-                error_channels.push(sink.add_error_channel(OutputName::from_parts(&output.parts)).map_err(mcap_error)?);
+                error_channels.push(
+                    sink.add_error_channel(OutputName::from_parts(&output.parts))
+                        .map_err(mcap_error)?,
+                );
             }
         }
         Ok(EnvelopeLog {
@@ -78,11 +95,15 @@ impl EnvelopeLog {
         error: Option<&[f64]>,
     ) -> Result<(), Error> {
         for (i, channel) in self.channels.iter().enumerate() {
-            self.sink.write_envelope(*channel, t, lower[i], nominal[i], upper[i]).map_err(mcap_error)?;
+            self.sink
+                .write_envelope(*channel, t, lower[i], nominal[i], upper[i])
+                .map_err(mcap_error)?;
         }
         if let Some(error) = error {
             for (channel, value) in self.error_channels.iter().zip(error) {
-                self.sink.write_error(*channel, t, *value).map_err(mcap_error)?;
+                self.sink
+                    .write_error(*channel, t, *value)
+                    .map_err(mcap_error)?;
             }
         }
         Ok(())
@@ -91,9 +112,10 @@ impl EnvelopeLog {
     /// Writes every URDF link's placement on `/tf` at time `t`, from the body placements of the
     /// last forward kinematics in `data`.
     pub fn write_frames(&mut self, t: f64, model: &Model, data: &Data) -> Result<(), Error> {
-        let placements: Vec<(usize, crate::spatial::Transform)> = (0..model.description.links.len())
-            .map(|l| (l, frame_placements(model, data, l)))
-            .collect();
+        let placements: Vec<(usize, crate::spatial::Transform)> =
+            (0..model.description.links.len())
+                .map(|l| (l, frame_placements(model, data, l)))
+                .collect();
         let frames: Vec<WorldFromLink> = placements
             .iter()
             .map(|(l, placement)| {
@@ -102,7 +124,11 @@ impl EnvelopeLog {
                 );
                 WorldFromLink {
                     link: &model.description.links[*l].name,
-                    translation_m: [placement.translation.x, placement.translation.y, placement.translation.z],
+                    translation_m: [
+                        placement.translation.x,
+                        placement.translation.y,
+                        placement.translation.z,
+                    ],
                     rotation_xyzw: [rotation.i, rotation.j, rotation.k, rotation.w],
                 }
             })

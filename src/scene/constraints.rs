@@ -26,19 +26,32 @@ pub fn resolve(
     for (index, section) in loops.iter().enumerate() {
         let key = format!("[[scene.loop]] #{} '{}'", index + 1, section.name);
         if loops[..index].iter().any(|l| l.name == section.name) {
-            return Err(invalid(key, "this name is used by another loop".to_string()));
+            return Err(invalid(
+                key,
+                "this name is used by another loop".to_string(),
+            ));
         }
         resolved_loops.push(resolve_loop(section, model).map_err(|message| invalid(key, message))?);
     }
     let mut resolved_drives = Vec::with_capacity(drives.len());
     for (index, section) in drives.iter().enumerate() {
-        let name = section.name.clone().unwrap_or_else(|| section.joint.clone());
+        let name = section
+            .name
+            .clone()
+            .unwrap_or_else(|| section.joint.clone());
         let key = format!("[[scene.drive]] #{} '{name}'", index + 1);
         if resolved_drives.iter().any(|d: &Drive| d.name == name) {
-            return Err(invalid(key, "this name is used by another drive".to_string()));
+            return Err(invalid(
+                key,
+                "this name is used by another drive".to_string(),
+            ));
         }
-        let drive = resolve_drive(section, name, model).map_err(|message| invalid(key.clone(), message))?;
-        if let Some(other) = resolved_drives.iter().find(|d: &&Drive| d.q_index == drive.q_index) {
+        let drive =
+            resolve_drive(section, name, model).map_err(|message| invalid(key.clone(), message))?;
+        if let Some(other) = resolved_drives
+            .iter()
+            .find(|d: &&Drive| d.q_index == drive.q_index)
+        {
             return Err(invalid(
                 key,
                 format!("joint '{}' is already driven by '{}'; two drives on one joint are redundant rows", section.joint, other.name),
@@ -46,7 +59,11 @@ pub fn resolve(
         }
         resolved_drives.push(drive);
     }
-    Ok(ConstraintSet::new(resolved_loops, ConstraintSet::mimics_of(model), resolved_drives))
+    Ok(ConstraintSet::new(
+        resolved_loops,
+        ConstraintSet::mimics_of(model),
+        resolved_drives,
+    ))
 }
 
 fn resolve_drive(section: &DriveSection, name: String, model: &Model) -> Result<Drive, String> {
@@ -59,18 +76,27 @@ fn resolve_drive(section: &DriveSection, name: String, model: &Model) -> Result<
                 .iter()
                 .any(|j| j.name == section.joint && j.joint_type == UrdfJointType::Fixed);
             return Err(if is_fixed {
-                format!("joint '{}' is fixed; only moving joints can be driven", section.joint)
+                format!(
+                    "joint '{}' is fixed; only moving joints can be driven",
+                    section.joint
+                )
             } else {
                 format!(
                     "unknown joint '{}'{}",
                     section.joint,
-                    closest_suggestion(&section.joint, model.joints.iter().map(|j| j.name.as_str()))
+                    closest_suggestion(
+                        &section.joint,
+                        model.joints.iter().map(|j| j.name.as_str())
+                    )
                 )
             });
         }
     };
     if joint.kind == JointKind::Floating {
-        return Err(format!("joint '{}' is floating; drives take 1-dof joints", joint.name));
+        return Err(format!(
+            "joint '{}' is floating; drives take 1-dof joints",
+            joint.name
+        ));
     }
     let need = |key: &str, value: Option<f64>| -> Result<f64, String> {
         let value = value.ok_or_else(|| format!("profile '{}' needs `{key}`", section.profile))?;
@@ -94,12 +120,11 @@ fn resolve_drive(section: &DriveSection, name: String, model: &Model) -> Result<
             frequency: need("frequency", section.frequency)?,
             phase: need("phase", section.phase.or(Some(0.0)))?,
         },
-        "spline" => Profile::Spline(Spline::new(
-            section
-                .points
-                .as_deref()
-                .ok_or_else(|| "profile 'spline' needs `points = [[t, q], …]`".to_string())?,
-        )?),
+        "spline" => {
+            Profile::Spline(Spline::new(section.points.as_deref().ok_or_else(
+                || "profile 'spline' needs `points = [[t, q], …]`".to_string(),
+            )?)?)
+        }
         other => {
             return Err(format!(
                 "unknown profile '{other}'{}; profiles: constant, ramp, sine, spline",
@@ -139,7 +164,10 @@ fn resolve_loop(section: &LoopSection, model: &Model) -> Result<LoopClosure, Str
         model.description.link_index(name).ok_or_else(|| {
             format!(
                 "unknown {role} link '{name}'{}",
-                closest_suggestion(name, model.description.links.iter().map(|l| l.name.as_str()))
+                closest_suggestion(
+                    name,
+                    model.description.links.iter().map(|l| l.name.as_str())
+                )
             )
         })
     };
@@ -156,9 +184,15 @@ fn resolve_loop(section: &LoopSection, model: &Model) -> Result<LoopClosure, Str
         ));
     }
     if parent.is_none() && model.links[child].body.is_none() {
-        return Err(format!("link '{}' is fixed to the world; a loop must close on a moving link", section.child));
+        return Err(format!(
+            "link '{}' is fixed to the world; a loop must close on a moving link",
+            section.child
+        ));
     }
-    let points = section.point_in_parent.iter().chain(&section.point_in_child);
+    let points = section
+        .point_in_parent
+        .iter()
+        .chain(&section.point_in_child);
     if points.into_iter().any(|x| !x.is_finite()) {
         return Err("points must be finite".to_string());
     }
@@ -166,7 +200,10 @@ fn resolve_loop(section: &LoopSection, model: &Model) -> Result<LoopClosure, Str
         format!(
             "unknown type '{}'{}; types: ball, planar_pin, planar_slider, slider",
             section.loop_type,
-            closest_suggestion(&section.loop_type, ["ball", "planar_pin", "planar_slider", "slider"])
+            closest_suggestion(
+                &section.loop_type,
+                ["ball", "planar_pin", "planar_slider", "slider"]
+            )
         )
     })?;
     let t = section.loop_type.as_str();
@@ -182,7 +219,10 @@ fn resolve_loop(section: &LoopSection, model: &Model) -> Result<LoopClosure, Str
             let axis = unit(section.axis, "axis", t)?;
             let e = n.cross(&axis);
             if e.norm() < DIRECTION_TOLERANCE {
-                return Err("`axis` is parallel to `normal`; the slider must move within the plane".to_string());
+                return Err(
+                    "`axis` is parallel to `normal`; the slider must move within the plane"
+                        .to_string(),
+                );
             }
             vec![e.normalize()]
         }
@@ -190,7 +230,11 @@ fn resolve_loop(section: &LoopSection, model: &Model) -> Result<LoopClosure, Str
             let axis = unit(section.axis, "axis", t)?;
             let e1 = {
                 let c = axis.cross(&Vec3::z());
-                if c.norm() > DIRECTION_TOLERANCE { c } else { axis.cross(&Vec3::x()) }
+                if c.norm() > DIRECTION_TOLERANCE {
+                    c
+                } else {
+                    axis.cross(&Vec3::x())
+                }
             }
             .normalize();
             vec![e1, axis.cross(&e1).normalize()]

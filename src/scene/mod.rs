@@ -10,7 +10,7 @@ mod outputs;
 mod sidecar;
 
 pub use outputs::{Output, OutputKind};
-pub use sidecar::{parse_sidecar, JointSelection, SidecarFile};
+pub use sidecar::{parse_sidecar, AnalysisSection, JointSelection, SidecarFile};
 
 use crate::model::{JointKind, Model};
 use crate::spatial::rotation_from_rpy;
@@ -85,9 +85,11 @@ pub struct EffectSet {
     pub joint_limits: bool,
 }
 
-/// A linear joint spring `τ = −stiffness · (q − rest)`.
+/// A linear joint spring-damper `τ = −stiffness · (q − rest) − damping · q̇`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct JointSpring {
+    /// N·m·s/rad or N·s/m.
+    pub damping: f64,
     /// Model joint index.
     pub joint: usize,
     /// N·m/rad or N/m.
@@ -295,12 +297,15 @@ impl Scene {
         let mut springs = Vec::with_capacity(s.spring.len());
         for spring in &s.spring {
             let joint = one_dof_joint("[[scene.spring]] joint", &spring.joint)?;
-            if !(spring.stiffness.is_finite() && spring.stiffness >= 0.0 && spring.rest.is_finite())
+            let non_negative = |x: f64| x.is_finite() && x >= 0.0;
+            if !(non_negative(spring.stiffness)
+                && non_negative(spring.damping)
+                && spring.rest.is_finite())
             {
                 return Err(invalid(
                     "[[scene.spring]]",
                     format!(
-                        "joint '{}': stiffness must be finite and ≥ 0, rest finite",
+                        "joint '{}': stiffness and damping must be finite and ≥ 0, rest finite",
                         spring.joint
                     ),
                 ));
@@ -309,6 +314,7 @@ impl Scene {
                 joint,
                 stiffness: spring.stiffness,
                 rest: spring.rest,
+                damping: spring.damping,
             });
         }
         if !springs.is_empty() && !effects.joint_springs {
@@ -388,7 +394,7 @@ impl Scene {
 
     /// Whether step `k` (0 ..= n_steps) is recorded: every `record_every` steps, plus the last.
     pub fn records_step(&self, k: usize) -> bool {
-        k % self.record_every == 0 || k == self.n_steps
+        k.is_multiple_of(self.record_every) || k == self.n_steps
     }
 }
 

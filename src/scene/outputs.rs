@@ -203,7 +203,10 @@ pub fn resolve(
                 name: format!("effort.{}", drive.name),
                 parts: parts(&["effort", &drive.name]),
                 unit: unit_of_coordinate(drive.v_index, "N·m", "N"),
-                kind: OutputKind::Multiplier { row: first + i, sign: -1.0 },
+                kind: OutputKind::Multiplier {
+                    row: first + i,
+                    sign: -1.0,
+                },
             });
         }
     }

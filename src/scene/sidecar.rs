@@ -140,7 +140,8 @@ pub struct BaseSection {
     pub w: [f64; 3],
 }
 
-/// `[[scene.spring]]`: a linear joint spring `τ = −stiffness · (q − rest)`.
+/// `[[scene.spring]]`: a linear joint spring-damper `τ = −stiffness · (q − rest) − damping · q̇` (a
+/// PD position controller holding `rest`; `damping` extends the design contract).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpringSection {
@@ -151,6 +152,9 @@ pub struct SpringSection {
     /// Rest position, rad or m (default 0).
     #[serde(default)]
     pub rest: f64,
+    /// Damping, N·m·s/rad or N·s/m (default 0).
+    #[serde(default)]
+    pub damping: f64,
 }
 
 /// `joints = "all"` or a list of names.

@@ -8,6 +8,6 @@ mod recorder;
 mod run;
 mod system;
 
-pub use recorder::Recorder;
+pub use recorder::{InitialOrientations, Recorder};
 pub use run::{hht_settings, initial_violation, simulate, SimulationError, Trajectory};
 pub use system::RobotSystem;

@@ -5,14 +5,16 @@ use crate::model::Model;
 use crate::scene::{Output, OutputKind};
 use nalgebra::{Quaternion, UnitQuaternion};
 
-/// Evaluates outputs; remembers each floating joint's initial orientation for the rotation-vector
-/// outputs.
+/// Evaluates outputs. The rotation-vector outputs of a floating base are relative to its initial
+/// orientation, which each trajectory keeps ([`Recorder::initial_orientations`]).
 #[derive(Clone, Debug)]
 pub struct Recorder {
     outputs: Vec<Output>,
     needs_kinematics: bool,
-    initial_orientation: Vec<Option<UnitQuaternion<f64>>>,
 }
+
+/// The initial orientation of each floating joint of a trajectory (`None` for other joints).
+pub type InitialOrientations = Vec<Option<UnitQuaternion<f64>>>;
 
 fn orientation(q: &[f64], q_index: usize) -> UnitQuaternion<f64> {
     UnitQuaternion::new_normalize(Quaternion::new(
@@ -24,21 +26,23 @@ fn orientation(q: &[f64], q_index: usize) -> UnitQuaternion<f64> {
 }
 
 impl Recorder {
-    /// A recorder of `outputs`; `initial_q` (dim nq) fixes the reference orientation of floating
-    /// joints.
-    pub fn new(model: &Model, outputs: &[Output], initial_q: &[f64]) -> Self {
-        let initial_orientation = model
-            .joints
-            .iter()
-            .map(|j| (j.nq() == 7).then(|| orientation(initial_q, j.q_index)))
-            .collect();
+    /// A recorder of `outputs`.
+    pub fn new(outputs: &[Output]) -> Self {
         Self {
             outputs: outputs.to_vec(),
             needs_kinematics: outputs
                 .iter()
                 .any(|o| matches!(o.kind, OutputKind::FramePosition { .. })),
-            initial_orientation,
         }
+    }
+
+    /// The reference orientations of a trajectory starting at `initial_q` (dim nq).
+    pub fn initial_orientations(model: &Model, initial_q: &[f64]) -> InitialOrientations {
+        model
+            .joints
+            .iter()
+            .map(|j| (j.nq() == 7).then(|| orientation(initial_q, j.q_index)))
+            .collect()
     }
 
     /// The outputs, in recording order.
@@ -47,7 +51,7 @@ impl Recorder {
     }
 
     /// Writes one value per output into `row` (`dim outputs.len()`). `q: dim nq`, `v, qdd: dim nv`,
-    /// `lambda: dim m`.
+    /// `lambda: dim m`; `initial` from [`Recorder::initial_orientations`].
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
@@ -57,6 +61,7 @@ impl Recorder {
         v: &[f64],
         qdd: &[f64],
         lambda: &[f64],
+        initial: &[Option<UnitQuaternion<f64>>],
         row: &mut [f64],
     ) {
         if self.needs_kinematics {
@@ -73,8 +78,8 @@ impl Recorder {
                 OutputKind::BasePosition { joint, axis } => q[model.joints[joint].q_index + axis],
                 OutputKind::BaseRotation { joint, axis } => {
                     let now = orientation(q, model.joints[joint].q_index);
-                    let initial = self.initial_orientation[joint].unwrap_or(now);
-                    (initial.inverse() * now).scaled_axis()[axis]
+                    let reference = initial.get(joint).copied().flatten().unwrap_or(now);
+                    (reference.inverse() * now).scaled_axis()[axis]
                 }
                 OutputKind::Multiplier { row, sign } => sign * lambda[row],
             };

@@ -57,7 +57,11 @@ impl SimulationError {
     /// Names the rows an integrator error points at. `initial_violation` is `max |Φ(q0)|`: rows
     /// that become dependent while a far-off loop is being closed mean the loop cannot close (the
     /// projection stretched the linkage into a singular pose), not that the rows are redundant.
-    pub fn from_integrate(source: IntegrateError, constraints: &ConstraintSet, initial_violation: f64) -> SimulationError {
+    pub fn from_integrate(
+        source: IntegrateError,
+        constraints: &ConstraintSet,
+        initial_violation: f64,
+    ) -> SimulationError {
         match &source {
             IntegrateError::RedundantConstraints { row, .. } if initial_violation > CLOSED_AT_START => {
                 SimulationError::Constraints {
@@ -101,9 +105,13 @@ pub fn initial_violation(system: &mut RobotSystem, scene: &Scene) -> f64 {
         return 0.0;
     }
     let mut phi = DVector::zeros(system.constraints.len());
-    system
-        .constraints
-        .evaluate(&system.model, &mut system.data, 0.0, &scene.initial_q, &mut phi);
+    system.constraints.evaluate(
+        &system.model,
+        &mut system.data,
+        0.0,
+        &scene.initial_q,
+        &mut phi,
+    );
     phi.amax()
 }
 
@@ -111,18 +119,16 @@ pub fn initial_violation(system: &mut RobotSystem, scene: &Scene) -> f64 {
 pub fn simulate(model: Model, scene: &Scene) -> Result<Trajectory, SimulationError> {
     let mut system = RobotSystem::new(model, scene);
     let violation = initial_violation(&mut system, scene);
-    simulate_system(system, scene).map_err(|e| SimulationError::from_integrate(e, &scene.constraints, violation))
+    simulate_system(system, scene)
+        .map_err(|e| SimulationError::from_integrate(e, &scene.constraints, violation))
 }
 
 fn simulate_system(mut system: RobotSystem, scene: &Scene) -> Result<Trajectory, IntegrateError> {
     let q0 = DVector::from_column_slice(&scene.initial_q);
     let v0 = DVector::from_column_slice(&scene.initial_v);
     let mut integrator = HhtIntegrator::new(&mut system, hht_settings(scene), 0.0, &q0, &v0)?;
-    let recorder = Recorder::new(
-        &system.model,
-        &scene.outputs,
-        integrator.state().q.as_slice(),
-    );
+    let recorder = Recorder::new(&scene.outputs);
+    let initial = Recorder::initial_orientations(&system.model, integrator.state().q.as_slice());
     let n_records = scene.n_steps / scene.record_every + 2;
     let mut times = Vec::with_capacity(n_records);
     let mut values: Vec<Vec<f64>> = vec![Vec::with_capacity(n_records); scene.outputs.len()];
@@ -141,6 +147,7 @@ fn simulate_system(mut system: RobotSystem, scene: &Scene) -> Result<Trajectory,
                 state.v.as_slice(),
                 state.qdd.as_slice(),
                 state.lambda.as_slice(),
+                &initial,
                 &mut row,
             );
             times.push(state.t);

@@ -81,17 +81,34 @@ impl DaeSystem for RobotSystem {
         self.constraints.len()
     }
 
-    fn constraints(&mut self, t: f64, q: &DVector<f64>, out: &mut DVector<f64>) -> Result<(), SystemError> {
-        self.constraints.evaluate(&self.model, &mut self.data, t, q.as_slice(), out);
+    fn constraints(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints
+            .evaluate(&self.model, &mut self.data, t, q.as_slice(), out);
         Ok(())
     }
 
-    fn constraint_jacobian(&mut self, _t: f64, q: &DVector<f64>, out: &mut DMatrix<f64>) -> Result<(), SystemError> {
-        self.constraints.jacobian(&self.model, &mut self.data, q.as_slice(), out);
+    fn constraint_jacobian(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints
+            .jacobian(&self.model, &mut self.data, q.as_slice(), out);
         Ok(())
     }
 
-    fn constraint_time_derivative(&mut self, t: f64, _q: &DVector<f64>, out: &mut DVector<f64>) -> Result<(), SystemError> {
+    fn constraint_time_derivative(
+        &mut self,
+        t: f64,
+        _q: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
         self.constraints.time_derivative(t, out);
         Ok(())
     }
@@ -103,8 +120,14 @@ impl DaeSystem for RobotSystem {
         v: &DVector<f64>,
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
-        self.constraints
-            .acceleration_bias(&self.model, &mut self.data, t, q.as_slice(), v.as_slice(), out);
+        self.constraints.acceleration_bias(
+            &self.model,
+            &mut self.data,
+            t,
+            q.as_slice(),
+            v.as_slice(),
+            out,
+        );
         Ok(())
     }
 

@@ -121,7 +121,7 @@ impl ParameterBox {
     /// physical values, same layout.
     pub fn x_from_xi_rows(&self, xi_rows: &[f64]) -> Result<Vec<f64>, UqError> {
         let d = self.dim();
-        if xi_rows.len() % d != 0 {
+        if !xi_rows.len().is_multiple_of(d) {
             return Err(UqError::WrongLength {
                 what: "x_from_xi_rows: rows of d standard coordinates",
                 expected: xi_rows.len() / d * d,

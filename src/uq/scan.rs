@@ -145,7 +145,7 @@ impl Scanner {
             });
         }
         let n = options.points_per_dim;
-        if n < 3 || n % 2 == 0 {
+        if n < 3 || n.is_multiple_of(2) {
             return Err(UqError::InvalidScanGrid { points: n });
         }
         let m = order + 1;

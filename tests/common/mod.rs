@@ -27,7 +27,9 @@ pub fn manifest_dir() -> PathBuf {
 
 /// `CARGO_TARGET_DIR` (relative to the crate root when relative) or `<crate root>/target`.
 pub fn target_dir() -> PathBuf {
-    match std::env::var_os("CARGO_TARGET_DIR").or_else(|| option_env!("CARGO_TARGET_DIR").map(Into::into)) {
+    match std::env::var_os("CARGO_TARGET_DIR")
+        .or_else(|| option_env!("CARGO_TARGET_DIR").map(Into::into))
+    {
         Some(dir) if !dir.is_empty() => manifest_dir().join(dir),
         _ => manifest_dir().join("target"),
     }
@@ -41,7 +43,10 @@ pub fn ribbon_bin() -> PathBuf {
 /// A command as one shell-pasteable line (for panic messages and reproductions).
 pub fn shell_line(program: &Path, args: &[String]) -> String {
     fn quote(s: &str) -> String {
-        if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=,:+@%".contains(c)) {
+        if !s.is_empty()
+            && s.chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_./=,:+@%".contains(c))
+        {
             s.to_string()
         } else {
             format!("'{}'", s.replace('\'', r"'\''"))
@@ -89,7 +94,12 @@ pub fn run_checked(program: &Path, args: &[String], what: &str) -> Output {
         .current_dir(manifest_dir())
         .stdin(Stdio::null())
         .output()
-        .unwrap_or_else(|e| panic!("{what}: could not start `{}`: {e}", shell_line(program, args)));
+        .unwrap_or_else(|e| {
+            panic!(
+                "{what}: could not start `{}`: {e}",
+                shell_line(program, args)
+            )
+        });
     if !output.status.success() {
         panic!(
             "{what} failed\n  command: {}\n  status: {}\n  stderr (tail):\n{}\n  stdout (tail):\n{}",
@@ -182,7 +192,11 @@ where
 /// A comma-separated vector for `--q=…` and friends; `{}` on f64 prints the shortest text that
 /// reads back to the same number, so nothing is lost on the way.
 pub fn csv(values: &[f64]) -> String {
-    values.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(",")
+    values
+        .iter()
+        .map(|x| format!("{x}"))
+        .collect::<Vec<_>>()
+        .join(",")
 }
 
 /// FNV-1a 64-bit hash as 16 hex digits (tests/reference/pin_dynamics.py computes the same).
@@ -218,22 +232,34 @@ fn create_reference_venv() -> PathBuf {
     let lock_path = target.join("reference-venv.lock");
     let python = venv.join("bin").join("python");
     let requirements_file = requirements_path();
-    let requirements = fs::read_to_string(&requirements_file)
-        .unwrap_or_else(|e| panic!("reference venv: cannot read {}: {e}", requirements_file.display()));
+    let requirements = fs::read_to_string(&requirements_file).unwrap_or_else(|e| {
+        panic!(
+            "reference venv: cannot read {}: {e}",
+            requirements_file.display()
+        )
+    });
 
-    fs::create_dir_all(&target).unwrap_or_else(|e| panic!("reference venv: cannot create {}: {e}", target.display()));
+    fs::create_dir_all(&target)
+        .unwrap_or_else(|e| panic!("reference venv: cannot create {}: {e}", target.display()));
     let lock = File::options()
         .create(true)
         .truncate(false)
         .write(true)
         .open(&lock_path)
-        .unwrap_or_else(|e| panic!("reference venv: cannot open the lock file {}: {e}", lock_path.display()));
+        .unwrap_or_else(|e| {
+            panic!(
+                "reference venv: cannot open the lock file {}: {e}",
+                lock_path.display()
+            )
+        });
     // Blocks while another test binary installs; released when `lock` is dropped (or the
     // process dies), so a crashed install never leaves the lock held.
     lock.lock()
         .unwrap_or_else(|e| panic!("reference venv: cannot lock {}: {e}", lock_path.display()));
 
-    let installed = fs::read_to_string(&stamp).map(|s| s == requirements).unwrap_or(false);
+    let installed = fs::read_to_string(&stamp)
+        .map(|s| s == requirements)
+        .unwrap_or(false);
     if installed && python.exists() {
         return python;
     }
@@ -241,18 +267,27 @@ fn create_reference_venv() -> PathBuf {
     // Not installed, half-installed, or installed from another requirements file: start over.
     let _ = fs::remove_file(&stamp);
     if venv.exists() {
-        fs::remove_dir_all(&venv)
-            .unwrap_or_else(|e| panic!("reference venv: cannot remove the stale venv {}: {e}", venv.display()));
+        fs::remove_dir_all(&venv).unwrap_or_else(|e| {
+            panic!(
+                "reference venv: cannot remove the stale venv {}: {e}",
+                venv.display()
+            )
+        });
     }
     eprintln!(
         "reference venv: creating {} from {} (once per target dir; under a minute)",
         venv.display(),
         requirements_file.display()
     );
-    let system_python = PathBuf::from(std::env::var_os("RIBBON_PYTHON").unwrap_or_else(|| "python3".into()));
+    let system_python =
+        PathBuf::from(std::env::var_os("RIBBON_PYTHON").unwrap_or_else(|| "python3".into()));
     run_checked(
         &system_python,
-        &args(["-m".to_string(), "venv".to_string(), venv.display().to_string()]),
+        &args([
+            "-m".to_string(),
+            "venv".to_string(),
+            venv.display().to_string(),
+        ]),
         "reference venv: creating the venv",
     );
     run_checked(
@@ -271,7 +306,12 @@ fn create_reference_venv() -> PathBuf {
     let tmp = stamp.with_extension("stamp.tmp");
     fs::write(&tmp, &requirements)
         .and_then(|()| fs::rename(&tmp, &stamp))
-        .unwrap_or_else(|e| panic!("reference venv: cannot write the stamp {}: {e}", stamp.display()));
+        .unwrap_or_else(|e| {
+            panic!(
+                "reference venv: cannot write the stamp {}: {e}",
+                stamp.display()
+            )
+        });
     drop(lock);
     python
 }
@@ -299,7 +339,8 @@ pub fn files_with_extension(dir: &Path, ext: &str) -> Vec<PathBuf> {
     let mut found = Vec::new();
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
-        let entries = fs::read_dir(&d).unwrap_or_else(|e| panic!("cannot list {}: {e}", d.display()));
+        let entries =
+            fs::read_dir(&d).unwrap_or_else(|e| panic!("cannot list {}: {e}", d.display()));
         for entry in entries {
             let path = entry
                 .unwrap_or_else(|e| panic!("cannot list {}: {e}", d.display()))

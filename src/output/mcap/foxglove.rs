@@ -164,7 +164,13 @@ const TYPE_STRING: i32 = 9;
 const TYPE_MESSAGE: i32 = 11;
 
 /// A field; `json_name` is the lowerCamelCase of `name`, as protoc fills it in.
-fn field(name: &str, number: i32, label: i32, r#type: i32, type_name: Option<&str>) -> FieldDescriptorProto {
+fn field(
+    name: &str,
+    number: i32,
+    label: i32,
+    r#type: i32,
+    type_name: Option<&str>,
+) -> FieldDescriptorProto {
     let mut json_name = String::with_capacity(name.len());
     let mut upper_next = false;
     for c in name.chars() {
@@ -219,7 +225,12 @@ pub fn frame_transforms_descriptor_set() -> Vec<u8> {
         "foxglove",
         &[],
         "Quaternion",
-        vec![double("x", 1), double("y", 2), double("z", 3), double("w", 4)],
+        vec![
+            double("x", 1),
+            double("y", 2),
+            double("z", 3),
+            double("w", 4),
+        ],
         None,
     );
     let vector3 = file(
@@ -300,7 +311,13 @@ pub fn frame_transforms_descriptor_set() -> Vec<u8> {
         None,
     );
     FileDescriptorSet {
-        file: vec![quaternion, vector3, timestamp, frame_transform, frame_transforms],
+        file: vec![
+            quaternion,
+            vector3,
+            timestamp,
+            frame_transform,
+            frame_transforms,
+        ],
     }
     .encode_to_vec()
 }
@@ -335,10 +352,17 @@ mod tests {
     fn frame_transform_encodes_fields_in_tag_order() {
         let message = FrameTransforms {
             transforms: vec![FrameTransform {
-                timestamp: Some(Timestamp { seconds: 1, nanos: 0 }),
+                timestamp: Some(Timestamp {
+                    seconds: 1,
+                    nanos: 0,
+                }),
                 parent_frame_id: "world".to_string(),
                 child_frame_id: "a".to_string(),
-                translation: Some(Vector3 { x: 0.0, y: 0.0, z: 0.0 }),
+                translation: Some(Vector3 {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                }),
                 rotation: Some(Quaternion {
                     x: 0.0,
                     y: 0.0,

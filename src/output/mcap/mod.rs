@@ -201,20 +201,31 @@ impl McapSink {
             topics: HashSet::new(),
             finished: false,
         };
-        sink.writer = Some(writer.map_err(|source| sink.mcap_error("write the MCAP header", source))?);
+        sink.writer =
+            Some(writer.map_err(|source| sink.mcap_error("write the MCAP header", source))?);
 
         sink.joint_state_schema = sink.add_schema(
             ros2::JOINT_STATE_NAME,
             "ros2msg",
             ros2::JOINT_STATE_DEFINITION.as_bytes(),
         )?;
-        let string_schema = sink.add_schema(ros2::STRING_NAME, "ros2msg", ros2::STRING_DEFINITION.as_bytes())?;
+        let string_schema = sink.add_schema(
+            ros2::STRING_NAME,
+            "ros2msg",
+            ros2::STRING_DEFINITION.as_bytes(),
+        )?;
         let tf_schema = sink.add_schema(
             foxglove::FRAME_TRANSFORMS_NAME,
             "protobuf",
             &foxglove::frame_transforms_descriptor_set(),
         )?;
-        sink.add_channel(ChannelKind::Tf, tf_schema, TF_TOPIC, "protobuf", BTreeMap::new())?;
+        sink.add_channel(
+            ChannelKind::Tf,
+            tf_schema,
+            TF_TOPIC,
+            "protobuf",
+            BTreeMap::new(),
+        )?;
         let description = sink.add_channel(
             ChannelKind::RobotDescription,
             string_schema,
@@ -266,14 +277,20 @@ impl McapSink {
     /// `sensor_msgs/msg/JointState` with names `lower`, `nominal`, `upper`. A `&str` splits at
     /// every dot (`"q.elbow_joint"` → `/ribbon/envelope/q/elbow_joint`); see [`OutputName`] for
     /// names with dots inside. The channel's metadata holds the output name as `output`.
-    pub fn add_output(&mut self, name: impl Into<OutputName>) -> Result<EnvelopeChannel, McapError> {
+    pub fn add_output(
+        &mut self,
+        name: impl Into<OutputName>,
+    ) -> Result<EnvelopeChannel, McapError> {
         self.add_joint_state_channel(ChannelKind::Envelope, ENVELOPE_PREFIX, &name.into())
             .map(EnvelopeChannel)
     }
 
     /// Registers an output's error-estimate channel: topic `/ribbon/error/<parts joined by '/'>`,
     /// `sensor_msgs/msg/JointState` with the one name `estimate`.
-    pub fn add_error_channel(&mut self, name: impl Into<OutputName>) -> Result<ErrorChannel, McapError> {
+    pub fn add_error_channel(
+        &mut self,
+        name: impl Into<OutputName>,
+    ) -> Result<ErrorChannel, McapError> {
         self.add_joint_state_channel(ChannelKind::Error, ERROR_PREFIX, &name.into())
             .map(ErrorChannel)
     }
@@ -288,18 +305,32 @@ impl McapSink {
         upper: f64,
     ) -> Result<(), McapError> {
         self.check_handle(channel.0, ChannelKind::Envelope)?;
-        self.write_joint_state(channel.0, time_s, &ENVELOPE_SERIES, &[lower, nominal, upper])
+        self.write_joint_state(
+            channel.0,
+            time_s,
+            &ENVELOPE_SERIES,
+            &[lower, nominal, upper],
+        )
     }
 
     /// Writes one error estimate at simulation time `time_s` (s from 0).
-    pub fn write_error(&mut self, channel: ErrorChannel, time_s: f64, estimate: f64) -> Result<(), McapError> {
+    pub fn write_error(
+        &mut self,
+        channel: ErrorChannel,
+        time_s: f64,
+        estimate: f64,
+    ) -> Result<(), McapError> {
         self.check_handle(channel.0, ChannelKind::Error)?;
         self.write_joint_state(channel.0, time_s, &ERROR_SERIES, &[estimate])
     }
 
     /// Writes the nominal robot's frames at simulation time `time_s` on `/tf`: one
     /// `foxglove.FrameTransform` per entry, parent `world`, child the link, time stamp `time_s`.
-    pub fn write_transforms(&mut self, time_s: f64, frames: &[WorldFromLink<'_>]) -> Result<(), McapError> {
+    pub fn write_transforms(
+        &mut self,
+        time_s: f64,
+        frames: &[WorldFromLink<'_>],
+    ) -> Result<(), McapError> {
         let nanos = self.nanos(time_s, TF_TOPIC)?;
         let timestamp = foxglove::Timestamp {
             seconds: (nanos / 1_000_000_000) as i64,
@@ -347,10 +378,14 @@ impl McapSink {
                 ("method".to_string(), m.method.clone()),
                 (
                     "order".to_string(),
-                    m.order.map_or_else(|| "null".to_string(), |k| k.to_string()),
+                    m.order
+                        .map_or_else(|| "null".to_string(), |k| k.to_string()),
                 ),
                 ("runs".to_string(), m.runs.to_string()),
-                ("ribbon_version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+                (
+                    "ribbon_version".to_string(),
+                    env!("CARGO_PKG_VERSION").to_string(),
+                ),
                 ("partial".to_string(), partial.to_string()),
                 ("parameters".to_string(), m.parameters_json.clone()),
             ]),
@@ -359,17 +394,28 @@ impl McapSink {
         result.map_err(|source| self.mcap_error("write the `ribbon` metadata record", source))?;
         let result = self.writer_mut().finish();
         result.map_err(|source| self.mcap_error("write the summary and footer", source))?;
-        let writer = self.writer.take().expect("a sink holds its writer until finished");
-        let file = writer.into_inner().into_inner().map_err(|e| McapError::Io {
-            path: self.path.clone(),
-            what: format!("flush {}", self.temporary.display()),
-            source: e.into_error(),
-        })?;
-        file.sync_all().map_err(|source| self.io_error("sync", source))?;
+        let writer = self
+            .writer
+            .take()
+            .expect("a sink holds its writer until finished");
+        let file = writer
+            .into_inner()
+            .into_inner()
+            .map_err(|e| McapError::Io {
+                path: self.path.clone(),
+                what: format!("flush {}", self.temporary.display()),
+                source: e.into_error(),
+            })?;
+        file.sync_all()
+            .map_err(|source| self.io_error("sync", source))?;
         drop(file);
         std::fs::rename(&self.temporary, &self.path).map_err(|source| McapError::Io {
             path: self.path.clone(),
-            what: format!("rename {} to {}", self.temporary.display(), self.path.display()),
+            what: format!(
+                "rename {} to {}",
+                self.temporary.display(),
+                self.path.display()
+            ),
             source,
         })?;
         self.finished = true;
@@ -379,7 +425,9 @@ impl McapSink {
     // ---- helpers ----
 
     fn writer_mut(&mut self) -> &mut Writer<BufWriter<File>> {
-        self.writer.as_mut().expect("a sink holds its writer until finished")
+        self.writer
+            .as_mut()
+            .expect("a sink holds its writer until finished")
     }
 
     fn mcap_error(&self, what: &str, source: ::mcap::McapError) -> McapError {
@@ -426,8 +474,11 @@ impl McapSink {
                 topic: topic.to_string(),
             });
         }
-        let result = self.writer_mut().add_channel(schema, topic, encoding, &metadata);
-        let id = result.map_err(|source| self.mcap_error(&format!("add the channel {topic}"), source))?;
+        let result = self
+            .writer_mut()
+            .add_channel(schema, topic, encoding, &metadata);
+        let id = result
+            .map_err(|source| self.mcap_error(&format!("add the channel {topic}"), source))?;
         self.channels.push(Channel {
             kind,
             id,
@@ -492,7 +543,10 @@ impl McapSink {
             time_s,
         })?;
         let message = ros2::JointState {
-            header: ros2::Header { stamp, frame_id: "" },
+            header: ros2::Header {
+                stamp,
+                frame_id: "",
+            },
             name: names,
             position: values,
             velocity: &[],
@@ -503,7 +557,12 @@ impl McapSink {
     }
 
     /// Writes one message on `channels[channel]` with log time = publish time = `nanos`.
-    fn write_message(&mut self, channel: usize, nanos: u64, payload: &[u8]) -> Result<(), McapError> {
+    fn write_message(
+        &mut self,
+        channel: usize,
+        nanos: u64,
+        payload: &[u8],
+    ) -> Result<(), McapError> {
         let entry = &mut self.channels[channel];
         let header = MessageHeader {
             channel_id: entry.id,
@@ -513,8 +572,12 @@ impl McapSink {
         };
         entry.sequence = entry.sequence.wrapping_add(1);
         let result = self.writer_mut().write_to_known_channel(&header, payload);
-        result
-            .map_err(|source| self.mcap_error(&format!("write a message on {}", self.channels[channel].topic), source))
+        result.map_err(|source| {
+            self.mcap_error(
+                &format!("write a message on {}", self.channels[channel].topic),
+                source,
+            )
+        })
     }
 }
 

@@ -74,8 +74,14 @@ mod tests {
 
     #[test]
     fn contract_examples() {
-        assert_eq!(OutputName::from("q.elbow_joint").topic_suffix(), "q/elbow_joint");
-        assert_eq!(OutputName::from("frame.tool0.z").topic_suffix(), "frame/tool0/z");
+        assert_eq!(
+            OutputName::from("q.elbow_joint").topic_suffix(),
+            "q/elbow_joint"
+        );
+        assert_eq!(
+            OutputName::from("frame.tool0.z").topic_suffix(),
+            "frame/tool0/z"
+        );
     }
 
     #[test]

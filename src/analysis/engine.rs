@@ -1,0 +1,298 @@
+//! Lock-step simulation of many samples: every sample advances through one block of record times,
+//! then the next, so memory holds one block of records, never a whole trajectory per sample.
+//!
+//! A sample keeps only its trajectory state ([`HhtTrajectory`]: a few vectors of length nv); each
+//! worker thread owns one [`RobotSystem`] (a model copy and its work buffers) and one integrator
+//! workspace, writes the sample's parameter values into its model ([`ParameterSpace::apply`]), swaps
+//! the sample's trajectory in, steps it through the block, and swaps it out. No locks; the result of
+//! a sample does not depend on which thread ran it, so studies are deterministic for any thread
+//! count.
+
+use crate::integrate::{HhtIntegrator, HhtSettings, HhtTrajectory, IntegrateError};
+use crate::scene::Scene;
+use crate::simulate::{InitialOrientations, Recorder, RobotSystem, SimulationError};
+use crate::uncertainty::ParameterSpace;
+use nalgebra::DVector;
+use rayon::prelude::*;
+
+/// A sample that failed: where in the box, when, and why.
+#[derive(Clone, Debug)]
+pub struct SampleFailure {
+    /// Index of the sample in the plan (the nominal run is the last index).
+    pub index: usize,
+    /// Its point in standard coordinates.
+    pub xi: Vec<f64>,
+    /// Its parameter values.
+    pub values: Vec<f64>,
+    /// Time of the failure, s.
+    pub time_s: f64,
+    /// What went wrong.
+    pub message: String,
+}
+
+/// One sample's carried state.
+struct Sample {
+    xi: Vec<f64>,
+    trajectory: Option<HhtTrajectory>,
+    initial: InitialOrientations,
+    /// This block's records: `records × outputs`, record-major.
+    block: Vec<f64>,
+    /// This block's configurations (`records × nq`), kept for the nominal run only.
+    positions: Option<Vec<f64>>,
+    failure: Option<SampleFailure>,
+}
+
+/// All samples of a study, advanced together.
+pub struct LockStep<'a> {
+    template: RobotSystem,
+    space: &'a ParameterSpace,
+    scene: &'a Scene,
+    settings: HhtSettings,
+    recorder: Recorder,
+    samples: Vec<Sample>,
+    /// Steps taken so far (the same for every live sample).
+    step: usize,
+    newton_iterations: u64,
+    steps_taken: u64,
+}
+
+impl<'a> LockStep<'a> {
+    /// Prepares the samples at `points` (row-major, `n × d`) plus the nominal point (last).
+    pub fn new(
+        template: RobotSystem,
+        space: &'a ParameterSpace,
+        scene: &'a Scene,
+        settings: HhtSettings,
+        points: &[f64],
+        nominal_xi: &[f64],
+    ) -> LockStep<'a> {
+        let d = space.len().max(1);
+        let mut samples: Vec<Sample> = points
+            .chunks_exact(d)
+            .map(|xi| Sample {
+                xi: xi.to_vec(),
+                trajectory: None,
+                initial: Vec::new(),
+                block: Vec::new(),
+                positions: None,
+                failure: None,
+            })
+            .collect();
+        samples.push(Sample {
+            xi: nominal_xi.to_vec(),
+            trajectory: None,
+            initial: Vec::new(),
+            block: Vec::new(),
+            positions: Some(Vec::new()),
+            failure: None,
+        });
+        LockStep {
+            template,
+            space,
+            scene,
+            settings,
+            recorder: Recorder::new(&scene.outputs),
+            samples,
+            step: 0,
+            newton_iterations: 0,
+            steps_taken: 0,
+        }
+    }
+
+    /// Total Newton iterations and steps so far (all samples).
+    pub fn counters(&self) -> (u64, u64) {
+        (self.newton_iterations, self.steps_taken)
+    }
+
+    /// Failures so far, by sample index.
+    pub fn failures(&self) -> Vec<SampleFailure> {
+        self.samples
+            .iter()
+            .filter_map(|s| s.failure.clone())
+            .collect()
+    }
+
+    /// Whether sample `i` has failed.
+    pub fn failed(&self, i: usize) -> bool {
+        self.samples[i].failure.is_some()
+    }
+
+    /// Simulates every live sample through the records `first..first + count` (record `r` is at
+    /// step `min(r · record_every, n_steps)`), filling each sample's block.
+    pub fn advance(&mut self, first_record: usize, count: usize, threads: &rayon::ThreadPool) {
+        let n_outputs = self.scene.outputs.len();
+        let nq = self.template.model.nq;
+        let scene = self.scene;
+        let space = self.space;
+        let settings = self.settings;
+        let recorder = &self.recorder;
+        let template = &self.template;
+        let start_step = self.step;
+        let record_step = |r: usize| (r * scene.record_every).min(scene.n_steps);
+        let counters: Vec<(u64, u64)> = threads.install(|| {
+            self.samples
+                .par_iter_mut()
+                .enumerate()
+                .map_init(
+                    || (template.clone(), None::<HhtIntegrator>),
+                    |(system, integrator), (index, sample)| {
+                        if sample.failure.is_some() {
+                            return (0, 0);
+                        }
+                        sample.block.clear();
+                        sample.block.resize(count * n_outputs, 0.0);
+                        if let Some(positions) = &mut sample.positions {
+                            positions.clear();
+                            positions.resize(count * nq, 0.0);
+                        }
+                        space.apply(&mut system.model, &sample.xi);
+                        let before = sample
+                            .trajectory
+                            .as_ref()
+                            .map(|t| (t.stats.newton_iterations, t.stats.steps));
+                        let result = run_sample(
+                            system,
+                            integrator,
+                            sample,
+                            settings,
+                            scene,
+                            recorder,
+                            start_step,
+                            first_record,
+                            count,
+                            &record_step,
+                        );
+                        if let Err((time_s, message)) = result {
+                            sample.failure = Some(SampleFailure {
+                                index,
+                                xi: sample.xi.clone(),
+                                values: space.values_at(&sample.xi),
+                                time_s,
+                                message,
+                            });
+                        }
+                        let after = sample
+                            .trajectory
+                            .as_ref()
+                            .map(|t| (t.stats.newton_iterations, t.stats.steps));
+                        match (before, after) {
+                            (Some(b), Some(a)) => (a.0 - b.0, a.1 - b.1),
+                            (None, Some(a)) => a,
+                            _ => (0, 0),
+                        }
+                    },
+                )
+                .collect()
+        });
+        for (iterations, steps) in counters {
+            self.newton_iterations += iterations;
+            self.steps_taken += steps;
+        }
+        self.step = record_step(first_record + count - 1);
+    }
+
+    /// Record `r` of the current block for sample `i` (`dim outputs`).
+    pub fn record(&self, i: usize, r: usize) -> &[f64] {
+        let n = self.scene.outputs.len();
+        &self.samples[i].block[r * n..(r + 1) * n]
+    }
+
+    /// The nominal run's configuration at record `r` of the current block.
+    pub fn nominal_positions(&self, r: usize) -> &[f64] {
+        let nq = self.template.model.nq;
+        let positions = self
+            .samples
+            .last()
+            .and_then(|s| s.positions.as_ref())
+            .map_or(&[][..], |p| p.as_slice());
+        positions.get(r * nq..(r + 1) * nq).unwrap_or(&[])
+    }
+}
+
+/// Starts (at the first call) and advances one sample through a block; on failure returns the time
+/// and the message with the rows named.
+#[allow(clippy::too_many_arguments)]
+fn run_sample(
+    system: &mut RobotSystem,
+    integrator: &mut Option<HhtIntegrator>,
+    sample: &mut Sample,
+    settings: HhtSettings,
+    scene: &Scene,
+    recorder: &Recorder,
+    start_step: usize,
+    first_record: usize,
+    count: usize,
+    record_step: &dyn Fn(usize) -> usize,
+) -> Result<(), (f64, String)> {
+    let describe = |error: IntegrateError, system: &mut RobotSystem| {
+        let violation = crate::simulate::initial_violation(system, scene);
+        SimulationError::from_integrate(error, &system.constraints, violation).to_string()
+    };
+    if sample.trajectory.is_none() {
+        let q0 = DVector::from_column_slice(&scene.initial_q);
+        let v0 = DVector::from_column_slice(&scene.initial_v);
+        match HhtIntegrator::new(system, settings, 0.0, &q0, &v0) {
+            Ok(started) => {
+                sample.initial =
+                    Recorder::initial_orientations(&system.model, started.state().q.as_slice());
+                sample.trajectory = Some(started.trajectory());
+                if integrator.is_none() {
+                    *integrator = Some(started);
+                }
+            }
+            Err(error) => return Err((0.0, describe(error, system))),
+        }
+    }
+    let Some(trajectory) = sample.trajectory.as_mut() else {
+        return Err((0.0, "internal: sample has no trajectory".to_string()));
+    };
+    let hht = match integrator {
+        Some(hht) => hht,
+        None => {
+            let q0 = DVector::from_column_slice(&scene.initial_q);
+            let v0 = DVector::from_column_slice(&scene.initial_v);
+            match HhtIntegrator::new(system, settings, 0.0, &q0, &v0) {
+                Ok(h) => integrator.insert(h),
+                Err(error) => return Err((0.0, describe(error, system))),
+            }
+        }
+    };
+    hht.swap_trajectory(trajectory)
+        .map_err(|e| (0.0, e.to_string()))?;
+    let n_outputs = recorder.outputs().len();
+    let nq = system.model.nq;
+    let mut step = start_step;
+    let mut outcome = Ok(());
+    'records: for r in 0..count {
+        let target = record_step(first_record + r);
+        while step < target {
+            if let Err(error) = hht.step(system) {
+                // The step that failed was heading for t_n + h.
+                let time = hht.state().t + settings.step_s;
+                outcome = Err((time, describe(error, system)));
+                break 'records;
+            }
+            step += 1;
+        }
+        let state = hht.state();
+        recorder.record(
+            &system.model,
+            &mut system.data,
+            state.q.as_slice(),
+            state.v.as_slice(),
+            state.qdd.as_slice(),
+            state.lambda.as_slice(),
+            &sample.initial,
+            &mut sample.block[r * n_outputs..(r + 1) * n_outputs],
+        );
+        if let Some(positions) = &mut sample.positions {
+            positions[r * nq..(r + 1) * nq].copy_from_slice(state.q.as_slice());
+        }
+    }
+    let Some(trajectory) = sample.trajectory.as_mut() else {
+        return Err((0.0, "internal: sample has no trajectory".to_string()));
+    };
+    hht.swap_trajectory(trajectory)
+        .map_err(|e| (0.0, e.to_string()))?;
+    outcome
+}

@@ -1,0 +1,73 @@
+//! The bounding methods a study can use, and what kind of bound each gives.
+
+use crate::uq::Family;
+
+/// A method of computing envelopes (design contract names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Legendre surrogate on the tensor Gauss–Legendre grid, bounded by scanning it (inner).
+    LegendreScan,
+    /// Legendre surrogate bounded by interval arithmetic with exact `P_n` ranges (outer).
+    LegendreIa,
+    /// Chebyshev surrogate on the Gauss–Chebyshev grid, bounded by scanning it (inner).
+    ChebyshevScan,
+    /// Chebyshev inclusion function `c_0 ± Σ|c_i|` (outer).
+    ChebyshevIa,
+    /// First-order Taylor inclusion from central differences (approximate: neither bound).
+    Taylor,
+    /// The true model on a uniform grid (reference up to grid resolution).
+    Scan,
+    /// The true model at uniform random points (inner; converges slowly).
+    MonteCarlo,
+}
+
+/// Every method with its name, in documentation order.
+pub const METHODS: [(&str, Method); 7] = [
+    ("legendre-scan", Method::LegendreScan),
+    ("legendre-ia", Method::LegendreIa),
+    ("chebyshev-scan", Method::ChebyshevScan),
+    ("chebyshev-ia", Method::ChebyshevIa),
+    ("taylor", Method::Taylor),
+    ("scan", Method::Scan),
+    ("monte-carlo", Method::MonteCarlo),
+];
+
+impl Method {
+    /// Parses a method name.
+    pub fn parse(name: &str) -> Option<Method> {
+        METHODS.iter().find(|(n, _)| *n == name).map(|(_, m)| *m)
+    }
+
+    /// The method's name.
+    pub fn name(self) -> &'static str {
+        METHODS
+            .iter()
+            .find(|(_, m)| *m == self)
+            .map_or("?", |(n, _)| n)
+    }
+
+    /// The summary's `bound_kind`: `inner`, `outer`, `reference` or `approximate` (Taylor; an
+    /// extension of the contract's list, since first-order Taylor is neither).
+    pub fn bound_kind(self) -> &'static str {
+        match self {
+            Method::LegendreScan | Method::ChebyshevScan | Method::MonteCarlo => "inner",
+            Method::LegendreIa | Method::ChebyshevIa => "outer",
+            Method::Scan => "reference",
+            Method::Taylor => "approximate",
+        }
+    }
+
+    /// The polynomial family of a surrogate method.
+    pub fn family(self) -> Option<Family> {
+        match self {
+            Method::LegendreScan | Method::LegendreIa => Some(Family::Legendre),
+            Method::ChebyshevScan | Method::ChebyshevIa => Some(Family::Chebyshev),
+            _ => None,
+        }
+    }
+
+    /// Whether the method scans its surrogate.
+    pub fn scans_surrogate(self) -> bool {
+        matches!(self, Method::LegendreScan | Method::ChebyshevScan)
+    }
+}

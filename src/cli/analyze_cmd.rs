@@ -1,0 +1,446 @@
+//! `ribbon analyze ROBOT.urdf [--uncertainty F] [--method M] [--order K] [--design tensor|total]
+//! [--grid N] [--scan-grid N] [--samples N] [--seed S] [--threads N] [--keep-going] [--summary F]
+//! [--csv F] [--out F.mcap]`: bound envelopes. A progress line on stderr, a table on stdout.
+//! SIGINT/SIGTERM finish the current block, write what was computed (MCAP marked partial) and exit 1;
+//! a second signal exits at once.
+
+use super::{print_warnings, write_stdout, AnalyzeArgs};
+use crate::analysis::{Method, Progress, Study, StudyOptions, StudyReport, METHODS};
+use crate::dynamics::{forward_kinematics, Data};
+use crate::model::{LoadOptions, Model};
+use crate::output::mcap::McapMetadata;
+use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, Summary};
+use crate::scene::{
+    default_sidecar_path, read_sidecar, wants_floating_base, Scene, SceneOverrides,
+};
+use crate::text::closest_suggestion;
+use crate::uncertainty::ParameterSpace;
+use crate::uq::Truncation;
+use crate::Error;
+use std::io::IsTerminal;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Default polynomial order.
+pub const DEFAULT_ORDER: usize = 4;
+/// Default points per dimension of the true-model scan.
+pub const DEFAULT_GRID: usize = 21;
+/// Default Monte Carlo runs.
+pub const DEFAULT_SAMPLES: usize = 1000;
+/// Without a terminal, at most one progress line per this many seconds (after the first).
+const PROGRESS_INTERVAL_S: f64 = 1.0;
+
+fn bad(flag: &str, message: String) -> Error {
+    Error::BadArgument {
+        flag: flag.to_string(),
+        message,
+    }
+}
+
+/// Runs `ribbon analyze`.
+pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
+    let started = Instant::now();
+    let sidecar_path = args
+        .uncertainty
+        .clone()
+        .unwrap_or_else(|| default_sidecar_path(&args.urdf));
+    if args.uncertainty.is_none() && !sidecar_path.exists() {
+        return Err(bad(
+            "--uncertainty",
+            format!(
+                "no sidecar: '{}' does not exist; write one with [parameters] (see README) or pass --uncertainty FILE",
+                sidecar_path.display()
+            ),
+        ));
+    }
+    let sidecar_name = sidecar_path.display().to_string();
+    let (sidecar, _) = read_sidecar(&sidecar_path)?;
+    let floating_base = args.floating || wants_floating_base(&sidecar, &sidecar_name)?;
+    let mut model = Model::from_urdf_file(&args.urdf, LoadOptions { floating_base })?;
+    print_warnings(&model);
+    let overrides = SceneOverrides {
+        duration_s: args.duration,
+        step_s: args.step,
+        alpha: args.alpha,
+    };
+    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, overrides)?;
+    scene.apply_gravity(&mut model);
+    let space = ParameterSpace::from_sidecar(&sidecar, &model, &sidecar_name)?;
+    for warning in space.warnings() {
+        eprintln!("warning: {warning}");
+    }
+    let options = study_options(args, &sidecar.analysis)?;
+    let robot = model.name().to_string();
+    let study = Study {
+        model: model.clone(),
+        scene: &scene,
+        space: &space,
+        options: options.clone(),
+    };
+    let (_, runs) = study.plan()?;
+    eprintln!(
+        "analyze: {} parameters, method {} ({}), {runs} model runs of {} s at h = {} s",
+        space.len(),
+        options.method.name(),
+        options.method.bound_kind(),
+        scene.duration_s,
+        scene.step_s
+    );
+
+    let interrupt = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // A second signal while the first is being handled ends the process at once (exit 1).
+        let registered =
+            signal_hook::flag::register_conditional_shutdown(signal, 1, Arc::clone(&interrupt))
+                .and_then(|_| signal_hook::flag::register(signal, Arc::clone(&interrupt)));
+        if let Err(e) = registered {
+            eprintln!("warning: cannot install the handler of signal {signal}: {e}; an interruption will not save partial results");
+        }
+    }
+
+    let metadata = McapMetadata {
+        robot: robot.clone(),
+        method: options.method.name().to_string(),
+        order: order_of(&options),
+        runs,
+        parameters_json: serde_json::to_string(&parameter_summaries(&space))
+            .unwrap_or_else(|_| "[]".to_string()),
+    };
+    let mut log = match &args.out {
+        Some(path) => Some(EnvelopeLog::create(
+            path,
+            &args.urdf,
+            Some(&sidecar_path),
+            metadata,
+            &scene.outputs,
+            options.method.family().is_some() || options.method == Method::Taylor,
+        )?),
+        None => None,
+    };
+    let kinematic_model = model;
+    let mut data = Data::new(&kinematic_model);
+    let mut reporter = ProgressReporter::new();
+    let report = study.run(
+        &interrupt,
+        &mut |progress| reporter.report(progress),
+        &mut |block| {
+            let Some(log) = log.as_mut() else {
+                return Ok(());
+            };
+            let n = scene.outputs.len();
+            let nq = kinematic_model.nq;
+            for (r, t) in block.times.iter().enumerate() {
+                let points = &block.points[r * n..(r + 1) * n];
+                let lower: Vec<f64> = points.iter().map(|p| p.lower).collect();
+                let upper: Vec<f64> = points.iter().map(|p| p.upper).collect();
+                let errors: Option<Vec<f64>> = points.iter().map(|p| p.error).collect();
+                log.write_time(
+                    *t,
+                    &lower,
+                    &block.nominal[r * n..(r + 1) * n],
+                    &upper,
+                    errors.as_deref(),
+                )?;
+                forward_kinematics(
+                    &kinematic_model,
+                    &mut data,
+                    &block.nominal_positions[r * nq..(r + 1) * nq],
+                );
+                log.write_frames(*t, &kinematic_model, &data)?;
+            }
+            Ok(())
+        },
+    )?;
+    reporter.finish();
+    let wall_seconds = started.elapsed().as_secs_f64();
+
+    if let Some(path) = &args.summary {
+        summary(&robot, &options, &space, &report, wall_seconds).write(path)?;
+    }
+    if let Some(path) = &args.csv {
+        write_envelope_csv(path, &report)?;
+    }
+    if let Some(mut log) = log.take() {
+        log.metadata_mut().runs = report.runs;
+        log.finish(report.partial)?;
+    }
+    eprintln!(
+        "{} runs, {} steps, {} Newton iterations ({:.2} per step); simulate {:.3} s, fit + bound {:.3} s ({:.1} % of the total), {} threads, {} records per block; wall {:.3} s{}",
+        report.runs,
+        report.steps,
+        report.newton_iterations,
+        report.newton_iterations as f64 / report.steps.max(1) as f64,
+        report.simulate_seconds,
+        report.bound_seconds,
+        100.0 * report.bound_seconds / wall_seconds.max(1e-12),
+        report.threads,
+        report.block_records,
+        wall_seconds,
+        peak_memory().map_or(String::new(), |bytes| format!("; peak memory {:.1} MiB", bytes as f64 / 1048576.0)),
+    );
+    write_stdout(&table(&options, &report, wall_seconds))?;
+    if report.partial {
+        let done = report.envelope.times.last().copied().unwrap_or(0.0);
+        return Err(Error::Interrupted(format!(
+            "stopped after t = {done} s of {} s; the envelopes computed so far were written (MCAP marked partial)",
+            scene.duration_s
+        )));
+    }
+    Ok(())
+}
+
+fn study_options(
+    args: &AnalyzeArgs,
+    section: &crate::scene::AnalysisSection,
+) -> Result<StudyOptions, Error> {
+    let method_name = args
+        .method
+        .clone()
+        .or_else(|| section.method.clone())
+        .unwrap_or_else(|| "legendre-scan".to_string());
+    let method = Method::parse(&method_name).ok_or_else(|| {
+        let names: Vec<&str> = METHODS.iter().map(|(n, _)| *n).collect();
+        bad(
+            "--method",
+            format!(
+                "unknown method '{method_name}'{}; methods: {}",
+                closest_suggestion(&method_name, names.iter().copied()),
+                names.join(", ")
+            ),
+        )
+    })?;
+    let design_name = args
+        .design
+        .clone()
+        .or_else(|| section.design.clone())
+        .unwrap_or_else(|| "tensor".to_string());
+    let truncation = match design_name.as_str() {
+        "tensor" => Truncation::Tensor,
+        "total" => Truncation::Total,
+        other => {
+            return Err(bad(
+                "--design",
+                format!("'{other}' is not a design; use tensor or total"),
+            ))
+        }
+    };
+    let threads = args.threads.unwrap_or(0);
+    Ok(StudyOptions {
+        method,
+        order: args.order.or(section.order).unwrap_or(DEFAULT_ORDER),
+        truncation,
+        grid: args.grid.unwrap_or(DEFAULT_GRID),
+        scan_grid: args.scan_grid,
+        samples: args.samples.unwrap_or(DEFAULT_SAMPLES),
+        seed: args.seed.unwrap_or(0),
+        threads,
+        keep_going: args.keep_going,
+    })
+}
+
+fn order_of(options: &StudyOptions) -> Option<usize> {
+    match options.method {
+        Method::Scan | Method::MonteCarlo => None,
+        Method::Taylor => Some(1),
+        _ => Some(options.order),
+    }
+}
+
+fn design_of(options: &StudyOptions) -> &'static str {
+    match (options.method, options.truncation) {
+        (Method::Scan, _) => "grid",
+        (Method::MonteCarlo, _) => "random",
+        (Method::Taylor, _) => "central-differences",
+        (_, Truncation::Tensor) => "tensor",
+        (_, Truncation::Total) => "total",
+    }
+}
+
+fn parameter_summaries(space: &ParameterSpace) -> Vec<ParameterSummary> {
+    space
+        .dimensions()
+        .iter()
+        .map(|d| ParameterSummary {
+            name: d.name.clone(),
+            lower: d.lower,
+            upper: d.upper,
+            nominal: d.nominal,
+        })
+        .collect()
+}
+
+fn summary(
+    robot: &str,
+    options: &StudyOptions,
+    space: &ParameterSpace,
+    report: &StudyReport,
+    wall_seconds: f64,
+) -> Summary {
+    let e = &report.envelope;
+    Summary {
+        robot: robot.to_string(),
+        method: options.method.name().to_string(),
+        order: order_of(options),
+        design: Some(design_of(options).to_string()),
+        bound_kind: options.method.bound_kind().to_string(),
+        parameters: parameter_summaries(space),
+        samples: report.runs,
+        excluded_samples: report
+            .excluded
+            .iter()
+            .map(|f| serde_json::json!({"index": f.index, "xi": f.xi, "values": f.values, "time": f.time_s, "error": f.message}))
+            .collect(),
+        wall_seconds,
+        outputs: e
+            .outputs
+            .iter()
+            .enumerate()
+            .map(|(o, output)| EnvelopeSeries {
+                name: output.name.clone(),
+                unit: output.unit.to_string(),
+                time: e.times.clone(),
+                lower: e.lower[o].clone(),
+                upper: e.upper[o].clone(),
+                nominal: e.nominal[o].clone(),
+                error_estimate: e.error.as_ref().map(|errors| errors[o].clone()),
+            })
+            .collect(),
+        stats: serde_json::json!({
+            "partial": report.partial,
+            "steps": report.steps,
+            "newton_iterations": report.newton_iterations,
+            "simulate_seconds": report.simulate_seconds,
+            "bound_seconds": report.bound_seconds,
+            "threads": report.threads,
+            "block_records": report.block_records,
+            "peak_memory_bytes": peak_memory(),
+        }),
+    }
+}
+
+fn write_envelope_csv(path: &Path, report: &StudyReport) -> Result<(), Error> {
+    let e = &report.envelope;
+    let mut names = Vec::with_capacity(3 * e.outputs.len());
+    let mut columns: Vec<&[f64]> = Vec::with_capacity(3 * e.outputs.len());
+    for (o, output) in e.outputs.iter().enumerate() {
+        names.push(format!("{}.lower", output.name));
+        names.push(format!("{}.nominal", output.name));
+        names.push(format!("{}.upper", output.name));
+        columns.push(&e.lower[o]);
+        columns.push(&e.nominal[o]);
+        columns.push(&e.upper[o]);
+    }
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    write_csv(path, &e.times, &names, &columns)
+}
+
+fn table(options: &StudyOptions, report: &StudyReport, wall_seconds: f64) -> String {
+    let e = &report.envelope;
+    let width = e
+        .outputs
+        .iter()
+        .map(|o| o.name.chars().count())
+        .max()
+        .unwrap_or(6)
+        .max(6);
+    let mut text = format!(
+        "{:<width$}  {:>8}  {:>13}  {:>9}  {:>13}  {:>13}\n",
+        "output", "unit", "max width", "at t (s)", "lower there", "upper there"
+    );
+    for (o, output) in e.outputs.iter().enumerate() {
+        let (k, w) = e.lower[o]
+            .iter()
+            .zip(&e.upper[o])
+            .map(|(l, u)| u - l)
+            .enumerate()
+            .fold((0, f64::NEG_INFINITY), |best, (k, w)| {
+                if w > best.1 {
+                    (k, w)
+                } else {
+                    best
+                }
+            });
+        text.push_str(&format!(
+            "{:<width$}  {:>8}  {:>13.6e}  {:>9.3}  {:>13.6e}  {:>13.6e}\n",
+            output.name,
+            output.unit,
+            w,
+            e.times.get(k).copied().unwrap_or(f64::NAN),
+            e.lower[o].get(k).copied().unwrap_or(f64::NAN),
+            e.upper[o].get(k).copied().unwrap_or(f64::NAN),
+        ));
+    }
+    text.push_str(&format!(
+        "method {} ({} bounds{}), {} model runs, {:.3} s wall{}\n",
+        options.method.name(),
+        options.method.bound_kind(),
+        order_of(options).map_or(String::new(), |k| format!(", order {k}")),
+        report.runs,
+        wall_seconds,
+        if report.excluded.is_empty() {
+            String::new()
+        } else {
+            format!(", {} samples excluded", report.excluded.len())
+        }
+    ));
+    text
+}
+
+/// Peak resident memory of this process (Linux `VmHWM`), bytes.
+pub fn peak_memory() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Progress on stderr: a rewritten line on a terminal, otherwise a line at most every
+/// [`PROGRESS_INTERVAL_S`] (and always the first).
+struct ProgressReporter {
+    terminal: bool,
+    last_line_s: Option<f64>,
+}
+
+impl ProgressReporter {
+    fn new() -> Self {
+        Self {
+            terminal: std::io::stderr().is_terminal(),
+            last_line_s: None,
+        }
+    }
+
+    fn report(&mut self, p: Progress) {
+        let fraction = p.records_done as f64 / p.records_total.max(1) as f64;
+        let eta = if fraction > 0.0 {
+            p.elapsed_s * (1.0 - fraction) / fraction
+        } else {
+            f64::NAN
+        };
+        let line = format!(
+            "progress: {}/{} record times ({:.0} %) of {} runs, {:.1} s elapsed, ETA {:.1} s",
+            p.records_done,
+            p.records_total,
+            100.0 * fraction,
+            p.runs,
+            p.elapsed_s,
+            eta
+        );
+        if self.terminal {
+            eprint!("\r{line}   ");
+        } else if self
+            .last_line_s
+            .is_none_or(|last| p.elapsed_s - last >= PROGRESS_INTERVAL_S)
+        {
+            eprintln!("{line}");
+            self.last_line_s = Some(p.elapsed_s);
+        }
+    }
+
+    fn finish(&self) {
+        if self.terminal {
+            eprintln!();
+        }
+    }
+}

@@ -1,0 +1,486 @@
+//! `ribbon analyze` end to end: envelopes against a closed form, Legendre scan against a dense scan
+//! of the true model on the double pendulum, interval arithmetic never inside the reference,
+//! determinism across thread counts, memory flat in the horizon, and input validation.
+
+use ribbon::uq::envelope_error;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// method.md §4: Legendre scan within 1 % of the reference width at every record time.
+const LEGENDRE_SCAN_MAX_ERROR: f64 = 0.01;
+/// The closed-form comparison: envelope bounds equal the analytic min/max to 1e-6 (m).
+const CLOSED_FORM_TOLERANCE: f64 = 1e-6;
+
+fn manifest(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("analysis");
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir.join(name)
+}
+
+fn ribbon(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ribbon"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("ribbon runs")
+}
+
+/// Runs `analyze` with a summary and returns it.
+fn analyze(urdf: &str, sidecar: &Path, extra: &[&str], tag: &str) -> Value {
+    let summary = scratch(&format!("{tag}.summary.json"));
+    let mut args = vec![
+        "analyze",
+        urdf,
+        "--uncertainty",
+        sidecar.to_str().unwrap(),
+        "--summary",
+        summary.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let out = ribbon(&args);
+    assert!(
+        out.status.success(),
+        "analyze {tag} failed ({:?}): {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_str(&std::fs::read_to_string(&summary).expect("summary written"))
+        .expect("summary json")
+}
+
+fn series(summary: &Value, output: &str, key: &str) -> Vec<f64> {
+    let outputs = summary["outputs"].as_array().expect("outputs");
+    let entry = outputs
+        .iter()
+        .find(|o| o["name"] == output)
+        .unwrap_or_else(|| panic!("output {output}"));
+    entry[key]
+        .as_array()
+        .expect("series")
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+fn output_names(summary: &Value) -> Vec<String> {
+    summary["outputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o["name"].as_str().unwrap().to_string())
+        .collect()
+}
+
+const BLOCK_URDF: &str = r#"<?xml version="1.0"?>
+<robot name="damped_block">
+  <link name="rail"/>
+  <link name="block"><inertial><origin xyz="0 0 0"/><mass value="1.5"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+  <joint name="slide" type="prismatic"><parent link="rail"/><child link="block"/><axis xyz="0 0 1"/>
+    <limit lower="-100" upper="100" effort="1000" velocity="100"/><dynamics damping="0.75"/></joint>
+</robot>
+"#;
+
+#[test]
+fn damped_block_envelopes_equal_the_closed_form_range() {
+    // m ẍ = −m g − c ẋ from rest: x(t) = −(m g / c) t + (m² g / c²)(1 − exp(−c t / m)).
+    let urdf = scratch("damped_block.urdf");
+    std::fs::write(&urdf, BLOCK_URDF).unwrap();
+    let sidecar = scratch("damped_block.uncertainty.toml");
+    std::fs::write(
+        &sidecar,
+        "[parameters]\n\"link.block.mass\" = [1.0, 2.0]\n\"joint.slide.damping\" = [0.5, 1.0]\n\
+         [scene]\nduration = 1.0\nstep = 0.0001\neffects = [\"gravity\", \"joint_damping\"]\n[outputs]\nrate = 100\n",
+    )
+    .unwrap();
+    let g = 9.81;
+    let exact = |m: f64, c: f64, t: f64| {
+        -(m * g / c) * t + (m * m * g / (c * c)) * (1.0 - (-c * t / m).exp())
+    };
+    for (method, extra) in [
+        ("scan", vec!["--method", "scan", "--grid", "21"]),
+        (
+            "legendre-scan",
+            vec!["--method", "legendre-scan", "--order", "10"],
+        ),
+    ] {
+        let summary = analyze(
+            urdf.to_str().unwrap(),
+            &sidecar,
+            &extra,
+            &format!("block_{method}"),
+        );
+        let times = series(&summary, "q.slide", "time");
+        let (lower, upper) = (
+            series(&summary, "q.slide", "lower"),
+            series(&summary, "q.slide", "upper"),
+        );
+        let mut worst: f64 = 0.0;
+        for (k, t) in times.iter().enumerate() {
+            // The analytic range over the box, by a dense scan of the closed form (201² points).
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for i in 0..=200 {
+                for j in 0..=200 {
+                    let x = exact(1.0 + i as f64 / 200.0, 0.5 + 0.5 * j as f64 / 200.0, *t);
+                    lo = lo.min(x);
+                    hi = hi.max(x);
+                }
+            }
+            worst = worst.max((lower[k] - lo).abs()).max((upper[k] - hi).abs());
+        }
+        println!(
+            "damped block, {method}: max |bound − analytic| = {worst:.3e} m over {} record times",
+            times.len()
+        );
+        assert!(worst <= CLOSED_FORM_TOLERANCE, "{method}: {worst}");
+    }
+}
+
+fn double_pendulum_sidecar(relative: f64, tag: &str) -> PathBuf {
+    let text = std::fs::read_to_string(manifest(
+        "robots/double_pendulum/double_pendulum.uncertainty.toml",
+    ))
+    .unwrap();
+    let text = text
+        .replace(
+            "l1 = [0.99, 1.01]",
+            &format!("l1 = [{}, {}]", 1.0 - relative, 1.0 + relative),
+        )
+        .replace(
+            "l2 = [1.98, 2.02]",
+            &format!(
+                "l2 = [{}, {}]",
+                2.0 * (1.0 - relative),
+                2.0 * (1.0 + relative)
+            ),
+        );
+    let path = scratch(&format!("double_pendulum_{tag}.uncertainty.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn legendre_scan_matches_dense_scan_and_ia_contains_it_on_the_double_pendulum() {
+    let urdf = "robots/double_pendulum/double_pendulum.urdf";
+    for (relative, tag) in [(0.01, "1pc"), (0.05, "5pc")] {
+        let sidecar = double_pendulum_sidecar(relative, tag);
+        let reference = analyze(
+            urdf,
+            &sidecar,
+            &["--method", "scan", "--grid", "21"],
+            &format!("dp_scan_{tag}"),
+        );
+        let legendre = analyze(
+            urdf,
+            &sidecar,
+            &["--method", "legendre-scan", "--order", "4"],
+            &format!("dp_ls_{tag}"),
+        );
+        let ia = analyze(
+            urdf,
+            &sidecar,
+            &["--method", "legendre-ia", "--order", "4"],
+            &format!("dp_ia_{tag}"),
+        );
+        assert_eq!(reference["samples"], 442);
+        assert_eq!(legendre["samples"], 26);
+        for name in output_names(&reference) {
+            let (lower_ref, upper_ref) = (
+                series(&reference, &name, "lower"),
+                series(&reference, &name, "upper"),
+            );
+            if upper_ref.iter().zip(&lower_ref).all(|(u, l)| u - l == 0.0) {
+                continue; // frame.tip.z: the motion is planar, nothing to bound
+            }
+            let (lower, upper) = (
+                series(&legendre, &name, "lower"),
+                series(&legendre, &name, "upper"),
+            );
+            let error =
+                envelope_error(&lower, &upper, &lower_ref, &upper_ref).expect("error measure");
+            println!(
+                "double pendulum ±{}%: {name}: legendre-scan (26 runs) vs scan 21² (442 runs): max error {:.3e}, mean {:.3e} of the reference width",
+                relative * 100.0,
+                error.max,
+                error.mean
+            );
+            assert!(
+                error.max <= LEGENDRE_SCAN_MAX_ERROR,
+                "{name} ±{relative}: {}",
+                error.max
+            );
+            // Interval arithmetic is an outer bound of the surrogate: never inside the reference by
+            // more than the surrogate's own error estimate (where the true extreme sits on a corner,
+            // IA is tight and the surrogate's truncation error is all that separates them).
+            let (lower_ia, upper_ia) = (series(&ia, &name, "lower"), series(&ia, &name, "upper"));
+            let estimate = series(&ia, &name, "error_estimate");
+            let mut deepest_inside: f64 = 0.0;
+            let mut widest_ratio: f64 = 0.0;
+            for k in 0..lower_ref.len() {
+                let inside = (lower_ia[k] - lower_ref[k]).max(upper_ref[k] - upper_ia[k]);
+                deepest_inside = deepest_inside.max(inside);
+                let width_ref = upper_ref[k] - lower_ref[k];
+                if width_ref > 0.0 {
+                    widest_ratio = widest_ratio.max((upper_ia[k] - lower_ia[k]) / width_ref);
+                }
+                assert!(
+                    inside <= estimate[k],
+                    "{name} ±{relative} at record {k}: IA [{}, {}] inside reference [{}, {}] by {inside:.3e} > its error estimate {:.3e}",
+                    lower_ia[k],
+                    upper_ia[k],
+                    lower_ref[k],
+                    upper_ref[k],
+                    estimate[k]
+                );
+            }
+            println!(
+                "    legendre-ia: at most {deepest_inside:.1e} inside the reference (within its error estimate); up to {widest_ratio:.2}× the reference width"
+            );
+        }
+    }
+}
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    let sidecar = manifest("robots/double_pendulum/double_pendulum.uncertainty.toml");
+    let urdf = "robots/double_pendulum/double_pendulum.urdf";
+    for method in ["legendre-scan", "monte-carlo"] {
+        let one = analyze(
+            urdf,
+            &sidecar,
+            &["--method", method, "--samples", "40", "--threads", "1"],
+            &format!("threads1_{method}"),
+        );
+        let two = analyze(
+            urdf,
+            &sidecar,
+            &["--method", method, "--samples", "40", "--threads", "2"],
+            &format!("threads2_{method}"),
+        );
+        // Bitwise: compare the JSON values of every output (times and envelopes).
+        assert_eq!(
+            one["outputs"], two["outputs"],
+            "{method}: outputs differ between 1 and 2 threads"
+        );
+    }
+}
+
+fn peak_memory_mib(stderr: &str) -> f64 {
+    let marker = "peak memory ";
+    let start = stderr
+        .find(marker)
+        .unwrap_or_else(|| panic!("no peak memory in: {stderr}"))
+        + marker.len();
+    stderr[start..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .expect("MiB value")
+}
+
+#[test]
+fn peak_memory_does_not_grow_with_the_horizon() {
+    let sidecar = manifest("robots/double_pendulum/double_pendulum.uncertainty.toml");
+    let mut peaks = Vec::new();
+    for duration in ["2", "20"] {
+        let out = ribbon(&[
+            "analyze",
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--uncertainty",
+            sidecar.to_str().unwrap(),
+            "--method",
+            "scan",
+            "--grid",
+            "11",
+            "--duration",
+            duration,
+            "--out",
+            scratch(&format!("memory_{duration}.mcap"))
+                .to_str()
+                .unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        peaks.push(peak_memory_mib(&String::from_utf8_lossy(&out.stderr)));
+    }
+    println!(
+        "peak memory: {:.1} MiB for 2 s, {:.1} MiB for 20 s (122 runs, MCAP streamed)",
+        peaks[0], peaks[1]
+    );
+    assert!(
+        peaks[1] <= 1.2 * peaks[0],
+        "peak memory grew from {} to {} MiB",
+        peaks[0],
+        peaks[1]
+    );
+}
+
+#[test]
+fn bad_analysis_input_is_refused_with_exit_2() {
+    let urdf = "robots/double_pendulum/double_pendulum.urdf";
+    let write = |name: &str, text: &str| {
+        let path = scratch(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let base = std::fs::read_to_string(manifest(
+        "robots/double_pendulum/double_pendulum.uncertainty.toml",
+    ))
+    .unwrap();
+    let cases: Vec<(PathBuf, Vec<&str>, Vec<&str>)> = vec![
+        (
+            write("no_params.toml", "[scene]\nduration = 0.1\n"),
+            vec![],
+            vec!["declares no [parameters]"],
+        ),
+        (
+            write(
+                "outside.toml",
+                "[parameters]\n\"link.bar1.mass\" = [1.5, 2.0]\n",
+            ),
+            vec![],
+            vec!["link.bar1.mass", "outside"],
+        ),
+        (
+            write(
+                "one_twelfth.toml",
+                &base.replace("\"l1 * l1 / 12\"", "\"l1 * l1 / 1x2\""),
+            ),
+            vec![],
+            vec!["link.bar1.inertia"],
+        ),
+        (
+            write(
+                "unknown_symbol.toml",
+                &base.replace("\"l1 / 2\"", "\"l3 / 2\""),
+            ),
+            vec![],
+            vec!["unknown symbol 'l3'"],
+        ),
+        (
+            write("ok.toml", &base),
+            vec!["--method", "legendre-sacn"],
+            vec![
+                "unknown method 'legendre-sacn'",
+                "did you mean 'legendre-scan'",
+            ],
+        ),
+        (
+            write("ok2.toml", &base),
+            vec!["--method", "scan", "--grid", "20"],
+            vec!["--grid 20 must be odd"],
+        ),
+        (
+            write("ok3.toml", &base),
+            vec!["--design", "sparse"],
+            vec!["'sparse' is not a design"],
+        ),
+        (
+            write("ok4.toml", &base),
+            vec!["--scan-grid", "10"],
+            vec!["--scan-grid 10 must be odd"],
+        ),
+    ];
+    for (sidecar, extra, fragments) in cases {
+        let mut args = vec!["analyze", urdf, "--uncertainty", sidecar.to_str().unwrap()];
+        args.extend(extra);
+        let out = ribbon(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{}: {stderr}",
+            sidecar.display()
+        );
+        for fragment in fragments {
+            assert!(
+                stderr.contains(fragment),
+                "{}: expected '{fragment}' in {stderr}",
+                sidecar.display()
+            );
+        }
+    }
+    let out = ribbon(&[
+        "analyze",
+        "robots/ur5/ur5.urdf",
+        "--uncertainty",
+        "robots/nowhere.toml",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read 'robots/nowhere.toml'"));
+}
+
+#[test]
+fn a_failing_sample_is_named_and_can_be_excluded() {
+    // A bar whose joint damping makes some samples diverge is hard to build; instead a spring so
+    // stiff at one end of its interval that a 10 ms step cannot converge there.
+    let urdf = scratch("stiff.urdf");
+    std::fs::write(
+        &urdf,
+        r#"<robot name="stiff"><link name="w"/>
+        <link name="bar"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+        <inertia ixx="0" ixy="0" ixz="0" iyy="0.08" iyz="0" izz="0.08"/></inertial></link>
+        <joint name="hinge" type="continuous"><parent link="w"/><child link="bar"/><axis xyz="0 0 1"/></joint></robot>"#,
+    )
+    .unwrap();
+    let sidecar = scratch("stiff.uncertainty.toml");
+    std::fs::write(
+        &sidecar,
+        "[parameters]\n\"scene.gravity.y\" = [-1e9, -9.81]\n[scene]\nduration = 0.2\nstep = 0.01\ngravity = [0.0, -9.81, 0.0]\ninitial.q = { hinge = 0.5 }\n",
+    )
+    .unwrap();
+    let out = ribbon(&[
+        "analyze",
+        urdf.to_str().unwrap(),
+        "--uncertainty",
+        sidecar.to_str().unwrap(),
+        "--method",
+        "scan",
+        "--grid",
+        "3",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!("{stderr}");
+    if out.status.success() {
+        // Nothing diverged: the integrator is robust at these values; then the test has nothing to
+        // show and says so loudly rather than passing silently.
+        panic!("expected a failing sample; the box did not produce one: {stderr}");
+    }
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr.contains("failed at t =") && stderr.contains("parameter values"),
+        "{stderr}"
+    );
+    let summary = scratch("stiff.summary.json");
+    let out = ribbon(&[
+        "analyze",
+        urdf.to_str().unwrap(),
+        "--uncertainty",
+        sidecar.to_str().unwrap(),
+        "--method",
+        "scan",
+        "--grid",
+        "3",
+        "--keep-going",
+        "--summary",
+        summary.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let excluded = summary["excluded_samples"].as_array().unwrap();
+    assert!(!excluded.is_empty());
+    assert!(excluded[0]["values"].as_array().is_some() && excluded[0]["time"].as_f64().is_some());
+}

@@ -1,0 +1,207 @@
+//! MCAP logs written by the command line: `ribbon analyze --out` checked by the Rust `mcap` reader
+//! and by the reference tools (Python `mcap` + ROS 2 decoder, foxglove-sdk, rerun) against the summary
+//! JSON of the same run; and an analysis interrupted by SIGINT leaves a valid file marked partial.
+
+mod common;
+
+use serde_json::{json, Value};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("mcap_cli");
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir.join(name)
+}
+
+fn manifest(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+/// Every message of the file through the Rust reader: (topic, log time) pairs, and the metadata.
+fn read_with_rust(path: &Path) -> (Vec<(String, u64)>, Vec<mcap::records::Metadata>) {
+    let bytes = std::fs::read(path).expect("mcap file");
+    let messages = mcap::MessageStream::new(&bytes)
+        .expect("mcap header")
+        .map(|m| {
+            let m = m.expect("message decodes");
+            (m.channel.topic.clone(), m.log_time)
+        })
+        .collect();
+    let summary = mcap::Summary::read(&bytes)
+        .expect("summary")
+        .expect("has a summary");
+    let metadata = summary
+        .metadata_indexes
+        .iter()
+        .map(|index| mcap::read::metadata(&bytes, index).expect("metadata record"))
+        .collect();
+    (messages, metadata)
+}
+
+#[test]
+fn analyze_log_matches_its_summary_in_every_reader() {
+    let out = scratch("double_pendulum.mcap");
+    let summary_path = scratch("double_pendulum.summary.json");
+    let status = Command::new(common::ribbon_bin())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "analyze",
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--duration",
+            "0.5",
+            "--out",
+        ])
+        .arg(&out)
+        .arg("--summary")
+        .arg(&summary_path)
+        .status()
+        .expect("ribbon runs");
+    assert!(status.success());
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary_path).unwrap()).unwrap();
+    let outputs = summary["outputs"].as_array().unwrap();
+    let times = outputs[0]["time"].clone();
+
+    let (messages, metadata) = read_with_rust(&out);
+    let envelope_messages = messages
+        .iter()
+        .filter(|(t, _)| t.starts_with("/ribbon/envelope/"))
+        .count();
+    assert_eq!(
+        envelope_messages,
+        outputs.len() * times.as_array().unwrap().len()
+    );
+    assert_eq!(
+        messages.iter().filter(|(t, _)| t == "/tf").count(),
+        times.as_array().unwrap().len()
+    );
+    assert_eq!(metadata.len(), 1);
+    assert_eq!(metadata[0].name, "ribbon");
+    assert_eq!(
+        metadata[0].metadata.get("partial").map(String::as_str),
+        Some("false")
+    );
+
+    let topic = |name: &str| format!("/{}", name.replace('.', "/"));
+    let expected = json!({
+        "urdf_path": manifest("robots/double_pendulum/double_pendulum.urdf"),
+        "robot": "double_pendulum",
+        "envelopes": outputs.iter().map(|o| json!({
+            "name": o["name"], "topic": format!("/ribbon/envelope{}", topic(o["name"].as_str().unwrap())),
+            "time": o["time"], "lower": o["lower"], "nominal": o["nominal"], "upper": o["upper"],
+        })).collect::<Vec<_>>(),
+        "errors": outputs.iter().map(|o| json!({
+            "name": o["name"], "topic": format!("/ribbon/error{}", topic(o["name"].as_str().unwrap())),
+            "time": o["time"], "estimate": o["error_estimate"],
+        })).collect::<Vec<_>>(),
+        "transform_times": times,
+        "transform_links": ["base", "bar1", "bar2", "tip"],
+        "metadata": metadata[0].metadata,
+        "attachments": [
+            {"name": "double_pendulum.urdf", "media_type": "application/xml", "path": manifest("robots/double_pendulum/double_pendulum.urdf")},
+            {"name": "double_pendulum.uncertainty.toml", "media_type": "application/toml", "path": manifest("robots/double_pendulum/double_pendulum.uncertainty.toml")},
+        ],
+    });
+    let expected_path = scratch("double_pendulum.expected.json");
+    std::fs::write(&expected_path, expected.to_string()).unwrap();
+    let python = common::reference_python();
+    let result = Command::new(&python)
+        .arg(manifest("tests/reference/check_mcap.py"))
+        .arg(&out)
+        .arg(&expected_path)
+        .arg("--work-dir")
+        .arg(scratch("check_work"))
+        .output()
+        .expect("python runs");
+    assert!(
+        result.status.success(),
+        "check_mcap.py failed:\n{}\n{}",
+        String::from_utf8_lossy(&result.stdout),
+        String::from_utf8_lossy(&result.stderr)
+    );
+    println!("{}", String::from_utf8_lossy(&result.stdout));
+}
+
+#[test]
+fn sigint_finishes_a_valid_partial_log() {
+    let out = scratch("interrupted.mcap");
+    let _ = std::fs::remove_file(&out);
+    // Long enough not to finish first: 21² true-model runs of a 200 s double pendulum.
+    let mut child = Command::new(common::ribbon_bin())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "analyze",
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--method",
+            "scan",
+            "--duration",
+            "200",
+            "--threads",
+            "1",
+            "--out",
+        ])
+        .arg(&out)
+        .stderr(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("ribbon starts");
+    let stderr = child.stderr.take().expect("stderr");
+    let mut lines = BufReader::new(stderr).lines();
+    let started = Instant::now();
+    let mut seen = String::new();
+    loop {
+        let line = lines
+            .next()
+            .expect("ribbon prints progress before it ends")
+            .expect("utf-8");
+        seen.push_str(&line);
+        seen.push('\n');
+        if line.starts_with("progress:") {
+            break;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(120),
+            "no progress line: {seen}"
+        );
+    }
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(killed.success());
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let status = child.wait().expect("ribbon ends");
+    let stderr = format!("{seen}{}", rest.join("\n"));
+    assert_eq!(
+        status.code(),
+        Some(1),
+        "exit code after SIGINT; stderr:\n{stderr}"
+    );
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    let (messages, metadata) = read_with_rust(&out);
+    assert_eq!(
+        metadata[0].metadata.get("partial").map(String::as_str),
+        Some("true")
+    );
+    let envelope_times: std::collections::BTreeSet<u64> = messages
+        .iter()
+        .filter(|(t, _)| t == "/ribbon/envelope/q/j1")
+        .map(|(_, time)| *time)
+        .collect();
+    assert!(!envelope_times.is_empty(), "some envelopes were written");
+    assert!(
+        *envelope_times.iter().max().unwrap() < 200_000_000_000,
+        "the run did not finish: the log stops before t = 200 s"
+    );
+    assert!(
+        !scratch("interrupted.mcap.tmp").exists(),
+        "no temporary file left"
+    );
+    println!(
+        "interrupted after {} record times: {stderr}",
+        envelope_times.len()
+    );
+}
