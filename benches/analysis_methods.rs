@@ -1,0 +1,2 @@
+//! Placeholder: the method comparison (being written).
+fn main() {}
