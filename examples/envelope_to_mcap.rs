@@ -1,0 +1,109 @@
+//! Runs a small study through the library API and logs its envelopes to MCAP for Foxglove and rerun:
+//! the double pendulum with both bar lengths ±1 % (its shipped sidecar), 0.5 s, Legendre scan.
+//!
+//! `cargo run --release --example envelope_to_mcap -- [OUT.mcap]` (default `target/envelope_example.mcap`)
+
+use ribbon::analysis::{Method, Study, StudyOptions};
+use ribbon::dynamics::{forward_kinematics, Data};
+use ribbon::model::{LoadOptions, Model};
+use ribbon::output::mcap::McapMetadata;
+use ribbon::output::EnvelopeLog;
+use ribbon::scene::{read_sidecar, Scene, SceneOverrides};
+use ribbon::uncertainty::ParameterSpace;
+use ribbon::uq::Truncation;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
+
+fn main() -> ExitCode {
+    let out = std::env::args()
+        .nth(1)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("target/envelope_example.mcap"));
+    match run(&out) {
+        Ok(records) => {
+            println!(
+                "wrote {records} record times of envelopes to {}",
+                out.display()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(error) => {
+            eprintln!("error: {error}");
+            ExitCode::from(error.exit_code())
+        }
+    }
+}
+
+fn run(out: &Path) -> Result<usize, ribbon::Error> {
+    let urdf = Path::new("robots/double_pendulum/double_pendulum.urdf");
+    let sidecar_path = Path::new("robots/double_pendulum/double_pendulum.uncertainty.toml");
+    let (sidecar, _) = read_sidecar(sidecar_path)?;
+    let mut model = Model::from_urdf_file(urdf, LoadOptions::default())?;
+    let overrides = SceneOverrides {
+        duration_s: Some(0.5),
+        ..SceneOverrides::default()
+    };
+    let scene = Scene::resolve(&sidecar, &model, "example", overrides)?;
+    scene.apply_gravity(&mut model);
+    let space = ParameterSpace::from_sidecar(&sidecar, &model, "example")?;
+    let options = StudyOptions {
+        method: Method::LegendreScan,
+        order: 4,
+        truncation: Truncation::Tensor,
+        grid: 21,
+        scan_grid: None,
+        samples: 0,
+        seed: 0,
+        threads: 0,
+        keep_going: false,
+    };
+    let study = Study {
+        model: model.clone(),
+        scene: &scene,
+        space: &space,
+        options,
+    };
+    let (_, runs) = study.plan()?;
+    let metadata = McapMetadata {
+        robot: model.name().to_string(),
+        method: "legendre-scan".to_string(),
+        order: Some(4),
+        runs,
+        parameters_json: "[]".to_string(),
+    };
+    let mut log = EnvelopeLog::create(
+        out,
+        urdf,
+        Some(sidecar_path),
+        metadata,
+        &scene.outputs,
+        true,
+    )?;
+    let mut data = Data::new(&model);
+    let n = scene.outputs.len();
+    let report = study.run(&AtomicBool::new(false), &mut |_| {}, &mut |block| {
+        for (r, t) in block.times.iter().enumerate() {
+            let points = &block.points[r * n..(r + 1) * n];
+            let lower: Vec<f64> = points.iter().map(|p| p.lower).collect();
+            let upper: Vec<f64> = points.iter().map(|p| p.upper).collect();
+            let error: Vec<f64> = points.iter().map(|p| p.error.unwrap_or(0.0)).collect();
+            log.write_time(
+                *t,
+                &lower,
+                &block.nominal[r * n..(r + 1) * n],
+                &upper,
+                Some(&error),
+            )?;
+            forward_kinematics(
+                &model,
+                &mut data,
+                &block.nominal_positions[r * model.nq..(r + 1) * model.nq],
+            );
+            log.write_frames(*t, &model, &data)?;
+        }
+        Ok(())
+    })?;
+    log.finish(false)?;
+    Ok(report.envelope.times.len())
+}
