@@ -242,3 +242,79 @@ fn usage_errors_exit_2() {
     let out = ribbon(&["frobnicate"]);
     assert_eq!(out.code, Some(2), "{}", out.stderr);
 }
+
+#[test]
+fn bad_scene_input_is_refused_with_exit_2() {
+    let cases = [
+        (
+            "unknown_joint.toml",
+            "[scene]\ninitial.q = { elbow = 0.3 }\n",
+            vec![
+                "[scene] initial.q",
+                "unknown joint 'elbow'",
+                "did you mean 'elbow_joint'",
+            ],
+        ),
+        (
+            "unknown_effect.toml",
+            "[scene]\neffects = [\"gravity\", \"friction\"]\n",
+            vec![
+                "[scene] effects",
+                "unknown effect 'friction'",
+                "joint_friction",
+            ],
+        ),
+        (
+            "zero_step.toml",
+            "[scene]\nstep = 0.0\n",
+            vec!["[scene] step", "must be a finite number > 0"],
+        ),
+        (
+            "negative_duration.toml",
+            "[scene]\nduration = -1.0\n",
+            vec!["[scene] duration", "must be a finite number > 0"],
+        ),
+        (
+            "bad_rate.toml",
+            "[outputs]\nrate = 300\n",
+            vec!["[outputs] rate", "must divide 1/step"],
+        ),
+        (
+            "bad_alpha.toml",
+            "[scene]\nalpha = -0.5\n",
+            vec!["[scene] alpha", "outside the HHT range [-1/3, 0]"],
+        ),
+        (
+            "typo_key.toml",
+            "[scene]\ndurration = 1.0\n",
+            vec!["durration", "line 2"],
+        ),
+        (
+            "unknown_frame.toml",
+            "[outputs]\nframes = [\"tool\"]\n",
+            vec![
+                "[outputs] frames",
+                "unknown link 'tool'",
+                "did you mean 'tool0'",
+            ],
+        ),
+    ];
+    for (name, text, fragments) in cases {
+        let path = temp_urdf(name, text);
+        let out = ribbon(&[
+            "simulate",
+            "robots/ur5/ur5.urdf",
+            "--uncertainty",
+            path.to_str().unwrap(),
+        ]);
+        assert_input_error(&out, &fragments);
+        assert!(
+            out.stderr.contains(name),
+            "the message names the file: {}",
+            out.stderr
+        );
+    }
+    // Command-line overrides are checked the same way.
+    let out = ribbon(&["simulate", "robots/ur5/ur5.urdf", "--step=-0.001"]);
+    assert_input_error(&out, &["[scene] step"]);
+}

@@ -35,7 +35,7 @@ mod start;
 mod system;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 pub use error::{IntegrateError, SystemError, WorstEntry};
 pub use hht::{

@@ -1405,7 +1405,7 @@ fn dimension_mismatch_is_an_error() {
     );
 }
 
-mod alloc_counter {
+pub(crate) mod alloc_counter {
     //! A global allocator that counts allocations per thread, to prove that `step` allocates
     //! nothing.
     use std::alloc::{GlobalAlloc, Layout, System};

@@ -275,6 +275,65 @@ impl DaeSystem for RobotSystem {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrate::tests::alloc_counter::allocations;
+    use crate::integrate::{HhtIntegrator, HhtSettings};
+    use crate::model::{LoadOptions, Model};
+    use crate::scene::{read_sidecar, SceneOverrides};
+
+    fn robot(name: &str) -> (RobotSystem, Scene) {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("robots")
+            .join(name);
+        let model =
+            Model::from_urdf_file(&root.join(format!("{name}.urdf")), LoadOptions::default())
+                .unwrap();
+        let (file, _) = read_sidecar(&root.join(format!("{name}.uncertainty.toml"))).unwrap();
+        let scene = Scene::resolve(&file, &model, name, SceneOverrides::default()).unwrap();
+        let mut model = model;
+        scene.apply_gravity(&mut model);
+        (RobotSystem::new(model, &scene), scene)
+    }
+
+    /// The hot path of a study allocates nothing: dynamics kernels, a step with effects (ur5: springs
+    /// and dampers) and with constraint rows (slider-crank: a loop and a drive), and applying a
+    /// parameter point.
+    #[test]
+    fn hot_paths_allocate_nothing() {
+        for name in ["ur5", "slider_crank"] {
+            let (mut system, scene) = robot(name);
+            let q0 = DVector::from_column_slice(&scene.initial_q);
+            let v0 = DVector::from_column_slice(&scene.initial_v);
+            let settings = HhtSettings {
+                alpha: scene.alpha,
+                step_s: scene.step_s,
+                ..HhtSettings::default()
+            };
+            let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).unwrap();
+            hht.step(&mut system).unwrap();
+            let (q, v) = (q0.as_slice().to_vec(), v0.as_slice().to_vec());
+            let before = allocations();
+            for _ in 0..100 {
+                hht.step(&mut system).unwrap();
+            }
+            crba(&system.model, &mut system.data, &q);
+            rnea(&system.model, &mut system.data, &q, &v, &v);
+            nonlinear_effects(&system.model, &mut system.data, &q, &v);
+            let used = allocations() - before;
+            assert_eq!(
+                used, 0,
+                "{name}: {used} allocations in 100 steps and the kernels"
+            );
+        }
+        let (mut system, _) = robot("double_pendulum");
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/double_pendulum");
+        let (file, _) = read_sidecar(&root.join("double_pendulum.uncertainty.toml")).unwrap();
+        let space =
+            crate::uncertainty::ParameterSpace::from_sidecar(&file, &system.model, "dp").unwrap();
+        let xi = [0.3, -0.7];
+        let before = allocations();
+        space.apply(&mut system.model, &xi);
+        assert_eq!(allocations() - before, 0, "ParameterSpace::apply allocated");
+    }
 
     #[test]
     fn se3_exp_of_pure_rotation_and_translation() {
