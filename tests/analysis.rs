@@ -484,3 +484,61 @@ fn a_failing_sample_is_named_and_can_be_excluded() {
     assert!(!excluded.is_empty());
     assert!(excluded[0]["values"].as_array().is_some() && excluded[0]["time"].as_f64().is_some());
 }
+
+#[test]
+fn compare_reports_what_accuracy_costs() {
+    let report = scratch("compare_report");
+    let _ = std::fs::remove_dir_all(&report);
+    let out = ribbon(&[
+        "compare",
+        "robots/double_pendulum/double_pendulum.urdf",
+        "--duration",
+        "0.5",
+        "--methods",
+        "legendre-scan,legendre-ia,monte-carlo",
+        "--orders",
+        "2,4",
+        "--samples",
+        "30",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let table = String::from_utf8_lossy(&out.stdout);
+    println!("{table}");
+    let json: Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("compare.json")).unwrap())
+            .unwrap();
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(
+        rows.len(),
+        5,
+        "2 orders × 2 surrogate methods + 1 Monte Carlo size"
+    );
+    assert_eq!(json["reference"]["runs"], 442);
+    let error = |method: &str, setting: u64| {
+        rows.iter()
+            .find(|r| r["method"] == method && r["setting"] == setting)
+            .and_then(|r| r["max_error"].as_f64())
+            .unwrap_or_else(|| panic!("row {method} {setting}"))
+    };
+    // The Legendre scan is within 1 % of the dense scan; interval arithmetic over-estimates; 30
+    // Monte Carlo runs under-estimate far more than the 25 runs of the k = 4 surrogate.
+    assert!(
+        error("legendre-scan", 4) < 0.01,
+        "{}",
+        error("legendre-scan", 4)
+    );
+    assert!(error("monte-carlo", 30) > 10.0 * error("legendre-scan", 4));
+    for name in ["report.md", "error_vs_time.svg", "envelope.svg"] {
+        let text = std::fs::read_to_string(report.join(name)).unwrap();
+        assert!(text.len() > 200, "{name} is written");
+    }
+    assert!(std::fs::read_to_string(report.join("error_vs_time.svg"))
+        .unwrap()
+        .contains("legendre-scan (inner)"));
+}

@@ -42,35 +42,22 @@ fn bad(flag: &str, message: String) -> Error {
 /// Runs `ribbon analyze`.
 pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     let started = Instant::now();
-    let sidecar_path = args
-        .uncertainty
-        .clone()
-        .unwrap_or_else(|| default_sidecar_path(&args.urdf));
-    if args.uncertainty.is_none() && !sidecar_path.exists() {
-        return Err(bad(
-            "--uncertainty",
-            format!(
-                "no sidecar: '{}' does not exist; write one with [parameters] (see README) or pass --uncertainty FILE",
-                sidecar_path.display()
-            ),
-        ));
-    }
-    let sidecar_name = sidecar_path.display().to_string();
-    let (sidecar, _) = read_sidecar(&sidecar_path)?;
-    let floating_base = args.floating || wants_floating_base(&sidecar, &sidecar_name)?;
-    let mut model = Model::from_urdf_file(&args.urdf, LoadOptions { floating_base })?;
-    print_warnings(&model);
-    let overrides = SceneOverrides {
-        duration_s: args.duration,
-        step_s: args.step,
-        alpha: args.alpha,
-    };
-    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, overrides)?;
-    scene.apply_gravity(&mut model);
-    let space = ParameterSpace::from_sidecar(&sidecar, &model, &sidecar_name)?;
-    for warning in space.warnings() {
-        eprintln!("warning: {warning}");
-    }
+    let Prepared {
+        sidecar_path,
+        sidecar,
+        model,
+        scene,
+        space,
+    } = prepare(
+        &args.urdf,
+        args.uncertainty.as_deref(),
+        args.floating,
+        SceneOverrides {
+            duration_s: args.duration,
+            step_s: args.step,
+            alpha: args.alpha,
+        },
+    )?;
     let options = study_options(args, &sidecar.analysis)?;
     let robot = model.name().to_string();
     let study = Study {
@@ -189,6 +176,58 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         )));
     }
     Ok(())
+}
+
+/// A loaded robot, its scene and its interval parameters, ready for studies.
+pub struct Prepared {
+    /// The sidecar file.
+    pub sidecar_path: std::path::PathBuf,
+    /// Its contents.
+    pub sidecar: crate::scene::SidecarFile,
+    /// The nominal model (scene gravity applied).
+    pub model: Model,
+    /// The scene.
+    pub scene: Scene,
+    /// The interval parameters.
+    pub space: ParameterSpace,
+}
+
+/// Loads the URDF and its sidecar (`uncertainty`, or `ROBOT.uncertainty.toml` beside the URDF),
+/// resolves the scene and the parameter box, and prints the warnings.
+pub fn prepare(
+    urdf: &Path,
+    uncertainty: Option<&Path>,
+    floating: bool,
+    overrides: SceneOverrides,
+) -> Result<Prepared, Error> {
+    let sidecar_path = uncertainty.map_or_else(|| default_sidecar_path(urdf), Path::to_path_buf);
+    if uncertainty.is_none() && !sidecar_path.exists() {
+        return Err(bad(
+            "--uncertainty",
+            format!(
+                "no sidecar: '{}' does not exist; write one with [parameters] (see README) or pass --uncertainty FILE",
+                sidecar_path.display()
+            ),
+        ));
+    }
+    let sidecar_name = sidecar_path.display().to_string();
+    let (sidecar, _) = read_sidecar(&sidecar_path)?;
+    let floating_base = floating || wants_floating_base(&sidecar, &sidecar_name)?;
+    let mut model = Model::from_urdf_file(urdf, LoadOptions { floating_base })?;
+    print_warnings(&model);
+    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, overrides)?;
+    scene.apply_gravity(&mut model);
+    let space = ParameterSpace::from_sidecar(&sidecar, &model, &sidecar_name)?;
+    for warning in space.warnings() {
+        eprintln!("warning: {warning}");
+    }
+    Ok(Prepared {
+        sidecar_path,
+        sidecar,
+        model,
+        scene,
+        space,
+    })
 }
 
 fn study_options(

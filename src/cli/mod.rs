@@ -2,6 +2,7 @@
 //! stdout, warnings and errors to stderr.
 
 mod analyze_cmd;
+mod compare_cmd;
 mod dynamics_cmd;
 mod params_cmd;
 mod simulate_cmd;
@@ -34,6 +35,51 @@ pub enum Command {
     Simulate(SimulateArgs),
     /// Bound envelopes of every output over time under the sidecar's interval parameters.
     Analyze(AnalyzeArgs),
+    /// What accuracy costs in time: every method against a scan of the true model.
+    Compare(CompareArgs),
+}
+
+/// `ribbon compare`.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// The robot's URDF file.
+    pub urdf: PathBuf,
+    /// The sidecar file (default: `ROBOT.uncertainty.toml` beside the URDF).
+    #[arg(long, value_name = "FILE")]
+    pub uncertainty: Option<PathBuf>,
+    /// Write `report.md`, `compare.json` and SVG plots into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+    /// Points per dimension of the reference scan (odd; default 21 for d ≤ 2, 11 for d ≥ 3).
+    #[arg(long)]
+    pub reference_grid: Option<usize>,
+    /// Methods to compare (comma-separated).
+    #[arg(
+        long,
+        default_value = "legendre-scan,legendre-ia,chebyshev-scan,chebyshev-ia,taylor,monte-carlo"
+    )]
+    pub methods: String,
+    /// Orders of the surrogate methods (comma-separated).
+    #[arg(long, default_value = "2,3,4,5")]
+    pub orders: String,
+    /// Monte Carlo sizes (comma-separated).
+    #[arg(long, default_value = "30,100,300")]
+    pub samples: String,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Simulated time, s (overrides `[scene] duration`).
+    #[arg(long, value_name = "SECONDS")]
+    pub duration: Option<f64>,
+    /// Fixed step, s (overrides `[scene] step`).
+    #[arg(long, value_name = "SECONDS")]
+    pub step: Option<f64>,
+    /// HHT α (overrides `[scene] alpha`).
+    #[arg(long, allow_hyphen_values = true)]
+    pub alpha: Option<f64>,
+    /// Put the root link on a floating joint.
+    #[arg(long)]
+    pub floating: bool,
 }
 
 /// `ribbon analyze`.
@@ -177,6 +223,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Command::Dynamics(args) => dynamics_cmd::run(&args),
         Command::Simulate(args) => simulate_cmd::run(&args),
         Command::Analyze(args) => analyze_cmd::run(&args),
+        Command::Compare(args) => compare_cmd::run(&args),
     }
 }
 

@@ -7,6 +7,7 @@ mod csv;
 mod envelope_log;
 pub mod mcap;
 mod summary;
+pub mod svg;
 
 pub use csv::write_csv;
 pub use envelope_log::EnvelopeLog;

@@ -1,0 +1,434 @@
+//! `ribbon compare ROBOT.urdf [--uncertainty F] [--report DIR] [--reference-grid N] [--orders …]
+//! [--methods …] [--samples …] [--threads N] [--duration T] [--step H] [--alpha A]`: what accuracy
+//! costs in time. Runs the true-model scan as the reference, then every method (and order, and Monte
+//! Carlo size) on the same scene, and reports model runs, wall time and the method.md §4 error of
+//! each against the reference: a table on stdout, and in the report directory `report.md`,
+//! `compare.json`, `error_vs_time.svg` and `envelope.svg` (the widest output, reference vs the most
+//! accurate surrogate).
+
+use super::analyze_cmd::{prepare, Prepared};
+use super::{write_stdout, CompareArgs};
+use crate::analysis::{Method, Study, StudyOptions, StudyReport};
+use crate::output::svg::{Plot, Series};
+use crate::output::write_atomically;
+use crate::scene::SceneOverrides;
+use crate::uq::{envelope_error, Truncation};
+use crate::Error;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+/// One compared configuration.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Row {
+    /// Method name.
+    pub method: String,
+    /// Order (surrogates, Taylor 1) or Monte Carlo runs.
+    pub setting: Option<usize>,
+    /// Bound kind.
+    pub bound_kind: String,
+    /// Model runs, the nominal one included.
+    pub runs: usize,
+    /// Wall time, s.
+    pub wall_seconds: f64,
+    /// Worst over outputs of the max-over-time error.
+    pub max_error: f64,
+    /// Mean over outputs of the mean-over-time error.
+    pub mean_error: f64,
+    /// The output with the worst error.
+    pub worst_output: String,
+}
+
+fn parse_list(flag: &str, text: &str) -> Result<Vec<String>, Error> {
+    let items: Vec<String> = text
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect();
+    if items.is_empty() {
+        return Err(Error::BadArgument {
+            flag: flag.to_string(),
+            message: "give at least one value".to_string(),
+        });
+    }
+    Ok(items)
+}
+
+fn parse_numbers(flag: &str, text: &str) -> Result<Vec<usize>, Error> {
+    parse_list(flag, text)?
+        .iter()
+        .map(|item| {
+            item.parse().map_err(|_| Error::BadArgument {
+                flag: flag.to_string(),
+                message: format!("'{item}' is not a whole number"),
+            })
+        })
+        .collect()
+}
+
+/// An output whose reference envelope is never wider than this fraction of its magnitude is not
+/// uncertain (a driven joint, a coordinate fixed by the constraints): its width is rounding noise,
+/// and method.md's relative error would divide by it.
+pub const CERTAIN_OUTPUT_RELATIVE_WIDTH: f64 = 1e-9;
+
+/// Outputs of the reference that carry uncertainty (see [`CERTAIN_OUTPUT_RELATIVE_WIDTH`]).
+fn uncertain_outputs(reference: &StudyReport) -> Vec<usize> {
+    let r = &reference.envelope;
+    (0..r.outputs.len())
+        .filter(|&o| {
+            let width = r.upper[o]
+                .iter()
+                .zip(&r.lower[o])
+                .map(|(u, l)| u - l)
+                .fold(0.0, f64::max);
+            let scale = r.nominal[o]
+                .iter()
+                .map(|x| x.abs())
+                .fold(0.0, f64::max)
+                .max(f64::MIN_POSITIVE);
+            width > CERTAIN_OUTPUT_RELATIVE_WIDTH * scale
+        })
+        .collect()
+}
+
+/// Errors of `report` against `reference` over the uncertain outputs: (max over outputs of max,
+/// mean over outputs of mean, the worst output).
+fn compare_envelopes(report: &StudyReport, reference: &StudyReport) -> (f64, f64, String) {
+    let (r, e) = (&reference.envelope, &report.envelope);
+    let mut worst = (0.0_f64, String::new());
+    let (mut sum, mut count) = (0.0, 0);
+    for o in uncertain_outputs(reference) {
+        let Ok(error) = envelope_error(&e.lower[o], &e.upper[o], &r.lower[o], &r.upper[o]) else {
+            continue;
+        };
+        if error.max > worst.0 || worst.1.is_empty() {
+            worst = (error.max, r.outputs[o].name.clone());
+        }
+        sum += error.mean;
+        count += 1;
+    }
+    (
+        worst.0,
+        if count > 0 { sum / count as f64 } else { 0.0 },
+        worst.1,
+    )
+}
+
+/// Runs `ribbon compare`.
+pub fn run(args: &CompareArgs) -> Result<(), Error> {
+    let Prepared {
+        model,
+        scene,
+        space,
+        ..
+    } = prepare(
+        &args.urdf,
+        args.uncertainty.as_deref(),
+        args.floating,
+        SceneOverrides {
+            duration_s: args.duration,
+            step_s: args.step,
+            alpha: args.alpha,
+        },
+    )?;
+    let d = space.len();
+    let methods: Vec<Method> = parse_list("--methods", &args.methods)?
+        .iter()
+        .map(|name| {
+            Method::parse(name).ok_or_else(|| Error::BadArgument {
+                flag: "--methods".to_string(),
+                message: format!("unknown method '{name}'"),
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let orders = parse_numbers("--orders", &args.orders)?;
+    let samples = parse_numbers("--samples", &args.samples)?;
+    let reference_grid = args.reference_grid.unwrap_or(if d <= 2 { 21 } else { 11 });
+    let base = StudyOptions {
+        method: Method::Scan,
+        order: 4,
+        truncation: Truncation::Tensor,
+        grid: reference_grid,
+        scan_grid: None,
+        samples: 1000,
+        seed: 0,
+        threads: args.threads.unwrap_or(0),
+        keep_going: false,
+    };
+    let interrupt = AtomicBool::new(false);
+    let run_study = |options: StudyOptions| -> Result<(StudyReport, f64), Error> {
+        let study = Study {
+            model: model.clone(),
+            scene: &scene,
+            space: &space,
+            options,
+        };
+        let started = Instant::now();
+        let report = study.run(&interrupt, &mut |_| {}, &mut |_| Ok(()))?;
+        Ok((report, started.elapsed().as_secs_f64()))
+    };
+    eprintln!("compare: reference scan {reference_grid}^{d} of the true model …");
+    let (reference, reference_seconds) = run_study(base.clone())?;
+    eprintln!("  {} runs in {reference_seconds:.3} s", reference.runs);
+
+    let mut configurations: Vec<(Method, Option<usize>, StudyOptions)> = Vec::new();
+    for method in &methods {
+        match method {
+            Method::Scan => {}
+            Method::Taylor => configurations.push((
+                *method,
+                Some(1),
+                StudyOptions {
+                    method: *method,
+                    ..base.clone()
+                },
+            )),
+            Method::MonteCarlo => {
+                for n in &samples {
+                    configurations.push((
+                        *method,
+                        Some(*n),
+                        StudyOptions {
+                            method: *method,
+                            samples: *n,
+                            ..base.clone()
+                        },
+                    ));
+                }
+            }
+            surrogate => {
+                for k in &orders {
+                    configurations.push((
+                        *surrogate,
+                        Some(*k),
+                        StudyOptions {
+                            method: *surrogate,
+                            order: *k,
+                            ..base.clone()
+                        },
+                    ));
+                }
+            }
+        }
+    }
+    let mut rows = Vec::with_capacity(configurations.len());
+    let mut best_surrogate: Option<(String, StudyReport)> = None;
+    for (method, setting, options) in configurations {
+        let (report, seconds) = run_study(options)?;
+        let (max_error, mean_error, worst_output) = compare_envelopes(&report, &reference);
+        let label = match (method, setting) {
+            (Method::MonteCarlo, Some(n)) => format!("{} N={n}", method.name()),
+            (_, Some(k)) if method != Method::Taylor => format!("{} k={k}", method.name()),
+            _ => method.name().to_string(),
+        };
+        eprintln!(
+            "  {label}: {} runs, {seconds:.3} s, max error {max_error:.3e}",
+            report.runs
+        );
+        if method == Method::LegendreScan {
+            best_surrogate = Some((label.clone(), report.clone()));
+        }
+        rows.push(Row {
+            method: method.name().to_string(),
+            setting,
+            bound_kind: method.bound_kind().to_string(),
+            runs: report.runs,
+            wall_seconds: seconds,
+            max_error,
+            mean_error,
+            worst_output,
+        });
+    }
+
+    let skipped: Vec<&str> = (0..reference.envelope.outputs.len())
+        .filter(|o| !uncertain_outputs(&reference).contains(o))
+        .map(|o| reference.envelope.outputs[o].name.as_str())
+        .collect();
+    let mut table = render_table(&rows, reference.runs, reference_seconds, reference_grid, d);
+    if !skipped.is_empty() {
+        table.push_str(&format!(
+            "
+not compared (no uncertainty: reference width ≤ {CERTAIN_OUTPUT_RELATIVE_WIDTH:e} of the value): {}
+",
+            skipped.join(", ")
+        ));
+    }
+    if let Some(dir) = &args.report {
+        write_report(
+            dir,
+            &table,
+            &rows,
+            &reference,
+            reference_seconds,
+            reference_grid,
+            best_surrogate.as_ref(),
+        )?;
+        eprintln!("report written to {}", dir.display());
+    }
+    write_stdout(&table)
+}
+
+fn render_table(
+    rows: &[Row],
+    reference_runs: usize,
+    reference_seconds: f64,
+    grid: usize,
+    d: usize,
+) -> String {
+    let mut text = format!(
+        "reference: scan {grid}^{d} of the true model, {reference_runs} runs, {reference_seconds:.3} s\n\
+         error: method.md §4, max over time and outputs (mean over time, averaged over outputs)\n\n"
+    );
+    text.push_str(&format!(
+        "| {:<16} | {:>7} | {:<11} | {:>7} | {:>10} | {:>10} | {:>10} | {:>9} |\n",
+        "method", "setting", "bounds", "runs", "wall (s)", "max error", "mean error", "speed-up"
+    ));
+    text.push_str("|------------------|---------|-------------|---------|------------|------------|------------|-----------|\n");
+    for row in rows {
+        let setting = match (row.method.as_str(), row.setting) {
+            ("monte-carlo", Some(n)) => format!("N={n}"),
+            ("taylor", _) => "1".to_string(),
+            (_, Some(k)) => format!("k={k}"),
+            _ => String::new(),
+        };
+        text.push_str(&format!(
+            "| {:<16} | {:>7} | {:<11} | {:>7} | {:>10.3} | {:>10.3e} | {:>10.3e} | {:>8.1}× |\n",
+            row.method,
+            setting,
+            row.bound_kind,
+            row.runs,
+            row.wall_seconds,
+            row.max_error,
+            row.mean_error,
+            reference_seconds / row.wall_seconds.max(1e-9),
+        ));
+    }
+    text
+}
+
+fn write_report(
+    dir: &Path,
+    table: &str,
+    rows: &[Row],
+    reference: &StudyReport,
+    reference_seconds: f64,
+    grid: usize,
+    best: Option<&(String, StudyReport)>,
+) -> Result<(), Error> {
+    std::fs::create_dir_all(dir).map_err(|source| Error::Output {
+        what: format!("report directory '{}'", dir.display()),
+        source,
+    })?;
+    let markdown = format!(
+        "# ribbon compare\n\nWhat accuracy costs in time: every method against a scan of the true model.\n\n```text\n{table}```\n\n\
+         ![error vs time](error_vs_time.svg)\n\n![envelope](envelope.svg)\n"
+    );
+    write_atomically(&dir.join("report.md"), "report", markdown.as_bytes())?;
+    let json = serde_json::json!({
+        "reference": {"method": "scan", "grid": grid, "runs": reference.runs, "wall_seconds": reference_seconds},
+        "rows": rows,
+    });
+    write_atomically(
+        &dir.join("compare.json"),
+        "report JSON",
+        serde_json::to_string_pretty(&json)
+            .unwrap_or_default()
+            .as_bytes(),
+    )?;
+
+    let mut series: Vec<Series> = Vec::new();
+    for row in rows {
+        let label = match row.method.as_str() {
+            "monte-carlo" => format!("monte-carlo ({})", row.bound_kind),
+            other => format!("{other} ({})", row.bound_kind),
+        };
+        let point_label = match (row.method.as_str(), row.setting) {
+            ("monte-carlo", Some(n)) => format!("N={n}"),
+            ("taylor", _) => String::new(),
+            (_, Some(k)) => format!("k={k}"),
+            _ => String::new(),
+        };
+        match series.iter_mut().find(|s| s.label == label) {
+            Some(s) => {
+                s.points.push((row.wall_seconds, row.max_error));
+                s.point_labels.push(point_label);
+            }
+            None => series.push(Series {
+                label,
+                points: vec![(row.wall_seconds, row.max_error)],
+                point_labels: vec![point_label],
+                joined: true,
+                dashed: false,
+            }),
+        }
+    }
+    let plot = Plot {
+        title: format!(
+            "error vs wall time (reference: scan, {} runs, {reference_seconds:.2} s)",
+            reference.runs
+        ),
+        x_label: "wall time (s)".to_string(),
+        y_label: "max envelope error (fraction of reference width)".to_string(),
+        log_x: true,
+        log_y: true,
+        series,
+    };
+    write_atomically(
+        &dir.join("error_vs_time.svg"),
+        "plot",
+        plot.to_svg().as_bytes(),
+    )?;
+
+    // The widest output: reference envelope against the last Legendre-scan run.
+    let r = &reference.envelope;
+    let widest = (0..r.outputs.len())
+        .max_by(|a, b| {
+            let width = |o: usize| {
+                r.upper[o]
+                    .iter()
+                    .zip(&r.lower[o])
+                    .map(|(u, l)| u - l)
+                    .fold(0.0, f64::max)
+            };
+            width(*a).total_cmp(&width(*b))
+        })
+        .unwrap_or(0);
+    let line = |label: &str, values: &[f64], dashed: bool| Series {
+        label: label.to_string(),
+        points: r
+            .times
+            .iter()
+            .copied()
+            .zip(values.iter().copied())
+            .collect(),
+        point_labels: Vec::new(),
+        joined: true,
+        dashed,
+    };
+    let mut envelope_series = vec![
+        line("reference lower", &r.lower[widest], false),
+        line("reference upper", &r.upper[widest], false),
+        line("nominal", &r.nominal[widest], false),
+    ];
+    if let Some((label, report)) = best {
+        let e = &report.envelope;
+        envelope_series.push(line(&format!("{label} lower"), &e.lower[widest], true));
+        envelope_series.push(line(&format!("{label} upper"), &e.upper[widest], true));
+    }
+    let envelope_plot = Plot {
+        title: format!(
+            "envelope of {} ({})",
+            r.outputs[widest].name, r.outputs[widest].unit
+        ),
+        x_label: "t (s)".to_string(),
+        y_label: format!("{} ({})", r.outputs[widest].name, r.outputs[widest].unit),
+        log_x: false,
+        log_y: false,
+        series: envelope_series,
+    };
+    write_atomically(
+        &dir.join("envelope.svg"),
+        "plot",
+        envelope_plot.to_svg().as_bytes(),
+    )
+}
