@@ -1,4 +1,4 @@
-//! Rigid-body dynamics on a [`Model`](crate::model::Model) in joint coordinates:
+//! Rigid-body dynamics on a [`crate::model::Model`] in joint coordinates:
 //! - [`forward_kinematics`] — body placements;
 //! - [`rnea`] — inverse dynamics `τ = M(q) q̈ + C(q, q̇) q̇ + g(q)` and [`nonlinear_effects`] (`q̈ = 0`);
 //! - [`crba`] — the joint-space mass matrix `M(q)`;
