@@ -1,2 +1,451 @@
-//! Placeholder: one HHT-I3 step (being written).
-fn main() {}
+//! Criterion bench of one HHT-I3 step (h = 1 ms, α = −0.1, gravity only) on our ur5 and on the
+//! example-robot-data ur5 and panda when the reference venv exists (`target/reference-venv`, created by
+//! `cargo test --release`). The number is "µs per step of a 1 s passive fall": the integrator runs a
+//! 1000-step trajectory from a non-trivial rest configuration, is restarted (outside the timed region)
+//! every 1000 steps, and criterion's per-iteration time is the mean cost of a step along that
+//! trajectory. Compare with `benches/mujoco_timing.py` (MuJoCo's `rollout` per step) run in the same
+//! session: see benches/README.md.
+//!
+//! Before the timing, each robot's full 1 s fall is run once and its Newton statistics printed
+//! (iterations per step, factorisations) so that the per-step time can be read against the work done;
+//! then once more through a wrapper that counts and times every call into the system (`Profiled`:
+//! CRBA for `mass_matrix`, RNEA for `dynamics_residual`, the constraint rows) to split a step into
+//! dynamics and the integrator's own work (factorisation, solves, bookkeeping); and the size of the
+//! first Newton correction is estimated for two predictors (the integrator's `q̈_{n+1} = q̈_n` and a
+//! linear extrapolation `2 q̈_n − q̈_{n−1}`), in units of the Newton tolerance.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use nalgebra::{DMatrix, DVector};
+use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, SystemError};
+use ribbon::model::{JointKind, LoadOptions, Model};
+use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
+use ribbon::simulate::{hht_settings, RobotSystem};
+
+/// Steps per trajectory: 1 s at h = 1 ms.
+const STEPS_PER_FALL: u64 = 1000;
+
+/// Initial revolute angles (rad), cycled over the revolute joints in coordinate order; prismatic joints
+/// start at `PRISMATIC_Q0` (m). Within the joint limits of all three robots. Keep in sync with
+/// `REVOLUTE_Q0` in benches/mujoco_timing.py.
+const REVOLUTE_Q0: [f64; 7] = [0.3, -0.8, 0.5, -1.2, 0.4, 1.0, 0.7];
+const PRISMATIC_Q0: f64 = 0.02;
+
+fn robots() -> Vec<(String, PathBuf)> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let mut list = vec![("ribbon-ur5".to_string(), root.join("robots/ur5/ur5.urdf"))];
+    let share = root.join(
+        "target/reference-venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots",
+    );
+    for (name, relative) in [
+        ("erd-ur5", "ur_description/urdf/ur5_robot.urdf"),
+        ("erd-panda", "panda_description/urdf/panda.urdf"),
+    ] {
+        let path = share.join(relative);
+        if path.exists() {
+            list.push((name.to_string(), path));
+        } else {
+            eprintln!(
+                "{name}: skipped, {} not found (run `cargo test --release` once to create the venv)",
+                path.display()
+            );
+        }
+    }
+    list
+}
+
+/// One robot ready to step: the system, the integrator and the start state.
+struct Fall {
+    system: RobotSystem,
+    hht: HhtIntegrator,
+    q0: DVector<f64>,
+    v0: DVector<f64>,
+    /// Steps taken since the last restart.
+    done: u64,
+}
+
+impl Fall {
+    fn new(path: &Path) -> Self {
+        let model = Model::from_urdf_file(path, LoadOptions::default()).expect("robot loads");
+        let file = parse_sidecar("[scene]\ngravity = [0.0, 0.0, -9.81]\n").expect("sidecar parses");
+        let scene = Scene::resolve(
+            &file,
+            &model,
+            "bench",
+            SceneOverrides {
+                step_s: Some(1e-3),
+                alpha: Some(-0.1),
+                ..Default::default()
+            },
+        )
+        .expect("scene resolves");
+        let mut model = model;
+        scene.apply_gravity(&mut model);
+        let mut q0 = DVector::from_column_slice(&scene.initial_q);
+        let mut revolute = 0;
+        for joint in &model.joints {
+            match joint.kind {
+                JointKind::Revolute => {
+                    q0[joint.q_index] = REVOLUTE_Q0[revolute % REVOLUTE_Q0.len()];
+                    revolute += 1;
+                }
+                JointKind::Prismatic => q0[joint.q_index] = PRISMATIC_Q0,
+                JointKind::Floating => {}
+            }
+        }
+        let v0 = DVector::from_column_slice(&scene.initial_v);
+        let mut system = RobotSystem::new(model, &scene);
+        let hht = HhtIntegrator::new(&mut system, hht_settings(&scene), 0.0, &q0, &v0)
+            .expect("consistent start");
+        Self {
+            system,
+            hht,
+            q0,
+            v0,
+            done: 0,
+        }
+    }
+
+    fn restart(&mut self) {
+        self.hht
+            .restart(&mut self.system, 0.0, &self.q0, &self.v0)
+            .expect("restart");
+        self.done = 0;
+    }
+
+    /// Takes `n` steps along the fall, restarting (untimed) at the end of each 1 s trajectory, and
+    /// returns the time spent in `step` alone.
+    fn timed_steps(&mut self, n: u64) -> Duration {
+        let mut total = Duration::ZERO;
+        let mut remaining = n;
+        while remaining > 0 {
+            if self.done == STEPS_PER_FALL {
+                self.restart();
+            }
+            let batch = remaining.min(STEPS_PER_FALL - self.done);
+            let start = Instant::now();
+            for _ in 0..batch {
+                self.hht.step(&mut self.system).expect("step converges");
+            }
+            total += start.elapsed();
+            self.done += batch;
+            remaining -= batch;
+        }
+        total
+    }
+}
+
+/// Runs one full 1 s fall and prints what the integrator did.
+fn report(name: &str, fall: &mut Fall) {
+    fall.restart();
+    let start = Instant::now();
+    for _ in 0..STEPS_PER_FALL {
+        fall.hht.step(&mut fall.system).expect("step converges");
+    }
+    let wall = start.elapsed();
+    fall.done = STEPS_PER_FALL;
+    let stats = *fall.hht.stats();
+    let steps = stats.steps.max(1) as f64;
+    let q0: Vec<String> = fall
+        .system
+        .model
+        .joints
+        .iter()
+        .map(|j| format!("{}={}", j.name, fall.q0[j.q_index]))
+        .collect();
+    eprintln!(
+        "hht_step/{name}: nq {} nv {} constraint rows {}; q0 [{}]",
+        fall.system.model.nq,
+        fall.system.model.nv,
+        fall.hht.state().lambda.len(),
+        q0.join(", ")
+    );
+    eprintln!(
+        "hht_step/{name}: 1 s fall = {} steps, Newton iterations {} ({:.2}/step, max {} in a step), \
+         factorisations {} ({:.2}/step), refreshes {}, projection factorisations {}; \
+         this first (cold) run took {:.1} µs/step; q(1 s) = {:?}",
+        stats.steps,
+        stats.newton_iterations,
+        stats.newton_iterations as f64 / steps,
+        stats.max_iterations_in_a_step,
+        stats.factorisations,
+        stats.factorisations as f64 / steps,
+        stats.refreshes,
+        stats.projection_factorisations,
+        wall.as_secs_f64() * 1e6 / steps,
+        fall.hht
+            .state()
+            .q
+            .iter()
+            .map(|x| (x * 1e6).round() / 1e6)
+            .collect::<Vec<_>>()
+    );
+}
+
+/// Counters of one system method: calls and time spent inside (timer overhead included).
+#[derive(Default, Clone, Copy)]
+struct Counter {
+    calls: u64,
+    time: Duration,
+}
+
+/// A [`DaeSystem`] that delegates to a [`RobotSystem`] and counts and times every evaluation.
+struct Profiled<'a> {
+    inner: &'a mut RobotSystem,
+    counters: [Counter; 8],
+}
+
+const METHODS: [&str; 8] = [
+    "mass_matrix (CRBA)",
+    "forces",
+    "dynamics_residual (RNEA)",
+    "newton_diagonal",
+    "constraints",
+    "constraint_jacobian",
+    "constraint_time_derivative",
+    "integrate_position",
+];
+
+impl Profiled<'_> {
+    fn timed<R>(&mut self, index: usize, f: impl FnOnce(&mut RobotSystem) -> R) -> R {
+        let start = Instant::now();
+        let result = f(self.inner);
+        let counter = &mut self.counters[index];
+        counter.time += start.elapsed();
+        counter.calls += 1;
+        result
+    }
+}
+
+impl DaeSystem for Profiled<'_> {
+    fn nq(&self) -> usize {
+        self.inner.nq()
+    }
+    fn nv(&self) -> usize {
+        self.inner.nv()
+    }
+    fn n_constraints(&self) -> usize {
+        self.inner.n_constraints()
+    }
+    fn integrate_position(
+        &self,
+        q: &DVector<f64>,
+        dq: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        // `&self`: not timed (a vector addition for these robots); counted through the integrator's
+        // statistics instead.
+        self.inner.integrate_position(q, dq, out)
+    }
+    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>) {
+        self.inner.position_scale(q, out)
+    }
+    fn mass_matrix(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(0, |s| s.mass_matrix(t, q, out))
+    }
+    fn forces(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(1, |s| s.forces(t, q, v, out))
+    }
+    fn provides_dynamics_residual(&self) -> bool {
+        self.inner.provides_dynamics_residual()
+    }
+    fn dynamics_residual(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(2, |s| s.dynamics_residual(t, q, v, qdd, out))
+    }
+    fn newton_diagonal(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        stiffness_out: &mut DVector<f64>,
+        damping_out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(3, |s| {
+            s.newton_diagonal(t, q, v, stiffness_out, damping_out)
+        })
+    }
+    fn constraints(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(4, |s| s.constraints(t, q, out))
+    }
+    fn constraint_jacobian(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(5, |s| s.constraint_jacobian(t, q, out))
+    }
+    fn constraint_time_derivative(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(6, |s| s.constraint_time_derivative(t, q, out))
+    }
+    fn constraint_acceleration_bias(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.inner.constraint_acceleration_bias(t, q, v, out)
+    }
+}
+
+/// Cost of one `Instant::now()` … `elapsed()` pair, to subtract from the timed calls.
+fn timer_overhead() -> Duration {
+    let n = 100_000u32;
+    let start = Instant::now();
+    let mut sink = Duration::ZERO;
+    for _ in 0..n {
+        let t = Instant::now();
+        sink += t.elapsed();
+    }
+    std::hint::black_box(sink);
+    start.elapsed() / n
+}
+
+/// Runs a 1 s fall through [`Profiled`] (three times, keeping the fastest) and prints µs per step
+/// of each system method and of the rest (the integrator's own work), plus the predictor estimate.
+fn profile(name: &str, fall: &mut Fall, settings: HhtSettings) {
+    let overhead = timer_overhead();
+    let mut best: Option<(Duration, [Counter; 8])> = None;
+    let mut history: Vec<DVector<f64>> = Vec::with_capacity(STEPS_PER_FALL as usize + 1);
+    let mut scales: Vec<DVector<f64>> = Vec::with_capacity(STEPS_PER_FALL as usize + 1);
+    let (q0, v0) = (fall.q0.clone(), fall.v0.clone());
+    for run in 0..3 {
+        let mut system = Profiled {
+            inner: &mut fall.system,
+            counters: [Counter::default(); 8],
+        };
+        let mut hht =
+            HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).expect("consistent start");
+        system.counters = [Counter::default(); 8];
+        let mut total = Duration::ZERO;
+        for _ in 0..STEPS_PER_FALL {
+            if run == 0 {
+                history.push(hht.state().qdd.clone());
+                let mut scale = DVector::zeros(system.nv());
+                system.position_scale(&hht.state().q, &mut scale);
+                scales.push(scale);
+            }
+            let start = Instant::now();
+            hht.step(&mut system).expect("step converges");
+            total += start.elapsed();
+        }
+        if run == 0 {
+            history.push(hht.state().qdd.clone());
+        }
+        if best.as_ref().is_none_or(|(t, _)| total < *t) {
+            best = Some((total, system.counters));
+        }
+    }
+    let (total, counters) = best.expect("three runs");
+    let steps = STEPS_PER_FALL as f64;
+    let per_step = |d: Duration| d.as_secs_f64() * 1e6 / steps;
+    let mut system_time = Duration::ZERO;
+    let mut parts = Vec::new();
+    for (method, counter) in METHODS.iter().zip(counters) {
+        if counter.calls == 0 {
+            continue;
+        }
+        let net = counter.time.saturating_sub(overhead * counter.calls as u32);
+        system_time += net;
+        parts.push(format!(
+            "{method} {:.2}/step {:.3} µs/step ({:.3} µs/call)",
+            counter.calls as f64 / steps,
+            per_step(net),
+            net.as_secs_f64() * 1e6 / counter.calls as f64
+        ));
+    }
+    let timed_calls: u64 = counters.iter().map(|c| c.calls).sum();
+    let rest = total
+        .saturating_sub(system_time)
+        .saturating_sub(overhead * timed_calls as u32);
+    eprintln!(
+        "hht_step/{name}: profile of a 1 s fall (fastest of 3, timer overhead {:.0} ns/call \
+         subtracted): total {:.3} µs/step = {}; integrator's own work (factorisation, solves, \
+         residual bookkeeping, WRMS test) {:.3} µs/step",
+        overhead.as_secs_f64() * 1e9,
+        per_step(total),
+        parts.join(" + "),
+        per_step(rest)
+    );
+
+    // First Newton correction ≈ q̈_{n+1} − predictor, measured as the integrator's test does:
+    // WRMS of β'h² Δq̈ with ewt_i = 1 / (reltol · scale_i + abstol).
+    let c = ribbon::integrate::HhtCoefficients::new(settings.alpha, settings.step_s);
+    let beta_h2 = c.beta_h2();
+    let wrms = |n: usize, predicted: &DVector<f64>| -> f64 {
+        let scale = &scales[n];
+        let error = &history[n + 1] - predicted;
+        let sum: f64 = error
+            .iter()
+            .zip(scale.iter())
+            .map(|(e, s)| {
+                let x = beta_h2 * e / (settings.reltol * s + settings.abstol_position);
+                x * x
+            })
+            .sum();
+        (sum / error.len() as f64).sqrt()
+    };
+    let mut constant = Vec::new();
+    let mut linear = Vec::new();
+    for n in 1..STEPS_PER_FALL as usize {
+        constant.push(wrms(n, &history[n]));
+        linear.push(wrms(n, &(&history[n] * 2.0 - &history[n - 1])));
+    }
+    let median = |mut x: Vec<f64>| {
+        x.sort_by(f64::total_cmp);
+        x[x.len() / 2]
+    };
+    eprintln!(
+        "hht_step/{name}: first Newton correction / tolerance (median over the fall): predictor \
+         q̈_n {:.1e}, linear extrapolation 2q̈_n − q̈_(n−1) {:.1e} (converged when < 1)",
+        median(constant),
+        median(linear)
+    );
+}
+
+fn hht_step(c: &mut Criterion) {
+    for (name, path) in robots() {
+        let mut fall = Fall::new(&path);
+        report(&name, &mut fall);
+        let settings = *fall.hht.settings();
+        profile(&name, &mut fall, settings);
+        fall.restart();
+        c.bench_function(&format!("hht_step/{name}"), |b| {
+            b.iter_custom(|iters| fall.timed_steps(iters))
+        });
+    }
+}
+
+criterion_group!(benches, hht_step);
+criterion_main!(benches);
