@@ -4,7 +4,7 @@
 //! One step, as data flow:
 //!
 //! ```text
-//! (t_n, q_n, q̇_n, a_n, q̈_n, λ_n) => predictor q̈ = q̈_n, λ = λ_n
+//! (t_n, q_n, q̇_n, a_n, q̈_n, λ_n) => predictor q̈ = 2q̈_n − q̈_{n−1}, λ = 2λ_n − λ_{n−1}
 //!   => factorise the iteration matrix at the predicted (q, q̇)          (modified Newton)
 //!   => iterate: residual at (q(q̈), q̇(q̈)), solve, correct, WRMS test   (≤ max_newton_iterations)
 //!   => not converged: refactorise at the current iterate, iterate again; then fail loudly
@@ -238,6 +238,12 @@ pub struct HhtTrajectory {
     pub state: HhtState,
     /// The Newmark velocity of the recursion (differs from `state.v` after a velocity projection).
     pub v_newmark: DVector<f64>,
+    /// `q̈` of the previous step, for the predictor (valid when `has_previous`).
+    pub qdd_previous: DVector<f64>,
+    /// `λ` of the previous step, for the predictor (valid when `has_previous`).
+    pub lambda_previous: DVector<f64>,
+    /// Whether a step has been taken (the predictor then extrapolates).
+    pub has_previous: bool,
     /// Statistics of this trajectory.
     pub stats: HhtStats,
 }
@@ -254,6 +260,12 @@ pub struct HhtIntegrator {
     /// The Newmark velocity the recursion uses, dim nv (equals `state.v` unless the reported velocity
     /// was projected).
     v_newmark: DVector<f64>,
+    /// `q̈_{n−1}` for the predictor (valid when `has_previous`).
+    qdd_previous: DVector<f64>,
+    /// `λ_{n−1}` for the predictor (valid when `has_previous`).
+    lambda_previous: DVector<f64>,
+    /// Whether a step has been taken since the (re)start.
+    has_previous: bool,
     /// Feed the projected velocity back into the recursion (the textbook post-step projection).
     /// Test-only: it makes q̈ and λ first order (tests.rs pins it).
     projection_feedback: bool,
@@ -295,6 +307,9 @@ impl HhtIntegrator {
                 lambda: DVector::zeros(m),
             },
             v_newmark: DVector::zeros(nv),
+            qdd_previous: DVector::zeros(nv),
+            lambda_previous: DVector::zeros(m),
+            has_previous: false,
             projection_feedback: false,
             stats: HhtStats::default(),
             ws: Workspace::new(nq, nv, m),
@@ -322,6 +337,7 @@ impl HhtIntegrator {
         self.state.q.copy_from(&start.q);
         self.state.v.copy_from(&start.v);
         self.v_newmark.copy_from(&start.v);
+        self.has_previous = false;
         self.state.qdd.copy_from(&start.qdd);
         self.state.a.copy_from(&start.qdd);
         self.state.lambda.copy_from(&start.lambda);
@@ -345,6 +361,9 @@ impl HhtIntegrator {
             t0: self.t0,
             state: self.state.clone(),
             v_newmark: self.v_newmark.clone(),
+            qdd_previous: self.qdd_previous.clone(),
+            lambda_previous: self.lambda_previous.clone(),
+            has_previous: self.has_previous,
             stats: self.stats,
         }
     }
@@ -375,6 +394,9 @@ impl HhtIntegrator {
         std::mem::swap(&mut self.t0, &mut other.t0);
         std::mem::swap(&mut self.state, &mut other.state);
         std::mem::swap(&mut self.v_newmark, &mut other.v_newmark);
+        std::mem::swap(&mut self.qdd_previous, &mut other.qdd_previous);
+        std::mem::swap(&mut self.lambda_previous, &mut other.lambda_previous);
+        std::mem::swap(&mut self.has_previous, &mut other.has_previous);
         std::mem::swap(&mut self.stats, &mut other.stats);
         self.ws.mass_fresh = false;
         self.ws.phi_q_fresh = false;
@@ -413,9 +435,33 @@ impl HhtIntegrator {
         let t1 = self.t0 + step as f64 * self.coeffs.h;
         let at = At { t: t1, step };
 
-        // Predictor: q̈_{n+1} = q̈_n, λ_{n+1} = λ_n.
-        self.ws.qdd.copy_from(&self.state.qdd);
-        self.ws.lambda.copy_from(&self.state.lambda);
+        // Predictor: linear extrapolation q̈_{n+1} = 2q̈_n − q̈_{n−1} (λ likewise) once a previous
+        // step exists, else q̈_n: on smooth motion it starts Newton 10–100× closer to the solution
+        // (measured on the ur5 and panda falls), which saves iterations; the converged result is the
+        // same to the Newton tolerance.
+        if self.has_previous {
+            let qdd = self
+                .ws
+                .qdd
+                .iter_mut()
+                .zip(self.state.qdd.iter())
+                .zip(self.qdd_previous.iter());
+            for ((x, now), before) in qdd {
+                *x = 2.0 * now - before;
+            }
+            let lambda = self
+                .ws
+                .lambda
+                .iter_mut()
+                .zip(self.state.lambda.iter())
+                .zip(self.lambda_previous.iter());
+            for ((x, now), before) in lambda {
+                *x = 2.0 * now - before;
+            }
+        } else {
+            self.ws.qdd.copy_from(&self.state.qdd);
+            self.ws.lambda.copy_from(&self.state.lambda);
+        }
         self.update_iterate(system, at)?;
 
         let max_iterations = self.settings.max_newton_iterations;
@@ -472,7 +518,10 @@ impl HhtIntegrator {
             });
         }
 
-        // Accept.
+        // Accept, keeping q̈_n and λ_n for the next predictor.
+        self.qdd_previous.copy_from(&self.state.qdd);
+        self.lambda_previous.copy_from(&self.state.lambda);
+        self.has_previous = true;
         let ws = &self.ws;
         let state = &mut self.state;
         state.t = t1;
