@@ -288,6 +288,7 @@ fn com_and_velocity(
         q.as_slice(),
         v.as_slice(),
     );
+    ribbon::dynamics::forward_kinematics(&system.model, &mut system.data, q.as_slice());
     let (mut moment, mut momentum, mut mass) =
         (nalgebra::Vector3::zeros(), nalgebra::Vector3::zeros(), 0.0);
     for (b, body) in system.model.bodies.iter().enumerate() {

@@ -3,7 +3,9 @@
 
 use super::{print_warnings, write_stdout, DynamicsArgs};
 use crate::cli::values::{apply_set_flags, parse_vector};
-use crate::dynamics::{crba, forward_dynamics, frame_placements, nonlinear_effects, rnea, Data};
+use crate::dynamics::{
+    crba, forward_dynamics, forward_kinematics, frame_placements, nonlinear_effects, rnea, Data,
+};
 use crate::model::{JointKind, LoadOptions, Model};
 use crate::Error;
 use serde_json::{json, Map, Value};
@@ -40,6 +42,7 @@ pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
     let mut data = Data::new(&model);
     let mass_matrix = crba(&model, &mut data, &q).clone();
     let bias = nonlinear_effects(&model, &mut data, &q, &v).to_vec();
+    forward_kinematics(&model, &mut data, &q);
     let frames: Vec<(String, crate::spatial::Transform)> = (0..model.description.links.len())
         .map(|l| {
             (

@@ -12,8 +12,9 @@ use crate::spatial::{Motion, Vec3};
 
 /// Inverse dynamics: `data.tau = M(q) q̈ + C(q, v) v + g(q)`, rigid-body terms only.
 ///
-/// `q: dim nq`, `v, qdd: dim nv`. Overwrites `data.parent_from_body`, `data.world_from_body`,
-/// `data.velocity`, `data.acceleration`, `data.force` and `data.tau`; returns `data.tau`.
+/// `q: dim nq`, `v, qdd: dim nv`. Overwrites `data.parent_from_body`, `data.velocity`,
+/// `data.acceleration`, `data.force` and `data.tau` (not `data.world_from_body`: call
+/// [`forward_kinematics`](super::forward_kinematics) for placements); returns `data.tau`.
 pub fn rnea<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64], qdd: &[f64]) -> &'a [f64] {
     run(model, data, q, v, Some(qdd));
     let Data {
@@ -47,13 +48,9 @@ fn run(model: &Model, data: &mut Data, q: &[f64], v: &[f64], qdd: Option<&[f64]>
         let (qi, vi) = (joint.q_index, joint.v_index);
         let parent_from_body = joint.parent_from_child(&q[qi..qi + joint.nq()]);
         let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
-        let (parent_velocity, parent_acceleration, world_from_parent) = match joint.parent {
-            Some(p) => (
-                data.velocity[p],
-                data.acceleration[p],
-                Some(data.world_from_body[p]),
-            ),
-            None => (Motion::zero(), base_acceleration, None),
+        let (parent_velocity, parent_acceleration) = match joint.parent {
+            Some(p) => (data.velocity[p], data.acceleration[p]),
+            None => (Motion::zero(), base_acceleration),
         };
         let velocity = parent_from_body.inv_act_motion(&parent_velocity) + joint_velocity;
         let mut acceleration = parent_from_body.inv_act_motion(&parent_acceleration)
@@ -67,10 +64,6 @@ fn run(model: &Model, data: &mut Data, q: &[f64], v: &[f64], qdd: Option<&[f64]>
         data.velocity[i] = velocity;
         data.acceleration[i] = acceleration;
         data.parent_from_body[i] = parent_from_body;
-        data.world_from_body[i] = match world_from_parent {
-            Some(w) => w.compose(&parent_from_body),
-            None => parent_from_body,
-        };
     }
 }
 
