@@ -275,13 +275,10 @@ fn run_sample(
             step += 1;
         }
         let state = hht.state();
-        recorder.record(
+        recorder.record_state(
             &system.model,
             &mut system.data,
-            state.q.as_slice(),
-            state.v.as_slice(),
-            state.qdd.as_slice(),
-            state.lambda.as_slice(),
+            state,
             &sample.initial,
             &mut sample.block[r * n_outputs..(r + 1) * n_outputs],
         );

@@ -4,15 +4,13 @@
 //! SIGINT/SIGTERM finish the current block, write what was computed (MCAP marked partial) and exit 1;
 //! a second signal exits at once.
 
-use super::{print_warnings, write_stdout, AnalyzeArgs};
+use super::{print_warnings, write_stdout, AnalyzeArgs, SceneArgs};
 use crate::analysis::{Method, Progress, Study, StudyOptions, StudyReport, METHODS};
 use crate::dynamics::{forward_kinematics, Data};
 use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
 use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, Summary};
-use crate::scene::{
-    default_sidecar_path, read_sidecar, wants_floating_base, Scene, SceneOverrides,
-};
+use crate::scene::{default_sidecar_path, read_sidecar, wants_floating_base, Scene};
 use crate::text::closest_suggestion;
 use crate::uncertainty::ParameterSpace;
 use crate::uq::Truncation;
@@ -48,16 +46,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         model,
         scene,
         space,
-    } = prepare(
-        &args.urdf,
-        args.uncertainty.as_deref(),
-        args.floating,
-        SceneOverrides {
-            duration_s: args.duration,
-            step_s: args.step,
-            alpha: args.alpha,
-        },
-    )?;
+    } = prepare(&args.scene)?;
     let options = study_options(args, &sidecar.analysis)?;
     let robot = model.name().to_string();
     let study = Study {
@@ -98,7 +87,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     let mut log = match &args.out {
         Some(path) => Some(EnvelopeLog::create(
             path,
-            &args.urdf,
+            &args.scene.urdf,
             Some(&sidecar_path),
             metadata,
             &scene.outputs,
@@ -194,12 +183,12 @@ pub struct Prepared {
 
 /// Loads the URDF and its sidecar (`uncertainty`, or `ROBOT.uncertainty.toml` beside the URDF),
 /// resolves the scene and the parameter box, and prints the warnings.
-pub fn prepare(
-    urdf: &Path,
-    uncertainty: Option<&Path>,
-    floating: bool,
-    overrides: SceneOverrides,
-) -> Result<Prepared, Error> {
+pub fn prepare(args: &SceneArgs) -> Result<Prepared, Error> {
+    let (urdf, uncertainty, floating) = (
+        args.urdf.as_path(),
+        args.uncertainty.as_deref(),
+        args.floating,
+    );
     let sidecar_path = uncertainty.map_or_else(|| default_sidecar_path(urdf), Path::to_path_buf);
     if uncertainty.is_none() && !sidecar_path.exists() {
         return Err(bad(
@@ -215,7 +204,7 @@ pub fn prepare(
     let floating_base = floating || wants_floating_base(&sidecar, &sidecar_name)?;
     let mut model = Model::from_urdf_file(urdf, LoadOptions { floating_base })?;
     print_warnings(&model);
-    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, overrides)?;
+    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, args.overrides())?;
     scene.apply_gravity(&mut model);
     let space = ParameterSpace::from_sidecar(&sidecar, &model, &sidecar_name)?;
     for warning in space.warnings() {

@@ -11,7 +11,6 @@ use super::{write_stdout, CompareArgs};
 use crate::analysis::{Method, Study, StudyOptions, StudyReport};
 use crate::output::svg::{Plot, Series};
 use crate::output::write_atomically;
-use crate::scene::SceneOverrides;
 use crate::uq::{envelope_error, Truncation};
 use crate::Error;
 use std::path::Path;
@@ -121,16 +120,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
         scene,
         space,
         ..
-    } = prepare(
-        &args.urdf,
-        args.uncertainty.as_deref(),
-        args.floating,
-        SceneOverrides {
-            duration_s: args.duration,
-            step_s: args.step,
-            alpha: args.alpha,
-        },
-    )?;
+    } = prepare(&args.scene)?;
     let d = space.len();
     let methods: Vec<Method> = parse_list("--methods", &args.methods)?
         .iter()

@@ -42,11 +42,9 @@ pub enum Command {
 /// `ribbon compare`.
 #[derive(Debug, Args)]
 pub struct CompareArgs {
-    /// The robot's URDF file.
-    pub urdf: PathBuf,
-    /// The sidecar file (default: `ROBOT.uncertainty.toml` beside the URDF).
-    #[arg(long, value_name = "FILE")]
-    pub uncertainty: Option<PathBuf>,
+    /// The robot, its sidecar and scene overrides.
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// Write `report.md`, `compare.json` and SVG plots into this directory.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
@@ -68,28 +66,14 @@ pub struct CompareArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Simulated time, s (overrides `[scene] duration`).
-    #[arg(long, value_name = "SECONDS")]
-    pub duration: Option<f64>,
-    /// Fixed step, s (overrides `[scene] step`).
-    #[arg(long, value_name = "SECONDS")]
-    pub step: Option<f64>,
-    /// HHT α (overrides `[scene] alpha`).
-    #[arg(long, allow_hyphen_values = true)]
-    pub alpha: Option<f64>,
-    /// Put the root link on a floating joint.
-    #[arg(long)]
-    pub floating: bool,
 }
 
 /// `ribbon analyze`.
 #[derive(Debug, Args)]
 pub struct AnalyzeArgs {
-    /// The robot's URDF file.
-    pub urdf: PathBuf,
-    /// The sidecar file (default: `ROBOT.uncertainty.toml` beside the URDF).
-    #[arg(long, value_name = "FILE")]
-    pub uncertainty: Option<PathBuf>,
+    /// The robot, its sidecar and scene overrides.
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// legendre-scan | legendre-ia | chebyshev-scan | chebyshev-ia | taylor | scan | monte-carlo
     /// (default: the sidecar's `[analysis] method`, else legendre-scan).
     #[arg(long)]
@@ -118,18 +102,6 @@ pub struct AnalyzeArgs {
     /// Exclude failing samples and list them in the summary (scan and monte-carlo).
     #[arg(long)]
     pub keep_going: bool,
-    /// Simulated time, s (overrides `[scene] duration`).
-    #[arg(long, value_name = "SECONDS")]
-    pub duration: Option<f64>,
-    /// Fixed step, s (overrides `[scene] step`).
-    #[arg(long, value_name = "SECONDS")]
-    pub step: Option<f64>,
-    /// HHT α in [-1/3, 0] (overrides `[scene] alpha`).
-    #[arg(long, allow_hyphen_values = true)]
-    pub alpha: Option<f64>,
-    /// Put the root link on a floating joint (same as `[scene] base = "floating"`).
-    #[arg(long)]
-    pub floating: bool,
     /// Write the summary JSON.
     #[arg(long, value_name = "FILE")]
     pub summary: Option<PathBuf>,
@@ -144,14 +116,31 @@ pub struct AnalyzeArgs {
 /// `ribbon simulate`.
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
-    /// The robot's URDF file.
-    pub urdf: PathBuf,
-    /// The sidecar file (default: `ROBOT.uncertainty.toml` beside the URDF, when it exists).
-    #[arg(long, value_name = "FILE")]
-    pub uncertainty: Option<PathBuf>,
+    /// The robot, its sidecar (optional here: the defaults apply without one) and scene overrides.
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// Override one parameter (repeatable), e.g. `--set joint.elbow_joint.origin.z=0.43`.
     #[arg(long = "set", value_name = "PATH=VALUE", allow_hyphen_values = true)]
     pub set: Vec<String>,
+    /// Write the recorded series as CSV (`t`, then one column per output).
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Write the summary JSON (method "nominal", lower = upper = nominal).
+    #[arg(long, value_name = "FILE")]
+    pub summary: Option<PathBuf>,
+    /// Write an MCAP log for Foxglove and rerun (envelopes, `/tf`, `/robot_description`).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub out: Option<PathBuf>,
+}
+
+/// The robot, its sidecar and the scene overrides that `simulate`, `analyze` and `compare` share.
+#[derive(Debug, Args)]
+pub struct SceneArgs {
+    /// The robot's URDF file.
+    pub urdf: PathBuf,
+    /// The sidecar file (default: `ROBOT.uncertainty.toml` beside the URDF).
+    #[arg(long, value_name = "FILE")]
+    pub uncertainty: Option<PathBuf>,
     /// Simulated time, s (overrides `[scene] duration`).
     #[arg(long, value_name = "SECONDS")]
     pub duration: Option<f64>,
@@ -164,15 +153,17 @@ pub struct SimulateArgs {
     /// Put the root link on a floating joint (same as `[scene] base = "floating"`).
     #[arg(long)]
     pub floating: bool,
-    /// Write the recorded series as CSV (`t`, then one column per output).
-    #[arg(long, value_name = "FILE")]
-    pub csv: Option<PathBuf>,
-    /// Write the summary JSON (method "nominal", lower = upper = nominal).
-    #[arg(long, value_name = "FILE")]
-    pub summary: Option<PathBuf>,
-    /// Write an MCAP log for Foxglove and rerun (envelopes, `/tf`, `/robot_description`).
-    #[arg(long, value_name = "FILE.mcap")]
-    pub out: Option<PathBuf>,
+}
+
+impl SceneArgs {
+    /// The command-line values that override the sidecar's `[scene]`.
+    pub fn overrides(&self) -> crate::scene::SceneOverrides {
+        crate::scene::SceneOverrides {
+            duration_s: self.duration,
+            step_s: self.step,
+            alpha: self.alpha,
+        }
+    }
 }
 
 /// `ribbon params`.

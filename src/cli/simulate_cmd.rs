@@ -7,9 +7,7 @@ use crate::dynamics::{forward_kinematics, Data};
 use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
 use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, Summary};
-use crate::scene::{
-    default_sidecar_path, read_sidecar, wants_floating_base, Scene, SceneOverrides, SidecarFile,
-};
+use crate::scene::{default_sidecar_path, read_sidecar, wants_floating_base, Scene, SidecarFile};
 use crate::simulate::{simulate, Trajectory};
 use crate::Error;
 use std::time::Instant;
@@ -18,22 +16,18 @@ use std::time::Instant;
 pub fn run(args: &SimulateArgs) -> Result<(), Error> {
     let started = Instant::now();
     let sidecar_path = args
+        .scene
         .uncertainty
         .clone()
-        .or_else(|| Some(default_sidecar_path(&args.urdf)).filter(|p| p.exists()));
+        .or_else(|| Some(default_sidecar_path(&args.scene.urdf)).filter(|p| p.exists()));
     let (sidecar, sidecar_name) = match &sidecar_path {
         Some(path) => (read_sidecar(path)?.0, path.display().to_string()),
         None => (SidecarFile::default(), "(no sidecar)".to_string()),
     };
-    let floating_base = args.floating || wants_floating_base(&sidecar, &sidecar_name)?;
-    let mut model = Model::from_urdf_file(&args.urdf, LoadOptions { floating_base })?;
+    let floating_base = args.scene.floating || wants_floating_base(&sidecar, &sidecar_name)?;
+    let mut model = Model::from_urdf_file(&args.scene.urdf, LoadOptions { floating_base })?;
     print_warnings(&model);
-    let overrides = SceneOverrides {
-        duration_s: args.duration,
-        step_s: args.step,
-        alpha: args.alpha,
-    };
-    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, overrides)?;
+    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, args.scene.overrides())?;
     scene.apply_gravity(&mut model);
     apply_set_flags(&mut model, &args.set)?;
     let robot = model.name().to_string();
@@ -81,7 +75,7 @@ fn write_log(
     };
     let mut log = EnvelopeLog::create(
         path,
-        &args.urdf,
+        &args.scene.urdf,
         sidecar,
         metadata,
         &trajectory.outputs,

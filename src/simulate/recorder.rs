@@ -50,6 +50,27 @@ impl Recorder {
         &self.outputs
     }
 
+    /// [`Recorder::record`] at an integrator state.
+    pub fn record_state(
+        &self,
+        model: &Model,
+        data: &mut Data,
+        state: &crate::integrate::HhtState,
+        initial: &[Option<UnitQuaternion<f64>>],
+        row: &mut [f64],
+    ) {
+        self.record(
+            model,
+            data,
+            state.q.as_slice(),
+            state.v.as_slice(),
+            state.qdd.as_slice(),
+            state.lambda.as_slice(),
+            initial,
+            row,
+        );
+    }
+
     /// Writes one value per output into `row` (`dim outputs.len()`). `q: dim nq`, `v, qdd: dim nv`,
     /// `lambda: dim m`; `initial` from [`Recorder::initial_orientations`].
     #[allow(clippy::too_many_arguments)]

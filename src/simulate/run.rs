@@ -140,16 +140,7 @@ fn simulate_system(mut system: RobotSystem, scene: &Scene) -> Result<Trajectory,
         }
         if scene.records_step(k) {
             let state = integrator.state();
-            recorder.record(
-                &system.model,
-                &mut system.data,
-                state.q.as_slice(),
-                state.v.as_slice(),
-                state.qdd.as_slice(),
-                state.lambda.as_slice(),
-                &initial,
-                &mut row,
-            );
+            recorder.record_state(&system.model, &mut system.data, state, &initial, &mut row);
             times.push(state.t);
             positions.push(state.q.as_slice().to_vec());
             for (series, value) in values.iter_mut().zip(&row) {
