@@ -227,6 +227,10 @@ const LAMBDA_STAGNATION_RATIO: f64 = 0.5;
 /// let exact = (2.0_f64 * 1.0).cos();
 /// assert!((hht.state().q[0] - exact).abs() < 1e-5);
 /// ```
+/// The rate-based convergence test trusts a contraction estimate only below this: a slowly
+/// contracting iteration (ρ near 1) says little about the remaining error.
+pub const RATE_TEST_MAX_CONTRACTION: f64 = 0.5;
+
 /// Everything that carries one trajectory from step to step — start time, state, the recursion's
 /// velocity and statistics — without the workspace. A study keeps one per sample and advances many
 /// samples in turn with one integrator per thread ([`HhtIntegrator::swap_trajectory`]).
@@ -483,6 +487,16 @@ impl HhtIntegrator {
                     break;
                 }
                 if let Some(prev) = previous {
+                    // Rate-based test (Hairer & Wanner, Radau5): modified Newton contracts
+                    // linearly with ρ = ‖Δ_k‖/‖Δ_{k−1}‖, so the iterate's remaining error is about
+                    // ρ/(1−ρ)·‖Δ_k‖; accept when that estimate is within tolerance instead of
+                    // spending one more iteration to see a correction below it.
+                    let rate = report.wrms() / prev.wrms();
+                    if rate < RATE_TEST_MAX_CONTRACTION && rate / (1.0 - rate) * report.wrms() < 1.0
+                    {
+                        converged = true;
+                        break;
+                    }
                     // Multipliers at the rounding floor of Φ/(β'h²): positions converged twice in a
                     // row and Δλ stopped shrinking. Accept and count it.
                     if report.wrms_position < 1.0
