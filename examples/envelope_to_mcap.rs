@@ -4,7 +4,7 @@
 //! `cargo run --release --example envelope_to_mcap -- [OUT.mcap]` (default `target/envelope_example.mcap`)
 
 use ribbon::analysis::{Method, Study, StudyOptions};
-use ribbon::dynamics::{forward_kinematics, Data};
+use ribbon::dynamics::Data;
 use ribbon::model::{LoadOptions, Model};
 use ribbon::output::mcap::McapMetadata;
 use ribbon::output::EnvelopeLog;
@@ -81,28 +81,8 @@ fn run(out: &Path) -> Result<usize, ribbon::Error> {
         true,
     )?;
     let mut data = Data::new(&model);
-    let n = scene.outputs.len();
     let report = study.run(&AtomicBool::new(false), &mut |_| {}, &mut |block| {
-        for (r, t) in block.times.iter().enumerate() {
-            let points = &block.points[r * n..(r + 1) * n];
-            let lower: Vec<f64> = points.iter().map(|p| p.lower).collect();
-            let upper: Vec<f64> = points.iter().map(|p| p.upper).collect();
-            let error: Vec<f64> = points.iter().map(|p| p.error.unwrap_or(0.0)).collect();
-            log.write_time(
-                *t,
-                &lower,
-                &block.nominal[r * n..(r + 1) * n],
-                &upper,
-                Some(&error),
-            )?;
-            forward_kinematics(
-                &model,
-                &mut data,
-                &block.nominal_positions[r * model.nq..(r + 1) * model.nq],
-            );
-            log.write_frames(*t, &model, &data)?;
-        }
-        Ok(())
+        log.write_block(block, &model, &mut data)
     })?;
     log.finish(false)?;
     Ok(report.envelope.times.len())

@@ -228,34 +228,34 @@ fn run_sample(
         let violation = crate::simulate::initial_violation(system, scene);
         SimulationError::from_integrate(error, &system.constraints, violation).to_string()
     };
-    if sample.trajectory.is_none() {
-        let q0 = DVector::from_column_slice(&scene.initial_q);
-        let v0 = DVector::from_column_slice(&scene.initial_v);
-        match HhtIntegrator::new(system, settings, 0.0, &q0, &v0) {
-            Ok(started) => {
-                sample.initial =
-                    Recorder::initial_orientations(&system.model, started.state().q.as_slice());
-                sample.trajectory = Some(started.trajectory());
-                if integrator.is_none() {
-                    *integrator = Some(started);
-                }
-            }
-            Err(error) => return Err((0.0, describe(error, system))),
-        }
-    }
-    let Some(trajectory) = sample.trajectory.as_mut() else {
-        return Err((0.0, "internal: sample has no trajectory".to_string()));
+    let start = || {
+        (
+            DVector::from_column_slice(&scene.initial_q),
+            DVector::from_column_slice(&scene.initial_v),
+        )
     };
+    // One integrator workspace per thread; a sample's first block starts its trajectory with
+    // the sample's parameters (already applied to `system.model`).
     let hht = match integrator {
         Some(hht) => hht,
         None => {
-            let q0 = DVector::from_column_slice(&scene.initial_q);
-            let v0 = DVector::from_column_slice(&scene.initial_v);
+            let (q0, v0) = start();
             match HhtIntegrator::new(system, settings, 0.0, &q0, &v0) {
                 Ok(h) => integrator.insert(h),
                 Err(error) => return Err((0.0, describe(error, system))),
             }
         }
+    };
+    if sample.trajectory.is_none() {
+        let (q0, v0) = start();
+        if let Err(error) = hht.restart(system, 0.0, &q0, &v0) {
+            return Err((0.0, describe(error, system)));
+        }
+        sample.initial = Recorder::initial_orientations(&system.model, hht.state().q.as_slice());
+        sample.trajectory = Some(hht.trajectory());
+    }
+    let Some(trajectory) = sample.trajectory.as_mut() else {
+        return Err((0.0, "internal: sample has no trajectory".to_string()));
     };
     hht.swap_trajectory(trajectory)
         .map_err(|e| (0.0, e.to_string()))?;

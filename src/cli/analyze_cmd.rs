@@ -6,7 +6,7 @@
 
 use super::{print_warnings, write_stdout, AnalyzeArgs, SceneArgs};
 use crate::analysis::{Method, Progress, Study, StudyOptions, StudyReport, METHODS};
-use crate::dynamics::{forward_kinematics, Data};
+use crate::dynamics::Data;
 use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
 use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, Summary};
@@ -101,32 +101,9 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     let report = study.run(
         &interrupt,
         &mut |progress| reporter.report(progress),
-        &mut |block| {
-            let Some(log) = log.as_mut() else {
-                return Ok(());
-            };
-            let n = scene.outputs.len();
-            let nq = kinematic_model.nq;
-            for (r, t) in block.times.iter().enumerate() {
-                let points = &block.points[r * n..(r + 1) * n];
-                let lower: Vec<f64> = points.iter().map(|p| p.lower).collect();
-                let upper: Vec<f64> = points.iter().map(|p| p.upper).collect();
-                let errors: Option<Vec<f64>> = points.iter().map(|p| p.error).collect();
-                log.write_time(
-                    *t,
-                    &lower,
-                    &block.nominal[r * n..(r + 1) * n],
-                    &upper,
-                    errors.as_deref(),
-                )?;
-                forward_kinematics(
-                    &kinematic_model,
-                    &mut data,
-                    &block.nominal_positions[r * nq..(r + 1) * nq],
-                );
-                log.write_frames(*t, &kinematic_model, &data)?;
-            }
-            Ok(())
+        &mut |block| match log.as_mut() {
+            Some(log) => log.write_block(block, &kinematic_model, &mut data),
+            None => Ok(()),
         },
     )?;
     reporter.finish();

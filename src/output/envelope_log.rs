@@ -5,7 +5,8 @@
 use super::mcap::{
     EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, WorldFromLink,
 };
-use crate::dynamics::{frame_placements, Data};
+use crate::analysis::BlockView;
+use crate::dynamics::{forward_kinematics, frame_placements, Data};
 use crate::model::Model;
 use crate::scene::Output;
 use crate::Error;
@@ -134,6 +135,35 @@ impl EnvelopeLog {
             })
             .collect();
         self.sink.write_transforms(t, &frames).map_err(mcap_error)
+    }
+
+    /// Writes one block of a study: every record time's envelopes (and error estimates, where the
+    /// method has them) and the nominal robot's frames, placed by forward kinematics of the nominal
+    /// run's configuration into `data`.
+    pub fn write_block(
+        &mut self,
+        block: &BlockView,
+        model: &Model,
+        data: &mut Data,
+    ) -> Result<(), Error> {
+        let n = self.channels.len();
+        let nq = model.nq;
+        for (r, t) in block.times.iter().enumerate() {
+            let points = &block.points[r * n..(r + 1) * n];
+            let lower: Vec<f64> = points.iter().map(|p| p.lower).collect();
+            let upper: Vec<f64> = points.iter().map(|p| p.upper).collect();
+            let errors: Option<Vec<f64>> = points.iter().map(|p| p.error).collect();
+            self.write_time(
+                *t,
+                &lower,
+                &block.nominal[r * n..(r + 1) * n],
+                &upper,
+                errors.as_deref(),
+            )?;
+            forward_kinematics(model, data, &block.nominal_positions[r * nq..(r + 1) * nq]);
+            self.write_frames(*t, model, data)?;
+        }
+        Ok(())
     }
 
     /// The metadata to be written at the end (e.g. to correct `runs` after an interruption).
