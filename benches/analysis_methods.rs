@@ -9,7 +9,7 @@
 //!
 //! For each d: the `scan` reference (11^d by default), then legendre-scan k = 2, 3, 4, legendre-ia
 //! k = 4, chebyshev-scan k = 4, taylor and monte-carlo at a few sample counts. Per method: model
-//! runs, wall time, simulate / fit + bound split, and the error of method.md §4
+//! runs, wall time, simulate / fit + bound split, and the error of docs/method.md §4
 //! (`ribbon::uq::envelope_error`) against the reference: per output the max and the mean over time;
 //! the table shows the worst output of each (outputs whose reference width is below 1e-12 at every
 //! time are skipped and named). Studies shorter than 1 s are run 3 times and the fastest is shown. Also legendre-scan's runs against a 21^d scan, its fit + bound share,

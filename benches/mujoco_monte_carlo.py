@@ -35,7 +35,7 @@ The study (the same as analysis_methods.rs at d = 3):
   on the calling thread.
 
 Measured: for nested N (the first N of one random sequence) the envelope (min / max over runs) and
-its error (method.md section 4: per output max over time of
+its error (docs/method.md section 4: per output max over time of
 max(|lo - lo_ref|, |up - up_ref|) / max(w_ref(t), 1e-3 max_t w_ref), then max over outputs; outputs of
 zero reference width skipped) against
   (a) ribbon's 11^3 scan reference (MuJoCo's dynamics differ from ribbon's HHT-I3: this error has a
@@ -213,7 +213,7 @@ def _copy(model):
 
 
 def envelope_error(lo, up, lo_ref, up_ref, first=0):
-    """method.md section 4, per output: returns (max over outputs of max_t e, max over outputs of
+    """docs/method.md section 4, per output: returns (max over outputs of max_t e, max over outputs of
     mean_t e, worst output index, per-output max). Zero-width references are skipped. `first` > 0
     restricts max and mean to record times from index `first` on (the width floor still uses every
     time)."""

@@ -7,7 +7,7 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// method.md §4: Legendre scan within 1 % of the reference width at every record time.
+/// docs/method.md §4: Legendre scan within 1 % of the reference width at every record time.
 const LEGENDRE_SCAN_MAX_ERROR: f64 = 0.01;
 /// The closed-form comparison: envelope bounds equal the analytic min/max to 1e-6 (m).
 const CLOSED_FORM_TOLERANCE: f64 = 1e-6;

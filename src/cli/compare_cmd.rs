@@ -1,7 +1,7 @@
 //! `ribbon compare ROBOT.urdf [--uncertainty F] [--report DIR] [--reference-grid N] [--orders …]
 //! [--methods …] [--samples …] [--threads N] [--duration T] [--step H] [--alpha A]`: what accuracy
 //! costs in time. Runs the true-model scan as the reference, then every method (and order, and Monte
-//! Carlo size) on the same scene, and reports model runs, wall time and the method.md §4 error of
+//! Carlo size) on the same scene, and reports model runs, wall time and the docs/method.md §4 error of
 //! each against the reference: a table on stdout, and in the report directory `report.md`,
 //! `compare.json`, `error_vs_time.svg` and `envelope.svg` (the widest output, reference vs the most
 //! accurate surrogate).
@@ -67,7 +67,7 @@ fn parse_numbers(flag: &str, text: &str) -> Result<Vec<usize>, Error> {
 
 /// An output whose reference envelope is never wider than this fraction of its magnitude is not
 /// uncertain (a driven joint, a coordinate fixed by the constraints): its width is rounding noise,
-/// and method.md's relative error would divide by it.
+/// and docs/method.md's relative error would divide by it.
 pub const CERTAIN_OUTPUT_RELATIVE_WIDTH: f64 = 1e-9;
 
 /// Outputs of the reference that carry uncertainty (see [`CERTAIN_OUTPUT_RELATIVE_WIDTH`]).
@@ -267,7 +267,7 @@ fn render_table(
 ) -> String {
     let mut text = format!(
         "reference: scan {grid}^{d} of the true model, {reference_runs} runs, {reference_seconds:.3} s\n\
-         error: method.md §4, max over time and outputs (mean over time, averaged over outputs)\n\n"
+         error: docs/method.md §4, max over time and outputs (mean over time, averaged over outputs)\n\n"
     );
     text.push_str(&format!(
         "| {:<16} | {:>7} | {:<11} | {:>7} | {:>10} | {:>10} | {:>10} | {:>9} |\n",

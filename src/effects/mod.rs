@@ -2,7 +2,7 @@
 //! declare an effect never evaluates it. One file per effect.
 //!
 //! `(q, v) ⇒ Q_effects` (added to the right-hand side `Q`), and the diagonal stiffness and damping the
-//! modified Newton matrix of the integrator needs (method.md §5: `+β'h² k_j`, `+γ'h c_j`).
+//! modified Newton matrix of the integrator needs (docs/method.md §5: `+β'h² k_j`, `+γ'h c_j`).
 //!
 //! Gravity is not here: it enters the rigid-body bias as a base acceleration in RNEA through the
 //! model's gravity ([`crate::scene::Scene::apply_gravity`]; zero when the scene does not declare it).

@@ -70,7 +70,7 @@ pub enum IntegrateError {
         alpha: f64,
     },
     /// `alpha = 0` was requested for a system with constraint rows: the trapezoidal member of the
-    /// family does not converge in `q̈` and `λ` on index-3 problems (method.md §5).
+    /// family does not converge in `q̈` and `λ` on index-3 problems (docs/method.md §5).
     #[error(
         "HHT alpha = 0 is refused with {n_constraints} constraint row(s): accelerations and \
          multipliers do not converge (they oscillate with growing amplitude); use alpha < 0, e.g. -0.1"

@@ -1,4 +1,4 @@
-//! The HHT-I3 stepper: [`HhtIntegrator`] (method.md §5, second-order form of Arnold & Brüls 2007 with
+//! The HHT-I3 stepper: [`HhtIntegrator`] (docs/method.md §5, second-order form of Arnold & Brüls 2007 with
 //! `α_m = 0`, `α_f = −α`).
 //!
 //! One step, as data flow:
@@ -826,7 +826,7 @@ impl HhtIntegrator {
     }
 }
 
-/// Assembles the Newton iteration matrix of method.md §5 into `out` (`(nv + m) × (nv + m)`).
+/// Assembles the Newton iteration matrix of docs/method.md §5 into `out` (`(nv + m) × (nv + m)`).
 ///
 /// The Newton system for the unknowns `(q̈_{n+1}, λ_{n+1})`, with `β' = (1+α)β`, `γ' = (1+α)γ`:
 ///

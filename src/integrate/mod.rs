@@ -1,4 +1,4 @@
-//! HHT-I3 time integration of index-3 multibody DAEs (method.md §5).
+//! HHT-I3 time integration of index-3 multibody DAEs (docs/method.md §5).
 //!
 //! ```text
 //! M(q) q̈ + Φ_q(q, t)ᵀ λ = Q(t, q, q̇),      Φ(q, t) = 0

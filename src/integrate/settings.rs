@@ -66,7 +66,7 @@ impl Default for HhtSettings {
 /// The lower end of the HHT range of `α`.
 pub const ALPHA_MIN: f64 = -1.0 / 3.0;
 
-/// Coefficients derived from `α` and `h` (method.md §5, Arnold–Brüls generalized-α with
+/// Coefficients derived from `α` and `h` (docs/method.md §5, Arnold–Brüls generalized-α with
 /// `α_m = 0`, `α_f = −α`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HhtCoefficients {

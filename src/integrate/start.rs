@@ -1,4 +1,4 @@
-//! Consistent initial state (method.md §5, "Consistent start"):
+//! Consistent initial state (docs/method.md §5, "Consistent start"):
 //!
 //! ```text
 //! (t0, q0, q̇0) => project q onto Φ(q, t0) = 0          (Gauss–Newton, least-norm steps, backtracking)

@@ -33,7 +33,7 @@ const TIGHT_ABSTOL_MULTIPLIER: f64 = 1e-12;
 const MAX_CONSTRAINT_VIOLATION: f64 = 1e-10;
 /// Velocity-level constraint after projection, m/s: the projection solves it to rounding level.
 const MAX_PROJECTED_VELOCITY_VIOLATION: f64 = 1e-10;
-/// Bound on the scaled iteration matrix's condition number for h from 1e-2 to 1e-6 (method.md
+/// Bound on the scaled iteration matrix's condition number for h from 1e-2 to 1e-6 (docs/method.md
 /// measured ≈ 59 on its test system).
 const MAX_SCALED_CONDITION: f64 = 1e3;
 /// The unscaled condition number grows like h⁻²: a factor 100 per decade of h; accept 50..200.

@@ -1,4 +1,4 @@
-//! Physical consistency of rigid-body inertia (method.md §6).
+//! Physical consistency of rigid-body inertia (docs/method.md §6).
 //!
 //! A rotational inertia about the centre of mass is physical when it is positive **semi**-definite
 //! (point masses and slender bars are legitimate) and its principal moments — eigenvalues, not the

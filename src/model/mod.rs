@@ -503,7 +503,7 @@ impl Model {
     }
 
     /// Warnings for inertias that are not physical at the nominal values, and for moving bodies
-    /// without mass (method.md §6: warn, do not refuse — Pinocchio loads these files).
+    /// without mass (docs/method.md §6: warn, do not refuse — Pinocchio loads these files).
     fn check_nominal_consistency(&mut self, path: &str) {
         for spec in &self.description.links {
             if !spec.has_inertial {

@@ -1,4 +1,4 @@
-//! Physical consistency of the whole parameter box (method.md §6).
+//! Physical consistency of the whole parameter box (docs/method.md §6).
 //!
 //! (dimensions, bindings, URDF values) ⇒ (warnings) or the first point of the box that is impossible
 //!

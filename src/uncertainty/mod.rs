@@ -12,7 +12,7 @@
 //! ```
 //!
 //! What it does:
-//! - each `[parameters]` entry is one dimension of ξ, in order of appearance (method.md §1:
+//! - each `[parameters]` entry is one dimension of ξ, in order of appearance (docs/method.md §1:
 //!   `x_i = c_i + r_i ξ_i`, `ξ_i ∈ [-1, 1]`); the nominal of a path is its URDF value (so its
 //!   nominal ξ need not be 0, see [`ParameterSpace::nominal_xi`]), of a symbol its midpoint;
 //! - `[bind]` expressions ([`Expression`]: `+ - * / ^ ( )`, `sqrt`, f64 only) write model values from

@@ -24,7 +24,7 @@ pub enum Family {
     /// fitted on Gauss–Legendre nodes.
     Legendre,
     /// `T_0 = 1`, `T_1 = ξ`, `T_{n+1} = 2ξ T_n − T_{n−1}` (`T_n(cos θ) = cos nθ`); orthogonal with
-    /// weight 1/√(1−ξ²); fitted on Gauss–Chebyshev nodes (method.md §4).
+    /// weight 1/√(1−ξ²); fitted on Gauss–Chebyshev nodes (docs/method.md §4).
     Chebyshev,
 }
 
@@ -221,7 +221,7 @@ fn compute_legendre_min(n: usize) -> f64 {
 mod tests {
     use super::*;
 
-    /// method.md gives min P_n to 11 decimals.
+    /// docs/method.md gives min P_n to 11 decimals.
     const TABLE_TOL: f64 = 1e-11;
     /// Recurrence values are exact to a few ulp for the small degrees tested.
     const RECURRENCE_TOL: f64 = 1e-14;

@@ -1,7 +1,7 @@
 //! Bound types shared by every bounding method, and the interval-arithmetic bounds of a surrogate
-//! (method.md §3a, §4): `[y] = c_0 + Σ_{i≠0} c_i Π_r R(φ_{i_r})` with crude or exact ranges `R`.
+//! (docs/method.md §3a, §4): `[y] = c_0 + Σ_{i≠0} c_i Π_r R(φ_{i_r})` with crude or exact ranges `R`.
 //!
-//! Labels (method.md §3): a bound's [`BoundKind`] states its relation to the **surrogate's** range;
+//! Labels (docs/method.md §3): a bound's [`BoundKind`] states its relation to the **surrogate's** range;
 //! no method here is a rigorous enclosure of the true model, since truncation and aliasing error
 //! are ignored. The [`ErrorEstimate`] beside each bound is how large that ignored error may be.
 //! Interval arithmetic here is in ordinary floating point (no directed rounding): enclosure holds
@@ -115,7 +115,7 @@ fn interval_sum(block: &[f64], ranges: &[(f64, f64)], prefix: (f64, f64)) -> (f6
 ///
 /// ```
 /// use ribbon::uq::{interval_bound, Design, Family, RangeMode, Surrogate, Truncation};
-/// // ξ + ξ² = 1/3 + P_1 + 2/3 P_2 (range [−0.25, 2]), method.md §3:
+/// // ξ + ξ² = 1/3 + P_1 + 2/3 P_2 (range [−0.25, 2]), docs/method.md §3:
 /// let design = Design::new(Family::Legendre, 1, 2, Truncation::Tensor)?;
 /// let s = Surrogate::from_terms(&design, &[1.0 / 3.0, 1.0, 2.0 / 3.0])?;
 /// let crude = interval_bound(&s, RangeMode::Crude)?;
@@ -143,7 +143,7 @@ pub fn interval_bound(surrogate: &Surrogate, mode: RangeMode) -> Result<Bound, U
     })
 }
 
-/// The Chebyshev inclusion function (Wu et al. 2013, method.md §4): `c_0 ± Σ_{i≠0} |c_i|` of a
+/// The Chebyshev inclusion function (Wu et al. 2013, docs/method.md §4): `c_0 ± Σ_{i≠0} |c_i|` of a
 /// Chebyshev surrogate (the same as [`interval_bound`] with either range mode, since the range of
 /// every `T_n`, n ≥ 1, is exactly [-1, 1]). Kind: [`BoundKind::Outer`].
 ///

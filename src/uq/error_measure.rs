@@ -1,4 +1,4 @@
-//! The comparison error of method.md §4 between an envelope and a reference envelope over time:
+//! The comparison error of docs/method.md §4 between an envelope and a reference envelope over time:
 //!
 //! `e(t) = max(|lower − lower_ref|, |upper − upper_ref|) / max(w_ref(t), 1e-3 · max_t w_ref)`,
 //! `w_ref = upper_ref − lower_ref`, reported as max and mean over time (per output).
@@ -10,7 +10,7 @@ use crate::uq::error::UqError;
 
 /// Fraction of the largest reference width below which the denominator is floored, so that times
 /// where the reference has zero width (t = 0 of a fixed initial state) stay meaningful
-/// (method.md §4).
+/// (docs/method.md §4).
 pub const WIDTH_FLOOR_FRACTION: f64 = 1e-3;
 
 /// Error of one output's envelope against the reference, over time.

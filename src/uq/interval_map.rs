@@ -1,5 +1,5 @@
 //! The map between a physical interval `[lo, hi]` and the standard variable ξ ∈ [-1, 1]:
-//! `x = c + r ξ` with midpoint `c = (lo + hi)/2` and radius `r = (hi − lo)/2` (method.md §1), one
+//! `x = c + r ξ` with midpoint `c = (lo + hi)/2` and radius `r = (hi − lo)/2` (docs/method.md §1), one
 //! per parameter ([`IntervalMap`]) or for a whole box ([`ParameterBox`]).
 //!
 //! Does not: know parameter names or units; callers keep those beside the box.

@@ -1,5 +1,5 @@
 //! Uncertainty quantification, pure mathematics (no robots): quadrature, polynomial bases, tensor
-//! designs, surrogate fitting, bounds of a surrogate's range and error measures (method.md §2–4).
+//! designs, surrogate fitting, bounds of a surrogate's range and error measures (docs/method.md §2–4).
 //!
 //! Data flow for one study:
 //! ```text

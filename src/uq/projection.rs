@@ -89,10 +89,10 @@ pub struct Projector {
 impl Projector {
     /// Precomputes the 1-D transform of `design`'s family (`m = k + 1`):
     ///
-    /// - Legendre (method.md §2): `A[i, j] = (2i + 1)/2 · w_j · P_i(ξ_j)`, Gauss–Legendre `(ξ_j, w_j)`.
+    /// - Legendre (docs/method.md §2): `A[i, j] = (2i + 1)/2 · w_j · P_i(ξ_j)`, Gauss–Legendre `(ξ_j, w_j)`.
     ///   With m = k + 1 the discrete orthogonality is exact: the projection is the interpolant at the
     ///   Gauss nodes.
-    /// - Chebyshev (method.md §4): `A[i, j] = (2/m) cos(i θ_j)`, halved for `i = 0`, so that the
+    /// - Chebyshev (docs/method.md §4): `A[i, j] = (2/m) cos(i θ_j)`, halved for `i = 0`, so that the
     ///   tensor product carries ½ per zero index and the surrogate is `Σ c_i Π_r T_{i_r}`.
     ///
     /// The d-dimensional map is `A ⊗ … ⊗ A`, applied one dimension at a time.
@@ -135,7 +135,7 @@ impl Projector {
     ///
     /// ```
     /// use ribbon::uq::{Design, Family, Projector, Truncation};
-    /// // y = ξ + ξ² on the 3-point Gauss–Legendre grid: 1/3 + P_1 + 2/3 P_2 (method.md §3).
+    /// // y = ξ + ξ² on the 3-point Gauss–Legendre grid: 1/3 + P_1 + 2/3 P_2 (docs/method.md §3).
     /// let projector = Projector::new(Design::new(Family::Legendre, 1, 2, Truncation::Tensor)?)?;
     /// let values: Vec<f64> = projector.design().points().iter().map(|x| x + x * x).collect();
     /// let coef = projector.fit(&values, 1)?;
@@ -337,7 +337,7 @@ mod tests {
 
     #[test]
     fn worked_example_coefficients() {
-        // ξ + ξ² = 1/3 + P_1 + 2/3 P_2 = 1/2 + T_1 + 1/2 T_2 (method.md §3).
+        // ξ + ξ² = 1/3 + P_1 + 2/3 P_2 = 1/2 + T_1 + 1/2 T_2 (docs/method.md §3).
         for (family, expected) in [
             (Family::Legendre, [1.0 / 3.0, 1.0, 2.0 / 3.0]),
             (Family::Chebyshev, [0.5, 1.0, 0.5]),

@@ -85,7 +85,7 @@ fn legendre_and_derivative(m: usize, x: f64) -> (f64, f64) {
 /// weight 1 on [-1, 1].
 ///
 /// Nodes are the roots of `P_m`, found by Newton on the three-term recurrence from the guess
-/// `cos(π (j − ¼) / (m + ½))`; weights `w_j = 2 / ((1 − ξ_j²) P_m'(ξ_j)²)` (method.md §2).
+/// `cos(π (j − ¼) / (m + ½))`; weights `w_j = 2 / ((1 − ξ_j²) P_m'(ξ_j)²)` (docs/method.md §2).
 /// Accurate to ~1e-15 for every `points ≤ MAX_POINTS`.
 ///
 /// ```
@@ -135,7 +135,7 @@ pub fn gauss_legendre(points: usize) -> Result<GaussRule, UqError> {
 /// Gauss–Chebyshev rule (first kind) with `points` nodes: exact for `∫ f(ξ)/√(1−ξ²) dξ` when `f`
 /// has degree ≤ 2·points − 1.
 ///
-/// method.md §4 numbers the nodes `x_j = cos θ_j`, `θ_j = (2j − 1)π/(2m)`, j = 1..m, which runs
+/// docs/method.md §4 numbers the nodes `x_j = cos θ_j`, `θ_j = (2j − 1)π/(2m)`, j = 1..m, which runs
 /// from +1 down to −1; here they are returned **ascending** (`nodes[j] = cos θ_{m−j}`, 0-based `j`)
 /// like every rule in this module. All weights are `π/m`.
 ///

@@ -1,4 +1,4 @@
-//! Scanning a surrogate (method.md §3b): evaluate it on a uniform grid of `N` points per dimension
+//! Scanning a surrogate (docs/method.md §3b): evaluate it on a uniform grid of `N` points per dimension
 //! (odd, endpoints included, so the centre is on it), take min / max, then refine locally from the
 //! best few grid points with projected Newton (`refine.rs`). The result is an **inner**
 //! bound of the surrogate's range: every number in it is a value the surrogate attains.
@@ -22,7 +22,7 @@ use crate::uq::error::UqError;
 use crate::uq::refine::{refine, RefineWorkspace};
 use crate::uq::surrogate::Surrogate;
 
-/// Grid points per dimension by default for d ≤ 2 (method.md §3b: odd so that ξ = 0 and the
+/// Grid points per dimension by default for d ≤ 2 (docs/method.md §3b: odd so that ξ = 0 and the
 /// midpoints ±½ are on it; 21 catches the ξ + ξ² minimum at −½ exactly).
 pub const DEFAULT_POINTS_LOW_DIM: usize = 21;
 
@@ -212,7 +212,7 @@ impl Scanner {
     ///
     /// ```
     /// use ribbon::uq::{Design, Family, ScanOptions, Scanner, Surrogate, Truncation};
-    /// // ξ + ξ² = 1/3 + P_1 + 2/3 P_2 has range [−0.25, 2] (method.md §3).
+    /// // ξ + ξ² = 1/3 + P_1 + 2/3 P_2 has range [−0.25, 2] (docs/method.md §3).
     /// let design = Design::new(Family::Legendre, 1, 2, Truncation::Tensor)?;
     /// let s = Surrogate::from_terms(&design, &[1.0 / 3.0, 1.0, 2.0 / 3.0])?;
     /// let mut scanner = Scanner::new(Family::Legendre, 1, 2, ScanOptions::for_dim(1))?;

@@ -1,4 +1,4 @@
-//! First-order Taylor inclusion about the box centre (method.md §4, the classic baseline the paper
+//! First-order Taylor inclusion about the box centre (docs/method.md §4, the classic baseline the paper
 //! argues against), with derivatives from central finite differences of model runs:
 //!
 //! `∂y/∂ξ_r ≈ (y(c + h e_r) − y(c − h e_r)) / (2h)`,   bound `y(c) ± Σ_r |∂y/∂ξ_r|`.
