@@ -191,6 +191,7 @@ fn run(p: &Problem, c: Config) -> (StudyReport, f64) {
             seed: 0,
             threads: c.threads,
             keep_going: false,
+            check_runs: None,
         },
     };
     let started = Instant::now();

@@ -57,6 +57,7 @@ fn run(out: &Path) -> Result<usize, ribbon::Error> {
         seed: 0,
         threads: 0,
         keep_going: false,
+        check_runs: None,
     };
     let study = Study {
         model: model.clone(),
@@ -64,7 +65,7 @@ fn run(out: &Path) -> Result<usize, ribbon::Error> {
         space: &space,
         options,
     };
-    let (_, runs) = study.plan()?;
+    let runs = study.plan()?.max_runs();
     let metadata = McapMetadata {
         robot: model.name().to_string(),
         method: "legendre-scan".to_string(),

@@ -188,7 +188,11 @@ fn legendre_scan_matches_dense_scan_and_ia_contains_it_on_the_double_pendulum() 
             &format!("dp_ia_{tag}"),
         );
         assert_eq!(reference["samples"], 442);
-        assert_eq!(legendre["samples"], 26);
+        // 25 design runs, the nominal run, and the a-posteriori check's runs at the predicted
+        // extremes (8: the automatic floor for a 25-run design).
+        assert_eq!(legendre["stats"]["check"]["runs"], 8);
+        assert_eq!(legendre["samples"], 26 + 8);
+        assert_eq!(legendre["stats"]["check"]["trusted"], true);
         for name in output_names(&reference) {
             let (lower_ref, upper_ref) = (
                 series(&reference, &name, "lower"),
@@ -241,6 +245,122 @@ fn legendre_scan_matches_dense_scan_and_ia_contains_it_on_the_double_pendulum() 
             println!(
                 "    legendre-ia: at most {deepest_inside:.1e} inside the reference (within its error estimate); up to {widest_ratio:.2}× the reference width"
             );
+        }
+    }
+}
+
+/// A surrogate misfit below this fraction of the width counts as "the check found nothing" on the
+/// smooth double pendulum (measured: 9e-8).
+const SMOOTH_CHECK_MAX_RELATIVE_MISFIT: f64 = 1e-5;
+
+/// The a-posteriori check on a hostile box: bar 2's mass across nine decades. An order-4 surrogate
+/// cannot follow the response; the check must say so (stderr, summary) and the envelope must contain
+/// true runs that `ribbon simulate` makes independently at the check's points.
+#[test]
+fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
+    let dir = scratch("check_wide_box");
+    std::fs::create_dir_all(&dir).unwrap();
+    let urdf = dir.join("dp.urdf");
+    std::fs::copy(
+        manifest("robots/double_pendulum/double_pendulum.urdf"),
+        &urdf,
+    )
+    .unwrap();
+    let sidecar = dir.join("dp.uncertainty.toml");
+    std::fs::write(
+        &sidecar,
+        "[parameters]\n\"link.bar2.mass\" = [1e-9, 1.0]\n[scene]\nduration = 2.0\ngravity = [0.0, -9.81, 0.0]\n[outputs]\njoints = \"all\"\nrate = 100\n",
+    )
+    .unwrap();
+    let summary_path = dir.join("summary.json");
+    let out = ribbon(&[
+        "analyze",
+        urdf.to_str().unwrap(),
+        "--summary",
+        summary_path.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the surrogate cannot be trusted"),
+        "no warning on stderr:\n{stderr}"
+    );
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary_path).unwrap()).unwrap();
+    let check = &summary["stats"]["check"];
+    assert_eq!(check["trusted"], false, "{check}");
+    let (lower, upper) = (
+        summary["parameters"][0]["lower"].as_f64().unwrap(),
+        summary["parameters"][0]["upper"].as_f64().unwrap(),
+    );
+    let points = check["points_xi"].as_array().unwrap();
+    assert!(!points.is_empty());
+    for (i, point) in points.iter().enumerate() {
+        let xi = point[0].as_f64().unwrap();
+        let mass = 0.5 * ((1.0 - xi) * lower + (1.0 + xi) * upper);
+        let csv = dir.join(format!("check_{i}.csv"));
+        let run = ribbon(&[
+            "simulate",
+            urdf.to_str().unwrap(),
+            "--set",
+            &format!("link.bar2.mass={mass:e}"),
+            "--csv",
+            csv.to_str().unwrap(),
+        ]);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        for (k, line) in lines.enumerate() {
+            for (column, value) in header.iter().zip(line.split(',')).skip(1) {
+                let value: f64 = value.parse().unwrap();
+                let (lo, hi) = (
+                    series(&summary, column, "lower")[k],
+                    series(&summary, column, "upper")[k],
+                );
+                assert!(
+                    lo <= value && value <= hi,
+                    "{column} at record {k}: the true run at mass {mass} gives {value}, outside the envelope [{lo}, {hi}]"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_check_finds_nothing_on_a_smooth_response_and_can_be_turned_off() {
+    let sidecar = manifest("robots/double_pendulum/double_pendulum.uncertainty.toml");
+    let urdf = "robots/double_pendulum/double_pendulum.urdf";
+    let checked = analyze(urdf, &sidecar, &[], "check_on");
+    let check = &checked["stats"]["check"];
+    assert_eq!(check["trusted"], true);
+    for output in check["outputs"].as_array().unwrap() {
+        let misfit = output["relative_misfit"].as_f64().unwrap();
+        assert!(
+            misfit <= SMOOTH_CHECK_MAX_RELATIVE_MISFIT,
+            "{}: {misfit}",
+            output["name"]
+        );
+    }
+    let unchecked = analyze(urdf, &sidecar, &["--check-runs", "0"], "check_off");
+    assert_eq!(unchecked["samples"], 26);
+    assert!(unchecked["stats"]["check"].is_null());
+    // The check only ever widens.
+    for name in output_names(&checked) {
+        let (l0, u0) = (
+            series(&unchecked, &name, "lower"),
+            series(&unchecked, &name, "upper"),
+        );
+        let (l1, u1) = (
+            series(&checked, &name, "lower"),
+            series(&checked, &name, "upper"),
+        );
+        for k in 0..l0.len() {
+            assert!(l1[k] <= l0[k] && u1[k] >= u0[k], "{name} at {k}");
         }
     }
 }
@@ -383,6 +503,11 @@ fn bad_analysis_input_is_refused_with_exit_2() {
             write("ok3.toml", &base),
             vec!["--design", "sparse"],
             vec!["'sparse' is not a design"],
+        ),
+        (
+            write("order0.toml", &base),
+            vec!["--order", "0"],
+            vec!["--order 0 fits a constant"],
         ),
         (
             write("ok4.toml", &base),

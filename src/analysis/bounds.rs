@@ -29,6 +29,30 @@ pub struct EnvelopePoint {
     pub error: Option<f64>,
 }
 
+/// Where a surrogate predicts one output's extremes at one time (methods that locate them: the
+/// surrogate scans). The a-posteriori check runs the true model there.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Extremes {
+    /// Where the surrogate takes its minimum (standard coordinates, length d).
+    pub argmin: Vec<f64>,
+    /// Where it takes its maximum.
+    pub argmax: Vec<f64>,
+    /// The surrogate's minimum (before the envelope takes in the model runs).
+    pub at_min: f64,
+    /// The surrogate's maximum.
+    pub at_max: f64,
+}
+
+/// The envelopes of one block: `records × outputs` points, record-major, and beside each the
+/// predicted extremes where the method locates them.
+#[derive(Clone, Debug, Default)]
+pub struct BoundedBlock {
+    /// Envelope points, record-major.
+    pub points: Vec<EnvelopePoint>,
+    /// Predicted extremes, record-major (`None` where the method does not locate them).
+    pub extremes: Vec<Option<Extremes>>,
+}
+
 /// Bounds record times for one method; cheap to share across threads.
 pub struct Bounder {
     method: Method,
@@ -75,7 +99,7 @@ impl Bounder {
     /// Envelopes of `n_outputs` outputs at each of `records` record times. `values(r)` gives record
     /// `r`'s values of the plan's samples (row-major `samples × outputs`), `excluded(i)` whether
     /// sample `i` is left out (only `scan` and `monte-carlo` can leave samples out). Returns
-    /// `records × outputs` points, record-major.
+    /// `records × outputs` points, record-major, with the predicted extremes.
     pub fn bound_records(
         &self,
         records: usize,
@@ -83,8 +107,9 @@ impl Bounder {
         values: &(dyn Fn(usize) -> Vec<f64> + Sync),
         excluded: &(dyn Fn(usize) -> bool + Sync),
         threads: &rayon::ThreadPool,
-    ) -> Result<Vec<EnvelopePoint>, UqError> {
-        let per_record: Vec<Result<Vec<EnvelopePoint>, UqError>> = threads.install(|| {
+    ) -> Result<BoundedBlock, UqError> {
+        type Record = (Vec<EnvelopePoint>, Vec<Option<Extremes>>);
+        let per_record: Vec<Result<Record, UqError>> = threads.install(|| {
             (0..records)
                 .into_par_iter()
                 .map_init(
@@ -93,9 +118,14 @@ impl Bounder {
                 )
                 .collect()
         });
-        let mut out = Vec::with_capacity(records * n_outputs);
+        let mut out = BoundedBlock {
+            points: Vec::with_capacity(records * n_outputs),
+            extremes: Vec::with_capacity(records * n_outputs),
+        };
         for record in per_record {
-            out.extend(record?);
+            let (points, extremes) = record?;
+            out.points.extend(points);
+            out.extremes.extend(extremes);
         }
         Ok(out)
     }
@@ -131,8 +161,9 @@ impl Bounder {
         n_outputs: usize,
         excluded: &(dyn Fn(usize) -> bool + Sync),
         workspace: &mut Workspace,
-    ) -> Result<Vec<EnvelopePoint>, UqError> {
+    ) -> Result<(Vec<EnvelopePoint>, Vec<Option<Extremes>>), UqError> {
         let n_samples = values.len() / n_outputs.max(1);
+        let mut extremes = vec![None; n_outputs];
         let mut points: Vec<EnvelopePoint> = match (&self.projector, &self.stencil) {
             (Some(projector), _) => {
                 let (Some(coefficients), Some(surrogate)) =
@@ -145,11 +176,18 @@ impl Bounder {
                 projector.fit_into(values, n_outputs, coefficients)?;
                 let design = projector.design();
                 let mut points = Vec::with_capacity(n_outputs);
-                for o in 0..n_outputs {
+                for (o, extreme) in extremes.iter_mut().enumerate() {
                     surrogate.set_from_matrix(design, coefficients, o)?;
                     let bound = match (self.method, &mut workspace.scanner) {
                         (Method::LegendreScan | Method::ChebyshevScan, Some(scanner)) => {
-                            scanner.scan(surrogate)?.bound
+                            let outcome = scanner.scan(surrogate)?;
+                            *extreme = Some(Extremes {
+                                at_min: outcome.bound.lower,
+                                at_max: outcome.bound.upper,
+                                argmin: outcome.argmin,
+                                argmax: outcome.argmax,
+                            });
+                            outcome.bound
                         }
                         (Method::ChebyshevIa, _) => chebyshev_inclusion(surrogate)?,
                         _ => interval_bound(surrogate, RangeMode::Exact)?,
@@ -191,7 +229,7 @@ impl Bounder {
                 point.upper = point.upper.max(value);
             }
         }
-        Ok(points)
+        Ok((points, extremes))
     }
 }
 

@@ -7,6 +7,9 @@
 //! the sample's trajectory in, steps it through the block, and swaps it out. No locks; the result of
 //! a sample does not depend on which thread ran it, so studies are deterministic for any thread
 //! count.
+//!
+//! Interruption: every sample checks the study's interrupt flag before each step, so a signal takes
+//! effect after at most one step per worker thread, also inside a long block or a single long run.
 
 use crate::integrate::{HhtIntegrator, HhtSettings, HhtTrajectory, IntegrateError};
 use crate::scene::Scene;
@@ -14,6 +17,7 @@ use crate::simulate::{InitialOrientations, Recorder, RobotSystem, SimulationErro
 use crate::uncertainty::ParameterSpace;
 use nalgebra::DVector;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A sample that failed: where in the box, when, and why.
 #[derive(Clone, Debug)]
@@ -42,6 +46,15 @@ struct Sample {
     failure: Option<SampleFailure>,
 }
 
+/// How a call to [`LockStep::advance`] ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BlockOutcome {
+    /// Every live sample reached the block's last record.
+    Complete,
+    /// The interrupt flag was raised: the block's records are incomplete and must not be used.
+    Interrupted,
+}
+
 /// All samples of a study, advanced together.
 pub struct LockStep<'a> {
     template: RobotSystem,
@@ -54,17 +67,20 @@ pub struct LockStep<'a> {
     step: usize,
     newton_iterations: u64,
     steps_taken: u64,
+    /// Index of the nominal run among the samples, when there is one.
+    nominal: Option<usize>,
 }
 
 impl<'a> LockStep<'a> {
-    /// Prepares the samples at `points` (row-major, `n × d`) plus the nominal point (last).
+    /// Prepares the samples at `points` (row-major, `n × d`) and, when `nominal_xi` is given, the
+    /// nominal run after them ([`LockStep::nominal_index`]), which also keeps its configurations.
     pub fn new(
         template: RobotSystem,
         space: &'a ParameterSpace,
         scene: &'a Scene,
         settings: HhtSettings,
         points: &[f64],
-        nominal_xi: &[f64],
+        nominal_xi: Option<&[f64]>,
     ) -> LockStep<'a> {
         let d = space.len().max(1);
         let mut samples: Vec<Sample> = points
@@ -78,13 +94,16 @@ impl<'a> LockStep<'a> {
                 failure: None,
             })
             .collect();
-        samples.push(Sample {
-            xi: nominal_xi.to_vec(),
-            trajectory: None,
-            initial: Vec::new(),
-            block: Vec::new(),
-            positions: Some(Vec::new()),
-            failure: None,
+        let nominal = nominal_xi.map(|xi| {
+            samples.push(Sample {
+                xi: xi.to_vec(),
+                trajectory: None,
+                initial: Vec::new(),
+                block: Vec::new(),
+                positions: Some(Vec::new()),
+                failure: None,
+            });
+            samples.len() - 1
         });
         LockStep {
             template,
@@ -96,7 +115,18 @@ impl<'a> LockStep<'a> {
             step: 0,
             newton_iterations: 0,
             steps_taken: 0,
+            nominal,
         }
+    }
+
+    /// Number of samples (the nominal run included).
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// Index of the nominal run, when the lock-step has one.
+    pub fn nominal_index(&self) -> Option<usize> {
+        self.nominal
     }
 
     /// Total Newton iterations and steps so far (all samples).
@@ -118,8 +148,16 @@ impl<'a> LockStep<'a> {
     }
 
     /// Simulates every live sample through the records `first..first + count` (record `r` is at
-    /// step `min(r · record_every, n_steps)`), filling each sample's block.
-    pub fn advance(&mut self, first_record: usize, count: usize, threads: &rayon::ThreadPool) {
+    /// step `min(r · record_every, n_steps)`), filling each sample's block. Checks `interrupt`
+    /// before every step; once it is set, the block is abandoned ([`BlockOutcome::Interrupted`])
+    /// and the lock-step must not be advanced again.
+    pub fn advance(
+        &mut self,
+        first_record: usize,
+        count: usize,
+        threads: &rayon::ThreadPool,
+        interrupt: &AtomicBool,
+    ) -> BlockOutcome {
         let n_outputs = self.scene.outputs.len();
         let nq = self.template.model.nq;
         let scene = self.scene;
@@ -157,12 +195,15 @@ impl<'a> LockStep<'a> {
                             settings,
                             scene,
                             recorder,
-                            start_step,
-                            first_record,
-                            count,
-                            &record_step,
+                            SampleBlock {
+                                start_step,
+                                first_record,
+                                count,
+                                record_step: &record_step,
+                                interrupt,
+                            },
                         );
-                        if let Err((time_s, message)) = result {
+                        if let Err(SampleStop::Failed { time_s, message }) = result {
                             sample.failure = Some(SampleFailure {
                                 index,
                                 xi: sample.xi.clone(),
@@ -188,7 +229,11 @@ impl<'a> LockStep<'a> {
             self.newton_iterations += iterations;
             self.steps_taken += steps;
         }
+        if interrupt.load(Ordering::Relaxed) {
+            return BlockOutcome::Interrupted;
+        }
         self.step = record_step(first_record + count - 1);
+        BlockOutcome::Complete
     }
 
     /// Record `r` of the current block for sample `i` (`dim outputs`).
@@ -197,21 +242,46 @@ impl<'a> LockStep<'a> {
         &self.samples[i].block[r * n..(r + 1) * n]
     }
 
-    /// The nominal run's configuration at record `r` of the current block.
+    /// The nominal run's configuration at record `r` of the current block (empty without a
+    /// nominal run).
     pub fn nominal_positions(&self, r: usize) -> &[f64] {
         let nq = self.template.model.nq;
         let positions = self
-            .samples
-            .last()
-            .and_then(|s| s.positions.as_ref())
+            .nominal
+            .and_then(|i| self.samples[i].positions.as_ref())
             .map_or(&[][..], |p| p.as_slice());
         positions.get(r * nq..(r + 1) * nq).unwrap_or(&[])
     }
 }
 
+/// Which part of the horizon one call of [`run_sample`] covers.
+struct SampleBlock<'a> {
+    /// The step the samples are at.
+    start_step: usize,
+    /// The block's first record.
+    first_record: usize,
+    /// Records in the block.
+    count: usize,
+    /// The step of record `r`.
+    record_step: &'a (dyn Fn(usize) -> usize + Sync),
+    /// Checked before every step.
+    interrupt: &'a AtomicBool,
+}
+
+/// Why a sample stopped before the end of its block.
+enum SampleStop {
+    /// The simulation failed at this time, s, for this reason (rows and joints named).
+    Failed { time_s: f64, message: String },
+    /// The interrupt flag was raised.
+    Interrupted,
+}
+
+fn failed(time_s: f64, message: String) -> SampleStop {
+    SampleStop::Failed { time_s, message }
+}
+
 /// Starts (at the first call) and advances one sample through a block; on failure returns the time
 /// and the message with the rows named.
-#[allow(clippy::too_many_arguments)]
 fn run_sample(
     system: &mut RobotSystem,
     integrator: &mut Option<HhtIntegrator>,
@@ -219,11 +289,15 @@ fn run_sample(
     settings: HhtSettings,
     scene: &Scene,
     recorder: &Recorder,
-    start_step: usize,
-    first_record: usize,
-    count: usize,
-    record_step: &dyn Fn(usize) -> usize,
-) -> Result<(), (f64, String)> {
+    block: SampleBlock,
+) -> Result<(), SampleStop> {
+    let SampleBlock {
+        start_step,
+        first_record,
+        count,
+        record_step,
+        interrupt,
+    } = block;
     let describe = |error: IntegrateError, system: &mut RobotSystem| {
         let violation = crate::simulate::initial_violation(system, scene);
         SimulationError::from_integrate(error, &system.constraints, violation).to_string()
@@ -242,23 +316,26 @@ fn run_sample(
             let (q0, v0) = start();
             match HhtIntegrator::new(system, settings, 0.0, &q0, &v0) {
                 Ok(h) => integrator.insert(h),
-                Err(error) => return Err((0.0, describe(error, system))),
+                Err(error) => return Err(failed(0.0, describe(error, system))),
             }
         }
     };
     if sample.trajectory.is_none() {
         let (q0, v0) = start();
         if let Err(error) = hht.restart(system, 0.0, &q0, &v0) {
-            return Err((0.0, describe(error, system)));
+            return Err(failed(0.0, describe(error, system)));
         }
         sample.initial = Recorder::initial_orientations(&system.model, hht.state().q.as_slice());
         sample.trajectory = Some(hht.trajectory());
     }
     let Some(trajectory) = sample.trajectory.as_mut() else {
-        return Err((0.0, "internal: sample has no trajectory".to_string()));
+        return Err(failed(
+            0.0,
+            "internal: sample has no trajectory".to_string(),
+        ));
     };
     hht.swap_trajectory(trajectory)
-        .map_err(|e| (0.0, e.to_string()))?;
+        .map_err(|e| failed(0.0, e.to_string()))?;
     let n_outputs = recorder.outputs().len();
     let nq = system.model.nq;
     let mut step = start_step;
@@ -266,10 +343,14 @@ fn run_sample(
     'records: for r in 0..count {
         let target = record_step(first_record + r);
         while step < target {
+            if interrupt.load(Ordering::Relaxed) {
+                outcome = Err(SampleStop::Interrupted);
+                break 'records;
+            }
             if let Err(error) = hht.step(system) {
                 // The step that failed was heading for t_n + h.
                 let time = hht.state().t + settings.step_s;
-                outcome = Err((time, describe(error, system)));
+                outcome = Err(failed(time, describe(error, system)));
                 break 'records;
             }
             step += 1;
@@ -287,9 +368,12 @@ fn run_sample(
         }
     }
     let Some(trajectory) = sample.trajectory.as_mut() else {
-        return Err((0.0, "internal: sample has no trajectory".to_string()));
+        return Err(failed(
+            0.0,
+            "internal: sample has no trajectory".to_string(),
+        ));
     };
     hht.swap_trajectory(trajectory)
-        .map_err(|e| (0.0, e.to_string()))?;
+        .map_err(|e| failed(0.0, e.to_string()))?;
     outcome
 }

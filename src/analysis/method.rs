@@ -70,4 +70,10 @@ impl Method {
     pub fn scans_surrogate(self) -> bool {
         matches!(self, Method::LegendreScan | Method::ChebyshevScan)
     }
+
+    /// Whether the method locates where its surrogate takes its extremes, so that the
+    /// a-posteriori check can run the true model there.
+    pub fn locates_extremes(self) -> bool {
+        self.scans_surrogate()
+    }
 }

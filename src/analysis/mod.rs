@@ -1,23 +1,29 @@
 //! Studies: interval parameters of the sidecar propagated through HHT-I3 into bound envelopes.
 //!
 //! `plan (sample points ξ) ⇒ lock-step simulation in blocks of record times (rayon over samples)
-//! ⇒ fit and bound each block ⇒ sinks (MCAP, summary, CSV) ⇒ the samples' records are dropped`
+//! ⇒ fit and bound each block (the samples' records are then dropped) ⇒ true-model runs at the
+//! predicted extremisers (the a-posteriori check) widen the envelopes ⇒ sinks (MCAP, summary, CSV)`
 //!
 //! Memory holds one block of records for all samples, never whole trajectories: peak memory does not
 //! grow with horizon × samples. Results are bitwise identical for any thread count: each sample's
 //! trajectory depends only on its parameters, and fits read samples in plan order.
 
 mod bounds;
+mod check;
 mod engine;
 mod method;
 mod plan;
 mod study;
 
-pub use bounds::EnvelopePoint;
+pub use bounds::{BoundedBlock, EnvelopePoint, Extremes};
+pub use check::{
+    automatic_check_runs, CheckCandidates, CheckPlan, Side, CHECK_POINT_TOLERANCE,
+    CHECK_RUNS_FRACTION, MIN_CHECK_RUNS, TRUST_RELATIVE_MISFIT,
+};
 pub use engine::SampleFailure;
 pub use method::{Method, METHODS};
 pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use study::{
-    BlockView, Envelope, Progress, Study, StudyError, StudyOptions, StudyReport,
-    BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,
+    BlockView, CheckReport, Envelope, Progress, Study, StudyError, StudyOptions, StudyPlan,
+    StudyReport, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,
 };

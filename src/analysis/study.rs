@@ -1,10 +1,20 @@
-//! One study: plan → lock-step simulation in blocks of record times → fit and bound each block →
-//! hand the block's envelopes to the caller's sink → drop the samples' records.
+//! One study, in phases over the same record times:
 //!
-//! `(model, scene, parameter space, options) ⇒ blocks of EnvelopePoints ⇒ Envelope`
+//! ```text
+//! design:  lock-step simulation of the plan's samples and the nominal run, block by block
+//!          ⇒ fit and bound each block ⇒ envelopes (kept) and predicted extremisers (deduplicated)
+//! check:   true-model runs at a budgeted selection of the predicted extremisers
+//!          ⇒ envelopes widened to contain them, misfits |true − predicted| recorded
+//! sinks:   the finished envelopes, block by block
+//! ```
+//!
+//! Memory holds one block of records of one phase's samples plus the envelopes (a few numbers per
+//! output per record time) and the nominal configurations: it does not grow with samples × horizon.
+//! Every envelope contains every model run the study made, in every phase.
 
 use super::bounds::{Bounder, EnvelopePoint};
-use super::engine::{LockStep, SampleFailure};
+use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side, TRUST_RELATIVE_MISFIT};
+use super::engine::{BlockOutcome, LockStep, SampleFailure};
 use super::plan::{Plan, MAX_RUNS};
 use super::Method;
 use crate::model::Model;
@@ -42,8 +52,12 @@ pub struct StudyOptions {
     pub seed: u64,
     /// Worker threads (0: all cores).
     pub threads: usize,
-    /// Exclude failing samples instead of stopping (`scan` and `monte-carlo` only).
+    /// Exclude failing samples instead of stopping (`scan` and `monte-carlo` samples, and check
+    /// runs).
     pub keep_going: bool,
+    /// True-model runs of the a-posteriori check for methods that locate their extremes (`None`:
+    /// [`automatic_check_runs`] of the design; `Some(0)`: no check).
+    pub check_runs: Option<usize>,
 }
 
 /// Why a study could not run or finish.
@@ -56,12 +70,13 @@ pub enum StudyError {
     #[error("interval mathematics: {0}")]
     Uq(#[from] UqError),
     /// A sample failed and the study cannot go on.
-    #[error("{}", describe_failure(.failure, *.total, .hint))]
+    #[error("{} failed at t = {} s, at parameter values {:?} (ξ = {:?}): {}. {hint}",
+        .run, .failure.time_s, .failure.values, .failure.xi, .failure.message)]
     SampleFailed {
+        /// Which run: "the nominal run", "sample 3 of 25", "check run 2 of 8".
+        run: String,
         /// The failure.
-        failure: SampleFailure,
-        /// Number of samples.
-        total: usize,
+        failure: Box<SampleFailure>,
         /// What to do.
         hint: &'static str,
     },
@@ -76,18 +91,6 @@ pub enum StudyError {
         /// The reason.
         message: String,
     },
-}
-
-fn describe_failure(failure: &SampleFailure, total: usize, hint: &str) -> String {
-    let point = if failure.index + 1 == total {
-        "the nominal run".to_string()
-    } else {
-        format!("sample {} of {}", failure.index + 1, total - 1)
-    };
-    format!(
-        "{point} failed at t = {} s, at parameter values {:?} (ξ = {:?}): {}. {hint}",
-        failure.time_s, failure.values, failure.xi, failure.message
-    )
 }
 
 /// One block of envelopes, as handed to the sink.
@@ -107,13 +110,15 @@ pub struct BlockView<'a> {
 /// Progress after a block.
 #[derive(Clone, Copy, Debug)]
 pub struct Progress {
-    /// Records done.
+    /// The phase: `design` or `check`.
+    pub phase: &'static str,
+    /// Records done in this phase.
     pub records_done: usize,
     /// Records in all.
     pub records_total: usize,
-    /// Model runs (samples including the nominal one).
+    /// Model runs of this phase.
     pub runs: usize,
-    /// Seconds since the start.
+    /// Seconds since the start of the study.
     pub elapsed_s: f64,
 }
 
@@ -130,8 +135,29 @@ pub struct Envelope {
     pub upper: Vec<Vec<f64>>,
     /// `nominal[o][k]`.
     pub nominal: Vec<Vec<f64>>,
-    /// `error[o][k]`, where the method has an estimate.
+    /// `error[o][k]`, where the method has an estimate: the larger of the method's own estimate
+    /// and the misfit the check observed at that output and time.
     pub error: Option<Vec<Vec<f64>>>,
+}
+
+/// What the a-posteriori check did.
+#[derive(Clone, Debug)]
+pub struct CheckReport {
+    /// Runs made.
+    pub runs: usize,
+    /// Distinct predicted extremisers there were to choose from.
+    pub unique_candidates: usize,
+    /// The points run, in standard coordinates (`runs × d`, row-major).
+    pub points: Vec<f64>,
+    /// Per output: the largest `|true − predicted|` over its checked predictions, in its unit.
+    pub max_misfit: Vec<f64>,
+    /// Per output: `max_misfit` over the output's largest envelope width (0 where the width is 0).
+    pub relative_misfit: Vec<f64>,
+    /// Outputs whose relative misfit exceeds [`TRUST_RELATIVE_MISFIT`]: their surrogate cannot be
+    /// trusted (the envelope still contains every true run).
+    pub untrusted_outputs: Vec<usize>,
+    /// Whether the check ran over the whole horizon (false when interrupted).
+    pub complete: bool,
 }
 
 /// What a study did.
@@ -139,7 +165,7 @@ pub struct Envelope {
 pub struct StudyReport {
     /// The envelopes.
     pub envelope: Envelope,
-    /// Model runs, the nominal one included.
+    /// Model runs, the nominal one and the check runs included.
     pub runs: usize,
     /// Samples left out with `keep_going`.
     pub excluded: Vec<SampleFailure>,
@@ -155,8 +181,28 @@ pub struct StudyReport {
     pub steps: u64,
     /// Worker threads used.
     pub threads: usize,
-    /// Record times per block.
+    /// Record times per block of the design phase.
     pub block_records: usize,
+    /// The a-posteriori check, when the method has one.
+    pub check: Option<CheckReport>,
+}
+
+/// What a study will do, known before it runs.
+#[derive(Clone, Debug)]
+pub struct StudyPlan {
+    /// The design's sample points.
+    pub plan: Plan,
+    /// Model runs of the design, the nominal run included.
+    pub design_runs: usize,
+    /// Most runs the a-posteriori check will add (0: no check).
+    pub check_runs: usize,
+}
+
+impl StudyPlan {
+    /// Most model runs the study makes.
+    pub fn max_runs(&self) -> usize {
+        self.design_runs + self.check_runs
+    }
 }
 
 /// A study ready to run.
@@ -171,9 +217,54 @@ pub struct Study<'a> {
     pub options: StudyOptions,
 }
 
+/// Which runs of a phase may be left out when they fail, and what to tell the user.
+#[derive(Clone, Copy)]
+struct FailurePolicy {
+    /// Samples may be excluded (`keep_going` and a method that tolerates it).
+    can_exclude: bool,
+    /// The hint when a sample's failure stops the study.
+    hint: &'static str,
+    /// How messages name the runs of this phase ("sample", "check run").
+    noun: &'static str,
+}
+
+/// Per record of one block of one phase: the samples' values.
+struct PhaseBlock<'b, 'a> {
+    first: usize,
+    count: usize,
+    lockstep: &'b LockStep<'a>,
+}
+
+impl PhaseBlock<'_, '_> {
+    /// Record `r` of the block for sample `i` (`dim outputs`).
+    fn record(&self, i: usize, r: usize) -> &[f64] {
+        self.lockstep.record(i, r)
+    }
+}
+
+/// The envelopes under construction, and the hull of every true run.
+struct Accumulator {
+    n_outputs: usize,
+    times: Vec<f64>,
+    /// Record-major `records × outputs`.
+    points: Vec<EnvelopePoint>,
+    nominal: Vec<f64>,
+    nominal_positions: Vec<f64>,
+}
+
+impl Accumulator {
+    fn widen(&mut self, record: usize, values: &[f64]) {
+        let row = &mut self.points[record * self.n_outputs..(record + 1) * self.n_outputs];
+        for (point, &value) in row.iter_mut().zip(values) {
+            point.lower = point.lower.min(value);
+            point.upper = point.upper.max(value);
+        }
+    }
+}
+
 impl Study<'_> {
-    /// Number of model runs the plan asks for, nominal included; errors for plans that cannot run.
-    pub fn plan(&self) -> Result<(Plan, usize), StudyError> {
+    /// The design, its runs and the check budget; errors for plans that cannot run.
+    pub fn plan(&self) -> Result<StudyPlan, StudyError> {
         let o = &self.options;
         let d = self.space.len();
         if d == 0 {
@@ -197,6 +288,11 @@ impl Study<'_> {
         if o.method == Method::MonteCarlo && o.samples == 0 {
             return Err(StudyError::BadOptions("--samples must be ≥ 1".to_string()));
         }
+        if o.method.family().is_some() && o.order == 0 {
+            return Err(StudyError::BadOptions(
+                "--order 0 fits a constant, whose range is a single value: every envelope would be as narrow as the runs make it. Use --order 1 or more (default 4)".to_string(),
+            ));
+        }
         let plan = Plan::new(
             o.method,
             d,
@@ -212,11 +308,21 @@ impl Study<'_> {
                 o.method.name()
             ))
         })?;
-        Ok((plan, runs + 1))
+        let check_runs = if o.method.locates_extremes() {
+            o.check_runs.unwrap_or_else(|| automatic_check_runs(runs))
+        } else {
+            0
+        };
+        Ok(StudyPlan {
+            plan,
+            design_runs: runs + 1,
+            check_runs,
+        })
     }
 
-    /// Runs the study: `progress` after each block, `sink` with each block's envelopes. Stops after
-    /// the current block when `interrupt` is set (the report is then `partial`).
+    /// Runs the study: `progress` after each block of each phase, then `sink` with each block of the
+    /// finished envelopes. Stops at the next step when `interrupt` is set (the report is then
+    /// `partial` and covers the records finished before).
     pub fn run(
         &self,
         interrupt: &AtomicBool,
@@ -224,7 +330,7 @@ impl Study<'_> {
         sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
     ) -> Result<StudyReport, StudyError> {
         let started = Instant::now();
-        let (plan, runs) = self.plan()?;
+        let study_plan = self.plan()?;
         let o = &self.options;
         let d = self.space.len();
         let threads = rayon::ThreadPoolBuilder::new()
@@ -234,121 +340,324 @@ impl Study<'_> {
                 threads: o.threads,
                 message: e.to_string(),
             })?;
+        let plan = &study_plan.plan;
         let points = plan.points(d);
-        let bounder = Bounder::new(o.method, &plan, d, o.order, o.scan_grid)?;
+        let bounder = Bounder::new(o.method, plan, d, o.order, o.scan_grid)?;
+        let scene = self.scene;
+        let n_outputs = scene.outputs.len();
+        let n_records = scene.n_steps.div_ceil(scene.record_every) + 1;
+        let design_runs = study_plan.design_runs;
+        let mut report = StudyReport {
+            envelope: Envelope {
+                outputs: scene.outputs.clone(),
+                times: Vec::new(),
+                lower: Vec::new(),
+                upper: Vec::new(),
+                nominal: Vec::new(),
+                error: None,
+            },
+            runs: design_runs,
+            excluded: Vec::new(),
+            partial: false,
+            simulate_seconds: 0.0,
+            bound_seconds: 0.0,
+            newton_iterations: 0,
+            steps: 0,
+            threads: threads.current_num_threads(),
+            block_records: block_records(design_runs, n_outputs, n_records),
+            check: None,
+        };
+        let mut accumulator = Accumulator {
+            n_outputs,
+            times: Vec::with_capacity(n_records),
+            points: Vec::with_capacity(n_records * n_outputs),
+            nominal: Vec::with_capacity(n_records * n_outputs),
+            nominal_positions: Vec::new(),
+        };
+        let mut candidates = CheckCandidates::new(d);
+        let locates_extremes = study_plan.check_runs > 0;
+        let can_exclude = o.keep_going && matches!(o.method, Method::Scan | Method::MonteCarlo);
+        let design_policy = FailurePolicy {
+            can_exclude,
+            hint: if o.keep_going && !can_exclude {
+                "--keep-going cannot help this method: its fit needs every design point; use --method scan or monte-carlo, or narrow the box"
+            } else {
+                "Use --keep-going to exclude failing samples (scan and monte-carlo), or narrow the box"
+            },
+            noun: "sample",
+        };
+        let nominal_xi = self.space.nominal_xi();
+
+        // Design phase.
+        let design_complete = self.run_phase(
+            "design",
+            &points,
+            Some(&nominal_xi),
+            design_policy,
+            &threads,
+            interrupt,
+            started,
+            &mut report,
+            progress,
+            &mut |block, report| {
+                let t_bound = Instant::now();
+                let lockstep = block.lockstep;
+                let plan_samples = lockstep.len() - 1;
+                let values = |r: usize| -> Vec<f64> {
+                    let mut row = Vec::with_capacity(plan_samples * n_outputs);
+                    for i in 0..plan_samples {
+                        row.extend_from_slice(lockstep.record(i, r));
+                    }
+                    row
+                };
+                let excluded = |i: usize| lockstep.failed(i);
+                let bounded =
+                    bounder.bound_records(block.count, n_outputs, &values, &excluded, &threads)?;
+                let nominal_index = lockstep.nominal_index().unwrap_or(plan_samples);
+                for r in 0..block.count {
+                    let record = block.first + r;
+                    accumulator.times.push(
+                        (record * scene.record_every).min(scene.n_steps) as f64 * scene.step_s,
+                    );
+                    accumulator
+                        .nominal
+                        .extend_from_slice(block.record(nominal_index, r));
+                    accumulator
+                        .nominal_positions
+                        .extend_from_slice(lockstep.nominal_positions(r));
+                }
+                accumulator.points.extend_from_slice(&bounded.points);
+                for r in 0..block.count {
+                    let record = block.first + r;
+                    // The nominal run is a true response inside the box: the envelope contains it.
+                    let nominal = block.record(nominal_index, r).to_vec();
+                    accumulator.widen(record, &nominal);
+                    if !locates_extremes {
+                        continue;
+                    }
+                    for o in 0..n_outputs {
+                        let k = r * n_outputs + o;
+                        if let Some(extremes) = &bounded.extremes[k] {
+                            let point = &accumulator.points[record * n_outputs + o];
+                            let width = point.upper - point.lower;
+                            candidates.add(
+                                record,
+                                o,
+                                Side::Lower,
+                                &extremes.argmin,
+                                extremes.at_min,
+                                width,
+                            );
+                            candidates.add(
+                                record,
+                                o,
+                                Side::Upper,
+                                &extremes.argmax,
+                                extremes.at_max,
+                                width,
+                            );
+                        }
+                    }
+                }
+                report.bound_seconds += t_bound.elapsed().as_secs_f64();
+                Ok(())
+            },
+        )?;
+
+        // The a-posteriori check: true runs where the surrogates put their extremes.
+        if design_complete && locates_extremes {
+            let check_plan = candidates.select(study_plan.check_runs);
+            report.check = Some(self.check(
+                &check_plan,
+                &threads,
+                interrupt,
+                started,
+                &mut report,
+                &mut accumulator,
+                progress,
+            )?);
+        }
+        self.finish(report, accumulator, sink)
+    }
+
+    /// Runs the check plan's points, widens the envelopes with them and measures the misfits.
+    #[allow(clippy::too_many_arguments)]
+    fn check(
+        &self,
+        check_plan: &CheckPlan,
+        threads: &rayon::ThreadPool,
+        interrupt: &AtomicBool,
+        started: Instant,
+        report: &mut StudyReport,
+        accumulator: &mut Accumulator,
+        progress: &mut dyn FnMut(Progress),
+    ) -> Result<CheckReport, StudyError> {
+        let n_outputs = accumulator.n_outputs;
+        let runs = check_plan.checks.len();
+        // Per record, the (run, output, predicted) checks made there.
+        let n_records = accumulator.times.len();
+        let mut by_record: Vec<Vec<(usize, usize, f64)>> = vec![Vec::new(); n_records];
+        for (run, checks) in check_plan.checks.iter().enumerate() {
+            for &(record, output, _side, predicted) in checks {
+                by_record[record].push((run, output, predicted));
+            }
+        }
+        let mut misfit = vec![vec![0.0_f64; n_records]; n_outputs];
+        let policy = FailurePolicy {
+            can_exclude: self.options.keep_going,
+            hint: "The box contains a point where the model cannot be simulated; use --keep-going to exclude it (it is listed in the summary), or narrow the box",
+            noun: "check run",
+        };
+        report.runs += runs;
+        let complete = self.run_phase(
+            "check",
+            &check_plan.points,
+            None,
+            policy,
+            threads,
+            interrupt,
+            started,
+            report,
+            progress,
+            &mut |block, _report| {
+                for r in 0..block.count {
+                    let record = block.first + r;
+                    for i in 0..runs {
+                        if block.lockstep.failed(i) {
+                            continue;
+                        }
+                        accumulator.widen(record, block.record(i, r));
+                    }
+                    for &(run, output, predicted) in &by_record[record] {
+                        if block.lockstep.failed(run) {
+                            continue;
+                        }
+                        let truth = block.record(run, r)[output];
+                        let m = &mut misfit[output][record];
+                        *m = m.max((truth - predicted).abs());
+                    }
+                }
+                Ok(())
+            },
+        )?;
+        let mut max_misfit = vec![0.0; n_outputs];
+        let mut relative_misfit = vec![0.0; n_outputs];
+        let mut untrusted_outputs = Vec::new();
+        for o in 0..n_outputs {
+            max_misfit[o] = misfit[o].iter().copied().fold(0.0, f64::max);
+            let width = (0..n_records)
+                .map(|r| {
+                    let p = accumulator.points[r * n_outputs + o];
+                    p.upper - p.lower
+                })
+                .fold(0.0, f64::max);
+            relative_misfit[o] = if width > 0.0 {
+                max_misfit[o] / width
+            } else {
+                0.0
+            };
+            if relative_misfit[o] > TRUST_RELATIVE_MISFIT {
+                untrusted_outputs.push(o);
+            }
+            for (r, &m) in misfit[o].iter().enumerate() {
+                let point = &mut accumulator.points[r * n_outputs + o];
+                if let Some(error) = &mut point.error {
+                    *error = error.max(m);
+                }
+            }
+        }
+        Ok(CheckReport {
+            runs,
+            unique_candidates: check_plan.unique_candidates,
+            points: check_plan.points.clone(),
+            max_misfit,
+            relative_misfit,
+            untrusted_outputs,
+            complete,
+        })
+    }
+
+    /// Simulates `points` (and the nominal run when given) in lock-step over the whole horizon,
+    /// calling `on_block` after each block. Returns whether the phase ran to the end (false when
+    /// interrupted: `report.partial` is then set).
+    #[allow(clippy::too_many_arguments)]
+    fn run_phase(
+        &self,
+        phase: &'static str,
+        points: &[f64],
+        nominal_xi: Option<&[f64]>,
+        policy: FailurePolicy,
+        threads: &rayon::ThreadPool,
+        interrupt: &AtomicBool,
+        started: Instant,
+        report: &mut StudyReport,
+        progress: &mut dyn FnMut(Progress),
+        on_block: &mut dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError>,
+    ) -> Result<bool, StudyError> {
         let scene = self.scene;
         let template = RobotSystem::new(self.model.clone(), scene);
-        let nominal_xi = self.space.nominal_xi();
         let mut lockstep = LockStep::new(
             template,
             self.space,
             scene,
             hht_settings(scene),
-            &points,
-            &nominal_xi,
+            points,
+            nominal_xi,
         );
+        let runs = lockstep.len();
         let n_outputs = scene.outputs.len();
         let n_records = scene.n_steps.div_ceil(scene.record_every) + 1;
-        let block_records = (BLOCK_VALUE_BUDGET / (runs * n_outputs).max(1))
-            .clamp(1, MAX_BLOCK_RECORDS)
-            .min(n_records);
-        let nominal_index = runs - 1;
-        let can_exclude = matches!(o.method, Method::Scan | Method::MonteCarlo);
-
-        let mut envelope = Envelope {
-            outputs: scene.outputs.clone(),
-            times: Vec::with_capacity(n_records),
-            lower: vec![Vec::with_capacity(n_records); n_outputs],
-            upper: vec![Vec::with_capacity(n_records); n_outputs],
-            nominal: vec![Vec::with_capacity(n_records); n_outputs],
-            error: None,
-        };
-        let mut simulate_seconds = 0.0;
-        let mut bound_seconds = 0.0;
-        let mut partial = false;
+        let block_records = block_records(runs, n_outputs, n_records);
         let mut first = 0;
+        let mut complete = true;
         while first < n_records {
             if interrupt.load(Ordering::SeqCst) {
-                partial = true;
+                complete = false;
                 break;
             }
             let count = block_records.min(n_records - first);
             let t_simulate = Instant::now();
-            lockstep.advance(first, count, &threads);
-            simulate_seconds += t_simulate.elapsed().as_secs_f64();
+            let outcome = lockstep.advance(first, count, threads, interrupt);
+            report.simulate_seconds += t_simulate.elapsed().as_secs_f64();
+            if outcome == BlockOutcome::Interrupted {
+                complete = false;
+                break;
+            }
             let failures = lockstep.failures();
+            let nominal = lockstep.nominal_index();
             if let Some(failure) = failures
                 .iter()
-                .find(|f| f.index == nominal_index || !(o.keep_going && can_exclude))
+                .find(|f| Some(f.index) == nominal || !policy.can_exclude)
             {
-                let hint = if failure.index == nominal_index {
-                    "The nominal run must succeed; check the scene and the URDF values"
-                } else if o.keep_going {
-                    "--keep-going cannot help this method: its fit needs every design point; use --method scan or monte-carlo, or narrow the box"
+                let (run, hint) = if Some(failure.index) == nominal {
+                    (
+                        "the nominal run".to_string(),
+                        "The nominal run must succeed; check the scene and the URDF values",
+                    )
                 } else {
-                    "Use --keep-going to exclude failing samples (scan and monte-carlo), or narrow the box"
+                    let total = runs - usize::from(nominal.is_some());
+                    (
+                        format!("{} {} of {total}", policy.noun, failure.index + 1),
+                        policy.hint,
+                    )
                 };
                 return Err(StudyError::SampleFailed {
-                    failure: failure.clone(),
-                    total: runs,
+                    run,
+                    failure: Box::new(failure.clone()),
                     hint,
                 });
             }
-            let t_bound = Instant::now();
-            let plan_samples = runs - 1;
-            let lockstep_ref = &lockstep;
-            let values = move |r: usize| -> Vec<f64> {
-                let mut row = Vec::with_capacity(plan_samples * n_outputs);
-                for i in 0..plan_samples {
-                    row.extend_from_slice(lockstep_ref.record(i, r));
-                }
-                row
-            };
-            let excluded = |i: usize| lockstep_ref.failed(i);
-            let block_points =
-                bounder.bound_records(count, n_outputs, &values, &excluded, &threads)?;
-            let mut nominal = Vec::with_capacity(count * n_outputs);
-            let mut nominal_positions = Vec::new();
-            let mut times = Vec::with_capacity(count);
-            for r in 0..count {
-                let record = first + r;
-                times.push((record * scene.record_every).min(scene.n_steps) as f64 * scene.step_s);
-                nominal.extend_from_slice(lockstep.record(nominal_index, r));
-                nominal_positions.extend_from_slice(lockstep.nominal_positions(r));
-            }
-            // The nominal run is a true response inside the box: the envelope contains it.
-            let mut block_points = block_points;
-            for (point, value) in block_points.iter_mut().zip(&nominal) {
-                point.lower = point.lower.min(*value);
-                point.upper = point.upper.max(*value);
-            }
-            bound_seconds += t_bound.elapsed().as_secs_f64();
-            for (r, t) in times.iter().enumerate() {
-                envelope.times.push(*t);
-                for o in 0..n_outputs {
-                    let point = block_points[r * n_outputs + o];
-                    envelope.lower[o].push(point.lower);
-                    envelope.upper[o].push(point.upper);
-                    envelope.nominal[o].push(nominal[r * n_outputs + o]);
-                    if let Some(error) = point.error {
-                        envelope
-                            .error
-                            .get_or_insert_with(|| vec![Vec::with_capacity(n_records); n_outputs])
-                            [o]
-                            .push(error);
-                    }
-                }
-            }
-            sink(&BlockView {
-                first_record: first,
-                times: &times,
-                points: &block_points,
-                nominal: &nominal,
-                nominal_positions: &nominal_positions,
-            })
-            .map_err(|e| StudyError::Sink(Box::new(e)))?;
+            on_block(
+                &PhaseBlock {
+                    first,
+                    count,
+                    lockstep: &lockstep,
+                },
+                report,
+            )?;
             first += count;
             progress(Progress {
+                phase,
                 records_done: first,
                 records_total: n_records,
                 runs,
@@ -356,17 +665,70 @@ impl Study<'_> {
             });
         }
         let (newton_iterations, steps) = lockstep.counters();
-        Ok(StudyReport {
-            envelope,
-            runs,
-            excluded: lockstep.failures(),
-            partial,
-            simulate_seconds,
-            bound_seconds,
-            newton_iterations,
-            steps,
-            threads: threads.current_num_threads(),
-            block_records,
-        })
+        report.newton_iterations += newton_iterations;
+        report.steps += steps;
+        report.excluded.extend(lockstep.failures());
+        if !complete {
+            report.partial = true;
+        }
+        Ok(complete)
     }
+
+    /// Moves the accumulated envelopes into the report and hands them to the sink block by block.
+    fn finish(
+        &self,
+        mut report: StudyReport,
+        accumulator: Accumulator,
+        sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
+    ) -> Result<StudyReport, StudyError> {
+        let n_outputs = accumulator.n_outputs;
+        let n_done = accumulator.times.len();
+        let nq = self.model.nq;
+        let envelope = &mut report.envelope;
+        envelope.times = accumulator.times.clone();
+        envelope.lower = vec![Vec::with_capacity(n_done); n_outputs];
+        envelope.upper = vec![Vec::with_capacity(n_done); n_outputs];
+        envelope.nominal = vec![Vec::with_capacity(n_done); n_outputs];
+        let has_error = accumulator.points.iter().any(|p| p.error.is_some());
+        if has_error {
+            envelope.error = Some(vec![Vec::with_capacity(n_done); n_outputs]);
+        }
+        for r in 0..n_done {
+            for o in 0..n_outputs {
+                let point = accumulator.points[r * n_outputs + o];
+                envelope.lower[o].push(point.lower);
+                envelope.upper[o].push(point.upper);
+                envelope.nominal[o].push(accumulator.nominal[r * n_outputs + o]);
+                if let Some(errors) = &mut envelope.error {
+                    errors[o].push(point.error.unwrap_or(0.0));
+                }
+            }
+        }
+        let block = report.block_records.max(1);
+        let mut first = 0;
+        while first < n_done {
+            let count = block.min(n_done - first);
+            let values = first * n_outputs..(first + count) * n_outputs;
+            let positions = (first * nq).min(accumulator.nominal_positions.len())
+                ..((first + count) * nq).min(accumulator.nominal_positions.len());
+            sink(&BlockView {
+                first_record: first,
+                times: &accumulator.times[first..first + count],
+                points: &accumulator.points[values.clone()],
+                nominal: &accumulator.nominal[values],
+                nominal_positions: &accumulator.nominal_positions[positions],
+            })
+            .map_err(|e| StudyError::Sink(Box::new(e)))?;
+            first += count;
+        }
+        Ok(report)
+    }
+}
+
+/// Record times per block for `runs` samples: as many as [`BLOCK_VALUE_BUDGET`] values allow, at
+/// most [`MAX_BLOCK_RECORDS`] and the horizon.
+fn block_records(runs: usize, n_outputs: usize, n_records: usize) -> usize {
+    (BLOCK_VALUE_BUDGET / (runs * n_outputs).max(1))
+        .clamp(1, MAX_BLOCK_RECORDS)
+        .min(n_records)
 }

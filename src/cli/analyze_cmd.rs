@@ -5,7 +5,9 @@
 //! a second signal exits at once.
 
 use super::{print_warnings, write_stdout, AnalyzeArgs, SceneArgs};
-use crate::analysis::{Method, Progress, Study, StudyOptions, StudyReport, METHODS};
+use crate::analysis::{
+    CheckReport, Method, Progress, Study, StudyOptions, StudyReport, METHODS, TRUST_RELATIVE_MISFIT,
+};
 use crate::dynamics::Data;
 use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
@@ -55,12 +57,19 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         space: &space,
         options: options.clone(),
     };
-    let (_, runs) = study.plan()?;
+    let plan = study.plan()?;
+    let runs = plan.max_runs();
     eprintln!(
-        "analyze: {} parameters, method {} ({}), {runs} model runs of {} s at h = {} s",
+        "analyze: {} parameters, method {} ({}), {} model runs{} of {} s at h = {} s",
         space.len(),
         options.method.name(),
         options.method.bound_kind(),
+        plan.design_runs,
+        if plan.check_runs > 0 {
+            format!(" + up to {} check runs", plan.check_runs)
+        } else {
+            String::new()
+        },
         scene.duration_s,
         scene.step_s
     );
@@ -108,6 +117,9 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     )?;
     reporter.finish();
     let wall_seconds = started.elapsed().as_secs_f64();
+    if let Some(check) = &report.check {
+        warn_untrusted(&report, check);
+    }
 
     if let Some(path) = &args.summary {
         summary(&robot, &options, &space, &report, wall_seconds).write(path)?;
@@ -242,6 +254,7 @@ fn study_options(
         seed: args.seed.unwrap_or(0),
         threads,
         keep_going: args.keep_going,
+        check_runs: args.check_runs,
     })
 }
 
@@ -321,8 +334,57 @@ fn summary(
             "threads": report.threads,
             "block_records": report.block_records,
             "peak_memory_bytes": peak_memory(),
+            "check": report.check.as_ref().map(|c| check_json(report, c, space.len())),
         }),
     }
+}
+
+/// The check's statistics for the summary: runs, candidates, and per output its misfit.
+fn check_json(report: &StudyReport, check: &CheckReport, dim: usize) -> serde_json::Value {
+    let outputs = &report.envelope.outputs;
+    serde_json::json!({
+        "runs": check.runs,
+        "unique_candidates": check.unique_candidates,
+        "complete": check.complete,
+        "trusted": check.untrusted_outputs.is_empty(),
+        "untrusted_outputs": check.untrusted_outputs.iter().map(|&o| outputs[o].name.clone()).collect::<Vec<_>>(),
+        "trust_relative_misfit": TRUST_RELATIVE_MISFIT,
+        "points_xi": check.points.chunks(dim.max(1)).collect::<Vec<_>>(),
+        "outputs": outputs.iter().enumerate().map(|(o, output)| serde_json::json!({
+            "name": output.name,
+            "max_misfit": check.max_misfit[o],
+            "relative_misfit": check.relative_misfit[o],
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// Says loudly which outputs' surrogates missed the true model at their predicted extremes.
+fn warn_untrusted(report: &StudyReport, check: &CheckReport) {
+    if check.untrusted_outputs.is_empty() {
+        return;
+    }
+    let outputs = &report.envelope.outputs;
+    let mut worst: Vec<usize> = check.untrusted_outputs.clone();
+    worst.sort_by(|&a, &b| check.relative_misfit[b].total_cmp(&check.relative_misfit[a]));
+    let listed: Vec<String> = worst
+        .iter()
+        .take(5)
+        .map(|&o| {
+            format!(
+                "{} ({:.1} %)",
+                outputs[o].name,
+                100.0 * check.relative_misfit[o]
+            )
+        })
+        .collect();
+    eprintln!(
+        "warning: the surrogate cannot be trusted for {} of {} outputs: true-model runs at its predicted extremes differ from it by more than {:.0} % of the envelope width: {}{}. The envelopes were widened to contain every true run, but they may still be too narrow; raise --order, narrow the box, or use --method scan",
+        worst.len(),
+        outputs.len(),
+        100.0 * TRUST_RELATIVE_MISFIT,
+        listed.join(", "),
+        if worst.len() > 5 { ", …" } else { "" },
+    );
 }
 
 fn write_envelope_csv(path: &Path, report: &StudyReport) -> Result<(), Error> {
@@ -378,11 +440,20 @@ fn table(options: &StudyOptions, report: &StudyReport, wall_seconds: f64) -> Str
         ));
     }
     text.push_str(&format!(
-        "method {} ({} bounds{}), {} model runs, {:.3} s wall{}\n",
+        "method {} ({} bounds{}), {} model runs{}, {:.3} s wall{}\n",
         options.method.name(),
         options.method.bound_kind(),
         order_of(options).map_or(String::new(), |k| format!(", order {k}")),
         report.runs,
+        report.check.as_ref().map_or(String::new(), |c| {
+            let worst = c.relative_misfit.iter().copied().fold(0.0, f64::max);
+            format!(
+                " ({} of them checking the surrogate's extremes: largest misfit {:.2e} of the width{})",
+                c.runs,
+                worst,
+                if c.untrusted_outputs.is_empty() { "" } else { ", NOT TRUSTED" }
+            )
+        }),
         wall_seconds,
         if report.excluded.is_empty() {
             String::new()
@@ -424,7 +495,8 @@ impl ProgressReporter {
             f64::NAN
         };
         let line = format!(
-            "progress: {}/{} record times ({:.0} %) of {} runs, {:.1} s elapsed, ETA {:.1} s",
+            "progress: {} {}/{} record times ({:.0} %) of {} runs, {:.1} s elapsed, ETA {:.1} s",
+            p.phase,
             p.records_done,
             p.records_total,
             100.0 * fraction,

@@ -144,6 +144,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
         seed: 0,
         threads: args.threads.unwrap_or(0),
         keep_going: false,
+        check_runs: None,
     };
     let interrupt = AtomicBool::new(false);
     let run_study = |options: StudyOptions| -> Result<(StudyReport, f64), Error> {

@@ -99,9 +99,14 @@ pub struct AnalyzeArgs {
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Exclude failing samples and list them in the summary (scan and monte-carlo).
+    /// Exclude failing samples and list them in the summary (scan and monte-carlo samples, and
+    /// check runs).
     #[arg(long)]
     pub keep_going: bool,
+    /// True-model runs of the a-posteriori check at the surrogate's predicted extremes (methods
+    /// that scan a surrogate; default: 10 % of the design's runs, at least 8; 0 turns it off).
+    #[arg(long, value_name = "N")]
+    pub check_runs: Option<usize>,
     /// Write the summary JSON.
     #[arg(long, value_name = "FILE")]
     pub summary: Option<PathBuf>,

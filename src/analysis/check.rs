@@ -1,0 +1,243 @@
+//! The a-posteriori check (docs/method.md §7): true-model runs at the points where the
+//! surrogates predict their extremes, so that no reported bound rests on the surrogate alone.
+//!
+//! `(per output and record: predicted argmin/argmax and value) ⇒ deduplicated candidate points ⇒
+//! a budgeted selection ⇒ (after the runs) observed misfits per output and record`
+//!
+//! Selection: candidates are taken round-robin over outputs and sides (min, max), each output's
+//! records in order of decreasing envelope width, so every output's widest time is checked first and
+//! the budget then spreads over the others. Points closer than [`CHECK_POINT_TOLERANCE`] (max-norm in
+//! ξ) are one run. The check never narrows anything: the study widens its envelopes to contain the
+//! check runs and reports the misfit `|true − predicted|` where a candidate was run.
+
+use std::collections::HashMap;
+
+/// Two predicted extremisers closer than this in every coordinate of ξ are checked by one run: a
+/// thousandth of the half-width moves a smooth response by ~1e-3 of its slope, well below the misfits
+/// the check is there to find.
+pub const CHECK_POINT_TOLERANCE: f64 = 1e-3;
+
+/// Smallest automatic check budget (runs).
+pub const MIN_CHECK_RUNS: usize = 8;
+
+/// The automatic check budget as a fraction of the design's runs.
+pub const CHECK_RUNS_FRACTION: f64 = 0.1;
+
+/// A surrogate whose check runs miss its predicted extremes by more than this fraction of the
+/// output's largest envelope width is reported as not trustworthy (stderr and summary).
+pub const TRUST_RELATIVE_MISFIT: f64 = 0.05;
+
+/// The automatic number of check runs for a design of `design_runs` runs.
+pub fn automatic_check_runs(design_runs: usize) -> usize {
+    MIN_CHECK_RUNS.max((CHECK_RUNS_FRACTION * design_runs as f64).ceil() as usize)
+}
+
+/// Which extreme a candidate predicts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    /// The surrogate's minimum.
+    Lower,
+    /// The surrogate's maximum.
+    Upper,
+}
+
+/// One predicted extreme: output `output` at record `record` takes `predicted` at point `point`.
+#[derive(Clone, Copy, Debug)]
+struct Candidate {
+    record: usize,
+    output: usize,
+    side: Side,
+    point: usize,
+    predicted: f64,
+    width: f64,
+}
+
+/// The predicted extremisers of a study, deduplicated as they arrive.
+#[derive(Clone, Debug)]
+pub struct CheckCandidates {
+    dim: usize,
+    /// Unique points, row-major `n × dim`.
+    points: Vec<f64>,
+    /// Quantised point → index into `points`.
+    index: HashMap<Vec<i64>, usize>,
+    candidates: Vec<Candidate>,
+    key: Vec<i64>,
+}
+
+/// A selected check: the runs to make and, per run, the predictions it checks.
+#[derive(Clone, Debug)]
+pub struct CheckPlan {
+    /// Points to run, row-major `runs × d`.
+    pub points: Vec<f64>,
+    /// For run `i`, the `(record, output, side, predicted)` it checks.
+    pub checks: Vec<Vec<(usize, usize, Side, f64)>>,
+    /// Unique candidate points there were to choose from.
+    pub unique_candidates: usize,
+}
+
+impl CheckCandidates {
+    /// No candidates yet, for `dim` parameters.
+    pub fn new(dim: usize) -> CheckCandidates {
+        CheckCandidates {
+            dim,
+            points: Vec::new(),
+            index: HashMap::new(),
+            candidates: Vec::new(),
+            key: vec![0; dim],
+        }
+    }
+
+    /// Number of distinct points so far.
+    pub fn unique_points(&self) -> usize {
+        self.points.len() / self.dim.max(1)
+    }
+
+    /// Adds the prediction that `output` at `record` takes `predicted` at `point` (length d, in
+    /// [−1, 1]); `width` is the envelope's width there (the selection's priority).
+    pub fn add(
+        &mut self,
+        record: usize,
+        output: usize,
+        side: Side,
+        point: &[f64],
+        predicted: f64,
+        width: f64,
+    ) {
+        if !(predicted.is_finite() && point.iter().all(|x| x.is_finite())) {
+            return;
+        }
+        for (k, &x) in self.key.iter_mut().zip(point) {
+            *k = (x.clamp(-1.0, 1.0) / CHECK_POINT_TOLERANCE).round() as i64;
+        }
+        let next = self.unique_points();
+        let index = *self.index.entry(self.key.clone()).or_insert(next);
+        if index == next {
+            self.points.extend(point.iter().map(|x| x.clamp(-1.0, 1.0)));
+        }
+        self.candidates.push(Candidate {
+            record,
+            output,
+            side,
+            point: index,
+            predicted,
+            width: if width.is_finite() { width } else { 0.0 },
+        });
+    }
+
+    /// Chooses at most `budget` distinct points (see the module documentation).
+    pub fn select(&self, budget: usize) -> CheckPlan {
+        let unique_candidates = self.unique_points();
+        // Per (output, side): candidates by decreasing width (ties: earlier record first).
+        let mut queues: HashMap<(usize, bool), Vec<usize>> = HashMap::new();
+        for (c, candidate) in self.candidates.iter().enumerate() {
+            queues
+                .entry((candidate.output, candidate.side == Side::Upper))
+                .or_default()
+                .push(c);
+        }
+        let mut keys: Vec<(usize, bool)> = queues.keys().copied().collect();
+        keys.sort_unstable();
+        for queue in queues.values_mut() {
+            queue.sort_by(|&a, &b| {
+                let (a, b) = (&self.candidates[a], &self.candidates[b]);
+                b.width.total_cmp(&a.width).then(a.record.cmp(&b.record))
+            });
+        }
+        let mut chosen: Vec<usize> = Vec::new();
+        let mut chosen_slot: HashMap<usize, usize> = HashMap::new();
+        let mut cursor = vec![0usize; keys.len()];
+        while chosen.len() < budget.min(unique_candidates) {
+            let mut advanced = false;
+            for (q, key) in keys.iter().enumerate() {
+                let queue = &queues[key];
+                // Skip candidates whose point is already chosen.
+                while cursor[q] < queue.len()
+                    && chosen_slot.contains_key(&self.candidates[queue[cursor[q]]].point)
+                {
+                    cursor[q] += 1;
+                }
+                if cursor[q] < queue.len() && chosen.len() < budget {
+                    let point = self.candidates[queue[cursor[q]]].point;
+                    chosen_slot.insert(point, chosen.len());
+                    chosen.push(point);
+                    cursor[q] += 1;
+                    advanced = true;
+                }
+            }
+            if !advanced {
+                break;
+            }
+        }
+        let d = self.dim;
+        let mut points = Vec::with_capacity(chosen.len() * d);
+        for &p in &chosen {
+            points.extend_from_slice(&self.points[p * d..(p + 1) * d]);
+        }
+        let mut checks = vec![Vec::new(); chosen.len()];
+        for candidate in &self.candidates {
+            if let Some(&slot) = chosen_slot.get(&candidate.point) {
+                checks[slot].push((
+                    candidate.record,
+                    candidate.output,
+                    candidate.side,
+                    candidate.predicted,
+                ));
+            }
+        }
+        CheckPlan {
+            points,
+            checks,
+            unique_candidates,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearby_points_are_one_candidate_and_far_ones_are_two() {
+        let mut c = CheckCandidates::new(2);
+        c.add(0, 0, Side::Upper, &[1.0, -1.0], 2.0, 1.0);
+        c.add(
+            1,
+            0,
+            Side::Upper,
+            &[1.0, -1.0 + 0.2 * CHECK_POINT_TOLERANCE],
+            2.1,
+            1.0,
+        );
+        c.add(1, 1, Side::Lower, &[0.25, 0.0], -1.0, 1.0);
+        assert_eq!(c.unique_points(), 2);
+        // Non-finite predictions are dropped.
+        c.add(2, 1, Side::Lower, &[0.5, 0.0], f64::NAN, 1.0);
+        assert_eq!(c.unique_points(), 2);
+    }
+
+    #[test]
+    fn selection_serves_every_output_widest_time_first_within_the_budget() {
+        let mut c = CheckCandidates::new(1);
+        // Output 0: widest at record 2 (point 0.9); output 1: widest at record 0 (point −0.3).
+        c.add(0, 0, Side::Upper, &[0.1], 1.0, 0.1);
+        c.add(2, 0, Side::Upper, &[0.9], 1.0, 5.0);
+        c.add(0, 1, Side::Upper, &[-0.3], 1.0, 3.0);
+        c.add(1, 1, Side::Upper, &[0.5], 1.0, 1.0);
+        let plan = c.select(2);
+        assert_eq!(plan.points, vec![0.9, -0.3]);
+        assert_eq!(plan.unique_candidates, 4);
+        assert_eq!(plan.checks[0], vec![(2, 0, Side::Upper, 1.0)]);
+        let all = c.select(10);
+        assert_eq!(
+            all.points.len(),
+            4,
+            "the budget is capped by the candidates"
+        );
+    }
+
+    #[test]
+    fn automatic_budget_has_a_floor_and_grows_with_the_design() {
+        assert_eq!(automatic_check_runs(25), MIN_CHECK_RUNS);
+        assert_eq!(automatic_check_runs(1891), 190);
+    }
+}
