@@ -365,6 +365,48 @@ fn the_check_finds_nothing_on_a_smooth_response_and_can_be_turned_off() {
     }
 }
 
+/// Chaos is reported, regular motion is not: the double pendulum released upright (chaotic) against
+/// the shipped one released horizontally (regular over its 2 s).
+#[test]
+fn a_chaotic_motion_is_reported_and_a_regular_one_is_not() {
+    let urdf = "robots/double_pendulum/double_pendulum.urdf";
+    let regular = analyze(
+        urdf,
+        &manifest("robots/double_pendulum/double_pendulum.uncertainty.toml"),
+        &["--check-runs", "0"],
+        "lyapunov_regular",
+    );
+    let lyapunov = &regular["stats"]["lyapunov"];
+    assert_eq!(lyapunov["chaotic"], false, "{lyapunov}");
+    let dir = scratch("lyapunov_chaotic");
+    std::fs::create_dir_all(&dir).unwrap();
+    let sidecar = dir.join("upright.toml");
+    std::fs::write(
+        &sidecar,
+        "[parameters]\nl1 = [0.99, 1.01]\n[bind]\n\"joint.j2.origin.x\" = \"l1\"\n[scene]\nduration = 10.0\ngravity = [0.0, -9.81, 0.0]\ninitial.q = { j1 = 1.5707963, j2 = 0.0 }\n",
+    )
+    .unwrap();
+    let summary = dir.join("summary.json");
+    let out = ribbon(&[
+        "analyze",
+        urdf,
+        "--uncertainty",
+        sidecar.to_str().unwrap(),
+        "--summary",
+        summary.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("the nominal motion is chaotic"), "{stderr}");
+    let summary: Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let lyapunov = &summary["stats"]["lyapunov"];
+    assert_eq!(lyapunov["chaotic"], true, "{lyapunov}");
+    assert!(
+        lyapunov["exponent_per_s"].as_f64().unwrap() > 1.0,
+        "{lyapunov}"
+    );
+}
+
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
     let sidecar = manifest("robots/double_pendulum/double_pendulum.uncertainty.toml");

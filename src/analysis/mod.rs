@@ -11,6 +11,7 @@
 mod bounds;
 mod check;
 mod engine;
+mod lyapunov;
 mod method;
 mod plan;
 mod study;
@@ -21,6 +22,10 @@ pub use check::{
     CHECK_RUNS_FRACTION, MIN_CHECK_RUNS, TRUST_RELATIVE_MISFIT,
 };
 pub use engine::SampleFailure;
+pub use lyapunov::{
+    estimate_lyapunov, LyapunovEstimate, CHAOS_AMPLIFICATION, COLLAPSED_SEPARATION, MAX_PULL,
+    RENORMALISATION_INTERVAL_S, SHADOW_SEPARATION, VELOCITY_TIME_SCALE_S,
+};
 pub use method::{Method, METHODS};
 pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use study::{

@@ -15,6 +15,7 @@
 use super::bounds::{Bounder, EnvelopePoint};
 use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side, TRUST_RELATIVE_MISFIT};
 use super::engine::{BlockOutcome, LockStep, SampleFailure};
+use super::lyapunov::{estimate_lyapunov, LyapunovEstimate};
 use super::plan::{Plan, MAX_RUNS};
 use super::Method;
 use crate::model::Model;
@@ -185,6 +186,10 @@ pub struct StudyReport {
     pub block_records: usize,
     /// The a-posteriori check, when the method has one.
     pub check: Option<CheckReport>,
+    /// The largest Lyapunov exponent of the nominal motion (two extra runs: the nominal
+    /// parameters and a shadow with a perturbed state; `None` when either failed or the study was
+    /// interrupted before).
+    pub lyapunov: Option<LyapunovEstimate>,
 }
 
 /// What a study will do, known before it runs.
@@ -366,6 +371,7 @@ impl Study<'_> {
             threads: threads.current_num_threads(),
             block_records: block_records(design_runs, n_outputs, n_records),
             check: None,
+            lyapunov: None,
         };
         let mut accumulator = Accumulator {
             n_outputs,
@@ -387,6 +393,13 @@ impl Study<'_> {
             noun: "sample",
         };
         let nominal_xi = self.space.nominal_xi();
+
+        // Is the nominal motion chaotic? Two cheap runs, before the expensive ones.
+        let mut nominal_model = self.model.clone();
+        self.space.apply(&mut nominal_model, &nominal_xi);
+        let t_lyapunov = Instant::now();
+        report.lyapunov = estimate_lyapunov(&nominal_model, scene, interrupt);
+        report.simulate_seconds += t_lyapunov.elapsed().as_secs_f64();
 
         // Design phase.
         let design_complete = self.run_phase(

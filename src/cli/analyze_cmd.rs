@@ -6,7 +6,8 @@
 
 use super::{print_warnings, write_stdout, AnalyzeArgs, SceneArgs};
 use crate::analysis::{
-    CheckReport, Method, Progress, Study, StudyOptions, StudyReport, METHODS, TRUST_RELATIVE_MISFIT,
+    CheckReport, Method, Progress, Study, StudyOptions, StudyReport, CHAOS_AMPLIFICATION, METHODS,
+    TRUST_RELATIVE_MISFIT,
 };
 use crate::dynamics::Data;
 use crate::model::{LoadOptions, Model};
@@ -119,6 +120,15 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     let wall_seconds = started.elapsed().as_secs_f64();
     if let Some(check) = &report.check {
         warn_untrusted(&report, check);
+    }
+    if let Some(lyapunov) = report.lyapunov.filter(|l| l.is_chaotic()) {
+        eprintln!(
+            "warning: the nominal motion is chaotic: nearby trajectories separate at about {:.2} /s (largest Lyapunov exponent), so a small difference grows {:.1e}-fold over the {:.3} s horizon and a 1 % parameter change reaches order one after about {:.2} s. Past that time the envelopes describe chaos more than your parameters, and no surrogate in the parameters can follow them; shorten --duration, or check them with --method monte-carlo",
+            lyapunov.exponent_per_s,
+            lyapunov.amplification,
+            lyapunov.horizon_s,
+            lyapunov.predictability_horizon_s(0.01),
+        );
     }
 
     if let Some(path) = &args.summary {
@@ -335,6 +345,13 @@ fn summary(
             "block_records": report.block_records,
             "peak_memory_bytes": peak_memory(),
             "check": report.check.as_ref().map(|c| check_json(report, c, space.len())),
+            "lyapunov": report.lyapunov.map(|l| serde_json::json!({
+                "exponent_per_s": l.exponent_per_s,
+                "amplification": l.amplification,
+                "horizon_s": l.horizon_s,
+                "chaotic": l.is_chaotic(),
+                "chaos_amplification": CHAOS_AMPLIFICATION,
+            })),
         }),
     }
 }
