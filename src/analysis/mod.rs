@@ -14,6 +14,7 @@ mod engine;
 mod lyapunov;
 mod method;
 mod plan;
+mod reference;
 mod study;
 
 pub use bounds::{BoundedBlock, EnvelopePoint, Extremes};
@@ -28,6 +29,7 @@ pub use lyapunov::{
 };
 pub use method::{Method, METHODS};
 pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
+pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
 pub use study::{
     BlockView, CheckReport, Envelope, Progress, Study, StudyError, StudyOptions, StudyPlan,
     StudyReport, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,

@@ -224,7 +224,7 @@ pub struct Study<'a> {
 
 /// Which runs of a phase may be left out when they fail, and what to tell the user.
 #[derive(Clone, Copy)]
-struct FailurePolicy {
+pub(super) struct FailurePolicy {
     /// Samples may be excluded (`keep_going` and a method that tolerates it).
     can_exclude: bool,
     /// The hint when a sample's failure stops the study.
@@ -234,15 +234,18 @@ struct FailurePolicy {
 }
 
 /// Per record of one block of one phase: the samples' values.
-struct PhaseBlock<'b, 'a> {
-    first: usize,
-    count: usize,
-    lockstep: &'b LockStep<'a>,
+pub(super) struct PhaseBlock<'b, 'a> {
+    /// The block's first record.
+    pub(super) first: usize,
+    /// Records in the block.
+    pub(super) count: usize,
+    /// The phase's samples.
+    pub(super) lockstep: &'b LockStep<'a>,
 }
 
 impl PhaseBlock<'_, '_> {
     /// Record `r` of the block for sample `i` (`dim outputs`).
-    fn record(&self, i: usize, r: usize) -> &[f64] {
+    pub(super) fn record(&self, i: usize, r: usize) -> &[f64] {
         self.lockstep.record(i, r)
     }
 }
@@ -325,6 +328,53 @@ impl Study<'_> {
         })
     }
 
+    /// The worker threads of `options.threads`.
+    pub(super) fn thread_pool(&self) -> Result<rayon::ThreadPool, StudyError> {
+        let threads = self.options.threads;
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| StudyError::Threads {
+                threads,
+                message: e.to_string(),
+            })
+    }
+
+    /// A report with no runs and empty envelopes over the scene's outputs.
+    pub(super) fn empty_report(&self, threads: &rayon::ThreadPool) -> StudyReport {
+        StudyReport {
+            envelope: Envelope {
+                outputs: self.scene.outputs.clone(),
+                times: Vec::new(),
+                lower: Vec::new(),
+                upper: Vec::new(),
+                nominal: Vec::new(),
+                error: None,
+            },
+            runs: 0,
+            excluded: Vec::new(),
+            partial: false,
+            simulate_seconds: 0.0,
+            bound_seconds: 0.0,
+            newton_iterations: 0,
+            steps: 0,
+            threads: threads.current_num_threads(),
+            block_records: 0,
+            check: None,
+            lyapunov: None,
+        }
+    }
+
+    /// The failure policy of a phase of true-model runs that any run may be left out of (with
+    /// `--keep-going`): `noun` names its runs in messages.
+    pub(super) fn exclusion_policy(&self, noun: &'static str) -> FailurePolicy {
+        FailurePolicy {
+            can_exclude: self.options.keep_going,
+            hint: "The box contains a point where the model cannot be simulated; use --keep-going to exclude it (it is listed in the summary), or narrow the box",
+            noun,
+        }
+    }
+
     /// Runs the study: `progress` after each block of each phase, then `sink` with each block of the
     /// finished envelopes. Stops at the next step when `interrupt` is set (the report is then
     /// `partial` and covers the records finished before).
@@ -338,40 +388,18 @@ impl Study<'_> {
         let study_plan = self.plan()?;
         let o = &self.options;
         let d = self.space.len();
-        let threads = rayon::ThreadPoolBuilder::new()
-            .num_threads(o.threads)
-            .build()
-            .map_err(|e| StudyError::Threads {
-                threads: o.threads,
-                message: e.to_string(),
-            })?;
+        let threads = self.thread_pool()?;
         let plan = &study_plan.plan;
         let points = plan.points(d);
         let bounder = Bounder::new(o.method, plan, d, o.order, o.scan_grid)?;
         let scene = self.scene;
         let n_outputs = scene.outputs.len();
-        let n_records = scene.n_steps.div_ceil(scene.record_every) + 1;
+        let n_records = n_records(scene);
         let design_runs = study_plan.design_runs;
         let mut report = StudyReport {
-            envelope: Envelope {
-                outputs: scene.outputs.clone(),
-                times: Vec::new(),
-                lower: Vec::new(),
-                upper: Vec::new(),
-                nominal: Vec::new(),
-                error: None,
-            },
             runs: design_runs,
-            excluded: Vec::new(),
-            partial: false,
-            simulate_seconds: 0.0,
-            bound_seconds: 0.0,
-            newton_iterations: 0,
-            steps: 0,
-            threads: threads.current_num_threads(),
             block_records: block_records(design_runs, n_outputs, n_records),
-            check: None,
-            lyapunov: None,
+            ..self.empty_report(&threads)
         };
         let mut accumulator = Accumulator {
             n_outputs,
@@ -429,9 +457,7 @@ impl Study<'_> {
                 let nominal_index = lockstep.nominal_index().unwrap_or(plan_samples);
                 for r in 0..block.count {
                     let record = block.first + r;
-                    accumulator.times.push(
-                        (record * scene.record_every).min(scene.n_steps) as f64 * scene.step_s,
-                    );
+                    accumulator.times.push(record_time(scene, record));
                     accumulator
                         .nominal
                         .extend_from_slice(block.record(nominal_index, r));
@@ -516,11 +542,7 @@ impl Study<'_> {
             }
         }
         let mut misfit = vec![vec![0.0_f64; n_records]; n_outputs];
-        let policy = FailurePolicy {
-            can_exclude: self.options.keep_going,
-            hint: "The box contains a point where the model cannot be simulated; use --keep-going to exclude it (it is listed in the summary), or narrow the box",
-            noun: "check run",
-        };
+        let policy = self.exclusion_policy("check run");
         report.runs += runs;
         let complete = self.run_phase(
             "check",
@@ -594,7 +616,7 @@ impl Study<'_> {
     /// calling `on_block` after each block. Returns whether the phase ran to the end (false when
     /// interrupted: `report.partial` is then set).
     #[allow(clippy::too_many_arguments)]
-    fn run_phase(
+    pub(super) fn run_phase(
         &self,
         phase: &'static str,
         points: &[f64],
@@ -619,7 +641,7 @@ impl Study<'_> {
         );
         let runs = lockstep.len();
         let n_outputs = scene.outputs.len();
-        let n_records = scene.n_steps.div_ceil(scene.record_every) + 1;
+        let n_records = n_records(scene);
         let block_records = block_records(runs, n_outputs, n_records);
         let mut first = 0;
         let mut complete = true;
@@ -736,6 +758,16 @@ impl Study<'_> {
         }
         Ok(report)
     }
+}
+
+/// Record times of `scene`'s horizon: every `record_every` steps, and the last step.
+pub(super) fn n_records(scene: &Scene) -> usize {
+    scene.n_steps.div_ceil(scene.record_every) + 1
+}
+
+/// The time of record `record`, s.
+pub(super) fn record_time(scene: &Scene, record: usize) -> f64 {
+    (record * scene.record_every).min(scene.n_steps) as f64 * scene.step_s
 }
 
 /// Record times per block for `runs` samples: as many as [`BLOCK_VALUE_BUDGET`] values allow, at

@@ -8,7 +8,7 @@
 
 use super::analyze_cmd::{prepare, Prepared};
 use super::{write_stdout, CompareArgs};
-use crate::analysis::{Method, Study, StudyOptions, StudyReport};
+use crate::analysis::{Method, Study, StudyOptions, StudyReport, VertexReferenceOptions};
 use crate::output::svg::{Plot, Series};
 use crate::output::write_atomically;
 use crate::uq::{envelope_error, Truncation};
@@ -16,6 +16,67 @@ use crate::Error;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
+
+/// The reference the methods are compared with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReferenceKind {
+    /// The true model on a uniform grid of `grid` points per dimension.
+    Scan {
+        /// Points per dimension (odd).
+        grid: usize,
+    },
+    /// Sign vertices of central-difference gradients plus a greedy one-flip search
+    /// ([`Study::vertex_reference`]).
+    Vertex,
+    /// The true model at `samples` seeded random points.
+    MonteCarlo {
+        /// Runs.
+        samples: usize,
+    },
+}
+
+/// Largest d for which `compare` defaults to a scan reference (11^4 = 14 641 runs).
+pub const SCAN_REFERENCE_MAX_DIM: usize = 4;
+
+impl ReferenceKind {
+    /// How the table and report name it.
+    pub fn label(self, d: usize) -> String {
+        match self {
+            ReferenceKind::Scan { grid } => format!("scan {grid}^{d} of the true model"),
+            ReferenceKind::Vertex => {
+                "vertex (true runs at the sign vertices of central-difference gradients, then greedy one-flip search)".to_string()
+            }
+            ReferenceKind::MonteCarlo { samples } => {
+                format!("monte-carlo with {samples} true-model runs")
+            }
+        }
+    }
+}
+
+/// `--reference scan|vertex|monte-carlo:N` (default: scan up to d = 4, vertex above).
+fn parse_reference(text: Option<&str>, d: usize, grid: usize) -> Result<ReferenceKind, Error> {
+    let bad = |message: String| Error::BadArgument {
+        flag: "--reference".to_string(),
+        message,
+    };
+    match text {
+        None if d <= SCAN_REFERENCE_MAX_DIM => Ok(ReferenceKind::Scan { grid }),
+        None => Ok(ReferenceKind::Vertex),
+        Some("scan") => Ok(ReferenceKind::Scan { grid }),
+        Some("vertex") => Ok(ReferenceKind::Vertex),
+        Some(other) => match other.strip_prefix("monte-carlo:") {
+            Some(n) => match n.parse::<usize>() {
+                Ok(samples) if samples > 0 => Ok(ReferenceKind::MonteCarlo { samples }),
+                _ => Err(bad(format!(
+                    "'{other}': the number of runs after 'monte-carlo:' must be a whole number ≥ 1 (e.g. monte-carlo:20000)"
+                ))),
+            },
+            None => Err(bad(format!(
+                "'{other}' is not a reference; use scan, vertex or monte-carlo:N"
+            ))),
+        },
+    }
+}
 
 /// One compared configuration.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -134,6 +195,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
     let orders = parse_numbers("--orders", &args.orders)?;
     let samples = parse_numbers("--samples", &args.samples)?;
     let reference_grid = args.reference_grid.unwrap_or(if d <= 2 { 21 } else { 11 });
+    let reference_kind = parse_reference(args.reference.as_deref(), d, reference_grid)?;
     let base = StudyOptions {
         method: Method::Scan,
         order: 4,
@@ -158,8 +220,31 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
         let report = study.run(&interrupt, &mut |_| {}, &mut |_| Ok(()))?;
         Ok((report, started.elapsed().as_secs_f64()))
     };
-    eprintln!("compare: reference scan {reference_grid}^{d} of the true model …");
-    let (reference, reference_seconds) = run_study(base.clone())?;
+    let reference_label = reference_kind.label(d);
+    eprintln!("compare: reference {reference_label} …");
+    let (reference, reference_seconds) = match reference_kind {
+        ReferenceKind::Scan { .. } => run_study(base.clone())?,
+        ReferenceKind::MonteCarlo { samples } => run_study(StudyOptions {
+            method: Method::MonteCarlo,
+            samples,
+            ..base.clone()
+        })?,
+        ReferenceKind::Vertex => {
+            let study = Study {
+                model: model.clone(),
+                scene: &scene,
+                space: &space,
+                options: base.clone(),
+            };
+            let started = Instant::now();
+            let report = study.vertex_reference(
+                VertexReferenceOptions::default(),
+                &interrupt,
+                &mut |_| {},
+            )?;
+            (report, started.elapsed().as_secs_f64())
+        }
+    };
     eprintln!("  {} runs in {reference_seconds:.3} s", reference.runs);
 
     let mut configurations: Vec<(Method, Option<usize>, StudyOptions)> = Vec::new();
@@ -235,7 +320,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
         .filter(|o| !uncertain_outputs(&reference).contains(o))
         .map(|o| reference.envelope.outputs[o].name.as_str())
         .collect();
-    let mut table = render_table(&rows, reference.runs, reference_seconds, reference_grid, d);
+    let mut table = render_table(&rows, reference.runs, reference_seconds, &reference_label);
     if !skipped.is_empty() {
         table.push_str(&format!(
             "
@@ -251,7 +336,7 @@ not compared (no uncertainty: reference width ≤ {CERTAIN_OUTPUT_RELATIVE_WIDTH
             &rows,
             &reference,
             reference_seconds,
-            reference_grid,
+            &reference_label,
             best_surrogate.as_ref(),
         )?;
         eprintln!("report written to {}", dir.display());
@@ -263,11 +348,10 @@ fn render_table(
     rows: &[Row],
     reference_runs: usize,
     reference_seconds: f64,
-    grid: usize,
-    d: usize,
+    reference_label: &str,
 ) -> String {
     let mut text = format!(
-        "reference: scan {grid}^{d} of the true model, {reference_runs} runs, {reference_seconds:.3} s\n\
+        "reference: {reference_label}, {reference_runs} runs, {reference_seconds:.3} s\n\
          error: docs/method.md §4, max over time and outputs (mean over time, averaged over outputs)\n\n"
     );
     text.push_str(&format!(
@@ -303,7 +387,7 @@ fn write_report(
     rows: &[Row],
     reference: &StudyReport,
     reference_seconds: f64,
-    grid: usize,
+    reference_label: &str,
     best: Option<&(String, StudyReport)>,
 ) -> Result<(), Error> {
     std::fs::create_dir_all(dir).map_err(|source| Error::Output {
@@ -311,12 +395,12 @@ fn write_report(
         source,
     })?;
     let markdown = format!(
-        "# ribbon compare\n\nWhat accuracy costs in time: every method against a scan of the true model.\n\n```text\n{table}```\n\n\
+        "# ribbon compare\n\nWhat accuracy costs in time: every method against a reference made of true-model runs ({reference_label}).\n\n```text\n{table}```\n\n\
          ![error vs time](error_vs_time.svg)\n\n![envelope](envelope.svg)\n"
     );
     write_atomically(&dir.join("report.md"), "report", markdown.as_bytes())?;
     let json = serde_json::json!({
-        "reference": {"method": "scan", "grid": grid, "runs": reference.runs, "wall_seconds": reference_seconds},
+        "reference": {"method": reference_label, "runs": reference.runs, "wall_seconds": reference_seconds},
         "rows": rows,
     });
     write_atomically(
@@ -355,7 +439,7 @@ fn write_report(
     }
     let plot = Plot {
         title: format!(
-            "error vs wall time (reference: scan, {} runs, {reference_seconds:.2} s)",
+            "error vs wall time (reference: {reference_label}, {} runs, {reference_seconds:.2} s)",
             reference.runs
         ),
         x_label: "wall time (s)".to_string(),

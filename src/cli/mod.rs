@@ -48,6 +48,11 @@ pub struct CompareArgs {
     /// Write `report.md`, `compare.json` and SVG plots into this directory.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// The reference: scan (the true model on a grid; default for d ≤ 4), vertex (true runs at the
+    /// sign vertices of central-difference gradients plus a greedy one-flip search; default above)
+    /// or monte-carlo:N.
+    #[arg(long, value_name = "KIND")]
+    pub reference: Option<String>,
     /// Points per dimension of the reference scan (odd; default 21 for d ≤ 2, 11 for d ≥ 3).
     #[arg(long)]
     pub reference_grid: Option<usize>,
