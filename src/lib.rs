@@ -7,6 +7,7 @@
 //! Modules, in data-flow order:
 //! - [`model`] — URDF → kinematic tree ([`model::Model`]);
 //! - [`params`] — the parameter registry (dotted paths such as `link.forearm_link.mass`);
+//! - [`sidecar`] — the sidecar file as written, and the expansion of its `[parameters]` patterns;
 //! - [`spatial`] — 6D spatial algebra;
 //! - [`dynamics`] — CRBA, RNEA, forward dynamics and frame placements on a per-thread
 //!   [`dynamics::Data`];
@@ -29,6 +30,7 @@ pub mod model;
 pub mod output;
 pub mod params;
 pub mod scene;
+pub mod sidecar;
 pub mod simulate;
 pub mod spatial;
 pub mod text;

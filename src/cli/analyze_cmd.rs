@@ -295,6 +295,8 @@ fn parameter_summaries(space: &ParameterSpace) -> Vec<ParameterSummary> {
             lower: d.lower,
             upper: d.upper,
             nominal: d.nominal,
+            source: d.source.clone(),
+            unit: d.unit.to_string(),
         })
         .collect()
 }

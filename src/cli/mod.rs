@@ -181,9 +181,14 @@ impl SceneArgs {
 pub struct ParamsArgs {
     /// The robot's URDF file.
     pub urdf: PathBuf,
-    /// Print JSON (`[{path, nominal, unit}]`) instead of a table.
+    /// Print JSON (`[{path, nominal, unit}]`, or with `--uncertainty` the expanded box) instead
+    /// of a table.
     #[arg(long)]
     pub json: bool,
+    /// Instead of every parameter, print the box this sidecar declares: d, every dimension with
+    /// its bounds, nominal, unit and source key (patterns expanded), the bindings, then the notes.
+    #[arg(long, value_name = "FILE")]
+    pub uncertainty: Option<PathBuf>,
     /// Put the root link on a floating joint (`root_joint`).
     #[arg(long)]
     pub floating: bool,

@@ -1,11 +1,19 @@
-//! `ribbon params ROBOT.urdf [--json]`: every value that can be uncertain, with its nominal.
+//! `ribbon params ROBOT.urdf [--json] [--uncertainty F]`: every value that can be uncertain, with its
+//! nominal; or, with `--uncertainty`, the box a sidecar declares (patterns expanded).
 
 use super::{print_warnings, write_stdout, ParamsArgs};
 use crate::model::{LoadOptions, Model};
+use crate::scene::{read_sidecar, wants_floating_base, Scene, SceneOverrides};
+use crate::uncertainty::{DimensionKind, ParameterSpace};
 use crate::{params, Error};
+use serde_json::json;
+use std::path::Path;
 
 /// Runs `ribbon params`.
 pub fn run(args: &ParamsArgs) -> Result<(), Error> {
+    if let Some(sidecar) = &args.uncertainty {
+        return print_box(args, sidecar);
+    }
     let model = Model::from_urdf_file(
         &args.urdf,
         LoadOptions {
@@ -18,7 +26,7 @@ pub fn run(args: &ParamsArgs) -> Result<(), Error> {
         let rows: Vec<serde_json::Value> = listed
             .iter()
             .map(|p| {
-                serde_json::json!({
+                json!({
                     "path": p.path,
                     "nominal": params::get(&model, p.target),
                     "unit": p.unit,
@@ -49,6 +57,172 @@ pub fn run(args: &ParamsArgs) -> Result<(), Error> {
         out
     };
     write_stdout(&text)
+}
+
+/// `--uncertainty F`: the robot and the sidecar are loaded as `analyze` loads them (the sidecar's
+/// base and gravity apply), and the expanded box is printed. Warnings go to stderr; notes are part
+/// of the listing.
+fn print_box(args: &ParamsArgs, sidecar_path: &Path) -> Result<(), Error> {
+    let name = sidecar_path.display().to_string();
+    let (sidecar, _) = read_sidecar(sidecar_path)?;
+    let floating_base = args.floating || wants_floating_base(&sidecar, &name)?;
+    let mut model = Model::from_urdf_file(&args.urdf, LoadOptions { floating_base })?;
+    print_warnings(&model);
+    let scene = Scene::resolve(&sidecar, &model, &name, SceneOverrides::default())?;
+    scene.apply_gravity(&mut model);
+    let space = ParameterSpace::from_sidecar(&sidecar, &model, &name)?;
+    for warning in space.warnings() {
+        eprintln!("warning: {warning}");
+    }
+    let kind = |k: DimensionKind| match k {
+        DimensionKind::Path(_) => "path",
+        DimensionKind::Symbol => "symbol",
+        DimensionKind::Group(_) => "group",
+    };
+    let text = if args.json {
+        let dimensions: Vec<serde_json::Value> = space
+            .dimensions()
+            .iter()
+            .map(|d| {
+                let mut row = json!({
+                    "name": d.name,
+                    "lower": d.lower,
+                    "nominal": d.nominal,
+                    "upper": d.upper,
+                    "unit": d.unit,
+                    "source": d.source,
+                    "kind": kind(d.kind),
+                });
+                if let DimensionKind::Group(g) = d.kind {
+                    let group = &space.groups()[g];
+                    row["members"] = group
+                        .members
+                        .iter()
+                        .map(|m| json!({"path": m.path, "nominal": m.urdf_value}))
+                        .collect();
+                }
+                row
+            })
+            .collect();
+        let bindings: Vec<serde_json::Value> = space
+            .bindings()
+            .iter()
+            .map(|b| {
+                json!({
+                    "path": b.path,
+                    "expression": b.expression.source(),
+                    "unit": params::unit_of(&model, b.target),
+                })
+            })
+            .collect();
+        let check = space.box_check();
+        let report = json!({
+            "robot": model.name(),
+            "sidecar": name,
+            "d": space.len(),
+            "dimensions": dimensions,
+            "bindings": bindings,
+            "notes": space.notes(),
+            "warnings": space.warnings(),
+            "box_check": {
+                "links": check.links,
+                "inertia_points": check.inertia_points,
+                "binding_points": check.binding_points,
+            },
+        });
+        format!("{report}\n")
+    } else {
+        box_table(&space, &model, &name)
+    };
+    write_stdout(&text)
+}
+
+/// The readable listing of [`print_box`].
+fn box_table(space: &ParameterSpace, model: &Model, sidecar: &str) -> String {
+    let numbered: Vec<[String; 7]> = space
+        .dimensions()
+        .iter()
+        .enumerate()
+        .map(|(i, d)| {
+            let source = if d.source == d.name {
+                String::new()
+            } else {
+                d.source.clone()
+            };
+            let name = match d.kind {
+                DimensionKind::Group(g) => {
+                    format!("{} ({} values)", d.name, space.groups()[g].members.len())
+                }
+                _ => d.name.clone(),
+            };
+            [
+                (i + 1).to_string(),
+                name,
+                format_number(d.lower),
+                format_number(d.nominal),
+                format_number(d.upper),
+                d.unit.to_string(),
+                source,
+            ]
+        })
+        .collect();
+    let header = [
+        "#",
+        "dimension",
+        "lower",
+        "nominal",
+        "upper",
+        "unit",
+        "from",
+    ];
+    let mut widths = header.map(str::len);
+    for row in &numbered {
+        for (w, cell) in widths.iter_mut().zip(row) {
+            *w = (*w).max(cell.chars().count());
+        }
+    }
+    let line = |cells: [&str; 7]| {
+        let [i, name, lower, nominal, upper, unit, source] = cells;
+        format!(
+            "{i:>w0$}  {name:<w1$}  {lower:>w2$}  {nominal:>w3$}  {upper:>w4$}  {unit:<w5$}  {source}",
+            w0 = widths[0],
+            w1 = widths[1],
+            w2 = widths[2],
+            w3 = widths[3],
+            w4 = widths[4],
+            w5 = widths[5],
+        )
+        .trim_end()
+        .to_string()
+            + "\n"
+    };
+    let mut out = format!(
+        "d = {} dimensions of robot '{}' from {sidecar}\n",
+        space.len(),
+        model.name()
+    );
+    out.push_str(&line(header));
+    for row in &numbered {
+        out.push_str(&line(row.each_ref().map(String::as_str)));
+    }
+    if !space.bindings().is_empty() {
+        out.push_str(&format!(
+            "{} bound values ([bind]):\n",
+            space.bindings().len()
+        ));
+        for b in space.bindings() {
+            out.push_str(&format!(
+                "  {} = \"{}\"  {}\n",
+                b.path,
+                b.expression.source(),
+                params::unit_of(model, b.target)
+            ));
+        }
+    }
+    for note in space.notes() {
+        out.push_str(&format!("note: {note}\n"));
+    }
+    out
 }
 
 /// Shortest exact representation of a number (`0.425`, `-1.5707963267948966`).

@@ -53,6 +53,21 @@ pub struct InertialSpec {
     pub inertia: [f64; 6],
 }
 
+impl InertialSpec {
+    /// These values with the mass and the whole inertia tensor multiplied by `factor` (unitless),
+    /// the centre of mass and the inertia frame unchanged: the `link.NAME.scale` parameter (a
+    /// density error). `factor = 1` returns the values bitwise unchanged.
+    #[inline]
+    pub fn scaled(&self, factor: f64) -> InertialSpec {
+        InertialSpec {
+            mass: self.mass * factor,
+            com: self.com,
+            rpy: self.rpy,
+            inertia: self.inertia.map(|entry| entry * factor),
+        }
+    }
+}
+
 /// One URDF `<link>`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LinkSpec {

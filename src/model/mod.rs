@@ -108,6 +108,12 @@ pub struct LinkPlacement {
 pub struct Model {
     /// The URDF values every parameter addresses.
     pub description: Description,
+    /// The `link.NAME.scale` factor of every link (unitless, same order as `description.links`,
+    /// 1 after loading): [`Model::refresh`] multiplies the link's mass and whole inertia tensor by
+    /// it (COM unchanged), on top of the values in `description` — so a scale and an explicit
+    /// mass or inertia value multiply. Kept beside the description because the URDF has no such
+    /// value.
+    pub inertial_scales: Vec<f64>,
     /// Gravity in the world frame (m/s²).
     pub gravity: Vec3,
     /// Moving joints in coordinate order.
@@ -306,6 +312,7 @@ impl Model {
 
         let mut model = Model {
             description,
+            inertial_scales: vec![1.0; n_links],
             gravity: Vec3::from(DEFAULT_GRAVITY),
             joints: Vec::new(),
             bodies: Vec::new(),
@@ -459,11 +466,17 @@ impl Model {
         for body in &mut self.bodies {
             body.inertia = Inertia::zero();
         }
-        for (spec, placement) in self.description.links.iter().zip(&self.links) {
+        for ((spec, placement), &scale) in self
+            .description
+            .links
+            .iter()
+            .zip(&self.links)
+            .zip(&self.inertial_scales)
+        {
             if let Some(body) = placement.body {
                 let inertia = placement
                     .body_from_link
-                    .act_inertia(&link_inertia(&spec.inertial));
+                    .act_inertia(&link_inertia(&spec.inertial.scaled(scale)));
                 self.bodies[body].inertia += inertia;
             }
         }
@@ -479,6 +492,14 @@ impl Model {
                 joint.axis = axis / norm;
             }
         }
+    }
+
+    /// The inertial values link `link` contributes to its body: its `<inertial>` with
+    /// [`Model::inertial_scales`] applied (mass and inertia tensor times the scale).
+    pub fn effective_inertial(&self, link: usize) -> InertialSpec {
+        self.description.links[link]
+            .inertial
+            .scaled(self.inertial_scales[link])
     }
 
     /// Index of the moving joint with this name.

@@ -6,17 +6,23 @@ use crate::Error;
 use serde::Serialize;
 use std::path::Path;
 
-/// One interval parameter as the summary lists it.
+/// One interval parameter (one dimension of the box) as the summary lists it.
 #[derive(Clone, Debug, Serialize)]
 pub struct ParameterSummary {
-    /// Path or free symbol.
+    /// Path, free symbol, or the pattern key of a shared group.
     pub name: String,
-    /// Lower bound.
+    /// Lower bound (in `unit`).
     pub lower: f64,
-    /// Upper bound.
+    /// Upper bound (in `unit`).
     pub upper: f64,
-    /// Nominal value (URDF value, or the symbol's midpoint).
+    /// Nominal value (URDF value, the symbol's midpoint, 1 for a shared factor, 0 for a shared
+    /// offset).
     pub nominal: f64,
+    /// The sidecar key it came from: the name itself, or the pattern key (added to the contract's
+    /// `{name, lower, upper, nominal}`).
+    pub source: String,
+    /// The unit of the bounds (`kg`, `m`, …; `""` for unitless values, symbols and factors).
+    pub unit: String,
 }
 
 /// One output's envelope over time.

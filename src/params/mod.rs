@@ -3,6 +3,9 @@
 //!
 //! - `link.NAME.mass`, `link.NAME.com.{x,y,z}`, `link.NAME.inertia.{ixx,ixy,ixz,iyy,iyz,izz}` — the
 //!   URDF `<inertial>` (inertia about the COM, in the inertial frame);
+//! - `link.NAME.scale` — one unitless factor (nominal 1) on the link's mass and whole inertia
+//!   tensor together, COM unchanged: a density error ([`crate::model::Model::inertial_scales`]).
+//!   It multiplies whatever mass and inertia values the link has, including declared ones;
 //! - `joint.NAME.origin.{x,y,z,roll,pitch,yaw}`, `joint.NAME.axis.{x,y,z}`, `joint.NAME.damping`,
 //!   `joint.NAME.friction` (axis, damping and friction only on moving joints);
 //! - `scene.gravity.{x,y,z}`.
@@ -16,10 +19,13 @@ use crate::text::closest_suggestion;
 use thiserror::Error;
 
 /// A resolved parameter: which value of the model it writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ParamTarget {
     /// Mass of link `0` (index into `description.links`).
     LinkMass(usize),
+    /// The `link.NAME.scale` factor of link `0` (unitless, nominal 1): multiplies its mass and
+    /// inertia tensor ([`crate::model::Model::inertial_scales`]).
+    LinkScale(usize),
     /// Component `1` (x, y, z) of link `0`'s centre of mass.
     LinkCom(usize, usize),
     /// Component `1` (ixx, ixy, ixz, iyy, iyz, izz) of link `0`'s inertia.
@@ -82,20 +88,63 @@ pub enum ParamError {
 const COM_FIELDS: [&str; 3] = ["x", "y", "z"];
 const INERTIA_FIELDS: [&str; 6] = ["ixx", "ixy", "ixz", "iyy", "iyz", "izz"];
 const ORIGIN_FIELDS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
+// The field parts of paths, as whole strings (so that `field_of` can return `&'static str`).
+const COM_PATHS: [&str; 3] = ["com.x", "com.y", "com.z"];
+const INERTIA_PATHS: [&str; 6] = [
+    "inertia.ixx",
+    "inertia.ixy",
+    "inertia.ixz",
+    "inertia.iyy",
+    "inertia.iyz",
+    "inertia.izz",
+];
+const ORIGIN_PATHS: [&str; 6] = [
+    "origin.x",
+    "origin.y",
+    "origin.z",
+    "origin.roll",
+    "origin.pitch",
+    "origin.yaw",
+];
+const AXIS_PATHS: [&str; 3] = ["axis.x", "axis.y", "axis.z"];
+const GRAVITY_PATHS: [&str; 3] = ["gravity.x", "gravity.y", "gravity.z"];
+
+/// The parts of a dotted path: `kind.NAME.field` (`link.forearm_link.com.x`: kind `link`, name
+/// `forearm_link`, field `com.x`) or `kind.field` without a name (`scene.gravity.z`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PathParts<'a> {
+    /// `link`, `joint` or `scene`.
+    pub kind: &'static str,
+    /// The link or joint name (may contain dots and slashes); `None` for `scene` paths.
+    pub name: Option<&'a str>,
+    /// The field, possibly dotted: `mass`, `scale`, `com.x`, `origin.roll`, `gravity.z`, ….
+    pub field: &'static str,
+}
+
+/// The parts of a target's path (see [`PathParts`]); [`path_of`] joins them with dots.
+pub fn parts_of(model: &Model, target: ParamTarget) -> PathParts<'_> {
+    let link = |l: usize| Some(model.description.links[l].name.as_str());
+    let joint = |j: usize| Some(model.description.joints[j].name.as_str());
+    let (kind, name, field) = match target {
+        ParamTarget::LinkMass(l) => ("link", link(l), "mass"),
+        ParamTarget::LinkScale(l) => ("link", link(l), "scale"),
+        ParamTarget::LinkCom(l, c) => ("link", link(l), COM_PATHS[c]),
+        ParamTarget::LinkInertia(l, c) => ("link", link(l), INERTIA_PATHS[c]),
+        ParamTarget::JointOrigin(j, c) => ("joint", joint(j), ORIGIN_PATHS[c]),
+        ParamTarget::JointAxis(j, c) => ("joint", joint(j), AXIS_PATHS[c]),
+        ParamTarget::JointDamping(j) => ("joint", joint(j), "damping"),
+        ParamTarget::JointFriction(j) => ("joint", joint(j), "friction"),
+        ParamTarget::Gravity(c) => ("scene", None, GRAVITY_PATHS[c]),
+    };
+    PathParts { kind, name, field }
+}
 
 /// The dotted path of a target.
 pub fn path_of(model: &Model, target: ParamTarget) -> String {
-    let link = |l: usize| &model.description.links[l].name;
-    let joint = |j: usize| &model.description.joints[j].name;
-    match target {
-        ParamTarget::LinkMass(l) => format!("link.{}.mass", link(l)),
-        ParamTarget::LinkCom(l, c) => format!("link.{}.com.{}", link(l), COM_FIELDS[c]),
-        ParamTarget::LinkInertia(l, c) => format!("link.{}.inertia.{}", link(l), INERTIA_FIELDS[c]),
-        ParamTarget::JointOrigin(j, c) => format!("joint.{}.origin.{}", joint(j), ORIGIN_FIELDS[c]),
-        ParamTarget::JointAxis(j, c) => format!("joint.{}.axis.{}", joint(j), COM_FIELDS[c]),
-        ParamTarget::JointDamping(j) => format!("joint.{}.damping", joint(j)),
-        ParamTarget::JointFriction(j) => format!("joint.{}.friction", joint(j)),
-        ParamTarget::Gravity(c) => format!("scene.gravity.{}", COM_FIELDS[c]),
+    let parts = parts_of(model, target);
+    match parts.name {
+        Some(name) => format!("{}.{name}.{}", parts.kind, parts.field),
+        None => format!("{}.{}", parts.kind, parts.field),
     }
 }
 
@@ -104,6 +153,7 @@ pub fn unit_of(model: &Model, target: ParamTarget) -> &'static str {
     let prismatic = |j: usize| model.description.joints[j].joint_type == UrdfJointType::Prismatic;
     match target {
         ParamTarget::LinkMass(_) => "kg",
+        ParamTarget::LinkScale(_) => "",
         ParamTarget::LinkCom(..) => "m",
         ParamTarget::LinkInertia(..) => "kg·m²",
         ParamTarget::JointOrigin(_, c) if c < 3 => "m",
@@ -117,17 +167,19 @@ pub fn unit_of(model: &Model, target: ParamTarget) -> &'static str {
     }
 }
 
-/// Every parameter of the model, in a stable order: links (file order) with mass, COM and inertia;
-/// joints (file order) with origin, then axis, damping and friction for moving joints; gravity.
+/// Every parameter of the model, in a stable order (the registry order): links (file order) with
+/// mass, COM, inertia and scale; joints (file order) with origin, then axis, damping and friction
+/// for moving joints; gravity.
 ///
-/// Links without `<inertial>` are listed too (nominal 0): declaring their mass is how a payload is
-/// added to a frame such as `tool0`.
+/// Links without `<inertial>` are listed too (nominal 0, scale 1): declaring their mass is how a
+/// payload is added to a frame such as `tool0`.
 pub fn list(model: &Model) -> Vec<ParamInfo> {
     let mut targets = Vec::new();
     for l in 0..model.description.links.len() {
         targets.push(ParamTarget::LinkMass(l));
         targets.extend((0..3).map(|c| ParamTarget::LinkCom(l, c)));
         targets.extend((0..6).map(|c| ParamTarget::LinkInertia(l, c)));
+        targets.push(ParamTarget::LinkScale(l));
     }
     for (j, spec) in model.description.joints.iter().enumerate() {
         targets.extend((0..6).map(|c| ParamTarget::JointOrigin(j, c)));
@@ -168,7 +220,8 @@ pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
             .ok_or_else(unknown);
     }
     if let Some(rest) = path.strip_prefix("link.") {
-        let mut fields: Vec<(String, u8, usize)> = vec![("mass".to_string(), 0, 0)];
+        let mut fields: Vec<(String, u8, usize)> =
+            vec![("mass".to_string(), 0, 0), ("scale".to_string(), 3, 0)];
         fields.extend(
             COM_FIELDS
                 .iter()
@@ -189,7 +242,8 @@ pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
             return Ok(match kind {
                 0 => ParamTarget::LinkMass(l),
                 1 => ParamTarget::LinkCom(l, c),
-                _ => ParamTarget::LinkInertia(l, c),
+                2 => ParamTarget::LinkInertia(l, c),
+                _ => ParamTarget::LinkScale(l),
             });
         }
         return Err(unknown());
@@ -246,6 +300,7 @@ pub fn get(model: &Model, target: ParamTarget) -> f64 {
     let d = &model.description;
     match target {
         ParamTarget::LinkMass(l) => d.links[l].inertial.mass,
+        ParamTarget::LinkScale(l) => model.inertial_scales[l],
         ParamTarget::LinkCom(l, c) => d.links[l].inertial.com[c],
         ParamTarget::LinkInertia(l, c) => d.links[l].inertial.inertia[c],
         ParamTarget::JointOrigin(j, c) => d.joints[j].origin[c],
@@ -263,6 +318,7 @@ pub fn set(model: &mut Model, target: ParamTarget, value: f64) {
     let d = &mut model.description;
     match target {
         ParamTarget::LinkMass(l) => d.links[l].inertial.mass = value,
+        ParamTarget::LinkScale(l) => model.inertial_scales[l] = value,
         ParamTarget::LinkCom(l, c) => d.links[l].inertial.com[c] = value,
         ParamTarget::LinkInertia(l, c) => d.links[l].inertial.inertia[c] = value,
         ParamTarget::JointOrigin(j, c) => d.joints[j].origin[c] = value,
@@ -281,7 +337,8 @@ pub fn apply(model: &mut Model, targets: &[ParamTarget], values: &[f64]) {
     model.refresh();
 }
 
-/// Checks that a single value is possible for its target (finite; mass, damping and friction ≥ 0).
+/// Checks that a single value is possible for its target (finite; mass, damping and friction ≥ 0;
+/// a scale > 0 — a scale of 0 would delete the link's mass, a negative one make it negative).
 pub fn validate_value(model: &Model, target: ParamTarget, value: f64) -> Result<(), ParamError> {
     let invalid = |reason| ParamError::InvalidValue {
         path: path_of(model, target),
@@ -293,6 +350,9 @@ pub fn validate_value(model: &Model, target: ParamTarget, value: f64) -> Result<
     }
     match target {
         ParamTarget::LinkMass(_) if value < 0.0 => Err(invalid("a mass must be ≥ 0")),
+        ParamTarget::LinkScale(_) if value <= 0.0 => Err(invalid(
+            "a scale must be > 0 (it multiplies the link's mass and inertia)",
+        )),
         ParamTarget::JointDamping(_) if value < 0.0 => Err(invalid("damping must be ≥ 0")),
         ParamTarget::JointFriction(_) if value < 0.0 => Err(invalid("friction must be ≥ 0")),
         _ => Ok(()),
@@ -369,6 +429,33 @@ mod tests {
         );
         let msg = resolve(&m, "joint.fix.axis.x").unwrap_err().to_string();
         assert!(msg.contains("joint 'fix' is fixed"), "{msg}");
+    }
+
+    #[test]
+    fn scale_is_a_parameter_like_any_other() {
+        let mut m = model();
+        let target = resolve(&m, "link.iris__/imu_link.scale").unwrap();
+        assert_eq!(target, ParamTarget::LinkScale(1));
+        assert_eq!(path_of(&m, target), "link.iris__/imu_link.scale");
+        assert_eq!((get(&m, target), unit_of(&m, target)), (1.0, ""));
+        let listed: Vec<String> = list(&m).into_iter().map(|p| p.path).collect();
+        let mass = listed.iter().position(|p| p == "link.iris__/imu_link.mass");
+        let scale = listed
+            .iter()
+            .position(|p| p == "link.iris__/imu_link.scale");
+        // Registry order within a link: mass, com, inertia, scale.
+        assert_eq!(scale, mass.map(|m| m + 10));
+        apply(&mut m, &[target], &[1.5]);
+        assert_eq!(m.bodies[0].inertia.mass, 3.0);
+        assert_eq!(m.description.links[1].inertial.mass, 2.0);
+        for bad in [0.0, -1.0, f64::NAN] {
+            let message = validate_value(&m, target, bad).unwrap_err().to_string();
+            assert!(
+                message.contains("link.iris__/imu_link.scale")
+                    && (message.contains("a scale must be > 0") || bad.is_nan()),
+                "{message}"
+            );
+        }
     }
 
     #[test]

@@ -7,10 +7,13 @@
 
 mod constraints;
 mod outputs;
-mod sidecar;
 
 pub use outputs::{Output, OutputKind};
-pub use sidecar::{parse_sidecar, AnalysisSection, JointSelection, SidecarFile};
+// The file format lives in `crate::sidecar`; these re-exports keep `crate::scene::SidecarFile` and
+// friends working for the study commands, benches and examples. `constraints` and `outputs` read
+// their sections through `super::sidecar`.
+use crate::sidecar;
+pub use crate::sidecar::{parse_sidecar, AnalysisSection, JointSelection, SidecarFile};
 
 use crate::model::{JointKind, Model};
 use crate::spatial::rotation_from_rpy;

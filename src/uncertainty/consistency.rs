@@ -14,9 +14,14 @@
 //!    warned about (the loader warns too); the check refuses only violations the box *creates*.
 //!
 //! Points: only the dimensions that move the checked quantity vary, the others stay at their
-//! nominal. When a link's inertia values are all direct paths, `R I Rᵀ` is affine in them and both
-//! conditions are convex (`I ⪰ 0` and `tr(I)/2 · 1 − I ⪰ 0`), so the `2^m` corners of those `m`
-//! dimensions are a proof for the whole box. With `[bind]` expressions (nonlinear) the check is
+//! nominal — per link, so the cost grows with the number of links times `2^m` for the `m`
+//! dimensions of the busiest link, not with `2^d`. When a link's inertia values are all direct
+//! paths or members of shared groups (both affine in ξ; a group moving several links makes each
+//! of them depend on that one dimension), `R I Rᵀ` is affine in them and both conditions are
+//! convex (`I ⪰ 0` and `tr(I)/2 · 1 − I ⪰ 0`), so the `2^m` corners of those `m` dimensions are a
+//! proof for the whole box. `link.NAME.scale` multiplies the whole tensor by a positive factor,
+//! which changes neither condition, so it is not a dimension of this check (its values are
+//! refused at ≤ 0 when read). With `[bind]` expressions (nonlinear) the check is
 //! dense, not a proof: the corners, then a grid of [`DENSE_CHECK_POINTS_PER_DIMENSION`] points per
 //! dimension (fewer when that would exceed [`DENSE_CHECK_MAX_POINTS`] points, down to the corners
 //! alone; beyond that, a warning says the check covered only part of the corners). A violation
@@ -26,9 +31,10 @@
 //! a body whose links all pass passes too.
 
 use super::error::UncertaintyError;
-use super::space::{key_label, nominal_xi, Binding, Dimension, DimensionKind};
+use super::space::{nominal_xi, Binding, BoxCheckSummary, Dimension, DimensionKind, Group};
 use crate::model::{check_inertia, InertialSpec, Model};
 use crate::params::{self, ParamTarget};
+use crate::sidecar::key_label;
 use crate::spatial::{rotation_from_rpy, Mat3};
 
 /// Grid points per dimension of the dense check of nonlinear bindings (−1, −½, 0, ½, 1).
@@ -74,8 +80,9 @@ impl PointPlan {
     }
 
     /// Calls `visit(xi, is_corner)` on the corners, then on the other grid points; `xi` starts as
-    /// `base` (the nominal) and only the plan's dimensions change.
-    fn visit<F>(&self, base: &[f64], mut visit: F) -> Result<(), UncertaintyError>
+    /// `base` (the nominal) and only the plan's dimensions change. Returns the number of points
+    /// visited.
+    fn visit<F>(&self, base: &[f64], mut visit: F) -> Result<usize, UncertaintyError>
     where
         F: FnMut(&[f64], bool) -> Result<(), UncertaintyError>,
     {
@@ -86,8 +93,9 @@ impl PointPlan {
             }
             visit(&xi, true)?;
         }
+        let mut visited = self.corners;
         if self.levels <= 2 {
-            return Ok(());
+            return Ok(visited);
         }
         let total = self.levels.pow(self.dimensions.len() as u32);
         let step = 2.0 / (self.levels - 1) as f64;
@@ -102,9 +110,10 @@ impl PointPlan {
             }
             if !is_corner {
                 visit(&xi, false)?;
+                visited += 1;
             }
         }
-        Ok(())
+        Ok(visited)
     }
 }
 
@@ -112,7 +121,9 @@ impl PointPlan {
 fn describe_dimension(dimension: &Dimension, xi: f64) -> String {
     let value = dimension.value_at(xi);
     match dimension.kind {
-        DimensionKind::Path(_) => format!("\"{}\" = {value}", dimension.name),
+        DimensionKind::Path(_) | DimensionKind::Group(_) => {
+            format!("\"{}\" = {value}", dimension.name)
+        }
         DimensionKind::Symbol => format!("{} = {value}", dimension.name),
     }
 }
@@ -141,24 +152,28 @@ fn inertia_about_com_in_link(inertial: &InertialSpec) -> Mat3 {
 struct LinkInertiaParameters {
     /// Direct dimensions with their component (0..6: ixx ixy ixz iyy iyz izz).
     direct: Vec<(usize, usize)>,
+    /// Group dimensions with the group, the member and its component.
+    grouped: Vec<(usize, usize, usize, usize)>,
     /// Bindings (indices) with their component.
     bound: Vec<(usize, usize)>,
 }
 
-/// Runs both checks (module documentation); returns warnings.
+/// Runs both checks (module documentation); returns warnings and what was visited.
 pub(super) fn check_box(
     dimensions: &[Dimension],
+    groups: &[Group],
     bindings: &[Binding],
     model: &Model,
     file: &str,
-) -> Result<Vec<String>, UncertaintyError> {
+) -> Result<(Vec<String>, BoxCheckSummary), UncertaintyError> {
     let mut warnings = Vec::new();
+    let mut summary = BoxCheckSummary::default();
     let nominal_xi = nominal_xi(dimensions);
 
     // 1. Bound values are possible values.
     for binding in bindings {
         let plan = PointPlan::new(binding.expression.symbols().to_vec(), true);
-        plan.visit(&nominal_xi, |xi, _| {
+        summary.binding_points += plan.visit(&nominal_xi, |xi, _| {
             let value = binding.value_at(dimensions, xi);
             params::validate_value(model, binding.target, value).map_err(|e| {
                 UncertaintyError::ImpossibleBoundValue {
@@ -188,38 +203,53 @@ pub(super) fn check_box(
 
     // 2. Link inertias. Skipped at no cost when no parameter moves an inertia value.
     let mut links: Vec<LinkInertiaParameters> = Vec::new();
-    let mut touch = |target: ParamTarget, index: usize, direct: bool| {
-        if let ParamTarget::LinkInertia(link, component) = target {
-            if links.len() <= link {
-                links.resize_with(link + 1, Default::default);
-            }
-            let list = if direct {
-                &mut links[link].direct
-            } else {
-                &mut links[link].bound
-            };
-            list.push((index, component));
+    fn entry(links: &mut Vec<LinkInertiaParameters>, link: usize) -> &mut LinkInertiaParameters {
+        if links.len() <= link {
+            links.resize_with(link + 1, Default::default);
         }
-    };
+        &mut links[link]
+    }
     for (k, dimension) in dimensions.iter().enumerate() {
-        if let DimensionKind::Path(target) = dimension.kind {
-            touch(target, k, true);
+        match dimension.kind {
+            DimensionKind::Path(ParamTarget::LinkInertia(link, component)) => {
+                entry(&mut links, link).direct.push((k, component));
+            }
+            DimensionKind::Group(g) => {
+                for (m, member) in groups[g].members.iter().enumerate() {
+                    if let ParamTarget::LinkInertia(link, component) = member.target {
+                        entry(&mut links, link).grouped.push((k, g, m, component));
+                    }
+                }
+            }
+            _ => {}
         }
     }
     for (b, binding) in bindings.iter().enumerate() {
-        touch(binding.target, b, false);
+        if let ParamTarget::LinkInertia(link, component) = binding.target {
+            entry(&mut links, link).bound.push((b, component));
+        }
     }
     for (link, parameters) in links.iter().enumerate() {
-        if parameters.direct.is_empty() && parameters.bound.is_empty() {
+        if parameters.direct.is_empty()
+            && parameters.grouped.is_empty()
+            && parameters.bound.is_empty()
+        {
             continue;
         }
         let spec = &model.description.links[link];
-        let mut keys: Vec<String> = parameters
+        let mut varying: Vec<usize> = parameters
             .direct
             .iter()
-            .map(|&(k, _)| key_label("parameters", &dimensions[k].name))
+            .map(|&(k, _)| k)
+            .chain(parameters.grouped.iter().map(|&(k, ..)| k))
             .collect();
-        let mut varying: Vec<usize> = parameters.direct.iter().map(|&(k, _)| k).collect();
+        let mut keys: Vec<String> = Vec::new();
+        for &k in &varying {
+            let label = key_label("parameters", &dimensions[k].name);
+            if !keys.contains(&label) {
+                keys.push(label);
+            }
+        }
         for &(b, _) in &parameters.bound {
             keys.push(key_label("bind", &bindings[b].path));
             varying.extend_from_slice(bindings[b].expression.symbols());
@@ -235,10 +265,15 @@ pub(super) fn check_box(
             continue;
         }
         let plan = PointPlan::new(varying.clone(), !parameters.bound.is_empty());
-        plan.visit(&nominal_xi, |xi, is_corner| {
+        summary.links += 1;
+        summary.inertia_points += plan.visit(&nominal_xi, |xi, is_corner| {
             let mut inertial = spec.inertial;
             for &(k, component) in &parameters.direct {
                 inertial.inertia[component] = dimensions[k].value_at(xi[k]);
+            }
+            for &(k, g, m, component) in &parameters.grouped {
+                let group = &groups[g];
+                inertial.inertia[component] = group.member_value(&group.members[m], xi[k]);
             }
             for &(b, component) in &parameters.bound {
                 inertial.inertia[component] = bindings[b].value_at(dimensions, xi);
@@ -273,7 +308,7 @@ pub(super) fn check_box(
             ));
         }
     }
-    Ok(warnings)
+    Ok((warnings, summary))
 }
 
 fn truncation_warning(file: &str, what: &str, points: usize) -> String {

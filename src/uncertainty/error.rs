@@ -3,30 +3,19 @@
 
 use super::expression::ExpressionError;
 use crate::params::ParamError;
+use crate::sidecar::SidecarError;
 use thiserror::Error;
 
 /// A refused interval parameter, binding or parameter box.
 #[derive(Debug, Error)]
 pub enum UncertaintyError {
-    /// A `[parameters]` key that is neither a parameter path nor a symbol name.
-    #[error("{file}: {key}: {reason}; a key is a parameter path or a free symbol name (letters, digits and '_', not starting with a digit)")]
-    UnknownKey {
-        /// The sidecar file.
-        file: String,
-        /// The key, e.g. `[parameters] "link.x.mass"`.
-        key: String,
-        /// The registry's reason, with its "did you mean" suggestion.
-        reason: String,
-    },
-    /// A free symbol named like the function `sqrt`.
-    #[error("{file}: {key}: 'sqrt' is the square-root function and cannot be a symbol; rename the symbol")]
-    ReservedSymbol {
-        /// The sidecar file.
-        file: String,
-        /// The key.
-        key: String,
-    },
-    /// An interval written in a form the contract does not have, or with impossible numbers.
+    /// A `[parameters]` key or value refused by the sidecar's expansion (unknown key, misplaced
+    /// `*`, a pattern matching nothing, a form that does not fit the key, `shared` over mixed
+    /// units).
+    #[error(transparent)]
+    Sidecar(#[from] SidecarError),
+    /// An interval whose numbers do not work for its path (bounds not finite or empty after
+    /// `rel`/`abs`, a free symbol without explicit bounds).
     #[error("{file}: {key} = {value}: {reason}")]
     BadInterval {
         /// The sidecar file.

@@ -1,18 +1,29 @@
 //! The parameter space of a study: the sidecar's `[parameters]` and `[bind]` resolved against a model.
 //!
-//! (`[parameters]`, `[bind]`, model) ⇒ (dimensions of ξ, bound paths, warnings)
+//! (`[parameters]` expanded by [`crate::sidecar::expand_parameters`], `[bind]`, model) ⇒
+//! (dimensions of ξ, shared groups, bound paths, warnings, notes)
 
 use super::consistency::check_box;
 use super::error::UncertaintyError;
-use super::expression::{Expression, ExpressionError, SQRT};
+use super::expression::{Expression, ExpressionError};
 use crate::model::Model;
 use crate::params::{self, ParamTarget};
-use crate::scene::SidecarFile;
+use crate::sidecar::{
+    expand_parameters, key_label, EntryKind, IntervalForm, ParameterEntry, SidecarFile,
+};
 use crate::text::closest_suggestion;
 
 /// Relative tolerance for "a binding reproduces the URDF value at the symbols' midpoints": the
 /// expression and the URDF file may round the same number differently in the last digits.
 pub const BIND_NOMINAL_RELATIVE_TOLERANCE: f64 = 1e-9;
+
+/// Step in ξ of the central differences that differentiate `[bind]` expressions
+/// ([`ParameterSpace::target_derivatives`]; docs/method.md §1). With Richardson extrapolation over h and h/2 the
+/// truncation error is about `h⁴/480 · |∂⁵f/∂ξ⁵|` (≈ 2e-15 relative for an expression whose
+/// derivatives in ξ are of its own size; in practice far less, since the box is a few percent
+/// wide) and the rounding error about `3 ε |f| / h` ≈ 7e-13 |f|: together ~1e-12 of the value,
+/// for smooth expressions.
+pub const BIND_DERIVATIVE_STEP: f64 = 1e-3;
 
 /// What one dimension of ξ moves.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -21,18 +32,28 @@ pub enum DimensionKind {
     Path(ParamTarget),
     /// A free symbol, which moves the model only through `[bind]` expressions.
     Symbol,
+    /// A shared pattern (`{ rel = …, shared = true }`): group `0` of [`ParameterSpace::groups`],
+    /// whose every member moves with this one dimension.
+    Group(usize),
 }
 
 /// One interval parameter: dimension `i` of ξ, `x_i = c_i + r_i ξ_i` with `ξ_i ∈ [-1, 1]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Dimension {
-    /// The key as written: a parameter path (`link.forearm_link.mass`) or a symbol name (`l1`).
+    /// The dimension's name: a parameter path (`link.forearm_link.mass`, also for a pattern's
+    /// match), a symbol name (`l1`), or the pattern key of a shared group (`link.*.mass`).
     pub name: String,
-    /// Lower bound `x̲_i` (the parameter's unit).
+    /// The `[parameters]` key it came from: the name itself, or the pattern key.
+    pub source: String,
+    /// The unit of `lower`, `upper` and `nominal` (`kg`, `m`, …; `""` for unitless values, free
+    /// symbols and the factor of a relative group).
+    pub unit: &'static str,
+    /// Lower bound `x̲_i` (in `unit`).
     pub lower: f64,
     /// Upper bound `x̄_i` (> `lower`).
     pub upper: f64,
-    /// The nominal value: the URDF value of a path, the midpoint of a symbol.
+    /// The nominal value: the URDF value of a path, the midpoint of a symbol, 1 for the factor of a
+    /// relative group and 0 for the offset of an absolute group.
     pub nominal: f64,
     /// What the dimension moves.
     pub kind: DimensionKind,
@@ -51,7 +72,8 @@ impl Dimension {
 
     /// The physical value at `xi` (`ξ_i ∈ [-1, 1]`): `c_i + r_i ξ_i`, computed as the convex
     /// combination `((1 − ξ) x̲ + (1 + ξ) x̄) / 2` so that the bounds are hit exactly at ξ = ±1
-    /// (a mass bound of 0 stays 0, never −1e-17).
+    /// (a mass bound of 0 stays 0, never −1e-17). (A group's members are written through
+    /// [`Group::member_value`], which is exact at ξ = 0 too.)
     #[inline]
     pub fn value_at(&self, xi: f64) -> f64 {
         0.5 * ((1.0 - xi) * self.lower + (1.0 + xi) * self.upper)
@@ -60,6 +82,58 @@ impl Dimension {
     /// The ξ of a physical value: `(x − c_i) / r_i`.
     pub fn xi_of(&self, value: f64) -> f64 {
         (value - self.center()) / self.radius()
+    }
+}
+
+/// How a shared group moves its members.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GroupMode {
+    /// `rel`: each member is its URDF value times the factor `1 + amount · ξ` (nominal 1).
+    Factor,
+    /// `abs`: each member is its URDF value plus the offset `amount · ξ` (nominal 0).
+    Offset,
+}
+
+/// One value a shared group moves.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroupMember {
+    /// Its full path.
+    pub path: String,
+    /// The value it writes.
+    pub target: ParamTarget,
+    /// Its URDF value (the nominal model's value when the space was built).
+    pub urdf_value: f64,
+}
+
+/// A shared pattern: one dimension moving every member together.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Group {
+    /// Factor or offset.
+    pub mode: GroupMode,
+    /// `rel` (a fraction) or `abs` (in the members' unit): the half-width of the factor or offset.
+    pub amount: f64,
+    /// The matches, in registry order.
+    pub members: Vec<GroupMember>,
+}
+
+impl Group {
+    /// The value `member` takes at `xi` (the group dimension's ξ): `u · (1 + amount · ξ)` or
+    /// `u + amount · ξ` with `u` its URDF value — exactly `u` at ξ = 0.
+    #[inline]
+    pub fn member_value(&self, member: &GroupMember, xi: f64) -> f64 {
+        match self.mode {
+            GroupMode::Factor => member.urdf_value * (1.0 + self.amount * xi),
+            GroupMode::Offset => member.urdf_value + self.amount * xi,
+        }
+    }
+
+    /// `∂ member_value / ∂ξ` (constant: the members are affine in ξ).
+    #[inline]
+    pub fn member_derivative(&self, member: &GroupMember) -> f64 {
+        match self.mode {
+            GroupMode::Factor => member.urdf_value * self.amount,
+            GroupMode::Offset => self.amount,
+        }
     }
 }
 
@@ -81,6 +155,46 @@ impl Binding {
         self.expression
             .eval(&|k: usize| dimensions[k].value_at(xi[k]))
     }
+
+    /// The expression's value at `xi` with dimension `k`'s ξ replaced by `xi_k`. Allocates nothing.
+    #[inline]
+    fn value_with(&self, dimensions: &[Dimension], xi: &[f64], k: usize, xi_k: f64) -> f64 {
+        self.expression
+            .eval(&|j: usize| dimensions[j].value_at(if j == k { xi_k } else { xi[j] }))
+    }
+
+    /// `∂value/∂ξ_k` at `xi` by central differences with Richardson extrapolation (steps
+    /// [`BIND_DERIVATIVE_STEP`] and half of it: error O(h⁴)); where the stencil would leave
+    /// [−1, 1], by the second-order one-sided difference pointing into the box, extrapolated the
+    /// same way (error O(h³)). See [`ParameterSpace::target_derivatives`].
+    fn derivative(&self, dimensions: &[Dimension], xi: &[f64], k: usize) -> f64 {
+        let x = xi[k];
+        let f = |t: f64| self.value_with(dimensions, xi, k, t);
+        let h = BIND_DERIVATIVE_STEP;
+        if x - h >= -1.0 && x + h <= 1.0 {
+            let central = |h: f64| (f(x + h) - f(x - h)) / (2.0 * h);
+            (4.0 * central(0.5 * h) - central(h)) / 3.0
+        } else {
+            let inward = if x - h < -1.0 { 1.0 } else { -1.0 };
+            let f0 = f(x);
+            let one_sided = |h: f64| {
+                inward * (-3.0 * f0 + 4.0 * f(x + inward * h) - f(x + 2.0 * inward * h)) / (2.0 * h)
+            };
+            (4.0 * one_sided(0.5 * h) - one_sided(h)) / 3.0
+        }
+    }
+}
+
+/// What the box check visited (see [`ParameterSpace::box_check`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BoxCheckSummary {
+    /// Links whose inertia tensor some dimension moves and that were checked.
+    pub links: usize,
+    /// Inertia tensors evaluated over those links (corners, plus grid points for nonlinear
+    /// bindings): with only affine dependence, `Σ_links 2^(dimensions moving the link)`.
+    pub inertia_points: usize,
+    /// Points at which `[bind]` values were validated.
+    pub binding_points: usize,
 }
 
 /// The interval parameters of a study, resolved against one model and checked for physical
@@ -88,75 +202,11 @@ impl Binding {
 #[derive(Clone, Debug)]
 pub struct ParameterSpace {
     dimensions: Vec<Dimension>,
+    groups: Vec<Group>,
     bindings: Vec<Binding>,
     warnings: Vec<String>,
-}
-
-/// `[table] "key"`, the way messages name a sidecar key.
-pub(super) fn key_label(table: &str, key: &str) -> String {
-    format!("[{table}] \"{key}\"")
-}
-
-/// Whether `key` can be a free symbol: `[A-Za-z_][A-Za-z0-9_]*`.
-pub fn is_symbol_name(key: &str) -> bool {
-    let mut chars = key.chars();
-    chars
-        .next()
-        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
-        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
-}
-
-/// The ways `[parameters]` can give an interval.
-enum IntervalForm {
-    Bounds(f64, f64),
-    Relative(f64),
-    Absolute(f64),
-}
-
-const FORMS: &str =
-    "write [lower, upper], { rel = fraction } (±fraction of the URDF value) or { abs = amount }";
-
-fn number(value: &toml::Value) -> Option<f64> {
-    match value {
-        toml::Value::Float(x) => Some(*x),
-        // Whole numbers in TOML (`[2, 3]`) are bounds too; i64 → f64 is exact up to 2^53.
-        toml::Value::Integer(i) => Some(*i as f64),
-        _ => None,
-    }
-}
-
-fn read_form(value: &toml::Value) -> Result<IntervalForm, String> {
-    match value {
-        toml::Value::Array(items) => match items.as_slice() {
-            [lower, upper] => match (number(lower), number(upper)) {
-                (Some(lower), Some(upper)) => Ok(IntervalForm::Bounds(lower, upper)),
-                _ => Err(format!("bounds must be numbers; {FORMS}")),
-            },
-            _ => Err(format!(
-                "an interval has two bounds, not {}; {FORMS}",
-                items.len()
-            )),
-        },
-        toml::Value::Table(table) => {
-            let mut entries = table.iter();
-            match (entries.next(), entries.next()) {
-                (Some((name, amount)), None) if name == "rel" || name == "abs" => {
-                    let Some(amount) = number(amount) else {
-                        return Err(format!("'{name}' must be a number; {FORMS}"));
-                    };
-                    Ok(if name == "rel" {
-                        IntervalForm::Relative(amount)
-                    } else {
-                        IntervalForm::Absolute(amount)
-                    })
-                }
-                _ => Err(format!(
-                    "an inline table holds exactly one key, rel or abs; {FORMS}"
-                )),
-            }
-        }
-        _ => Err(FORMS.to_string()),
-    }
+    notes: Vec<String>,
+    box_check: BoxCheckSummary,
 }
 
 impl ParameterSpace {
@@ -169,28 +219,44 @@ impl ParameterSpace {
         Self::from_tables(&sidecar.parameters, &sidecar.bind, model, file)
     }
 
-    /// Resolves `[parameters]` (dimensions, in order of appearance) and `[bind]` (bound paths)
-    /// against `model` (its values are the URDF values), then checks the physical consistency of
-    /// the box ([`ParameterSpace::check_box`]). `file` names the sidecar in messages. Non-fatal
-    /// findings are in [`ParameterSpace::warnings`].
+    /// Expands `[parameters]` ([`crate::sidecar::expand_parameters`]: paths, symbols, patterns),
+    /// resolves its entries (dimensions, in that order) and `[bind]` (bound paths) against `model`
+    /// (its values are the URDF values), then checks the physical consistency of the box
+    /// ([`ParameterSpace::check_box`]). `file` names the sidecar in messages. Non-fatal findings
+    /// are in [`ParameterSpace::warnings`], the expansion's decisions in
+    /// [`ParameterSpace::notes`].
     pub fn from_tables(
         parameters: &toml::Table,
         bind: &toml::Table,
         model: &Model,
         file: &str,
     ) -> Result<ParameterSpace, UncertaintyError> {
+        let expanded = expand_parameters(parameters, bind, model, file)?;
         let mut space = ParameterSpace {
-            dimensions: Vec::with_capacity(parameters.len()),
+            dimensions: Vec::with_capacity(expanded.entries.len()),
+            groups: Vec::new(),
             bindings: Vec::with_capacity(bind.len()),
             warnings: Vec::new(),
+            notes: expanded.notes,
+            box_check: BoxCheckSummary::default(),
         };
         // Every declared target with its key, to refuse a value declared twice.
         let mut declared: Vec<(ParamTarget, String)> = Vec::new();
-        for (key, value) in parameters {
-            let dimension = read_dimension(key, value, model, file)?;
-            if let DimensionKind::Path(target) = dimension.kind {
-                check_unique(&declared, target, &key_label("parameters", key), file)?;
-                declared.push((target, key_label("parameters", key)));
+        for entry in &expanded.entries {
+            let dimension = space.read_dimension(entry, model, file)?;
+            let label = dimension_label(entry);
+            match dimension.kind {
+                DimensionKind::Path(target) => {
+                    check_unique(&declared, target, &label, file)?;
+                    declared.push((target, label));
+                }
+                DimensionKind::Group(g) => {
+                    for member in &space.groups[g].members {
+                        check_unique(&declared, member.target, &label, file)?;
+                        declared.push((member.target, label.clone()));
+                    }
+                }
+                DimensionKind::Symbol => {}
             }
             space.dimensions.push(dimension);
         }
@@ -212,8 +278,15 @@ impl ParameterSpace {
                 ));
             }
         }
-        let box_warnings = space.check_box(model, file)?;
+        let (box_warnings, summary) = check_box(
+            &space.dimensions,
+            &space.groups,
+            &space.bindings,
+            model,
+            file,
+        )?;
         space.warnings.extend(box_warnings);
+        space.box_check = summary;
         Ok(space)
     }
 
@@ -238,7 +311,7 @@ impl ParameterSpace {
                 value: value.to_string(),
             });
         };
-        // Paths never parse as identifiers, so only symbols can match.
+        // Paths and pattern keys never parse as identifiers, so only symbols can match.
         let names: Vec<&str> = self.dimensions.iter().map(|d| d.name.as_str()).collect();
         let key_and_text = format!("{label} = \"{text}\"");
         let expression = Expression::parse(text, &names).map_err(|source| match source {
@@ -292,9 +365,147 @@ impl ParameterSpace {
         Ok(binding)
     }
 
-    /// The dimensions of ξ, in the sidecar's order of appearance (`d = self.dimensions().len()`).
+    /// One expanded `[parameters]` entry as a dimension (a group is stored in `self.groups`).
+    fn read_dimension(
+        &mut self,
+        entry: &ParameterEntry,
+        model: &Model,
+        file: &str,
+    ) -> Result<Dimension, UncertaintyError> {
+        let label = dimension_label(entry);
+        let bad = |reason: String| UncertaintyError::BadInterval {
+            file: file.to_string(),
+            key: label.clone(),
+            value: entry.value.clone(),
+            reason,
+        };
+        let name = entry.name().to_string();
+        let source = entry.source.clone();
+        let impossible = |source: params::ParamError| UncertaintyError::ImpossibleBound {
+            file: file.to_string(),
+            key: label.clone(),
+            source,
+        };
+        let target = match &entry.kind {
+            EntryKind::Symbol => {
+                let IntervalForm::Bounds(lower, upper) = entry.interval.form else {
+                    return Err(bad(format!(
+                        "a free symbol has no URDF value, so it takes explicit bounds only: {name} = [lower, upper]"
+                    )));
+                };
+                return Ok(Dimension {
+                    name,
+                    source,
+                    unit: "",
+                    lower,
+                    upper,
+                    nominal: 0.5 * (lower + upper),
+                    kind: DimensionKind::Symbol,
+                });
+            }
+            EntryKind::Group { members, unit } => {
+                let (mode, amount, lower, upper, nominal) = match entry.interval.form {
+                    IntervalForm::Relative(rel) => {
+                        (GroupMode::Factor, rel, 1.0 - rel, 1.0 + rel, 1.0)
+                    }
+                    IntervalForm::Absolute(abs) => (GroupMode::Offset, abs, -abs, abs, 0.0),
+                    IntervalForm::Bounds(..) => {
+                        return Err(bad(
+                            "a shared group takes { rel = … } or { abs = … }".to_string()
+                        ))
+                    }
+                };
+                let group = Group {
+                    mode,
+                    amount,
+                    members: members
+                        .iter()
+                        .map(|(path, target)| GroupMember {
+                            path: path.clone(),
+                            target: *target,
+                            urdf_value: params::get(model, *target),
+                        })
+                        .collect(),
+                };
+                // Every member must be possible at both extremes (the members are affine in ξ).
+                for member in &group.members {
+                    for xi in [-1.0, 1.0] {
+                        params::validate_value(
+                            model,
+                            member.target,
+                            group.member_value(member, xi),
+                        )
+                        .map_err(impossible)?;
+                    }
+                }
+                self.groups.push(group);
+                return Ok(Dimension {
+                    name,
+                    source,
+                    unit,
+                    lower,
+                    upper,
+                    nominal,
+                    kind: DimensionKind::Group(self.groups.len() - 1),
+                });
+            }
+            EntryKind::Path { target, .. } => *target,
+        };
+        let u = params::get(model, target);
+        let (lower, upper) = match entry.interval.form {
+            IntervalForm::Bounds(lower, upper) => (lower, upper),
+            IntervalForm::Relative(rel) => {
+                if u == 0.0 {
+                    return Err(UncertaintyError::RelativeOfZero {
+                        file: file.to_string(),
+                        key: label,
+                        value: entry.value.clone(),
+                    });
+                }
+                (u - rel * u.abs(), u + rel * u.abs())
+            }
+            IntervalForm::Absolute(amount) => (u - amount, u + amount),
+        };
+        if !(lower.is_finite() && upper.is_finite()) {
+            return Err(bad("the bounds must be finite numbers".to_string()));
+        }
+        if lower >= upper {
+            return Err(bad(format!(
+                "the interval [{lower}, {upper}] around the URDF value {u} is empty at f64 precision; widen it"
+            )));
+        }
+        if !(lower <= u && u <= upper) {
+            return Err(UncertaintyError::UrdfValueOutside {
+                file: file.to_string(),
+                key: label,
+                lower,
+                upper,
+                urdf_value: u,
+            });
+        }
+        for bound in [lower, upper] {
+            params::validate_value(model, target, bound).map_err(impossible)?;
+        }
+        Ok(Dimension {
+            name,
+            source,
+            unit: params::unit_of(model, target),
+            lower,
+            upper,
+            nominal: u,
+            kind: DimensionKind::Path(target),
+        })
+    }
+
+    /// The dimensions of ξ, in the sidecar's order of appearance, patterns expanded in place
+    /// (`d = self.dimensions().len()`).
     pub fn dimensions(&self) -> &[Dimension] {
         &self.dimensions
+    }
+
+    /// The shared groups ([`DimensionKind::Group`] indexes this list).
+    pub fn groups(&self) -> &[Group] {
+        &self.groups
     }
 
     /// The number of dimensions `d`.
@@ -318,14 +529,26 @@ impl ParameterSpace {
         &self.warnings
     }
 
+    /// What the expansion of patterns decided: explicit keys and `[bind]` paths overriding a
+    /// pattern's match, a later pattern taking matches from an earlier one, zero values skipped by
+    /// `rel` patterns, links without dynamics not matched by `link.*` patterns.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+
+    /// What the box check visited when the space was built (for reports and tests).
+    pub fn box_check(&self) -> BoxCheckSummary {
+        self.box_check
+    }
+
     /// ξ of the nominal point (`dim d`): for a path `(URDF value − c_i) / r_i`, which is not 0
-    /// when the interval is not centred on the URDF value; 0 for a symbol.
+    /// when the interval is not centred on the URDF value; 0 for a symbol and a group.
     pub fn nominal_xi(&self) -> Vec<f64> {
         nominal_xi(&self.dimensions)
     }
 
     /// The physical values `x_i = c_i + r_i ξ_i` of every dimension (`xi: dim d`), e.g. to report
-    /// the parameters of a failed sample.
+    /// the parameters of a failed sample (a group's value is its factor or offset).
     pub fn values_at(&self, xi: &[f64]) -> Vec<f64> {
         self.dimensions
             .iter()
@@ -334,9 +557,10 @@ impl ParameterSpace {
             .collect()
     }
 
-    /// Writes the point `xi` (`dim d`, each in [-1, 1]) into `model`: each path dimension's value and
-    /// each binding's expression value, through [`params::set`]; then [`Model::refresh`].
-    /// Overwrites exactly the declared values. Allocates nothing.
+    /// Writes the point `xi` (`dim d`, each in [-1, 1]) into `model`: each path dimension's value,
+    /// each group member's value and each binding's expression value, through [`params::set`];
+    /// then [`Model::refresh`]. Overwrites exactly the declared values. Allocates nothing; the cost
+    /// is linear in the number of values written.
     ///
     /// # Panics
     /// When `xi.len()` is not `d` (a caller's bug).
@@ -349,8 +573,15 @@ impl ParameterSpace {
             self.dimensions.len()
         );
         for (dimension, &x) in self.dimensions.iter().zip(xi) {
-            if let DimensionKind::Path(target) = dimension.kind {
-                params::set(model, target, dimension.value_at(x));
+            match dimension.kind {
+                DimensionKind::Path(target) => params::set(model, target, dimension.value_at(x)),
+                DimensionKind::Group(g) => {
+                    let group = &self.groups[g];
+                    for member in &group.members {
+                        params::set(model, member.target, group.member_value(member, x));
+                    }
+                }
+                DimensionKind::Symbol => {}
             }
         }
         for binding in &self.bindings {
@@ -363,10 +594,77 @@ impl ParameterSpace {
         model.refresh();
     }
 
+    /// Every model value that dimension `dimension` moves, with `∂value/∂ξ_dimension` at `xi`
+    /// (`xi: dim d`), written into `out` (cleared first; it keeps its capacity; docs/method.md §1):
+    /// - a path dimension: one entry, its radius `r_i` (exact);
+    /// - a shared group: one entry per member, `u · amount` (factor) or `amount` (offset), exact;
+    /// - a free symbol: one entry per `[bind]` expression that uses it, by central differences in
+    ///   ξ with Richardson extrapolation ([`BIND_DERIVATIVE_STEP`]; about 1e-12 relative for smooth
+    ///   expressions; at the faces of the box a one-sided difference into the box, about 1e-9).
+    ///
+    /// Values written through `link.NAME.scale` appear as [`ParamTarget::LinkScale`] entries: the
+    /// link's effective mass and inertia are the description's values times the scale.
+    ///
+    /// # Panics
+    /// When `xi.len()` is not `d` or `dimension ≥ d` (a caller's bug).
+    pub fn target_derivatives(
+        &self,
+        xi: &[f64],
+        dimension: usize,
+        out: &mut Vec<(ParamTarget, f64)>,
+    ) {
+        assert_eq!(
+            xi.len(),
+            self.dimensions.len(),
+            "ξ has {} components, the parameter space {}",
+            xi.len(),
+            self.dimensions.len()
+        );
+        out.clear();
+        let d = &self.dimensions[dimension];
+        match d.kind {
+            DimensionKind::Path(target) => out.push((target, d.radius())),
+            DimensionKind::Group(g) => {
+                let group = &self.groups[g];
+                out.extend(
+                    group
+                        .members
+                        .iter()
+                        .map(|m| (m.target, group.member_derivative(m))),
+                );
+            }
+            DimensionKind::Symbol => {
+                for binding in &self.bindings {
+                    if binding.expression.symbols().contains(&dimension) {
+                        out.push((
+                            binding.target,
+                            binding.derivative(&self.dimensions, xi, dimension),
+                        ));
+                    }
+                }
+            }
+        }
+    }
+
     /// Checks the physical consistency of the whole box against `model`'s (URDF) values; returns
     /// warnings. The [module documentation](super) says what is and is not guaranteed.
     pub fn check_box(&self, model: &Model, file: &str) -> Result<Vec<String>, UncertaintyError> {
-        check_box(&self.dimensions, &self.bindings, model, file)
+        check_box(&self.dimensions, &self.groups, &self.bindings, model, file)
+            .map(|(warnings, _)| warnings)
+    }
+}
+
+/// How messages name an entry: `[parameters] "link.a.mass"`, or for a pattern's match
+/// `[parameters] "link.*.mass" (match "link.a.mass")`.
+fn dimension_label(entry: &ParameterEntry) -> String {
+    let label = key_label("parameters", &entry.source);
+    match &entry.kind {
+        EntryKind::Path {
+            path,
+            from_pattern: true,
+            ..
+        } => format!("{label} (match \"{path}\")"),
+        _ => label,
     }
 }
 
@@ -376,7 +674,7 @@ pub(super) fn nominal_xi(dimensions: &[Dimension]) -> Vec<f64> {
         .iter()
         .map(|d| match d.kind {
             DimensionKind::Path(_) => d.xi_of(d.nominal),
-            DimensionKind::Symbol => 0.0,
+            DimensionKind::Symbol | DimensionKind::Group(_) => 0.0,
         })
         .collect()
 }
@@ -395,115 +693,4 @@ fn check_unique(
         }),
         None => Ok(()),
     }
-}
-
-/// One `[parameters]` entry as a dimension.
-fn read_dimension(
-    key: &str,
-    value: &toml::Value,
-    model: &Model,
-    file: &str,
-) -> Result<Dimension, UncertaintyError> {
-    let label = key_label("parameters", key);
-    let bad = |reason: String| UncertaintyError::BadInterval {
-        file: file.to_string(),
-        key: label.clone(),
-        value: value.to_string(),
-        reason,
-    };
-    let kind = match params::resolve(model, key) {
-        Ok(target) => DimensionKind::Path(target),
-        Err(_) if is_symbol_name(key) => {
-            if key == SQRT {
-                return Err(UncertaintyError::ReservedSymbol {
-                    file: file.to_string(),
-                    key: label,
-                });
-            }
-            DimensionKind::Symbol
-        }
-        Err(e) => {
-            return Err(UncertaintyError::UnknownKey {
-                file: file.to_string(),
-                key: label,
-                reason: e.to_string(),
-            })
-        }
-    };
-    let form = read_form(value).map_err(bad)?;
-    let urdf_value = match kind {
-        DimensionKind::Path(target) => Some(params::get(model, target)),
-        DimensionKind::Symbol => None,
-    };
-    let (lower, upper) = match (form, urdf_value) {
-        (IntervalForm::Bounds(lower, upper), _) => (lower, upper),
-        (_, None) => {
-            return Err(bad(format!(
-                "a free symbol has no URDF value, so it takes explicit bounds only: {key} = [lower, upper]"
-            )))
-        }
-        (IntervalForm::Relative(rel), Some(u)) => {
-            if !(rel.is_finite() && rel > 0.0) {
-                return Err(bad(
-                    "rel must be a finite fraction > 0 (0.01 is ±1 %)".to_string()
-                ));
-            }
-            if u == 0.0 {
-                return Err(UncertaintyError::RelativeOfZero {
-                    file: file.to_string(),
-                    key: label,
-                    value: value.to_string(),
-                });
-            }
-            (u - rel * u.abs(), u + rel * u.abs())
-        }
-        (IntervalForm::Absolute(amount), Some(u)) => {
-            if !(amount.is_finite() && amount > 0.0) {
-                return Err(bad(
-                    "abs must be a finite amount > 0 (abs = 0 is no uncertainty: remove the entry, or use --set to change a value)".to_string(),
-                ));
-            }
-            (u - amount, u + amount)
-        }
-    };
-    if !(lower.is_finite() && upper.is_finite()) {
-        return Err(bad("the bounds must be finite numbers".to_string()));
-    }
-    if lower > upper {
-        return Err(bad(format!(
-            "the lower bound is above the upper bound; write [{upper}, {lower}]"
-        )));
-    }
-    if lower == upper {
-        return Err(bad(
-            "the interval has zero width, which is no uncertainty: widen it or remove the entry (use --set to change a value)".to_string(),
-        ));
-    }
-    if let (DimensionKind::Path(target), Some(u)) = (kind, urdf_value) {
-        if !(lower <= u && u <= upper) {
-            return Err(UncertaintyError::UrdfValueOutside {
-                file: file.to_string(),
-                key: label,
-                lower,
-                upper,
-                urdf_value: u,
-            });
-        }
-        for bound in [lower, upper] {
-            params::validate_value(model, target, bound).map_err(|source| {
-                UncertaintyError::ImpossibleBound {
-                    file: file.to_string(),
-                    key: label.clone(),
-                    source,
-                }
-            })?;
-        }
-    }
-    Ok(Dimension {
-        name: key.to_string(),
-        lower,
-        upper,
-        nominal: urdf_value.unwrap_or(0.5 * (lower + upper)),
-        kind,
-    })
 }

@@ -1,5 +1,8 @@
 //! The sidecar file `ROBOT.uncertainty.toml` as written (design contract), before it is checked
 //! against a robot. Unknown keys are errors, so a typo never silently does nothing.
+//!
+//! text ⇒ [`SidecarFile`] (serde; `[parameters]` and `[bind]` stay TOML tables in order of
+//! appearance and are expanded by [`super::expand_parameters`])
 
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -25,7 +28,7 @@ pub struct SidecarFile {
     pub analysis: AnalysisSection,
 }
 
-/// `[scene]`: what is simulated. Every key is optional (defaults in [`super::Scene`]).
+/// `[scene]`: what is simulated. Every key is optional (defaults in [`crate::scene::Scene`]).
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneSection {
