@@ -209,6 +209,9 @@ pub fn prepare(args: &SceneArgs) -> Result<Prepared, Error> {
     for warning in space.warnings() {
         eprintln!("warning: {warning}");
     }
+    for note in space.notes() {
+        eprintln!("note: {note}");
+    }
     Ok(Prepared {
         sidecar_path,
         sidecar,
