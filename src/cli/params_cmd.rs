@@ -226,6 +226,18 @@ fn box_table(space: &ParameterSpace, model: &Model, sidecar: &str) -> String {
 }
 
 /// Shortest exact representation of a number (`0.425`, `-1.5707963267948966`).
+/// Significant digits in the human-readable tables: enough for any URDF value as written, few
+/// enough to hide the last-bit noise of computed bounds (`3.7 · 1.03` prints 3.811, not
+/// 3.8110000000000004). `--json` keeps the exact values.
+const TABLE_SIGNIFICANT_DIGITS: usize = 12;
+
 fn format_number(value: f64) -> String {
-    format!("{value}")
+    if !value.is_finite() || value == 0.0 {
+        return format!("{value}");
+    }
+    // Round to TABLE_SIGNIFICANT_DIGITS, then print the shortest form of the rounded value.
+    let rounded: f64 = format!("{value:.*e}", TABLE_SIGNIFICANT_DIGITS - 1)
+        .parse()
+        .unwrap_or(value);
+    format!("{rounded}")
 }
