@@ -1,7 +1,8 @@
 //! The summary JSON (design contract): robot, method, parameters, runs, and per output the time
 //! series of lower, upper and nominal bounds with an error estimate.
 
-use super::write_atomically;
+use super::first_non_finite;
+use super::paths::AtomicFile;
 use crate::Error;
 use serde::Serialize;
 use std::path::Path;
@@ -66,12 +67,36 @@ pub struct Summary {
 }
 
 impl Summary {
-    /// Writes the summary as pretty JSON to `path`.
+    /// Writes the summary as pretty JSON to `path`, streaming through a temporary file (see
+    /// [`super::paths`]). JSON has no NaN or infinity (serde would write `null`): a non-finite
+    /// value in any series is refused, naming the output and time, and nothing is written.
     pub fn write(&self, path: &Path) -> Result<(), Error> {
-        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Output {
-            what: format!("summary '{}'", path.display()),
-            source: std::io::Error::other(e),
-        })?;
-        write_atomically(path, "summary", text.as_bytes())
+        for output in &self.outputs {
+            let names: Vec<String> = ["time", "lower", "upper", "nominal", "error_estimate"]
+                .iter()
+                .map(|series| format!("{}.{series}", output.name))
+                .collect();
+            let mut columns: Vec<&[f64]> =
+                vec![&output.time, &output.lower, &output.upper, &output.nominal];
+            if let Some(errors) = &output.error_estimate {
+                columns.push(errors);
+            }
+            let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            if let Some(bad) =
+                first_non_finite(&names[1..columns.len()], &output.time, &columns[1..])
+            {
+                return Err(Error::NonFiniteResult {
+                    what: format!("summary '{}'", path.display()),
+                    output: bad.series.to_string(),
+                    time_s: bad.time_s,
+                    value: bad.value,
+                });
+            }
+        }
+        let mut file = AtomicFile::create(path, "summary")?;
+        serde_json::to_writer_pretty(&mut file, self)
+            .map_err(|e| file.error(std::io::Error::other(e)))?;
+        std::io::Write::write_all(&mut file, b"\n").map_err(|e| file.error(e))?;
+        file.commit()
     }
 }
