@@ -327,3 +327,17 @@ fn two_outputs_with_one_name_are_refused() {
         &["[outputs] joints", "output 'q.j1' would be recorded twice"],
     );
 }
+
+/// Before: `dynamics --v=1e200,1e200` printed `bias NaN NaN` (JSON `null`) with exit 0.
+#[test]
+fn nan_is_never_printed_with_exit_0() {
+    let json = ribbon(&["dynamics", DOUBLE_PENDULUM, "--v=1e200,1e200", "--json"]);
+    let table = ribbon(&["dynamics", DOUBLE_PENDULUM, "--v=1e200,1e200"]);
+    for out in [json, table] {
+        assert_exit(
+            &out,
+            2,
+            &["the bias forces C(q, v) v + g(q): NaN at coordinate 0 (joint 'j1')"],
+        );
+    }
+}

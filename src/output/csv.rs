@@ -71,4 +71,27 @@ mod tests {
         assert_eq!(csv_field("q.say \"hi\""), "\"q.say \"\"hi\"\"\"");
         assert_eq!(csv_field("q.two\nlines"), "\"q.two\nlines\"");
     }
+
+    #[test]
+    fn a_non_finite_value_is_refused_and_nothing_written() {
+        let dir = std::env::temp_dir().join(format!("ribbon-csv-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("nan.csv");
+        let e = write_csv(
+            &path,
+            &[0.0, 0.5],
+            &["q.a", "q.b"],
+            &[&[1.0, 2.0], &[3.0, f64::NAN]],
+        )
+        .unwrap_err();
+        assert_eq!(e.exit_code(), 1);
+        let m = e.to_string();
+        assert!(m.contains("output 'q.b' is NaN at t = 0.5 s"), "{m}");
+        assert!(!path.exists());
+        assert!(
+            std::fs::read_dir(&dir).unwrap().next().is_none(),
+            "no temporary left"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -100,3 +100,49 @@ impl Summary {
         file.commit()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_non_finite_value_is_refused_not_written_as_null() {
+        let dir = std::env::temp_dir().join(format!("ribbon-summary-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("summary.json");
+        let series = |upper: f64| EnvelopeSeries {
+            name: "frame.tip.x".to_string(),
+            unit: "m".to_string(),
+            time: vec![0.0, 0.25],
+            lower: vec![1.0, 1.0],
+            upper: vec![1.0, upper],
+            nominal: vec![1.0, 1.0],
+            error_estimate: None,
+        };
+        let mut summary = Summary {
+            robot: "r".to_string(),
+            method: "nominal".to_string(),
+            order: None,
+            design: None,
+            bound_kind: "nominal".to_string(),
+            parameters: Vec::new(),
+            samples: 1,
+            excluded_samples: Vec::new(),
+            wall_seconds: 0.0,
+            outputs: vec![series(f64::INFINITY)],
+            stats: serde_json::Value::Null,
+        };
+        let m = summary.write(&path).unwrap_err().to_string();
+        assert!(
+            m.contains("output 'frame.tip.x.upper' is inf at t = 0.25 s"),
+            "{m}"
+        );
+        assert!(!path.exists());
+        summary.outputs = vec![series(2.0)];
+        summary.write(&path).unwrap();
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert_eq!(json["outputs"][0]["upper"][1], serde_json::json!(2.0));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
