@@ -97,6 +97,13 @@ impl Error {
                 crate::analysis::StudyError::BadOptions(_) | crate::analysis::StudyError::Uq(_),
             ) => 2,
             Error::Study(crate::analysis::StudyError::Sink(inner)) => inner.exit_code(),
+            // A sample that fails at t = 0 failed its consistent start: its parameters make a
+            // model that cannot start (the nominal one is checked before the study).
+            Error::Study(crate::analysis::StudyError::SampleFailed { failure, .. })
+                if failure.time_s == 0.0 =>
+            {
+                2
+            }
             Error::Study(_) => 1,
         }
     }

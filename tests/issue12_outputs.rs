@@ -296,3 +296,50 @@ fn csv_headers_are_quoted_as_rfc_4180_asks() {
         assert_eq!(row.split(',').count(), 5, "{row}");
     }
 }
+
+/// The MCAP sink refuses a NaN (naming the output and time) instead of logging it; the unfinished
+/// log leaves nothing at the path.
+#[test]
+fn the_mcap_log_refuses_a_nan() {
+    use ribbon::output::mcap::McapMetadata;
+    use ribbon::output::EnvelopeLog;
+    use ribbon::scene::{Output, OutputKind};
+    let dir = scratch("mcap_nan");
+    let path = dir.join("nan.mcap");
+    let outputs = vec![Output {
+        name: "q.j1".to_string(),
+        parts: vec!["q".to_string(), "j1".to_string()],
+        unit: "rad",
+        kind: OutputKind::Position { q_index: 0 },
+    }];
+    let metadata = McapMetadata {
+        robot: "double_pendulum".to_string(),
+        method: "nominal".to_string(),
+        order: None,
+        runs: 1,
+        parameters_json: "[]".to_string(),
+    };
+    let mut log = EnvelopeLog::create(
+        &path,
+        &dir.join("double_pendulum.urdf"),
+        None,
+        metadata,
+        &outputs,
+        false,
+    )
+    .expect("log created");
+    log.write_time(0.0, &[0.0], &[0.0], &[0.0], None)
+        .expect("finite values are written");
+    let e = log
+        .write_time(0.01, &[0.0], &[f64::NAN], &[0.0], None)
+        .expect_err("NaN refused");
+    assert_eq!(e.exit_code(), 1);
+    assert!(
+        e.to_string()
+            .contains("output 'q.j1 (nominal)' is NaN at t = 0.01 s"),
+        "{e}"
+    );
+    drop(log);
+    assert!(!path.exists());
+    assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+}

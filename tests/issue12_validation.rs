@@ -221,6 +221,20 @@ fn a_singular_mass_matrix_names_the_joint_and_cause_with_exit_2_everywhere() {
     let out = ribbon(&["analyze", leaf, "--uncertainty", sidecar.to_str().unwrap()]);
     assert_exit(&out, 2, &["the run cannot start", "(a massless leaf)"]);
 
+    // A box whose corner makes M singular (a mass of 1e298 beside one of 1 kg): that sample
+    // cannot start, and it is the input's fault (exit 2; it was 1).
+    let wide = temp_file(
+        "wide_mass.toml",
+        "[parameters]\n\"link.bar1.mass\" = [1e-300, 1e300]\n[scene]\nduration = 0.1\n",
+    );
+    let out = ribbon(&[
+        "analyze",
+        DOUBLE_PENDULUM,
+        "--uncertainty",
+        wide.to_str().unwrap(),
+    ]);
+    assert_exit(&out, 2, &["failed at t = 0 s", "singular"]);
+
     let root = temp_file("massless_root.urdf", MASSLESS_ROOT);
     let out = ribbon(&["simulate", root.to_str().unwrap(), "--floating"]);
     assert_exit(
@@ -340,4 +354,54 @@ fn nan_is_never_printed_with_exit_0() {
             &["the bias forces C(q, v) v + g(q): NaN at coordinate 0 (joint 'j1')"],
         );
     }
+}
+
+/// A drive that cannot hold names its joint: redundant with the loop (exit 2), or too fast for the
+/// step (exit 1, where the message said only "pivot 5").
+#[test]
+fn drive_errors_name_the_joint() {
+    let text = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("robots/slider_crank/slider_crank.uncertainty.toml"),
+    )
+    .unwrap();
+    let redundant = text.replacen(
+        "[[scene.loop]]",
+        "[[scene.drive]]\nname = \"push\"\njoint = \"slider_joint\"\nprofile = \"constant\"\nvalue = 0.5\n\n[[scene.loop]]",
+        1,
+    );
+    let sidecar = temp_file("slider_crank_redundant_drive.toml", &redundant);
+    let out = ribbon(&[
+        "simulate",
+        SLIDER_CRANK,
+        "--uncertainty",
+        sidecar.to_str().unwrap(),
+    ]);
+    assert_exit(
+        &out,
+        2,
+        &[
+            "redundant constraint rows: drive 'push'",
+            "the drive on joint 'slider_joint'",
+        ],
+    );
+    // 1000 revolutions per second: 6.3 rad per 1 ms step.
+    let fast = text.replace("rate = 6.283185307179586", "rate = 6283.185307179586");
+    assert_ne!(fast, text, "the sidecar's drive rate was found");
+    let sidecar = temp_file("slider_crank_fast_drive.toml", &fast);
+    let out = ribbon(&[
+        "simulate",
+        SLIDER_CRANK,
+        "--uncertainty",
+        sidecar.to_str().unwrap(),
+    ]);
+    assert_exit(
+        &out,
+        1,
+        &[
+            "drive 'motor' on joint 'crank_joint'",
+            "Likely cause:",
+            "smaller --step",
+        ],
+    );
 }

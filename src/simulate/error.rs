@@ -128,7 +128,28 @@ impl SimulationError {
             q,
             initial_violation,
         } = *context;
-        if let IntegrateError::SingularMatrix { step, .. } = &source {
+        if let IntegrateError::SingularMatrix { step, index, .. } = &source {
+            if singular_mass_motion(model, q).is_none() && !scene.constraints.is_empty() {
+                // M is regular: the column where elimination broke down names the unknown, a
+                // joint's acceleration or a row's multiplier (LU pivots rows, not columns).
+                let at = match index.checked_sub(model.nv) {
+                    None => format!("joint {}", coordinate_name(model, *index)),
+                    Some(row) => format!(
+                        "{}{}",
+                        scene.constraints.row_name(row),
+                        drive_joint(model, &scene.constraints, row)
+                    ),
+                };
+                let message = format!(
+                    "{source}; it breaks down at {at}. Likely cause: the constraint rows are (nearly) dependent here — the linkage is at or near a singular pose (a dead point), or the step of {} s is too large for the motion: try a smaller --step",
+                    scene.step_s
+                );
+                return if *step == 0 {
+                    SimulationError::Constraints { message }
+                } else {
+                    SimulationError::Integrate { source, message }
+                };
+            }
             if let Some((motion, causes)) = singular_mass_motion(model, q) {
                 let at_start = *step == 0;
                 let message = format!(
