@@ -489,9 +489,7 @@ mod tests {
     use super::*;
 
     fn scratch(test: &str) -> PathBuf {
-        let dir = std::env::temp_dir()
-            .join(format!("ribbon-paths-{}", std::process::id()))
-            .join(test);
+        let dir = std::env::temp_dir().join(format!("ribbon-paths-{}-{test}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         dir
@@ -517,6 +515,7 @@ mod tests {
         drop(a);
         drop(b);
         assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -541,6 +540,7 @@ mod tests {
                 .is_symlink());
         }
         assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     // `remove_live_temporaries` removes every temporary of the process, so it is tested in its own
@@ -582,5 +582,6 @@ mod tests {
             "{m}"
         );
         assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
