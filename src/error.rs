@@ -49,6 +49,18 @@ pub enum Error {
     /// Writing the MCAP log failed.
     #[error(transparent)]
     Mcap(#[from] crate::output::mcap::McapError),
+    /// A result holds a NaN or an infinity: it is never written or printed (exit 1).
+    #[error("{what}: output '{output}' is {value} at t = {time_s} s; a non-finite number is never reported as a result, so nothing was written (the run overflowed: check the scene's values, or use a smaller step)")]
+    NonFiniteResult {
+        /// Where it would have gone (`CSV 'out.csv'`, `summary 'x.json'`, `the table`).
+        what: String,
+        /// The output (series) name.
+        output: String,
+        /// The record time, s.
+        time_s: f64,
+        /// The value found (NaN or ±inf).
+        value: f64,
+    },
     /// Writing a result failed.
     #[error("cannot write {what}: {source}")]
     Output {
@@ -60,7 +72,13 @@ pub enum Error {
 }
 
 impl Error {
-    /// The process exit code for this error: 2 for bad arguments or bad input, 1 otherwise.
+    /// The process exit code for this error, the same rule for every command:
+    /// - 2 — the input is at fault and nothing ran: bad arguments, files or values, an output path
+    ///   that would destroy something, and a model that cannot even start (a singular mass matrix
+    ///   or a non-finite value at the initial state, constraints that cannot close, a `dynamics`
+    ///   query that fails);
+    /// - 1 — a run that started failed later (Newton divergence, a NaN after t = 0, a failing
+    ///   sample of a study), was interrupted, or its results could not be written.
     pub fn exit_code(&self) -> u8 {
         match self {
             Error::Model(_)
@@ -68,29 +86,24 @@ impl Error {
             | Error::Scene(_)
             | Error::Uncertainty(_)
             | Error::BadArgument { .. } => 2,
-            Error::Integrate(
-                IntegrateError::InvalidAlpha { .. }
-                | IntegrateError::AlphaZeroWithConstraints { .. }
-                | IntegrateError::InvalidStep { .. }
-                | IntegrateError::InvalidSetting { .. },
-            ) => 2,
-            Error::Integrate(_) => 1,
-            Error::Simulation(crate::simulate::SimulationError::Constraints { .. }) => 2,
-            Error::Simulation(crate::simulate::SimulationError::Integrate { source, .. }) => {
-                match source {
-                    IntegrateError::InvalidAlpha { .. }
-                    | IntegrateError::AlphaZeroWithConstraints { .. }
-                    | IntegrateError::InvalidStep { .. }
-                    | IntegrateError::InvalidSetting { .. } => 2,
-                    _ => 1,
-                }
-            }
-            Error::Dynamics(DynamicsError::SingularMassMatrix { .. }) => 2,
-            Error::Dynamics(_) | Error::Output { .. } | Error::Mcap(_) | Error::Interrupted(_) => 1,
+            Error::Integrate(source) => crate::simulate::integrate_exit_code(source),
+            Error::Simulation(error) => error.exit_code(),
+            Error::Dynamics(_) => 2,
+            Error::Output { .. }
+            | Error::NonFiniteResult { .. }
+            | Error::Mcap(_)
+            | Error::Interrupted(_) => 1,
             Error::Study(
                 crate::analysis::StudyError::BadOptions(_) | crate::analysis::StudyError::Uq(_),
             ) => 2,
             Error::Study(crate::analysis::StudyError::Sink(inner)) => inner.exit_code(),
+            // A sample that fails at t = 0 failed its consistent start: its parameters make a
+            // model that cannot start (the nominal one is checked before the study).
+            Error::Study(crate::analysis::StudyError::SampleFailed { failure, .. })
+                if failure.time_s == 0.0 =>
+            {
+                2
+            }
             Error::Study(_) => 1,
         }
     }

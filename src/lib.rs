@@ -13,6 +13,8 @@
 //!   [`dynamics::Data`];
 //! - [`integrate`] — the second-order HHT-I3 integrator for index-3 DAEs;
 //! - [`uq`] — quadrature, Legendre/Chebyshev surrogates and their bounds (pure mathematics);
+//! - [`output`] — CSV, summary JSON, MCAP and SVG writers, and the output-path rules;
+//! - [`interrupt`] — SIGINT/SIGTERM: stop at the next step, or at once on a second signal;
 //! - [`cli`] — the `ribbon` command line.
 //!
 //! ## Limitations
@@ -26,6 +28,7 @@ pub mod dynamics;
 pub mod effects;
 mod error;
 pub mod integrate;
+pub mod interrupt;
 pub mod model;
 pub mod output;
 pub mod params;

@@ -314,7 +314,12 @@ fn bad_scene_input_is_refused_with_exit_2() {
             out.stderr
         );
     }
-    // Command-line overrides are checked the same way.
+    // Command-line overrides are checked the same way, and blamed on the flag, not the sidecar.
     let out = ribbon(&["simulate", "robots/ur5/ur5.urdf", "--step=-0.001"]);
-    assert_input_error(&out, &["[scene] step"]);
+    assert_input_error(&out, &["--step: -0.001 s must be a finite number > 0"]);
+    assert!(
+        !out.stderr.contains("ur5.uncertainty.toml"),
+        "{}",
+        out.stderr
+    );
 }

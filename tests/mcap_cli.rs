@@ -196,9 +196,15 @@ fn sigint_finishes_a_valid_partial_log() {
         *envelope_times.iter().max().unwrap() < 200_000_000_000,
         "the run did not finish: the log stops before t = 200 s"
     );
+    let leftovers: Vec<String> = std::fs::read_dir(scratch(""))
+        .expect("scratch directory")
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("interrupted.mcap.") && n.ends_with(".tmp"))
+        .collect();
     assert!(
-        !scratch("interrupted.mcap.tmp").exists(),
-        "no temporary file left"
+        leftovers.is_empty(),
+        "no temporary file left: {leftovers:?}"
     );
     println!(
         "interrupted after {} record times: {stderr}",

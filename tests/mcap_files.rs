@@ -29,10 +29,25 @@ fn work_dir(test: &str) -> PathBuf {
     dir
 }
 
-fn temporary_of(path: &Path) -> PathBuf {
-    let mut name = path.as_os_str().to_owned();
-    name.push(".tmp");
-    PathBuf::from(name)
+/// The temporary files of `path` on disk (`<name>.ribbon-<pid>-<n>.tmp` beside it).
+fn temporaries_of(path: &Path) -> Vec<PathBuf> {
+    let prefix = format!(
+        "{}.ribbon-",
+        path.file_name().unwrap_or_default().to_string_lossy()
+    );
+    let dir = path.parent().unwrap_or(Path::new("."));
+    std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .filter_map(Result::ok)
+                .map(|e| e.path())
+                .filter(|p| {
+                    let name = p.file_name().unwrap_or_default().to_string_lossy();
+                    name.starts_with(&prefix) && name.ends_with(".tmp")
+                })
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 fn metadata() -> McapMetadata {
@@ -152,15 +167,15 @@ fn write_study(path: &Path, sidecar_path: &Path, partial: bool) -> serde_json::V
         }));
     }
     assert!(
-        temporary_of(path).exists(),
-        "the sink writes to <path>.tmp until finished"
+        temporaries_of(path).len() == 1,
+        "the sink writes to one temporary file beside <path> until finished"
     );
     assert!(!path.exists(), "nothing at the path before finish");
     sink.finish(partial)
         .unwrap_or_else(|e| panic!("finish: {e}"));
     assert!(path.exists(), "finish renames the file to its path");
     assert!(
-        !temporary_of(path).exists(),
+        temporaries_of(path).is_empty(),
         "finish leaves no temporary file"
     );
 
@@ -402,10 +417,10 @@ fn dropping_an_unfinished_sink_leaves_no_file() {
         sink.write_envelope(q1, k as f64 * 1e-3, -0.1, 0.0, 0.1)
             .unwrap();
     }
-    assert!(temporary_of(&path).exists());
+    assert_eq!(temporaries_of(&path).len(), 1);
     drop(sink);
     assert!(!path.exists(), "no file at the path");
-    assert!(!temporary_of(&path).exists(), "no temporary file left");
+    assert!(temporaries_of(&path).is_empty(), "no temporary file left");
 
     // An older file at the path survives an unfinished run untouched.
     std::fs::write(&path, b"previous result").unwrap();
@@ -419,7 +434,7 @@ fn dropping_an_unfinished_sink_leaves_no_file() {
     .unwrap();
     drop(sink);
     assert_eq!(std::fs::read(&path).unwrap(), b"previous result");
-    assert!(!temporary_of(&path).exists());
+    assert!(temporaries_of(&path).is_empty());
 }
 
 #[test]
@@ -468,5 +483,5 @@ fn errors_name_the_file_and_the_problem() {
     )
     .unwrap_err();
     assert!(matches!(e, McapError::Io { .. }), "{e}");
-    assert!(e.to_string().contains("x.mcap.tmp"), "{e}");
+    assert!(e.to_string().contains("x.mcap"), "{e}");
 }

@@ -13,7 +13,9 @@
 
 use crate::integrate::{HhtIntegrator, HhtSettings, HhtTrajectory, IntegrateError};
 use crate::scene::Scene;
-use crate::simulate::{InitialOrientations, Recorder, RobotSystem, SimulationError};
+use crate::simulate::{
+    FailureContext, InitialOrientations, Recorder, RobotSystem, SimulationError,
+};
 use crate::uncertainty::ParameterSpace;
 use nalgebra::DVector;
 use rayon::prelude::*;
@@ -298,9 +300,15 @@ fn run_sample(
         record_step,
         interrupt,
     } = block;
-    let describe = |error: IntegrateError, system: &mut RobotSystem| {
+    let describe = |error: IntegrateError, system: &mut RobotSystem, q: &[f64]| {
         let violation = crate::simulate::initial_violation(system, scene);
-        SimulationError::from_integrate(error, &system.constraints, violation).to_string()
+        let context = FailureContext {
+            model: &system.model,
+            scene,
+            q,
+            initial_violation: violation,
+        };
+        SimulationError::from_failure(error, &context).to_string()
     };
     let start = || {
         (
@@ -316,14 +324,14 @@ fn run_sample(
             let (q0, v0) = start();
             match HhtIntegrator::new(system, settings, 0.0, &q0, &v0) {
                 Ok(h) => integrator.insert(h),
-                Err(error) => return Err(failed(0.0, describe(error, system))),
+                Err(error) => return Err(failed(0.0, describe(error, system, &scene.initial_q))),
             }
         }
     };
     if sample.trajectory.is_none() {
         let (q0, v0) = start();
         if let Err(error) = hht.restart(system, 0.0, &q0, &v0) {
-            return Err(failed(0.0, describe(error, system)));
+            return Err(failed(0.0, describe(error, system, &scene.initial_q)));
         }
         sample.initial = Recorder::initial_orientations(&system.model, hht.state().q.as_slice());
         sample.trajectory = Some(hht.trajectory());
@@ -350,7 +358,8 @@ fn run_sample(
             if let Err(error) = hht.step(system) {
                 // The step that failed was heading for t_n + h.
                 let time = hht.state().t + settings.step_s;
-                outcome = Err(failed(time, describe(error, system)));
+                let q = hht.state().q.as_slice().to_vec();
+                outcome = Err(failed(time, describe(error, system, &q)));
                 break 'records;
             }
             step += 1;

@@ -422,13 +422,6 @@ impl Study<'_> {
         };
         let nominal_xi = self.space.nominal_xi();
 
-        // Is the nominal motion chaotic? Two cheap runs, before the expensive ones.
-        let mut nominal_model = self.model.clone();
-        self.space.apply(&mut nominal_model, &nominal_xi);
-        let t_lyapunov = Instant::now();
-        report.lyapunov = estimate_lyapunov(&nominal_model, scene, interrupt);
-        report.simulate_seconds += t_lyapunov.elapsed().as_secs_f64();
-
         // Design phase.
         let design_complete = self.run_phase(
             "design",
@@ -515,6 +508,15 @@ impl Study<'_> {
                 &mut accumulator,
                 progress,
             )?);
+        }
+        // Is the nominal motion chaotic? Two runs, after the design so that an interruption
+        // still saves the envelopes.
+        if !report.partial {
+            let mut nominal_model = self.model.clone();
+            self.space.apply(&mut nominal_model, &nominal_xi);
+            let t_lyapunov = Instant::now();
+            report.lyapunov = estimate_lyapunov(&nominal_model, scene, interrupt);
+            report.simulate_seconds += t_lyapunov.elapsed().as_secs_f64();
         }
         self.finish(report, accumulator, sink)
     }

@@ -1,10 +1,14 @@
 //! `ribbon analyze ROBOT.urdf [--uncertainty F] [--method M] [--order K] [--design tensor|total]
 //! [--grid N] [--scan-grid N] [--samples N] [--seed S] [--threads N] [--keep-going] [--summary F]
 //! [--csv F] [--out F.mcap]`: bound envelopes. A progress line on stderr, a table on stdout.
-//! SIGINT/SIGTERM finish the current block, write what was computed (MCAP marked partial) and exit 1;
-//! a second signal exits at once.
+//! Outputs are checked before anything runs. SIGINT/SIGTERM finish the current block, write what was
+//! computed (MCAP marked partial) and exit 1; a second signal exits at once, removing the temporary
+//! files.
 
-use super::{print_warnings, write_stdout, AnalyzeArgs, SceneArgs};
+use super::{
+    check_finite, check_output_paths, check_start, install_interrupt, print_warnings, write_stdout,
+    AnalyzeArgs, SceneArgs,
+};
 use crate::analysis::{
     CheckReport, Method, Progress, Study, StudyOptions, StudyReport, CHAOS_AMPLIFICATION, METHODS,
     TRUST_RELATIVE_MISFIT,
@@ -13,15 +17,13 @@ use crate::dynamics::Data;
 use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
 use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, Summary};
-use crate::scene::{default_sidecar_path, read_sidecar, wants_floating_base, Scene};
+use crate::scene::{check_threads, default_sidecar_path, read_sidecar, wants_floating_base, Scene};
 use crate::text::closest_suggestion;
 use crate::uncertainty::ParameterSpace;
 use crate::uq::Truncation;
 use crate::Error;
 use std::io::IsTerminal;
 use std::path::Path;
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 use std::time::Instant;
 
 /// Default polynomial order.
@@ -43,6 +45,16 @@ fn bad(flag: &str, message: String) -> Error {
 /// Runs `ribbon analyze`.
 pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     let started = Instant::now();
+    check_output_paths(
+        &args.scene,
+        Some(&sidecar_path_of(&args.scene)),
+        &[
+            ("--summary", args.summary.as_ref()),
+            ("--csv", args.csv.as_ref()),
+            ("--out", args.out.as_ref()),
+        ],
+    )?;
+    install_interrupt();
     let Prepared {
         sidecar_path,
         sidecar,
@@ -51,6 +63,14 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         space,
     } = prepare(&args.scene)?;
     let options = study_options(args, &sidecar.analysis)?;
+    // Kept per record time: the envelope (time; lower, upper, nominal and an error estimate per
+    // output) and, with --summary, its five copies per output; plus one block of samples.
+    let per_output = 4 + if args.summary.is_some() { 5 } else { 0 };
+    scene.check_memory(
+        "analyze",
+        (1 + scene.outputs.len() * per_output) as u64,
+        (crate::analysis::BLOCK_VALUE_BUDGET * 8) as u64,
+    )?;
     let robot = model.name().to_string();
     let study = Study {
         model: model.clone(),
@@ -75,16 +95,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         scene.step_s
     );
 
-    let interrupt = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        // A second signal while the first is being handled ends the process at once (exit 1).
-        let registered =
-            signal_hook::flag::register_conditional_shutdown(signal, 1, Arc::clone(&interrupt))
-                .and_then(|_| signal_hook::flag::register(signal, Arc::clone(&interrupt)));
-        if let Err(e) = registered {
-            eprintln!("warning: cannot install the handler of signal {signal}: {e}; an interruption will not save partial results");
-        }
-    }
+    let interrupt = crate::interrupt::flag();
 
     let metadata = McapMetadata {
         robot: robot.clone(),
@@ -109,7 +120,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     let mut data = Data::new(&kinematic_model);
     let mut reporter = ProgressReporter::new();
     let report = study.run(
-        &interrupt,
+        interrupt,
         &mut |progress| reporter.report(progress),
         &mut |block| match log.as_mut() {
             Some(log) => log.write_block(block, &kinematic_model, &mut data),
@@ -118,6 +129,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     )?;
     reporter.finish();
     let wall_seconds = started.elapsed().as_secs_f64();
+    check_envelope_finite(&report)?;
     if let Some(check) = &report.check {
         warn_untrusted(&report, check);
     }
@@ -180,15 +192,45 @@ pub struct Prepared {
     pub space: ParameterSpace,
 }
 
+/// The sidecar a study reads: `--uncertainty`, or `ROBOT.uncertainty.toml` beside the URDF.
+pub fn sidecar_path_of(args: &SceneArgs) -> std::path::PathBuf {
+    args.uncertainty
+        .clone()
+        .unwrap_or_else(|| default_sidecar_path(&args.urdf))
+}
+
+/// Refuses envelopes that hold a NaN or infinity (exit 1, naming the output and time) before
+/// anything is written or printed.
+fn check_envelope_finite(report: &StudyReport) -> Result<(), Error> {
+    let e = &report.envelope;
+    let mut names = Vec::with_capacity(4 * e.outputs.len());
+    let mut columns: Vec<&[f64]> = Vec::with_capacity(4 * e.outputs.len());
+    for (o, output) in e.outputs.iter().enumerate() {
+        names.push(format!("{}.lower", output.name));
+        names.push(format!("{}.nominal", output.name));
+        names.push(format!("{}.upper", output.name));
+        columns.push(&e.lower[o]);
+        columns.push(&e.nominal[o]);
+        columns.push(&e.upper[o]);
+        if let Some(errors) = &e.error {
+            names.push(format!("{}.error_estimate", output.name));
+            columns.push(&errors[o]);
+        }
+    }
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    check_finite("analyze", &names, &e.times, &columns)
+}
+
 /// Loads the URDF and its sidecar (`uncertainty`, or `ROBOT.uncertainty.toml` beside the URDF),
-/// resolves the scene and the parameter box, and prints the warnings.
+/// resolves the scene and the parameter box, checks that the nominal model can start the scene
+/// (exit 2 naming the joints when it cannot), and prints the warnings.
 pub fn prepare(args: &SceneArgs) -> Result<Prepared, Error> {
     let (urdf, uncertainty, floating) = (
         args.urdf.as_path(),
         args.uncertainty.as_deref(),
         args.floating,
     );
-    let sidecar_path = uncertainty.map_or_else(|| default_sidecar_path(urdf), Path::to_path_buf);
+    let sidecar_path = sidecar_path_of(args);
     if uncertainty.is_none() && !sidecar_path.exists() {
         return Err(bad(
             "--uncertainty",
@@ -212,6 +254,7 @@ pub fn prepare(args: &SceneArgs) -> Result<Prepared, Error> {
     for note in space.notes() {
         eprintln!("note: {note}");
     }
+    check_start(&model, &scene)?;
     Ok(Prepared {
         sidecar_path,
         sidecar,
@@ -256,7 +299,7 @@ fn study_options(
             ))
         }
     };
-    let threads = args.threads.unwrap_or(0);
+    let threads = check_threads("--threads", args.threads.unwrap_or(0))?;
     Ok(StudyOptions {
         method,
         order: args.order.or(section.order).unwrap_or(DEFAULT_ORDER),

@@ -6,15 +6,15 @@
 //! `compare.json`, `error_vs_time.svg` and `envelope.svg` (the widest output, reference vs the most
 //! accurate surrogate).
 
-use super::analyze_cmd::{prepare, Prepared};
-use super::{write_stdout, CompareArgs};
+use super::analyze_cmd::{prepare, sidecar_path_of, Prepared};
+use super::{install_interrupt, write_stdout, CompareArgs};
 use crate::analysis::{Method, Study, StudyOptions, StudyReport, VertexReferenceOptions};
 use crate::output::svg::{Plot, Series};
 use crate::output::write_atomically;
+use crate::scene::check_threads;
 use crate::uq::{envelope_error, Truncation};
 use crate::Error;
 use std::path::Path;
-use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 /// The reference the methods are compared with.
@@ -176,12 +176,30 @@ fn compare_envelopes(report: &StudyReport, reference: &StudyReport) -> (f64, f64
 
 /// Runs `ribbon compare`.
 pub fn run(args: &CompareArgs) -> Result<(), Error> {
+    if let Some(dir) = &args.report {
+        let sidecar = sidecar_path_of(&args.scene);
+        crate::output::prepare_output_directory(
+            "--report",
+            dir,
+            &REPORT_FILES,
+            &[("URDF", &args.scene.urdf), ("sidecar", &sidecar)],
+        )?;
+    }
+    install_interrupt();
+    let threads = check_threads("--threads", args.threads.unwrap_or(0))?;
     let Prepared {
         model,
         scene,
         space,
         ..
     } = prepare(&args.scene)?;
+    // Kept per record time: the reference, the current and the best surrogate's envelopes (time;
+    // lower, upper, nominal, error estimate per output).
+    scene.check_memory(
+        "compare",
+        3 * (1 + 4 * scene.outputs.len() as u64),
+        (crate::analysis::BLOCK_VALUE_BUDGET * 8) as u64,
+    )?;
     let d = space.len();
     let methods: Vec<Method> = parse_list("--methods", &args.methods)?
         .iter()
@@ -204,11 +222,11 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
         scan_grid: None,
         samples: 1000,
         seed: 0,
-        threads: args.threads.unwrap_or(0),
+        threads,
         keep_going: false,
         check_runs: None,
     };
-    let interrupt = AtomicBool::new(false);
+    let interrupt = crate::interrupt::flag();
     let run_study = |options: StudyOptions| -> Result<(StudyReport, f64), Error> {
         let study = Study {
             model: model.clone(),
@@ -217,7 +235,14 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
             options,
         };
         let started = Instant::now();
-        let report = study.run(&interrupt, &mut |_| {}, &mut |_| Ok(()))?;
+        let report = study.run(interrupt, &mut |_| {}, &mut |_| Ok(()))?;
+        if report.partial {
+            // A comparison of partial envelopes would be wrong: nothing is written.
+            return Err(Error::Interrupted(
+                "stopped during a study; a comparison needs whole runs, so no report was written"
+                    .to_string(),
+            ));
+        }
         Ok((report, started.elapsed().as_secs_f64()))
     };
     let reference_label = reference_kind.label(d);
@@ -239,9 +264,15 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
             let started = Instant::now();
             let report = study.vertex_reference(
                 VertexReferenceOptions::default(),
-                &interrupt,
+                interrupt,
                 &mut |_| {},
             )?;
+            if report.partial {
+                return Err(Error::Interrupted(
+                    "interrupted while computing the vertex reference; nothing was written"
+                        .to_string(),
+                ));
+            }
             (report, started.elapsed().as_secs_f64())
         }
     };
@@ -381,6 +412,14 @@ fn render_table(
     text
 }
 
+/// The files `--report DIR` receives.
+const REPORT_FILES: [&str; 4] = [
+    "report.md",
+    "compare.json",
+    "error_vs_time.svg",
+    "envelope.svg",
+];
+
 fn write_report(
     dir: &Path,
     table: &str,
@@ -390,10 +429,6 @@ fn write_report(
     reference_label: &str,
     best: Option<&(String, StudyReport)>,
 ) -> Result<(), Error> {
-    std::fs::create_dir_all(dir).map_err(|source| Error::Output {
-        what: format!("report directory '{}'", dir.display()),
-        source,
-    })?;
     let markdown = format!(
         "# ribbon compare\n\nWhat accuracy costs in time: every method against a reference made of true-model runs ({reference_label}).\n\n```text\n{table}```\n\n\
          ![error vs time](error_vs_time.svg)\n\n![envelope](envelope.svg)\n"

@@ -59,6 +59,45 @@ pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
         .as_ref()
         .map(|a| rnea(&model, &mut data, &q, &v, a).to_vec());
 
+    // A NaN or infinity is never printed: the given state overflows f64 arithmetic.
+    let mut results: Vec<(&str, &[f64])> = vec![
+        ("the mass matrix", mass_matrix.as_slice()),
+        ("the bias forces C(q, v) v + g(q)", &bias),
+    ];
+    if let Some(qdd) = &qdd_out {
+        results.push(("the accelerations qdd", qdd));
+    }
+    if let Some(tau) = &tau_out {
+        results.push(("the torques tau", tau));
+    }
+    for (quantity, values) in results {
+        if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+            let coordinate = i % model.nv.max(1);
+            return Err(Error::BadArgument {
+                flag: "--q/--v/--tau/--qdd".to_string(),
+                message: format!(
+                    "{quantity}: {} at coordinate {coordinate} (joint '{}'); the given values overflow f64 arithmetic, give smaller ones",
+                    values[i],
+                    crate::dynamics::joint_of_velocity(&model, coordinate)
+                ),
+            });
+        }
+    }
+    if let Some((name, _)) = frames.iter().find(|(_, placement)| {
+        placement
+            .translation
+            .iter()
+            .chain(placement.rotation.iter())
+            .any(|x| !x.is_finite())
+    }) {
+        return Err(Error::BadArgument {
+            flag: "--q".to_string(),
+            message: format!(
+                "the placement of link '{name}' is not finite: the given positions overflow f64 arithmetic; give smaller ones"
+            ),
+        });
+    }
+
     let joints: Vec<Value> = model
         .joints
         .iter()

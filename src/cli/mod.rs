@@ -233,6 +233,61 @@ pub fn run(cli: Cli) -> Result<(), Error> {
     }
 }
 
+/// Checks every output file of a command before anything is loaded or simulated
+/// ([`crate::output::check_outputs`]): never the URDF or the sidecar, never a directory, special
+/// file or symlink, never two outputs on one file.
+fn check_output_paths(
+    scene: &SceneArgs,
+    sidecar: Option<&std::path::Path>,
+    outputs: &[(&str, Option<&PathBuf>)],
+) -> Result<(), Error> {
+    let mut inputs = vec![("URDF", scene.urdf.as_path())];
+    if let Some(sidecar) = sidecar {
+        inputs.push(("sidecar", sidecar));
+    }
+    let outputs: Vec<(&str, &std::path::Path)> = outputs
+        .iter()
+        .filter_map(|(flag, path)| path.map(|p| (*flag, p.as_path())))
+        .collect();
+    crate::output::check_outputs(&inputs, &outputs)
+}
+
+/// Installs the SIGINT/SIGTERM watcher ([`crate::interrupt`]); a failure is a warning (the signals
+/// then end the process at once, which still never leaves a half-written output in place).
+fn install_interrupt() {
+    if let Err(message) = crate::interrupt::install() {
+        eprintln!("warning: {message}; an interruption will not save partial results");
+    }
+}
+
+/// Checks that the nominal model can start the scene (exit 2 naming the joints when it cannot)
+/// and prints what the start changed ([`crate::simulate::check_start`]).
+fn check_start(model: &crate::model::Model, scene: &crate::scene::Scene) -> Result<(), Error> {
+    for warning in crate::simulate::check_start(model, scene)? {
+        eprintln!("warning: {warning}");
+    }
+    Ok(())
+}
+
+/// Refuses to report a NaN or infinity: the first non-finite value of `columns[i][k]` (series
+/// `names[i]` at `times[k]`) is an error naming the series and the time (exit 1).
+fn check_finite(
+    what: &str,
+    names: &[&str],
+    times: &[f64],
+    columns: &[&[f64]],
+) -> Result<(), Error> {
+    match crate::output::first_non_finite(names, times, columns) {
+        Some(bad) => Err(Error::NonFiniteResult {
+            what: what.to_string(),
+            output: bad.series.to_string(),
+            time_s: bad.time_s,
+            value: bad.value,
+        }),
+        None => Ok(()),
+    }
+}
+
 /// Prints the model's load warnings on stderr.
 fn print_warnings(model: &crate::model::Model) {
     for warning in &model.warnings {

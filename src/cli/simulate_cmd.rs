@@ -1,14 +1,20 @@
 //! `ribbon simulate ROBOT.urdf [--uncertainty F] [--set …] [--duration T] [--step H] [--alpha A]
-//! [--csv F] [--summary F]`: one nominal trajectory. Statistics go to stderr, a table to stdout.
+//! [--csv F] [--summary F] [--out F.mcap]`: one nominal trajectory. Statistics go to stderr, a table
+//! to stdout. Outputs are checked before anything runs; SIGINT/SIGTERM stop the run after the
+//! current step, write what was computed (marked partial) and exit 1; a second signal stops at
+//! once, removing the temporary files.
 
-use super::{print_warnings, write_stdout, SimulateArgs};
+use super::{
+    check_finite, check_output_paths, check_start, install_interrupt, print_warnings, write_stdout,
+    SimulateArgs,
+};
 use crate::cli::values::apply_set_flags;
 use crate::dynamics::{forward_kinematics, Data};
 use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
 use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, Summary};
 use crate::scene::{default_sidecar_path, read_sidecar, wants_floating_base, Scene, SidecarFile};
-use crate::simulate::{simulate, Trajectory};
+use crate::simulate::{simulate_interruptible, Trajectory};
 use crate::Error;
 use std::time::Instant;
 
@@ -20,6 +26,16 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
         .uncertainty
         .clone()
         .or_else(|| Some(default_sidecar_path(&args.scene.urdf)).filter(|p| p.exists()));
+    check_output_paths(
+        &args.scene,
+        sidecar_path.as_deref(),
+        &[
+            ("--csv", args.csv.as_ref()),
+            ("--summary", args.summary.as_ref()),
+            ("--out", args.out.as_ref()),
+        ],
+    )?;
+    install_interrupt();
     let (sidecar, sidecar_name) = match &sidecar_path {
         Some(path) => (read_sidecar(path)?.0, path.display().to_string()),
         None => (SidecarFile::default(), "(no sidecar)".to_string()),
@@ -30,15 +46,25 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
     let scene = Scene::resolve(&sidecar, &model, &sidecar_name, args.scene.overrides())?;
     scene.apply_gravity(&mut model);
     apply_set_flags(&mut model, &args.set)?;
+    // Kept per record time: the time, the configuration, every output, and the summary's four
+    // copies of each output (time, lower, upper, nominal).
+    let per_output = 1 + if args.summary.is_some() { 4 } else { 0 };
+    scene.check_memory(
+        "simulate",
+        (1 + model.nq + scene.outputs.len() * per_output) as u64,
+        0,
+    )?;
+    check_start(&model, &scene)?;
     let robot = model.name().to_string();
     let kinematic_model = model.clone();
-    let trajectory = simulate(model, &scene)?;
+    let trajectory = simulate_interruptible(model, &scene, crate::interrupt::flag())?;
     let wall_seconds = started.elapsed().as_secs_f64();
     print_statistics(&trajectory, &scene, wall_seconds);
 
+    let names: Vec<&str> = trajectory.outputs.iter().map(|o| o.name.as_str()).collect();
+    let columns: Vec<&[f64]> = trajectory.values.iter().map(Vec::as_slice).collect();
+    check_finite("simulate", &names, &trajectory.times, &columns)?;
     if let Some(path) = &args.csv {
-        let names: Vec<&str> = trajectory.outputs.iter().map(|o| o.name.as_str()).collect();
-        let columns: Vec<&[f64]> = trajectory.values.iter().map(Vec::as_slice).collect();
         write_csv(path, &trajectory.times, &names, &columns)?;
     }
     if let Some(path) = &args.summary {
@@ -54,7 +80,15 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
             &trajectory,
         )?;
     }
-    write_stdout(&table(&trajectory))
+    write_stdout(&table(&trajectory))?;
+    if trajectory.partial {
+        return Err(Error::Interrupted(format!(
+            "stopped after t = {} s of {} s; the series computed so far were written (summary stats.partial = true, MCAP marked partial)",
+            trajectory.times.last().copied().unwrap_or(0.0),
+            scene.duration_s
+        )));
+    }
+    Ok(())
 }
 
 /// The MCAP log of a nominal run: lower = nominal = upper, frames on `/tf` at every record time.
@@ -91,14 +125,19 @@ fn write_log(
         forward_kinematics(model, &mut data, &trajectory.positions[k]);
         log.write_frames(*t, model, &data)?;
     }
-    log.finish(false)
+    log.finish(trajectory.partial)
 }
 
 fn print_statistics(trajectory: &Trajectory, scene: &Scene, wall_seconds: f64) {
     let s = &trajectory.stats;
     eprintln!(
-        "simulated {} s in {} steps of {} s (alpha {}): {} Newton iterations ({:.2} per step, at most {}), {} factorisations, {} refreshes; {:.3} s wall",
-        scene.duration_s,
+        "simulated {} s{} in {} steps of {} s (alpha {}): {} Newton iterations ({:.2} per step, at most {}), {} factorisations, {} refreshes; {:.3} s wall",
+        trajectory.times.last().copied().unwrap_or(0.0),
+        if trajectory.partial {
+            format!(" of {} s (interrupted)", scene.duration_s)
+        } else {
+            String::new()
+        },
         s.steps,
         scene.step_s,
         scene.alpha,
@@ -143,6 +182,7 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
             "factorisations": s.factorisations,
             "refreshes": s.refreshes,
             "max_iterations_in_a_step": s.max_iterations_in_a_step,
+            "partial": trajectory.partial,
         }),
     }
 }

@@ -73,9 +73,26 @@ pub enum IntegrateError {
     /// family does not converge in `q̈` and `λ` on index-3 problems (docs/method.md §5).
     #[error(
         "HHT alpha = 0 is refused with {n_constraints} constraint row(s): accelerations and \
-         multipliers do not converge (they oscillate with growing amplitude); use alpha < 0, e.g. -0.1"
+         multipliers do not converge (they oscillate with growing amplitude); use alpha ≤ -0.05, e.g. -0.1"
     )]
     AlphaZeroWithConstraints {
+        /// Number of constraint rows of the system.
+        n_constraints: usize,
+    },
+    /// `alpha` is in `(limit, 0)` for a system with constraint rows: the start transient of `q̈` and
+    /// `λ` is barely damped and the multipliers come out wrong (see
+    /// [`ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS`](super::settings::ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS)).
+    #[error(
+        "HHT alpha = {alpha} is too close to 0 with {n_constraints} constraint row(s): it must be at \
+         most {limit}, because closer to 0 the start transient of the accelerations and multipliers \
+         is barely damped and constraint forces come out wrong by up to ten times their size; use \
+         alpha in [-1/3, {limit}], e.g. -0.1"
+    )]
+    AlphaTooCloseToZero {
+        /// The rejected value.
+        alpha: f64,
+        /// The largest accepted value (`−ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS`).
+        limit: f64,
         /// Number of constraint rows of the system.
         n_constraints: usize,
     },

@@ -42,7 +42,7 @@ pub use hht::{
     iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtState, HhtStats, HhtTrajectory,
 };
 pub use linalg::SINGULAR_PIVOT_RELATIVE;
-pub use settings::{HhtCoefficients, HhtSettings, ALPHA_MIN};
+pub use settings::{HhtCoefficients, HhtSettings, ALPHA_MIN, ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS};
 pub use start::{
     consistent_start, ConsistentStart, REDUNDANT_ROW_RELATIVE_SV, START_CONSTRAINT_TOL,
     START_MAX_ITERATIONS,

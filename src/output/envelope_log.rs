@@ -15,6 +15,8 @@ use std::path::Path;
 /// An open envelope log.
 pub struct EnvelopeLog {
     sink: McapSink,
+    /// Output names, in channel order (for messages).
+    names: Vec<String>,
     channels: Vec<EnvelopeChannel>,
     error_channels: Vec<ErrorChannel>,
 }
@@ -32,7 +34,8 @@ fn read_text(path: &Path, what: &str) -> Result<String, Error> {
 }
 
 impl EnvelopeLog {
-    /// Creates the log at `path` (written to `path.tmp` until [`finish`](Self::finish)), with the
+    /// Creates the log at `path` (written to a temporary file beside it until
+    /// [`finish`](Self::finish)), with the
     /// URDF and the sidecar attached, one channel per output and, when `with_errors`, one
     /// error-estimate channel per output.
     pub fn create(
@@ -80,13 +83,15 @@ impl EnvelopeLog {
         }
         Ok(EnvelopeLog {
             sink,
+            names: outputs.iter().map(|o| o.name.clone()).collect(),
             channels,
             error_channels,
         })
     }
 
     /// Writes every output's envelope at time `t` (s); `error` per output when the log has error
-    /// channels.
+    /// channels. A NaN or infinity is refused ([`Error::NonFiniteResult`], naming the output and
+    /// time): the log is then never finished, and its temporary file is removed when dropped.
     pub fn write_time(
         &mut self,
         t: f64,
@@ -95,6 +100,25 @@ impl EnvelopeLog {
         upper: &[f64],
         error: Option<&[f64]>,
     ) -> Result<(), Error> {
+        let series: [(&str, &[f64]); 4] = [
+            ("lower", lower),
+            ("nominal", nominal),
+            ("upper", upper),
+            ("error estimate", error.unwrap_or(&[])),
+        ];
+        for (label, values) in series {
+            if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+                return Err(Error::NonFiniteResult {
+                    what: format!("MCAP '{}'", self.sink.path().display()),
+                    output: format!(
+                        "{} ({label})",
+                        self.names.get(i).map_or("?", String::as_str)
+                    ),
+                    time_s: t,
+                    value: values[i],
+                });
+            }
+        }
         for (i, channel) in self.channels.iter().enumerate() {
             self.sink
                 .write_envelope(*channel, t, lower[i], nominal[i], upper[i])

@@ -1,37 +1,62 @@
 //! Sinks for results: CSV series, the summary JSON of the design contract, MCAP logs for Foxglove and
-//! rerun ([`mcap`]). Every file is written to a
-//! temporary name beside its target and renamed when complete, so a failure never leaves a corrupt
-//! output file.
+//! rerun ([`mcap`]), SVG plots ([`svg`]).
+//!
+//! Every output goes through [`paths`]: checked before any simulation ([`check_outputs`]: never an
+//! input, a directory, a special file or a symlink; never two outputs on one file), written to a
+//! unique temporary file beside its target and renamed when complete, so a failure or an
+//! interruption never leaves a corrupt or half-written output and never touches an input. No
+//! non-finite number is ever written ([`first_non_finite`]).
 
 mod csv;
 mod envelope_log;
 pub mod mcap;
+pub mod paths;
 mod summary;
 pub mod svg;
 
-pub use csv::write_csv;
+pub use csv::{csv_field, write_csv};
 pub use envelope_log::EnvelopeLog;
+pub use paths::{
+    check_outputs, prepare_output_directory, remove_live_temporaries, write_atomically, AtomicFile,
+};
 pub use summary::{EnvelopeSeries, ParameterSummary, Summary};
 
-use crate::Error;
-use std::io::Write;
-use std::path::Path;
+/// The first NaN or infinity of a set of series.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NonFinite<'a> {
+    /// The series' name (an output name, or `NAME.lower` …).
+    pub series: &'a str,
+    /// The record time, s (NaN when the time itself is the bad value's index beyond `times`).
+    pub time_s: f64,
+    /// The value found.
+    pub value: f64,
+}
 
-/// Writes `bytes` to `path` through `path.tmp` and a rename.
-pub fn write_atomically(path: &Path, what: &str, bytes: &[u8]) -> Result<(), Error> {
-    let mut temporary = path.as_os_str().to_owned();
-    temporary.push(".tmp");
-    let temporary = std::path::PathBuf::from(temporary);
-    let fail = |source| Error::Output {
-        what: format!("{what} '{}'", path.display()),
-        source,
-    };
-    let result = std::fs::File::create(&temporary)
-        .and_then(|mut file| file.write_all(bytes).and_then(|_| file.sync_all()))
-        .and_then(|_| std::fs::rename(&temporary, path));
-    if let Err(source) = result {
-        let _ = std::fs::remove_file(&temporary);
-        return Err(fail(source));
+/// The first non-finite value of `columns[i][k]` (series `names[i]` at `times[k]`), scanning time by
+/// time; a non-finite time counts too (reported under the name `t`).
+pub fn first_non_finite<'a>(
+    names: &[&'a str],
+    times: &[f64],
+    columns: &[&[f64]],
+) -> Option<NonFinite<'a>> {
+    if let Some(t) = times.iter().find(|t| !t.is_finite()) {
+        return Some(NonFinite {
+            series: "t",
+            time_s: *t,
+            value: *t,
+        });
     }
-    Ok(())
+    for (k, t) in times.iter().enumerate() {
+        for (name, column) in names.iter().zip(columns) {
+            let value = column.get(k).copied().unwrap_or(f64::NAN);
+            if !value.is_finite() {
+                return Some(NonFinite {
+                    series: name,
+                    time_s: *t,
+                    value,
+                });
+            }
+        }
+    }
+    None
 }

@@ -1,7 +1,8 @@
 //! The summary JSON (design contract): robot, method, parameters, runs, and per output the time
 //! series of lower, upper and nominal bounds with an error estimate.
 
-use super::write_atomically;
+use super::first_non_finite;
+use super::paths::AtomicFile;
 use crate::Error;
 use serde::Serialize;
 use std::path::Path;
@@ -72,12 +73,82 @@ pub struct Summary {
 }
 
 impl Summary {
-    /// Writes the summary as pretty JSON to `path`.
+    /// Writes the summary as pretty JSON to `path`, streaming through a temporary file (see
+    /// [`super::paths`]). JSON has no NaN or infinity (serde would write `null`): a non-finite
+    /// value in any series is refused, naming the output and time, and nothing is written.
     pub fn write(&self, path: &Path) -> Result<(), Error> {
-        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Output {
-            what: format!("summary '{}'", path.display()),
-            source: std::io::Error::other(e),
-        })?;
-        write_atomically(path, "summary", text.as_bytes())
+        for output in &self.outputs {
+            let names: Vec<String> = ["time", "lower", "upper", "nominal", "error_estimate"]
+                .iter()
+                .map(|series| format!("{}.{series}", output.name))
+                .collect();
+            let mut columns: Vec<&[f64]> =
+                vec![&output.time, &output.lower, &output.upper, &output.nominal];
+            if let Some(errors) = &output.error_estimate {
+                columns.push(errors);
+            }
+            let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            if let Some(bad) =
+                first_non_finite(&names[1..columns.len()], &output.time, &columns[1..])
+            {
+                return Err(Error::NonFiniteResult {
+                    what: format!("summary '{}'", path.display()),
+                    output: bad.series.to_string(),
+                    time_s: bad.time_s,
+                    value: bad.value,
+                });
+            }
+        }
+        let mut file = AtomicFile::create(path, "summary")?;
+        serde_json::to_writer_pretty(&mut file, self)
+            .map_err(|e| file.error(std::io::Error::other(e)))?;
+        std::io::Write::write_all(&mut file, b"\n").map_err(|e| file.error(e))?;
+        file.commit()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_non_finite_value_is_refused_not_written_as_null() {
+        let dir = std::env::temp_dir().join(format!("ribbon-summary-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("summary.json");
+        let series = |upper: f64| EnvelopeSeries {
+            name: "frame.tip.x".to_string(),
+            unit: "m".to_string(),
+            time: vec![0.0, 0.25],
+            lower: vec![1.0, 1.0],
+            upper: vec![1.0, upper],
+            nominal: vec![1.0, 1.0],
+            error_estimate: None,
+        };
+        let mut summary = Summary {
+            robot: "r".to_string(),
+            method: "nominal".to_string(),
+            order: None,
+            design: None,
+            bound_kind: "nominal".to_string(),
+            parameters: Vec::new(),
+            samples: 1,
+            excluded_samples: Vec::new(),
+            wall_seconds: 0.0,
+            outputs: vec![series(f64::INFINITY)],
+            stats: serde_json::Value::Null,
+        };
+        let m = summary.write(&path).unwrap_err().to_string();
+        assert!(
+            m.contains("output 'frame.tip.x.upper' is inf at t = 0.25 s"),
+            "{m}"
+        );
+        assert!(!path.exists());
+        summary.outputs = vec![series(2.0)];
+        summary.write(&path).unwrap();
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert_eq!(json["outputs"][0]["upper"][1], serde_json::json!(2.0));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

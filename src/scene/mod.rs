@@ -5,9 +5,14 @@
 //! numbers come from. Only what the scene declares is assembled by [`crate::effects`]. Drives,
 //! loop closures and URDF mimic joints become constraint rows ([`crate::constraints`]).
 
+mod budget;
 mod constraints;
 mod outputs;
 
+pub use budget::{
+    check_step_count, check_threads, format_bytes, MAX_STEPS, MAX_THREADS, MEMORY_BUDGET_BYTES,
+    MIN_STEP_S,
+};
 pub use outputs::{Output, OutputKind};
 // The file format lives in `crate::sidecar`; these re-exports keep `crate::scene::SidecarFile` and
 // friends working for the study commands, benches and examples. `constraints` and `outputs` read
@@ -15,6 +20,7 @@ pub use outputs::{Output, OutputKind};
 use crate::sidecar;
 pub use crate::sidecar::{parse_sidecar, AnalysisSection, JointSelection, SidecarFile};
 
+use crate::integrate::ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS;
 use crate::model::{JointKind, Model};
 use crate::spatial::rotation_from_rpy;
 use crate::text::closest_suggestion;
@@ -71,6 +77,63 @@ pub enum SceneError {
         /// What is wrong and what to do.
         message: String,
     },
+    /// A command-line value (`--step`, `--threads`, …) that does not fit the rules: named by its
+    /// flag, never blamed on the sidecar.
+    #[error("{flag}: {message}")]
+    Flag {
+        /// The flag, e.g. `--step`.
+        flag: String,
+        /// What is wrong and what to do.
+        message: String,
+    },
+}
+
+/// Where a scene value came from, so that a message names the flag or the sidecar key.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Origin {
+    /// A command-line flag (`--duration`).
+    Flag(&'static str),
+    /// A sidecar key (`[scene] duration`), given or left at its default.
+    Key(&'static str),
+}
+
+impl Origin {
+    /// The first of `flag` (if the flag was given), `key` in the sidecar.
+    fn of<T>(flag_value: Option<T>, flag: &'static str, key: &'static str) -> Origin {
+        if flag_value.is_some() {
+            Origin::Flag(flag)
+        } else {
+            Origin::Key(key)
+        }
+    }
+
+    /// The error for a bad value from here; `path` names the sidecar.
+    pub fn error(self, path: &str, message: String) -> SceneError {
+        match self {
+            Origin::Flag(flag) => SceneError::Flag {
+                flag: flag.to_string(),
+                message,
+            },
+            Origin::Key(key) => SceneError::Invalid {
+                path: path.to_string(),
+                key: key.to_string(),
+                message,
+            },
+        }
+    }
+}
+
+/// Where the values that size a run came from (for messages about its size).
+#[derive(Clone, Debug)]
+pub struct SceneOrigins {
+    /// The sidecar's name as messages show it.
+    pub sidecar: String,
+    /// `--duration` or `[scene] duration`.
+    pub duration: Origin,
+    /// `--step` or `[scene] step`.
+    pub step: Origin,
+    /// `--alpha` or `[scene] alpha`.
+    pub alpha: Origin,
 }
 
 /// Effects that are simulated (only these are assembled).
@@ -135,6 +198,9 @@ pub struct Scene {
     pub initial_q: Vec<f64>,
     /// Initial velocities, dim `nv`.
     pub initial_v: Vec<f64>,
+    /// The velocity coordinates the sidecar gave (`initial.v`, `initial.base`), ascending: the
+    /// start projection reports when it changes them ([`crate::simulate::check_start`]).
+    pub initial_v_given: Vec<usize>,
     /// Constraint rows: loops, URDF mimic joints, drives.
     pub constraints: crate::constraints::ConstraintSet,
     /// Recorded outputs, in order.
@@ -143,6 +209,8 @@ pub struct Scene {
     pub rate_hz: f64,
     /// Steps between records.
     pub record_every: usize,
+    /// Where duration, step and α came from (for messages).
+    pub origins: SceneOrigins,
 }
 
 /// The sidecar beside a URDF: `robots/ur5/ur5.urdf` → `robots/ur5/ur5.uncertainty.toml`.
@@ -191,6 +259,12 @@ impl Scene {
             message,
         };
         let s = &file.scene;
+        let origins = SceneOrigins {
+            sidecar: path.to_string(),
+            duration: Origin::of(overrides.duration_s, "--duration", "[scene] duration"),
+            step: Origin::of(overrides.step_s, "--step", "[scene] step"),
+            alpha: Origin::of(overrides.alpha, "--alpha", "[scene] alpha"),
+        };
         let duration_s = overrides
             .duration_s
             .or(s.duration)
@@ -198,28 +272,39 @@ impl Scene {
         let step_s = overrides.step_s.or(s.step).unwrap_or(DEFAULT_STEP_S);
         let alpha = overrides.alpha.or(s.alpha).unwrap_or(DEFAULT_ALPHA);
         if !(duration_s.is_finite() && duration_s > 0.0) {
-            return Err(invalid(
-                "[scene] duration",
-                format!("{duration_s} s must be a finite number > 0"),
-            ));
+            return Err(origins
+                .duration
+                .error(path, format!("{duration_s} s must be a finite number > 0")));
         }
         if !(step_s.is_finite() && step_s > 0.0) {
-            return Err(invalid(
-                "[scene] step",
-                format!("{step_s} s must be a finite number > 0"),
-            ));
+            return Err(origins
+                .step
+                .error(path, format!("{step_s} s must be a finite number > 0")));
         }
         if !(-1.0 / 3.0..=0.0).contains(&alpha) {
-            return Err(invalid(
-                "[scene] alpha",
+            return Err(origins.alpha.error(
+                path,
                 format!("{alpha} is outside the HHT range [-1/3, 0] (default -0.1)"),
             ));
         }
-        let steps = duration_s / step_s;
+        // The step count is checked before it is used as a size: a subnormal step or a huge
+        // duration is refused with the numbers, never run "forever".
+        let steps = check_step_count(duration_s, step_s).map_err(|message| {
+            let origin = match origins.step {
+                Origin::Flag(_) => origins.step,
+                Origin::Key(_) if step_s < MIN_STEP_S => origins.step,
+                Origin::Key(_) => origins.duration,
+            };
+            origin.error(path, message)
+        })?;
         let n_steps = steps.round() as usize;
         if n_steps == 0 || (steps - n_steps as f64).abs() > DIVISIBILITY_TOLERANCE * steps {
-            return Err(invalid(
-                "[scene] duration",
+            let origin = match (origins.duration, origins.step) {
+                (Origin::Key(_), Origin::Flag(_)) => origins.step,
+                _ => origins.duration,
+            };
+            return Err(origin.error(
+                path,
                 format!("{duration_s} s is not a whole number of steps of {step_s} s"),
             ));
         }
@@ -230,10 +315,14 @@ impl Scene {
             || record_every == 0
             || (per_record - record_every as f64).abs() > DIVISIBILITY_TOLERANCE * per_record
         {
+            let step_note = match origins.step {
+                Origin::Flag(flag) => format!(" (the step {step_s} s is from {flag})"),
+                Origin::Key(_) => String::new(),
+            };
             return Err(invalid(
                 "[outputs] rate",
                 format!(
-                    "{rate_hz} Hz must divide 1/step = {} Hz (a whole number of steps between records)",
+                    "{rate_hz} Hz must divide 1/step = {} Hz (a whole number of steps between records){step_note}",
                     1.0 / step_s
                 ),
             ));
@@ -270,11 +359,11 @@ impl Scene {
             }
         }
         let constraints = constraints::resolve(&s.drive, &s.loops, model, path)?;
-        if !constraints.is_empty() && alpha == 0.0 {
-            return Err(invalid(
-                "[scene] alpha",
+        if !constraints.is_empty() && alpha > -ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS {
+            return Err(origins.alpha.error(
+                path,
                 format!(
-                    "alpha = 0 is refused with constraint rows ({} here): accelerations and multipliers do not converge; use alpha < 0, e.g. -0.1",
+                    "alpha = {alpha} is refused with constraint rows ({} here): |alpha| must be at least {ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS} (alpha ≤ -{ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS}) — closer to 0 the start transient of the accelerations and multipliers is barely damped and constraint forces come out wrong by up to 10× (docs/method.md §5); use alpha in [-1/3, -{ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS}], e.g. the default -0.1",
                     constraints.len()
                 ),
             ));
@@ -333,9 +422,11 @@ impl Scene {
             let j = one_dof_joint("[scene] initial.q", name)?;
             initial_q[model.joints[j].q_index] = *value;
         }
+        let mut initial_v_given = Vec::new();
         for (name, value) in &s.initial.v {
             let j = one_dof_joint("[scene] initial.v", name)?;
             initial_v[model.joints[j].v_index] = *value;
+            initial_v_given.push(model.joints[j].v_index);
         }
         if let Some(base) = &s.initial.base {
             let root = model
@@ -364,6 +455,7 @@ impl Scene {
             ]);
             initial_v[vi..vi + 3].copy_from_slice(&base.v);
             initial_v[vi + 3..vi + 6].copy_from_slice(&base.w);
+            initial_v_given.extend(vi..vi + 6);
         }
         if initial_q.iter().chain(&initial_v).any(|x| !x.is_finite()) {
             return Err(invalid(
@@ -383,10 +475,15 @@ impl Scene {
             springs,
             initial_q,
             initial_v,
+            initial_v_given: {
+                initial_v_given.sort_unstable();
+                initial_v_given
+            },
             constraints,
             outputs,
             rate_hz,
             record_every,
+            origins,
         })
     }
 
@@ -481,6 +578,104 @@ mod tests {
         }
         let msg = resolve("[scene]\nstpe = 0.1").unwrap_err().to_string();
         assert!(msg.contains("stpe") && msg.contains("line 2"), "{msg}");
+    }
+
+    #[test]
+    fn flags_are_blamed_not_the_sidecar() {
+        let with = |overrides: SceneOverrides, text: &str| {
+            let file = parse_sidecar(text).unwrap();
+            Scene::resolve(&file, &pendulum(), "s.toml", overrides)
+                .unwrap_err()
+                .to_string()
+        };
+        let step = SceneOverrides {
+            step_s: Some(-1e-3),
+            ..SceneOverrides::default()
+        };
+        assert_eq!(
+            with(step, ""),
+            "--step: -0.001 s must be a finite number > 0"
+        );
+        let duration = SceneOverrides {
+            duration_s: Some(f64::INFINITY),
+            ..SceneOverrides::default()
+        };
+        assert!(with(duration, "").starts_with("--duration: inf s"));
+        let alpha = SceneOverrides {
+            alpha: Some(-0.5),
+            ..SceneOverrides::default()
+        };
+        assert!(with(alpha, "").starts_with("--alpha: -0.5 is outside"));
+        // A sidecar duration that --step does not divide blames the flag.
+        let step = SceneOverrides {
+            step_s: Some(0.3),
+            ..SceneOverrides::default()
+        };
+        let m = with(step, "[scene]\nduration = 1.0");
+        assert!(
+            m.starts_with("--step: 1 s is not a whole number of steps of 0.3 s"),
+            "{m}"
+        );
+        // The sidecar's own values are still blamed on the sidecar.
+        let m = with(SceneOverrides::default(), "[scene]\nstep = -1.0");
+        assert!(m.starts_with("s.toml: [scene] step: -1 s"), "{m}");
+    }
+
+    #[test]
+    fn hopeless_sizes_are_refused_with_the_numbers() {
+        let m = resolve("[scene]\nstep = 5e-324").unwrap_err().to_string();
+        assert!(
+            m.contains("[scene] step") && m.contains("below the smallest step"),
+            "{m}"
+        );
+        let m = resolve("[scene]\nduration = 1e12").unwrap_err().to_string();
+        assert!(
+            m.contains("[scene] duration") && m.contains("1.000e15 steps"),
+            "{m}"
+        );
+        let scene = resolve("[scene]\nduration = 1e5\nstep = 1e-4").unwrap();
+        assert_eq!(scene.record_count(), 10_000_001);
+        let m = scene
+            .check_memory("simulate", 10_000, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            m.contains("10000001 record times") && m.contains("745.1 GiB") && m.contains("4.0 GiB"),
+            "{m}"
+        );
+        assert_eq!(scene.check_memory("simulate", 2, 0).unwrap(), 160_000_016);
+    }
+
+    #[test]
+    fn alpha_near_zero_is_refused_with_constraint_rows() {
+        let drive = "[[scene.drive]]\njoint = \"hinge\"\nprofile = \"constant\"\nvalue = 0.0";
+        for alpha in ["-1e-9", "-0.01", "-0.049"] {
+            let m = resolve(&format!("[scene]\nalpha = {alpha}\n{drive}"))
+                .unwrap_err()
+                .to_string();
+            assert!(m.contains("|alpha| must be at least 0.05"), "{m}");
+        }
+        assert!(resolve(&format!("[scene]\nalpha = -0.05\n{drive}")).is_ok());
+        // Without constraint rows every alpha of the HHT range is accurate.
+        assert!(resolve("[scene]\nalpha = -1e-9").is_ok());
+    }
+
+    #[test]
+    fn an_output_named_twice_is_refused() {
+        let m = resolve("[outputs]\njoints = [\"hinge\", \"hinge\"]")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            m.contains("[outputs] joints") && m.contains("'q.hinge' would be recorded twice"),
+            "{m}"
+        );
+        let m = resolve("[outputs]\nframes = [\"bar\", \"bar\"]")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            m.contains("[outputs] frames") && m.contains("a link listed twice"),
+            "{m}"
+        );
     }
 
     #[test]

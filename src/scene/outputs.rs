@@ -255,5 +255,34 @@ pub fn resolve(
             });
         }
     }
+    refuse_duplicates(&outputs, path)?;
     Ok(outputs)
+}
+
+/// Two outputs with one name would be two CSV columns, summary entries and MCAP topics that no
+/// reader can tell apart: refused, naming the key that repeats it.
+fn refuse_duplicates(outputs: &[Output], path: &str) -> Result<(), SceneError> {
+    let mut seen = std::collections::HashSet::with_capacity(outputs.len());
+    for output in outputs {
+        if !seen.insert(output.name.as_str()) {
+            let (key, what) = match output.parts[0].as_str() {
+                "frame" => ("[outputs] frames", "a link listed twice"),
+                "effort" => ("[[scene.drive]] name", "two drives with one name"),
+                "lambda" => (
+                    "[[scene.loop]] name",
+                    "two loops (or a loop and a mimic joint) with one name",
+                ),
+                _ => ("[outputs] joints", "a joint listed twice"),
+            };
+            return Err(SceneError::Invalid {
+                path: path.to_string(),
+                key: key.to_string(),
+                message: format!(
+                    "output '{}' would be recorded twice ({what}); give each once, with its own name",
+                    output.name
+                ),
+            });
+        }
+    }
+    Ok(())
 }

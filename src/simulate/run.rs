@@ -1,11 +1,13 @@
-//! A nominal run: consistent start, fixed steps, records at the scene's rate.
+//! A nominal run: consistent start, fixed steps, records at the scene's rate; interruptible once
+//! per step.
 
-use super::{Recorder, RobotSystem};
-use crate::constraints::ConstraintSet;
-use crate::integrate::{HhtIntegrator, HhtSettings, HhtStats, IntegrateError, WorstEntry};
+use super::error::FailureContext;
+use super::{Recorder, RobotSystem, SimulationError};
+use crate::integrate::{HhtIntegrator, HhtSettings, HhtStats, IntegrateError};
 use crate::model::Model;
 use crate::scene::{Output, Scene};
-use nalgebra::DVector;
+use nalgebra::{DMatrix, DVector};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Recorded series of one run.
 #[derive(Clone, Debug)]
@@ -20,6 +22,9 @@ pub struct Trajectory {
     pub positions: Vec<Vec<f64>>,
     /// Integrator statistics.
     pub stats: HhtStats,
+    /// Whether the run stopped early (interrupted): the series end at the last record before the
+    /// stop.
+    pub partial: bool,
 }
 
 /// The integrator settings a scene asks for (tolerances at their documented defaults).
@@ -31,73 +36,6 @@ pub fn hht_settings(scene: &Scene) -> HhtSettings {
         ..HhtSettings::default()
     }
 }
-
-/// Why a run failed, with the constraint rows named.
-#[derive(Debug, thiserror::Error)]
-pub enum SimulationError {
-    /// The declared constraints cannot hold: they cannot be closed from the initial state, or some
-    /// rows are redundant. Bad input.
-    #[error("{message}")]
-    Constraints {
-        /// What is wrong, naming the loop, drive or mimic joint.
-        message: String,
-    },
-    /// The integration failed (divergence, NaN, singular matrix), with the row named when one is
-    /// to blame.
-    #[error("simulation failed: {source}{context}")]
-    Integrate {
-        /// The integrator's error (names time and step).
-        source: IntegrateError,
-        /// ", worst row: …" or empty.
-        context: String,
-    },
-}
-
-impl SimulationError {
-    /// Names the rows an integrator error points at. `initial_violation` is `max |Φ(q0)|`: rows
-    /// that become dependent while a far-off loop is being closed mean the loop cannot close (the
-    /// projection stretched the linkage into a singular pose), not that the rows are redundant.
-    pub fn from_integrate(
-        source: IntegrateError,
-        constraints: &ConstraintSet,
-        initial_violation: f64,
-    ) -> SimulationError {
-        match &source {
-            IntegrateError::RedundantConstraints { row, .. } if initial_violation > CLOSED_AT_START => {
-                SimulationError::Constraints {
-                    message: format!(
-                        "the constraints cannot be closed from the initial state: {} is violated by {initial_violation:.3e} at t = 0 and the rows become dependent while closing it (the linkage stretches into a singular pose: the points cannot meet); check the loop's points, link lengths and initial.q ({source})",
-                        constraints.row_name(*row)
-                    ),
-                }
-            }
-            IntegrateError::CannotClose { worst_row, violation, .. } => SimulationError::Constraints {
-                message: format!(
-                    "the constraints cannot be closed from the initial state: {} is still violated by {violation:.3e} after the start projection; check the loop's points and initial.q ({source})",
-                    constraints.row_name(*worst_row)
-                ),
-            },
-            IntegrateError::RedundantConstraints { row, .. } => SimulationError::Constraints {
-                message: format!(
-                    "redundant constraint rows: {} depends on the others; declare loops with the rows they really constrain (a planar pin is 2 rows, not a 3-row ball) ({source})",
-                    constraints.row_name(*row)
-                ),
-            },
-            IntegrateError::NewtonNotConverged { worst: WorstEntry::Constraint { index: row, .. }, .. } => {
-                let context = format!("; worst row: {}", constraints.row_name(*row));
-                SimulationError::Integrate { source, context }
-            }
-            _ => SimulationError::Integrate {
-                source,
-                context: String::new(),
-            },
-        }
-    }
-}
-
-/// Above this `max |Φ(q0)|` (m or rad) the initial state is "not closed": the start projection has
-/// real work to do, and rows that turn dependent during it mean the loop cannot close.
-const CLOSED_AT_START: f64 = 1e-6;
 
 /// `max |Φ(q0)|` of the scene's initial state (0 without rows).
 pub fn initial_violation(system: &mut RobotSystem, scene: &Scene) -> f64 {
@@ -115,28 +53,174 @@ pub fn initial_violation(system: &mut RobotSystem, scene: &Scene) -> f64 {
     phi.amax()
 }
 
-/// Simulates `model` through `scene` from `t = 0` and records every output.
-pub fn simulate(model: Model, scene: &Scene) -> Result<Trajectory, SimulationError> {
-    let mut system = RobotSystem::new(model, scene);
-    let violation = initial_violation(&mut system, scene);
-    simulate_system(system, scene)
-        .map_err(|e| SimulationError::from_integrate(e, &scene.constraints, violation))
-}
+/// A given initial velocity that the start projection changed by more than this (rad/s or m/s,
+/// plus the same fraction of its size) is reported: the projection of an already consistent
+/// velocity changes it only by rounding (~1e-15).
+pub const VELOCITY_PROJECTION_NOTE: f64 = 1e-9;
 
-fn simulate_system(mut system: RobotSystem, scene: &Scene) -> Result<Trajectory, IntegrateError> {
+/// Checks that `model` can start `scene` (the consistent start of docs/method.md §5: position and
+/// velocity projection, initial accelerations and multipliers) and returns warnings about what the
+/// start changed: velocities given in `initial.v` that the constraint rows did not allow, with the
+/// values before and after and, when the given ones can be kept, the velocities of the other
+/// joints that keep them.
+///
+/// Errors: a start that fails (a singular mass matrix, constraints that cannot close, …) is a
+/// [`SimulationError`] naming the joints and the likely cause (exit 2).
+pub fn check_start(model: &Model, scene: &Scene) -> Result<Vec<String>, SimulationError> {
+    let mut system = RobotSystem::new(model.clone(), scene);
+    let violation = initial_violation(&mut system, scene);
     let q0 = DVector::from_column_slice(&scene.initial_q);
     let v0 = DVector::from_column_slice(&scene.initial_v);
-    let mut integrator = HhtIntegrator::new(&mut system, hht_settings(scene), 0.0, &q0, &v0)?;
+    let integrator =
+        HhtIntegrator::new(&mut system, hht_settings(scene), 0.0, &q0, &v0).map_err(|e| {
+            SimulationError::from_failure(
+                e,
+                &FailureContext {
+                    model,
+                    scene,
+                    q: &scene.initial_q,
+                    initial_violation: violation,
+                },
+            )
+        })?;
+    let state = integrator.state();
+    let mut warnings = Vec::new();
+    let changed: Vec<usize> = scene
+        .initial_v_given
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let (before, after) = (scene.initial_v[i], state.v[i]);
+            (after - before).abs() > VELOCITY_PROJECTION_NOTE * (1.0 + before.abs())
+        })
+        .collect();
+    if !changed.is_empty() {
+        let name = |i: usize| crate::dynamics::joint_of_velocity(model, i).to_string();
+        let moved: Vec<String> = (0..model.nv)
+            .filter(|&i| {
+                (state.v[i] - scene.initial_v[i]).abs()
+                    > VELOCITY_PROJECTION_NOTE * (1.0 + scene.initial_v[i].abs())
+            })
+            .map(|i| format!("{} {} → {:.6}", name(i), scene.initial_v[i], state.v[i]))
+            .collect();
+        let mut warning = format!(
+            "{}: [scene] initial.v does not satisfy the constraint rows; the start projection changed it: {}",
+            scene.origins.sidecar,
+            moved.join(", ")
+        );
+        if let Some(kept) = keep_given_velocities(&mut system, scene, state.q.as_slice()) {
+            let suggestion: Vec<String> = kept
+                .iter()
+                .map(|(i, v)| format!("{} = {v:.12}", name(*i)))
+                .collect();
+            warning.push_str(&format!(
+                ". To start with the given velocities, also give {} in initial.v",
+                suggestion.join(", ")
+            ));
+        } else {
+            warning.push_str(
+                ". The given velocities themselves violate the rows: give consistent ones",
+            );
+        }
+        warnings.push(warning);
+    }
+    Ok(warnings)
+}
+
+/// The velocities of the joints not given in `initial.v` that make the given ones consistent with
+/// the rows at the (projected) configuration `q`: `Φ_q[:, free] v_free = −Φ_t − Φ_q[:, given]
+/// v_given`, least-norm; `None` when no such velocities exist (residual above the tolerance).
+fn keep_given_velocities(
+    system: &mut RobotSystem,
+    scene: &Scene,
+    q: &[f64],
+) -> Option<Vec<(usize, f64)>> {
+    /// Residual of the completed velocity constraint accepted as "satisfied", relative to the size
+    /// of its right-hand side (least squares in f64 leaves ~1e-14).
+    const CONSISTENT_RELATIVE: f64 = 1e-9;
+    let (m, nv) = (system.constraints.len(), system.model.nv);
+    let mut jacobian = DMatrix::zeros(m, nv);
+    system
+        .constraints
+        .jacobian(&system.model, &mut system.data, q, &mut jacobian);
+    let mut phi_t = DVector::zeros(m);
+    system.constraints.time_derivative(0.0, &mut phi_t);
+    let given = &scene.initial_v_given;
+    let free: Vec<usize> = (0..nv).filter(|i| !given.contains(i)).collect();
+    if free.is_empty() {
+        return None;
+    }
+    let mut rhs = -phi_t;
+    for &i in given {
+        rhs.axpy(-scene.initial_v[i], &jacobian.column(i), 1.0);
+    }
+    let reduced = DMatrix::from_fn(m, free.len(), |r, c| jacobian[(r, free[c])]);
+    let solution = reduced.clone().svd(true, true).solve(&rhs, 1e-12).ok()?;
+    let residual = (&reduced * &solution - &rhs).amax();
+    if residual > CONSISTENT_RELATIVE * rhs.amax().max(1.0) {
+        return None;
+    }
+    Some(free.into_iter().zip(solution.iter().copied()).collect())
+}
+
+/// Simulates `model` through `scene` from `t = 0` and records every output (never interrupted).
+pub fn simulate(model: Model, scene: &Scene) -> Result<Trajectory, SimulationError> {
+    simulate_interruptible(model, scene, &AtomicBool::new(false))
+}
+
+/// Like [`simulate`], but checks `stop` once per step: when it is set, the run ends after the
+/// current step with the records made so far and `partial = true` (the work between a request and
+/// the stop is at most one HHT step). Errors name the joints and likely causes
+/// ([`SimulationError::from_failure`]).
+pub fn simulate_interruptible(
+    model: Model,
+    scene: &Scene,
+    stop: &AtomicBool,
+) -> Result<Trajectory, SimulationError> {
+    let mut system = RobotSystem::new(model, scene);
+    let violation = initial_violation(&mut system, scene);
+    let mut last_q = scene.initial_q.clone();
+    simulate_system(&mut system, scene, stop, &mut last_q).map_err(|e| {
+        SimulationError::from_failure(
+            e,
+            &FailureContext {
+                model: &system.model,
+                scene,
+                q: &last_q,
+                initial_violation: violation,
+            },
+        )
+    })
+}
+
+fn simulate_system(
+    system: &mut RobotSystem,
+    scene: &Scene,
+    stop: &AtomicBool,
+    last_q: &mut Vec<f64>,
+) -> Result<Trajectory, IntegrateError> {
+    let q0 = DVector::from_column_slice(&scene.initial_q);
+    let v0 = DVector::from_column_slice(&scene.initial_v);
+    let mut integrator = HhtIntegrator::new(system, hht_settings(scene), 0.0, &q0, &v0)?;
     let recorder = Recorder::new(&scene.outputs);
     let initial = Recorder::initial_orientations(&system.model, integrator.state().q.as_slice());
-    let n_records = scene.n_steps / scene.record_every + 2;
+    // The scene's size was checked when it was resolved (at most MAX_STEPS steps), and the
+    // command checked the memory of the records before the run.
+    let n_records = scene.record_count() as usize;
     let mut times = Vec::with_capacity(n_records);
     let mut values: Vec<Vec<f64>> = vec![Vec::with_capacity(n_records); scene.outputs.len()];
     let mut row = vec![0.0; scene.outputs.len()];
     let mut positions = Vec::with_capacity(n_records);
+    let mut partial = false;
     for k in 0..=scene.n_steps {
         if k > 0 {
-            integrator.step(&mut system)?;
+            if stop.load(Ordering::Relaxed) {
+                partial = true;
+                break;
+            }
+            last_q.clear();
+            last_q.extend_from_slice(integrator.state().q.as_slice());
+            integrator.step(system)?;
         }
         if scene.records_step(k) {
             let state = integrator.state();
@@ -154,5 +238,6 @@ fn simulate_system(mut system: RobotSystem, scene: &Scene) -> Result<Trajectory,
         values,
         positions,
         stats: *integrator.stats(),
+        partial,
     })
 }

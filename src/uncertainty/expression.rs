@@ -15,6 +15,11 @@
 //! into a small tree; evaluating it walks the tree and allocates nothing. Out-of-domain operations
 //! follow IEEE (`sqrt(-1)` is NaN, `1/0` is ∞): the caller validates the values it writes.
 //!
+//! Depth is limited ([`Expression::MAX_DEPTH`]): the parser's nesting (parentheses, signs, `sqrt`, exponents)
+//! and the height of the tree (a chain of n binary operators is n deep) are both refused beyond it
+//! with [`ExpressionError::TooDeep`], so that neither parsing, evaluating nor dropping a hostile
+//! expression (100 000 nested parentheses) can overflow the stack.
+//!
 //! Why not a crate: evalexpr divides integers and names the root `math::sqrt`; exmex (0.21) gives
 //! unary minus precedence over `^` (`-2^2 = 4`, so `-l1^2` would silently be `+l1²`), evaluates `^`
 //! left to right (`2^3^2 = 64`), does not read `1e-3` without a custom literal matcher, and accepts
@@ -70,7 +75,21 @@ pub enum ExpressionError {
         /// The name.
         name: String,
     },
+    /// Nested deeper than [`Expression::MAX_DEPTH`] levels.
+    #[error("the expression nests deeper than {limit} levels at column {column} (each parenthesis, sign, sqrt, ^ and each operator of a chain adds one); simplify it or split it with a free symbol")]
+    TooDeep {
+        /// Column of the token where the limit was passed.
+        column: usize,
+        /// The limit, [`Expression::MAX_DEPTH`].
+        limit: usize,
+    },
 }
+
+/// Deepest nesting and tree height an expression may have. Real `[bind]` expressions are a few
+/// levels deep (`l1 * l1 / 12` is 2); 256 leaves room for generated ones while keeping the
+/// recursion of parsing (about five stack frames per level) and evaluation far below the 2 MiB
+/// stack of a test or worker thread.
+pub const MAX_DEPTH: usize = 256;
 
 /// The name of the one function expressions may call; it cannot be a symbol.
 pub const SQRT: &str = "sqrt";
@@ -102,6 +121,10 @@ enum BinaryOp {
 }
 
 impl Expression {
+    /// Deepest nesting and tree height an expression may have (see [`ExpressionError::TooDeep`]):
+    /// 256, which keeps parsing and evaluation far from the end of any thread's stack.
+    pub const MAX_DEPTH: usize = MAX_DEPTH;
+
     /// Parses `text`; a name `symbols[k]` becomes symbol number `k` (names that cannot be
     /// identifiers, such as dotted paths, simply never match).
     pub fn parse(text: &str, symbols: &[&str]) -> Result<Expression, ExpressionError> {
@@ -115,8 +138,9 @@ impl Expression {
             end_column: text.chars().count() + 1,
             symbols,
             used: Vec::new(),
+            nesting: 0,
         };
-        let root = parser.sum()?;
+        let (root, _) = parser.sum()?;
         if let Some(token) = parser.peek() {
             return Err(ExpressionError::Expected {
                 column: token.column,
@@ -280,14 +304,20 @@ fn tokenize(text: &str) -> Result<Vec<Token>, ExpressionError> {
     Ok(tokens)
 }
 
-/// Recursive descent over the tokens, one function per grammar rule.
+/// Recursive descent over the tokens, one function per grammar rule. Each rule returns its node
+/// and the node's height (a leaf is 1), checked against [`MAX_DEPTH`] whenever a node is built.
 struct Parser<'a> {
     tokens: &'a [Token],
     position: usize,
     end_column: usize,
     symbols: &'a [&'a str],
     used: Vec<usize>,
+    /// Current recursion depth of [`Parser::unary`], through which every nesting passes.
+    nesting: usize,
 }
+
+/// A parsed node and its height.
+type Parsed = (Node, usize);
 
 impl Parser<'_> {
     fn peek(&self) -> Option<&Token> {
@@ -323,54 +353,94 @@ impl Parser<'_> {
         }
     }
 
-    fn sum(&mut self) -> Result<Node, ExpressionError> {
-        let mut node = self.product()?;
+    /// The error for passing [`MAX_DEPTH`] at the current token.
+    fn too_deep(&self) -> ExpressionError {
+        ExpressionError::TooDeep {
+            column: self
+                .tokens
+                .get(self.position.saturating_sub(1))
+                .map_or(self.end_column, |t| t.column),
+            limit: MAX_DEPTH,
+        }
+    }
+
+    /// A node over children of heights `heights`, refused when it would pass [`MAX_DEPTH`].
+    fn node(&self, node: Node, heights: &[usize]) -> Result<Parsed, ExpressionError> {
+        let height = 1 + heights.iter().copied().max().unwrap_or(0);
+        if height > MAX_DEPTH {
+            return Err(self.too_deep());
+        }
+        Ok((node, height))
+    }
+
+    fn sum(&mut self) -> Result<Parsed, ExpressionError> {
+        let mut left = self.product()?;
         while let Some(op) = self.next_operator_in(&['+', '-']) {
             let op = if op == '+' {
                 BinaryOp::Add
             } else {
                 BinaryOp::Subtract
             };
-            node = Node::Binary(op, Box::new(node), Box::new(self.product()?));
+            let right = self.product()?;
+            let heights = [left.1, right.1];
+            left = self.node(
+                Node::Binary(op, Box::new(left.0), Box::new(right.0)),
+                &heights,
+            )?;
         }
-        Ok(node)
+        Ok(left)
     }
 
-    fn product(&mut self) -> Result<Node, ExpressionError> {
-        let mut node = self.unary()?;
+    fn product(&mut self) -> Result<Parsed, ExpressionError> {
+        let mut left = self.unary()?;
         while let Some(op) = self.next_operator_in(&['*', '/']) {
             let op = if op == '*' {
                 BinaryOp::Multiply
             } else {
                 BinaryOp::Divide
             };
-            node = Node::Binary(op, Box::new(node), Box::new(self.unary()?));
+            let right = self.unary()?;
+            let heights = [left.1, right.1];
+            left = self.node(
+                Node::Binary(op, Box::new(left.0), Box::new(right.0)),
+                &heights,
+            )?;
         }
-        Ok(node)
+        Ok(left)
     }
 
-    fn unary(&mut self) -> Result<Node, ExpressionError> {
-        match self.next_operator_in(&['-', '+']) {
-            Some('-') => Ok(Node::Negate(Box::new(self.unary()?))),
+    /// Every nesting (parentheses and `sqrt` through `sum`, signs, exponents) passes through here,
+    /// so the recursion depth is counted once, here.
+    fn unary(&mut self) -> Result<Parsed, ExpressionError> {
+        if self.nesting >= MAX_DEPTH {
+            return Err(self.too_deep());
+        }
+        self.nesting += 1;
+        let result = match self.next_operator_in(&['-', '+']) {
+            Some('-') => self
+                .unary()
+                .and_then(|(inner, h)| self.node(Node::Negate(Box::new(inner)), &[h])),
             Some(_) => self.unary(),
             None => self.power(),
-        }
+        };
+        self.nesting -= 1;
+        result
     }
 
-    fn power(&mut self) -> Result<Node, ExpressionError> {
+    fn power(&mut self) -> Result<Parsed, ExpressionError> {
         let base = self.primary()?;
         if self.next_operator_in(&['^']).is_some() {
             let exponent = self.unary()?;
-            return Ok(Node::Binary(
-                BinaryOp::Power,
-                Box::new(base),
-                Box::new(exponent),
-            ));
+            let heights = [base.1, exponent.1];
+            return self.node(
+                Node::Binary(BinaryOp::Power, Box::new(base.0), Box::new(exponent.0)),
+                &heights,
+            );
         }
         Ok(base)
     }
 
-    fn primary(&mut self) -> Result<Node, ExpressionError> {
+    fn primary(&mut self) -> Result<Parsed, ExpressionError> {
         const OPERAND: &str = "a number, a symbol, sqrt(…) or '('";
         let Some(token) = self.peek().cloned() else {
             return Err(self.expected(OPERAND));
@@ -378,7 +448,7 @@ impl Parser<'_> {
         match token.kind {
             TokenKind::Number(value) => {
                 self.position += 1;
-                Ok(Node::Number(value))
+                Ok((Node::Number(value), 1))
             }
             TokenKind::Open => {
                 self.position += 1;
@@ -394,9 +464,9 @@ impl Parser<'_> {
                         return Err(self.expected("'(' after sqrt"));
                     }
                     self.position += 1;
-                    let inner = self.sum()?;
+                    let (inner, height) = self.sum()?;
                     self.close()?;
-                    return Ok(Node::Sqrt(Box::new(inner)));
+                    return self.node(Node::Sqrt(Box::new(inner)), &[height]);
                 }
                 if is_call {
                     return Err(ExpressionError::UnknownFunction {
@@ -407,7 +477,7 @@ impl Parser<'_> {
                 match self.symbols.iter().position(|s| *s == name) {
                     Some(k) => {
                         self.used.push(k);
-                        Ok(Node::Symbol(k))
+                        Ok((Node::Symbol(k), 1))
                     }
                     None => Err(ExpressionError::UnknownSymbol {
                         column: token.column,
@@ -530,5 +600,61 @@ mod tests {
         let msg = err("sqrt 4").to_string();
         assert!(msg.contains("'(' after sqrt"), "{msg}");
         assert!(err("l1)").to_string().contains("found ')'"));
+    }
+
+    /// 100 000 levels of nesting, each way an expression can nest, on a thread with a small stack:
+    /// a clear error at the limit, never a stack overflow.
+    #[test]
+    fn hostile_nesting_is_refused_not_a_stack_overflow() {
+        const HOSTILE: usize = 100_000;
+        /// Far below the 2 MiB of a test thread and the 8 MiB of the main thread.
+        const SMALL_STACK_BYTES: usize = 512 * 1024;
+        let cases: Vec<(&str, String)> = vec![
+            (
+                "parentheses",
+                format!("{}l1{}", "(".repeat(HOSTILE), ")".repeat(HOSTILE)),
+            ),
+            ("unary minus", format!("{}l1", "-".repeat(HOSTILE))),
+            ("unary plus", format!("{}l1", "+".repeat(HOSTILE))),
+            (
+                "sqrt",
+                format!("{}l1{}", "sqrt(".repeat(HOSTILE), ")".repeat(HOSTILE)),
+            ),
+            ("exponents", vec!["l1"; HOSTILE].join("^")),
+            ("a sum chain", vec!["l1"; HOSTILE].join("+")),
+            ("a product chain", vec!["l1"; HOSTILE].join("*")),
+            ("unclosed parentheses", "(".repeat(HOSTILE)),
+        ];
+        let handle = std::thread::Builder::new()
+            .stack_size(SMALL_STACK_BYTES)
+            .spawn(move || {
+                for (what, text) in &cases {
+                    let e = Expression::parse(text, &["l1"]).unwrap_err();
+                    assert!(
+                        matches!(
+                            e,
+                            ExpressionError::TooDeep {
+                                limit: MAX_DEPTH,
+                                ..
+                            }
+                        ),
+                        "{what}: {e}"
+                    );
+                    assert!(
+                        e.to_string().contains("nests deeper than 256 levels"),
+                        "{e}"
+                    );
+                }
+                // Just inside the limit, every shape parses and evaluates.
+                let inside = MAX_DEPTH - 1;
+                let nested = format!("{}l1{}", "(".repeat(inside), ")".repeat(inside));
+                assert_eq!(eval(&nested, &["l1"], &[2.0]), 2.0);
+                let negated = format!("{}l1", "-".repeat(inside));
+                assert_eq!(eval(&negated, &["l1"], &[2.0]), -2.0);
+                let chain = vec!["l1"; MAX_DEPTH].join("+");
+                assert_eq!(eval(&chain, &["l1"], &[1.0]), MAX_DEPTH as f64);
+            })
+            .unwrap();
+        handle.join().unwrap();
     }
 }

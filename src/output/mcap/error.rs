@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 /// Why writing an MCAP file failed. `path` is always the final output path the caller asked for
-/// (the bytes go to `<path>.tmp` until [`McapSink::finish`](super::McapSink::finish) renames it).
+/// (the bytes go to a temporary file beside it until [`McapSink::finish`](super::McapSink::finish) renames it).
 #[derive(Debug, thiserror::Error)]
 pub enum McapError {
     /// A file-system operation failed (creating, syncing, renaming or removing the file).
@@ -11,7 +11,7 @@ pub enum McapError {
     Io {
         /// The output file.
         path: PathBuf,
-        /// What was being done, e.g. "create the temporary file /tmp/a.mcap.tmp".
+        /// What was being done, e.g. "create a temporary file beside /tmp/a.mcap".
         what: String,
         /// The underlying error.
         #[source]

@@ -13,9 +13,10 @@
 //! Every time stamp is simulation time from 0: log time = publish time = `header.stamp`, in
 //! nanoseconds (rounded to the nearest).
 //!
-//! Crash safety: the bytes go to `<path>.tmp`, renamed to `path` by [`McapSink::finish`]; a sink
-//! dropped without `finish` (an error, a panic) removes its temporary file, so `path` never holds a
-//! half-written file. An interrupted study calls `finish(true)`: a complete, valid file of what was
+//! Crash safety: the bytes go to a unique temporary file beside `path`
+//! (`<path>.ribbon-<pid>-<n>.tmp`, see [`crate::output::paths`]), renamed to `path` by
+//! [`McapSink::finish`] (only onto a regular file or nothing); a sink dropped without `finish` (an
+//! error, a panic) removes its temporary file, so `path` never holds a half-written file. An interrupted study calls `finish(true)`: a complete, valid file of what was
 //! computed, marked `partial = "true"`.
 //!
 //! Not done here: choosing what to log (the caller decides the outputs, times and frames), and
@@ -31,6 +32,7 @@ mod ros2;
 pub use error::McapError;
 pub use name::OutputName;
 
+use crate::output::paths::TemporaryFile;
 use ::mcap::records::{MessageHeader, Metadata};
 use ::mcap::{Attachment, Compression, WriteOptions, Writer};
 use std::borrow::Cow;
@@ -141,14 +143,16 @@ struct Channel {
 ///     translation_m: [0.0; 3],
 ///     rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
 /// }])?;
-/// sink.finish(false)?; // renames out.mcap.tmp to out.mcap
+/// sink.finish(false)?; // renames the temporary file to out.mcap
 /// # Ok(()) }
 /// ```
 pub struct McapSink {
     /// The final path.
     path: PathBuf,
-    /// `<path>.tmp`, where the bytes go until `finish`.
-    temporary: PathBuf,
+    /// The temporary file beside `path` where the bytes go until `finish`; `None` once renamed.
+    temporary: Option<TemporaryFile>,
+    /// Its path (kept for messages).
+    temporary_path: PathBuf,
     /// `None` once finished or dropped.
     writer: Option<Writer<BufWriter<File>>>,
     metadata: McapMetadata,
@@ -161,7 +165,7 @@ pub struct McapSink {
 }
 
 impl McapSink {
-    /// Creates `<path>.tmp` beside `path` and writes the header, the schemas, the `/tf` and
+    /// Creates a unique temporary file beside `path` and writes the header, the schemas, the `/tf` and
     /// `/robot_description` channels, the URDF message at t = 0 and the attachments: the URDF
     /// (`urdf_name`, `application/xml`) and the sidecar if any (`(name, text)`,
     /// `application/toml`). `metadata` is written by [`finish`](Self::finish).
@@ -172,15 +176,14 @@ impl McapSink {
         sidecar: Option<(&str, &str)>,
         metadata: McapMetadata,
     ) -> Result<Self, McapError> {
-        let mut temporary = path.as_os_str().to_owned();
-        temporary.push(".tmp");
-        let temporary = PathBuf::from(temporary);
         check_parameters(path, &metadata.parameters_json)?;
-        let file = File::create(&temporary).map_err(|source| McapError::Io {
-            path: path.to_path_buf(),
-            what: format!("create the temporary file {}", temporary.display()),
-            source,
-        })?;
+        let (file, temporary) =
+            TemporaryFile::create_beside(path).map_err(|source| McapError::Io {
+                path: path.to_path_buf(),
+                what: format!("create a temporary file beside {}", path.display()),
+                source,
+            })?;
+        let temporary_path = temporary.path().to_path_buf();
         let options = WriteOptions::new()
             .compression(Some(Compression::Lz4))
             .chunk_size(Some(CHUNK_SIZE_BYTES))
@@ -193,7 +196,8 @@ impl McapSink {
         let writer = Writer::with_options(BufWriter::new(file), options);
         let mut sink = Self {
             path: path.to_path_buf(),
-            temporary,
+            temporary: Some(temporary),
+            temporary_path,
             writer: None,
             metadata,
             joint_state_schema: 0,
@@ -264,7 +268,7 @@ impl McapSink {
 
     /// The temporary path the bytes go to until [`finish`](Self::finish).
     pub fn temporary_path(&self) -> &Path {
-        &self.temporary
+        &self.temporary_path
     }
 
     /// The study description written by [`finish`](Self::finish); change it before then when a
@@ -363,8 +367,9 @@ impl McapSink {
     }
 
     /// Completes the file: the `ribbon` metadata record with `partial` = `"true"` or `"false"`,
-    /// the last chunk, the indexes and the summary; then syncs it and renames `<path>.tmp` to
-    /// `path` (replacing any file there). On error the temporary file is removed.
+    /// the last chunk, the indexes and the summary; then syncs it and renames the temporary file to
+    /// `path` (replacing a regular file there, never a symlink, directory or special file). On
+    /// error the temporary file is removed.
     ///
     /// `partial = true` is for a study stopped early (SIGINT, SIGTERM): the file is complete and
     /// valid, holding the envelopes written so far.
@@ -403,21 +408,23 @@ impl McapSink {
             .into_inner()
             .map_err(|e| McapError::Io {
                 path: self.path.clone(),
-                what: format!("flush {}", self.temporary.display()),
+                what: format!("flush {}", self.temporary_path.display()),
                 source: e.into_error(),
             })?;
         file.sync_all()
             .map_err(|source| self.io_error("sync", source))?;
         drop(file);
-        std::fs::rename(&self.temporary, &self.path).map_err(|source| McapError::Io {
-            path: self.path.clone(),
-            what: format!(
-                "rename {} to {}",
-                self.temporary.display(),
-                self.path.display()
-            ),
-            source,
-        })?;
+        if let Some(temporary) = self.temporary.take() {
+            temporary.commit().map_err(|source| McapError::Io {
+                path: self.path.clone(),
+                what: format!(
+                    "rename {} to {}",
+                    self.temporary_path.display(),
+                    self.path.display()
+                ),
+                source,
+            })?;
+        }
         self.finished = true;
         Ok(())
     }
@@ -441,7 +448,7 @@ impl McapSink {
     fn io_error(&self, verb: &str, source: std::io::Error) -> McapError {
         McapError::Io {
             path: self.path.clone(),
-            what: format!("{verb} {}", self.temporary.display()),
+            what: format!("{verb} {}", self.temporary_path.display()),
             source,
         }
     }
@@ -601,9 +608,8 @@ impl Drop for McapSink {
             // `into_inner` skips the summary that dropping a `Writer` would write.
             drop(writer.into_inner());
         }
-        if !self.finished {
-            let _ = std::fs::remove_file(&self.temporary);
-        }
+        // An unfinished temporary removes itself when dropped (and leaves the registry).
+        drop(self.temporary.take());
     }
 }
 
@@ -611,7 +617,7 @@ impl std::fmt::Debug for McapSink {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("McapSink")
             .field("path", &self.path)
-            .field("temporary", &self.temporary)
+            .field("temporary", &self.temporary_path)
             .field("channels", &self.channels)
             .field("finished", &self.finished)
             .finish_non_exhaustive()
