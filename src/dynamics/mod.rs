@@ -64,8 +64,8 @@ pub fn joint_of_velocity(model: &Model, v_index: usize) -> &str {
 /// Explains a mass matrix whose Cholesky factorisation failed at velocity coordinate
 /// `coordinate`: the null direction of the leading `(coordinate + 1)²` block of `M(q)` (the
 /// eigenvector of its smallest eigenvalue), in terms of joints and links
-/// ([`crate::model::explain_null_motion`]). `q: dim nq`. Overwrites `data.mass_matrix` with `M(q)`;
-/// allocates (an error path only).
+/// ([`crate::model::explain_null_motion`]). `q: dim nq`. Overwrites `data.mass_matrix` with `M(q)`
+/// and the kinematic buffers of [`drift_kinematics`]; allocates (an error path only).
 pub fn singular_mass_cause(model: &Model, data: &mut Data, q: &[f64], coordinate: usize) -> String {
     crba(model, data, q);
     let n = (coordinate + 1).min(model.nv);
@@ -87,7 +87,14 @@ pub fn singular_mass_cause(model: &Model, data: &mut Data, q: &[f64], coordinate
     {
         *d = *x;
     }
-    crate::model::explain_null_motion(model, &direction)
+    // Which bodies that direction moves (body-frame twists, norms).
+    drift_kinematics(model, data, q, &direction);
+    let speeds: Vec<f64> = data
+        .velocity
+        .iter()
+        .map(|m| (m.linear.norm_squared() + m.angular.norm_squared()).sqrt())
+        .collect();
+    crate::model::explain_null_motion(model, &direction, &speeds)
 }
 
 /// Forward dynamics: `data.qdd = M(q)⁻¹ (τ − C(q, v) v − g(q))`.

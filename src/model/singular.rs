@@ -24,10 +24,24 @@ pub fn first_moving_child(model: &Model, b: usize) -> Option<usize> {
     model.joints.iter().position(|j| j.parent == Some(b))
 }
 
-/// Explains a null direction `direction` of `M` (`dim model.nv`, any scale): which joints move
-/// together without moving inertia, which link is massless, and what to do. The words match the
-/// load-time warning of [`Model`] for a massless floating body.
-pub fn explain_null_motion(model: &Model, direction: &[f64]) -> String {
+/// How a moving body lacks inertia, for messages.
+fn lack(model: &Model, b: usize) -> &'static str {
+    let inertia = &model.bodies[b].inertia;
+    if is_massless(model, b) {
+        "has no mass or inertia"
+    } else if inertia.mass == 0.0 {
+        "has no mass"
+    } else {
+        "has no inertia for that motion (a point mass or a slender bar along it)"
+    }
+}
+
+/// Explains a null direction `direction` of `M` (`dim model.nv`, any scale) given the speed
+/// `body_speeds[b]` (`dim model.bodies.len()`, the norm of body `b`'s twist under that direction):
+/// the joints that move together, the links that move without inertia while everything with
+/// inertia stays at rest, and what to do. The words match the load-time warning of [`Model`] for a
+/// floating body without inertia.
+pub fn explain_null_motion(model: &Model, direction: &[f64], body_speeds: &[f64]) -> String {
     let largest = direction.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let involved: Vec<usize> = model
         .joints
@@ -40,50 +54,51 @@ pub fn explain_null_motion(model: &Model, direction: &[f64]) -> String {
         })
         .map(|(i, _)| i)
         .collect();
-    let names = |joints: &[usize]| {
-        joints
+    let fastest = body_speeds.iter().fold(0.0f64, |m, x| m.max(*x));
+    let moving: Vec<usize> = (0..model.bodies.len())
+        .filter(|&b| body_speeds[b] > NULL_DIRECTION_RELATIVE_THRESHOLD * fastest)
+        .collect();
+    let joint_names = format!(
+        "{} {}",
+        if involved.len() == 1 {
+            "joint"
+        } else {
+            "joints"
+        },
+        involved
             .iter()
             .map(|&j| format!("'{}'", model.joints[j].name))
             .collect::<Vec<_>>()
             .join(", ")
-    };
+    );
     let link_of = |b: usize| model.description.links[model.bodies[b].link].name.as_str();
-    // Joints come in depth-first order, so the first massless body moved is the one nearest the
-    // root: the cause, whatever hangs below it.
-    let massless = involved.iter().copied().find(|&b| is_massless(model, b));
-    match (involved.as_slice(), massless) {
-        ([], _) => "no joint moves any inertia (the robot has no mass at all?)".to_string(),
-        ([j], Some(_)) => format!(
-            "joint '{}' moves link '{}', which has no mass or inertia, and nothing below it (a massless leaf); give '{}' an <inertial> or make the joint fixed",
-            model.joints[*j].name,
-            link_of(*j),
-            link_of(*j)
-        ),
-        ([j], None) => format!(
-            "joint '{}' moves link '{}' (and what hangs below it) without inertia along its motion — e.g. a point mass on the axis of a revolute joint; give '{}' a rotational inertia",
-            model.joints[*j].name,
-            link_of(*j),
-            link_of(*j)
-        ),
-        (joints, Some(b)) if model.joints[b].kind == JointKind::Floating => format!(
-            "link '{}' is on the floating joint '{}' but has no mass or inertia, so joints {} can move the rest of the robot while '{}' moves the other way at no cost (a massless floating base); give '{}' an <inertial> (its real mass) or load it with a fixed base",
-            link_of(b),
-            model.joints[b].name,
-            names(joints),
-            link_of(b),
-            link_of(b)
-        ),
-        (joints, Some(b)) => format!(
-            "joints {} together move nothing with inertia: link '{}' (moved by '{}') has no mass or inertia, so the joints below it can turn against it at no cost; give '{}' an <inertial>",
-            names(joints),
-            link_of(b),
-            model.joints[b].name,
-            link_of(b)
-        ),
-        (joints, None) => format!(
-            "joints {} together move nothing with inertia (their links are point masses or slender bars aligned with the motion); give those links rotational inertia",
-            names(joints)
-        ),
+    let link_names = moving
+        .iter()
+        .map(|&b| format!("'{}'", link_of(b)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    // Bodies come in depth-first order: the first moving one is nearest the root, the cause.
+    let Some(&first) = moving.first() else {
+        return format!("{joint_names} move nothing with inertia");
+    };
+    let what = lack(model, first);
+    let link = link_of(first);
+    if model.joints[first].kind == JointKind::Floating {
+        format!(
+            "link '{link}' (on the floating joint '{}') {what}: {joint_names} can move it while every body with inertia stays at rest — a floating base without inertia; give '{link}' an <inertial> (its real mass and inertia) or load it with a fixed base",
+            model.joints[first].name
+        )
+    } else if involved.len() == 1 && moving.len() == 1 {
+        let fix = if model.bodies[first].inertia.mass == 0.0 {
+            "an <inertial> or make the joint fixed"
+        } else {
+            "its rotational inertia"
+        };
+        format!("{joint_names} moves only link '{link}', which {what}; give '{link}' {fix}")
+    } else {
+        format!(
+            "{joint_names} together move only the links {link_names}, and link '{link}' {what}; give it an <inertial>"
+        )
     }
 }
 
@@ -122,10 +137,9 @@ mod tests {
         // The pivot vanishes at the shoulder; the cause is the root.
         assert!(msg.contains("at coordinate 6, joint 'shoulder'"), "{msg}");
         assert!(
-            msg.contains("link 'base' is on the floating joint 'root_joint' but has no mass"),
+            msg.contains("link 'base' (on the floating joint 'root_joint') has no mass or inertia: joints 'root_joint', 'shoulder' can move it"),
             "{msg}"
         );
-        assert!(msg.contains("a massless floating base"), "{msg}");
         assert!(
             warnings.iter().any(|w| w
                 .starts_with("m.urdf:2: link 'base' is on the floating joint 'root_joint'")
@@ -138,7 +152,7 @@ mod tests {
     fn a_massless_leaf_is_blamed_on_its_joint() {
         let (msg, _) = cause(&ARM.replace("HAND", ""), false);
         assert!(
-            msg.contains("joint 'wrist' moves link 'hand', which has no mass or inertia"),
+            msg.contains("joint 'wrist' moves only link 'hand', which has no mass or inertia"),
             "{msg}"
         );
     }
@@ -148,9 +162,7 @@ mod tests {
         let point = r#"<inertial><mass value="0.5"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>"#;
         let (msg, _) = cause(&ARM.replace("HAND", point), false);
         assert!(
-            msg.contains(
-                "joint 'wrist' moves link 'hand' (and what hangs below it) without inertia"
-            ),
+            msg.contains("joint 'wrist' moves only link 'hand', which has no inertia for that motion (a point mass or a slender bar along it); give 'hand' its rotational inertia"),
             "{msg}"
         );
     }

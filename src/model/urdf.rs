@@ -8,7 +8,8 @@
 //! - **Markup that does not affect dynamics loads with a note**, as Pinocchio loads it: visual and
 //!   collision elements urdfdom cannot read (unknown shapes, wrong vector lengths, a `<material>`
 //!   without a name, a second `<material>` in one `<visual>`), a top-level `<material>` without a
-//!   name, whitespace before the `<?xml?>` declaration, bytes that are not UTF-8. `<texture>`,
+//!   name, extra elements in a `<geometry>`, whitespace before the `<?xml?>` declaration, NUL
+//!   bytes after the document, bytes that are not UTF-8. `<texture>`,
 //!   `<calibration>`, `<safety_controller>`, transmissions, Gazebo tags and prefixed elements
 //!   (`<xacro:…>`) are ignored.
 //! - **An element repeated identically** (two equal `<axis>`) loads with a note; **repeated with
@@ -57,6 +58,7 @@ pub fn parse_description(text: &str, path: &str) -> Result<Description, ModelErr
 }
 
 fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description, ModelError> {
+    let text = xml::cut_trailing_nul(text, path, &mut notes);
     let text = xml::blank_late_declaration(text, path, &mut notes);
     let doc = xml::parse(&text, path)?;
     let root = doc.root_element();

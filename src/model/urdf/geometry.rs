@@ -1,7 +1,7 @@
 //! `<visual>`, `<collision>` and `<material>`: they do not affect dynamics, so nothing here is an
-//! error. What urdfdom (Pinocchio's URDF parser) would reject — and then drop the element, loading
-//! the rest — becomes a note naming the line, so that a user who also loads the file elsewhere
-//! knows what to fix.
+//! error. What urdfdom (Pinocchio's URDF parser) would reject — it then drops the element and
+//! loads the rest — or silently skip becomes a note naming the line, so that a user who also loads
+//! the file elsewhere knows what to fix.
 
 use super::xml::{parse_vector3, Reader};
 use roxmltree::Node;
@@ -28,7 +28,7 @@ pub(super) fn check_geometry_elements<'input>(
             for problem in problems {
                 reader.note(
                     line,
-                    format!("{owner} <{kind}>: {problem} (ignored: {kind} markup does not affect dynamics; Pinocchio drops this <{kind}>)"),
+                    format!("{owner} <{kind}>: {problem} (ignored: {kind} markup does not affect dynamics)"),
                 );
             }
         }
@@ -102,6 +102,13 @@ fn shape_problem<'input>(
     };
     let name = shape.tag_name().name();
     let line = reader.line(shape);
+    if let Some(extra) = geometry.children().filter(|n| n.is_element()).nth(1) {
+        return Some(format!(
+            "<geometry> holds more than one element (<{}> at line {}); only the first, <{name}>, is read",
+            extra.tag_name().name(),
+            reader.line(extra)
+        ));
+    }
     let Some((_, required)) = SHAPES.iter().find(|(s, _)| *s == name) else {
         return Some(format!(
             "unknown shape <{name}> (line {line}); URDF shapes are box, cylinder, capsule, sphere and mesh"

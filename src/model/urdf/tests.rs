@@ -345,3 +345,23 @@ fn invalid_utf8_is_read_with_a_note() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn trailing_nul_and_extra_geometry_elements_load_with_notes() {
+    let visual = "<visual><geometry><mesh filename=\"m.obj\"/>\n<material name=\"grey\"/></geometry></visual>";
+    let text = format!("{}\0\0", arm(visual, LIMIT));
+    let found = notes(&text);
+    assert!(
+        found[1].starts_with("t.urdf:4: link 'b' <visual>: <geometry> holds more than one element (<material> at line 5)"),
+        "{found:?}"
+    );
+    assert!(
+        found
+            .iter()
+            .any(|n| n.starts_with("t.urdf:10: NUL bytes after the end of the document")),
+        "{found:?}"
+    );
+    // A NUL inside the document is malformed XML, with its position.
+    let inside = arm("", LIMIT).replace("<joint", "\0<joint");
+    assert!(error(&inside).starts_with("t.urdf:5:1: malformed XML"));
+}

@@ -60,6 +60,26 @@ pub(super) fn blank_late_declaration(text: String, path: &str, notes: &mut Vec<S
     String::from_utf8(bytes).unwrap_or_default()
 }
 
+/// Cuts NUL bytes (and whitespace between them) at the very end of the text, with a note: a C
+/// string terminator saved into the file by some exporters. tinyxml2, and so Pinocchio, stops
+/// reading at the first NUL; a NUL anywhere else is left for the XML parser to report.
+pub(super) fn cut_trailing_nul(mut text: String, path: &str, notes: &mut Vec<String>) -> String {
+    let Some(first) = text.find('\0') else {
+        return text;
+    };
+    if text[first..]
+        .chars()
+        .all(|c| c == '\0' || c.is_ascii_whitespace())
+    {
+        let line = 1 + text[..first].matches('\n').count();
+        notes.push(format!(
+            "{path}:{line}: NUL bytes after the end of the document (ignored, as Pinocchio ignores them)"
+        ));
+        text.truncate(first);
+    }
+    text
+}
+
 /// Parses the text (a DTD is allowed: roxmltree bounds entity expansion) after checking the
 /// nesting depth with [`check_depth`].
 pub(super) fn parse<'input>(text: &'input str, path: &str) -> Result<Document<'input>, ModelError> {
