@@ -27,7 +27,7 @@ pub enum ModelError {
         message: String,
     },
     /// Elements nested deeper than [`MAX_XML_DEPTH`](super::MAX_XML_DEPTH).
-    #[error("{path}:{line}: <{element}> is nested {depth} elements deep; a URDF needs about ten levels and ribbon reads at most {limit} — this file is not a robot description (or is corrupt)")]
+    #[error("{path}:{line}: <{element}> is nested {depth} elements deep{}; a URDF needs about ten levels and ribbon reads at most {limit} — this file is not a robot description (or is corrupt)", if *entities > 0 { format!(" (counting {entities} levels of markup in DOCTYPE entities, which expand in place)") } else { String::new() })]
     TooDeep {
         /// The file.
         path: String,
@@ -39,6 +39,8 @@ pub enum ModelError {
         depth: usize,
         /// The limit.
         limit: usize,
+        /// Levels of markup inside DOCTYPE entity values, counted on top of the document's own.
+        entities: usize,
     },
     /// The root element is not `<robot>`.
     #[error("{path}:{line}: the root element is <{found}>, expected <robot>; is this a URDF file (an SDF or MJCF file is not)?")]

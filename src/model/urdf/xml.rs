@@ -11,7 +11,8 @@ use roxmltree::{Document, Node};
 /// few more. The XML parser (roxmltree) descends recursively, one stack frame per level, so a
 /// hostile file of 100 000 nested elements would overflow the stack: the depth is measured by a
 /// linear scan of the text *before* parsing. 256 leaves ample room for real files
-/// and bounds the parser's stack use to well under the 2 MiB of a test or worker thread.
+/// and keeps the parser's recursion shallow: a file nested to the limit parses on a test thread's
+/// 2 MiB stack (`src/model/urdf/tests.rs`).
 pub const MAX_XML_DEPTH: usize = 256;
 
 /// Reads the file's bytes as text. Bytes that are not UTF-8 (a Latin-1 comment, say) become
@@ -119,9 +120,22 @@ pub(super) fn check_depth(text: &str, path: &str) -> Result<(), ModelError> {
             element: String::from_utf8_lossy(&bytes[(at + 1).min(name_end)..name_end]).into_owned(),
             depth,
             limit: MAX_XML_DEPTH,
+            entities: entity_depth(bytes),
         });
     }
     Ok(())
+}
+
+/// The nesting the DOCTYPE's entity values add (0 without entities with markup), for messages.
+fn entity_depth(bytes: &[u8]) -> usize {
+    let Some(start) = bytes.windows(2).position(|w| w == b"<!") else {
+        return 0;
+    };
+    let (_, values) = declaration_end(bytes, start);
+    values
+        .iter()
+        .map(|&(s, e)| nesting(&bytes[s..e], false).0)
+        .sum()
 }
 
 /// The deepest nesting in `bytes` and the byte offset of the first `<` that reaches
