@@ -29,15 +29,18 @@ use thiserror::Error;
 /// Why a dynamics computation failed.
 #[derive(Debug, Error)]
 pub enum DynamicsError {
-    /// `M(q)` is not positive definite: some coordinate moves nothing with inertia.
-    #[error("the mass matrix is singular at this state: coordinate {coordinate} (joint '{joint}') moves no mass or inertia (pivot {pivot:.3e}); give the links below it an <inertial>")]
+    /// `M(q)` is not positive definite: some joint motion moves nothing with inertia.
+    #[error("the mass matrix is singular at this state (pivot {pivot:.3e} at coordinate {coordinate}, joint '{joint}'): {cause}")]
     SingularMassMatrix {
         /// Index of the velocity coordinate whose pivot vanished.
         coordinate: usize,
-        /// The joint owning that coordinate.
+        /// The joint owning that coordinate (not necessarily the one at fault: see `cause`).
         joint: String,
         /// The pivot found.
         pivot: f64,
+        /// Which joints move together without inertia, which link is massless, what to do
+        /// ([`singular_mass_cause`]).
+        cause: String,
     },
     /// A NaN or infinity appeared in a result.
     #[error("non-finite value in {quantity} at coordinate {coordinate}")]
@@ -56,6 +59,42 @@ pub fn joint_of_velocity(model: &Model, v_index: usize) -> &str {
         .iter()
         .find(|j| (j.v_index..j.v_index + j.nv()).contains(&v_index))
         .map_or("?", |j| j.name.as_str())
+}
+
+/// Explains a mass matrix whose Cholesky factorisation failed at velocity coordinate
+/// `coordinate`: the null direction of the leading `(coordinate + 1)²` block of `M(q)` (the
+/// eigenvector of its smallest eigenvalue), in terms of joints and links
+/// ([`crate::model::explain_null_motion`]). `q: dim nq`. Overwrites `data.mass_matrix` with `M(q)`
+/// and the kinematic buffers of [`drift_kinematics`]; allocates (an error path only).
+pub fn singular_mass_cause(model: &Model, data: &mut Data, q: &[f64], coordinate: usize) -> String {
+    crba(model, data, q);
+    let n = (coordinate + 1).min(model.nv);
+    let eigen = data
+        .mass_matrix
+        .view((0, 0), (n, n))
+        .into_owned()
+        .symmetric_eigen();
+    let smallest = eigen
+        .eigenvalues
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(k, _)| k);
+    let mut direction = vec![0.0; model.nv];
+    for (d, x) in direction
+        .iter_mut()
+        .zip(eigen.eigenvectors.column(smallest).iter())
+    {
+        *d = *x;
+    }
+    // Which bodies that direction moves (body-frame twists, norms).
+    drift_kinematics(model, data, q, &direction);
+    let speeds: Vec<f64> = data
+        .velocity
+        .iter()
+        .map(|m| (m.linear.norm_squared() + m.angular.norm_squared()).sqrt())
+        .collect();
+    crate::model::explain_null_motion(model, &direction, &speeds)
 }
 
 /// Forward dynamics: `data.qdd = M(q)⁻¹ (τ − C(q, v) v − g(q))`.
@@ -79,6 +118,7 @@ pub fn forward_dynamics<'a>(
             coordinate,
             joint: joint_of_velocity(model, coordinate).to_string(),
             pivot,
+            cause: singular_mass_cause(model, data, q, coordinate),
         });
     }
     cholesky_solve_in_place(&data.mass_matrix, &mut data.qdd);

@@ -130,6 +130,10 @@ pub struct Description {
     pub links: Vec<LinkSpec>,
     /// Joints in file order.
     pub joints: Vec<JointSpec>,
+    /// Non-fatal findings of reading the file, each naming file, line and element (markup that
+    /// does not affect dynamics and was ignored, repeated elements, unusual limits). A model built
+    /// from this description starts its [`warnings`](super::Model::warnings) with them.
+    pub notes: Vec<String>,
 }
 
 impl Description {

@@ -21,12 +21,14 @@
 mod consistency;
 mod description;
 mod error;
+mod singular;
 mod urdf;
 
 pub use consistency::{check_inertia, InertiaViolation, INERTIA_RELATIVE_TOLERANCE};
 pub use description::{Description, InertialSpec, JointSpec, LinkSpec, MimicSpec, UrdfJointType};
 pub use error::ModelError;
-pub use urdf::{parse_description, read_description};
+pub use singular::{explain_null_motion, NULL_DIRECTION_RELATIVE_THRESHOLD};
+pub use urdf::{parse_description, read_description, MAX_XML_DEPTH};
 
 use crate::spatial::{
     rotation_about_axis, rotation_from_rpy, Force, Inertia, Mat3, Motion, Transform, Vec3,
@@ -233,6 +235,27 @@ pub fn link_inertia(inertial: &InertialSpec) -> Inertia {
     Inertia::from_com(inertial.mass, com, about_com)
 }
 
+/// A joint on the cycle above `start` (a link that is on or below a cycle of parent joints): walks
+/// up through parent joints until a link repeats. Iterative, at most one step per link.
+fn joint_on_cycle(
+    parent_joint: &[Option<usize>],
+    description: &Description,
+    start: usize,
+) -> usize {
+    let mut seen = vec![false; parent_joint.len()];
+    let mut link = start;
+    let mut last_joint = 0;
+    while let Some(joint) = parent_joint[link] {
+        if seen[link] {
+            return joint;
+        }
+        seen[link] = true;
+        last_joint = joint;
+        link = description.joints[joint].parent;
+    }
+    last_joint
+}
+
 /// The `<origin>` of a URDF joint as a transform.
 pub fn joint_origin(spec: &JointSpec) -> Transform {
     let o = spec.origin;
@@ -244,6 +267,15 @@ impl Model {
     pub fn from_urdf_file(path: &Path, options: LoadOptions) -> Result<Model, ModelError> {
         let description = read_description(path)?;
         Model::from_description(description, options, &path.display().to_string())
+    }
+
+    /// Loads URDF text; `path` is only used in messages.
+    pub fn from_urdf_str(
+        text: &str,
+        path: &str,
+        options: LoadOptions,
+    ) -> Result<Model, ModelError> {
+        Model::from_description(parse_description(text, path)?, options, path)
     }
 
     /// Builds the tree from a description; `path` is only used in messages.
@@ -291,8 +323,11 @@ impl Model {
         let root_link = match roots.as_slice() {
             [] => {
                 let all: Vec<usize> = (0..n_links).collect();
+                let joint = joint_on_cycle(&parent_joint, &description, 0);
                 return Err(ModelError::Cycle {
                     path: path.to_string(),
+                    line: description.joints[joint].line,
+                    joint: description.joints[joint].name.clone(),
                     links: name_list(&all),
                 });
             }
@@ -300,6 +335,7 @@ impl Model {
             several => {
                 return Err(ModelError::SeveralRoots {
                     path: path.to_string(),
+                    line: description.links[several[1]].line,
                     count: several.len(),
                     links: name_list(several),
                 })
@@ -331,6 +367,7 @@ impl Model {
             floating_base: options.floating_base,
             warnings: Vec::new(),
         };
+        model.warnings = model.description.notes.clone();
         let root_body = if options.floating_base {
             model.push_joint(
                 ROOT_JOINT_NAME.to_string(),
@@ -384,8 +421,11 @@ impl Model {
             let unreached: Vec<usize> = (0..n_links)
                 .filter(|l| !model.link_order.contains(l))
                 .collect();
+            let joint = joint_on_cycle(&parent_joint, &model.description, unreached[0]);
             return Err(ModelError::Cycle {
                 path: path.to_string(),
+                line: model.description.joints[joint].line,
+                joint: model.description.joints[joint].name.clone(),
                 links: name_list(&unreached),
             });
         }
@@ -550,7 +590,17 @@ impl Model {
                 .map(|(l, _)| self.description.links[l].name.as_str())
                 .collect();
             let link = &self.description.links[body.link];
-            if body.inertia.mass == 0.0 && body.inertia.rotational.abs().max() == 0.0 {
+            let floating = self.joints[b].kind == JointKind::Floating;
+            if floating && singular::is_massless(self, b) {
+                let below = singular::first_moving_child(self, b).map_or(
+                    String::new(),
+                    |c| format!(", and joint '{}' can move the rest of the robot while '{}' moves the other way at no cost", self.joints[c].name, link.name),
+                );
+                self.warnings.push(format!(
+                    "{path}:{}: link '{}' is on the floating joint '{}' but has no mass or inertia{below}: the mass matrix is singular (a massless floating base); give '{}' an <inertial> (its real mass) or load it with a fixed base",
+                    link.line, link.name, self.joints[b].name, link.name
+                ));
+            } else if singular::is_massless(self, b) {
                 self.warnings.push(format!(
                     "{path}:{}: link '{}' moves (joint '{}') but has no mass and no inertia; the mass matrix is singular unless bodies below it carry inertia",
                     link.line, link.name, self.joints[b].name
