@@ -405,3 +405,31 @@ fn drive_errors_name_the_joint() {
         ],
     );
 }
+
+/// Before: a 100 000-deep `[bind]` chain overflowed the stack (exit 134); then it was refused but
+/// the message quoted the whole 200 kB expression. Now: exit 2, the depth named, the expression
+/// quoted by its ends.
+#[test]
+fn a_hostile_expression_is_refused_with_a_short_message() {
+    let chain = format!("l1{}", "^1".repeat(100_000));
+    let sidecar = temp_file(
+        "hostile_chain.toml",
+        &format!("[parameters]\nl1 = [0.99, 1.01]\n[bind]\n\"joint.j2.origin.x\" = \"{chain}\"\n"),
+    );
+    let out = ribbon(&[
+        "analyze",
+        DOUBLE_PENDULUM,
+        "--uncertainty",
+        sidecar.to_str().unwrap(),
+    ]);
+    assert_exit(
+        &out,
+        2,
+        &["nests deeper than 256 levels", "(200002 characters)"],
+    );
+    assert!(
+        out.stderr.len() < 2000,
+        "{} bytes of stderr",
+        out.stderr.len()
+    );
+}

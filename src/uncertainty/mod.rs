@@ -51,6 +51,7 @@ pub use expression::{Expression, ExpressionError, SQRT};
 pub use space::{
     Binding, BoxCheckSummary, Dimension, DimensionKind, Group, GroupMember, GroupMode,
     ParameterSpace, BIND_DERIVATIVE_STEP, BIND_NOMINAL_RELATIVE_TOLERANCE,
+    QUOTED_EXPRESSION_MAX_CHARS,
 };
 
 #[cfg(test)]

@@ -313,7 +313,7 @@ impl ParameterSpace {
         };
         // Paths and pattern keys never parse as identifiers, so only symbols can match.
         let names: Vec<&str> = self.dimensions.iter().map(|d| d.name.as_str()).collect();
-        let key_and_text = format!("{label} = \"{text}\"");
+        let key_and_text = format!("{label} = {}", quoted_excerpt(text));
         let expression = Expression::parse(text, &names).map_err(|source| match source {
             ExpressionError::UnknownSymbol { name, .. } => {
                 let symbols: Vec<&str> = self
@@ -693,4 +693,21 @@ fn check_unique(
         }),
         None => Ok(()),
     }
+}
+
+/// Longest expression quoted whole in a message, characters; longer ones are quoted by their start
+/// and end (a hostile 100 000-character expression must not become a 200 kB error message).
+pub const QUOTED_EXPRESSION_MAX_CHARS: usize = 120;
+
+/// `"text"`, or for a long one its first and last [`QUOTED_EXPRESSION_MAX_CHARS`]/2 characters
+/// around "…", with the total length.
+fn quoted_excerpt(text: &str) -> String {
+    let n = text.chars().count();
+    if n <= QUOTED_EXPRESSION_MAX_CHARS {
+        return format!("\"{text}\"");
+    }
+    let half = QUOTED_EXPRESSION_MAX_CHARS / 2;
+    let head: String = text.chars().take(half).collect();
+    let tail: String = text.chars().skip(n - half).collect();
+    format!("\"{head} … {tail}\" ({n} characters)")
 }
