@@ -25,12 +25,14 @@
 
 pub mod basis;
 pub mod bounds;
+pub mod box_optimize;
 pub(crate) mod contract;
 pub mod design;
 pub mod error;
 pub mod error_measure;
 pub(crate) mod householder;
 pub mod interval_map;
+pub mod legendre_range;
 pub mod leja;
 pub mod linear_fit;
 pub mod multi_index;
@@ -41,6 +43,7 @@ pub mod regression;
 pub mod scan;
 pub mod sobol;
 pub mod sparse_grid;
+pub mod sparse_surrogate;
 pub mod surrogate;
 pub mod taylor;
 
@@ -49,6 +52,7 @@ mod test_support;
 
 pub use basis::{legendre_min, Family, MAX_ORDER};
 pub use bounds::{chebyshev_inclusion, interval_bound, Bound, BoundKind, ErrorEstimate, RangeMode};
+pub use box_optimize::{BoxBounds, BoxOptimizer};
 pub use design::{Design, Truncation};
 pub use error::UqError;
 pub use error_measure::{envelope_error, EnvelopeError};
@@ -62,5 +66,6 @@ pub use regression::{LooError, Regression, MIN_GOOD_OVERSAMPLING};
 pub use scan::{ScanOptions, ScanOutcome, Scanner};
 pub use sobol::{sobol_design, SOBOL_MAX_DIM, SOBOL_MAX_POINTS};
 pub use sparse_grid::SparseGrid;
+pub use sparse_surrogate::{SobolIndices, SparseSurrogate, SurrogateWorkspace};
 pub use surrogate::Surrogate;
 pub use taylor::{taylor_first_order, TaylorStencil};

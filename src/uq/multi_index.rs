@@ -68,6 +68,38 @@ pub struct MultiIndexSet {
     /// First term of each total degree: terms of degree n are `degree_starts[n]..degree_starts[n+1]`.
     degree_starts: Vec<usize>,
     lookup: HashMap<Box<[Factor]>, usize>,
+    /// Per factor, `dim · (max_degree() + 1) + degree`: its entry in a `d × (k+1)` table of basis
+    /// values (what evaluation reads).
+    table_index: Vec<u32>,
+    /// The terms grouped by support size, with their table indices and dimensions at hand.
+    plan: EvalPlan,
+}
+
+/// A term with one factor: `P_degree(ξ_dim)`, table entry `index`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Single {
+    pub(crate) term: u32,
+    pub(crate) index: u32,
+    pub(crate) dim: u32,
+}
+
+/// A term with two factors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Pair {
+    pub(crate) term: u32,
+    pub(crate) index_a: u32,
+    pub(crate) dim_a: u32,
+    pub(crate) index_b: u32,
+    pub(crate) dim_b: u32,
+}
+
+/// Evaluation order of a set's non-constant terms: single-factor and two-factor terms in flat
+/// lists (no per-term slice lookups), the rest by term index.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub(crate) struct EvalPlan {
+    pub(crate) singles: Vec<Single>,
+    pub(crate) pairs: Vec<Pair>,
+    pub(crate) general: Vec<u32>,
 }
 
 impl MultiIndexSet {
@@ -323,6 +355,17 @@ impl MultiIndexSet {
     pub fn n_factors(&self) -> usize {
         self.factors.len()
     }
+
+    /// Term t's factors as indices into a row-major `d × (max_degree() + 1)` table of per-dimension
+    /// basis values (`dim · (k+1) + degree`).
+    pub(crate) fn table_indices(&self, t: usize) -> &[u32] {
+        &self.table_index[self.offsets[t]..self.offsets[t + 1]]
+    }
+
+    /// The terms grouped by support size (constant excluded).
+    pub(crate) fn plan(&self) -> &EvalPlan {
+        &self.plan
+    }
 }
 
 /// Builds a set term by term in canonical order.
@@ -377,6 +420,32 @@ impl Builder {
             self.degree_starts.pop();
         }
         self.degree_starts.push(n);
+        let stride = self.max_degree.iter().copied().max().unwrap_or(0) + 1;
+        let table_index = self
+            .factors
+            .iter()
+            .map(|f| (f.dim as usize * stride + f.degree as usize) as u32)
+            .collect::<Vec<u32>>();
+        let mut plan = EvalPlan::default();
+        for t in 1..n {
+            let range = self.offsets[t]..self.offsets[t + 1];
+            let (f, idx) = (&self.factors[range.clone()], &table_index[range]);
+            match f.len() {
+                1 => plan.singles.push(Single {
+                    term: t as u32,
+                    index: idx[0],
+                    dim: f[0].dim,
+                }),
+                2 => plan.pairs.push(Pair {
+                    term: t as u32,
+                    index_a: idx[0],
+                    dim_a: f[0].dim,
+                    index_b: idx[1],
+                    dim_b: f[1].dim,
+                }),
+                _ => plan.general.push(t as u32),
+            }
+        }
         MultiIndexSet {
             dim: self.dim,
             offsets: self.offsets,
@@ -384,6 +453,8 @@ impl Builder {
             max_degree: self.max_degree,
             degree_starts: self.degree_starts,
             lookup: self.lookup,
+            table_index,
+            plan,
         }
     }
 }
