@@ -1,5 +1,6 @@
 //! Uncertainty quantification, pure mathematics (no robots): quadrature, polynomial bases, tensor
-//! designs, surrogate fitting, bounds of a surrogate's range and error measures (docs/method.md §2–4).
+//! and sparse designs, surrogate fitting, bounds of a surrogate's range and error measures
+//! (docs/method.md §2–4, docs/high-dimension.md).
 //!
 //! Data flow for one study:
 //! ```text
@@ -14,14 +15,26 @@
 //! envelope_error(lower, upper, lower_ref, upper_ref)   max / mean relative error over time
 //! ```
 //!
+//! High dimension (docs/high-dimension.md), cost polynomial in d:
+//! ```text
+//! MultiIndexSet::total_degree / anisotropic      downward-closed Λ, sparse terms, canonical order
+//!   ├─ SparseGrid::new(Λ)                        |Λ| Leja points (point 0 = centre) + LinearFit
+//!   └─ Regression::new(Λ, sobol_design(…))       n ≥ |Λ| points, QR least squares + LinearFit,
+//!                                                condition number, leverages, leave-one-out
+//! model runs (caller)                            values: n_points × n_outputs, run-major
+//!   └─ LinearFit::fit_into                       coefficients: n_terms × n_outputs, term-major
+//!        └─ SparseSurrogate::set_from_fit        one output; Sobol' indices, top order
+//!             └─ BoxOptimizer::bound_into        inner (attained, with argmin/argmax) + outer
+//! ```
+//!
 //! Conventions stated once: standard coordinates ξ ∈ [-1, 1]; "order" k = highest degree per
 //! dimension (tensor) or in total (total-degree); Gauss rules with m = k + 1 nodes, ascending;
 //! design points and dense terms numbered row-major with ξ_1 slowest ([`design`]); Chebyshev
 //! coefficients carry ½ per zero index so that every surrogate is `Σ c_i Π_r φ_{i_r}(ξ_r)`.
 //!
-//! Limitations: tensor grids only (no sparse grids or regression yet), so d ≲ 6 in practice; no
-//! bound here is a rigorous enclosure of the true model (truncation and aliasing are estimated, not
-//! bounded); interval arithmetic uses round-to-nearest.
+//! Limitations: the tensor path (`Design`, `Projector`, `Surrogate`, `Scanner`) is for d ≲ 6; the
+//! sparse path is Legendre only; no bound here is a rigorous enclosure of the true model
+//! (truncation and aliasing are estimated, not bounded); interval arithmetic uses round-to-nearest.
 
 pub mod basis;
 pub mod bounds;

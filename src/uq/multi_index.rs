@@ -53,8 +53,10 @@ impl Factor {
 /// // Total degree 2 in d = 60: C(62, 2) = 1891 terms.
 /// let set = MultiIndexSet::total_degree(60, 2)?;
 /// assert_eq!(set.len(), 1891);
-/// assert_eq!(set.to_dense(61), vec![1, 1].into_iter().chain([0; 58]).collect::<Vec<_>>());
-/// assert_eq!(set.index_of_dense(&set.to_dense(61)), Some(61));
+/// // Terms 1..=60 are ξ1..ξ60, term 61 is P_2(ξ1), term 62 is P_1(ξ1) P_1(ξ2).
+/// assert_eq!(set.to_dense(61)[..2], [2, 0]);
+/// assert_eq!(set.to_dense(62), [1, 1].into_iter().chain([0; 58]).collect::<Vec<_>>());
+/// assert_eq!(set.index_of_dense(&set.to_dense(62)), Some(62));
 /// # Ok::<(), ribbon::uq::UqError>(())
 /// ```
 #[derive(Debug, Clone, PartialEq)]

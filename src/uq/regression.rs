@@ -78,8 +78,8 @@ impl Regression {
     /// Builds the fitting map of `set` on `points` (`n × d` row-major, in [−1, 1]^d).
     ///
     /// Cost (measured on this machine, one core): |Λ| = 1891 terms on n = 3800 points takes
-    /// ~5 s (QR, thin Q, pseudo-inverse: ~60 GFlop in matrix products); |Λ| = 496 on 1000
-    /// points ~0.1 s. Memory: three n × |Λ| matrices at the peak (~170 MB for the large case).
+    /// 4.4–6.5 s (QR, thin Q, pseudo-inverse: ~60 GFlop in matrix products); |Λ| = 496 on 1000
+    /// points 0.18 s. Memory: three n × |Λ| matrices at the peak (~170 MB for the large case).
     ///
     /// Errors: points not a multiple of d, a non-finite or out-of-box coordinate, fewer points
     /// than terms ([`UqError::TooFewPoints`]), a rank-deficient matrix ([`UqError::RankDeficient`]).
