@@ -158,8 +158,9 @@ impl BoxOptimizer {
         Ok(out)
     }
 
-    /// As [`BoxOptimizer::bound`], overwriting `out` (no allocation once the buffers have the
-    /// surrogate's size, except at saddle points; module doc).
+    /// As [`BoxOptimizer::bound`], overwriting `out`. No allocation once the buffers have the
+    /// surrogate's size, except at saddle points (an eigen-decomposition, module doc) and for
+    /// univariate parts of degree ≥ 3 in the outer bound (their root isolation).
     pub fn bound_into(
         &mut self,
         s: &SparseSurrogate,
