@@ -739,6 +739,69 @@ mod tests {
         }
     }
 
+    /// End to end: a separable non-polynomial model `Σ_r cos(a_r ξ_r + b_r)` at d = 24, fitted on
+    /// the sparse grid of degree 6 per dimension without interactions (145 runs), bounded; the
+    /// exact range is the sum of the 1-D ranges. Truncation error of degree 6 for a_r ≤ 1.2 is
+    /// ≲ 1.2⁷/7! ≈ 7e-4 per dimension (a crude bound: the Legendre coefficients decay faster; the
+    /// measured error is 5e-7 of the width). The issue asks for 1 %; this test asks for 1e-4.
+    #[test]
+    fn planted_separable_model_at_d24() {
+        use crate::uq::sparse_grid::SparseGrid;
+        let d = 24;
+        let mut rng = SplitMix64::new(24);
+        let ab: Vec<(f64, f64)> = (0..d)
+            .map(|_| (rng.uniform(0.3, 1.2), rng.uniform(-1.5, 1.5)))
+            .collect();
+        let model = |x: &[f64]| -> f64 {
+            x.iter()
+                .zip(&ab)
+                .map(|(&xi, &(a, b))| (a * xi + b).cos())
+                .sum()
+        };
+        let (mut lo, mut hi) = (0.0, 0.0);
+        for &(a, b) in &ab {
+            let (mut l, mut h) = (f64::INFINITY, f64::NEG_INFINITY);
+            for i in 0..=100_000 {
+                let v = (a * (-1.0 + 2.0 * i as f64 / 100_000.0) + b).cos();
+                l = l.min(v);
+                h = h.max(v);
+            }
+            lo += l;
+            hi += h;
+        }
+        let set = Arc::new(MultiIndexSet::anisotropic(&vec![6; d], 6, 1).unwrap());
+        let grid = SparseGrid::new(set.clone()).unwrap();
+        assert_eq!(grid.n_points(), 1 + 6 * d);
+        let values: Vec<f64> = grid.points().chunks_exact(d).map(model).collect();
+        let coef = grid.fit().fit(&values, 1).unwrap();
+        let s = SparseSurrogate::new(set, coef).unwrap();
+        let b = BoxOptimizer::new()
+            .bound(&s, &grid.points()[..3 * d])
+            .unwrap();
+        let width = hi - lo;
+        eprintln!(
+            "planted d = 24: relative errors lower {:.1e} upper {:.1e} (width {width:.3})",
+            (b.lower - lo).abs() / width,
+            (b.upper - hi).abs() / width
+        );
+        for (got, want) in [
+            (b.lower, lo),
+            (b.upper, hi),
+            (b.outer_lower, lo),
+            (b.outer_upper, hi),
+        ] {
+            assert!(
+                (got - want).abs() < 1e-4 * width,
+                "{got} vs {want} (width {width})"
+            );
+        }
+        // Separable surrogate: outer = inner.
+        assert!(b.gap() < 1e-9 * width, "gap {}", b.gap());
+        // The model at the predicted extremisers is close to the exact extremes.
+        assert!((model(&b.argmin) - lo).abs() < 1e-4 * width);
+        assert!((model(&b.argmax) - hi).abs() < 1e-4 * width);
+    }
+
     #[test]
     fn refuses_bad_starts() {
         let set = Arc::new(MultiIndexSet::total_degree(2, 1).unwrap());
