@@ -160,4 +160,64 @@ pub enum UqError {
         /// Which argument.
         what: &'static str,
     },
+
+    /// A multi-index set larger than the supported maximum.
+    #[error("the multi-index set would have {terms} terms; at most {max} are supported (lower the order, the interactions or the dimensions given high degree)")]
+    TooManyTerms {
+        /// Terms the set would have (or reached when the build stopped).
+        terms: usize,
+        /// [`crate::uq::multi_index::MAX_TERMS`].
+        max: usize,
+    },
+
+    /// A term given to [`crate::uq::MultiIndexSet::from_terms`] that is not a valid multi-index.
+    #[error("multi-index set term {term}: {reason}")]
+    InvalidMultiIndex {
+        /// Position of the term (in the given list, or in canonical order for a repeated term).
+        term: usize,
+        /// What is wrong with it.
+        reason: String,
+    },
+
+    /// A set of multi-indices that is not downward closed: a term is there without one of its
+    /// predecessors.
+    #[error("the multi-index set is not downward closed: it has {term} but not {missing}; add the missing term (every term needs all terms below it)")]
+    NotDownwardClosed {
+        /// The term whose predecessor is missing (1-based dimensions: `ξ1^2·ξ4`).
+        term: String,
+        /// The missing predecessor.
+        missing: String,
+    },
+
+    /// A least-squares fit with fewer points than terms.
+    #[error("least squares needs at least as many points as terms: {points} points for {terms} terms (use at least {terms}, better twice as many)")]
+    TooFewPoints {
+        /// Points given.
+        points: usize,
+        /// Terms of the set.
+        terms: usize,
+    },
+
+    /// A least-squares matrix that is numerically rank deficient: the points do not determine
+    /// every coefficient.
+    #[error("the regression matrix is numerically rank deficient (column {column}: |R_jj| = {pivot:e} relative to the largest {largest:e}); use more or better-spread points, or fewer terms")]
+    RankDeficient {
+        /// Column (term) where the triangular factor lost rank.
+        column: usize,
+        /// Its diagonal entry.
+        pivot: f64,
+        /// Largest diagonal entry.
+        largest: f64,
+    },
+
+    /// A low-discrepancy design with more dimensions or points than its generator supports.
+    #[error("{what}: {got} requested, at most {max} supported")]
+    DesignTooLarge {
+        /// What is too large ("Sobol' dimensions", "Sobol' points").
+        what: &'static str,
+        /// Requested.
+        got: usize,
+        /// Largest supported.
+        max: usize,
+    },
 }

@@ -1,0 +1,816 @@
+//! Bounds of a sparse surrogate over the box [−1, 1]^d whose cost grows polynomially in d
+//! (docs/high-dimension.md §7):
+//!
+//! - **inner**: the smallest and largest surrogate values found by projected Newton with an active
+//!   set, from several starts — the centre, the sign vertex of the linear part and its negative,
+//!   and caller-given points (the best design points). Every reported value is attained at the
+//!   reported point, so `[lower, upper]` lies inside the surrogate's range;
+//! - **outer**: interval arithmetic with exact ranges — each dimension's univariate part
+//!   `Σ_n c_{n e_r} P_n(ξ_r)` by its exact range ([`legendre_series_range`]), every interaction
+//!   term by the product of the exact ranges of its `P_n` factors ([`Family::exact_range`]) — so
+//!   `[outer_lower, outer_upper]` contains the surrogate's range (exact for separable surrogates);
+//! - the **gap** between them.
+//!
+//! Newton iteration for `φ = σ·y` (σ = +1 for the minimum, −1 for the maximum):
+//! 1. active set: coordinates on a face whose gradient points out of the box stay fixed;
+//! 2. on the free ones solve `(H_ff + μI) Δ = −g_f` with μ = 0 if `H_ff` is positive definite, else
+//!    the Gershgorin shift that makes it so (one factorisation, no trial loop);
+//! 3. projected backtracking (Armijo) along `clamp(x + tΔ)`; if it fails, the same along `−g_f`;
+//!    after a shifted or gradient step, t is then doubled while φ keeps dropping (the shift makes
+//!    such steps short, and their extrema lie on faces that the projection reaches);
+//! 4. when no descent step remains and `H_ff` is indefinite (a saddle, e.g. ξ1·ξ2 at the centre,
+//!    where the gradient vanishes), step along the eigenvector of its most negative eigenvalue to
+//!    the box boundary (the only place this allocates).
+//!
+//! Neither bound encloses the true model: the surrogate's own error is not in them
+//! (docs/high-dimension.md §8, the engine's a-posteriori check).
+
+use nalgebra::DMatrix;
+
+use crate::uq::basis::{Family, MAX_ORDER};
+use crate::uq::error::UqError;
+use crate::uq::legendre_range::legendre_series_range;
+use crate::uq::sparse_surrogate::{SparseSurrogate, SurrogateWorkspace};
+
+/// Newton stops once every coordinate of the accepted step is this small: the extremiser is then
+/// located to ~1e-12 and its value (stationary there) to rounding.
+pub const STEP_TOL: f64 = 1e-12;
+
+/// Default iteration cap per start. Newton converges in a few steps near an extremum; the cap
+/// only limits pathological cases.
+pub const DEFAULT_MAX_ITERATIONS: usize = 50;
+
+/// Armijo sufficient-decrease constant (standard choice).
+const ARMIJO: f64 = 1e-4;
+
+/// Backtracking halvings before giving up on a direction (t ≥ 2⁻³⁰ ≈ 1e-9).
+const MAX_HALVINGS: usize = 30;
+
+/// Relative size (to the Hessian's scale) of the extra shift beyond Gershgorin's, and the
+/// eigenvalue below which curvature counts as negative.
+const CURVATURE_TOL: f64 = 1e-10;
+
+/// The inner and outer bounds of one surrogate, with the points where the inner ones are attained.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BoxBounds {
+    /// Smallest surrogate value found (attained at `argmin`).
+    pub lower: f64,
+    /// Largest surrogate value found (attained at `argmax`).
+    pub upper: f64,
+    /// Where `lower` is attained, in ξ (length d).
+    pub argmin: Vec<f64>,
+    /// Where `upper` is attained, in ξ (length d).
+    pub argmax: Vec<f64>,
+    /// Lower end of the interval enclosure of the surrogate's range (≤ `lower`).
+    pub outer_lower: f64,
+    /// Upper end of the interval enclosure of the surrogate's range (≥ `upper`).
+    pub outer_upper: f64,
+    /// Newton iterations spent over all starts (both directions).
+    pub iterations: usize,
+}
+
+impl BoxBounds {
+    /// `lower − outer_lower` (≥ 0): how far the true minimum of the surrogate may lie below the
+    /// one found.
+    pub fn lower_gap(&self) -> f64 {
+        self.lower - self.outer_lower
+    }
+
+    /// `outer_upper − upper` (≥ 0).
+    pub fn upper_gap(&self) -> f64 {
+        self.outer_upper - self.upper
+    }
+
+    /// Outer width minus inner width (≥ 0): 0 means the surrogate's range is known exactly.
+    pub fn gap(&self) -> f64 {
+        self.lower_gap() + self.upper_gap()
+    }
+}
+
+/// Work buffers and settings of the box optimiser; reuse one per thread.
+#[derive(Debug, Clone)]
+pub struct BoxOptimizer {
+    /// Iteration cap per start (default [`DEFAULT_MAX_ITERATIONS`]).
+    pub max_iterations: usize,
+    ws: SurrogateWorkspace,
+    grad: Vec<f64>,
+    hess: Vec<f64>,
+    free: Vec<usize>,
+    reduced: Vec<f64>,
+    step: Vec<f64>,
+    trial: Vec<f64>,
+    spare: Vec<f64>,
+    x: Vec<f64>,
+    starts: Vec<f64>,
+    linear: Vec<f64>,
+    univariate: Vec<f64>,
+    ranges: Vec<(f64, f64)>,
+}
+
+impl Default for BoxOptimizer {
+    fn default() -> Self {
+        BoxOptimizer::new()
+    }
+}
+
+impl BoxOptimizer {
+    /// An optimiser with empty buffers (sized on first use).
+    pub fn new() -> BoxOptimizer {
+        BoxOptimizer {
+            max_iterations: DEFAULT_MAX_ITERATIONS,
+            ws: SurrogateWorkspace::new(),
+            grad: Vec::new(),
+            hess: Vec::new(),
+            free: Vec::new(),
+            reduced: Vec::new(),
+            step: Vec::new(),
+            trial: Vec::new(),
+            spare: Vec::new(),
+            x: Vec::new(),
+            starts: Vec::new(),
+            linear: Vec::new(),
+            univariate: Vec::new(),
+            ranges: Vec::new(),
+        }
+    }
+
+    /// Inner and outer bounds of `s` (module doc). `starts` are extra start points, `k × d`
+    /// row-major in [−1, 1]^d (may be empty).
+    ///
+    /// ```
+    /// use std::sync::Arc;
+    /// use ribbon::uq::{BoxOptimizer, MultiIndexSet, SparseSurrogate};
+    /// // ξ1 ξ2 = P_1(ξ1) P_1(ξ2): zero slope at the centre, range [−1, 1].
+    /// let set = Arc::new(MultiIndexSet::total_degree(2, 2)?);
+    /// let mut c = vec![0.0; set.len()];
+    /// c[set.index_of_dense(&[1, 1]).unwrap()] = 1.0;
+    /// let b = BoxOptimizer::new().bound(&SparseSurrogate::new(set, c)?, &[])?;
+    /// assert_eq!((b.lower, b.upper), (-1.0, 1.0));
+    /// assert_eq!(b.argmin[0] * b.argmin[1], -1.0);
+    /// assert_eq!((b.outer_lower, b.outer_upper), (-1.0, 1.0));
+    /// # Ok::<(), ribbon::uq::UqError>(())
+    /// ```
+    ///
+    /// Errors: `starts` not a multiple of d, a start coordinate non-finite or outside [−1, 1].
+    pub fn bound(&mut self, s: &SparseSurrogate, starts: &[f64]) -> Result<BoxBounds, UqError> {
+        let mut out = BoxBounds::default();
+        self.bound_into(s, starts, &mut out)?;
+        Ok(out)
+    }
+
+    /// As [`BoxOptimizer::bound`], overwriting `out`. No allocation once the buffers have the
+    /// surrogate's size, except at saddle points (an eigen-decomposition, module doc) and for
+    /// univariate parts of degree ≥ 3 in the outer bound (their root isolation).
+    pub fn bound_into(
+        &mut self,
+        s: &SparseSurrogate,
+        starts: &[f64],
+        out: &mut BoxBounds,
+    ) -> Result<(), UqError> {
+        let d = s.dim();
+        if !starts.len().is_multiple_of(d) {
+            return Err(UqError::WrongLength {
+                what: "box bound: start points (k × d)",
+                expected: (starts.len() / d + 1) * d,
+                got: starts.len(),
+            });
+        }
+        if let Some(index) = starts.iter().position(|v| !v.is_finite()) {
+            return Err(UqError::NonFinite {
+                what: "box bound: start points",
+                index,
+                value: starts[index],
+            });
+        }
+        if let Some(index) = starts.iter().position(|v| v.abs() > 1.0) {
+            return Err(UqError::InvalidInterval {
+                index,
+                lo: starts[index],
+                hi: starts[index],
+            });
+        }
+        self.resize(d);
+        // Built-in starts: centre, sign vertex of the linear part, its negative.
+        s.linear_part(&mut self.linear)?;
+        self.starts.clear();
+        self.starts.resize(d, 0.0);
+        let has_slope = self.linear.iter().any(|&c| c != 0.0);
+        if has_slope {
+            for sign in [1.0, -1.0] {
+                for &c in &self.linear {
+                    self.starts
+                        .push(if c == 0.0 { 0.0 } else { sign * c.signum() });
+                }
+            }
+        }
+        self.starts.extend_from_slice(starts);
+
+        out.argmin.resize(d, 0.0);
+        out.argmax.resize(d, 0.0);
+        out.iterations = 0;
+        for (sign, best, arg) in [
+            (1.0, &mut out.lower, &mut out.argmin),
+            (-1.0, &mut out.upper, &mut out.argmax),
+        ] {
+            let mut best_phi = f64::INFINITY;
+            let n_starts = self.starts.len() / d;
+            for i in 0..n_starts {
+                self.x.copy_from_slice(&self.starts[i * d..(i + 1) * d]);
+                let (phi, iterations) = self.descend(s, sign);
+                out.iterations += iterations;
+                if phi < best_phi {
+                    best_phi = phi;
+                    arg.copy_from_slice(&self.x);
+                }
+            }
+            *best = sign * best_phi;
+        }
+        let (lo, hi) = self.outer(s);
+        // Rounding must never put the enclosure inside an attained value.
+        out.outer_lower = lo.min(out.lower);
+        out.outer_upper = hi.max(out.upper);
+        Ok(())
+    }
+
+    /// The outer bound alone (module doc): `(lower, upper)` containing the surrogate's range.
+    pub fn outer_bound(&mut self, s: &SparseSurrogate) -> (f64, f64) {
+        self.outer(s)
+    }
+
+    fn resize(&mut self, d: usize) {
+        self.grad.resize(d, 0.0);
+        self.hess.resize(d * d, 0.0);
+        self.reduced.resize(d * d, 0.0);
+        self.step.resize(d, 0.0);
+        self.trial.resize(d, 0.0);
+        self.spare.resize(d, 0.0);
+        self.x.resize(d, 0.0);
+        self.linear.resize(d, 0.0);
+    }
+
+    fn outer(&mut self, s: &SparseSurrogate) -> (f64, f64) {
+        let set = s.set();
+        let (d, k) = (set.dim(), set.max_degree());
+        let stride = k + 1;
+        self.univariate.clear();
+        self.univariate.resize(d * stride, 0.0);
+        self.ranges.clear();
+        self.ranges.extend((0..=k).map(|n| {
+            if n <= MAX_ORDER {
+                Family::Legendre.exact_range(n).unwrap_or((-1.0, 1.0))
+            } else {
+                // |P_n| ≤ 1 on [−1, 1]: a valid (if crude) enclosure beyond the table.
+                (-1.0, 1.0)
+            }
+        }));
+        let c = s.coefficients();
+        let (mut lower, mut upper) = (c[0], c[0]);
+        for (t, &ct) in c.iter().enumerate().skip(1) {
+            if ct == 0.0 {
+                continue;
+            }
+            let term = set.term(t);
+            if term.len() == 1 {
+                self.univariate[term[0].dim as usize * stride + term[0].degree as usize] = ct;
+                continue;
+            }
+            let (mut lo, mut hi) = (1.0, 1.0);
+            for f in term {
+                let r = self.ranges[f.degree as usize];
+                let p = [lo * r.0, lo * r.1, hi * r.0, hi * r.1];
+                lo = p.iter().copied().fold(f64::INFINITY, f64::min);
+                hi = p.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            }
+            let (a, b) = (ct * lo, ct * hi);
+            lower += a.min(b);
+            upper += a.max(b);
+        }
+        for row in self.univariate.chunks_exact(stride) {
+            if row.iter().any(|&v| v != 0.0) {
+                let (lo, hi) = legendre_series_range(row);
+                lower += lo;
+                upper += hi;
+            }
+        }
+        (lower, upper)
+    }
+
+    /// φ = sign·y and its derivatives at `self.x` into grad/hess (sign applied).
+    fn evaluate(&mut self, s: &SparseSurrogate, sign: f64) -> f64 {
+        let y =
+            s.derivatives_unchecked(&self.x, &mut self.grad, Some(&mut self.hess), &mut self.ws);
+        if sign < 0.0 {
+            self.grad.iter_mut().for_each(|g| *g = -*g);
+            self.hess.iter_mut().for_each(|h| *h = -*h);
+        }
+        sign * y
+    }
+
+    fn phi_at_trial(&mut self, s: &SparseSurrogate, sign: f64) -> f64 {
+        sign * s.value_unchecked(&self.trial, &mut self.ws)
+    }
+
+    /// Projected Newton from `self.x` (overwritten with the best point); returns (φ, iterations).
+    fn descend(&mut self, s: &SparseSurrogate, sign: f64) -> (f64, usize) {
+        let d = self.x.len();
+        let mut f = self.evaluate(s, sign);
+        let mut iterations = 0;
+        while iterations < self.max_iterations {
+            iterations += 1;
+            self.free.clear();
+            for r in 0..d {
+                let (x, g) = (self.x[r], self.grad[r]);
+                if !((x <= -1.0 && g > 0.0) || (x >= 1.0 && g < 0.0)) {
+                    self.free.push(r);
+                }
+            }
+            let nf = self.free.len();
+            if nf == 0 {
+                break;
+            }
+            let definite = self.newton_direction();
+            let mut moved = false;
+            if let Some(t) = self.line_search(s, sign, f, false, !definite) {
+                moved = true;
+                f = t;
+            } else {
+                // Steepest descent on the free coordinates.
+                for (a, &r) in self.free.iter().enumerate() {
+                    self.step[a] = -self.grad[r];
+                }
+                if self.free.iter().any(|&r| self.grad[r] != 0.0) {
+                    if let Some(t) = self.line_search(s, sign, f, true, true) {
+                        moved = true;
+                        f = t;
+                    }
+                }
+            }
+            if !moved {
+                if definite {
+                    break;
+                }
+                match self.negative_curvature_step(s, sign, f) {
+                    Some(t) => f = t,
+                    None => break,
+                }
+            }
+            let before = self.trial_distance();
+            self.x.copy_from_slice(&self.trial);
+            let check = self.evaluate(s, sign);
+            debug_assert!((check - f).abs() <= 1e-9 * (1.0 + f.abs()));
+            f = check;
+            if before <= STEP_TOL {
+                break;
+            }
+        }
+        (f, iterations)
+    }
+
+    fn trial_distance(&self) -> f64 {
+        self.x
+            .iter()
+            .zip(&self.trial)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    }
+
+    /// Newton direction on the free coordinates into `step[..nf]`; true if `H_ff` was positive
+    /// definite without a shift.
+    fn newton_direction(&mut self) -> bool {
+        let d = self.x.len();
+        let nf = self.free.len();
+        let scale = self
+            .free
+            .iter()
+            .map(|&r| self.hess[r * d + r].abs())
+            .fold(0.0, f64::max)
+            .max(f64::MIN_POSITIVE);
+        let mut definite = true;
+        let mut shift = 0.0;
+        loop {
+            for (a, &r) in self.free.iter().enumerate() {
+                for (b, &q) in self.free.iter().enumerate() {
+                    self.reduced[a * nf + b] =
+                        self.hess[r * d + q] + if a == b { shift } else { 0.0 };
+                }
+            }
+            if cholesky(&mut self.reduced[..nf * nf], nf) {
+                break;
+            }
+            if !definite {
+                // The Gershgorin shift guarantees definiteness; failing again means NaN entries.
+                for a in 0..nf {
+                    self.step[a] = -self.grad[self.free[a]];
+                }
+                return false;
+            }
+            definite = false;
+            // λ_min ≥ min_a (H_aa − Σ_{b≠a} |H_ab|): shift past it.
+            let mut lowest = f64::INFINITY;
+            for &r in &self.free {
+                let off: f64 = self
+                    .free
+                    .iter()
+                    .filter(|&&q| q != r)
+                    .map(|&q| self.hess[r * d + q].abs())
+                    .sum();
+                lowest = lowest.min(self.hess[r * d + r] - off);
+            }
+            shift = (-lowest).max(0.0) + CURVATURE_TOL * scale + f64::MIN_POSITIVE;
+        }
+        for (a, &r) in self.free.iter().enumerate() {
+            self.step[a] = -self.grad[r];
+        }
+        cholesky_solve(&self.reduced[..nf * nf], nf, &mut self.step[..nf]);
+        definite
+    }
+
+    /// Projected backtracking along `step` (on the free coordinates) from `self.x`; on success
+    /// `trial` holds the new point and the new φ is returned. With `expand`, an accepted first
+    /// trial is followed by doubled steps while φ keeps dropping: a shifted (indefinite) or
+    /// gradient direction has no natural length, and the projection turns long steps into moves
+    /// onto the faces where such extrema lie.
+    fn line_search(
+        &mut self,
+        s: &SparseSurrogate,
+        sign: f64,
+        f: f64,
+        gradient: bool,
+        expand: bool,
+    ) -> Option<f64> {
+        // A gradient step starts at the length that reaches the box's size.
+        let mut t = if gradient {
+            let norm = self
+                .free
+                .iter()
+                .map(|&r| self.grad[r].abs())
+                .fold(0.0, f64::max);
+            if norm > 0.0 {
+                2.0 / norm
+            } else {
+                return None;
+            }
+        } else {
+            1.0
+        };
+        for _ in 0..=MAX_HALVINGS {
+            self.trial.copy_from_slice(&self.x);
+            let mut predicted = 0.0;
+            let mut moved = 0.0_f64;
+            for (a, &r) in self.free.iter().enumerate() {
+                let new = (self.x[r] + t * self.step[a]).clamp(-1.0, 1.0);
+                predicted += self.grad[r] * (new - self.x[r]);
+                moved = moved.max((new - self.x[r]).abs());
+                self.trial[r] = new;
+            }
+            if moved <= STEP_TOL || predicted >= 0.0 || -predicted <= f64::EPSILON * f.abs() {
+                // No move, not a descent direction after projection, or a promised decrease below
+                // the rounding of φ: nothing to gain here.
+                return None;
+            }
+            let f_trial = self.phi_at_trial(s, sign);
+            if f_trial < f && f_trial <= f + ARMIJO * predicted {
+                return Some(if expand {
+                    self.expand(s, sign, t, f_trial)
+                } else {
+                    f_trial
+                });
+            }
+            t *= 0.5;
+        }
+        None
+    }
+
+    /// From an accepted step length `t` (point in `trial`, value `f_accepted`), doubles t while φ
+    /// drops and the projected point still moves; leaves the best point in `trial`.
+    fn expand(&mut self, s: &SparseSurrogate, sign: f64, mut t: f64, f_accepted: f64) -> f64 {
+        let mut best = f_accepted;
+        // `step` is only read here; the candidate goes to `x_candidate` via swapping buffers.
+        for _ in 0..MAX_HALVINGS {
+            t *= 2.0;
+            std::mem::swap(&mut self.trial, &mut self.spare);
+            self.trial.copy_from_slice(&self.x);
+            let mut changed = false;
+            for (a, &r) in self.free.iter().enumerate() {
+                let new = (self.x[r] + t * self.step[a]).clamp(-1.0, 1.0);
+                changed |= new != self.spare[r];
+                self.trial[r] = new;
+            }
+            if !changed {
+                std::mem::swap(&mut self.trial, &mut self.spare);
+                break;
+            }
+            let f_trial = self.phi_at_trial(s, sign);
+            if f_trial < best {
+                best = f_trial;
+            } else {
+                std::mem::swap(&mut self.trial, &mut self.spare);
+                break;
+            }
+        }
+        best
+    }
+
+    /// At a point with no descent direction from first-order information and an indefinite
+    /// `H_ff`: move along the eigenvector of the most negative eigenvalue, as far as the box allows,
+    /// backtracking until φ drops.
+    fn negative_curvature_step(&mut self, s: &SparseSurrogate, sign: f64, f: f64) -> Option<f64> {
+        let d = self.x.len();
+        let nf = self.free.len();
+        let h = DMatrix::from_fn(nf, nf, |a, b| self.hess[self.free[a] * d + self.free[b]]);
+        let scale = h.amax().max(f64::MIN_POSITIVE);
+        let eigen = h.symmetric_eigen();
+        let (i, &lambda) = eigen
+            .eigenvalues
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))?;
+        if lambda >= -CURVATURE_TOL * scale {
+            return None;
+        }
+        let u = eigen.eigenvectors.column(i);
+        // Descent along the sign with gᵀu ≤ 0 (both signs when the gradient is orthogonal).
+        let slope: f64 = self
+            .free
+            .iter()
+            .enumerate()
+            .map(|(a, &r)| self.grad[r] * u[a])
+            .sum();
+        let signs: &[f64] = if slope < 0.0 {
+            &[1.0]
+        } else if slope > 0.0 {
+            &[-1.0]
+        } else {
+            &[1.0, -1.0]
+        };
+        let mut best: Option<(f64, f64)> = None;
+        for &dir in signs {
+            let mut t = 2.0;
+            for _ in 0..=MAX_HALVINGS {
+                self.trial.copy_from_slice(&self.x);
+                for (a, &r) in self.free.iter().enumerate() {
+                    self.trial[r] = (self.x[r] + t * dir * u[a]).clamp(-1.0, 1.0);
+                }
+                let f_trial = self.phi_at_trial(s, sign);
+                if f_trial < f && f - f_trial > f64::EPSILON * f.abs() {
+                    if best.is_none_or(|(bf, _)| f_trial < bf) {
+                        best = Some((f_trial, dir * t));
+                    }
+                    break;
+                }
+                t *= 0.5;
+            }
+        }
+        let (f_best, step) = best?;
+        self.trial.copy_from_slice(&self.x);
+        for (a, &r) in self.free.iter().enumerate() {
+            self.trial[r] = (self.x[r] + step * u[a]).clamp(-1.0, 1.0);
+        }
+        Some(f_best)
+    }
+}
+
+/// In-place Cholesky of the n × n row-major `a` (lower triangle); false if not positive definite.
+fn cholesky(a: &mut [f64], n: usize) -> bool {
+    for j in 0..n {
+        let mut diag = a[j * n + j];
+        for k in 0..j {
+            diag -= a[j * n + k] * a[j * n + k];
+        }
+        if diag.is_nan() || diag <= 0.0 {
+            return false;
+        }
+        let diag = diag.sqrt();
+        a[j * n + j] = diag;
+        for i in j + 1..n {
+            let mut s = a[i * n + j];
+            for k in 0..j {
+                s -= a[i * n + k] * a[j * n + k];
+            }
+            a[i * n + j] = s / diag;
+        }
+    }
+    true
+}
+
+/// Solves `L Lᵀ x = b` in place with the factor from [`cholesky`].
+fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= l[i * n + k] * b[k];
+        }
+        b[i] = s / l[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= l[k * n + i] * b[k];
+        }
+        b[i] = s / l[i * n + i];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::uq::multi_index::MultiIndexSet;
+    use crate::uq::test_support::SplitMix64;
+
+    /// Newton converges quadratically; values at stationary points are exact to rounding of sums
+    /// of d terms.
+    const VALUE_TOL: f64 = 1e-12;
+
+    fn set_coef(set: &MultiIndexSet, c: &mut [f64], alpha: &[(usize, usize)], value: f64) {
+        let mut dense = vec![0; set.dim()];
+        for &(r, a) in alpha {
+            dense[r] = a;
+        }
+        c[set.index_of_dense(&dense).unwrap()] += value;
+    }
+
+    /// Σ_r (ξ_r² − ξ_r/2) = Σ_r (1/3 − P_1/2 + 2/3 P_2): minimum −d/16 at ξ_r = 1/4, maximum
+    /// 3d/2 at ξ_r = −1.
+    #[test]
+    fn separable_interior_minimum_in_24_and_60_dimensions() {
+        for d in [24, 60] {
+            let set = Arc::new(MultiIndexSet::total_degree(d, 2).unwrap());
+            let mut c = vec![0.0; set.len()];
+            for r in 0..d {
+                c[0] += 1.0 / 3.0;
+                set_coef(&set, &mut c, &[(r, 1)], -0.5);
+                set_coef(&set, &mut c, &[(r, 2)], 2.0 / 3.0);
+            }
+            let s = SparseSurrogate::new(set, c).unwrap();
+            let b = BoxOptimizer::new().bound(&s, &[]).unwrap();
+            let (want_lo, want_hi) = (-(d as f64) / 16.0, 1.5 * d as f64);
+            assert!((b.lower - want_lo).abs() < VALUE_TOL, "d={d}: {}", b.lower);
+            assert!((b.upper - want_hi).abs() < VALUE_TOL, "d={d}: {}", b.upper);
+            assert!(b.argmin.iter().all(|&x| (x - 0.25).abs() < 1e-9));
+            assert!(b.argmax.iter().all(|&x| x == -1.0));
+            // Separable: the outer bound is exact too.
+            assert!((b.outer_lower - want_lo).abs() < VALUE_TOL);
+            assert!((b.outer_upper - want_hi).abs() < VALUE_TOL);
+            assert!(b.gap() < 1e-10);
+        }
+    }
+
+    #[test]
+    fn bilinear_saddle_at_the_centre() {
+        // ξ1 ξ2 + 0 ξ3 in d = 3 with a pure quadratic making the centre a saddle of the whole.
+        let set = Arc::new(MultiIndexSet::total_degree(3, 2).unwrap());
+        let mut c = vec![0.0; set.len()];
+        set_coef(&set, &mut c, &[(0, 1), (1, 1)], 1.0);
+        let s = SparseSurrogate::new(set, c).unwrap();
+        let b = BoxOptimizer::new().bound(&s, &[]).unwrap();
+        assert_eq!((b.lower, b.upper), (-1.0, 1.0));
+        assert_eq!(b.argmin[0] * b.argmin[1], -1.0);
+        assert_eq!(b.argmax[0] * b.argmax[1], 1.0);
+        assert_eq!((b.outer_lower, b.outer_upper), (-1.0, 1.0));
+    }
+
+    #[test]
+    fn vertex_extremum() {
+        // 2ξ1 − 3ξ2 + 0.1 ξ1 ξ2 + 0.2 P_2(ξ3): extremes at vertices in ξ1, ξ2; P_2 max at ±1, min 0.
+        let set = Arc::new(MultiIndexSet::total_degree(3, 2).unwrap());
+        let mut c = vec![0.0; set.len()];
+        set_coef(&set, &mut c, &[(0, 1)], 2.0);
+        set_coef(&set, &mut c, &[(1, 1)], -3.0);
+        set_coef(&set, &mut c, &[(0, 1), (1, 1)], 0.1);
+        set_coef(&set, &mut c, &[(2, 2)], 0.2);
+        let s = SparseSurrogate::new(set, c).unwrap();
+        let b = BoxOptimizer::new().bound(&s, &[]).unwrap();
+        // min: ξ1 = −1, ξ2 = 1: −2 − 3 − 0.1 − 0.1 (P_2(0) = −½) = −5.2; max: 2 + 3 − 0.1 + 0.2 = 5.1.
+        assert!((b.lower + 5.2).abs() < VALUE_TOL, "{}", b.lower);
+        assert!((b.upper - 5.1).abs() < VALUE_TOL, "{}", b.upper);
+        assert_eq!(&b.argmin[..2], &[-1.0, 1.0]);
+        assert!(b.argmin[2].abs() < 1e-9);
+        assert!(b.outer_lower <= b.lower && b.outer_upper >= b.upper);
+    }
+
+    #[test]
+    fn random_polynomials_against_a_dense_scan() {
+        let mut rng = SplitMix64::new(77);
+        let mut opt = BoxOptimizer::new();
+        let mut ws = SurrogateWorkspace::new();
+        for (d, k, grid) in [(2, 4, 401usize), (2, 3, 401), (3, 3, 81), (3, 2, 81)] {
+            for trial in 0..20 {
+                let set = Arc::new(MultiIndexSet::total_degree(d, k).unwrap());
+                let c: Vec<f64> = (0..set.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
+                let s = SparseSurrogate::new(set, c).unwrap();
+                // Caller starts: a coarse 3^d grid, as the engine would pass its best design points.
+                let coarse: Vec<f64> = (0..3usize.pow(d as u32))
+                    .flat_map(|i| {
+                        (0..d).map(move |r| ((i / 3usize.pow(r as u32)) % 3) as f64 - 1.0)
+                    })
+                    .collect();
+                let b = opt.bound(&s, &coarse).unwrap();
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                let mut x = vec![0.0; d];
+                for i in 0..grid.pow(d as u32) {
+                    let mut rest = i;
+                    for xr in x.iter_mut() {
+                        *xr = -1.0 + 2.0 * (rest % grid) as f64 / (grid - 1) as f64;
+                        rest /= grid;
+                    }
+                    let v = s.eval(&x, &mut ws).unwrap();
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+                // The found extremes are attained values...
+                assert!((s.eval(&b.argmin, &mut ws).unwrap() - b.lower).abs() < 1e-14);
+                assert!((s.eval(&b.argmax, &mut ws).unwrap() - b.upper).abs() < 1e-14);
+                // ...at least as extreme as the scan's (which only samples the grid)...
+                assert!(
+                    b.lower <= lo + 1e-12,
+                    "d={d} k={k} #{trial}: {} > {lo}",
+                    b.lower
+                );
+                assert!(
+                    b.upper >= hi - 1e-12,
+                    "d={d} k={k} #{trial}: {} < {hi}",
+                    b.upper
+                );
+                // ...and the outer bound contains them.
+                assert!(b.outer_lower <= b.lower && b.outer_upper >= b.upper);
+            }
+        }
+    }
+
+    /// End to end: a separable non-polynomial model `Σ_r cos(a_r ξ_r + b_r)` at d = 24, fitted on
+    /// the sparse grid of degree 6 per dimension without interactions (145 runs), bounded; the
+    /// exact range is the sum of the 1-D ranges. Truncation error of degree 6 for a_r ≤ 1.2 is
+    /// ≲ 1.2⁷/7! ≈ 7e-4 per dimension (a crude bound: the Legendre coefficients decay faster; the
+    /// measured error is 5e-7 of the width). The issue asks for 1 %; this test asks for 1e-4.
+    #[test]
+    fn planted_separable_model_at_d24() {
+        use crate::uq::sparse_grid::SparseGrid;
+        let d = 24;
+        let mut rng = SplitMix64::new(24);
+        let ab: Vec<(f64, f64)> = (0..d)
+            .map(|_| (rng.uniform(0.3, 1.2), rng.uniform(-1.5, 1.5)))
+            .collect();
+        let model = |x: &[f64]| -> f64 {
+            x.iter()
+                .zip(&ab)
+                .map(|(&xi, &(a, b))| (a * xi + b).cos())
+                .sum()
+        };
+        let (mut lo, mut hi) = (0.0, 0.0);
+        for &(a, b) in &ab {
+            let (mut l, mut h) = (f64::INFINITY, f64::NEG_INFINITY);
+            for i in 0..=100_000 {
+                let v = (a * (-1.0 + 2.0 * i as f64 / 100_000.0) + b).cos();
+                l = l.min(v);
+                h = h.max(v);
+            }
+            lo += l;
+            hi += h;
+        }
+        let set = Arc::new(MultiIndexSet::anisotropic(&vec![6; d], 6, 1).unwrap());
+        let grid = SparseGrid::new(set.clone()).unwrap();
+        assert_eq!(grid.n_points(), 1 + 6 * d);
+        let values: Vec<f64> = grid.points().chunks_exact(d).map(model).collect();
+        let coef = grid.fit().fit(&values, 1).unwrap();
+        let s = SparseSurrogate::new(set, coef).unwrap();
+        let b = BoxOptimizer::new()
+            .bound(&s, &grid.points()[..3 * d])
+            .unwrap();
+        let width = hi - lo;
+        eprintln!(
+            "planted d = 24: relative errors lower {:.1e} upper {:.1e} (width {width:.3})",
+            (b.lower - lo).abs() / width,
+            (b.upper - hi).abs() / width
+        );
+        for (got, want) in [
+            (b.lower, lo),
+            (b.upper, hi),
+            (b.outer_lower, lo),
+            (b.outer_upper, hi),
+        ] {
+            assert!(
+                (got - want).abs() < 1e-4 * width,
+                "{got} vs {want} (width {width})"
+            );
+        }
+        // Separable surrogate: outer = inner.
+        assert!(b.gap() < 1e-9 * width, "gap {}", b.gap());
+        // The model at the predicted extremisers is close to the exact extremes.
+        assert!((model(&b.argmin) - lo).abs() < 1e-4 * width);
+        assert!((model(&b.argmax) - hi).abs() < 1e-4 * width);
+    }
+
+    #[test]
+    fn refuses_bad_starts() {
+        let set = Arc::new(MultiIndexSet::total_degree(2, 1).unwrap());
+        let s = SparseSurrogate::new(set, vec![0.0, 1.0, 1.0]).unwrap();
+        let mut opt = BoxOptimizer::new();
+        assert!(opt.bound(&s, &[0.0]).is_err());
+        assert!(opt.bound(&s, &[0.0, 1.5]).is_err());
+        assert!(opt.bound(&s, &[0.0, f64::NAN]).is_err());
+        let b = opt.bound(&s, &[0.5, 0.5]).unwrap();
+        assert_eq!((b.lower, b.upper), (-2.0, 2.0));
+    }
+}

@@ -1,0 +1,350 @@
+//! The common fitting interface of sparse grids and regression: a linear map from model values at
+//! the design points to expansion coefficients, applied to many outputs at once
+//! (docs/high-dimension.md §5).
+//!
+//! Layouts (row-major, as a batch of runs produces them):
+//! - **values**: `n_points × n_outputs`, `values[p · n_outputs + o]` = output o of run p;
+//! - **coefficients**: `n_terms × n_outputs`, `out[t · n_outputs + o]` = coefficient of term t
+//!   (canonical order of the [`crate::uq::MultiIndexSet`]) for output o.
+//!
+//! "Outputs" are any columns: a caller may pass every output of every record time of a block at
+//! once, which makes the dense product more efficient (longer rows).
+//!
+//! Two representations, both applied without allocating on our side:
+//! - **dense** (regression): `out = C · values`, one matrix product (`C` is `n_terms × n_points`),
+//!   through nalgebra's `gemm`, which calls the `matrixmultiply` kernels once every dimension
+//!   exceeds 5 (those keep packing buffers in a thread-local cache or allocate them per call);
+//! - **sparse triangular factors** (sparse grids, docs/high-dimension.md §3): `out = U⁻¹ (W⁻¹ values)`
+//!   where `W⁻¹` is lower and `U⁻¹` upper triangular in the set's order; the second product runs in
+//!   place in `out`, so no scratch is needed.
+//!
+//! Both are deterministic (single-threaded, fixed summation order).
+
+use nalgebra::{DMatrix, DMatrixView, DMatrixViewMut};
+
+use crate::uq::error::UqError;
+
+/// A sparse matrix in compressed-row form: row i's entries are `cols/vals[starts[i]..starts[i+1]]`.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct SparseRows {
+    pub(crate) starts: Vec<usize>,
+    pub(crate) cols: Vec<u32>,
+    pub(crate) vals: Vec<f64>,
+}
+
+impl SparseRows {
+    pub(crate) fn n_rows(&self) -> usize {
+        self.starts.len() - 1
+    }
+
+    pub(crate) fn row(&self, i: usize) -> (&[u32], &[f64]) {
+        let range = self.starts[i]..self.starts[i + 1];
+        (&self.cols[range.clone()], &self.vals[range])
+    }
+
+    pub(crate) fn nnz(&self) -> usize {
+        self.vals.len()
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Map {
+    /// `Cᵀ` (n_points × n_terms), column-major as nalgebra stores it: column t holds term t's
+    /// weights of every point, contiguous.
+    Dense(DMatrix<f64>),
+    /// `C = upper · lower`: `lower` maps points → terms (row α: points p ≤ α), `upper` maps terms →
+    /// terms (row β: terms α ≥ β, all at indices ≥ β).
+    Triangular {
+        lower: SparseRows,
+        upper: SparseRows,
+    },
+}
+
+/// A linear map from values at `n_points` design points to `n_terms` expansion coefficients.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearFit {
+    n_points: usize,
+    n_terms: usize,
+    map: Map,
+}
+
+impl LinearFit {
+    /// From the transpose `Cᵀ` (`n_points × n_terms`) of a dense map.
+    pub(crate) fn dense_transposed(transposed: DMatrix<f64>) -> LinearFit {
+        LinearFit {
+            n_points: transposed.nrows(),
+            n_terms: transposed.ncols(),
+            map: Map::Dense(transposed),
+        }
+    }
+
+    /// From triangular factors (module doc); `upper` must only reference columns ≥ its row.
+    pub(crate) fn triangular(n_points: usize, lower: SparseRows, upper: SparseRows) -> LinearFit {
+        debug_assert!((0..upper.n_rows()).all(|b| upper.row(b).0.iter().all(|&a| a as usize >= b)));
+        LinearFit {
+            n_points,
+            n_terms: upper.n_rows(),
+            map: Map::Triangular { lower, upper },
+        }
+    }
+
+    /// Number of design points (model runs) the map reads.
+    pub fn n_points(&self) -> usize {
+        self.n_points
+    }
+
+    /// Number of expansion terms it produces.
+    pub fn n_terms(&self) -> usize {
+        self.n_terms
+    }
+
+    /// Stored non-zeros: `n_terms · n_points` (dense) or the two factors' entries (sparse). The
+    /// cost of a fit is about `2 · stored_entries · n_outputs` flops.
+    pub fn stored_entries(&self) -> usize {
+        match &self.map {
+            Map::Dense(m) => m.len(),
+            Map::Triangular { lower, upper } => lower.nnz() + upper.nnz(),
+        }
+    }
+
+    /// Overwrites `out` (`n_terms × n_outputs`, row-major) with the coefficients of every output
+    /// of `values` (`n_points × n_outputs`, row-major). Allocates nothing on our side (module doc).
+    ///
+    /// Errors: `n_outputs == 0`, a length that disagrees, a non-finite value (its flat index).
+    pub fn fit_into(
+        &self,
+        values: &[f64],
+        n_outputs: usize,
+        out: &mut [f64],
+    ) -> Result<(), UqError> {
+        if n_outputs == 0 {
+            return Err(UqError::Empty {
+                what: "fit: outputs",
+            });
+        }
+        if values.len() != self.n_points * n_outputs {
+            return Err(UqError::WrongLength {
+                what: "fit: values (n_points × n_outputs)",
+                expected: self.n_points * n_outputs,
+                got: values.len(),
+            });
+        }
+        if out.len() != self.n_terms * n_outputs {
+            return Err(UqError::WrongLength {
+                what: "fit: out (n_terms × n_outputs)",
+                expected: self.n_terms * n_outputs,
+                got: out.len(),
+            });
+        }
+        if let Some(index) = values.iter().position(|v| !v.is_finite()) {
+            return Err(UqError::NonFinite {
+                what: "fit: values",
+                index,
+                value: values[index],
+            });
+        }
+        match &self.map {
+            Map::Dense(ct) => {
+                // Row-major (n × o) is column-major (o × n): outᵀ = valuesᵀ · Cᵀ.
+                let values_t = DMatrixView::from_slice(values, n_outputs, self.n_points);
+                let mut out_t = DMatrixViewMut::from_slice(out, n_outputs, self.n_terms);
+                out_t.gemm(1.0, &values_t, ct, 0.0);
+            }
+            Map::Triangular { lower, upper } => {
+                apply_sparse(lower, values, n_outputs, out);
+                apply_upper_in_place(upper, n_outputs, out);
+            }
+        }
+        Ok(())
+    }
+
+    /// As [`LinearFit::fit_into`], into a new vector.
+    pub fn fit(&self, values: &[f64], n_outputs: usize) -> Result<Vec<f64>, UqError> {
+        let mut out = vec![0.0; self.n_terms * n_outputs];
+        self.fit_into(values, n_outputs, &mut out)?;
+        Ok(out)
+    }
+
+    /// The map as a dense `n_terms × n_points` matrix, row-major (allocates `n_terms · n_points`;
+    /// for tests and diagnostics).
+    pub fn to_dense(&self) -> Vec<f64> {
+        match &self.map {
+            Map::Dense(ct) => {
+                // Column t of Cᵀ is row t of C.
+                ct.as_slice().to_vec()
+            }
+            Map::Triangular { .. } => {
+                // Fit the identity: column p of C is the fit of the unit vector e_p.
+                let n = self.n_points;
+                let mut identity = vec![0.0; n * n];
+                for p in 0..n {
+                    identity[p * n + p] = 1.0;
+                }
+                let mut out = vec![0.0; self.n_terms * n];
+                // The identity is finite and sized to match: this cannot fail.
+                if self.fit_into(&identity, n, &mut out).is_err() {
+                    unreachable!("identity fit has consistent sizes");
+                }
+                out
+            }
+        }
+    }
+
+    /// Row sums `Σ_p |C[t, p]|` per term (the ∞-norm of the map is their maximum), computed in
+    /// blocks of points so the memory stays `n_terms × BLOCK`.
+    pub(crate) fn abs_row_sums(&self) -> Vec<f64> {
+        const BLOCK: usize = 256;
+        let mut sums = vec![0.0; self.n_terms];
+        match &self.map {
+            Map::Dense(ct) => {
+                for (t, column) in ct.column_iter().enumerate() {
+                    sums[t] = column.iter().map(|v| v.abs()).sum();
+                }
+            }
+            Map::Triangular { lower, upper } => {
+                let n = self.n_points;
+                let mut unit = vec![0.0; n * BLOCK];
+                let mut out = vec![0.0; self.n_terms * BLOCK];
+                for p0 in (0..n).step_by(BLOCK) {
+                    let b = BLOCK.min(n - p0);
+                    let unit = &mut unit[..n * b];
+                    unit.fill(0.0);
+                    for j in 0..b {
+                        unit[(p0 + j) * b + j] = 1.0;
+                    }
+                    let out = &mut out[..self.n_terms * b];
+                    apply_sparse(lower, unit, b, out);
+                    apply_upper_in_place(upper, b, out);
+                    for (t, row) in out.chunks_exact(b).enumerate() {
+                        sums[t] += row.iter().map(|v| v.abs()).sum::<f64>();
+                    }
+                }
+            }
+        }
+        sums
+    }
+}
+
+/// `out[i, :] = Σ_j a[i, j] · x[j, :]` for sparse `a`, row-major blocks of `width` columns.
+fn apply_sparse(a: &SparseRows, x: &[f64], width: usize, out: &mut [f64]) {
+    for (i, dst) in out.chunks_exact_mut(width).enumerate() {
+        dst.fill(0.0);
+        let (cols, vals) = a.row(i);
+        for (&j, &v) in cols.iter().zip(vals) {
+            let src = &x[j as usize * width..(j as usize + 1) * width];
+            for (d, &s) in dst.iter_mut().zip(src) {
+                *d += v * s;
+            }
+        }
+    }
+}
+
+/// `y[i, :] = Σ_{j ≥ i} u[i, j] · y[j, :]` in place, rows in increasing order: row i reads only
+/// rows j ≥ i, which are not yet overwritten (the diagonal entry is read before the write).
+fn apply_upper_in_place(u: &SparseRows, width: usize, y: &mut [f64]) {
+    for i in 0..u.n_rows() {
+        let (cols, vals) = u.row(i);
+        // The diagonal (if present) is the first entry: columns are sorted ascending.
+        let (head, tail) = y.split_at_mut((i + 1) * width);
+        let row = &mut head[i * width..];
+        let diag = if cols.first() == Some(&(i as u32)) {
+            vals[0]
+        } else {
+            0.0
+        };
+        row.iter_mut().for_each(|v| *v *= diag);
+        for (&j, &v) in cols.iter().zip(vals) {
+            let j = j as usize;
+            if j == i {
+                continue;
+            }
+            let src = &tail[(j - i - 1) * width..(j - i) * width];
+            for (d, &s) in row.iter_mut().zip(src) {
+                *d += v * s;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::uq::test_support::SplitMix64;
+
+    #[test]
+    fn dense_fit_is_a_matrix_product() {
+        let mut rng = SplitMix64::new(3);
+        for (terms, points, outputs) in [(7, 9, 1), (7, 9, 3), (20, 31, 12), (3, 3, 40)] {
+            let c = DMatrix::from_fn(terms, points, |_, _| rng.uniform(-1.0, 1.0));
+            let fit = LinearFit::dense_transposed(c.transpose());
+            let values: Vec<f64> = (0..points * outputs)
+                .map(|_| rng.uniform(-1.0, 1.0))
+                .collect();
+            let out = fit.fit(&values, outputs).unwrap();
+            for t in 0..terms {
+                for o in 0..outputs {
+                    let want: f64 = (0..points)
+                        .map(|p| c[(t, p)] * values[p * outputs + o])
+                        .sum();
+                    assert!((out[t * outputs + o] - want).abs() < 1e-13);
+                }
+            }
+            let dense = fit.to_dense();
+            assert_eq!(dense[points + 2], c[(1, 2)]);
+            let sums = fit.abs_row_sums();
+            assert!((sums[0] - c.row(0).iter().map(|v| v.abs()).sum::<f64>()).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn triangular_fit_matches_its_dense_product() {
+        // lower: 4 terms × 4 points; upper: 4 × 4 upper triangular with a missing diagonal.
+        let lower = SparseRows {
+            starts: vec![0, 1, 3, 5, 7],
+            cols: vec![0, 0, 1, 0, 2, 1, 3],
+            vals: vec![1.0, -1.0, 2.0, 0.5, 0.25, 3.0, -2.0],
+        };
+        let upper = SparseRows {
+            starts: vec![0, 3, 4, 6, 7],
+            cols: vec![0, 2, 3, 1, 2, 3, 3],
+            vals: vec![1.0, 0.5, -0.5, 2.0, 1.5, 4.0, 0.75],
+        };
+        let fit = LinearFit::triangular(4, lower.clone(), upper.clone());
+        let dense = |a: &SparseRows, n: usize| {
+            let mut m = DMatrix::zeros(a.n_rows(), n);
+            for i in 0..a.n_rows() {
+                let (cols, vals) = a.row(i);
+                for (&j, &v) in cols.iter().zip(vals) {
+                    m[(i, j as usize)] = v;
+                }
+            }
+            m
+        };
+        let c = dense(&upper, 4) * dense(&lower, 4);
+        let got = fit.to_dense();
+        for t in 0..4 {
+            for p in 0..4 {
+                assert!((got[t * 4 + p] - c[(t, p)]).abs() < 1e-15, "({t}, {p})");
+            }
+        }
+        for (t, sum) in fit.abs_row_sums().iter().enumerate() {
+            assert!((sum - c.row(t).iter().map(|v| v.abs()).sum::<f64>()).abs() < 1e-14);
+        }
+        assert_eq!(fit.stored_entries(), 14);
+    }
+
+    #[test]
+    fn refuses_bad_input() {
+        let fit = LinearFit::dense_transposed(DMatrix::identity(3, 2));
+        let mut out = vec![0.0; 4];
+        assert!(fit.fit_into(&[0.0; 6], 0, &mut out).is_err());
+        assert!(fit.fit_into(&[0.0; 5], 2, &mut out).is_err());
+        assert!(fit.fit_into(&[0.0; 6], 2, &mut out[..3]).is_err());
+        let mut values = [0.0; 6];
+        values[4] = f64::NAN;
+        assert!(matches!(
+            fit.fit_into(&values, 2, &mut out),
+            Err(UqError::NonFinite { index: 4, .. })
+        ));
+    }
+}

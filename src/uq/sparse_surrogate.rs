@@ -1,0 +1,653 @@
+//! One output's sparse Legendre surrogate `y(ξ) ≈ Σ_{α∈Λ} c_α Π_r P_{α_r}(ξ_r)` over a shared
+//! [`MultiIndexSet`] (docs/high-dimension.md §6): evaluation with gradient and Hessian, the
+//! constant and linear parts, the top-order error estimate, and variance-based (Sobol')
+//! sensitivity indices, which follow from the coefficients by orthogonality.
+//!
+//! Evaluation first fills a `d × (k+1)` table of `P_n(ξ_r)` (and derivatives) in a
+//! [`SurrogateWorkspace`], then sums one product of table entries per term: `O(d·k + Σ|supp α|)`
+//! per point, no allocation once the workspace has the set's size.
+//!
+//! Does not: fit (see [`crate::uq::LinearFit`]) or bound (see [`crate::uq::box_optimize`]).
+
+use std::sync::Arc;
+
+use crate::uq::basis::Family;
+use crate::uq::bounds::ErrorEstimate;
+use crate::uq::error::UqError;
+use crate::uq::multi_index::MultiIndexSet;
+
+/// Work buffers for evaluating sparse surrogates: per-dimension tables of `P_n`, `P_n'`, `P_n''`.
+/// Grows to the largest set it is used with; reuse it across calls and surrogates.
+#[derive(Debug, Clone, Default)]
+pub struct SurrogateWorkspace {
+    values: Vec<f64>,
+    first: Vec<f64>,
+    second: Vec<f64>,
+}
+
+impl SurrogateWorkspace {
+    /// An empty workspace (sized on first use).
+    pub fn new() -> SurrogateWorkspace {
+        SurrogateWorkspace::default()
+    }
+
+    /// Fills the tables at `xi` for `set` (`derivatives`: also P' and P'').
+    fn load(&mut self, set: &MultiIndexSet, xi: &[f64], derivatives: bool) {
+        let stride = set.max_degree() + 1;
+        let len = set.dim() * stride;
+        if self.values.len() < len {
+            self.values.resize(len, 0.0);
+            self.first.resize(len, 0.0);
+            self.second.resize(len, 0.0);
+        }
+        for ((r, &x), &k) in xi.iter().enumerate().zip(set.max_degree_per_dim()) {
+            let range = r * stride..r * stride + k + 1;
+            if derivatives {
+                Family::Legendre.values_and_derivatives(
+                    x,
+                    &mut self.values[range.clone()],
+                    &mut self.first[range.clone()],
+                    &mut self.second[range],
+                );
+            } else {
+                Family::Legendre.values(x, &mut self.values[range]);
+            }
+        }
+    }
+}
+
+/// Variance-based sensitivity of a surrogate under uniform ξ (docs/high-dimension.md §6).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SobolIndices {
+    /// Total variance `D = Σ_{α≠0} c_α² Π_r 1/(2α_r+1)`, in the output's unit squared.
+    pub variance: f64,
+    /// Main (first-order) index per dimension: the share of D from terms in ξ_r alone.
+    pub main: Vec<f64>,
+    /// Total index per dimension: the share of D from every term involving ξ_r.
+    pub total: Vec<f64>,
+}
+
+/// A sparse Legendre surrogate of one output.
+///
+/// ```
+/// use std::sync::Arc;
+/// use ribbon::uq::{MultiIndexSet, SparseSurrogate, SurrogateWorkspace};
+/// // ξ1 + ξ1² = 1/3 + P_1(ξ1) + 2/3 P_2(ξ1), as a total-degree-2 surrogate in d = 2.
+/// let set = Arc::new(MultiIndexSet::total_degree(2, 2)?);
+/// let mut c = vec![0.0; set.len()];
+/// c[0] = 1.0 / 3.0;
+/// c[set.index_of_dense(&[1, 0]).unwrap()] = 1.0;
+/// c[set.index_of_dense(&[2, 0]).unwrap()] = 2.0 / 3.0;
+/// let s = SparseSurrogate::new(set, c)?;
+/// let mut ws = SurrogateWorkspace::new();
+/// assert!((s.eval(&[-0.5, 0.9], &mut ws)? + 0.25).abs() < 1e-15);
+/// let mut grad = [0.0; 2];
+/// s.gradient(&[-0.5, 0.9], &mut grad, &mut ws)?;
+/// assert!(grad[0].abs() < 1e-15 && grad[1] == 0.0); // 1 + 2ξ1 = 0
+/// # Ok::<(), ribbon::uq::UqError>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct SparseSurrogate {
+    set: Arc<MultiIndexSet>,
+    coefficients: Vec<f64>,
+}
+
+impl SparseSurrogate {
+    /// From coefficients in the set's canonical order (length |Λ|).
+    ///
+    /// Errors: wrong length, a non-finite coefficient.
+    pub fn new(
+        set: Arc<MultiIndexSet>,
+        coefficients: Vec<f64>,
+    ) -> Result<SparseSurrogate, UqError> {
+        let mut s = SparseSurrogate::zeros(set);
+        s.set_coefficients(&coefficients)?;
+        Ok(s)
+    }
+
+    /// The zero surrogate over `set`.
+    pub fn zeros(set: Arc<MultiIndexSet>) -> SparseSurrogate {
+        let n = set.len();
+        SparseSurrogate {
+            set,
+            coefficients: vec![0.0; n],
+        }
+    }
+
+    /// Overwrites the coefficients (length |Λ|, canonical order).
+    ///
+    /// Errors: wrong length, a non-finite coefficient.
+    pub fn set_coefficients(&mut self, coefficients: &[f64]) -> Result<(), UqError> {
+        if coefficients.len() != self.set.len() {
+            return Err(UqError::WrongLength {
+                what: "sparse surrogate coefficients",
+                expected: self.set.len(),
+                got: coefficients.len(),
+            });
+        }
+        if let Some(index) = coefficients.iter().position(|c| !c.is_finite()) {
+            return Err(UqError::NonFinite {
+                what: "sparse surrogate coefficients",
+                index,
+                value: coefficients[index],
+            });
+        }
+        self.coefficients.copy_from_slice(coefficients);
+        Ok(())
+    }
+
+    /// Overwrites the coefficients with column `output` of a fit's output
+    /// (`|Λ| × n_outputs` row-major, as [`crate::uq::LinearFit::fit_into`] writes it).
+    ///
+    /// Errors: `output ≥ n_outputs`, a length that disagrees, a non-finite coefficient.
+    pub fn set_from_fit(
+        &mut self,
+        coefficients: &[f64],
+        n_outputs: usize,
+        output: usize,
+    ) -> Result<(), UqError> {
+        if output >= n_outputs {
+            return Err(UqError::IndexOutOfRange {
+                what: "sparse surrogate: fit output",
+                index: output,
+                len: n_outputs,
+            });
+        }
+        if coefficients.len() != self.set.len() * n_outputs {
+            return Err(UqError::WrongLength {
+                what: "sparse surrogate: fit coefficients (n_terms × n_outputs)",
+                expected: self.set.len() * n_outputs,
+                got: coefficients.len(),
+            });
+        }
+        for (t, c) in self.coefficients.iter_mut().enumerate() {
+            *c = coefficients[t * n_outputs + output];
+        }
+        if let Some(index) = self.coefficients.iter().position(|c| !c.is_finite()) {
+            return Err(UqError::NonFinite {
+                what: "sparse surrogate: fit coefficients",
+                index: index * n_outputs + output,
+                value: self.coefficients[index],
+            });
+        }
+        Ok(())
+    }
+
+    /// The index set.
+    pub fn set(&self) -> &Arc<MultiIndexSet> {
+        &self.set
+    }
+
+    /// Number of parameters d.
+    pub fn dim(&self) -> usize {
+        self.set.dim()
+    }
+
+    /// Coefficients in canonical order.
+    pub fn coefficients(&self) -> &[f64] {
+        &self.coefficients
+    }
+
+    fn check_xi(&self, xi: &[f64]) -> Result<(), UqError> {
+        if xi.len() != self.dim() {
+            return Err(UqError::WrongLength {
+                what: "sparse surrogate: xi",
+                expected: self.dim(),
+                got: xi.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The value at `xi` (length d).
+    ///
+    /// Errors: wrong length of `xi`.
+    pub fn eval(&self, xi: &[f64], ws: &mut SurrogateWorkspace) -> Result<f64, UqError> {
+        self.check_xi(xi)?;
+        Ok(self.value_unchecked(xi, ws))
+    }
+
+    pub(crate) fn value_unchecked(&self, xi: &[f64], ws: &mut SurrogateWorkspace) -> f64 {
+        ws.load(&self.set, xi, false);
+        let v = &ws.values;
+        let c = &self.coefficients;
+        let plan = self.set.plan();
+        let mut sum = c[0];
+        for s in &plan.singles {
+            sum += c[s.term as usize] * v[s.index as usize];
+        }
+        for p in &plan.pairs {
+            sum += c[p.term as usize] * v[p.index_a as usize] * v[p.index_b as usize];
+        }
+        for &t in &plan.general {
+            let t = t as usize;
+            let product: f64 = self
+                .set
+                .table_indices(t)
+                .iter()
+                .map(|&i| v[i as usize])
+                .product();
+            sum += c[t] * product;
+        }
+        sum
+    }
+
+    /// The value at `xi`, and the gradient `∂y/∂ξ_r` into `grad` (length d, overwritten).
+    ///
+    /// Errors: wrong length of `xi` or `grad`.
+    pub fn gradient(
+        &self,
+        xi: &[f64],
+        grad: &mut [f64],
+        ws: &mut SurrogateWorkspace,
+    ) -> Result<f64, UqError> {
+        self.check_xi(xi)?;
+        if grad.len() != self.dim() {
+            return Err(UqError::WrongLength {
+                what: "sparse surrogate: gradient",
+                expected: self.dim(),
+                got: grad.len(),
+            });
+        }
+        Ok(self.derivatives_unchecked(xi, grad, None, ws))
+    }
+
+    /// The value at `xi`, the gradient into `grad` (length d) and the Hessian into `hess`
+    /// (d × d row-major, symmetric), both overwritten.
+    ///
+    /// Errors: wrong length of `xi`, `grad` or `hess`.
+    pub fn hessian(
+        &self,
+        xi: &[f64],
+        grad: &mut [f64],
+        hess: &mut [f64],
+        ws: &mut SurrogateWorkspace,
+    ) -> Result<f64, UqError> {
+        self.check_xi(xi)?;
+        let d = self.dim();
+        if grad.len() != d || hess.len() != d * d {
+            return Err(UqError::WrongLength {
+                what: "sparse surrogate: gradient (d) and Hessian (d × d)",
+                expected: d + d * d,
+                got: grad.len() + hess.len(),
+            });
+        }
+        Ok(self.derivatives_unchecked(xi, grad, Some(hess), ws))
+    }
+
+    /// Value, gradient and (optionally) Hessian; lengths already checked.
+    pub(crate) fn derivatives_unchecked(
+        &self,
+        xi: &[f64],
+        grad: &mut [f64],
+        mut hess: Option<&mut [f64]>,
+        ws: &mut SurrogateWorkspace,
+    ) -> f64 {
+        let d = self.dim();
+        ws.load(&self.set, xi, true);
+        let stride = self.set.max_degree() + 1;
+        let (v, g, h) = (&ws.values, &ws.first, &ws.second);
+        let c = &self.coefficients;
+        let plan = self.set.plan();
+        grad.fill(0.0);
+        if let Some(hess) = hess.as_deref_mut() {
+            hess.fill(0.0);
+        }
+        let mut sum = c[0];
+        for s in &plan.singles {
+            let (ct, i, r) = (c[s.term as usize], s.index as usize, s.dim as usize);
+            sum += ct * v[i];
+            grad[r] += ct * g[i];
+        }
+        for p in &plan.pairs {
+            let ct = c[p.term as usize];
+            let (ia, ib) = (p.index_a as usize, p.index_b as usize);
+            let (ra, rb) = (p.dim_a as usize, p.dim_b as usize);
+            sum += ct * v[ia] * v[ib];
+            grad[ra] += ct * g[ia] * v[ib];
+            grad[rb] += ct * v[ia] * g[ib];
+        }
+        if let Some(hess) = hess.as_deref_mut() {
+            // Upper triangle (ra < rb: factors are sorted by dimension), mirrored below at the end.
+            for s in &plan.singles {
+                let (ct, i, r) = (c[s.term as usize], s.index as usize, s.dim as usize);
+                hess[r * d + r] += ct * h[i];
+            }
+            for p in &plan.pairs {
+                let ct = c[p.term as usize];
+                let (ia, ib) = (p.index_a as usize, p.index_b as usize);
+                let (ra, rb) = (p.dim_a as usize, p.dim_b as usize);
+                hess[ra * d + ra] += ct * h[ia] * v[ib];
+                hess[rb * d + rb] += ct * v[ia] * h[ib];
+                hess[ra * d + rb] += ct * g[ia] * g[ib];
+            }
+        }
+        for &t in &plan.general {
+            let t = t as usize;
+            let ct = c[t];
+            let idx = self.set.table_indices(t);
+            let product: f64 = idx.iter().map(|&i| v[i as usize]).product();
+            sum += ct * product;
+            // Products leaving out one or two factors, by direct multiplication (supports are
+            // at most the total degree).
+            for (a, &ia) in idx.iter().enumerate() {
+                let ia = ia as usize;
+                let others: f64 = idx
+                    .iter()
+                    .enumerate()
+                    .filter(|&(b, _)| b != a)
+                    .map(|(_, &i)| v[i as usize])
+                    .product();
+                let ra = ia / stride;
+                grad[ra] += ct * g[ia] * others;
+                if let Some(hess) = hess.as_deref_mut() {
+                    hess[ra * d + ra] += ct * h[ia] * others;
+                    for (b, &ib) in idx.iter().enumerate().skip(a + 1) {
+                        let ib = ib as usize;
+                        let rest: f64 = idx
+                            .iter()
+                            .enumerate()
+                            .filter(|&(e, _)| e != a && e != b)
+                            .map(|(_, &i)| v[i as usize])
+                            .product();
+                        let rb = ib / stride;
+                        hess[ra * d + rb] += ct * g[ia] * g[ib] * rest;
+                    }
+                }
+            }
+        }
+        if let Some(hess) = hess {
+            for r in 0..d {
+                for q in r + 1..d {
+                    hess[q * d + r] = hess[r * d + q];
+                }
+            }
+        }
+        sum
+    }
+
+    /// The constant coefficient `c_0` (the mean of the surrogate under uniform ξ).
+    pub fn constant(&self) -> f64 {
+        self.coefficients[0]
+    }
+
+    /// The linear part: `out[r]` = coefficient of `P_1(ξ_r)` (0 if the set has no such term).
+    ///
+    /// Errors: `out.len() != d`.
+    pub fn linear_part(&self, out: &mut [f64]) -> Result<(), UqError> {
+        if out.len() != self.dim() {
+            return Err(UqError::WrongLength {
+                what: "sparse surrogate: linear part",
+                expected: self.dim(),
+                got: out.len(),
+            });
+        }
+        out.fill(0.0);
+        for t in self.set.terms_of_total_degree(1) {
+            out[self.set.term(t)[0].dim as usize] = self.coefficients[t];
+        }
+        Ok(())
+    }
+
+    /// Top-order magnitude: `Σ |c_α|` over the terms of the highest total degree present in the
+    /// set (docs/high-dimension.md §6). For a total-degree set this is the dense surrogate's
+    /// measure; for an anisotropic set only the dimensions that reach that degree contribute, so
+    /// it says nothing about truncation in dimensions kept at low order.
+    pub fn top_order_magnitude(&self) -> f64 {
+        self.set
+            .terms_of_total_degree(self.set.max_total_degree())
+            .map(|t| self.coefficients[t].abs())
+            .sum()
+    }
+
+    /// The error estimate beside every bound of this surrogate ([`ErrorEstimate`], no misfit).
+    pub fn error_estimate(&self) -> ErrorEstimate {
+        ErrorEstimate {
+            top_order: self.top_order_magnitude(),
+            misfit: None,
+        }
+    }
+
+    /// `c_α² Π_r 1/(2α_r+1)`: term t's share of the variance (`‖P_n‖² = 1/(2n+1)` under the
+    /// uniform probability on [−1, 1]).
+    fn term_variance(&self, t: usize) -> f64 {
+        let c = self.coefficients[t];
+        self.set
+            .term(t)
+            .iter()
+            .fold(c * c, |acc, f| acc / (2.0 * f.degree as f64 + 1.0))
+    }
+
+    /// Variance of the surrogate under uniform ξ: `Σ_{α≠0} c_α² Π_r 1/(2α_r+1)`.
+    pub fn variance(&self) -> f64 {
+        (1..self.set.len()).map(|t| self.term_variance(t)).sum()
+    }
+
+    /// Per dimension r, the variance of every term involving ξ_r (the total Sobol' index's
+    /// numerator), into `out` (length d, overwritten): the first-order importance used for
+    /// screening.
+    ///
+    /// Errors: `out.len() != d`.
+    pub fn importance_into(&self, out: &mut [f64]) -> Result<(), UqError> {
+        if out.len() != self.dim() {
+            return Err(UqError::WrongLength {
+                what: "sparse surrogate: importance",
+                expected: self.dim(),
+                got: out.len(),
+            });
+        }
+        out.fill(0.0);
+        for t in 1..self.set.len() {
+            let v = self.term_variance(t);
+            for f in self.set.term(t) {
+                out[f.dim as usize] += v;
+            }
+        }
+        Ok(())
+    }
+
+    /// Main and total Sobol' indices per dimension (docs/high-dimension.md §6). A constant
+    /// surrogate (variance 0) has every index 0.
+    pub fn sobol_indices(&self) -> SobolIndices {
+        let d = self.dim();
+        let mut main = vec![0.0; d];
+        let mut total = vec![0.0; d];
+        let mut variance = 0.0;
+        for t in 1..self.set.len() {
+            let v = self.term_variance(t);
+            variance += v;
+            let term = self.set.term(t);
+            if term.len() == 1 {
+                main[term[0].dim as usize] += v;
+            }
+            for f in term {
+                total[f.dim as usize] += v;
+            }
+        }
+        if variance > 0.0 {
+            main.iter_mut().for_each(|s| *s /= variance);
+            total.iter_mut().for_each(|s| *s /= variance);
+        }
+        SobolIndices {
+            variance,
+            main,
+            total,
+        }
+    }
+
+    /// Largest `|y − surrogate(ξ)|` over model runs: `points` `n × d` row-major, `values` the n
+    /// model values.
+    ///
+    /// Errors: lengths that disagree, no points, non-finite values.
+    pub fn misfit(
+        &self,
+        points: &[f64],
+        values: &[f64],
+        ws: &mut SurrogateWorkspace,
+    ) -> Result<f64, UqError> {
+        if values.is_empty() {
+            return Err(UqError::Empty {
+                what: "misfit: values",
+            });
+        }
+        if points.len() != values.len() * self.dim() {
+            return Err(UqError::WrongLength {
+                what: "misfit: points (n × d)",
+                expected: values.len() * self.dim(),
+                got: points.len(),
+            });
+        }
+        if let Some(index) = values.iter().position(|v| !v.is_finite()) {
+            return Err(UqError::NonFinite {
+                what: "misfit: values",
+                index,
+                value: values[index],
+            });
+        }
+        Ok(points
+            .chunks_exact(self.dim())
+            .zip(values)
+            .map(|(xi, y)| (y - self.value_unchecked(xi, ws)).abs())
+            .fold(0.0, f64::max))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::uq::basis::legendre_values;
+    use crate::uq::test_support::SplitMix64;
+
+    const TOL: f64 = 1e-13;
+
+    fn random_surrogate(set: MultiIndexSet, seed: u64) -> SparseSurrogate {
+        let mut rng = SplitMix64::new(seed);
+        let c = (0..set.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        SparseSurrogate::new(Arc::new(set), c).unwrap()
+    }
+
+    fn brute_force(s: &SparseSurrogate, x: &[f64]) -> f64 {
+        let k = s.set().max_degree();
+        let mut p = vec![0.0; k + 1];
+        (0..s.set().len())
+            .map(|t| {
+                s.coefficients()[t]
+                    * s.set()
+                        .to_dense(t)
+                        .iter()
+                        .zip(x)
+                        .map(|(&a, &xr)| {
+                            legendre_values(xr, &mut p);
+                            p[a]
+                        })
+                        .product::<f64>()
+            })
+            .sum()
+    }
+
+    #[test]
+    fn value_gradient_hessian_match_brute_force_and_differences() {
+        const H: f64 = 1e-5;
+        const FD_TOL: f64 = 1e-6;
+        let mut caps = vec![1; 12];
+        caps[0] = 4;
+        caps[3] = 3;
+        let sets = [
+            MultiIndexSet::total_degree(4, 4).unwrap(),
+            MultiIndexSet::anisotropic(&caps, 5, 3).unwrap(),
+        ];
+        let mut ws = SurrogateWorkspace::new();
+        let mut rng = SplitMix64::new(1);
+        for (i, set) in sets.into_iter().enumerate() {
+            let s = random_surrogate(set, 10 + i as u64);
+            let d = s.dim();
+            let x: Vec<f64> = (0..d).map(|_| rng.uniform(-1.0, 1.0)).collect();
+            let v = s.eval(&x, &mut ws).unwrap();
+            assert!((v - brute_force(&s, &x)).abs() < TOL);
+            let (mut g, mut h) = (vec![0.0; d], vec![0.0; d * d]);
+            let v2 = s.hessian(&x, &mut g, &mut h, &mut ws).unwrap();
+            assert!((v - v2).abs() < TOL);
+            let mut g_only = vec![0.0; d];
+            s.gradient(&x, &mut g_only, &mut ws).unwrap();
+            assert_eq!(g, g_only);
+            for r in 0..d {
+                let (mut xp, mut xm) = (x.clone(), x.clone());
+                xp[r] += H;
+                xm[r] -= H;
+                let fd = (brute_force(&s, &xp) - brute_force(&s, &xm)) / (2.0 * H);
+                assert!((fd - g[r]).abs() < FD_TOL, "set {i} grad {r}");
+                let (mut gp, mut gm) = (vec![0.0; d], vec![0.0; d]);
+                s.gradient(&xp, &mut gp, &mut ws).unwrap();
+                s.gradient(&xm, &mut gm, &mut ws).unwrap();
+                for q in 0..d {
+                    let fd = (gp[q] - gm[q]) / (2.0 * H);
+                    assert!((fd - h[r * d + q]).abs() < FD_TOL, "set {i} hess {r} {q}");
+                }
+            }
+        }
+        let s = random_surrogate(MultiIndexSet::total_degree(2, 1).unwrap(), 0);
+        assert!(s.eval(&[0.0], &mut ws).is_err());
+        assert!(s.gradient(&[0.0, 0.0], &mut [0.0], &mut ws).is_err());
+    }
+
+    #[test]
+    fn parts_and_sobol_indices() {
+        // y = 2 + 3 P_1(ξ1) + P_2(ξ2) + 4 P_1(ξ1) P_1(ξ3) in d = 3, total degree 2.
+        let set = Arc::new(MultiIndexSet::total_degree(3, 2).unwrap());
+        let mut c = vec![0.0; set.len()];
+        c[0] = 2.0;
+        c[set.index_of_dense(&[1, 0, 0]).unwrap()] = 3.0;
+        c[set.index_of_dense(&[0, 2, 0]).unwrap()] = 1.0;
+        c[set.index_of_dense(&[1, 0, 1]).unwrap()] = 4.0;
+        let s = SparseSurrogate::new(set.clone(), c).unwrap();
+        assert_eq!(s.constant(), 2.0);
+        let mut lin = [0.0; 3];
+        s.linear_part(&mut lin).unwrap();
+        assert_eq!(lin, [3.0, 0.0, 0.0]);
+        assert_eq!(s.top_order_magnitude(), 5.0);
+        // Variances: 9/3 = 3, 1/5, 16/9.
+        let want = 3.0 + 0.2 + 16.0 / 9.0;
+        assert!((s.variance() - want).abs() < TOL);
+        let idx = s.sobol_indices();
+        assert!((idx.main[0] - 3.0 / want).abs() < TOL);
+        assert!((idx.main[1] - 0.2 / want).abs() < TOL);
+        assert_eq!(idx.main[2], 0.0);
+        assert!((idx.total[0] - (3.0 + 16.0 / 9.0) / want).abs() < TOL);
+        assert!((idx.total[2] - 16.0 / 9.0 / want).abs() < TOL);
+        let mut imp = [0.0; 3];
+        s.importance_into(&mut imp).unwrap();
+        assert!((imp[0] - (3.0 + 16.0 / 9.0)).abs() < TOL);
+        // Monte Carlo check of the variance: uniform samples.
+        let mut rng = SplitMix64::new(2);
+        let mut ws = SurrogateWorkspace::new();
+        let n = 200_000;
+        let (mut sum, mut sum_sq) = (0.0, 0.0);
+        for _ in 0..n {
+            let x = [
+                rng.uniform(-1.0, 1.0),
+                rng.uniform(-1.0, 1.0),
+                rng.uniform(-1.0, 1.0),
+            ];
+            let y = s.eval(&x, &mut ws).unwrap();
+            sum += y;
+            sum_sq += y * y;
+        }
+        let mean = sum / n as f64;
+        let var = sum_sq / n as f64 - mean * mean;
+        assert!(
+            (mean - 2.0).abs() < 0.02 && (var - want).abs() < 0.05 * want,
+            "{mean} {var}"
+        );
+        // Fit-layout column extraction.
+        let mut t = SparseSurrogate::zeros(set.clone());
+        let two: Vec<f64> = s.coefficients().iter().flat_map(|&c| [c, -c]).collect();
+        t.set_from_fit(&two, 2, 1).unwrap();
+        assert_eq!(t.coefficients()[0], -2.0);
+        assert!(t.set_from_fit(&two, 2, 2).is_err());
+        assert!(t.set_coefficients(&[1.0]).is_err());
+        let misfit = s
+            .misfit(&[0.0, 0.0, 0.0], &[2.0 - 0.5 + 0.25], &mut ws)
+            .unwrap();
+        assert!((misfit - 0.25).abs() < TOL);
+    }
+}
