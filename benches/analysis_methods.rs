@@ -192,6 +192,8 @@ fn run(p: &Problem, c: Config) -> (StudyReport, f64) {
             threads: c.threads,
             keep_going: false,
             check_runs: None,
+            design: ribbon::analysis::DesignKind::Tensor,
+            max_runs: ribbon::analysis::DEFAULT_MAX_RUNS,
         },
     };
     let started = Instant::now();

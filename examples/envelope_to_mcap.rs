@@ -58,6 +58,8 @@ fn run(out: &Path) -> Result<usize, ribbon::Error> {
         threads: 0,
         keep_going: false,
         check_runs: None,
+        design: ribbon::analysis::DesignKind::Tensor,
+        max_runs: ribbon::analysis::DEFAULT_MAX_RUNS,
     };
     let study = Study {
         model: model.clone(),

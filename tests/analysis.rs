@@ -543,8 +543,21 @@ fn bad_analysis_input_is_refused_with_exit_2() {
         ),
         (
             write("ok3.toml", &base),
+            vec!["--design", "sprase"],
+            vec!["'sprase' is not a design", "sparse or regression"],
+        ),
+        (
+            write(
+                "auto_design.toml",
+                &base.replace("method = \"legendre-scan\"", "method = \"auto\""),
+            ),
             vec!["--design", "sparse"],
-            vec!["'sparse' is not a design"],
+            vec!["--method auto chooses the design itself"],
+        ),
+        (
+            write("sparse_taylor.toml", &base),
+            vec!["--method", "taylor", "--design", "sparse"],
+            vec!["use them with --method legendre-scan, legendre-ia or auto"],
         ),
         (
             write("order0.toml", &base),

@@ -45,6 +45,8 @@ fn the_vertex_reference_is_inside_the_legendre_envelope_and_contains_the_nominal
             threads: 0,
             keep_going: false,
             check_runs: None,
+            design: ribbon::analysis::DesignKind::Tensor,
+            max_runs: ribbon::analysis::DEFAULT_MAX_RUNS,
         },
     };
     let interrupt = AtomicBool::new(false);

@@ -11,12 +11,14 @@
 //! outside its own envelope.
 
 use super::plan::Plan;
+use super::sparse::SparseDesign;
 use super::Method;
 use crate::uq::{
-    chebyshev_inclusion, interval_bound, CoefficientMatrix, Projector, RangeMode, ScanOptions,
-    Scanner, Surrogate, TaylorStencil, UqError,
+    chebyshev_inclusion, interval_bound, BoxBounds, BoxOptimizer, CoefficientMatrix, Projector,
+    RangeMode, ScanOptions, Scanner, SparseSurrogate, Surrogate, TaylorStencil, UqError,
 };
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// One output's envelope at one time.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,6 +29,9 @@ pub struct EnvelopePoint {
     pub upper: f64,
     /// Error estimate, where the method has one.
     pub error: Option<f64>,
+    /// An outer bound of the surrogate's range beside an inner one (sparse designs: interval
+    /// arithmetic with exact `P_n` ranges), so that the gap between them can be reported.
+    pub outer: Option<(f64, f64)>,
 }
 
 /// Where a surrogate predicts one output's extremes at one time (methods that locate them: the
@@ -51,7 +56,22 @@ pub struct BoundedBlock {
     pub points: Vec<EnvelopePoint>,
     /// Predicted extremes, record-major (`None` where the method does not locate them).
     pub extremes: Vec<Option<Extremes>>,
+    /// Sparse designs: the total Sobol' index of every parameter for every output, from the
+    /// surrogate's coefficients (record-major `records × outputs × d`); empty otherwise.
+    pub total_indices: Vec<f64>,
 }
+
+/// One record's bounds, as a worker computes them.
+struct RecordBounds {
+    points: Vec<EnvelopePoint>,
+    extremes: Vec<Option<Extremes>>,
+    total_indices: Vec<f64>,
+}
+
+/// How many of the best design points (per side) start the sparse surrogate's box search, besides
+/// the centre and the sign vertices of its linear part: the runs themselves are the best evidence
+/// of where the extremes are.
+pub const DESIGN_STARTS_PER_SIDE: usize = 2;
 
 /// Bounds record times for one method; cheap to share across threads.
 pub struct Bounder {
@@ -61,6 +81,7 @@ pub struct Bounder {
     scan_options: ScanOptions,
     dim: usize,
     order: usize,
+    sparse: Option<Arc<SparseDesign>>,
 }
 
 impl Bounder {
@@ -82,6 +103,10 @@ impl Bounder {
             Plan::Taylor(stencil) => (None, Some(*stencil)),
             _ => (None, None),
         };
+        let sparse = match plan {
+            Plan::Sparse(design) => Some(Arc::clone(design)),
+            _ => None,
+        };
         if let (Some(projector), true) = (&projector, method.scans_surrogate()) {
             // Validate the scan options once, here, rather than in every worker.
             Scanner::new(projector.design().family(), dim, order, scan_options)?;
@@ -93,6 +118,7 @@ impl Bounder {
             scan_options,
             dim,
             order,
+            sparse,
         })
     }
 
@@ -108,8 +134,7 @@ impl Bounder {
         excluded: &(dyn Fn(usize) -> bool + Sync),
         threads: &rayon::ThreadPool,
     ) -> Result<BoundedBlock, UqError> {
-        type Record = (Vec<EnvelopePoint>, Vec<Option<Extremes>>);
-        let per_record: Vec<Result<Record, UqError>> = threads.install(|| {
+        let per_record: Vec<Result<RecordBounds, UqError>> = threads.install(|| {
             (0..records)
                 .into_par_iter()
                 .map_init(
@@ -121,17 +146,28 @@ impl Bounder {
         let mut out = BoundedBlock {
             points: Vec::with_capacity(records * n_outputs),
             extremes: Vec::with_capacity(records * n_outputs),
+            total_indices: Vec::new(),
         };
         for record in per_record {
-            let (points, extremes) = record?;
-            out.points.extend(points);
-            out.extremes.extend(extremes);
+            let record = record?;
+            out.points.extend(record.points);
+            out.extremes.extend(record.extremes);
+            out.total_indices.extend(record.total_indices);
         }
         Ok(out)
     }
 
     fn workspace(&self, n_outputs: usize) -> Workspace {
-        match &self.projector {
+        let sparse = self.sparse.as_ref().map(|design| SparseWorkspace {
+            coefficients: vec![0.0; design.set().len() * n_outputs],
+            surrogate: SparseSurrogate::zeros(Arc::clone(design.set())),
+            optimizer: BoxOptimizer::new(),
+            bounds: BoxBounds::default(),
+            starts: Vec::new(),
+            order: Vec::new(),
+            importance: vec![0.0; self.dim],
+        });
+        let mut workspace = match &self.projector {
             Some(projector) => {
                 let design = projector.design();
                 Workspace {
@@ -145,14 +181,18 @@ impl Bounder {
                                 .ok()
                         })
                         .flatten(),
+                    sparse: None,
                 }
             }
             None => Workspace {
                 coefficients: None,
                 surrogate: None,
                 scanner: None,
+                sparse: None,
             },
-        }
+        };
+        workspace.sparse = sparse;
+        workspace
     }
 
     fn bound_one(
@@ -161,10 +201,27 @@ impl Bounder {
         n_outputs: usize,
         excluded: &(dyn Fn(usize) -> bool + Sync),
         workspace: &mut Workspace,
-    ) -> Result<(Vec<EnvelopePoint>, Vec<Option<Extremes>>), UqError> {
+    ) -> Result<RecordBounds, UqError> {
         let n_samples = values.len() / n_outputs.max(1);
         let mut extremes = vec![None; n_outputs];
+        let mut total_indices = Vec::new();
         let mut points: Vec<EnvelopePoint> = match (&self.projector, &self.stencil) {
+            (None, None) if self.sparse.is_some() => {
+                let (Some(design), Some(ws)) = (&self.sparse, &mut workspace.sparse) else {
+                    return Err(UqError::Empty {
+                        what: "analysis workspace",
+                    });
+                };
+                total_indices.resize(n_outputs * self.dim, 0.0);
+                self.bound_sparse(
+                    design,
+                    values,
+                    n_outputs,
+                    ws,
+                    &mut extremes,
+                    &mut total_indices,
+                )?
+            }
             (Some(projector), _) => {
                 let (Some(coefficients), Some(surrogate)) =
                     (&mut workspace.coefficients, &mut workspace.surrogate)
@@ -196,6 +253,7 @@ impl Bounder {
                         lower: bound.lower,
                         upper: bound.upper,
                         error: Some(bound.error.top_order),
+                        outer: None,
                     });
                 }
                 points
@@ -207,6 +265,7 @@ impl Bounder {
                     lower: b.lower,
                     upper: b.upper,
                     error: Some(b.error.top_order),
+                    outer: None,
                 })
                 .collect(),
             (None, None) => vec![
@@ -214,6 +273,7 @@ impl Bounder {
                     lower: f64::INFINITY,
                     upper: f64::NEG_INFINITY,
                     error: None,
+                    outer: None,
                 };
                 n_outputs
             ],
@@ -229,7 +289,79 @@ impl Bounder {
                 point.upper = point.upper.max(value);
             }
         }
-        Ok((points, extremes))
+        Ok(RecordBounds {
+            points,
+            extremes,
+            total_indices,
+        })
+    }
+
+    /// Fits a sparse design's surrogates and bounds each: inner by multi-start projected Newton
+    /// (the centre, the sign vertices of the linear part, and the best design points), outer by
+    /// interval arithmetic (`legendre-ia` reports that one).
+    fn bound_sparse(
+        &self,
+        design: &SparseDesign,
+        values: &[f64],
+        n_outputs: usize,
+        ws: &mut SparseWorkspace,
+        extremes: &mut [Option<Extremes>],
+        total_indices: &mut [f64],
+    ) -> Result<Vec<EnvelopePoint>, UqError> {
+        let d = self.dim;
+        let n_points = design.n_points();
+        design
+            .fit()
+            .fit_into(values, n_outputs, &mut ws.coefficients)?;
+        let mut points = Vec::with_capacity(n_outputs);
+        for (o, extreme) in extremes.iter_mut().enumerate() {
+            ws.surrogate.set_from_fit(&ws.coefficients, n_outputs, o)?;
+            // The best design points for each side start the search.
+            ws.order.clear();
+            ws.order.extend(0..n_points);
+            let value = |p: usize| values[p * n_outputs + o];
+            ws.order
+                .sort_by(|&a, &b| value(a).total_cmp(&value(b)).then(a.cmp(&b)));
+            ws.starts.clear();
+            let take = DESIGN_STARTS_PER_SIDE.min(n_points);
+            for &p in ws.order[..take].iter().chain(&ws.order[n_points - take..]) {
+                ws.starts
+                    .extend_from_slice(&design.points()[p * d..(p + 1) * d]);
+            }
+            let bound = if self.method == Method::LegendreIa {
+                let (lower, upper) = ws.optimizer.outer_bound(&ws.surrogate);
+                EnvelopePoint {
+                    lower,
+                    upper,
+                    error: Some(ws.surrogate.top_order_magnitude()),
+                    outer: None,
+                }
+            } else {
+                ws.optimizer
+                    .bound_into(&ws.surrogate, &ws.starts, &mut ws.bounds)?;
+                let b = &ws.bounds;
+                *extreme = Some(Extremes {
+                    argmin: b.argmin.clone(),
+                    argmax: b.argmax.clone(),
+                    at_min: b.lower,
+                    at_max: b.upper,
+                });
+                EnvelopePoint {
+                    lower: b.lower,
+                    upper: b.upper,
+                    error: Some(ws.surrogate.top_order_magnitude()),
+                    outer: Some((b.outer_lower, b.outer_upper)),
+                }
+            };
+            points.push(bound);
+            let variance = ws.surrogate.variance();
+            ws.surrogate.importance_into(&mut ws.importance)?;
+            let row = &mut total_indices[o * d..(o + 1) * d];
+            for (t, v) in row.iter_mut().zip(&ws.importance) {
+                *t = if variance > 0.0 { v / variance } else { 0.0 };
+            }
+        }
+        Ok(points)
     }
 }
 
@@ -237,4 +369,20 @@ struct Workspace {
     coefficients: Option<CoefficientMatrix>,
     surrogate: Option<Surrogate>,
     scanner: Option<Scanner>,
+    sparse: Option<SparseWorkspace>,
+}
+
+/// Per-thread buffers of the sparse bounds.
+struct SparseWorkspace {
+    /// `terms × outputs`, row-major.
+    coefficients: Vec<f64>,
+    surrogate: SparseSurrogate,
+    optimizer: BoxOptimizer,
+    bounds: BoxBounds,
+    /// Start points, row-major.
+    starts: Vec<f64>,
+    /// Design points sorted by value.
+    order: Vec<usize>,
+    /// Per parameter, the variance of the terms involving it.
+    importance: Vec<f64>,
 }

@@ -19,10 +19,15 @@ pub enum Method {
     Scan,
     /// The true model at uniform random points (inner; converges slowly).
     MonteCarlo,
+    /// Chosen by the number of parameters (docs/method.md §10): `legendre-scan` on the tensor grid
+    /// for d ≤ 4, a Legendre surrogate on a sparse design bounded by multi-start projected
+    /// Newton (inner) above. Resolved before a study runs; never a study's method itself.
+    Auto,
 }
 
 /// Every method with its name, in documentation order.
-pub const METHODS: [(&str, Method); 7] = [
+pub const METHODS: [(&str, Method); 8] = [
+    ("auto", Method::Auto),
     ("legendre-scan", Method::LegendreScan),
     ("legendre-ia", Method::LegendreIa),
     ("chebyshev-scan", Method::ChebyshevScan),
@@ -54,13 +59,14 @@ impl Method {
             Method::LegendreIa | Method::ChebyshevIa => "outer",
             Method::Scan => "reference",
             Method::Taylor => "approximate",
+            Method::Auto => "inner",
         }
     }
 
     /// The polynomial family of a surrogate method.
     pub fn family(self) -> Option<Family> {
         match self {
-            Method::LegendreScan | Method::LegendreIa => Some(Family::Legendre),
+            Method::LegendreScan | Method::LegendreIa | Method::Auto => Some(Family::Legendre),
             Method::ChebyshevScan | Method::ChebyshevIa => Some(Family::Chebyshev),
             _ => None,
         }

@@ -8,6 +8,7 @@
 //! grow with horizon × samples. Results are bitwise identical for any thread count: each sample's
 //! trajectory depends only on its parameters, and fits read samples in plan order.
 
+mod auto;
 mod bounds;
 mod check;
 mod engine;
@@ -15,9 +16,15 @@ mod lyapunov;
 mod method;
 mod plan;
 mod reference;
+mod screening;
+mod sparse;
 mod study;
 
-pub use bounds::{BoundedBlock, EnvelopePoint, Extremes};
+pub use auto::{
+    binomial, choose as choose_auto, screened_terms, total_degree_terms, AutoChoice, AutoDesign,
+    AUTO_TENSOR_MAX_DIM, BASE_ORDER, DEFAULT_MAX_RUNS,
+};
+pub use bounds::{BoundedBlock, EnvelopePoint, Extremes, DESIGN_STARTS_PER_SIDE};
 pub use check::{
     automatic_check_runs, CheckCandidates, CheckPlan, Side, CHECK_POINT_TOLERANCE,
     CHECK_RUNS_FRACTION, MIN_CHECK_RUNS, TRUST_RELATIVE_MISFIT,
@@ -30,7 +37,9 @@ pub use lyapunov::{
 pub use method::{Method, METHODS};
 pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
+pub use screening::{DimensionScreening, Screening};
+pub use sparse::{screened_set, SparseDesign, REGRESSION_OVERSAMPLING, REGRESSION_SEED};
 pub use study::{
-    BlockView, CheckReport, Envelope, Progress, Study, StudyError, StudyOptions, StudyPlan,
-    StudyReport, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,
+    BlockView, CheckReport, DesignKind, Envelope, OuterBounds, Progress, Study, StudyError,
+    StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,
 };

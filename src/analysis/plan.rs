@@ -6,8 +6,10 @@
 //! - `scan`: a uniform grid of `N` points per dimension, endpoints included;
 //! - `monte-carlo`: `N` uniform random points from a seeded generator (splitmix64), so runs repeat.
 
+use super::sparse::SparseDesign;
 use super::Method;
 use crate::uq::{Design, TaylorStencil, Truncation, UqError};
+use std::sync::Arc;
 
 /// Central-difference step of the Taylor baseline, in standard coordinates: small enough that the
 /// second-order terms of smooth responses do not bias the slope (error ~h²/6 · f'''), large enough
@@ -27,6 +29,8 @@ pub enum Plan {
     Taylor(TaylorStencil),
     /// A uniform grid of this many points per dimension.
     Grid(usize),
+    /// A sparse design (Leja sparse grid or Sobol' regression).
+    Sparse(Arc<SparseDesign>),
     /// This many random points from this seed.
     Random {
         /// Number of points.
@@ -91,6 +95,7 @@ impl Plan {
             Plan::Taylor(stencil) => Some(stencil.n_points()),
             Plan::Grid(n) => n.checked_pow(u32::try_from(dim).ok()?),
             Plan::Random { samples, .. } => Some(*samples),
+            Plan::Sparse(design) => Some(design.n_points()),
         }
     }
 
@@ -98,6 +103,7 @@ impl Plan {
     pub fn points(&self, dim: usize) -> Vec<f64> {
         match self {
             Plan::Surrogate(design) => design.points(),
+            Plan::Sparse(design) => design.points().to_vec(),
             Plan::Taylor(stencil) => stencil.points(),
             Plan::Grid(n) => {
                 let n = *n;

@@ -109,6 +109,7 @@ impl Study<'_> {
                     lower: f64::INFINITY,
                     upper: f64::NEG_INFINITY,
                     error: None,
+                    outer: None,
                 };
                 n_records * n_outputs
             ],

@@ -12,11 +12,14 @@
 //! output per record time) and the nominal configurations: it does not grow with samples × horizon.
 //! Every envelope contains every model run the study made, in every phase.
 
+use super::auto::{choose as choose_auto, AutoChoice, AutoDesign};
 use super::bounds::{Bounder, EnvelopePoint};
 use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side, TRUST_RELATIVE_MISFIT};
 use super::engine::{BlockOutcome, LockStep, SampleFailure};
 use super::lyapunov::{estimate_lyapunov, LyapunovEstimate};
 use super::plan::{Plan, MAX_RUNS};
+use super::screening::Screening;
+use super::sparse::SparseDesign;
 use super::Method;
 use crate::model::Model;
 use crate::scene::{Output, Scene};
@@ -24,6 +27,7 @@ use crate::simulate::{hht_settings, RobotSystem};
 use crate::uncertainty::ParameterSpace;
 use crate::uq::{Truncation, UqError};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 use thiserror::Error;
 
@@ -40,8 +44,13 @@ pub struct StudyOptions {
     pub method: Method,
     /// Polynomial order `k` of surrogate methods.
     pub order: usize,
-    /// `tensor` or `total` truncation of surrogate methods (both on the tensor Gauss grid).
+    /// `tensor` or `total` truncation of surrogate methods on the tensor Gauss grid.
     pub truncation: Truncation,
+    /// The design of surrogate methods: the tensor Gauss grid, a Leja sparse grid or a Sobol'
+    /// regression (`auto` chooses itself).
+    pub design: DesignKind,
+    /// Most model runs an `auto` study above d = 4 plans (screening, design and check).
+    pub max_runs: usize,
     /// Points per dimension of the true-model `scan` (odd).
     pub grid: usize,
     /// Points per dimension of the surrogate scan (odd); `None` for the default (21 for d ≤ 2, 11
@@ -59,6 +68,17 @@ pub struct StudyOptions {
     /// True-model runs of the a-posteriori check for methods that locate their extremes (`None`:
     /// [`automatic_check_runs`] of the design; `Some(0)`: no check).
     pub check_runs: Option<usize>,
+}
+
+/// Where a surrogate method runs the model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DesignKind {
+    /// The (k+1)^d tensor Gauss grid (with [`StudyOptions::truncation`]).
+    Tensor,
+    /// Interpolation on the Leja sparse grid of total degree k (docs/high-dimension.md).
+    Sparse,
+    /// Least squares on total degree k at twice as many Sobol' points as terms.
+    Regression,
 }
 
 /// Why a study could not run or finish.
@@ -139,7 +159,14 @@ pub struct Envelope {
     /// `error[o][k]`, where the method has an estimate: the larger of the method's own estimate
     /// and the misfit the check observed at that output and time.
     pub error: Option<Vec<Vec<f64>>>,
+    /// `outer_lower[o][k]`, `outer_upper[o][k]`: an outer bound of the surrogate beside the inner
+    /// one, where the method has both (sparse designs); the gap between them is what the inner
+    /// search might have missed on the surrogate.
+    pub outer: Option<OuterBounds>,
 }
+
+/// `(outer_lower[o][k], outer_upper[o][k])`.
+pub type OuterBounds = (Vec<Vec<f64>>, Vec<Vec<f64>>);
 
 /// What the a-posteriori check did.
 #[derive(Clone, Debug)]
@@ -186,6 +213,21 @@ pub struct StudyReport {
     pub block_records: usize,
     /// The a-posteriori check, when the method has one.
     pub check: Option<CheckReport>,
+    /// The method that ran (`auto` resolved).
+    pub method: Method,
+    /// The design's name (see [`StudyPlan::design_name`]).
+    pub design: &'static str,
+    /// What `auto` chose and why.
+    pub auto: Option<AutoChoice>,
+    /// The screening, when there was one.
+    pub screening: Option<Screening>,
+    /// The dimensions from the most important, when a screening ranked them.
+    pub ranking: Option<Vec<usize>>,
+    /// Sparse designs: per dimension, the largest total Sobol' index over outputs and record times
+    /// of the surrogates, with the output and record where it occurs.
+    pub total_index_max: Option<Vec<(f64, usize, usize)>>,
+    /// Sparse designs: the condition number of the design's basis matrix.
+    pub condition_number: Option<f64>,
     /// The largest Lyapunov exponent of the nominal motion (two extra runs: the nominal
     /// parameters and a shadow with a perturbed state; `None` when either failed or the study was
     /// interrupted before).
@@ -195,8 +237,17 @@ pub struct StudyReport {
 /// What a study will do, known before it runs.
 #[derive(Clone, Debug)]
 pub struct StudyPlan {
-    /// The design's sample points.
-    pub plan: Plan,
+    /// The method that runs (`auto` resolved).
+    pub method: Method,
+    /// The design's sample points; `None` until a screening has ranked the parameters.
+    pub plan: Option<Plan>,
+    /// The design's name: `tensor`, `total`, `sparse`, `sparse-screened`, `regression`, `grid`,
+    /// `random`, `central-differences`.
+    pub design_name: &'static str,
+    /// What `auto` chose and why.
+    pub auto: Option<AutoChoice>,
+    /// Runs of the screening (0 without).
+    pub screening_runs: usize,
     /// Model runs of the design, the nominal run included.
     pub design_runs: usize,
     /// Most runs the a-posteriori check will add (0: no check).
@@ -206,7 +257,7 @@ pub struct StudyPlan {
 impl StudyPlan {
     /// Most model runs the study makes.
     pub fn max_runs(&self) -> usize {
-        self.design_runs + self.check_runs
+        self.screening_runs + self.design_runs + self.check_runs
     }
 }
 
@@ -301,28 +352,84 @@ impl Study<'_> {
                 "--order 0 fits a constant, whose range is a single value: every envelope would be as narrow as the runs make it. Use --order 1 or more (default 4)".to_string(),
             ));
         }
-        let plan = Plan::new(
-            o.method,
-            d,
-            o.order,
-            o.truncation,
-            o.grid,
-            o.samples,
-            o.seed,
-        )?;
-        let runs = plan.runs(d).filter(|r| *r <= MAX_RUNS).ok_or_else(|| {
+        let check_for = |runs: usize| match o.check_runs {
+            Some(n) => n,
+            None => automatic_check_runs(runs),
+        };
+        let mut auto = None;
+        let (method, design) = match o.method {
+            Method::Auto => {
+                let choice = choose_auto(d, o.order, o.max_runs, check_for);
+                let resolved = choice.design.clone();
+                auto = Some(choice);
+                (Method::LegendreScan, Some(resolved))
+            }
+            method => (method, None),
+        };
+        let sparse_ok = matches!(method, Method::LegendreScan | Method::LegendreIa);
+        let (plan, design_name, screening_runs) = match (&design, o.design) {
+            (Some(AutoDesign::Tensor), _) => (
+                Some(Plan::new(method, d, o.order, o.truncation, o.grid, o.samples, o.seed)?),
+                "tensor",
+                0,
+            ),
+            (Some(AutoDesign::TotalDegree { order }), _) => (
+                Some(Plan::Sparse(Arc::new(SparseDesign::total_degree(d, *order)?))),
+                "sparse",
+                0,
+            ),
+            (Some(AutoDesign::Screened { .. }), _) => (None, "sparse-screened", 2 * d + 1),
+            (None, DesignKind::Sparse | DesignKind::Regression) if !sparse_ok => {
+                return Err(StudyError::BadOptions(format!(
+                    "--design sparse and regression fit Legendre surrogates: use them with --method legendre-scan, legendre-ia or auto, not {}",
+                    method.name()
+                )))
+            }
+            (None, DesignKind::Sparse) => (
+                Some(Plan::Sparse(Arc::new(SparseDesign::total_degree(d, o.order)?))),
+                "sparse",
+                0,
+            ),
+            (None, DesignKind::Regression) => (
+                Some(Plan::Sparse(Arc::new(SparseDesign::regression(d, o.order)?))),
+                "regression",
+                0,
+            ),
+            (None, DesignKind::Tensor) => (
+                Some(Plan::new(method, d, o.order, o.truncation, o.grid, o.samples, o.seed)?),
+                match (method, o.truncation) {
+                    (Method::Scan, _) => "grid",
+                    (Method::MonteCarlo, _) => "random",
+                    (Method::Taylor, _) => "central-differences",
+                    (_, Truncation::Tensor) => "tensor",
+                    (_, Truncation::Total) => "total",
+                },
+                0,
+            ),
+        };
+        let runs = match (&plan, &auto) {
+            (Some(plan), _) => plan.runs(d),
+            (None, Some(choice)) => Some(choice.design_runs),
+            (None, None) => None,
+        }
+        .filter(|r| *r <= MAX_RUNS)
+        .ok_or_else(|| {
             StudyError::BadOptions(format!(
-                "{} with {d} parameters needs more than {MAX_RUNS} model runs; lower --order/--grid/--samples or use fewer parameters",
-                o.method.name()
+                "{} with {d} parameters needs more than {MAX_RUNS} model runs; lower --order/--grid/--samples, use --method auto, or use fewer parameters",
+                method.name()
             ))
         })?;
-        let check_runs = if o.method.locates_extremes() {
-            o.check_runs.unwrap_or_else(|| automatic_check_runs(runs))
+        let check_runs = if method.locates_extremes() {
+            check_for(runs)
         } else {
             0
         };
         Ok(StudyPlan {
+            method,
             plan,
+            design_name,
+            auto,
+            screening_runs,
             design_runs: runs + 1,
             check_runs,
         })
@@ -350,6 +457,7 @@ impl Study<'_> {
                 upper: Vec::new(),
                 nominal: Vec::new(),
                 error: None,
+                outer: None,
             },
             runs: 0,
             excluded: Vec::new(),
@@ -362,6 +470,13 @@ impl Study<'_> {
             block_records: 0,
             check: None,
             lyapunov: None,
+            method: self.options.method,
+            design: "",
+            auto: None,
+            screening: None,
+            ranking: None,
+            total_index_max: None,
+            condition_number: None,
         }
     }
 
@@ -384,21 +499,34 @@ impl Study<'_> {
         progress: &mut dyn FnMut(Progress),
         sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
     ) -> Result<StudyReport, StudyError> {
-        let started = Instant::now();
         let study_plan = self.plan()?;
+        self.run_planned(study_plan, interrupt, progress, sink)
+    }
+
+    /// [`Study::run`] with the plan already made (the caller printed it; planning a regression
+    /// design costs seconds at large d, so it is not done twice).
+    pub fn run_planned(
+        &self,
+        study_plan: StudyPlan,
+        interrupt: &AtomicBool,
+        progress: &mut dyn FnMut(Progress),
+        sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
+    ) -> Result<StudyReport, StudyError> {
+        let started = Instant::now();
         let o = &self.options;
+        let method = study_plan.method;
         let d = self.space.len();
         let threads = self.thread_pool()?;
-        let plan = &study_plan.plan;
-        let points = plan.points(d);
-        let bounder = Bounder::new(o.method, plan, d, o.order, o.scan_grid)?;
         let scene = self.scene;
         let n_outputs = scene.outputs.len();
         let n_records = n_records(scene);
         let design_runs = study_plan.design_runs;
         let mut report = StudyReport {
-            runs: design_runs,
+            runs: 0,
             block_records: block_records(design_runs, n_outputs, n_records),
+            method,
+            design: study_plan.design_name,
+            auto: study_plan.auto.clone(),
             ..self.empty_report(&threads)
         };
         let mut accumulator = Accumulator {
@@ -408,9 +536,49 @@ impl Study<'_> {
             nominal: Vec::with_capacity(n_records * n_outputs),
             nominal_positions: Vec::new(),
         };
+
+        // Screening (auto above the budget of a full total-degree set): the star design ranks the
+        // parameters, and the design is built from the ranking.
+        let mut screen_hull: Vec<EnvelopePoint> = Vec::new();
+        let plan = match study_plan.plan {
+            Some(plan) => plan,
+            None => {
+                let Some(choice) = &study_plan.auto else {
+                    return Err(StudyError::BadOptions(
+                        "internal: a plan without design or auto choice".to_string(),
+                    ));
+                };
+                let (screening, complete) = self.screen(
+                    &threads,
+                    interrupt,
+                    started,
+                    &mut report,
+                    progress,
+                    &mut screen_hull,
+                )?;
+                let ranking = screening.ranking();
+                report.screening = Some(screening);
+                report.ranking = Some(ranking.clone());
+                if !complete {
+                    return self.finish(report, accumulator, sink);
+                }
+                Plan::Sparse(Arc::new(SparseDesign::screened(
+                    d,
+                    &choice.design,
+                    &ranking,
+                )?))
+            }
+        };
+        report.runs += design_runs;
+        if let Plan::Sparse(design) = &plan {
+            report.condition_number = Some(design.condition_number());
+        }
+        let points = plan.points(d);
+        let bounder = Bounder::new(method, &plan, d, o.order, o.scan_grid)?;
         let mut candidates = CheckCandidates::new(d);
         let locates_extremes = study_plan.check_runs > 0;
-        let can_exclude = o.keep_going && matches!(o.method, Method::Scan | Method::MonteCarlo);
+        let can_exclude = o.keep_going && matches!(method, Method::Scan | Method::MonteCarlo);
+        let mut total_index_max: Vec<(f64, usize, usize)> = vec![(0.0, 0, 0); d];
         let design_policy = FailurePolicy {
             can_exclude,
             hint: if o.keep_going && !can_exclude {
@@ -459,11 +627,27 @@ impl Study<'_> {
                         .extend_from_slice(lockstep.nominal_positions(r));
                 }
                 accumulator.points.extend_from_slice(&bounded.points);
+                for (k, index) in bounded.total_indices.iter().enumerate() {
+                    let (r, rest) = (k / (n_outputs * d), k % (n_outputs * d));
+                    let (output, j) = (rest / d, rest % d);
+                    if *index > total_index_max[j].0 {
+                        total_index_max[j] = (*index, output, block.first + r);
+                    }
+                }
                 for r in 0..block.count {
                     let record = block.first + r;
                     // The nominal run is a true response inside the box: the envelope contains it.
                     let nominal = block.record(nominal_index, r).to_vec();
                     accumulator.widen(record, &nominal);
+                    // The screening's runs are true responses too.
+                    if let Some(hull) =
+                        screen_hull.get(record * n_outputs..(record + 1) * n_outputs)
+                    {
+                        let (lower, upper): (Vec<f64>, Vec<f64>) =
+                            hull.iter().map(|p| (p.lower, p.upper)).unzip();
+                        accumulator.widen(record, &lower);
+                        accumulator.widen(record, &upper);
+                    }
                     if !locates_extremes {
                         continue;
                     }
@@ -496,6 +680,10 @@ impl Study<'_> {
             },
         )?;
 
+        if matches!(plan, Plan::Sparse(_)) {
+            report.total_index_max = Some(total_index_max);
+        }
+
         // The a-posteriori check: true runs where the surrogates put their extremes.
         if design_complete && locates_extremes {
             let check_plan = candidates.select(study_plan.check_runs);
@@ -519,6 +707,65 @@ impl Study<'_> {
             report.simulate_seconds += t_lyapunov.elapsed().as_secs_f64();
         }
         self.finish(report, accumulator, sink)
+    }
+
+    /// The screening phase: the star design (`±e_j` and the centre, 2d + 1 runs). Returns the
+    /// screening and whether it ran to the end; `hull` receives the runs' min/max per record and
+    /// output (record-major), since they are true responses the envelopes must contain.
+    fn screen(
+        &self,
+        threads: &rayon::ThreadPool,
+        interrupt: &AtomicBool,
+        started: Instant,
+        report: &mut StudyReport,
+        progress: &mut dyn FnMut(Progress),
+        hull: &mut Vec<EnvelopePoint>,
+    ) -> Result<(Screening, bool), StudyError> {
+        let d = self.space.len();
+        let n_outputs = self.scene.outputs.len();
+        let mut points = Screening::points(d);
+        points.extend(std::iter::repeat_n(0.0, d));
+        let mut screening = Screening::new(d, n_outputs);
+        let policy = FailurePolicy {
+            can_exclude: false,
+            hint: "Screening runs the centres of the box's faces; a failure there means the box contains points the model cannot simulate: narrow the box",
+            noun: "screening run",
+        };
+        report.runs += 2 * d + 1;
+        let complete = self.run_phase(
+            "screening",
+            &points,
+            None,
+            policy,
+            threads,
+            interrupt,
+            started,
+            report,
+            progress,
+            &mut |block, _| {
+                for r in 0..block.count {
+                    screening.add_record(block.record(2 * d, r), |i| block.record(i, r));
+                    let mut row = vec![
+                        EnvelopePoint {
+                            lower: f64::INFINITY,
+                            upper: f64::NEG_INFINITY,
+                            error: None,
+                            outer: None,
+                        };
+                        n_outputs
+                    ];
+                    for i in 0..=2 * d {
+                        for (point, &value) in row.iter_mut().zip(block.record(i, r)) {
+                            point.lower = point.lower.min(value);
+                            point.upper = point.upper.max(value);
+                        }
+                    }
+                    hull.extend(row);
+                }
+                Ok(())
+            },
+        )?;
+        Ok((screening, complete))
     }
 
     /// Runs the check plan's points, widens the envelopes with them and measures the misfits.
@@ -730,6 +977,12 @@ impl Study<'_> {
         if has_error {
             envelope.error = Some(vec![Vec::with_capacity(n_done); n_outputs]);
         }
+        if accumulator.points.iter().any(|p| p.outer.is_some()) {
+            envelope.outer = Some((
+                vec![Vec::with_capacity(n_done); n_outputs],
+                vec![Vec::with_capacity(n_done); n_outputs],
+            ));
+        }
         for r in 0..n_done {
             for o in 0..n_outputs {
                 let point = accumulator.points[r * n_outputs + o];
@@ -738,6 +991,12 @@ impl Study<'_> {
                 envelope.nominal[o].push(accumulator.nominal[r * n_outputs + o]);
                 if let Some(errors) = &mut envelope.error {
                     errors[o].push(point.error.unwrap_or(0.0));
+                }
+                if let Some((outer_lower, outer_upper)) = &mut envelope.outer {
+                    // The outer bound contains the envelope (which contains every run).
+                    let (lo, hi) = point.outer.unwrap_or((point.lower, point.upper));
+                    outer_lower[o].push(lo.min(point.lower));
+                    outer_upper[o].push(hi.max(point.upper));
                 }
             }
         }

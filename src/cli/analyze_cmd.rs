@@ -10,13 +10,15 @@ use super::{
     AnalyzeArgs, SceneArgs,
 };
 use crate::analysis::{
-    CheckReport, Method, Progress, Study, StudyOptions, StudyReport, CHAOS_AMPLIFICATION, METHODS,
-    TRUST_RELATIVE_MISFIT,
+    CheckReport, DesignKind, Method, Progress, Study, StudyOptions, StudyReport,
+    CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TRUST_RELATIVE_MISFIT,
 };
 use crate::dynamics::Data;
 use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
-use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, Summary};
+use crate::output::{
+    write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, SensitivitySummary, Summary,
+};
 use crate::scene::{check_threads, default_sidecar_path, read_sidecar, wants_floating_base, Scene};
 use crate::text::closest_suggestion;
 use crate::uncertainty::ParameterSpace;
@@ -81,10 +83,17 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     let plan = study.plan()?;
     let runs = plan.max_runs();
     eprintln!(
-        "analyze: {} parameters, method {} ({}), {} model runs{} of {} s at h = {} s",
+        "analyze: {} parameters, method {}{} ({}), design {}, {}{} model runs{} of {} s at h = {} s",
         space.len(),
-        options.method.name(),
-        options.method.bound_kind(),
+        plan.method.name(),
+        if options.method == Method::Auto { " (auto)" } else { "" },
+        plan.method.bound_kind(),
+        plan.design_name,
+        if plan.screening_runs > 0 {
+            format!("{} screening + ", plan.screening_runs)
+        } else {
+            String::new()
+        },
         plan.design_runs,
         if plan.check_runs > 0 {
             format!(" + up to {} check runs", plan.check_runs)
@@ -94,13 +103,16 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         scene.duration_s,
         scene.step_s
     );
+    if let Some(auto) = &plan.auto {
+        eprintln!("auto: {}", auto.reason);
+    }
 
     let interrupt = crate::interrupt::flag();
 
     let metadata = McapMetadata {
         robot: robot.clone(),
-        method: options.method.name().to_string(),
-        order: order_of(&options),
+        method: plan.method.name().to_string(),
+        order: order_of(plan.method, &options),
         runs,
         parameters_json: serde_json::to_string(&parameter_summaries(&space))
             .unwrap_or_else(|_| "[]".to_string()),
@@ -112,14 +124,15 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
             Some(&sidecar_path),
             metadata,
             &scene.outputs,
-            options.method.family().is_some() || options.method == Method::Taylor,
+            plan.method.family().is_some() || plan.method == Method::Taylor,
         )?),
         None => None,
     };
     let kinematic_model = model;
     let mut data = Data::new(&kinematic_model);
     let mut reporter = ProgressReporter::new();
-    let report = study.run(
+    let report = study.run_planned(
+        plan,
         interrupt,
         &mut |progress| reporter.report(progress),
         &mut |block| match log.as_mut() {
@@ -167,7 +180,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         wall_seconds,
         peak_memory().map_or(String::new(), |bytes| format!("; peak memory {:.1} MiB", bytes as f64 / 1048576.0)),
     );
-    write_stdout(&table(&options, &report, wall_seconds))?;
+    write_stdout(&table(&options, &space, &report, wall_seconds))?;
     if report.partial {
         let done = report.envelope.times.last().copied().unwrap_or(0.0);
         return Err(Error::Interrupted(format!(
@@ -272,7 +285,7 @@ fn study_options(
         .method
         .clone()
         .or_else(|| section.method.clone())
-        .unwrap_or_else(|| "legendre-scan".to_string());
+        .unwrap_or_else(|| "auto".to_string());
     let method = Method::parse(&method_name).ok_or_else(|| {
         let names: Vec<&str> = METHODS.iter().map(|(n, _)| *n).collect();
         bad(
@@ -289,16 +302,33 @@ fn study_options(
         .clone()
         .or_else(|| section.design.clone())
         .unwrap_or_else(|| "tensor".to_string());
-    let truncation = match design_name.as_str() {
-        "tensor" => Truncation::Tensor,
-        "total" => Truncation::Total,
+    let (truncation, design) = match design_name.as_str() {
+        "tensor" => (Truncation::Tensor, DesignKind::Tensor),
+        "total" => (Truncation::Total, DesignKind::Tensor),
+        "sparse" => (Truncation::Total, DesignKind::Sparse),
+        "regression" => (Truncation::Total, DesignKind::Regression),
         other => {
             return Err(bad(
                 "--design",
-                format!("'{other}' is not a design; use tensor or total"),
+                format!(
+                    "'{other}' is not a design; use tensor, total, sparse or regression (or leave it to --method auto)"
+                ),
             ))
         }
     };
+    if method == Method::Auto && (args.design.is_some() || section.design.is_some()) {
+        return Err(bad(
+            "--design",
+            "--method auto chooses the design itself; name a method (e.g. --method legendre-scan) to choose a design".to_string(),
+        ));
+    }
+    let max_runs = args.max_runs.unwrap_or(DEFAULT_MAX_RUNS);
+    if max_runs < 2 {
+        return Err(bad(
+            "--max-runs",
+            format!("{max_runs} runs cannot hold a design and its nominal run; give at least 2"),
+        ));
+    }
     let threads = check_threads("--threads", args.threads.unwrap_or(0))?;
     Ok(StudyOptions {
         method,
@@ -311,24 +341,16 @@ fn study_options(
         threads,
         keep_going: args.keep_going,
         check_runs: args.check_runs,
+        design,
+        max_runs,
     })
 }
 
-fn order_of(options: &StudyOptions) -> Option<usize> {
-    match options.method {
+fn order_of(method: Method, options: &StudyOptions) -> Option<usize> {
+    match method {
         Method::Scan | Method::MonteCarlo => None,
         Method::Taylor => Some(1),
         _ => Some(options.order),
-    }
-}
-
-fn design_of(options: &StudyOptions) -> &'static str {
-    match (options.method, options.truncation) {
-        (Method::Scan, _) => "grid",
-        (Method::MonteCarlo, _) => "random",
-        (Method::Taylor, _) => "central-differences",
-        (_, Truncation::Tensor) => "tensor",
-        (_, Truncation::Total) => "total",
     }
 }
 
@@ -357,10 +379,11 @@ fn summary(
     let e = &report.envelope;
     Summary {
         robot: robot.to_string(),
-        method: options.method.name().to_string(),
-        order: order_of(options),
-        design: Some(design_of(options).to_string()),
-        bound_kind: options.method.bound_kind().to_string(),
+        method: report.method.name().to_string(),
+        order: order_of(report.method, options),
+        design: Some(report.design.to_string()),
+        bound_kind: report.method.bound_kind().to_string(),
+        sensitivities: sensitivities(space, report),
         parameters: parameter_summaries(space),
         samples: report.runs,
         excluded_samples: report
@@ -381,6 +404,8 @@ fn summary(
                 upper: e.upper[o].clone(),
                 nominal: e.nominal[o].clone(),
                 error_estimate: e.error.as_ref().map(|errors| errors[o].clone()),
+                outer_lower: e.outer.as_ref().map(|(lower, _)| lower[o].clone()),
+                outer_upper: e.outer.as_ref().map(|(_, upper)| upper[o].clone()),
             })
             .collect(),
         stats: serde_json::json!({
@@ -393,6 +418,15 @@ fn summary(
             "block_records": report.block_records,
             "peak_memory_bytes": peak_memory(),
             "check": report.check.as_ref().map(|c| check_json(report, c, space.len())),
+            "auto": report.auto.as_ref().map(|a| serde_json::json!({
+                "requested": "auto",
+                "design": report.design,
+                "reason": a.reason,
+                "screening_runs": a.screening_runs,
+                "design_runs": a.design_runs,
+            })),
+            "condition_number": report.condition_number,
+            "inner_outer_gap": gap_json(report),
             "lyapunov": report.lyapunov.map(|l| serde_json::json!({
                 "exponent_per_s": l.exponent_per_s,
                 "amplification": l.amplification,
@@ -402,6 +436,102 @@ fn summary(
             })),
         }),
     }
+}
+
+/// Per dimension, how much it moves the outputs, from what the study measured (issue 11 §2):
+/// - `relative_slope`: the screening's largest secant slope `|y(e_j) − y(−e_j)|/2` (∂y/∂ξ across the
+///   half-width) over outputs and times, relative to the output's largest envelope width;
+/// - `importance`: the screening's share of an output's one-at-a-time spread;
+/// - `total_index`: the largest total Sobol' index of the sparse surrogates, with where.
+///
+/// Sorted by the screening's rank where there was one, else by total index; `None` when the study
+/// measured neither (tensor designs).
+fn sensitivities(space: &ParameterSpace, report: &StudyReport) -> Option<Vec<SensitivitySummary>> {
+    if report.screening.is_none() && report.total_index_max.is_none() {
+        return None;
+    }
+    let e = &report.envelope;
+    let widths: Vec<f64> = (0..e.outputs.len())
+        .map(|o| {
+            e.upper[o]
+                .iter()
+                .zip(&e.lower[o])
+                .map(|(u, l)| u - l)
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    let mut rows: Vec<SensitivitySummary> = space
+        .dimensions()
+        .iter()
+        .enumerate()
+        .map(|(j, dimension)| {
+            let screened = report.screening.as_ref().map(|s| {
+                let verdict = &s.dimensions()[j];
+                let (slope, output) = (0..widths.len())
+                    .filter(|&o| widths[o] > 0.0)
+                    .map(|o| (s.max_slope(j, o) / widths[o], o))
+                    .fold((0.0, 0), |best, x| if x.0 > best.0 { x } else { best });
+                (slope, output, verdict.importance)
+            });
+            let total = report.total_index_max.as_ref().map(|t| t[j]);
+            SensitivitySummary {
+                name: dimension.name.clone(),
+                rank: 0,
+                relative_slope: screened.map(|s| s.0),
+                slope_output: screened.map(|s| e.outputs[s.1].name.clone()),
+                importance: screened.map(|s| s.2),
+                total_index: total.map(|t| t.0),
+                total_index_output: total.map(|t| e.outputs[t.1].name.clone()),
+                total_index_time: total.and_then(|t| e.times.get(t.2).copied()),
+            }
+        })
+        .collect();
+    let mut order: Vec<usize> = match &report.ranking {
+        Some(ranking) => ranking.clone(),
+        None => (0..rows.len()).collect(),
+    };
+    if report.ranking.is_none() {
+        order.sort_by(|&a, &b| {
+            rows[b]
+                .total_index
+                .unwrap_or(0.0)
+                .total_cmp(&rows[a].total_index.unwrap_or(0.0))
+                .then(a.cmp(&b))
+        });
+    }
+    for (rank, &j) in order.iter().enumerate() {
+        rows[j].rank = rank + 1;
+    }
+    rows.sort_by_key(|r| r.rank);
+    Some(rows)
+}
+
+/// Per output, the largest gap between the sparse surrogate's outer and inner bounds relative to
+/// the envelope's width (what the inner search might have missed on the surrogate).
+fn gap_json(report: &StudyReport) -> Option<serde_json::Value> {
+    let e = &report.envelope;
+    let (outer_lower, outer_upper) = e.outer.as_ref()?;
+    let rows: Vec<serde_json::Value> = e
+        .outputs
+        .iter()
+        .enumerate()
+        .map(|(o, output)| {
+            let width = e.upper[o]
+                .iter()
+                .zip(&e.lower[o])
+                .map(|(u, l)| u - l)
+                .fold(0.0, f64::max);
+            let gap = (0..e.times.len())
+                .map(|k| (e.lower[o][k] - outer_lower[o][k]).max(outer_upper[o][k] - e.upper[o][k]))
+                .fold(0.0, f64::max);
+            serde_json::json!({
+                "name": output.name,
+                "max_gap": gap,
+                "relative_gap": if width > 0.0 { gap / width } else { 0.0 },
+            })
+        })
+        .collect();
+    Some(serde_json::Value::Array(rows))
 }
 
 /// The check's statistics for the summary: runs, candidates, and per output its misfit.
@@ -468,7 +598,12 @@ fn write_envelope_csv(path: &Path, report: &StudyReport) -> Result<(), Error> {
     write_csv(path, &e.times, &names, &columns)
 }
 
-fn table(options: &StudyOptions, report: &StudyReport, wall_seconds: f64) -> String {
+fn table(
+    options: &StudyOptions,
+    space: &ParameterSpace,
+    report: &StudyReport,
+    wall_seconds: f64,
+) -> String {
     let e = &report.envelope;
     let width = e
         .outputs
@@ -505,10 +640,11 @@ fn table(options: &StudyOptions, report: &StudyReport, wall_seconds: f64) -> Str
         ));
     }
     text.push_str(&format!(
-        "method {} ({} bounds{}), {} model runs{}, {:.3} s wall{}\n",
-        options.method.name(),
-        options.method.bound_kind(),
-        order_of(options).map_or(String::new(), |k| format!(", order {k}")),
+        "method {} ({} bounds{}, design {}), {} model runs{}, {:.3} s wall{}\n",
+        report.method.name(),
+        report.method.bound_kind(),
+        order_of(report.method, options).map_or(String::new(), |k| format!(", order {k}")),
+        report.design,
         report.runs,
         report.check.as_ref().map_or(String::new(), |c| {
             let worst = c.relative_misfit.iter().copied().fold(0.0, f64::max);
@@ -526,8 +662,35 @@ fn table(options: &StudyOptions, report: &StudyReport, wall_seconds: f64) -> Str
             format!(", {} samples excluded", report.excluded.len())
         }
     ));
+    if let Some(rows) = sensitivities(space, report) {
+        text.push_str(&format!(
+            "most influential parameters (of {}):\n",
+            rows.len()
+        ));
+        for row in rows.iter().take(TABLE_SENSITIVITIES) {
+            let mut parts = Vec::new();
+            if let (Some(slope), Some(output)) = (row.relative_slope, &row.slope_output) {
+                parts.push(format!(
+                    "slope × half-width {:.1} % of the width of {output}",
+                    100.0 * slope
+                ));
+            }
+            if let (Some(index), Some(output)) = (row.total_index, &row.total_index_output) {
+                parts.push(format!("total Sobol' index {index:.3} on {output}"));
+            }
+            text.push_str(&format!(
+                "  {:>3}. {}: {}\n",
+                row.rank,
+                row.name,
+                parts.join("; ")
+            ));
+        }
+    }
     text
 }
+
+/// Parameters listed in the stdout table's ranking.
+const TABLE_SENSITIVITIES: usize = 5;
 
 /// Peak resident memory of this process (Linux `VmHWM`), bytes.
 pub fn peak_memory() -> Option<u64> {

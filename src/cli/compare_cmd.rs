@@ -8,7 +8,9 @@
 
 use super::analyze_cmd::{prepare, sidecar_path_of, Prepared};
 use super::{install_interrupt, write_stdout, CompareArgs};
-use crate::analysis::{Method, Study, StudyOptions, StudyReport, VertexReferenceOptions};
+use crate::analysis::{
+    DesignKind, Method, Study, StudyOptions, StudyReport, VertexReferenceOptions, DEFAULT_MAX_RUNS,
+};
 use crate::output::svg::{Plot, Series};
 use crate::output::write_atomically;
 use crate::scene::check_threads;
@@ -225,6 +227,8 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
         threads,
         keep_going: false,
         check_runs: None,
+        design: DesignKind::Tensor,
+        max_runs: DEFAULT_MAX_RUNS,
     };
     let interrupt = crate::interrupt::flag();
     let run_study = |options: StudyOptions| -> Result<(StudyReport, f64), Error> {

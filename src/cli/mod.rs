@@ -79,14 +79,17 @@ pub struct AnalyzeArgs {
     /// The robot, its sidecar and scene overrides.
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// legendre-scan | legendre-ia | chebyshev-scan | chebyshev-ia | taylor | scan | monte-carlo
-    /// (default: the sidecar's `[analysis] method`, else legendre-scan).
+    /// auto | legendre-scan | legendre-ia | chebyshev-scan | chebyshev-ia | taylor | scan |
+    /// monte-carlo (default: the sidecar's `[analysis] method`, else auto: legendre-scan on the
+    /// tensor grid for d ≤ 4, a screened sparse design above).
     #[arg(long)]
     pub method: Option<String>,
     /// Polynomial order k of surrogate methods (default: `[analysis] order`, else 4).
     #[arg(long)]
     pub order: Option<usize>,
-    /// tensor | total: truncation of surrogate methods (default tensor).
+    /// tensor | total (the tensor Gauss grid, all terms or total degree) | sparse (Leja sparse grid,
+    /// total degree k) | regression (Sobol' least squares, total degree k); default tensor; `auto`
+    /// chooses its own.
     #[arg(long)]
     pub design: Option<String>,
     /// Points per dimension of the true-model `scan` (odd; default 21).
@@ -108,6 +111,10 @@ pub struct AnalyzeArgs {
     /// check runs).
     #[arg(long)]
     pub keep_going: bool,
+    /// Most model runs `--method auto` plans above d = 4 (screening, design and check; default
+    /// 3000).
+    #[arg(long, value_name = "N")]
+    pub max_runs: Option<usize>,
     /// True-model runs of the a-posteriori check at the surrogate's predicted extremes (methods
     /// that scan a surrogate; default: 10 % of the design's runs, at least 8; 0 turns it off).
     #[arg(long, value_name = "N")]

@@ -159,6 +159,7 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
         design: None,
         bound_kind: "nominal".to_string(),
         parameters: Vec::new(),
+        sensitivities: None,
         samples: 1,
         excluded_samples: Vec::new(),
         wall_seconds,
@@ -174,6 +175,8 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
                 upper: values.clone(),
                 nominal: values.clone(),
                 error_estimate: None,
+                outer_lower: None,
+                outer_upper: None,
             })
             .collect(),
         stats: serde_json::json!({

@@ -19,7 +19,7 @@ pub use envelope_log::EnvelopeLog;
 pub use paths::{
     check_outputs, prepare_output_directory, remove_live_temporaries, write_atomically, AtomicFile,
 };
-pub use summary::{EnvelopeSeries, ParameterSummary, Summary};
+pub use summary::{EnvelopeSeries, ParameterSummary, SensitivitySummary, Summary};
 
 /// The first NaN or infinity of a set of series.
 #[derive(Clone, Copy, Debug, PartialEq)]

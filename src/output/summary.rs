@@ -26,6 +26,28 @@ pub struct ParameterSummary {
     pub unit: String,
 }
 
+/// How much one parameter moves the outputs (the summary's `sensitivities`, ranked).
+#[derive(Clone, Debug, Serialize)]
+pub struct SensitivitySummary {
+    /// The dimension's name.
+    pub name: String,
+    /// 1 for the most influential.
+    pub rank: usize,
+    /// Screening: the largest secant slope `|y(e_j) − y(−e_j)|/2` over outputs and times, relative
+    /// to the output's largest envelope width.
+    pub relative_slope: Option<f64>,
+    /// The output where `relative_slope` is attained.
+    pub slope_output: Option<String>,
+    /// Screening: the largest share of an output's one-at-a-time spread.
+    pub importance: Option<f64>,
+    /// Sparse surrogates: the largest total Sobol' index over outputs and times.
+    pub total_index: Option<f64>,
+    /// The output where `total_index` is attained.
+    pub total_index_output: Option<String>,
+    /// The time where `total_index` is attained, s.
+    pub total_index_time: Option<f64>,
+}
+
 /// One output's envelope over time.
 #[derive(Clone, Debug, Serialize)]
 pub struct EnvelopeSeries {
@@ -43,6 +65,13 @@ pub struct EnvelopeSeries {
     pub nominal: Vec<f64>,
     /// Error estimate per time; `null` where the method has none (a nominal run).
     pub error_estimate: Option<Vec<f64>>,
+    /// An outer bound of the surrogate beside the inner one (sparse designs), per time; absent
+    /// otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub outer_lower: Option<Vec<f64>>,
+    /// Upper counterpart of `outer_lower`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub outer_upper: Option<Vec<f64>>,
 }
 
 /// The whole summary.
@@ -60,6 +89,9 @@ pub struct Summary {
     pub bound_kind: String,
     /// The interval parameters.
     pub parameters: Vec<ParameterSummary>,
+    /// How much each parameter moves the outputs, ranked; `null` where the study measured nothing
+    /// of the kind (tensor designs, `simulate`).
+    pub sensitivities: Option<Vec<SensitivitySummary>>,
     /// Model runs made.
     pub samples: usize,
     /// Samples excluded with `--keep-going`.
@@ -78,19 +110,24 @@ impl Summary {
     /// value in any series is refused, naming the output and time, and nothing is written.
     pub fn write(&self, path: &Path) -> Result<(), Error> {
         for output in &self.outputs {
-            let names: Vec<String> = ["time", "lower", "upper", "nominal", "error_estimate"]
-                .iter()
-                .map(|series| format!("{}.{series}", output.name))
-                .collect();
-            let mut columns: Vec<&[f64]> =
-                vec![&output.time, &output.lower, &output.upper, &output.nominal];
-            if let Some(errors) = &output.error_estimate {
-                columns.push(errors);
+            let mut names: Vec<String> = vec![
+                format!("{}.lower", output.name),
+                format!("{}.upper", output.name),
+                format!("{}.nominal", output.name),
+            ];
+            let mut columns: Vec<&[f64]> = vec![&output.lower, &output.upper, &output.nominal];
+            for (series, values) in [
+                ("error_estimate", &output.error_estimate),
+                ("outer_lower", &output.outer_lower),
+                ("outer_upper", &output.outer_upper),
+            ] {
+                if let Some(values) = values {
+                    names.push(format!("{}.{series}", output.name));
+                    columns.push(values);
+                }
             }
             let names: Vec<&str> = names.iter().map(String::as_str).collect();
-            if let Some(bad) =
-                first_non_finite(&names[1..columns.len()], &output.time, &columns[1..])
-            {
+            if let Some(bad) = first_non_finite(&names, &output.time, &columns) {
                 return Err(Error::NonFiniteResult {
                     what: format!("summary '{}'", path.display()),
                     output: bad.series.to_string(),
@@ -124,6 +161,8 @@ mod tests {
             upper: vec![1.0, upper],
             nominal: vec![1.0, 1.0],
             error_estimate: None,
+            outer_lower: None,
+            outer_upper: None,
         };
         let mut summary = Summary {
             robot: "r".to_string(),
@@ -132,6 +171,7 @@ mod tests {
             design: None,
             bound_kind: "nominal".to_string(),
             parameters: Vec::new(),
+            sensitivities: None,
             samples: 1,
             excluded_samples: Vec::new(),
             wall_seconds: 0.0,
