@@ -48,8 +48,8 @@ pub use hht::{
 };
 pub use linalg::SINGULAR_PIVOT_RELATIVE;
 pub use sensitivity::{
-    HhtSensitivity, SensitivityError, SensitivityStats, JACOBIAN_FD_STEP, PROJECTION_FD_STEP,
-    START_FD_STEP,
+    HhtSensitivity, SensitivityError, SensitivityStats, JACOBIAN_FD_STEP, PARAMETER_FD_STEP,
+    PROJECTION_FD_STEP,
 };
 pub use settings::{HhtCoefficients, HhtSettings, ALPHA_MIN};
 pub use start::{

@@ -40,17 +40,20 @@ use super::system::DaeSystem;
 /// (ε/v_s)²/3 ≈ 3e-9 relative on its term.
 pub const JACOBIAN_FD_STEP: f64 = 1e-6;
 
-/// Step in `p_k` (natural scale 1, see [`DaeSystem::n_parameters`]) of the 4-point central
-/// difference of the consistent start of a constrained system (docs/sensitivities.md §5):
-/// truncation ~ε⁴/30 ≈ 3e-14 relative; the start projection's closing tolerance (≤ 1e-12, usually
-/// ~1e-16 after its quadratic last step) costs ≤ 1e-12/ε ≈ 1e-9 absolute in the worst case.
-pub const START_FD_STEP: f64 = 1e-3;
+/// The default of [`DaeSystem::parameter_difference_step`]: a step of 1e-3 in a parameter of natural
+/// scale 1. The 4-point central differences of whole computations (the consistent start, the
+/// velocity projection) then have a truncation error of ~ε⁴/30 ≈ 3e-14 relative.
+pub const PARAMETER_FD_STEP: f64 = 1e-3;
 
-/// Largest tangent step, rad or m, of the directional central difference of the velocity projection
-/// (docs/sensitivities.md §6): the parameter step is this divided by `max(1, ‖S_q[:, k]‖∞)`. The
-/// projection's correction is O(h²) small and smooth, so its truncation error is far below the
-/// velocity's own rounding; rounding costs ~u·|q̇|/ε ≈ 1e-11.
-pub const PROJECTION_FD_STEP: f64 = 1e-5;
+/// Largest tangent step, rad or m, of the directional 4-point central difference of the velocity
+/// projection (docs/sensitivities.md §6): the parameter step is the smaller of the system's
+/// [`DaeSystem::parameter_difference_step`] and this over `max(1, ‖S_q[:, k]‖∞)`. Configurations are
+/// nonlinear on the scale of 1 rad or 1 m, so truncation is ~3e-14 relative; the correction is linear
+/// in the velocity. Rounding of `Φ_q q̇` (terms of ~|q̇|) costs ~u·|q̇|/ε.
+pub const PROJECTION_FD_STEP: f64 = 1e-3;
+
+/// The 4-point central-difference stencil `f' ≈ Σ w f(p + o ε) / 12ε`: `(o, w)`.
+const STENCIL: [(f64, f64); 4] = [(2.0, -1.0), (1.0, 8.0), (-1.0, -8.0), (-2.0, 1.0)];
 
 /// Why a sensitivity computation failed.
 #[derive(Debug, thiserror::Error)]
@@ -97,7 +100,7 @@ pub struct SensitivityStats {
     /// Consistent starts computed for the start's central difference (`4 P` with constraint rows,
     /// else 0).
     pub start_evaluations: usize,
-    /// Velocity projections computed for the reported velocity's sensitivity (`2 P` per record of a
+    /// Velocity projections computed for the reported velocity's sensitivity (`4 P` per record of a
     /// constrained run with velocity projection, else 0).
     pub projection_evaluations: u64,
 }
@@ -163,7 +166,7 @@ struct Workspace {
     forces: DVector<f64>,
     /// Φ_t, dim m.
     phi_t: DVector<f64>,
-    /// Projection correction at +ε, dim nv.
+    /// The projection correction's derivative being summed, dim nv.
     dv_plus: DVector<f64>,
 }
 
@@ -378,7 +381,11 @@ impl HhtSensitivity {
     }
 
     /// With constraint rows, a 4-point central difference of [`consistent_start`] along each
-    /// parameter (docs/sensitivities.md §5): `f' ≈ [−f(2ε) + 8f(ε) − 8f(−ε) + f(−2ε)] / (12ε)`.
+    /// parameter (docs/sensitivities.md §5): `f' ≈ [−f(2ε) + 8f(ε) − 8f(−ε) + f(−2ε)] / (12ε)` with
+    /// ε the system's [`DaeSystem::parameter_difference_step`]. Index-3 steps turn an error `e` of the
+    /// start velocity's component normal to the constraints into errors of ~`e/(β'h)` in `∂q̈/∂p`
+    /// that decay slowly, so the step is as large as the system allows: the rounding of the
+    /// projected velocity (~u·|q̇|) costs ~u·|q̇|/ε.
     fn start_by_differences<S: DaeSystem + ?Sized>(
         &mut self,
         system: &mut S,
@@ -391,18 +398,12 @@ impl HhtSensitivity {
             t: state.t,
             step: 0,
         };
-        let eps = START_FD_STEP;
-        let stencil = [
-            (2.0 * eps, -1.0),
-            (eps, 8.0),
-            (-eps, -8.0),
-            (-2.0 * eps, 1.0),
-        ];
         let mut dq = DVector::zeros(self.nv);
         for k in 0..self.p {
-            for (offset, weight) in stencil {
+            let eps = system.parameter_difference_step(k);
+            for (steps, weight) in STENCIL {
                 system
-                    .set_parameter_offset(k, offset)
+                    .set_parameter_offset(k, steps * eps)
                     .map_err(at.system_error("set_parameter_offset"))?;
                 let start = consistent_start(system, state.t, q0, v0);
                 // Restore before reporting any error.
@@ -522,8 +523,8 @@ impl HhtSensitivity {
     /// `∂q̇/∂p` of the velocity the integrator reports (`integrator.state().v`), `nv × P`. With
     /// constraint rows and velocity projection that velocity is projected onto `Φ_q q̇ + Φ_t = 0`,
     /// and its sensitivity is the Newmark velocity's plus a directional central difference of the
-    /// projection's correction along each parameter (docs/sensitivities.md §6): `2 P` projections,
-    /// computed once per state (call it at record times only). Otherwise the Newmark velocity's.
+    /// projection's correction along each parameter (docs/sensitivities.md §6): `4 P` projections,
+    /// computed once per state (call it at record times only; `4 P` projections). Otherwise the Newmark velocity's.
     ///
     /// `integrator` must be the one stepped with these sensitivities.
     pub fn reported_velocity<S: DaeSystem + ?Sized>(
@@ -866,8 +867,8 @@ impl HhtSensitivity {
     }
 
     /// `S_q̇,reported = S_q̇ + ∂Δq̇/∂p` with `Δq̇` the projection's correction, by a directional
-    /// central difference along `(p_k, q ⊕ ε S_q[:, k], q̇ + ε S_q̇[:, k])` for each parameter
-    /// (docs/sensitivities.md §6).
+    /// 4-point central difference along `(p_k, q ⊕ ε S_q[:, k], q̇ + ε S_q̇[:, k])` for each
+    /// parameter (docs/sensitivities.md §6).
     fn project_velocity_sensitivity<S: DaeSystem + ?Sized>(
         &mut self,
         system: &mut S,
@@ -883,33 +884,36 @@ impl HhtSensitivity {
             let spread = (0..self.nv)
                 .map(|i| self.s_q[(i, k)].abs())
                 .fold(1.0_f64, f64::max);
-            let eps = PROJECTION_FD_STEP / spread;
-            for sign in [1.0, -1.0] {
+            let eps = system
+                .parameter_difference_step(k)
+                .min(PROJECTION_FD_STEP / spread);
+            self.ws.dv_plus.fill(0.0);
+            for (steps, weight) in STENCIL {
                 let ws = &mut self.ws;
+                let offset = steps * eps;
                 for i in 0..self.nv {
-                    ws.dq[i] = sign * eps * self.s_q[(i, k)];
-                    ws.v_perturbed[i] = v_newmark[i] + sign * eps * self.s_v[(i, k)];
+                    ws.dq[i] = offset * self.s_q[(i, k)];
+                    ws.v_perturbed[i] = v_newmark[i] + offset * self.s_v[(i, k)];
                 }
                 eval::integrate_position(system, at, &state.q, &ws.dq, &mut ws.q_perturbed)?;
                 system
-                    .set_parameter_offset(k, sign * eps)
+                    .set_parameter_offset(k, offset)
                     .map_err(at.system_error("set_parameter_offset"))?;
                 let correction = Self::projection_correction(system, at, ws);
                 system
                     .set_parameter_offset(k, 0.0)
                     .map_err(at.system_error("set_parameter_offset"))?;
                 correction?;
-                if sign > 0.0 {
-                    ws.dv_plus.copy_from(&ws.rhs.rows(0, self.nv));
+                let w = weight / (12.0 * eps);
+                for i in 0..self.nv {
+                    ws.dv_plus[i] += w * ws.rhs[i];
                 }
             }
-            let ws = &self.ws;
             for i in 0..self.nv {
-                self.s_v_reported[(i, k)] =
-                    self.s_v[(i, k)] + (ws.dv_plus[i] - ws.rhs[i]) / (2.0 * eps);
+                self.s_v_reported[(i, k)] = self.s_v[(i, k)] + self.ws.dv_plus[i];
             }
         }
-        self.stats.projection_evaluations += 2 * self.p as u64;
+        self.stats.projection_evaluations += 4 * self.p as u64;
         Ok(())
     }
 
@@ -925,8 +929,7 @@ impl HhtSensitivity {
         eval::mass_matrix(system, at, &ws.q_perturbed, &mut ws.mass_scratch)?;
         eval::constraint_jacobian(system, at, &ws.q_perturbed, &mut ws.phi_q_scratch)?;
         eval::constraint_time_derivative(system, at, &ws.q_perturbed, &mut ws.phi_t)?;
-        ws.phi_t
-            .gemv(1.0, &ws.phi_q_scratch, &ws.v_perturbed, 1.0);
+        ws.phi_t.gemv(1.0, &ws.phi_q_scratch, &ws.v_perturbed, 1.0);
         assemble_iteration_matrix(
             &ws.mass_scratch,
             None,

@@ -304,8 +304,9 @@ pub trait DaeSystem {
         wrt_dq_out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError> {
         if q.len() != dq.len() {
-            return Err("integrate_position_jacobians must be implemented by a system with nq != nv"
-                .into());
+            return Err(
+                "integrate_position_jacobians must be implemented by a system with nq != nv".into(),
+            );
         }
         wrt_q_out.fill_with_identity();
         wrt_dq_out.fill_with_identity();
@@ -377,6 +378,15 @@ pub trait DaeSystem {
     ) -> Result<(), SystemError> {
         let _ = (t, q, v, qdd, lambda, dynamics_out, constraints_out);
         Err("parameter_jacobians is not implemented by this system".into())
+    }
+
+    /// A step in `p_k` for central differences of whole computations (the consistent start, the
+    /// velocity projection; docs/sensitivities.md §5, §6): as large as the system's nonlinearity
+    /// allows, since their rounding error is divided by it. Default
+    /// [`PARAMETER_FD_STEP`](super::PARAMETER_FD_STEP) (1e-3, for a parameter of natural scale 1).
+    fn parameter_difference_step(&self, k: usize) -> f64 {
+        let _ = k;
+        super::sensitivity::PARAMETER_FD_STEP
     }
 
     /// Moves the system to the parameter point `p = offset · e_k` (every other parameter at its

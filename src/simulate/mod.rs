@@ -3,11 +3,27 @@
 //! the scene's rate ([`Recorder`]).
 //!
 //! `(model, scene) ⇒ RobotSystem ⇒ HhtIntegrator steps ⇒ Recorder rows ⇒ Trajectory`
+//!
+//! Sensitivities of every output to every dimension of a study's box at one point
+//! ([`sensitivity_run`], by direct differentiation of the step; [`central_difference_run`], the
+//! checked fallback): docs/sensitivities.md.
 
+mod directions;
+mod lie;
+mod parameters;
 mod recorder;
 mod run;
+mod sensitivity;
 mod system;
 
+pub use directions::{target_derivatives, BIND_DERIVATIVE_STEP_XI};
+pub use lie::SERIES_MAX_ANGLE;
+pub use parameters::{target_scale, ParameterDirections, THETA_FD_RELATIVE_STEP};
 pub use recorder::{InitialOrientations, Recorder};
 pub use run::{hht_settings, initial_violation, simulate, SimulationError, Trajectory};
+pub use sensitivity::{
+    central_difference_run, central_difference_run_with, central_difference_settings,
+    sensitivity_run, sensitivity_run_with, SensitivityRun, SensitivityRunError,
+    SensitivityRunStats, CENTRAL_DIFFERENCE_STEP_XI,
+};
 pub use system::RobotSystem;
