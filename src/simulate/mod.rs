@@ -18,7 +18,9 @@ mod system;
 
 pub use directions::{target_derivatives, BIND_DERIVATIVE_STEP_XI};
 pub use lie::SERIES_MAX_ANGLE;
-pub use parameters::{target_scale, ParameterDirections, THETA_FD_RELATIVE_STEP};
+pub use parameters::{
+    target_scale, ParameterDirections, THETA_FD_RELATIVE_STEP, THETA_FD_RELATIVE_STEP_UNCONSTRAINED,
+};
 pub use recorder::{InitialOrientations, Recorder};
 pub use run::{hht_settings, initial_violation, simulate, SimulationError, Trajectory};
 pub use sensitivity::{

@@ -6,9 +6,12 @@
 //! What it computes, at the model's current values:
 //! - `∂r/∂p_k` of the residual `r = M q̈ + Φ_qᵀ λ − Q`: inertial targets (mass, COM, inertia of a
 //!   link on a moving body) exactly, as one regressor column of RNEA per body they touch; every
-//!   other target (joint origins and axes, damping, friction, gravity) by a 4-point central
-//!   difference of the residual with the model moved along the direction by
-//!   [`ParameterDirections::step`], relative change [`THETA_FD_RELATIVE_STEP`];
+//!   other target (joint origins and axes, damping, friction, gravity) by a central difference of
+//!   the residual with the model moved along the direction by [`ParameterDirections::step`]: a
+//!   4-point stencil at relative change [`THETA_FD_RELATIVE_STEP`] when the system has constraint
+//!   rows, a 2-point one at [`THETA_FD_RELATIVE_STEP_UNCONSTRAINED`] when it has none; moving a
+//!   value recomputes only what depends on it (a moving joint's placement; nothing for damping,
+//!   friction, gravity; the full [`Model::refresh`] otherwise);
 //! - `∂Φ/∂p_k` likewise (inertial targets do not move `Φ`);
 //! - moving the model along one direction by an offset (for central differences of whole
 //!   computations), and back exactly.
@@ -20,7 +23,7 @@ use crate::dynamics::{
     link_inertia_derivative, rnea, rnea_inertia_derivative, Data, InertialField,
 };
 use crate::effects::Effects;
-use crate::model::Model;
+use crate::model::{joint_origin, Model};
 use crate::params::{self, ParamTarget};
 use crate::spatial::Inertia;
 use nalgebra::{DMatrix, DVector};
@@ -39,8 +42,96 @@ use nalgebra::{DMatrix, DVector};
 /// 1e-3 it is ~1e-13 per m.
 pub const THETA_FD_RELATIVE_STEP: f64 = 1e-3;
 
+/// Relative change of the model values in the 2-point central differences of the residual of a
+/// system without constraint rows (docs/sensitivities.md §3): no constraint row amplifies the
+/// error of `∂r/∂p` there, and a small step keeps the truncation at ~1e-12 while rounding costs
+/// ~u·|terms|/(1e-6·scale) ≈ 1e-10 of the derivative (residual terms of ~50 N·m, derivatives of
+/// ~50 N·m per m); half the evaluations of the 4-point stencil.
+pub const THETA_FD_RELATIVE_STEP_UNCONSTRAINED: f64 = 1e-6;
+
 /// The 4-point central-difference stencil: `(offset in steps, weight / 12)`.
 const STENCIL: [(f64, f64); 4] = [(2.0, -1.0), (1.0, 8.0), (-1.0, -8.0), (-2.0, 1.0)];
+
+/// The 2-point central-difference stencil in the same form.
+const STENCIL_2: [(f64, f64); 2] = [(1.0, 6.0), (-1.0, -6.0)];
+
+/// What must be recomputed after writing some targets (docs/sensitivities.md §3): the full
+/// [`Model::refresh`] (it recomputes every link placement and body inertia), only the placement and
+/// axis of some moving joints, or nothing (damping, friction and gravity are read where used).
+#[derive(Clone, Debug, PartialEq)]
+enum Refresh {
+    Nothing,
+    Joints(Vec<usize>),
+    Full,
+}
+
+impl Refresh {
+    /// The refresh writing `moves` needs.
+    fn of(model: &Model, moves: &[TargetMove]) -> Refresh {
+        let mut joints = Vec::new();
+        for m in moves {
+            let urdf_joint = match m.target {
+                ParamTarget::JointDamping(_)
+                | ParamTarget::JointFriction(_)
+                | ParamTarget::Gravity(_) => continue,
+                ParamTarget::JointOrigin(j, _) | ParamTarget::JointAxis(j, _) => j,
+                ParamTarget::LinkMass(_)
+                | ParamTarget::LinkCom(..)
+                | ParamTarget::LinkInertia(..) => return Refresh::Full,
+            };
+            // A fixed joint's origin places links (and their inertia) in a body: full refresh.
+            match model
+                .joints
+                .iter()
+                .position(|j| j.source == Some(urdf_joint))
+            {
+                Some(k) => {
+                    if !joints.contains(&k) {
+                        joints.push(k);
+                    }
+                }
+                None => return Refresh::Full,
+            }
+        }
+        if joints.is_empty() {
+            Refresh::Nothing
+        } else {
+            Refresh::Joints(joints)
+        }
+    }
+
+    fn apply(&self, model: &mut Model) {
+        match self {
+            Refresh::Nothing => {}
+            Refresh::Joints(joints) => {
+                for &k in joints {
+                    refresh_joint(model, k);
+                }
+            }
+            Refresh::Full => model.refresh(),
+        }
+    }
+}
+
+/// The part of [`Model::refresh`] that depends on moving joint `k`'s URDF origin and axis: its
+/// `parent_from_joint` and unit axis, by the same expressions (a unit test checks the result is
+/// bitwise the full refresh's). Nothing else reads a moving joint's origin or axis.
+fn refresh_joint(model: &mut Model, k: usize) {
+    let Some(source) = model.joints[k].source else {
+        return;
+    };
+    let spec = &model.description.joints[source];
+    let parent_from_joint = model.links[spec.parent]
+        .body_from_link
+        .compose(&joint_origin(spec));
+    let axis = crate::spatial::Vec3::from(spec.axis);
+    let norm = axis.norm();
+    let joint = &mut model.joints[k];
+    joint.parent_from_joint = parent_from_joint;
+    if norm > 0.0 {
+        joint.axis = axis / norm;
+    }
+}
 
 /// The scale a target's central-difference step is measured against: `max(|value|, floor)`, with
 /// floors on the scale on which the dynamics are nonlinear in the value: 0.1 m for joint-origin
@@ -63,12 +154,12 @@ pub fn target_scale(target: ParamTarget, value: f64) -> f64 {
     value.abs().max(floor)
 }
 
-/// `THETA_FD_RELATIVE_STEP · min_t scale_t / |∂θ_t/∂p|` over `moves`: the step in `p` that changes
-/// no value by more than that fraction of its scale (0 for no moves).
-fn relative_step(moves: &[TargetMove]) -> f64 {
+/// `relative · min_t scale_t / |∂θ_t/∂p|` over `moves`: the step in `p` that changes no value by
+/// more than that fraction of its scale (0 for no moves).
+fn relative_step(moves: &[TargetMove], relative: f64) -> f64 {
     let step = moves
         .iter()
-        .map(|m| THETA_FD_RELATIVE_STEP * target_scale(m.target, m.base) / m.derivative.abs())
+        .map(|m| relative * target_scale(m.target, m.base) / m.derivative.abs())
         .fold(f64::INFINITY, f64::min);
     if step.is_finite() {
         step
@@ -129,15 +220,25 @@ struct Direction {
     natural_step: f64,
     /// Whether a differenced target moves link frames.
     moves_frames: bool,
+    /// What writing the differenced targets needs recomputed.
+    refresh_differenced: Refresh,
+    /// What writing every target needs recomputed.
+    refresh_all: Refresh,
 }
 
-/// The parameter directions of a robot system and their work buffers. See the
-/// [module documentation](self).
+/// The parameter directions `p_k` of a robot system and their work buffers (docs/sensitivities.md
+/// §3): each direction is a list of model values with `∂θ_t/∂p_k`; inertial values are
+/// differentiated exactly (RNEA regressor columns), every other value by central differences of
+/// the residual with the model moved. Built by
+/// [`RobotSystem::set_parameter_directions`](super::RobotSystem::set_parameter_directions).
 #[derive(Clone, Debug, Default)]
 pub struct ParameterDirections {
     directions: Vec<Direction>,
     /// The direction whose targets are currently moved by [`ParameterDirections::set_offset`].
     offset: Option<usize>,
+    /// Whether the system has constraint rows (the 4-point stencil at the larger step), or not
+    /// (the 2-point stencil at [`THETA_FD_RELATIVE_STEP_UNCONSTRAINED`]).
+    constrained: bool,
     /// Residual at one point of the stencil, dim nv.
     residual: DVector<f64>,
     /// Φ at one point of the stencil, dim m.
@@ -153,18 +254,19 @@ impl ParameterDirections {
     pub fn new(model: &Model, m: usize, directions: &[Vec<(ParamTarget, f64)>]) -> Self {
         let prepared = directions
             .iter()
-            .map(|list| Self::prepare(model, list))
+            .map(|list| Self::prepare(model, m > 0, list))
             .collect();
         Self {
             directions: prepared,
             offset: None,
+            constrained: m > 0,
             residual: DVector::zeros(model.nv),
             phi: DVector::zeros(m),
             phi_q: DMatrix::zeros(m, model.nv),
         }
     }
 
-    fn prepare(model: &Model, list: &[(ParamTarget, f64)]) -> Direction {
+    fn prepare(model: &Model, constrained: bool, list: &[(ParamTarget, f64)]) -> Direction {
         let mut moves: Vec<TargetMove> = Vec::new();
         for &(target, derivative) in list {
             match moves.iter_mut().find(|m| m.target == target) {
@@ -201,10 +303,17 @@ impl ParameterDirections {
                 None => differenced.push(*m),
             }
         }
+        let differenced_step = if constrained {
+            THETA_FD_RELATIVE_STEP
+        } else {
+            THETA_FD_RELATIVE_STEP_UNCONSTRAINED
+        };
         Direction {
             moves_frames: differenced.iter().any(|m| moves_frames(m.target)),
-            step: relative_step(&differenced),
-            natural_step: relative_step(&moves),
+            step: relative_step(&differenced, differenced_step),
+            natural_step: relative_step(&moves, THETA_FD_RELATIVE_STEP),
+            refresh_differenced: Refresh::of(model, &differenced),
+            refresh_all: Refresh::of(model, &moves),
             moves,
             inertial,
             differenced,
@@ -222,7 +331,9 @@ impl ParameterDirections {
     }
 
     /// The central-difference step ε in `p_k` of direction `k` (0 when it has no differenced target):
-    /// its 4-point stencil evaluates `p_k = ±ε, ±2ε`.
+    /// with constraint rows its 4-point stencil evaluates `p_k = ±ε, ±2ε` (relative change
+    /// [`THETA_FD_RELATIVE_STEP`]), without them the 2-point stencil `±ε` (relative change
+    /// [`THETA_FD_RELATIVE_STEP_UNCONSTRAINED`]).
     pub fn step(&self, k: usize) -> f64 {
         self.directions[k].step
     }
@@ -246,18 +357,18 @@ impl ParameterDirections {
     }
 
     /// Writes `base + scale · derivative` into every target of direction `k` (`differenced_only`:
-    /// only its differenced targets), then refreshes the model.
+    /// only its differenced targets), then recomputes what they change in the model.
     fn move_targets(&self, model: &mut Model, k: usize, scale: f64, differenced_only: bool) {
         let direction = &self.directions[k];
-        let moves = if differenced_only {
-            &direction.differenced
+        let (moves, refresh) = if differenced_only {
+            (&direction.differenced, &direction.refresh_differenced)
         } else {
-            &direction.moves
+            (&direction.moves, &direction.refresh_all)
         };
         for m in moves {
             params::set(model, m.target, m.base + scale * m.derivative);
         }
-        model.refresh();
+        refresh.apply(model);
     }
 
     /// Moves `model` to `p = offset · e_k` (see [`DaeSystem::set_parameter_offset`]); `offset = 0`
@@ -336,7 +447,12 @@ impl ParameterDirections {
                 continue;
             }
             let step = self.directions[k].step;
-            for (offset, weight) in STENCIL {
+            let stencil: &[(f64, f64)] = if self.constrained {
+                &STENCIL
+            } else {
+                &STENCIL_2
+            };
+            for &(offset, weight) in stencil {
                 self.move_targets(model, k, offset * step, true);
                 Self::residual(
                     model,
@@ -363,5 +479,62 @@ impl ParameterDirections {
             }
             self.move_targets(model, k, 0.0, true);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::LoadOptions;
+
+    /// Moving a joint's origin or axis and recomputing only that joint gives bitwise the model a
+    /// full refresh gives, for every moving joint's every origin and axis component.
+    #[test]
+    fn joint_refresh_is_the_full_refresh() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5/ur5.urdf");
+        let base = Model::from_urdf_file(&path, LoadOptions::default()).unwrap();
+        for (k, joint) in base.joints.iter().enumerate() {
+            let source = joint.source.unwrap();
+            let targets = (0..6)
+                .map(|c| ParamTarget::JointOrigin(source, c))
+                .chain((0..3).map(|c| ParamTarget::JointAxis(source, c)));
+            for target in targets {
+                let moves = [TargetMove {
+                    target,
+                    derivative: 1.0,
+                    base: params::get(&base, target),
+                }];
+                assert_eq!(Refresh::of(&base, &moves), Refresh::Joints(vec![k]));
+                let value = params::get(&base, target) + 0.0123;
+                let (mut local, mut full) = (base.clone(), base.clone());
+                params::set(&mut local, target, value);
+                refresh_joint(&mut local, k);
+                params::set(&mut full, target, value);
+                full.refresh();
+                for (a, b) in local.joints.iter().zip(&full.joints) {
+                    assert_eq!(a.parent_from_joint, b.parent_from_joint, "{target:?}");
+                    assert_eq!(a.axis, b.axis, "{target:?}");
+                }
+                for (a, b) in local.links.iter().zip(&full.links) {
+                    assert_eq!(a.body_from_link, b.body_from_link, "{target:?}");
+                }
+                for (a, b) in local.bodies.iter().zip(&full.bodies) {
+                    assert_eq!(a.inertia, b.inertia, "{target:?}");
+                }
+            }
+        }
+        // A fixed joint's origin places a link in its body: that needs the full refresh.
+        let fixed = base
+            .description
+            .joints
+            .iter()
+            .position(|j| j.joint_type == crate::model::UrdfJointType::Fixed)
+            .unwrap();
+        let moves = [TargetMove {
+            target: ParamTarget::JointOrigin(fixed, 2),
+            derivative: 1.0,
+            base: 0.0,
+        }];
+        assert_eq!(Refresh::of(&base, &moves), Refresh::Full);
     }
 }

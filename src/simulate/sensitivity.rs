@@ -466,7 +466,8 @@ impl OutputDerivatives {
 
     /// Adds the direct dependence of frame positions on joint origins and axes: for each dimension
     /// that moves them, a 4-point central difference of forward kinematics at fixed `q` with the
-    /// model moved by the dimension's step (relative [`super::THETA_FD_RELATIVE_STEP`]).
+    /// model moved by the dimension's natural step (no value moves by more than
+    /// [`super::THETA_FD_RELATIVE_STEP`] of its scale; frames are linear in origin translations).
     fn add_frame_geometry(
         &mut self,
         system: &mut RobotSystem,
@@ -479,7 +480,7 @@ impl OutputDerivatives {
             if !directions.moves_frames(j) {
                 continue;
             }
-            let step = directions.step(j);
+            let step = directions.natural_step(j);
             for (offset, weight) in FRAME_STENCIL {
                 system
                     .set_parameter_offset(j, offset * step)
