@@ -8,13 +8,15 @@
 //!   one body, from the kinematics of the last [`rnea`](super::rnea) (one column of the
 //!   inertial-parameter regressor, Atkeson, An & Hollerbach 1986);
 //! - [`link_origin_jacobian`]: `∂x/∂q` of a URDF link's origin in the world frame, along the tangent
-//!   space.
+//!   space;
+//! - [`rnea_derivatives`]: the full Jacobians `∂τ/∂q` (tangent space) and `∂τ/∂q̇` of inverse
+//!   dynamics, analytically (docs/sensitivities.md §2).
 //!
-//! Nothing here allocates.
+//! Nothing here allocates after [`RneaDerivatives::new`].
 
-use super::{frame_placements, Data};
+use super::{forward_kinematics, frame_placements, rnea, Data};
 use crate::model::{InertialSpec, Model};
-use crate::spatial::{rotation_from_rpy, Force, Inertia, Mat3, Vec3};
+use crate::spatial::{rotation_from_rpy, Force, Inertia, Mat3, Motion, Vec3};
 use nalgebra::DMatrix;
 
 /// One value of a URDF `<inertial>`: what [`link_inertia_derivative`] differentiates by.
@@ -142,6 +144,164 @@ pub fn link_origin_jacobian(model: &Model, data: &Data, link: usize, out: &mut D
     }
 }
 
+/// Work buffers of [`rnea_derivatives`] for one model (world-frame quantities per body and per
+/// velocity coordinate).
+#[derive(Clone, Debug)]
+pub struct RneaDerivatives {
+    /// Body velocities, world frame.
+    velocity: Vec<Motion>,
+    /// Body accelerations (gravity included), world frame.
+    acceleration: Vec<Motion>,
+    /// Body inertias, world frame.
+    inertia: Vec<Inertia>,
+    /// Forces transmitted to each body's subtree (`F_i = Σ_{k ⪰ i} f_k`), world frame.
+    subtree_force: Vec<Force>,
+    /// `I_i v_i`, world frame.
+    momentum: Vec<Force>,
+    /// Motion subspace column of each velocity coordinate, world frame.
+    column: Vec<Motion>,
+    /// Body of each velocity coordinate.
+    body_of: Vec<usize>,
+    /// One past the last body of each body's subtree (bodies are in depth-first order).
+    subtree_end: Vec<usize>,
+    /// Subtree sums of the position correction terms, per body.
+    sum_q: Vec<Force>,
+    /// Subtree sums of the velocity terms, per body.
+    sum_v: Vec<Force>,
+}
+
+impl RneaDerivatives {
+    /// Buffers for `model` (the only allocation).
+    pub fn new(model: &Model) -> Self {
+        let nb = model.bodies.len();
+        let mut body_of = vec![0; model.nv];
+        for (b, joint) in model.joints.iter().enumerate() {
+            for k in 0..joint.nv() {
+                body_of[joint.v_index + k] = b;
+            }
+        }
+        let mut subtree_end: Vec<usize> = (1..=nb).collect();
+        for b in (0..nb).rev() {
+            if let Some(p) = model.joints[b].parent {
+                subtree_end[p] = subtree_end[p].max(subtree_end[b]);
+            }
+        }
+        Self {
+            velocity: vec![Motion::zero(); nb],
+            acceleration: vec![Motion::zero(); nb],
+            inertia: vec![Inertia::zero(); nb],
+            subtree_force: vec![Force::zero(); nb],
+            momentum: vec![Force::zero(); nb],
+            column: vec![Motion::zero(); model.nv],
+            body_of,
+            subtree_end,
+            sum_q: vec![Force::zero(); nb],
+            sum_v: vec![Force::zero(); nb],
+        }
+    }
+}
+
+/// `dq_out = ∂τ/∂q` (along the tangent space: column `c` is the derivative along `q ⊕ ε e_c`) and
+/// `dv_out = ∂τ/∂q̇` (both `nv × nv`, overwritten) of inverse dynamics
+/// `τ = M(q) q̈ + C(q, q̇) q̇ + g(q)` at `(q, q̇, q̈)`, rigid-body terms only (docs/sensitivities.md
+/// §2; the world-frame recursions of Carpentier & Mansard 2018, written here as one pass per
+/// coordinate over its subtree).
+///
+/// In the world frame, moving coordinate `c` of joint `j` (world-frame column `S`) turns every
+/// quantity of `j`'s subtree by `S`, except that velocities and accelerations keep their parent's
+/// part: `∂v_i = S × (v_i − v_λ)`, `∂a_i = S × (a_i − a_λ) − (S × v_λ) × (v_i − v_λ)` (`λ` = `j`'s
+/// parent). So each body force changes by the rigid turn `S ×* f_i` plus
+///
+/// ```text
+/// g_i = I_i (u' + u × (v_i − v_λ)) + u ×* I_i v_i + v_i ×* I_i u,    u = −S × v_λ,  u' = −S × a_λ
+/// ```
+///
+/// and `∂τ_r/∂q_c = S_rᵀ Σ_{i ⪰ k} g_i` for a coordinate `r` of a joint `k` in `j`'s subtree (the rigid
+/// turn of the force and of `S_r` cancel), `S_rᵀ (S ×* F_j + Σ_{i ⪰ j} g_i)` for an ancestor. For
+/// velocities `∂v_i/∂q̇_c = S`, `∂a_i/∂q̇_c = S × v_i + (v_λ + v_j) × S`, and
+/// `∂f_i/∂q̇_c = I_i ∂a_i + S ×* I_i v_i + v_i ×* I_i S`, summed over subtrees the same way.
+///
+/// Overwrites `data` as [`rnea`] and [`forward_kinematics`] do and `work`. Cost: one RNEA, then
+/// `nv` passes over subtrees (O(nv · bodies)).
+#[allow(clippy::too_many_arguments)]
+pub fn rnea_derivatives(
+    model: &Model,
+    data: &mut Data,
+    work: &mut RneaDerivatives,
+    q: &[f64],
+    v: &[f64],
+    qdd: &[f64],
+    dq_out: &mut DMatrix<f64>,
+    dv_out: &mut DMatrix<f64>,
+) {
+    rnea(model, data, q, v, qdd);
+    forward_kinematics(model, data, q);
+    let nb = model.bodies.len();
+    for i in 0..nb {
+        let x = &data.world_from_body[i];
+        work.velocity[i] = x.act_motion(&data.velocity[i]);
+        work.acceleration[i] = x.act_motion(&data.acceleration[i]);
+        work.inertia[i] = x.act_inertia(&model.bodies[i].inertia);
+        // After RNEA's backward pass `data.force[i]` holds the whole subtree's force.
+        work.subtree_force[i] = x.act_force(&data.force[i]);
+        work.momentum[i] = work.inertia[i].apply(&work.velocity[i]);
+    }
+    for (i, joint) in model.joints.iter().enumerate() {
+        for k in 0..joint.nv() {
+            work.column[joint.v_index + k] =
+                data.world_from_body[i].act_motion(&joint.subspace_column(k));
+        }
+    }
+    let gravity = Motion::new(-model.gravity, Vec3::zeros());
+    dq_out.fill(0.0);
+    dv_out.fill(0.0);
+    for c in 0..model.nv {
+        let j = work.body_of[c];
+        let s = work.column[c];
+        let (v_parent, a_parent) = match model.joints[j].parent {
+            Some(p) => (work.velocity[p], work.acceleration[p]),
+            None => (Motion::zero(), gravity),
+        };
+        let u = -s.cross_motion(&v_parent);
+        let u_acc = -s.cross_motion(&a_parent);
+        let e = (v_parent + work.velocity[j]).cross_motion(&s);
+        let end = work.subtree_end[j];
+        for i in (j..end).rev() {
+            let inertia = &work.inertia[i];
+            let vi = work.velocity[i];
+            let relative = vi - v_parent;
+            let g_q = inertia.apply(&(u_acc + u.cross_motion(&relative)))
+                + u.cross_force(&work.momentum[i])
+                + vi.cross_force(&inertia.apply(&u));
+            let g_v = inertia.apply(&(s.cross_motion(&vi) + e))
+                + s.cross_force(&work.momentum[i])
+                + vi.cross_force(&inertia.apply(&s));
+            work.sum_q[i] = g_q;
+            work.sum_v[i] = g_v;
+        }
+        // Subtree sums: children come after their parents in depth-first order.
+        for i in (j + 1..end).rev() {
+            if let Some(p) = model.joints[i].parent {
+                let (fq, fv) = (work.sum_q[i], work.sum_v[i]);
+                work.sum_q[p] += fq;
+                work.sum_v[p] += fv;
+            }
+        }
+        let ancestor_q = s.cross_force(&work.subtree_force[j]) + work.sum_q[j];
+        for r in 0..model.nv {
+            let k = work.body_of[r];
+            let column = &work.column[r];
+            if (j..end).contains(&k) {
+                dq_out[(r, c)] = column.dot(&work.sum_q[k]);
+                dv_out[(r, c)] = column.dot(&work.sum_v[k]);
+            } else if (k..work.subtree_end[k]).contains(&j) {
+                dq_out[(r, c)] = column.dot(&ancestor_q);
+                dv_out[(r, c)] = column.dot(&work.sum_v[j]);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -257,6 +417,106 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The analytic Jacobians of RNEA against central differences along the tangent space, on the
+    /// arm (a merged link, tilted axes) and on a floating ur5 (a 6-dof root).
+    #[test]
+    fn rnea_derivatives_match_central_differences() {
+        let ur5 = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5/ur5.urdf");
+        let floating = Model::from_urdf_file(
+            &ur5,
+            LoadOptions {
+                floating_base: true,
+            },
+        )
+        .unwrap();
+        let mut arm = arm();
+        arm.gravity = Vec3::new(0.3, -1.0, -9.81);
+        for model in [arm, floating] {
+            let (nq, nv) = (model.nq, model.nv);
+            let mut q: Vec<f64> = (0..nq).map(|i| 0.3 + 0.41 * i as f64).collect();
+            if model.floating_base {
+                let n = (q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6]).sqrt();
+                for x in &mut q[3..7] {
+                    *x /= n;
+                }
+            }
+            let v: Vec<f64> = (0..nv).map(|i| 0.7 - 0.33 * i as f64).collect();
+            let qdd: Vec<f64> = (0..nv).map(|i| -0.4 + 0.27 * i as f64).collect();
+            let mut data = Data::new(&model);
+            let mut work = RneaDerivatives::new(&model);
+            let (mut dq, mut dv) = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
+            rnea_derivatives(&model, &mut data, &mut work, &q, &v, &qdd, &mut dq, &mut dv);
+            let h = 1e-6;
+            let mut system_q = nalgebra::DVector::from_column_slice(&q);
+            for c in 0..nv {
+                let mut taus = [vec![0.0; nv], vec![0.0; nv], vec![0.0; nv], vec![0.0; nv]];
+                for (n, sign) in [1.0, -1.0].into_iter().enumerate() {
+                    let mut tangent = nalgebra::DVector::zeros(nv);
+                    tangent[c] = sign * h;
+                    let moved = integrate(&model, &system_q, &tangent);
+                    taus[n].copy_from_slice(rnea(&model, &mut data, moved.as_slice(), &v, &qdd));
+                    let mut vv = v.clone();
+                    vv[c] += sign * h;
+                    taus[2 + n].copy_from_slice(rnea(&model, &mut data, &q, &vv, &qdd));
+                }
+                for r in 0..nv {
+                    let numeric_q = (taus[0][r] - taus[1][r]) / (2.0 * h);
+                    let numeric_v = (taus[2][r] - taus[3][r]) / (2.0 * h);
+                    let scale = numeric_q.abs().max(1.0);
+                    assert!(
+                        (numeric_q - dq[(r, c)]).abs() < 1e-7 * scale,
+                        "{} ∂τ{r}/∂q{c}: {} vs {numeric_q}",
+                        model.name(),
+                        dq[(r, c)]
+                    );
+                    assert!(
+                        (numeric_v - dv[(r, c)]).abs() < 1e-7 * numeric_v.abs().max(1.0),
+                        "{} ∂τ{r}/∂v{c}: {} vs {numeric_v}",
+                        model.name(),
+                        dv[(r, c)]
+                    );
+                }
+            }
+            system_q.fill(0.0);
+        }
+    }
+
+    /// `q ⊕ δ` as the integrator does it: additive, and `q · Exp(δ)` for the floating root.
+    fn integrate(
+        model: &Model,
+        q: &nalgebra::DVector<f64>,
+        tangent: &nalgebra::DVector<f64>,
+    ) -> nalgebra::DVector<f64> {
+        let mut out = q.clone();
+        for joint in &model.joints {
+            let (qi, vi) = (joint.q_index, joint.v_index);
+            if joint.nv() == 1 {
+                out[qi] += tangent[vi];
+                continue;
+            }
+            let rotation = nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(
+                q[qi + 6],
+                q[qi + 3],
+                q[qi + 4],
+                q[qi + 5],
+            ));
+            let linear = Vec3::new(tangent[vi], tangent[vi + 1], tangent[vi + 2]);
+            let angular = Vec3::new(tangent[vi + 3], tangent[vi + 4], tangent[vi + 5]);
+            // First order in the step suffices for a central difference: Exp(δ) ≈ (1 + ω×, v).
+            let turn = nalgebra::UnitQuaternion::from_scaled_axis(angular);
+            let position = Vec3::new(q[qi], q[qi + 1], q[qi + 2]) + rotation * linear;
+            let quaternion = (rotation * turn).into_inner();
+            out[qi] = position.x;
+            out[qi + 1] = position.y;
+            out[qi + 2] = position.z;
+            out[qi + 3] = quaternion.i;
+            out[qi + 4] = quaternion.j;
+            out[qi + 5] = quaternion.k;
+            out[qi + 6] = quaternion.w;
+        }
+        out
     }
 
     #[test]

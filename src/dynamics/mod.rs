@@ -7,7 +7,8 @@
 //!   pieces the implicit integrator needs anyway);
 //! - [`frame_placements`] — every URDF link in the world frame;
 //! - derivatives for the forward sensitivities ([`link_inertia_derivative`],
-//!   [`rnea_inertia_derivative`], [`link_origin_jacobian`]; docs/sensitivities.md).
+//!   [`rnea_inertia_derivative`], [`link_origin_jacobian`], [`rnea_derivatives`];
+//!   docs/sensitivities.md).
 //!
 //! Every algorithm is `algorithm(model, data, …)`: the model is read only, results and scratch live
 //! in a per-thread [`Data`] allocated once; the hot path allocates nothing. Only rigid-body terms
@@ -24,7 +25,8 @@ pub use cholesky::{cholesky_factor_in_place, cholesky_solve_in_place};
 pub use crba::crba;
 pub use data::Data;
 pub use derivatives::{
-    link_inertia_derivative, link_origin_jacobian, rnea_inertia_derivative, InertialField,
+    link_inertia_derivative, link_origin_jacobian, rnea_derivatives, rnea_inertia_derivative,
+    InertialField, RneaDerivatives,
 };
 pub use kinematics::{drift_kinematics, forward_kinematics, frame_placements};
 pub use rnea::{nonlinear_effects, rnea};
