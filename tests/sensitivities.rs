@@ -7,7 +7,7 @@
 //!
 //! The reference: Richardson's combination `R = (4 D(h) − D(2h)) / 3` of two central differences
 //! of whole runs in ξ (a 4-point stencil, truncation O(h⁴)), each run with Newton tolerances near
-//! rounding ([`central_difference_settings`]); the direct run uses the same tolerances, so that
+//! rounding ([`settings`]); the direct run uses the same tolerances, so that
 //! both differentiate the same trajectory (on the chaotic double pendulum the default tolerance's
 //! noise grows to 6e-5 of a joint angle within 2 s).
 //!
@@ -86,9 +86,21 @@ fn load(
     (model, scene, space)
 }
 
+/// The Newton tolerances of the reference and of the direct run: the checked fallback's, and 1e-18
+/// at the position level without constraint rows (100× tighter than the fallback's default, which
+/// leaves room for stiffer scenes; an arm's rounding floor there is ~1e-21). With 1e-16 the
+/// floating ur5's reference is noisy at 1e-6 of its tool frame's `∂x/∂m`.
+fn settings(scene: &Scene) -> ribbon::integrate::HhtSettings {
+    let mut settings = central_difference_settings(scene);
+    if scene.constraints.is_empty() {
+        settings.abstol_position = 1e-18;
+    }
+    settings
+}
+
 /// The reference `R = (4 D(h) − D(2h)) / 3`.
 fn reference(model: &Model, scene: &Scene, space: &ParameterSpace, xi: &[f64]) -> SensitivityRun {
-    let settings = central_difference_settings(scene);
+    let settings = settings(scene);
     let run = |step: f64| {
         central_difference_run_with(model.clone(), scene, space, xi, step, settings)
             .expect("reference runs")
@@ -184,14 +196,8 @@ fn check(
     xi: &[f64],
 ) -> SensitivityRun {
     // The reference's tolerances (see the module documentation).
-    let direct = sensitivity_run_with(
-        model.clone(),
-        scene,
-        space,
-        xi,
-        central_difference_settings(scene),
-    )
-    .expect("sensitivity run");
+    let direct = sensitivity_run_with(model.clone(), scene, space, xi, settings(scene))
+        .expect("sensitivity run");
     let reference = reference(model, scene, space, xi);
     for (a, b) in direct.values.iter().zip(&reference.values) {
         assert_eq!(a, b, "{label}: the values are not those of a plain run");
@@ -411,4 +417,52 @@ fn spring_mass_against_its_closed_form() {
             "error ratio {ratio} per halving: not second order ({errors:?})"
         );
     }
+}
+
+/// The public entry points at their defaults: the checked fallback agrees with direct
+/// differentiation to its own accuracy (a 2-point difference at h = 1e-3 in ξ: truncation ~h²/6 of
+/// the third derivative, asked 1e-5 against the same floors); bad points and steps are refused
+/// with messages that say what is wrong.
+#[test]
+fn defaults_agree_and_bad_input_is_refused() {
+    const FALLBACK_AGREEMENT: f64 = 1e-5;
+    let (model, scene, space) = load("double_pendulum", duration(0.5), |_| {});
+    let xi = space.nominal_xi();
+    let direct = sensitivity_run(model.clone(), &scene, &space, &xi).expect("sensitivity run");
+    let fallback =
+        ribbon::simulate::central_difference_run(model.clone(), &scene, &space, &xi).expect("runs");
+    assert_eq!(fallback.stats.runs, 2 * space.len() + 1);
+    assert_eq!(direct.stats.runs, 1);
+    let worst = errors(&direct, &fallback, &scene)
+        .iter()
+        .map(|e| e.1)
+        .fold(0.0, f64::max);
+    eprintln!("double pendulum, 0.5 s: checked fallback vs direct, worst relative {worst:.2e}");
+    assert!(worst < FALLBACK_AGREEMENT, "{worst:e}");
+
+    let message = sensitivity_run(model.clone(), &scene, &space, &[0.0])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("1 coordinates but the box has 2 dimensions"),
+        "{message}"
+    );
+    let message = sensitivity_run(model.clone(), &scene, &space, &[0.0, f64::NAN])
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("coordinate 1 (l2) is NaN"), "{message}");
+    let message = central_difference_run_with(
+        model,
+        &scene,
+        &space,
+        &xi,
+        0.0,
+        central_difference_settings(&scene),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        message.contains("step in ξ is 0; it must be finite and > 0"),
+        "{message}"
+    );
 }

@@ -57,14 +57,16 @@ const FRAME_STENCIL: [(f64, f64); 4] = [(2.0, -1.0), (1.0, 8.0), (-1.0, -8.0), (
 /// Newton tolerances of the runs of [`central_difference_run`], close to rounding so that the
 /// difference of two runs measures the parameter and not where Newton stopped: at the position
 /// level 1e-15 rad or m with constraint rows (their rounding floor: `Φ` rounds at ~1e-16, and the
-/// scaled rows turn that into a correction of `β'h² Δq̈` ≈ 1e-16), 1e-18 without (1e-10 by
-/// default); relative 1e-15 (a floating base's translation of 1 m rounds at 1.1e-16); 1e-10 N or
-/// N·m on multipliers.
+/// scaled rows turn that into a correction of `β'h² Δq̈` ≈ 1e-16), 1e-16 without (1e-10 by
+/// default; the floor there is `u · |q̈| · β'h²`, ~1e-21 for an arm, but ~1e-17 with accelerations
+/// of 1e5 rad/s² — stiffer scenes than that may pass their own settings to
+/// [`central_difference_run_with`]); relative 1e-15 (a floating base's translation of 1 m rounds
+/// at 1.1e-16); 1e-10 N or N·m on multipliers.
 pub fn central_difference_settings(scene: &Scene) -> HhtSettings {
     HhtSettings {
         reltol: 1e-15,
         abstol_position: if scene.constraints.is_empty() {
-            1e-18
+            1e-16
         } else {
             1e-15
         },
@@ -111,6 +113,15 @@ pub enum SensitivityRunError {
     /// The sensitivity bookkeeping was misused (a bug, not bad input).
     #[error(transparent)]
     Sensitivity(SensitivityError),
+    /// An output whose derivative ribbon has no rule for.
+    #[error(
+        "output '{name}' has no sensitivity rule: a position output must be a 1-dof joint's \
+         coordinate (a floating base is recorded through its q.BASE.x|y|z|rx|ry|rz outputs)"
+    )]
+    UnsupportedOutput {
+        /// The output's name.
+        name: String,
+    },
 }
 
 /// Counters of a sensitivity or central-difference run.
@@ -244,6 +255,7 @@ pub fn sensitivity_run_with(
         })
         .collect();
     system.set_parameter_directions(&directions);
+    let mut derivatives = OutputDerivatives::new(&system, &scene.outputs, d)?;
     let violation = initial_violation(&mut system, scene);
     let constraints = system.constraints.clone();
     let failed = |e: SensitivityError| match e {
@@ -263,7 +275,6 @@ pub fn sensitivity_run_with(
     let recorder = Recorder::new(&scene.outputs);
     let start_q = integrator.state().q.clone();
     let initial = Recorder::initial_orientations(&system.model, start_q.as_slice());
-    let mut derivatives = OutputDerivatives::new(&system, &scene.outputs, d);
 
     let n_outputs = scene.outputs.len();
     let n_records = scene.n_steps / scene.record_every + 2;
@@ -348,36 +359,39 @@ struct OutputDerivatives {
 }
 
 impl OutputDerivatives {
-    fn new(system: &RobotSystem, outputs: &[Output], d: usize) -> Self {
+    /// The rules of `outputs`. Errors: an output with no rule (a `Position` that is not a 1-dof
+    /// joint's coordinate: scenes record a floating base through its pose outputs instead).
+    fn new(
+        system: &RobotSystem,
+        outputs: &[Output],
+        d: usize,
+    ) -> Result<Self, SensitivityRunError> {
         let model = &system.model;
         let rules = outputs
             .iter()
             .map(|o| match o.kind {
-                OutputKind::Position { q_index } => {
-                    let joint = model
-                        .joints
-                        .iter()
-                        .find(|j| j.q_index == q_index && j.kind != JointKind::Floating);
-                    match joint {
-                        Some(j) => Rule::Coordinate(j.v_index),
-                        // The scene never records a floating joint's raw coordinates.
-                        None => Rule::BasePosition { joint: 0, axis: 0 },
-                    }
-                }
-                OutputKind::Velocity { v_index } => Rule::Velocity(v_index),
-                OutputKind::Acceleration { v_index } => Rule::Acceleration(v_index),
-                OutputKind::Multiplier { row, sign } => Rule::Multiplier { row, sign },
-                OutputKind::FramePosition { link, axis } => Rule::Frame { link, axis },
-                OutputKind::BasePosition { joint, axis } => Rule::BasePosition { joint, axis },
-                OutputKind::BaseRotation { joint, axis } => Rule::BaseRotation { joint, axis },
+                OutputKind::Position { q_index } => model
+                    .joints
+                    .iter()
+                    .find(|j| j.q_index == q_index && j.kind != JointKind::Floating)
+                    .map(|j| Rule::Coordinate(j.v_index))
+                    .ok_or_else(|| SensitivityRunError::UnsupportedOutput {
+                        name: o.name.clone(),
+                    }),
+                OutputKind::Velocity { v_index } => Ok(Rule::Velocity(v_index)),
+                OutputKind::Acceleration { v_index } => Ok(Rule::Acceleration(v_index)),
+                OutputKind::Multiplier { row, sign } => Ok(Rule::Multiplier { row, sign }),
+                OutputKind::FramePosition { link, axis } => Ok(Rule::Frame { link, axis }),
+                OutputKind::BasePosition { joint, axis } => Ok(Rule::BasePosition { joint, axis }),
+                OutputKind::BaseRotation { joint, axis } => Ok(Rule::BaseRotation { joint, axis }),
             })
-            .collect();
-        Self {
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
             rules,
             d,
             velocity: DMatrix::zeros(model.nv, d),
             link_jacobian: DMatrix::zeros(3, model.nv),
-        }
+        })
     }
 
     /// Writes `∂y_o/∂ξ_j` into `out[o · d + j]` at the integrator's state (`self.velocity` must hold
