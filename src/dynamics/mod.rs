@@ -5,7 +5,10 @@
 //! - [`forward_dynamics`] — `q̈ = M⁻¹ (τ − C q̇ − g)` through CRBA, RNEA and an in-place Cholesky
 //!   factorisation (for the small dense systems of robot arms this is as fast as ABA and reuses the
 //!   pieces the implicit integrator needs anyway);
-//! - [`frame_placements`] — every URDF link in the world frame.
+//! - [`frame_placements`] — every URDF link in the world frame;
+//! - derivatives for the forward sensitivities ([`link_inertia_derivative`],
+//!   [`rnea_inertia_derivative`], [`link_origin_jacobian`], [`rnea_derivatives`];
+//!   docs/sensitivities.md).
 //!
 //! Every algorithm is `algorithm(model, data, …)`: the model is read only, results and scratch live
 //! in a per-thread [`Data`] allocated once; the hot path allocates nothing. Only rigid-body terms
@@ -14,12 +17,17 @@
 mod cholesky;
 mod crba;
 mod data;
+mod derivatives;
 mod kinematics;
 mod rnea;
 
 pub use cholesky::{cholesky_factor_in_place, cholesky_solve_in_place};
 pub use crba::crba;
 pub use data::Data;
+pub use derivatives::{
+    link_inertia_derivative, link_origin_jacobian, rnea_derivatives, rnea_inertia_derivative,
+    InertialField, RneaDerivatives,
+};
 pub use kinematics::{drift_kinematics, forward_kinematics, frame_placements};
 pub use rnea::{nonlinear_effects, rnea};
 

@@ -412,6 +412,13 @@ impl HhtIntegrator {
         &self.state
     }
 
+    /// The Newmark velocity the recursion carries, dim `nv`: equal to `state().v` unless the
+    /// reported velocity was projected (see [`HhtSettings::velocity_projection`]). Read only; the
+    /// forward sensitivities ([`HhtSensitivity`](super::HhtSensitivity)) differentiate this one.
+    pub fn newmark_velocity(&self) -> &DVector<f64> {
+        &self.v_newmark
+    }
+
     /// Statistics since the last (re)start.
     pub fn stats(&self) -> &HhtStats {
         &self.stats

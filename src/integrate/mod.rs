@@ -18,8 +18,12 @@
 //! steps (`a_0 = q̈_0` here: `λ` and `q̈` carry an O(h) transient that the numerical damping removes
 //! within a few dozen steps).
 //!
+//! Forward sensitivities of a trajectory with respect to the system's parameters, by direct
+//! differentiation of the converged step, run beside the integrator: [`HhtSensitivity`]
+//! (docs/sensitivities.md).
+//!
 //! Read order: [`DaeSystem`] (the contract), [`HhtSettings`], [`HhtIntegrator`], [`consistent_start`],
-//! [`IntegrateError`].
+//! [`IntegrateError`], [`HhtSensitivity`].
 //!
 //! Why not the form printed by Negrut et al. (and Chrono's `ChTimestepperHHT`): its accelerations
 //! represent `t_{n+1+α}`, which `γ = ½ − α` compensates only when `M` is constant; in joint
@@ -30,6 +34,7 @@ mod error;
 mod eval;
 mod hht;
 mod linalg;
+mod sensitivity;
 mod settings;
 mod start;
 mod system;
@@ -42,6 +47,10 @@ pub use hht::{
     iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtState, HhtStats, HhtTrajectory,
 };
 pub use linalg::SINGULAR_PIVOT_RELATIVE;
+pub use sensitivity::{
+    HhtSensitivity, SensitivityError, SensitivityStats, JACOBIAN_FD_STEP, PARAMETER_FD_STEP,
+    PROJECTION_FD_STEP,
+};
 pub use settings::{HhtCoefficients, HhtSettings, ALPHA_MIN, ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS};
 pub use start::{
     consistent_start, ConsistentStart, REDUNDANT_ROW_RELATIVE_SV, START_CONSTRAINT_TOL,

@@ -22,6 +22,18 @@
 //! - Methods return `Result`: report an invalid state (e.g. a singular configuration or a NaN the
 //!   system detects itself) as an error rather than panicking. The integrator also checks every output
 //!   for NaN/Inf itself.
+//!
+//! Optional groups of methods, all default-implemented so that a system only writes what it uses:
+//! - **full residual Jacobians** ([`DaeSystem::residual_jacobians`]): `∂r/∂q` and `∂r/∂q̇` of the
+//!   dynamics residual `r = M q̈ + Φ_qᵀ λ − Q`, what a full Newton matrix and the forward
+//!   sensitivities need (docs/sensitivities.md §2); without them users form them by central
+//!   differences of the residual;
+//! - **the position update on a group** ([`DaeSystem::position_update_is_additive`],
+//!   [`DaeSystem::integrate_position_jacobians`], [`DaeSystem::difference_position`]): how tangent
+//!   perturbations travel through `q ⊕ δ` (docs/sensitivities.md §4);
+//! - **parameters** ([`DaeSystem::n_parameters`], [`DaeSystem::parameter_jacobians`],
+//!   [`DaeSystem::set_parameter_offset`]): the derivatives of the residual and the constraints with
+//!   respect to the system's parameters `p_k`, for forward sensitivities (docs/sensitivities.md §3).
 
 use nalgebra::{DMatrix, DVector};
 
@@ -219,6 +231,176 @@ pub trait DaeSystem {
         let _ = (t, q);
         out.fill(0.0);
         Ok(())
+    }
+
+    /// Whether [`residual_jacobians`](Self::residual_jacobians) is implemented. Default `false`: a
+    /// user that needs the full Jacobians (the forward sensitivities of
+    /// [`HhtSensitivity`](super::HhtSensitivity)) then forms them by central differences of the
+    /// residual, `2 nv` evaluations each (docs/sensitivities.md §2).
+    fn provides_residual_jacobians(&self) -> bool {
+        false
+    }
+
+    /// The full Jacobians of the dynamics residual `r(q, q̇) = M(q) q̈ + Φ_q(q, t)ᵀ λ − Q(t, q, q̇)` at
+    /// fixed `q̈` and `λ` (docs/sensitivities.md §2):
+    ///
+    /// ```text
+    /// stiffness_out = ∂r/∂q  = ∂(M q̈)/∂q + ∂(Φ_qᵀ λ)/∂q − ∂Q/∂q     (the tangent stiffness K_t)
+    /// damping_out   = ∂r/∂q̇ = −∂Q/∂q̇                              (the tangent damping  D_t)
+    /// ```
+    ///
+    /// `∂/∂q` is taken along the tangent space (column `i`: the derivative along `q ⊕ ε e_i`). These
+    /// are what a full Newton matrix `M + β'h² K_t + γ'h D_t` needs; the diagonal of
+    /// [`newton_diagonal`](Self::newton_diagonal) is the cheap part of them.
+    ///
+    /// - `t`: time, s; `q`: dim `nq`; `v`, `qdd`: dim `nv`; `lambda`: dim `m`;
+    /// - `stiffness_out`: `nv × nv`, overwritten (N·m/rad or N/m per column);
+    /// - `damping_out`: `nv × nv`, overwritten (N·m·s/rad or N·s/m per column).
+    ///
+    /// Only called when [`provides_residual_jacobians`](Self::provides_residual_jacobians) is `true`.
+    #[allow(clippy::too_many_arguments)]
+    fn residual_jacobians(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        let _ = (t, q, v, qdd, lambda, stiffness_out, damping_out);
+        Err("residual_jacobians is not implemented by this system".into())
+    }
+
+    /// Whether `q ⊕ δ` is plain vector addition (`nq == nv`, every coordinate additive), so that a
+    /// tangent perturbation passes through the position update unchanged. Default `nq == nv`, which
+    /// matches the default [`integrate_position`](Self::integrate_position); a system that
+    /// overrides `integrate_position` with a group update overrides this too (and
+    /// [`integrate_position_jacobians`](Self::integrate_position_jacobians)).
+    fn position_update_is_additive(&self) -> bool {
+        self.nq() == self.nv()
+    }
+
+    /// How a tangent perturbation passes through the position update `q⁺ = q ⊕ dq`
+    /// (docs/sensitivities.md §4): with `q` perturbed to `q ⊕ δq` and `dq` to `dq + δdq`,
+    ///
+    /// ```text
+    /// q⁺ is perturbed to q⁺ ⊕ (A δq + B δdq)       A = wrt_q_out, B = wrt_dq_out
+    /// ```
+    ///
+    /// (on SE(3) with `q ⊕ δ = q · Exp(δ)`: `A = Ad(Exp(−dq))`, `B` = the right Jacobian of `Exp` at
+    /// `dq`).
+    ///
+    /// - `q`: dim `nq`; `dq`: dim `nv`; `wrt_q_out`, `wrt_dq_out`: `nv × nv`, overwritten.
+    ///
+    /// Only called when [`position_update_is_additive`](Self::position_update_is_additive) is
+    /// `false`. Default: identities when `nq == nv`, an error otherwise.
+    fn integrate_position_jacobians(
+        &self,
+        q: &DVector<f64>,
+        dq: &DVector<f64>,
+        wrt_q_out: &mut DMatrix<f64>,
+        wrt_dq_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        if q.len() != dq.len() {
+            return Err(
+                "integrate_position_jacobians must be implemented by a system with nq != nv".into(),
+            );
+        }
+        wrt_q_out.fill_with_identity();
+        wrt_dq_out.fill_with_identity();
+        Ok(())
+    }
+
+    /// `out = q1 ⊖ q0`: the tangent increment `δ` with `q0 ⊕ δ = q1` (the inverse of
+    /// [`integrate_position`](Self::integrate_position)); used to difference two configurations,
+    /// e.g. the consistent starts of two parameter values.
+    ///
+    /// - `q0`, `q1`: dim `nq`; `out`: dim `nv`, overwritten.
+    ///
+    /// Default: `q1 − q0` when `nq == nv`, an error otherwise.
+    fn difference_position(
+        &self,
+        q0: &DVector<f64>,
+        q1: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        if q0.len() != out.len() || q1.len() != out.len() {
+            return Err(format!(
+                "default difference_position needs nq == nv (got q0 {}, q1 {}, out {}); a system \
+                 with nq != nv must implement difference_position",
+                q0.len(),
+                q1.len(),
+                out.len()
+            )
+            .into());
+        }
+        for i in 0..out.len() {
+            out[i] = q1[i] - q0[i];
+        }
+        Ok(())
+    }
+
+    /// Number of parameters `P` the system can be differentiated by (docs/sensitivities.md §3).
+    /// Default 0.
+    ///
+    /// Parameters are coordinates `p_k` of the system's own choosing, with one convention that
+    /// finite differences rely on: **a parameter's natural scale is 1** (its plausible range is about
+    /// `p_k ± 1`, as for the standard coordinate `ξ ∈ [−1, 1]` of docs/method.md §1), so that a step of
+    /// 1e-3 in `p_k` is a small relative change. The current values are `p = 0`.
+    fn n_parameters(&self) -> usize {
+        0
+    }
+
+    /// The partial derivatives of the residual and of the constraints with respect to every
+    /// parameter, at fixed `(t, q, q̇, q̈, λ)` (docs/sensitivities.md §3):
+    ///
+    /// ```text
+    /// dynamics_out[:, k]    = ∂(M q̈ + Φ_qᵀ λ − Q)/∂p_k      (nv × P; N·m or N per unit p_k)
+    /// constraints_out[:, k] = ∂Φ/∂p_k                        (m × P; m or rad per unit p_k)
+    /// ```
+    ///
+    /// - `t`: time, s; `q`: dim `nq`; `v`, `qdd`: dim `nv`; `lambda`: dim `m`; both outputs
+    ///   overwritten. Called with every parameter at its current value (no offset).
+    ///
+    /// Default: an error (no parameters).
+    #[allow(clippy::too_many_arguments)]
+    fn parameter_jacobians(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        dynamics_out: &mut DMatrix<f64>,
+        constraints_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        let _ = (t, q, v, qdd, lambda, dynamics_out, constraints_out);
+        Err("parameter_jacobians is not implemented by this system".into())
+    }
+
+    /// A step in `p_k` for central differences of whole computations (the consistent start, the
+    /// velocity projection; docs/sensitivities.md §5, §6): as large as the system's nonlinearity
+    /// allows, since their rounding error is divided by it. Default
+    /// [`PARAMETER_FD_STEP`](super::PARAMETER_FD_STEP) (1e-3, for a parameter of natural scale 1).
+    fn parameter_difference_step(&self, k: usize) -> f64 {
+        let _ = k;
+        super::sensitivity::PARAMETER_FD_STEP
+    }
+
+    /// Moves the system to the parameter point `p = offset · e_k` (every other parameter at its
+    /// current value); `offset = 0` restores the current point exactly. Each call replaces the
+    /// previous offset (offsets never accumulate). Used for finite differences of whole
+    /// computations — the consistent start, the velocity projection — along one parameter
+    /// (docs/sensitivities.md §5, §6).
+    ///
+    /// - `k`: `0..n_parameters()`; `offset`: in units of `p_k` (natural scale 1).
+    ///
+    /// Default: an error (no parameters).
+    fn set_parameter_offset(&mut self, k: usize, offset: f64) -> Result<(), SystemError> {
+        let _ = (k, offset);
+        Err("set_parameter_offset is not implemented by this system".into())
     }
 
     /// The acceleration-level right-hand side `Φ_q q̈ = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt`, used once for

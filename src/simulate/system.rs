@@ -1,11 +1,14 @@
 //! [`RobotSystem`]: a robot tree plus its scene's effects and constraint rows (loops, mimic joints,
 //! drives), seen by the integrator through [`DaeSystem`]. A tree without rows pays nothing for them.
 
+use super::lie;
+use super::parameters::ParameterDirections;
 use crate::constraints::ConstraintSet;
-use crate::dynamics::{crba, nonlinear_effects, rnea, Data};
+use crate::dynamics::{crba, nonlinear_effects, rnea, rnea_derivatives, Data, RneaDerivatives};
 use crate::effects::Effects;
 use crate::integrate::{DaeSystem, SystemError};
 use crate::model::{JointKind, Model};
+use crate::params::ParamTarget;
 use crate::scene::Scene;
 use crate::spatial::{Mat3, Vec3};
 use nalgebra::{DMatrix, DVector};
@@ -23,6 +26,43 @@ pub struct RobotSystem {
     /// The scene's constraint rows.
     pub constraints: ConstraintSet,
     has_floating_joint: bool,
+    /// The parameters `p_k` of the forward sensitivities (none unless
+    /// [`RobotSystem::set_parameter_directions`] was called).
+    parameters: ParameterDirections,
+    /// Work buffers of [`DaeSystem::residual_jacobians`], made on first use (taken out while in
+    /// use).
+    jacobians: Option<Box<JacobianBuffers>>,
+}
+
+/// Work buffers of the robot's full residual Jacobians.
+#[derive(Clone, Debug)]
+struct JacobianBuffers {
+    rnea: RneaDerivatives,
+    /// Diagonal stiffness and damping of the effects, dim nv.
+    stiffness: DVector<f64>,
+    damping: DVector<f64>,
+    /// Φ_q at a moved configuration, m × nv.
+    phi_q: DMatrix<f64>,
+    /// A moved configuration, dim nq; a tangent step, dim nv; Φ_qᵀ λ at ±ε, dim nv.
+    q_moved: DVector<f64>,
+    tangent: DVector<f64>,
+    plus: DVector<f64>,
+    minus: DVector<f64>,
+}
+
+impl JacobianBuffers {
+    fn new(model: &Model, m: usize) -> Self {
+        Self {
+            rnea: RneaDerivatives::new(model),
+            stiffness: DVector::zeros(model.nv),
+            damping: DVector::zeros(model.nv),
+            phi_q: DMatrix::zeros(m, model.nv),
+            q_moved: DVector::zeros(model.nq),
+            tangent: DVector::zeros(model.nv),
+            plus: DVector::zeros(model.nv),
+            minus: DVector::zeros(model.nv),
+        }
+    }
 }
 
 impl RobotSystem {
@@ -42,7 +82,59 @@ impl RobotSystem {
             effects,
             constraints: scene.constraints.clone(),
             has_floating_joint,
+            parameters: ParameterDirections::default(),
+            jacobians: None,
         }
+    }
+
+    /// Declares the parameters `p_k` the system is differentiated by (docs/sensitivities.md §3):
+    /// direction `k` moves each listed model value `θ_t` by `∂θ_t/∂p_k` per unit `p_k`, from the
+    /// model's **current** values (call it after writing the parameter point into `self.model`).
+    /// For a study, `p_k = ξ_k` and the list is [`ParameterSpace`]'s chain from dimension `k` to the
+    /// model values (see [`crate::uncertainty::ParameterSpace::target_derivatives`]). Replaces any previous declaration.
+    ///
+    /// [`ParameterSpace`]: crate::uncertainty::ParameterSpace
+    pub fn set_parameter_directions(&mut self, directions: &[Vec<(ParamTarget, f64)>]) {
+        self.parameters = ParameterDirections::new(&self.model, self.constraints.len(), directions);
+    }
+
+    /// The declared parameter directions.
+    pub fn parameter_directions(&self) -> &ParameterDirections {
+        &self.parameters
+    }
+
+    /// Adds `∂(Φ_qᵀ λ)/∂q` (central differences along each tangent coordinate) to `stiffness`.
+    fn add_loop_stiffness(
+        &mut self,
+        q: &DVector<f64>,
+        lambda: &DVector<f64>,
+        buffers: &mut JacobianBuffers,
+        stiffness: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        let eps = crate::integrate::JACOBIAN_FD_STEP;
+        for i in 0..self.model.nv {
+            for sign in [1.0, -1.0] {
+                buffers.tangent.fill(0.0);
+                buffers.tangent[i] = sign * eps;
+                self.integrate_position(q, &buffers.tangent, &mut buffers.q_moved)?;
+                self.constraints.jacobian(
+                    &self.model,
+                    &mut self.data,
+                    buffers.q_moved.as_slice(),
+                    &mut buffers.phi_q,
+                );
+                let out = if sign > 0.0 {
+                    &mut buffers.plus
+                } else {
+                    &mut buffers.minus
+                };
+                out.gemv_tr(1.0, &buffers.phi_q, lambda, 0.0);
+            }
+            for r in 0..self.model.nv {
+                stiffness[(r, i)] += (buffers.plus[r] - buffers.minus[r]) / (2.0 * eps);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -270,6 +362,182 @@ impl DaeSystem for RobotSystem {
         );
         Ok(())
     }
+
+    fn provides_residual_jacobians(&self) -> bool {
+        true
+    }
+
+    /// `∂r/∂q`, `∂r/∂q̇` of `r = M q̈ + Φ_qᵀ λ − Q` (docs/sensitivities.md §2): RNEA's analytic
+    /// Jacobians, plus the effects' (each acts on its own coordinate: the diagonal of
+    /// [`DaeSystem::newton_diagonal`], exact), plus `∂(Φ_qᵀ λ)/∂q` of loop closures by central
+    /// differences (step [`JACOBIAN_FD_STEP`](crate::integrate::JACOBIAN_FD_STEP); mimic and drive
+    /// rows have a constant `Φ_q`). Allocates once, on first use.
+    fn residual_jacobians(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        let mut buffers = match self.jacobians.take() {
+            Some(buffers) => buffers,
+            None => Box::new(JacobianBuffers::new(&self.model, self.constraints.len())),
+        };
+        rnea_derivatives(
+            &self.model,
+            &mut self.data,
+            &mut buffers.rnea,
+            q.as_slice(),
+            v.as_slice(),
+            qdd.as_slice(),
+            stiffness_out,
+            damping_out,
+        );
+        buffers.stiffness.fill(0.0);
+        buffers.damping.fill(0.0);
+        self.effects.add_newton_diagonal(
+            &self.model,
+            q.as_slice(),
+            v.as_slice(),
+            buffers.stiffness.as_mut_slice(),
+            buffers.damping.as_mut_slice(),
+        );
+        for j in 0..self.model.nv {
+            stiffness_out[(j, j)] += buffers.stiffness[j];
+            damping_out[(j, j)] += buffers.damping[j];
+        }
+        let result = if self.constraints.loops.is_empty() || lambda.is_empty() {
+            Ok(())
+        } else {
+            self.add_loop_stiffness(q, lambda, &mut buffers, stiffness_out)
+        };
+        self.jacobians = Some(buffers);
+        result
+    }
+
+    fn position_update_is_additive(&self) -> bool {
+        !self.has_floating_joint
+    }
+
+    /// Identity blocks for 1-dof joints; for a floating joint (`q ⊕ δ = q · Exp(δ)` on SE(3)) the
+    /// blocks `Ad(Exp(−dq))` and `J_r(dq)` (docs/sensitivities.md §4).
+    fn integrate_position_jacobians(
+        &self,
+        _q: &DVector<f64>,
+        dq: &DVector<f64>,
+        wrt_q_out: &mut DMatrix<f64>,
+        wrt_dq_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        wrt_q_out.fill_with_identity();
+        wrt_dq_out.fill_with_identity();
+        for joint in &self.model.joints {
+            if joint.kind != JointKind::Floating {
+                continue;
+            }
+            let vi = joint.v_index;
+            let linear = Vec3::new(dq[vi], dq[vi + 1], dq[vi + 2]);
+            let angular = Vec3::new(dq[vi + 3], dq[vi + 4], dq[vi + 5]);
+            let (adjoint, jacobian) = lie::exp_jacobians(&linear, &angular)
+                .map_err(|message| format!("joint '{}': {message}", joint.name))?;
+            wrt_q_out.view_mut((vi, vi), (6, 6)).copy_from(&adjoint);
+            wrt_dq_out.view_mut((vi, vi), (6, 6)).copy_from(&jacobian);
+        }
+        Ok(())
+    }
+
+    /// `q1 ⊖ q0`: differences for 1-dof joints, the SE(3) logarithm of `q0⁻¹ q1` for a floating
+    /// joint (docs/sensitivities.md §4).
+    fn difference_position(
+        &self,
+        q0: &DVector<f64>,
+        q1: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        for joint in &self.model.joints {
+            let (qi, vi) = (joint.q_index, joint.v_index);
+            if joint.kind != JointKind::Floating {
+                out[vi] = q1[qi] - q0[qi];
+                continue;
+            }
+            let pose = |q: &DVector<f64>| {
+                (
+                    Vec3::new(q[qi], q[qi + 1], q[qi + 2]),
+                    nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(
+                        q[qi + 6],
+                        q[qi + 3],
+                        q[qi + 4],
+                        q[qi + 5],
+                    )),
+                )
+            };
+            let ((p0, r0), (p1, r1)) = (pose(q0), pose(q1));
+            let (linear, angular) = lie::log_between(&p0, &r0, &p1, &r1).ok_or_else(|| {
+                format!(
+                    "joint '{}': the two configurations differ by a rotation whose SE(3) logarithm \
+                     is not defined",
+                    joint.name
+                )
+            })?;
+            for k in 0..3 {
+                out[vi + k] = linear[k];
+                out[vi + 3 + k] = angular[k];
+            }
+        }
+        Ok(())
+    }
+
+    fn n_parameters(&self) -> usize {
+        self.parameters.len()
+    }
+
+    /// Inertial targets exactly (RNEA regressor columns), everything else by central differences of
+    /// the residual with the model moved (docs/sensitivities.md §3).
+    fn parameter_jacobians(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        dynamics_out: &mut DMatrix<f64>,
+        constraints_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        self.parameters.jacobians(
+            &mut self.model,
+            &mut self.data,
+            &self.effects,
+            &self.constraints,
+            t,
+            q.as_slice(),
+            v.as_slice(),
+            qdd.as_slice(),
+            lambda,
+            dynamics_out,
+            constraints_out,
+        );
+        Ok(())
+    }
+
+    /// The direction's natural step: no model value moves by more than
+    /// [`THETA_FD_RELATIVE_STEP`](super::THETA_FD_RELATIVE_STEP) of its scale.
+    fn parameter_difference_step(&self, k: usize) -> f64 {
+        self.parameters.natural_step(k)
+    }
+
+    fn set_parameter_offset(&mut self, k: usize, offset: f64) -> Result<(), SystemError> {
+        if k >= self.parameters.len() {
+            return Err(format!(
+                "parameter {k} does not exist: the system has {} parameter directions",
+                self.parameters.len()
+            )
+            .into());
+        }
+        self.parameters.set_offset(&mut self.model, k, offset);
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -333,6 +601,50 @@ mod tests {
         let before = allocations();
         space.apply(&mut system.model, &xi);
         assert_eq!(allocations() - before, 0, "ParameterSpace::apply allocated");
+    }
+
+    /// A forward-sensitivity step allocates nothing either: ur5 (springs, inertial and symbol
+    /// directions) and slider-crank (loop and drive, directions that move the loop's geometry, the
+    /// projected velocity's sensitivity).
+    #[test]
+    fn sensitivity_steps_allocate_nothing() {
+        use crate::integrate::HhtSensitivity;
+        for name in ["ur5", "slider_crank"] {
+            let (mut system, scene) = robot(name);
+            let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("robots")
+                .join(name);
+            let (file, _) = read_sidecar(&root.join(format!("{name}.uncertainty.toml"))).unwrap();
+            let space =
+                crate::uncertainty::ParameterSpace::from_sidecar(&file, &system.model, name)
+                    .unwrap();
+            let xi = space.nominal_xi();
+            space.apply(&mut system.model, &xi);
+            let mut list = Vec::new();
+            let directions: Vec<_> = (0..space.len())
+                .map(|j| {
+                    space.target_derivatives(&xi, j, &mut list);
+                    list.clone()
+                })
+                .collect();
+            system.set_parameter_directions(&directions);
+            let q0 = DVector::from_column_slice(&scene.initial_q);
+            let v0 = DVector::from_column_slice(&scene.initial_v);
+            let settings = crate::simulate::hht_settings(&scene);
+            let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).unwrap();
+            let mut sensitivity = HhtSensitivity::new(&mut system, &hht, &q0, &v0).unwrap();
+            sensitivity.step(&mut system, &mut hht).unwrap();
+            let before = allocations();
+            for _ in 0..50 {
+                sensitivity.step(&mut system, &mut hht).unwrap();
+                sensitivity.reported_velocity(&mut system, &hht).unwrap();
+            }
+            let used = allocations() - before;
+            assert_eq!(
+                used, 0,
+                "{name}: {used} allocations in 50 sensitivity steps"
+            );
+        }
     }
 
     #[test]

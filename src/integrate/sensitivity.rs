@@ -1,0 +1,963 @@
+//! Forward sensitivities of an HHT-I3 trajectory with respect to the system's parameters, by direct
+//! differentiation of the converged step (docs/sensitivities.md): [`HhtSensitivity`].
+//!
+//! One step, as data flow (docs/sensitivities.md §1–§4):
+//!
+//! ```text
+//! (state_n, S_n) => HhtIntegrator::step => state_{n+1}                     (unchanged integrator)
+//!   => at the converged (t, q, q̇, q̈, λ)_{n+1}: M, Φ_q, K_t = ∂r/∂q, D_t = ∂r/∂q̇
+//!      (the system's, or central differences of the residual), the group update's A, B,
+//!      ∂r/∂p and ∂Φ/∂p for every parameter
+//!   => J = [M + β'h² K_t B + γ'h D_t   Φ_qᵀ; Φ_q B   0], factorised once
+//!   => per parameter one solve for (∂q̈_{n+1}/∂p_k, ∂λ_{n+1}/∂p_k)
+//!   => the Newmark updates of S: S_a, S_q (tangent), S_q̇
+//! ```
+//!
+//! The start (§5): without constraint rows `q_0`, `q̇_0` do not depend on the parameters and
+//! `∂q̈_0/∂p = −M⁻¹ ∂r/∂p` exactly; with rows, the consistent start is differenced along each
+//! parameter (a 4-point central difference of [`consistent_start`]). The reported velocity of a
+//! constrained run is projected; its sensitivity is a directional central difference of the
+//! projection at record times only (§6).
+//!
+//! What it does not do: second-order sensitivities, adjoints, adaptive steps. Per step it allocates
+//! nothing; the start allocates (it runs [`consistent_start`]).
+
+use nalgebra::{DMatrix, DVector};
+
+use super::error::IntegrateError;
+use super::eval::{self, At};
+use super::hht::{assemble_iteration_matrix, HhtIntegrator};
+use super::linalg::{DenseSolver, FactorKind};
+use super::settings::HhtCoefficients;
+use super::start::consistent_start;
+use super::system::DaeSystem;
+
+/// Step, in tangent coordinates (rad or m) and in velocities (rad/s or m/s), of the central
+/// differences that form `K_t` and `D_t` when the system does not provide them
+/// (docs/sensitivities.md §2). Joint coordinates are nonlinear on a scale of ~1 rad or ~1 m, so
+/// the truncation error is ~ε²/6 ≈ 2e-13 relative; rounding costs ~u·|r|/ε ≈ 1e-10 of the residual's
+/// terms. Smoothed friction (`v_s` = 1e-2 rad/s) is the sharpest nonlinearity in velocity:
+/// (ε/v_s)²/3 ≈ 3e-9 relative on its term.
+pub const JACOBIAN_FD_STEP: f64 = 1e-6;
+
+/// The default of [`DaeSystem::parameter_difference_step`]: a step of 1e-3 in a parameter of natural
+/// scale 1. The 4-point central differences of whole computations (the consistent start, the
+/// velocity projection) then have a truncation error of ~ε⁴/30 ≈ 3e-14 relative.
+pub const PARAMETER_FD_STEP: f64 = 1e-3;
+
+/// Largest tangent step, rad or m, of the directional 4-point central difference of the velocity
+/// projection (docs/sensitivities.md §6): the parameter step is the smaller of the system's
+/// [`DaeSystem::parameter_difference_step`] and this over `max(1, ‖S_q[:, k]‖∞)`. Configurations are
+/// nonlinear on the scale of 1 rad or 1 m, so truncation is ~3e-14 relative; the correction is linear
+/// in the velocity. Rounding of `Φ_q q̇` (terms of ~|q̇|) costs ~u·|q̇|/ε.
+pub const PROJECTION_FD_STEP: f64 = 1e-3;
+
+/// The 4-point central-difference stencil `f' ≈ Σ w f(p + o ε) / 12ε`: `(o, w)`.
+const STENCIL: [(f64, f64); 4] = [(2.0, -1.0), (1.0, 8.0), (-1.0, -8.0), (-2.0, 1.0)];
+
+/// Why a sensitivity computation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SensitivityError {
+    /// The integrator (or a system call made for the sensitivities) failed; names time and step.
+    #[error(transparent)]
+    Integrate(#[from] IntegrateError),
+    /// The sensitivities were started from an integrator that has already stepped.
+    #[error(
+        "forward sensitivities must start with the trajectory (integrator at step {step}, not 0): \
+         create HhtSensitivity right after HhtIntegrator::new or restart"
+    )]
+    NotAtStart {
+        /// The integrator's step count.
+        step: u64,
+    },
+    /// The integrator was stepped without the sensitivities (or another trajectory was swapped in).
+    #[error(
+        "the integrator is at step {integrator_step} but the sensitivities at step \
+         {sensitivity_step}: step both through HhtSensitivity::step"
+    )]
+    OutOfStep {
+        /// The integrator's step count.
+        integrator_step: u64,
+        /// The sensitivities' step count.
+        sensitivity_step: u64,
+    },
+}
+
+/// Counters of one sensitivity run.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SensitivityStats {
+    /// Differentiated steps.
+    pub steps: u64,
+    /// Parameters `P`.
+    pub parameters: usize,
+    /// Factorisations of the exact step Jacobian `J` (one per step).
+    pub factorisations: u64,
+    /// Right-hand sides solved with `J` (`P` per step).
+    pub solves: u64,
+    /// Residual evaluations spent on central differences of `K_t` and `D_t` (`4 nv` per step when
+    /// the system does not provide [`DaeSystem::residual_jacobians`], else 0).
+    pub jacobian_residual_evaluations: u64,
+    /// Consistent starts computed for the start's central difference (`4 P` with constraint rows,
+    /// else 0).
+    pub start_evaluations: usize,
+    /// Velocity projections computed for the reported velocity's sensitivity (`4 P` per record of a
+    /// constrained run with velocity projection, else 0).
+    pub projection_evaluations: u64,
+}
+
+/// Preallocated buffers (sizes `nq`, `nv`, `m`, `P`, `n = nv + m`).
+#[derive(Debug, Clone)]
+struct Workspace {
+    /// M, nv × nv.
+    mass: DMatrix<f64>,
+    /// M at a perturbed point (residual without `dynamics_residual`), nv × nv.
+    mass_scratch: DMatrix<f64>,
+    /// Φ_q, m × nv.
+    phi_q: DMatrix<f64>,
+    /// Φ_q at a perturbed point, m × nv.
+    phi_q_scratch: DMatrix<f64>,
+    /// K_t, nv × nv.
+    stiffness: DMatrix<f64>,
+    /// D_t, nv × nv.
+    damping: DMatrix<f64>,
+    /// A of the group update, nv × nv.
+    wrt_q: DMatrix<f64>,
+    /// B of the group update, nv × nv.
+    wrt_dq: DMatrix<f64>,
+    /// K_t B, nv × nv.
+    stiffness_b: DMatrix<f64>,
+    /// Φ_q B, m × nv.
+    phi_q_b: DMatrix<f64>,
+    /// ∂r/∂p, nv × P.
+    dynamics_p: DMatrix<f64>,
+    /// ∂Φ/∂p, m × P.
+    constraints_p: DMatrix<f64>,
+    /// h S_q̇ + h²(½ − β) S_a − h²βα S_q̈ (the tangent increment's known part), nv × P.
+    increment: DMatrix<f64>,
+    /// δq_pred, nv × P.
+    predicted_q: DMatrix<f64>,
+    /// S_q̇ predicted, nv × P.
+    predicted_v: DMatrix<f64>,
+    /// Right-hand sides of the dynamics rows, nv × P.
+    rhs_dynamics: DMatrix<f64>,
+    /// Right-hand sides of the constraint rows, m × P.
+    rhs_constraints: DMatrix<f64>,
+    /// ∂q̈_{n+1}/∂p, nv × P.
+    new_qdd: DMatrix<f64>,
+    /// B ∂q̈_{n+1}/∂p, nv × P.
+    b_new_qdd: DMatrix<f64>,
+    /// J, then projection matrices, n × n.
+    matrix: DMatrix<f64>,
+    /// Factorisation of `matrix`.
+    solver: DenseSolver,
+    /// One right-hand side, dim n.
+    rhs: DVector<f64>,
+    /// Perturbed q, dim nq.
+    q_perturbed: DVector<f64>,
+    /// Tangent increment, dim nv.
+    dq: DVector<f64>,
+    /// Perturbed velocity, dim nv.
+    v_perturbed: DVector<f64>,
+    /// Residual at +ε, dim nv.
+    r_plus: DVector<f64>,
+    /// Residual at −ε, dim nv.
+    r_minus: DVector<f64>,
+    /// Q, dim nv.
+    forces: DVector<f64>,
+    /// Φ_t, dim m.
+    phi_t: DVector<f64>,
+    /// The projection correction's derivative being summed, dim nv.
+    dv_plus: DVector<f64>,
+}
+
+impl Workspace {
+    fn new(nq: usize, nv: usize, m: usize, p: usize) -> Self {
+        let n = nv + m;
+        Self {
+            mass: DMatrix::zeros(nv, nv),
+            mass_scratch: DMatrix::zeros(nv, nv),
+            phi_q: DMatrix::zeros(m, nv),
+            phi_q_scratch: DMatrix::zeros(m, nv),
+            stiffness: DMatrix::zeros(nv, nv),
+            damping: DMatrix::zeros(nv, nv),
+            wrt_q: DMatrix::identity(nv, nv),
+            wrt_dq: DMatrix::identity(nv, nv),
+            stiffness_b: DMatrix::zeros(nv, nv),
+            phi_q_b: DMatrix::zeros(m, nv),
+            dynamics_p: DMatrix::zeros(nv, p),
+            constraints_p: DMatrix::zeros(m, p),
+            increment: DMatrix::zeros(nv, p),
+            predicted_q: DMatrix::zeros(nv, p),
+            predicted_v: DMatrix::zeros(nv, p),
+            rhs_dynamics: DMatrix::zeros(nv, p),
+            rhs_constraints: DMatrix::zeros(m, p),
+            new_qdd: DMatrix::zeros(nv, p),
+            b_new_qdd: DMatrix::zeros(nv, p),
+            matrix: DMatrix::zeros(n, n),
+            solver: DenseSolver::new(n, FactorKind::Lu),
+            rhs: DVector::zeros(n),
+            q_perturbed: DVector::zeros(nq),
+            dq: DVector::zeros(nv),
+            v_perturbed: DVector::zeros(nv),
+            r_plus: DVector::zeros(nv),
+            r_minus: DVector::zeros(nv),
+            forces: DVector::zeros(nv),
+            phi_t: DVector::zeros(m),
+            dv_plus: DVector::zeros(nv),
+        }
+    }
+}
+
+/// The forward sensitivities `S = ∂(state)/∂p` of one HHT-I3 trajectory, advanced step by step beside
+/// its [`HhtIntegrator`] (docs/sensitivities.md).
+///
+/// Every sensitivity is a matrix with one column per parameter `p_k` (`P = system.n_parameters()`):
+/// positions along the tangent space (`q(p + ε e_k) ≈ q ⊕ ε S_q[:, k]`), velocities, accelerations
+/// and multipliers as plain derivatives. Use it as
+///
+/// ```text
+/// let mut hht = HhtIntegrator::new(&mut system, settings, t0, &q0, &v0)?;
+/// let mut sens = HhtSensitivity::new(&mut system, &hht, &q0, &v0)?;
+/// loop { sens.step(&mut system, &mut hht)?; … sens.position(), sens.reported_velocity(…) … }
+/// ```
+///
+/// The system must implement [`DaeSystem::parameter_jacobians`] (and, with constraint rows,
+/// [`DaeSystem::set_parameter_offset`]); [`DaeSystem::residual_jacobians`] is used when provided,
+/// otherwise `K_t` and `D_t` come from central differences of the residual ([`JACOBIAN_FD_STEP`]).
+#[derive(Debug, Clone)]
+pub struct HhtSensitivity {
+    nq: usize,
+    nv: usize,
+    m: usize,
+    p: usize,
+    coeffs: HhtCoefficients,
+    velocity_projection: bool,
+    additive: bool,
+    /// Step count of the carried sensitivities.
+    step: u64,
+    /// ∂q/∂p along the tangent space, nv × P.
+    s_q: DMatrix<f64>,
+    /// ∂(Newmark q̇)/∂p, nv × P.
+    s_v: DMatrix<f64>,
+    /// ∂a/∂p, nv × P.
+    s_a: DMatrix<f64>,
+    /// ∂q̈/∂p, nv × P.
+    s_qdd: DMatrix<f64>,
+    /// ∂λ/∂p, m × P.
+    s_lambda: DMatrix<f64>,
+    /// ∂q_0/∂p along the tangent space at the start, nv × P.
+    s_q_start: DMatrix<f64>,
+    /// ∂(reported q̇)/∂p, nv × P (valid when `reported_fresh`).
+    s_v_reported: DMatrix<f64>,
+    reported_fresh: bool,
+    /// q_n, Newmark q̇_n and a_n kept over a step (for the group update's Jacobians).
+    q_before: DVector<f64>,
+    v_before: DVector<f64>,
+    a_before: DVector<f64>,
+    stats: SensitivityStats,
+    ws: Workspace,
+}
+
+/// `y += a · x` over matching slices.
+fn add_scaled(y: &mut [f64], a: f64, x: &[f64]) {
+    for (yi, xi) in y.iter_mut().zip(x) {
+        *yi += a * xi;
+    }
+}
+
+impl HhtSensitivity {
+    /// The sensitivities of the consistent start of `integrator`'s trajectory (docs/sensitivities.md
+    /// §5), which must not have stepped yet; `q0`, `v0` are the values the integrator was started
+    /// from (before projection; they do not depend on the parameters).
+    ///
+    /// - `q0`: dim `nq`; `v0`: dim `nv`.
+    ///
+    /// Errors: [`SensitivityError::NotAtStart`]; system errors of `parameter_jacobians`,
+    /// `set_parameter_offset` (constrained systems) and the start's own errors at a perturbed point.
+    pub fn new<S: DaeSystem + ?Sized>(
+        system: &mut S,
+        integrator: &HhtIntegrator,
+        q0: &DVector<f64>,
+        v0: &DVector<f64>,
+    ) -> Result<Self, SensitivityError> {
+        let state = integrator.state();
+        if state.step != 0 {
+            return Err(SensitivityError::NotAtStart { step: state.step });
+        }
+        let (nq, nv, m, p) = (
+            system.nq(),
+            system.nv(),
+            system.n_constraints(),
+            system.n_parameters(),
+        );
+        eval::check_dimensions(system, state.q.len(), state.v.len(), state.lambda.len())?;
+        let mut sensitivity = Self {
+            nq,
+            nv,
+            m,
+            p,
+            coeffs: *integrator.coefficients(),
+            velocity_projection: integrator.settings().velocity_projection,
+            additive: system.position_update_is_additive(),
+            step: 0,
+            s_q: DMatrix::zeros(nv, p),
+            s_v: DMatrix::zeros(nv, p),
+            s_a: DMatrix::zeros(nv, p),
+            s_qdd: DMatrix::zeros(nv, p),
+            s_lambda: DMatrix::zeros(m, p),
+            s_q_start: DMatrix::zeros(nv, p),
+            s_v_reported: DMatrix::zeros(nv, p),
+            reported_fresh: true,
+            q_before: DVector::zeros(nq),
+            v_before: DVector::zeros(nv),
+            a_before: DVector::zeros(nv),
+            stats: SensitivityStats {
+                parameters: p,
+                ..SensitivityStats::default()
+            },
+            ws: Workspace::new(nq, nv, m, p),
+        };
+        if p > 0 {
+            if m == 0 {
+                sensitivity.start_without_constraints(system, integrator)?;
+            } else {
+                sensitivity.start_by_differences(system, integrator, q0, v0)?;
+            }
+        }
+        sensitivity.s_a.copy_from(&sensitivity.s_qdd);
+        sensitivity.s_q_start.copy_from(&sensitivity.s_q);
+        sensitivity.s_v_reported.copy_from(&sensitivity.s_v);
+        Ok(sensitivity)
+    }
+
+    /// Without constraint rows the start is `q_0`, `q̇_0` as given and `M q̈_0 = Q`: `S_q = S_q̇ = 0`
+    /// and `M S_q̈ = −∂r/∂p` (docs/sensitivities.md §5), exactly.
+    fn start_without_constraints<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        integrator: &HhtIntegrator,
+    ) -> Result<(), SensitivityError> {
+        let state = integrator.state();
+        let at = At {
+            t: state.t,
+            step: 0,
+        };
+        let ws = &mut self.ws;
+        eval::mass_matrix(system, at, &state.q, &mut ws.mass)?;
+        system
+            .parameter_jacobians(
+                state.t,
+                &state.q,
+                &state.v,
+                &state.qdd,
+                &state.lambda,
+                &mut ws.dynamics_p,
+                &mut ws.constraints_p,
+            )
+            .map_err(at.system_error("parameter_jacobians"))?;
+        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.iter())?;
+        ws.matrix.copy_from(&ws.mass);
+        ws.solver
+            .factor(&ws.matrix)
+            .map_err(|b| IntegrateError::SingularMatrix {
+                t: at.t,
+                step: 0,
+                matrix: "mass matrix (start sensitivities)",
+                index: b.index,
+                pivot_relative: b.pivot_relative,
+            })?;
+        for k in 0..self.p {
+            for i in 0..self.nv {
+                ws.rhs[i] = -ws.dynamics_p[(i, k)];
+            }
+            ws.solver.solve_in_place(&mut ws.rhs);
+            at.check_finite("start sensitivity", ws.rhs.iter())?;
+            for i in 0..self.nv {
+                self.s_qdd[(i, k)] = ws.rhs[i];
+            }
+        }
+        self.stats.solves += self.p as u64;
+        Ok(())
+    }
+
+    /// With constraint rows, a 4-point central difference of [`consistent_start`] along each
+    /// parameter (docs/sensitivities.md §5): `f' ≈ [−f(2ε) + 8f(ε) − 8f(−ε) + f(−2ε)] / (12ε)` with
+    /// ε the system's [`DaeSystem::parameter_difference_step`]. Index-3 steps turn an error `e` of the
+    /// start velocity's component normal to the constraints into errors of ~`e/(β'h)` in `∂q̈/∂p`
+    /// that decay slowly, so the step is as large as the system allows: the rounding of the
+    /// projected velocity (~u·|q̇|) costs ~u·|q̇|/ε.
+    fn start_by_differences<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        integrator: &HhtIntegrator,
+        q0: &DVector<f64>,
+        v0: &DVector<f64>,
+    ) -> Result<(), SensitivityError> {
+        let state = integrator.state();
+        let at = At {
+            t: state.t,
+            step: 0,
+        };
+        let mut dq = DVector::zeros(self.nv);
+        for k in 0..self.p {
+            let eps = system.parameter_difference_step(k);
+            for (steps, weight) in STENCIL {
+                system
+                    .set_parameter_offset(k, steps * eps)
+                    .map_err(at.system_error("set_parameter_offset"))?;
+                let start = consistent_start(system, state.t, q0, v0);
+                // Restore before reporting any error.
+                system
+                    .set_parameter_offset(k, 0.0)
+                    .map_err(at.system_error("set_parameter_offset"))?;
+                let start = start?;
+                self.stats.start_evaluations += 1;
+                system
+                    .difference_position(&state.q, &start.q, &mut dq)
+                    .map_err(at.system_error("difference_position"))?;
+                let w = weight / (12.0 * eps);
+                for i in 0..self.nv {
+                    self.s_q[(i, k)] += w * dq[i];
+                    self.s_v[(i, k)] += w * start.v[i];
+                    self.s_qdd[(i, k)] += w * start.qdd[i];
+                }
+                for j in 0..self.m {
+                    self.s_lambda[(j, k)] += w * start.lambda[j];
+                }
+            }
+        }
+        at.check_finite("start sensitivity", self.s_q.iter())?;
+        self.close_start_position(system, integrator)?;
+        at.check_finite("start sensitivity", self.s_v.iter())?;
+        at.check_finite("start sensitivity", self.s_qdd.iter())?;
+        at.check_finite("start sensitivity", self.s_lambda.iter())?;
+        Ok(())
+    }
+
+    /// Removes the central difference's error normal to the constraints from `S_q0`
+    /// (docs/sensitivities.md §5): the exact derivative satisfies `Φ_q S_q + ∂Φ/∂p = 0`, and index-3
+    /// steps turn a residual `r` of it into a jump of `r/(β'h²)` in `∂q̈/∂p` (measured: 1e-13 of
+    /// residual, 2e-9 of jump at h = 10 ms). The least-norm correction `S_q −= Φ_qᵀ (Φ_q Φ_qᵀ)⁻¹ r`
+    /// is at the difference's noise level.
+    fn close_start_position<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        integrator: &HhtIntegrator,
+    ) -> Result<(), SensitivityError> {
+        let state = integrator.state();
+        let at = At {
+            t: state.t,
+            step: 0,
+        };
+        let ws = &mut self.ws;
+        eval::constraint_jacobian(system, at, &state.q, &mut ws.phi_q)?;
+        system
+            .parameter_jacobians(
+                state.t,
+                &state.q,
+                &state.v,
+                &state.qdd,
+                &state.lambda,
+                &mut ws.dynamics_p,
+                &mut ws.constraints_p,
+            )
+            .map_err(at.system_error("parameter_jacobians"))?;
+        at.check_finite("parameter_jacobians.constraints", ws.constraints_p.iter())?;
+        let mut residual = ws.constraints_p.clone();
+        residual.gemm(1.0, &ws.phi_q, &self.s_q, 1.0);
+        let gram = &ws.phi_q * ws.phi_q.transpose();
+        // Φ_q has full row rank here: consistent_start refused redundant rows already.
+        let Some(gram) = gram.cholesky() else {
+            return Err(IntegrateError::SingularMatrix {
+                t: at.t,
+                step: 0,
+                matrix: "Φ_q Φ_qᵀ (start sensitivities)",
+                index: 0,
+                pivot_relative: 0.0,
+            }
+            .into());
+        };
+        let correction = ws.phi_q.transpose() * gram.solve(&residual);
+        self.s_q -= correction;
+        Ok(())
+    }
+
+    /// Number of parameters `P`.
+    pub fn n_parameters(&self) -> usize {
+        self.p
+    }
+
+    /// `∂q/∂p` along the tangent space at the current state (`q(p + ε e_k) ≈ q ⊕ ε S[:, k]`),
+    /// `nv × P`.
+    pub fn position(&self) -> &DMatrix<f64> {
+        &self.s_q
+    }
+
+    /// `∂q_0/∂p` along the tangent space at the start, `nv × P` (for outputs relative to the start,
+    /// such as a floating base's rotation vector).
+    pub fn start_position(&self) -> &DMatrix<f64> {
+        &self.s_q_start
+    }
+
+    /// `∂q̇/∂p` of the Newmark velocity the recursion carries, `nv × P` (equal to the reported
+    /// velocity's without velocity projection; see [`HhtSensitivity::reported_velocity`]).
+    pub fn newmark_velocity(&self) -> &DMatrix<f64> {
+        &self.s_v
+    }
+
+    /// `∂q̈/∂p`, `nv × P`.
+    pub fn acceleration(&self) -> &DMatrix<f64> {
+        &self.s_qdd
+    }
+
+    /// `∂λ/∂p`, `m × P`.
+    pub fn multipliers(&self) -> &DMatrix<f64> {
+        &self.s_lambda
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> &SensitivityStats {
+        &self.stats
+    }
+
+    /// `∂q̇/∂p` of the velocity the integrator reports (`integrator.state().v`), `nv × P`. With
+    /// constraint rows and velocity projection that velocity is projected onto `Φ_q q̇ + Φ_t = 0`,
+    /// and its sensitivity is the Newmark velocity's plus a directional central difference of the
+    /// projection's correction along each parameter (docs/sensitivities.md §6): `4 P` projections,
+    /// computed once per state (call it at record times only; `4 P` projections). Otherwise the Newmark velocity's.
+    ///
+    /// `integrator` must be the one stepped with these sensitivities.
+    pub fn reported_velocity<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        integrator: &HhtIntegrator,
+    ) -> Result<&DMatrix<f64>, SensitivityError> {
+        self.check_in_step(integrator)?;
+        if self.m == 0 || !self.velocity_projection {
+            return Ok(&self.s_v);
+        }
+        if !self.reported_fresh {
+            self.project_velocity_sensitivity(system, integrator)?;
+            self.reported_fresh = true;
+        }
+        Ok(&self.s_v_reported)
+    }
+
+    fn check_in_step(&self, integrator: &HhtIntegrator) -> Result<(), SensitivityError> {
+        let integrator_step = integrator.state().step;
+        if integrator_step != self.step {
+            return Err(SensitivityError::OutOfStep {
+                integrator_step,
+                sensitivity_step: self.step,
+            });
+        }
+        Ok(())
+    }
+
+    /// Advances `integrator` by one step and the sensitivities with it (docs/sensitivities.md §1–§4).
+    ///
+    /// Errors: the integrator's own errors (its state is then left at `t_n`, and so are the
+    /// sensitivities); system errors of the derivative calls; [`SensitivityError::OutOfStep`] when the
+    /// integrator was stepped elsewhere. Allocation-free.
+    pub fn step<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        integrator: &mut HhtIntegrator,
+    ) -> Result<(), SensitivityError> {
+        self.check_in_step(integrator)?;
+        eval::check_dimensions(system, self.nq, self.nv, self.m)?;
+        {
+            let state = integrator.state();
+            self.q_before.copy_from(&state.q);
+            self.a_before.copy_from(&state.a);
+        }
+        self.v_before.copy_from(integrator.newmark_velocity());
+        integrator.step(system)?;
+        self.step += 1;
+        self.reported_fresh = false;
+        if self.p > 0 {
+            self.differentiate(system, integrator)?;
+        }
+        self.stats.steps += 1;
+        Ok(())
+    }
+
+    /// The differentiated step at the converged point of `integrator` (docs/sensitivities.md §1):
+    ///
+    /// ```text
+    /// δq_pred = A S_q + B (h S_q̇ + h²(½ − β) S_a − h²βα S_q̈)        S_q̇,pred = S_q̇ + h(1 − γ) S_a − hγα S_q̈
+    /// [ M + β'h² K_t B + γ'h D_t    Φ_qᵀ ] [s]     [ ∂r/∂p + K_t δq_pred + D_t S_q̇,pred ]
+    /// [ Φ_q B                        0   ] [μ] = − [ (∂Φ/∂p + Φ_q δq_pred) / (β'h²)     ]
+    /// S_q̈ ← s,  S_λ ← μ,  S_a ← (1 + α) s − α S_q̈,  S_q ← δq_pred + β'h² B s,  S_q̇ ← S_q̇,pred + γ'h s
+    /// ```
+    fn differentiate<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        integrator: &HhtIntegrator,
+    ) -> Result<(), SensitivityError> {
+        let c = self.coeffs;
+        let (h, alpha, beta, gamma) = (c.h, c.alpha, c.beta, c.gamma);
+        let (beta_h2, gamma_h) = (c.beta_h2(), c.gamma_h());
+        let (nv, m, p) = (self.nv, self.m, self.p);
+        let state = integrator.state();
+        let v_newmark = integrator.newmark_velocity();
+        let at = At {
+            t: state.t,
+            step: state.step,
+        };
+
+        // Everything at the converged point.
+        eval::mass_matrix(system, at, &state.q, &mut self.ws.mass)?;
+        if m > 0 {
+            eval::constraint_jacobian(system, at, &state.q, &mut self.ws.phi_q)?;
+        }
+        if system.provides_residual_jacobians() {
+            let ws = &mut self.ws;
+            system
+                .residual_jacobians(
+                    state.t,
+                    &state.q,
+                    v_newmark,
+                    &state.qdd,
+                    &state.lambda,
+                    &mut ws.stiffness,
+                    &mut ws.damping,
+                )
+                .map_err(at.system_error("residual_jacobians"))?;
+            at.check_finite("residual_jacobians.stiffness", ws.stiffness.iter())?;
+            at.check_finite("residual_jacobians.damping", ws.damping.iter())?;
+        } else {
+            self.residual_jacobians_by_differences(
+                system,
+                at,
+                &state.q,
+                v_newmark,
+                &state.qdd,
+                &state.lambda,
+            )?;
+        }
+        let ws = &mut self.ws;
+        if !self.additive {
+            // dq = h q̇_n + h² [(½ − β) a_n + β a_{n+1}]
+            for i in 0..nv {
+                ws.dq[i] = h * self.v_before[i]
+                    + h * h * ((0.5 - beta) * self.a_before[i] + beta * state.a[i]);
+            }
+            system
+                .integrate_position_jacobians(&self.q_before, &ws.dq, &mut ws.wrt_q, &mut ws.wrt_dq)
+                .map_err(at.system_error("integrate_position_jacobians"))?;
+            at.check_finite("integrate_position_jacobians", ws.wrt_q.iter())?;
+            at.check_finite("integrate_position_jacobians", ws.wrt_dq.iter())?;
+        }
+        system
+            .parameter_jacobians(
+                state.t,
+                &state.q,
+                v_newmark,
+                &state.qdd,
+                &state.lambda,
+                &mut ws.dynamics_p,
+                &mut ws.constraints_p,
+            )
+            .map_err(at.system_error("parameter_jacobians"))?;
+        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.iter())?;
+        at.check_finite("parameter_jacobians.constraints", ws.constraints_p.iter())?;
+
+        // Predictions from the sensitivities at t_n.
+        ws.increment.copy_from(&self.s_v);
+        ws.increment.scale_mut(h);
+        add_scaled(
+            ws.increment.as_mut_slice(),
+            h * h * (0.5 - beta),
+            self.s_a.as_slice(),
+        );
+        add_scaled(
+            ws.increment.as_mut_slice(),
+            -h * h * beta * alpha,
+            self.s_qdd.as_slice(),
+        );
+        if self.additive {
+            ws.predicted_q.copy_from(&self.s_q);
+            ws.predicted_q += &ws.increment;
+        } else {
+            ws.predicted_q.gemm(1.0, &ws.wrt_q, &self.s_q, 0.0);
+            ws.predicted_q.gemm(1.0, &ws.wrt_dq, &ws.increment, 1.0);
+        }
+        ws.predicted_v.copy_from(&self.s_v);
+        add_scaled(
+            ws.predicted_v.as_mut_slice(),
+            h * (1.0 - gamma),
+            self.s_a.as_slice(),
+        );
+        add_scaled(
+            ws.predicted_v.as_mut_slice(),
+            -h * gamma * alpha,
+            self.s_qdd.as_slice(),
+        );
+
+        // J = [M + β'h² K_t B + γ'h D_t, Φ_qᵀ; Φ_q B, 0].
+        let (stiffness_b, phi_q_b) = if self.additive {
+            (&ws.stiffness, &ws.phi_q)
+        } else {
+            ws.stiffness_b.gemm(1.0, &ws.stiffness, &ws.wrt_dq, 0.0);
+            if m > 0 {
+                ws.phi_q_b.gemm(1.0, &ws.phi_q, &ws.wrt_dq, 0.0);
+            }
+            (&ws.stiffness_b, &ws.phi_q_b)
+        };
+        ws.matrix.fill(0.0);
+        for j in 0..nv {
+            for i in 0..nv {
+                ws.matrix[(i, j)] =
+                    ws.mass[(i, j)] + beta_h2 * stiffness_b[(i, j)] + gamma_h * ws.damping[(i, j)];
+            }
+        }
+        for r in 0..m {
+            for j in 0..nv {
+                ws.matrix[(j, nv + r)] = ws.phi_q[(r, j)];
+                ws.matrix[(nv + r, j)] = phi_q_b[(r, j)];
+            }
+        }
+        ws.solver
+            .factor(&ws.matrix)
+            .map_err(|b| IntegrateError::SingularMatrix {
+                t: at.t,
+                step: at.step,
+                matrix: "sensitivity step Jacobian",
+                index: b.index,
+                pivot_relative: b.pivot_relative,
+            })?;
+        self.stats.factorisations += 1;
+
+        // Right-hand sides for all parameters at once.
+        ws.rhs_dynamics.copy_from(&ws.dynamics_p);
+        ws.rhs_dynamics
+            .gemm(1.0, &ws.stiffness, &ws.predicted_q, 1.0);
+        ws.rhs_dynamics.gemm(1.0, &ws.damping, &ws.predicted_v, 1.0);
+        ws.rhs_dynamics.neg_mut();
+        if m > 0 {
+            ws.rhs_constraints.copy_from(&ws.constraints_p);
+            ws.rhs_constraints
+                .gemm(1.0, &ws.phi_q, &ws.predicted_q, 1.0);
+            ws.rhs_constraints.scale_mut(-1.0 / beta_h2);
+        }
+        for k in 0..p {
+            for i in 0..nv {
+                ws.rhs[i] = ws.rhs_dynamics[(i, k)];
+            }
+            for j in 0..m {
+                ws.rhs[nv + j] = ws.rhs_constraints[(j, k)];
+            }
+            ws.solver.solve_in_place(&mut ws.rhs);
+            at.check_finite("sensitivity solve", ws.rhs.iter())?;
+            for i in 0..nv {
+                ws.new_qdd[(i, k)] = ws.rhs[i];
+            }
+            for j in 0..m {
+                self.s_lambda[(j, k)] = ws.rhs[nv + j];
+            }
+        }
+        self.stats.solves += p as u64;
+
+        // The Newmark updates of the sensitivities.
+        self.s_a.copy_from(&ws.new_qdd);
+        self.s_a.scale_mut(1.0 + alpha);
+        add_scaled(self.s_a.as_mut_slice(), -alpha, self.s_qdd.as_slice());
+        self.s_q.copy_from(&ws.predicted_q);
+        if self.additive {
+            add_scaled(self.s_q.as_mut_slice(), beta_h2, ws.new_qdd.as_slice());
+        } else {
+            ws.b_new_qdd.gemm(1.0, &ws.wrt_dq, &ws.new_qdd, 0.0);
+            add_scaled(self.s_q.as_mut_slice(), beta_h2, ws.b_new_qdd.as_slice());
+        }
+        self.s_v.copy_from(&ws.predicted_v);
+        add_scaled(self.s_v.as_mut_slice(), gamma_h, ws.new_qdd.as_slice());
+        self.s_qdd.copy_from(&ws.new_qdd);
+        Ok(())
+    }
+
+    /// The dynamics residual `r = M q̈ + Φ_qᵀ λ − Q` at `(q, v)` into `out` (dim nv), through the
+    /// system's inverse dynamics when it has one.
+    #[allow(clippy::too_many_arguments)]
+    fn residual<S: DaeSystem + ?Sized>(
+        system: &mut S,
+        at: At,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        mass: &mut DMatrix<f64>,
+        forces: &mut DVector<f64>,
+        phi_q: &mut DMatrix<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), IntegrateError> {
+        if system.provides_dynamics_residual() {
+            eval::dynamics_residual(system, at, q, v, qdd, out)?;
+        } else {
+            eval::mass_matrix(system, at, q, mass)?;
+            eval::forces(system, at, q, v, forces)?;
+            out.copy_from(forces);
+            out.gemv(1.0, mass, qdd, -1.0);
+        }
+        if !lambda.is_empty() {
+            eval::constraint_jacobian(system, at, q, phi_q)?;
+            out.gemv_tr(1.0, phi_q, lambda, 1.0);
+        }
+        Ok(())
+    }
+
+    /// `K_t` and `D_t` by central differences of the residual along each tangent coordinate and each
+    /// velocity, step [`JACOBIAN_FD_STEP`] (docs/sensitivities.md §2): `4 nv` residual evaluations.
+    fn residual_jacobians_by_differences<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+    ) -> Result<(), IntegrateError> {
+        let eps = JACOBIAN_FD_STEP;
+        let ws = &mut self.ws;
+        for i in 0..self.nv {
+            for (sign, out) in [(1.0, &mut ws.r_plus), (-1.0, &mut ws.r_minus)] {
+                ws.dq.fill(0.0);
+                ws.dq[i] = sign * eps;
+                eval::integrate_position(system, at, q, &ws.dq, &mut ws.q_perturbed)?;
+                Self::residual(
+                    system,
+                    at,
+                    &ws.q_perturbed,
+                    v,
+                    qdd,
+                    lambda,
+                    &mut ws.mass_scratch,
+                    &mut ws.forces,
+                    &mut ws.phi_q_scratch,
+                    out,
+                )?;
+            }
+            for r in 0..self.nv {
+                ws.stiffness[(r, i)] = (ws.r_plus[r] - ws.r_minus[r]) / (2.0 * eps);
+            }
+        }
+        for i in 0..self.nv {
+            for (sign, out) in [(1.0, &mut ws.r_plus), (-1.0, &mut ws.r_minus)] {
+                ws.v_perturbed.copy_from(v);
+                ws.v_perturbed[i] += sign * eps;
+                Self::residual(
+                    system,
+                    at,
+                    q,
+                    &ws.v_perturbed,
+                    qdd,
+                    lambda,
+                    &mut ws.mass_scratch,
+                    &mut ws.forces,
+                    &mut ws.phi_q_scratch,
+                    out,
+                )?;
+            }
+            for r in 0..self.nv {
+                ws.damping[(r, i)] = (ws.r_plus[r] - ws.r_minus[r]) / (2.0 * eps);
+            }
+        }
+        self.stats.jacobian_residual_evaluations += 4 * self.nv as u64;
+        Ok(())
+    }
+
+    /// `S_q̇,reported = S_q̇ + ∂Δq̇/∂p` with `Δq̇` the projection's correction, by a directional
+    /// 4-point central difference along `(p_k, q ⊕ ε S_q[:, k], q̇ + ε S_q̇[:, k])` for each
+    /// parameter (docs/sensitivities.md §6).
+    fn project_velocity_sensitivity<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        integrator: &HhtIntegrator,
+    ) -> Result<(), SensitivityError> {
+        let state = integrator.state();
+        let v_newmark = integrator.newmark_velocity();
+        let at = At {
+            t: state.t,
+            step: state.step,
+        };
+        for k in 0..self.p {
+            let spread = (0..self.nv)
+                .map(|i| self.s_q[(i, k)].abs())
+                .fold(1.0_f64, f64::max);
+            let eps = system
+                .parameter_difference_step(k)
+                .min(PROJECTION_FD_STEP / spread);
+            self.ws.dv_plus.fill(0.0);
+            for (steps, weight) in STENCIL {
+                let ws = &mut self.ws;
+                let offset = steps * eps;
+                for i in 0..self.nv {
+                    ws.dq[i] = offset * self.s_q[(i, k)];
+                    ws.v_perturbed[i] = v_newmark[i] + offset * self.s_v[(i, k)];
+                }
+                eval::integrate_position(system, at, &state.q, &ws.dq, &mut ws.q_perturbed)?;
+                system
+                    .set_parameter_offset(k, offset)
+                    .map_err(at.system_error("set_parameter_offset"))?;
+                let correction = Self::projection_correction(system, at, ws);
+                system
+                    .set_parameter_offset(k, 0.0)
+                    .map_err(at.system_error("set_parameter_offset"))?;
+                correction?;
+                let w = weight / (12.0 * eps);
+                for i in 0..self.nv {
+                    ws.dv_plus[i] += w * ws.rhs[i];
+                }
+            }
+            for i in 0..self.nv {
+                self.s_v_reported[(i, k)] = self.s_v[(i, k)] + self.ws.dv_plus[i];
+            }
+        }
+        self.stats.projection_evaluations += 4 * self.p as u64;
+        Ok(())
+    }
+
+    /// The velocity projection's correction at `(ws.q_perturbed, ws.v_perturbed)` into
+    /// `ws.rhs[0..nv]`: `[M Φ_qᵀ; Φ_q 0][Δq̇; μ] = [0; −(Φ_q q̇ + Φ_t)]`.
+    fn projection_correction<S: DaeSystem + ?Sized>(
+        system: &mut S,
+        at: At,
+        ws: &mut Workspace,
+    ) -> Result<(), IntegrateError> {
+        let nv = ws.mass.nrows();
+        let m = ws.phi_q_scratch.nrows();
+        eval::mass_matrix(system, at, &ws.q_perturbed, &mut ws.mass_scratch)?;
+        eval::constraint_jacobian(system, at, &ws.q_perturbed, &mut ws.phi_q_scratch)?;
+        eval::constraint_time_derivative(system, at, &ws.q_perturbed, &mut ws.phi_t)?;
+        ws.phi_t.gemv(1.0, &ws.phi_q_scratch, &ws.v_perturbed, 1.0);
+        assemble_iteration_matrix(
+            &ws.mass_scratch,
+            None,
+            &ws.phi_q_scratch,
+            0.0,
+            0.0,
+            1.0,
+            &mut ws.matrix,
+        );
+        ws.solver
+            .factor(&ws.matrix)
+            .map_err(|b| IntegrateError::SingularMatrix {
+                t: at.t,
+                step: at.step,
+                matrix: "velocity projection matrix [M Φ_qᵀ; Φ_q 0] (sensitivities)",
+                index: b.index,
+                pivot_relative: b.pivot_relative,
+            })?;
+        for i in 0..nv {
+            ws.rhs[i] = 0.0;
+        }
+        for j in 0..m {
+            ws.rhs[nv + j] = -ws.phi_t[j];
+        }
+        ws.solver.solve_in_place(&mut ws.rhs);
+        at.check_finite("velocity projection (sensitivities)", ws.rhs.iter())
+    }
+}
+
+#[cfg(test)]
+mod tests;
