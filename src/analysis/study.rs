@@ -321,6 +321,90 @@ impl Accumulator {
     }
 }
 
+/// The design's bounding: fits and bounds blocks of records into the accumulator, collecting the
+/// predicted extremes for the check and the surrogates' Sobol' indices.
+struct DesignBounding<'b> {
+    bounder: &'b Bounder,
+    threads: &'b rayon::ThreadPool,
+    n_outputs: usize,
+    dim: usize,
+    locates_extremes: bool,
+    candidates: CheckCandidates,
+    /// Per dimension: the largest total Sobol' index, its output and record.
+    total_index_max: Vec<(f64, usize, usize)>,
+    /// Min/max of the screening runs per record and output (empty without screening).
+    screen_hull: &'b [EnvelopePoint],
+}
+
+impl DesignBounding<'_> {
+    /// Bounds records `first..first + count` from the design's `values(r)` (row-major `samples ×
+    /// outputs`); `accumulator` already holds those records' times and nominal values.
+    fn absorb(
+        &mut self,
+        first: usize,
+        count: usize,
+        values: &(dyn Fn(usize) -> Vec<f64> + Sync),
+        excluded: &(dyn Fn(usize) -> bool + Sync),
+        accumulator: &mut Accumulator,
+    ) -> Result<(), StudyError> {
+        let (n_outputs, d) = (self.n_outputs, self.dim);
+        let bounded =
+            self.bounder
+                .bound_records(count, n_outputs, values, excluded, self.threads)?;
+        accumulator.points.extend_from_slice(&bounded.points);
+        for (k, index) in bounded.total_indices.iter().enumerate() {
+            let (r, rest) = (k / (n_outputs * d), k % (n_outputs * d));
+            let (output, j) = (rest / d, rest % d);
+            if *index > self.total_index_max[j].0 {
+                self.total_index_max[j] = (*index, output, first + r);
+            }
+        }
+        for r in 0..count {
+            let record = first + r;
+            // The nominal run is a true response inside the box: the envelope contains it.
+            let nominal =
+                accumulator.nominal[record * n_outputs..(record + 1) * n_outputs].to_vec();
+            accumulator.widen(record, &nominal);
+            // The screening's runs are true responses too.
+            if let Some(hull) = self
+                .screen_hull
+                .get(record * n_outputs..(record + 1) * n_outputs)
+            {
+                let (lower, upper): (Vec<f64>, Vec<f64>) =
+                    hull.iter().map(|p| (p.lower, p.upper)).unzip();
+                accumulator.widen(record, &lower);
+                accumulator.widen(record, &upper);
+            }
+            if !self.locates_extremes {
+                continue;
+            }
+            for o in 0..n_outputs {
+                if let Some(extremes) = &bounded.extremes[r * n_outputs + o] {
+                    let point = &accumulator.points[record * n_outputs + o];
+                    let width = point.upper - point.lower;
+                    self.candidates.add(
+                        record,
+                        o,
+                        Side::Lower,
+                        &extremes.argmin,
+                        extremes.at_min,
+                        width,
+                    );
+                    self.candidates.add(
+                        record,
+                        o,
+                        Side::Upper,
+                        &extremes.argmax,
+                        extremes.at_max,
+                        width,
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Study<'_> {
     /// The design, its runs and the check budget; errors for plans that cannot run.
     pub fn plan(&self) -> Result<StudyPlan, StudyError> {
@@ -575,10 +659,10 @@ impl Study<'_> {
         }
         let points = plan.points(d);
         let bounder = Bounder::new(method, &plan, d, o.order, o.scan_grid)?;
-        let mut candidates = CheckCandidates::new(d);
+        let candidates = CheckCandidates::new(d);
         let locates_extremes = study_plan.check_runs > 0;
         let can_exclude = o.keep_going && matches!(method, Method::Scan | Method::MonteCarlo);
-        let mut total_index_max: Vec<(f64, usize, usize)> = vec![(0.0, 0, 0); d];
+        let total_index_max: Vec<(f64, usize, usize)> = vec![(0.0, 0, 0); d];
         let design_policy = FailurePolicy {
             can_exclude,
             hint: if o.keep_going && !can_exclude {
@@ -589,6 +673,17 @@ impl Study<'_> {
             noun: "sample",
         };
         let nominal_xi = self.space.nominal_xi();
+
+        let mut bounding = DesignBounding {
+            bounder: &bounder,
+            threads: &threads,
+            n_outputs,
+            dim: d,
+            locates_extremes,
+            candidates,
+            total_index_max,
+            screen_hull: &screen_hull,
+        };
 
         // Design phase.
         let design_complete = self.run_phase(
@@ -605,6 +700,16 @@ impl Study<'_> {
                 let t_bound = Instant::now();
                 let lockstep = block.lockstep;
                 let plan_samples = lockstep.len() - 1;
+                let nominal_index = lockstep.nominal_index().unwrap_or(plan_samples);
+                for r in 0..block.count {
+                    accumulator.times.push(record_time(scene, block.first + r));
+                    accumulator
+                        .nominal
+                        .extend_from_slice(block.record(nominal_index, r));
+                    accumulator
+                        .nominal_positions
+                        .extend_from_slice(lockstep.nominal_positions(r));
+                }
                 let values = |r: usize| -> Vec<f64> {
                     let mut row = Vec::with_capacity(plan_samples * n_outputs);
                     for i in 0..plan_samples {
@@ -613,76 +718,22 @@ impl Study<'_> {
                     row
                 };
                 let excluded = |i: usize| lockstep.failed(i);
-                let bounded =
-                    bounder.bound_records(block.count, n_outputs, &values, &excluded, &threads)?;
-                let nominal_index = lockstep.nominal_index().unwrap_or(plan_samples);
-                for r in 0..block.count {
-                    let record = block.first + r;
-                    accumulator.times.push(record_time(scene, record));
-                    accumulator
-                        .nominal
-                        .extend_from_slice(block.record(nominal_index, r));
-                    accumulator
-                        .nominal_positions
-                        .extend_from_slice(lockstep.nominal_positions(r));
-                }
-                accumulator.points.extend_from_slice(&bounded.points);
-                for (k, index) in bounded.total_indices.iter().enumerate() {
-                    let (r, rest) = (k / (n_outputs * d), k % (n_outputs * d));
-                    let (output, j) = (rest / d, rest % d);
-                    if *index > total_index_max[j].0 {
-                        total_index_max[j] = (*index, output, block.first + r);
-                    }
-                }
-                for r in 0..block.count {
-                    let record = block.first + r;
-                    // The nominal run is a true response inside the box: the envelope contains it.
-                    let nominal = block.record(nominal_index, r).to_vec();
-                    accumulator.widen(record, &nominal);
-                    // The screening's runs are true responses too.
-                    if let Some(hull) =
-                        screen_hull.get(record * n_outputs..(record + 1) * n_outputs)
-                    {
-                        let (lower, upper): (Vec<f64>, Vec<f64>) =
-                            hull.iter().map(|p| (p.lower, p.upper)).unzip();
-                        accumulator.widen(record, &lower);
-                        accumulator.widen(record, &upper);
-                    }
-                    if !locates_extremes {
-                        continue;
-                    }
-                    for o in 0..n_outputs {
-                        let k = r * n_outputs + o;
-                        if let Some(extremes) = &bounded.extremes[k] {
-                            let point = &accumulator.points[record * n_outputs + o];
-                            let width = point.upper - point.lower;
-                            candidates.add(
-                                record,
-                                o,
-                                Side::Lower,
-                                &extremes.argmin,
-                                extremes.at_min,
-                                width,
-                            );
-                            candidates.add(
-                                record,
-                                o,
-                                Side::Upper,
-                                &extremes.argmax,
-                                extremes.at_max,
-                                width,
-                            );
-                        }
-                    }
-                }
+                bounding.absorb(
+                    block.first,
+                    block.count,
+                    &values,
+                    &excluded,
+                    &mut accumulator,
+                )?;
                 report.bound_seconds += t_bound.elapsed().as_secs_f64();
                 Ok(())
             },
         )?;
 
         if matches!(plan, Plan::Sparse(_)) {
-            report.total_index_max = Some(total_index_max);
+            report.total_index_max = Some(bounding.total_index_max.clone());
         }
+        let candidates = bounding.candidates;
 
         // The a-posteriori check: true runs where the surrogates put their extremes.
         if design_complete && locates_extremes {
