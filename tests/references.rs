@@ -109,3 +109,30 @@ fn a_bad_reference_is_refused_naming_the_flag() {
         );
     }
 }
+
+#[test]
+fn a_bad_method_design_token_is_refused_naming_the_flag() {
+    for (methods, expected) in [
+        ("auto:adaptive", "auto chooses its own"),
+        ("monte-carlo:sparse", "only a surrogate method"),
+        ("legendre-scan:adaptiv", "'adaptiv' is not a design"),
+        ("legendr-scan", "unknown method 'legendr-scan'"),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_ribbon"))
+            .args([
+                "compare",
+                "robots/double_pendulum/double_pendulum.urdf",
+                "--methods",
+                methods,
+            ])
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(
+            stderr.contains("--methods") && stderr.contains(expected),
+            "{stderr}"
+        );
+    }
+}

@@ -4,7 +4,10 @@
 //!   numbers unchanged).
 //! - Otherwise, if the total-degree-k set fits the run budget: a sparse interpolation on it (every
 //!   parameter and every interaction up to total degree k).
-//! - Otherwise: screening (the star design, 2d + 1 runs), then a set that keeps total degree 2 in
+//! - Otherwise: the dimension-adaptive design (docs/method.md §11): the runs so far decide which
+//!   terms to add, until the budget is spent or every remaining term is negligible. It keeps every
+//!   run's values in memory; when they would exceed [`ADAPTIVE_VALUE_BUDGET`]:
+//! - screening (the star design, 2d + 1 runs), then a set that keeps total degree 2 in
 //!   every parameter (all pairwise interactions; if even that does not fit, the pairs among the most
 //!   important parameters only) and total degree k among the `top` most important ones, with `top`
 //!   as large as the budget allows.
@@ -12,12 +15,18 @@
 //! Run counts are closed forms: a downward-closed set sampled on nested one-point-per-degree rules
 //! has exactly one point per term.
 
+use super::adaptive::ADAPTIVE_TOLERANCE;
+
 /// Largest d for which `auto` uses the tensor grid.
 pub const AUTO_TENSOR_MAX_DIM: usize = 4;
 
 /// Default most model runs an `auto` study of d > [`AUTO_TENSOR_MAX_DIM`] parameters plans
 /// (screening, design and check together): ~30 s of 1 s ur5 runs on two cores.
 pub const DEFAULT_MAX_RUNS: usize = 3000;
+
+/// Most stored values (runs × outputs × record times) of an adaptive design: 2 GB of `f64`. Above
+/// it `auto` falls back to the screened design, which holds one block of records at a time.
+pub const ADAPTIVE_VALUE_BUDGET: usize = 250_000_000;
 
 /// Lowest order the screened designs keep in every parameter (all pairwise interactions).
 pub const BASE_ORDER: usize = 2;
@@ -64,6 +73,12 @@ pub enum AutoDesign {
         /// How many of the most important parameters keep all their pairwise interactions.
         pairs: usize,
     },
+    /// The dimension-adaptive sparse design with at most `budget` design runs (the nominal run
+    /// not included).
+    Adaptive {
+        /// Most design runs.
+        budget: usize,
+    },
 }
 
 /// The choice with its run counts and the reason, for the user.
@@ -96,11 +111,13 @@ pub fn screened_terms(dim: usize, order: usize, top: usize, pairs: usize) -> usi
 }
 
 /// Chooses the design for `dim` parameters at `order` within `max_runs` runs in all; `check_runs`
-/// is what the a-posteriori check will add for a design of n runs.
+/// is what the a-posteriori check will add for a design of n runs; `values_per_run` is how many
+/// values (outputs × record times) an adaptive design stores per run.
 pub fn choose(
     dim: usize,
     order: usize,
     max_runs: usize,
+    values_per_run: usize,
     check_runs: impl Fn(usize) -> usize,
 ) -> AutoChoice {
     if dim <= AUTO_TENSOR_MAX_DIM {
@@ -114,10 +131,8 @@ pub fn choose(
             ),
         };
     }
-    let fits =
-        |design: usize, screening: usize| design + 1 + screening + check_runs(design) <= max_runs;
     let full = total_degree_terms(dim, order);
-    if fits(full, 0) {
+    if full + 1 + check_runs(full) <= max_runs {
         return AutoChoice {
             design: AutoDesign::TotalDegree { order },
             screening_runs: 0,
@@ -127,6 +142,60 @@ pub fn choose(
             ),
         };
     }
+    let adaptive = adaptive_choice(dim, max_runs, &check_runs);
+    if adaptive.design_runs.saturating_mul(values_per_run) <= ADAPTIVE_VALUE_BUDGET {
+        return AutoChoice {
+            reason: format!(
+                "d = {dim}: total degree {order} in every parameter needs {full} runs, over --max-runs {max_runs}; so {}",
+                adaptive.reason
+            ),
+            ..adaptive
+        };
+    }
+    let screened = screened_choice(dim, order, max_runs, &check_runs);
+    AutoChoice {
+        reason: format!(
+            "d = {dim}: total degree {order} in every parameter needs {full} runs, over --max-runs {max_runs}, and an adaptive design would store {} values (over {ADAPTIVE_VALUE_BUDGET}); so {}",
+            adaptive.design_runs.saturating_mul(values_per_run),
+            screened.reason
+        ),
+        ..screened
+    }
+}
+
+/// The adaptive design within `max_runs` runs in all (design, nominal run and check).
+pub fn adaptive_choice(
+    dim: usize,
+    max_runs: usize,
+    check_runs: impl Fn(usize) -> usize,
+) -> AutoChoice {
+    // The largest design that fits with its nominal run and check (check runs grow with the design).
+    let mut budget = max_runs.saturating_sub(1);
+    while budget > 0 && budget + 1 + check_runs(budget) > max_runs {
+        budget -= 1;
+    }
+    // The start alone (centre and one point per parameter) must fit.
+    let budget = budget.max(dim + 1);
+    AutoChoice {
+        design: AutoDesign::Adaptive { budget },
+        screening_runs: 0,
+        design_runs: budget,
+        reason: format!(
+            "the dimension-adaptive design starts from every parameter alone ({} runs) and adds the terms the runs show matter, up to {budget} runs, stopping early when every remaining term moves the outputs by less than {ADAPTIVE_TOLERANCE:e} of their spread",
+            dim + 1
+        ),
+    }
+}
+
+/// The screened design within `max_runs` runs in all (screening, design, nominal run and check).
+pub fn screened_choice(
+    dim: usize,
+    order: usize,
+    max_runs: usize,
+    check_runs: impl Fn(usize) -> usize,
+) -> AutoChoice {
+    let fits =
+        |design: usize, screening: usize| design + 1 + screening + check_runs(design) <= max_runs;
     let screening = 2 * dim + 1;
     // All pairs if they fit, else as many of the most important as fit.
     let mut pairs = dim;
@@ -143,8 +212,7 @@ pub fn choose(
         screening_runs: screening,
         design_runs,
         reason: format!(
-            "d = {dim}: total degree {order} in every parameter needs {full} runs, over --max-runs {max_runs}; so screening ({screening} runs) ranks the parameters, {} keep total degree {BASE_ORDER} with {}, and the {top} most important get total degree {order} ({design_runs} runs)",
-            dim,
+            "screening ({screening} runs) ranks the parameters, {dim} keep total degree {BASE_ORDER} with {}, and the {top} most important get total degree {order} ({design_runs} runs)",
             if pairs == dim {
                 "all pairwise interactions".to_string()
             } else {
@@ -179,11 +247,14 @@ mod tests {
 
     #[test]
     fn small_d_is_tensor_and_the_budget_decides_the_rest() {
-        assert_eq!(choose(4, 4, 3000, no_check).design, AutoDesign::Tensor);
-        let six = choose(6, 4, 3000, no_check);
+        assert_eq!(choose(4, 4, 3000, 100, no_check).design, AutoDesign::Tensor);
+        let six = choose(6, 4, 3000, 100, no_check);
         assert_eq!(six.design, AutoDesign::TotalDegree { order: 4 });
         assert_eq!(six.design_runs, 210);
-        let sixty = choose(60, 4, 3000, no_check);
+        let sixty = choose(60, 4, 3000, 100, no_check);
+        assert_eq!(sixty.design, AutoDesign::Adaptive { budget: 2999 });
+        // Values that do not fit in memory: the screened design.
+        let sixty = choose(60, 4, 3000, ADAPTIVE_VALUE_BUDGET, no_check);
         match sixty.design {
             AutoDesign::Screened { order, top, pairs } => {
                 assert_eq!((order, pairs), (4, 60));
@@ -193,7 +264,7 @@ mod tests {
         }
         assert!(sixty.design_runs + 1 + sixty.screening_runs <= 3000);
         // A tight budget drops pairs before anything else.
-        let tight = choose(60, 4, 600, no_check);
+        let tight = screened_choice(60, 4, 600, no_check);
         match tight.design {
             AutoDesign::Screened { pairs, .. } => assert!(pairs < 60),
             other => panic!("{other:?}"),

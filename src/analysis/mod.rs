@@ -8,6 +8,8 @@
 //! grow with horizon × samples. Results are bitwise identical for any thread count: each sample's
 //! trajectory depends only on its parameters, and fits read samples in plan order.
 
+mod adaptive;
+mod adaptive_study;
 mod auto;
 mod bounds;
 mod check;
@@ -20,9 +22,15 @@ mod screening;
 mod sparse;
 mod study;
 
+pub use adaptive::{
+    AdaptiveSet, Term, ADAPTIVE_BATCH_FRACTION, ADAPTIVE_MAX_DEGREE, ADAPTIVE_MIN_BATCH,
+    ADAPTIVE_TOLERANCE, LOOK_AHEAD,
+};
+pub use adaptive_study::{AdaptiveReport, ADAPTIVE_NOISE_FLOOR};
 pub use auto::{
-    binomial, choose as choose_auto, screened_terms, total_degree_terms, AutoChoice, AutoDesign,
-    AUTO_TENSOR_MAX_DIM, BASE_ORDER, DEFAULT_MAX_RUNS,
+    adaptive_choice, binomial, choose as choose_auto, screened_choice, screened_terms,
+    total_degree_terms, AutoChoice, AutoDesign, ADAPTIVE_VALUE_BUDGET, AUTO_TENSOR_MAX_DIM,
+    BASE_ORDER, DEFAULT_MAX_RUNS,
 };
 pub use bounds::{BoundedBlock, EnvelopePoint, Extremes, DESIGN_STARTS_PER_SIDE};
 pub use check::{

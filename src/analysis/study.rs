@@ -12,7 +12,11 @@
 //! output per record time) and the nominal configurations: it does not grow with samples × horizon.
 //! Every envelope contains every model run the study made, in every phase.
 
-use super::auto::{choose as choose_auto, AutoChoice, AutoDesign};
+use super::adaptive_study::AdaptiveReport;
+use super::auto::{
+    adaptive_choice, choose as choose_auto, screened_choice, AutoChoice, AutoDesign,
+    ADAPTIVE_VALUE_BUDGET,
+};
 use super::bounds::{Bounder, EnvelopePoint};
 use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side, TRUST_RELATIVE_MISFIT};
 use super::engine::{BlockOutcome, LockStep, SampleFailure};
@@ -79,6 +83,11 @@ pub enum DesignKind {
     Sparse,
     /// Least squares on total degree k at twice as many Sobol' points as terms.
     Regression,
+    /// The dimension-adaptive Leja design within `--max-runs` (docs/method.md §11).
+    Adaptive,
+    /// Screening, then a Leja design that refines the most important parameters, within
+    /// `--max-runs` (docs/method.md §10).
+    Screened,
 }
 
 /// Why a study could not run or finish.
@@ -228,6 +237,8 @@ pub struct StudyReport {
     pub total_index_max: Option<Vec<(f64, usize, usize)>>,
     /// Sparse designs: the condition number of the design's basis matrix.
     pub condition_number: Option<f64>,
+    /// The adaptive design's rounds, when it ran.
+    pub adaptive: Option<AdaptiveReport>,
     /// The largest Lyapunov exponent of the nominal motion (two extra runs: the nominal
     /// parameters and a shadow with a perturbed state; `None` when either failed or the study was
     /// interrupted before).
@@ -302,13 +313,16 @@ impl PhaseBlock<'_, '_> {
 }
 
 /// The envelopes under construction, and the hull of every true run.
-struct Accumulator {
+pub(super) struct Accumulator {
     n_outputs: usize,
-    times: Vec<f64>,
+    /// Record times done, s.
+    pub(super) times: Vec<f64>,
     /// Record-major `records × outputs`.
     points: Vec<EnvelopePoint>,
-    nominal: Vec<f64>,
-    nominal_positions: Vec<f64>,
+    /// The nominal run's values, record-major `records × outputs`.
+    pub(super) nominal: Vec<f64>,
+    /// The nominal run's configuration per record (`records × nq`).
+    pub(super) nominal_positions: Vec<f64>,
 }
 
 impl Accumulator {
@@ -441,9 +455,10 @@ impl Study<'_> {
             None => automatic_check_runs(runs),
         };
         let mut auto = None;
+        let values_per_run = self.scene.outputs.len() * n_records(self.scene);
         let (method, design) = match o.method {
             Method::Auto => {
-                let choice = choose_auto(d, o.order, o.max_runs, check_for);
+                let choice = choose_auto(d, o.order, o.max_runs, values_per_run, check_for);
                 let resolved = choice.design.clone();
                 auto = Some(choice);
                 (Method::LegendreScan, Some(resolved))
@@ -463,11 +478,34 @@ impl Study<'_> {
                 0,
             ),
             (Some(AutoDesign::Screened { .. }), _) => (None, "sparse-screened", 2 * d + 1),
-            (None, DesignKind::Sparse | DesignKind::Regression) if !sparse_ok => {
+            (Some(AutoDesign::Adaptive { .. }), _) => (None, "sparse-adaptive", 0),
+            (
+                None,
+                DesignKind::Sparse
+                | DesignKind::Regression
+                | DesignKind::Adaptive
+                | DesignKind::Screened,
+            ) if !sparse_ok => {
                 return Err(StudyError::BadOptions(format!(
-                    "--design sparse and regression fit Legendre surrogates: use them with --method legendre-scan, legendre-ia or auto, not {}",
+                    "--design sparse, regression, adaptive and screened fit Legendre surrogates: use them with --method legendre-scan or legendre-ia, not {}",
                     method.name()
                 )))
+            }
+            (None, DesignKind::Adaptive) => {
+                let choice = adaptive_choice(d, o.max_runs, check_for);
+                let budget = choice.design_runs;
+                if budget.saturating_mul(values_per_run) > ADAPTIVE_VALUE_BUDGET {
+                    return Err(StudyError::BadOptions(format!(
+                        "--design adaptive keeps every run's values: {budget} runs × {values_per_run} values (outputs × record times) exceed {ADAPTIVE_VALUE_BUDGET}; lower --max-runs, record less often (record_every) or use --design screened"
+                    )));
+                }
+                auto = Some(choice);
+                (None, "sparse-adaptive", 0)
+            }
+            (None, DesignKind::Screened) => {
+                let choice = screened_choice(d, o.order, o.max_runs, check_for);
+                auto = Some(choice);
+                (None, "sparse-screened", 2 * d + 1)
             }
             (None, DesignKind::Sparse) => (
                 Some(Plan::Sparse(Arc::new(SparseDesign::total_degree(d, o.order)?))),
@@ -561,6 +599,23 @@ impl Study<'_> {
             ranking: None,
             total_index_max: None,
             condition_number: None,
+            adaptive: None,
+        }
+    }
+
+    /// The failure policy of the design's runs: only `scan` and `monte-carlo` may leave a failing
+    /// sample out (a fit needs every design point).
+    pub(super) fn design_failure_policy(&self, method: Method) -> FailurePolicy {
+        let keep_going = self.options.keep_going;
+        let can_exclude = keep_going && matches!(method, Method::Scan | Method::MonteCarlo);
+        FailurePolicy {
+            can_exclude,
+            hint: if keep_going && !can_exclude {
+                "--keep-going cannot help this method: its fit needs every design point; use --method scan or monte-carlo, or narrow the box"
+            } else {
+                "Use --keep-going to exclude failing samples (scan and monte-carlo), or narrow the box"
+            },
+            noun: "sample",
         }
     }
 
@@ -622,58 +677,71 @@ impl Study<'_> {
         };
 
         // Screening (auto above the budget of a full total-degree set): the star design ranks the
-        // parameters, and the design is built from the ranking.
+        // parameters, and the design is built from the ranking. The adaptive design runs its
+        // rounds here and keeps their values; the design phase then bounds from them.
         let mut screen_hull: Vec<EnvelopePoint> = Vec::new();
+        let nominal_xi = self.space.nominal_xi();
+        let mut adapted = None;
         let plan = match study_plan.plan {
-            Some(plan) => plan,
+            Some(plan) => {
+                report.runs += design_runs;
+                plan
+            }
             None => {
                 let Some(choice) = &study_plan.auto else {
                     return Err(StudyError::BadOptions(
                         "internal: a plan without design or auto choice".to_string(),
                     ));
                 };
-                let (screening, complete) = self.screen(
-                    &threads,
-                    interrupt,
-                    started,
-                    &mut report,
-                    progress,
-                    &mut screen_hull,
-                )?;
-                let ranking = screening.ranking();
-                report.screening = Some(screening);
-                report.ranking = Some(ranking.clone());
-                if !complete {
-                    return self.finish(report, accumulator, sink);
+                if let AutoDesign::Adaptive { budget } = choice.design {
+                    let Some((grid, outcome)) = self.adapt(
+                        budget,
+                        &nominal_xi,
+                        &threads,
+                        interrupt,
+                        started,
+                        &mut report,
+                        progress,
+                        &mut accumulator,
+                    )?
+                    else {
+                        return self.finish(report, accumulator, sink);
+                    };
+                    let outcome = adapted.insert(outcome);
+                    report.adaptive = Some(outcome.report.clone());
+                    report.block_records = block_records(grid.n_points() + 1, n_outputs, n_records);
+                    Plan::Sparse(Arc::new(SparseDesign::Grid(grid)))
+                } else {
+                    let (screening, complete) = self.screen(
+                        &threads,
+                        interrupt,
+                        started,
+                        &mut report,
+                        progress,
+                        &mut screen_hull,
+                    )?;
+                    let ranking = screening.ranking();
+                    report.screening = Some(screening);
+                    report.ranking = Some(ranking.clone());
+                    if !complete {
+                        return self.finish(report, accumulator, sink);
+                    }
+                    report.runs += design_runs;
+                    Plan::Sparse(Arc::new(SparseDesign::screened(
+                        d,
+                        &choice.design,
+                        &ranking,
+                    )?))
                 }
-                Plan::Sparse(Arc::new(SparseDesign::screened(
-                    d,
-                    &choice.design,
-                    &ranking,
-                )?))
             }
         };
-        report.runs += design_runs;
         if let Plan::Sparse(design) = &plan {
             report.condition_number = Some(design.condition_number());
         }
-        let points = plan.points(d);
         let bounder = Bounder::new(method, &plan, d, o.order, o.scan_grid)?;
         let candidates = CheckCandidates::new(d);
         let locates_extremes = study_plan.check_runs > 0;
-        let can_exclude = o.keep_going && matches!(method, Method::Scan | Method::MonteCarlo);
         let total_index_max: Vec<(f64, usize, usize)> = vec![(0.0, 0, 0); d];
-        let design_policy = FailurePolicy {
-            can_exclude,
-            hint: if o.keep_going && !can_exclude {
-                "--keep-going cannot help this method: its fit needs every design point; use --method scan or monte-carlo, or narrow the box"
-            } else {
-                "Use --keep-going to exclude failing samples (scan and monte-carlo), or narrow the box"
-            },
-            noun: "sample",
-        };
-        let nominal_xi = self.space.nominal_xi();
-
         let mut bounding = DesignBounding {
             bounder: &bounder,
             threads: &threads,
@@ -685,59 +753,84 @@ impl Study<'_> {
             screen_hull: &screen_hull,
         };
 
-        // Design phase.
-        let design_complete = self.run_phase(
-            "design",
-            &points,
-            Some(&nominal_xi),
-            design_policy,
-            &threads,
-            interrupt,
-            started,
-            &mut report,
-            progress,
-            &mut |block, report| {
+        // Design phase: bound from the adaptive rounds' values, or run the design.
+        let design_complete = match &adapted {
+            Some(outcome) => {
                 let t_bound = Instant::now();
-                let lockstep = block.lockstep;
-                let plan_samples = lockstep.len() - 1;
-                let nominal_index = lockstep.nominal_index().unwrap_or(plan_samples);
-                for r in 0..block.count {
-                    accumulator.times.push(record_time(scene, block.first + r));
-                    accumulator
-                        .nominal
-                        .extend_from_slice(block.record(nominal_index, r));
-                    accumulator
-                        .nominal_positions
-                        .extend_from_slice(lockstep.nominal_positions(r));
+                let mut first = 0;
+                let block = report.block_records.max(1);
+                while first < n_records {
+                    let count = block.min(n_records - first);
+                    let values = |r: usize| outcome.record(first + r, n_outputs);
+                    bounding.absorb(first, count, &values, &|_| false, &mut accumulator)?;
+                    first += count;
                 }
-                let values = |r: usize| -> Vec<f64> {
-                    let mut row = Vec::with_capacity(plan_samples * n_outputs);
-                    for i in 0..plan_samples {
-                        row.extend_from_slice(lockstep.record(i, r));
-                    }
-                    row
-                };
-                let excluded = |i: usize| lockstep.failed(i);
-                bounding.absorb(
-                    block.first,
-                    block.count,
-                    &values,
-                    &excluded,
-                    &mut accumulator,
-                )?;
                 report.bound_seconds += t_bound.elapsed().as_secs_f64();
-                Ok(())
-            },
-        )?;
-
+                if !outcome.complete {
+                    report.partial = true;
+                }
+                outcome.complete
+            }
+            None => {
+                let points = plan.points(d);
+                self.run_phase(
+                    "design",
+                    &points,
+                    Some(&nominal_xi),
+                    self.design_failure_policy(method),
+                    &threads,
+                    interrupt,
+                    started,
+                    &mut report,
+                    progress,
+                    &mut |block, report| {
+                        let t_bound = Instant::now();
+                        let lockstep = block.lockstep;
+                        let plan_samples = lockstep.len() - 1;
+                        let nominal_index = lockstep.nominal_index().unwrap_or(plan_samples);
+                        for r in 0..block.count {
+                            accumulator.times.push(record_time(scene, block.first + r));
+                            accumulator
+                                .nominal
+                                .extend_from_slice(block.record(nominal_index, r));
+                            accumulator
+                                .nominal_positions
+                                .extend_from_slice(lockstep.nominal_positions(r));
+                        }
+                        let values = |r: usize| -> Vec<f64> {
+                            let mut row = Vec::with_capacity(plan_samples * n_outputs);
+                            for i in 0..plan_samples {
+                                row.extend_from_slice(lockstep.record(i, r));
+                            }
+                            row
+                        };
+                        let excluded = |i: usize| lockstep.failed(i);
+                        bounding.absorb(
+                            block.first,
+                            block.count,
+                            &values,
+                            &excluded,
+                            &mut accumulator,
+                        )?;
+                        report.bound_seconds += t_bound.elapsed().as_secs_f64();
+                        Ok(())
+                    },
+                )?
+            }
+        };
         if matches!(plan, Plan::Sparse(_)) {
             report.total_index_max = Some(bounding.total_index_max.clone());
         }
         let candidates = bounding.candidates;
 
-        // The a-posteriori check: true runs where the surrogates put their extremes.
+        // The a-posteriori check: true runs where the surrogates put their extremes. An adaptive
+        // design that stopped early is checked in proportion to the runs it made.
+        let check_budget = match (&report.adaptive, o.check_runs) {
+            (Some(adaptive), None) => automatic_check_runs(adaptive.runs),
+            _ => study_plan.check_runs,
+        };
         if design_complete && locates_extremes {
-            let check_plan = candidates.select(study_plan.check_runs);
+            let check_plan = candidates.select(check_budget);
             report.check = Some(self.check(
                 &check_plan,
                 &threads,

@@ -11,7 +11,7 @@ use super::{
 };
 use crate::analysis::{
     CheckReport, DesignKind, Method, Progress, Study, StudyOptions, StudyReport,
-    CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TRUST_RELATIVE_MISFIT,
+    ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TRUST_RELATIVE_MISFIT,
 };
 use crate::dynamics::Data;
 use crate::model::{LoadOptions, Model};
@@ -302,20 +302,14 @@ fn study_options(
         .clone()
         .or_else(|| section.design.clone())
         .unwrap_or_else(|| "tensor".to_string());
-    let (truncation, design) = match design_name.as_str() {
-        "tensor" => (Truncation::Tensor, DesignKind::Tensor),
-        "total" => (Truncation::Total, DesignKind::Tensor),
-        "sparse" => (Truncation::Total, DesignKind::Sparse),
-        "regression" => (Truncation::Total, DesignKind::Regression),
-        other => {
-            return Err(bad(
-                "--design",
-                format!(
-                    "'{other}' is not a design; use tensor, total, sparse or regression (or leave it to --method auto)"
-                ),
-            ))
-        }
-    };
+    let (truncation, design) = parse_design(&design_name).ok_or_else(|| {
+        bad(
+            "--design",
+            format!(
+                "'{design_name}' is not a design; use {DESIGN_NAMES} (or leave it to --method auto)"
+            ),
+        )
+    })?;
     if method == Method::Auto && (args.design.is_some() || section.design.is_some()) {
         return Err(bad(
             "--design",
@@ -343,6 +337,22 @@ fn study_options(
         check_runs: args.check_runs,
         design,
         max_runs,
+    })
+}
+
+/// The designs `--design` accepts.
+pub const DESIGN_NAMES: &str = "tensor, total, sparse, regression, adaptive or screened";
+
+/// A design's name → its truncation and kind (`None` for an unknown name).
+pub fn parse_design(name: &str) -> Option<(Truncation, DesignKind)> {
+    Some(match name {
+        "tensor" => (Truncation::Tensor, DesignKind::Tensor),
+        "total" => (Truncation::Total, DesignKind::Tensor),
+        "sparse" => (Truncation::Total, DesignKind::Sparse),
+        "regression" => (Truncation::Total, DesignKind::Regression),
+        "adaptive" => (Truncation::Total, DesignKind::Adaptive),
+        "screened" => (Truncation::Total, DesignKind::Screened),
+        _ => return None,
     })
 }
 
@@ -424,6 +434,16 @@ fn summary(
                 "reason": a.reason,
                 "screening_runs": a.screening_runs,
                 "design_runs": a.design_runs,
+            })),
+            "adaptive": report.adaptive.as_ref().map(|a| serde_json::json!({
+                "rounds": a.rounds,
+                "runs": a.runs,
+                "budget": a.budget,
+                "max_degree": a.max_degree,
+                "interactions": a.interactions,
+                "largest_remaining_indicator": a.largest_remaining_indicator,
+                "tolerance": ADAPTIVE_TOLERANCE,
+                "stop": a.stop,
             })),
             "condition_number": report.condition_number,
             "inner_outer_gap": gap_json(report),
@@ -662,6 +682,21 @@ fn table(
             format!(", {} samples excluded", report.excluded.len())
         }
     ));
+    if let Some(a) = &report.adaptive {
+        text.push_str(&format!(
+            "adaptive design: {} runs in {} rounds ({}), {} interaction terms, degree up to {}, largest term left {:.1e} of an output's spread\n",
+            a.runs,
+            a.rounds,
+            match a.stop {
+                "converged" => format!("converged below {ADAPTIVE_TOLERANCE:e}"),
+                "budget" => format!("stopped by the budget of {} runs", a.budget),
+                other => other.to_string(),
+            },
+            a.interactions,
+            a.max_degree,
+            a.largest_remaining_indicator
+        ));
+    }
     if let Some(rows) = sensitivities(space, report) {
         text.push_str(&format!(
             "most influential parameters (of {}):\n",

@@ -6,7 +6,7 @@
 //! `compare.json`, `error_vs_time.svg` and `envelope.svg` (the widest output, reference vs the most
 //! accurate surrogate).
 
-use super::analyze_cmd::{prepare, sidecar_path_of, Prepared};
+use super::analyze_cmd::{parse_design, prepare, sidecar_path_of, Prepared, DESIGN_NAMES};
 use super::{install_interrupt, write_stdout, CompareArgs};
 use crate::analysis::{
     DesignKind, Method, Study, StudyOptions, StudyReport, VertexReferenceOptions, DEFAULT_MAX_RUNS,
@@ -80,6 +80,36 @@ fn parse_reference(text: Option<&str>, d: usize, grid: usize) -> Result<Referenc
     }
 }
 
+/// A design named in `--methods` (`METHOD:DESIGN`): its name, truncation and kind.
+type NamedDesign = (String, Truncation, DesignKind);
+
+/// `METHOD` or `METHOD:DESIGN` of `--methods`.
+fn parse_method_token(token: &str) -> Result<(Method, Option<NamedDesign>), Error> {
+    let bad = |message: String| Error::BadArgument {
+        flag: "--methods".to_string(),
+        message,
+    };
+    let (name, design) = match token.split_once(':') {
+        Some((name, design)) => (name, Some(design)),
+        None => (token, None),
+    };
+    let method = Method::parse(name).ok_or_else(|| bad(format!("unknown method '{name}'")))?;
+    let Some(design) = design else {
+        return Ok((method, None));
+    };
+    if method.family().is_none() || method == Method::Auto {
+        return Err(bad(format!(
+            "'{token}': only a surrogate method (legendre-scan, legendre-ia, …) takes a design; auto chooses its own"
+        )));
+    }
+    let (truncation, kind) = parse_design(design).ok_or_else(|| {
+        bad(format!(
+            "'{token}': '{design}' is not a design; use {DESIGN_NAMES}"
+        ))
+    })?;
+    Ok((method, Some((design.to_string(), truncation, kind))))
+}
+
 /// One compared configuration.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Row {
@@ -89,6 +119,8 @@ pub struct Row {
     pub setting: Option<usize>,
     /// Bound kind.
     pub bound_kind: String,
+    /// The design that ran (`auto` resolved).
+    pub design: String,
     /// Model runs, the nominal one included.
     pub runs: usize,
     /// Wall time, s.
@@ -203,14 +235,9 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
         (crate::analysis::BLOCK_VALUE_BUDGET * 8) as u64,
     )?;
     let d = space.len();
-    let methods: Vec<Method> = parse_list("--methods", &args.methods)?
+    let methods: Vec<(Method, Option<NamedDesign>)> = parse_list("--methods", &args.methods)?
         .iter()
-        .map(|name| {
-            Method::parse(name).ok_or_else(|| Error::BadArgument {
-                flag: "--methods".to_string(),
-                message: format!("unknown method '{name}'"),
-            })
-        })
+        .map(|token| parse_method_token(token))
         .collect::<Result<_, _>>()?;
     let orders = parse_numbers("--orders", &args.orders)?;
     let samples = parse_numbers("--samples", &args.samples)?;
@@ -228,7 +255,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
         keep_going: false,
         check_runs: None,
         design: DesignKind::Tensor,
-        max_runs: DEFAULT_MAX_RUNS,
+        max_runs: args.max_runs.unwrap_or(DEFAULT_MAX_RUNS),
     };
     let interrupt = crate::interrupt::flag();
     let run_study = |options: StudyOptions| -> Result<(StudyReport, f64), Error> {
@@ -282,13 +309,20 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
     };
     eprintln!("  {} runs in {reference_seconds:.3} s", reference.runs);
 
-    let mut configurations: Vec<(Method, Option<usize>, StudyOptions)> = Vec::new();
-    for method in &methods {
+    let mut configurations: Vec<(Method, Option<usize>, Option<String>, StudyOptions)> = Vec::new();
+    for (method, design) in &methods {
+        let design_name = design.as_ref().map(|(name, _, _)| name.clone());
+        let (truncation, design_kind) = design
+            .as_ref()
+            .map_or((Truncation::Tensor, DesignKind::Tensor), |(_, t, k)| {
+                (*t, *k)
+            });
         match method {
             Method::Scan => {}
             Method::Taylor => configurations.push((
                 *method,
                 Some(1),
+                None,
                 StudyOptions {
                     method: *method,
                     ..base.clone()
@@ -299,6 +333,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
                     configurations.push((
                         *method,
                         Some(*n),
+                        None,
                         StudyOptions {
                             method: *method,
                             samples: *n,
@@ -312,9 +347,12 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
                     configurations.push((
                         *surrogate,
                         Some(*k),
+                        design_name.clone(),
                         StudyOptions {
                             method: *surrogate,
                             order: *k,
+                            truncation,
+                            design: design_kind,
                             ..base.clone()
                         },
                     ));
@@ -324,23 +362,28 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
     }
     let mut rows = Vec::with_capacity(configurations.len());
     let mut best_surrogate: Option<(String, StudyReport)> = None;
-    for (method, setting, options) in configurations {
+    for (method, setting, design, options) in configurations {
         let (report, seconds) = run_study(options)?;
         let (max_error, mean_error, worst_output) = compare_envelopes(&report, &reference);
+        let name = match &design {
+            Some(design) => format!("{}:{design}", method.name()),
+            None => method.name().to_string(),
+        };
         let label = match (method, setting) {
-            (Method::MonteCarlo, Some(n)) => format!("{} N={n}", method.name()),
-            (_, Some(k)) if method != Method::Taylor => format!("{} k={k}", method.name()),
-            _ => method.name().to_string(),
+            (Method::MonteCarlo, Some(n)) => format!("{name} N={n}"),
+            (_, Some(k)) if method != Method::Taylor => format!("{name} k={k}"),
+            _ => name.clone(),
         };
         eprintln!(
             "  {label}: {} runs, {seconds:.3} s, max error {max_error:.3e}",
             report.runs
         );
-        if method == Method::LegendreScan {
+        if matches!(method, Method::LegendreScan | Method::Auto) {
             best_surrogate = Some((label.clone(), report.clone()));
         }
         rows.push(Row {
-            method: method.name().to_string(),
+            method: name,
+            design: report.design.to_string(),
             setting,
             bound_kind: method.bound_kind().to_string(),
             runs: report.runs,
@@ -390,10 +433,18 @@ fn render_table(
          error: docs/method.md §4, max over time and outputs (mean over time, averaged over outputs)\n\n"
     );
     text.push_str(&format!(
-        "| {:<16} | {:>7} | {:<11} | {:>7} | {:>10} | {:>10} | {:>10} | {:>9} |\n",
-        "method", "setting", "bounds", "runs", "wall (s)", "max error", "mean error", "speed-up"
+        "| {:<24} | {:>7} | {:<15} | {:<11} | {:>7} | {:>10} | {:>10} | {:>10} | {:>9} |\n",
+        "method",
+        "setting",
+        "design",
+        "bounds",
+        "runs",
+        "wall (s)",
+        "max error",
+        "mean error",
+        "speed-up"
     ));
-    text.push_str("|------------------|---------|-------------|---------|------------|------------|------------|-----------|\n");
+    text.push_str("|--------------------------|---------|-----------------|-------------|---------|------------|------------|------------|-----------|\n");
     for row in rows {
         let setting = match (row.method.as_str(), row.setting) {
             ("monte-carlo", Some(n)) => format!("N={n}"),
@@ -402,9 +453,10 @@ fn render_table(
             _ => String::new(),
         };
         text.push_str(&format!(
-            "| {:<16} | {:>7} | {:<11} | {:>7} | {:>10.3} | {:>10.3e} | {:>10.3e} | {:>8.1}× |\n",
+            "| {:<24} | {:>7} | {:<15} | {:<11} | {:>7} | {:>10.3} | {:>10.3e} | {:>10.3e} | {:>8.1}× |\n",
             row.method,
             setting,
+            row.design,
             row.bound_kind,
             row.runs,
             row.wall_seconds,

@@ -56,12 +56,18 @@ pub struct CompareArgs {
     /// Points per dimension of the reference scan (odd; default 21 for d ≤ 2, 11 for d ≥ 3).
     #[arg(long)]
     pub reference_grid: Option<usize>,
-    /// Methods to compare (comma-separated).
+    /// Methods to compare (comma-separated); a surrogate method may name its design after a colon
+    /// (`legendre-scan:adaptive`, `legendre-scan:screened`, `legendre-scan:sparse`; see `analyze
+    /// --design`).
     #[arg(
         long,
         default_value = "legendre-scan,legendre-ia,chebyshev-scan,chebyshev-ia,taylor,monte-carlo"
     )]
     pub methods: String,
+    /// Most model runs of `auto` above d = 4 and of the adaptive and screened designs (default
+    /// 3000).
+    #[arg(long, value_name = "N")]
+    pub max_runs: Option<usize>,
     /// Orders of the surrogate methods (comma-separated).
     #[arg(long, default_value = "2,3,4,5")]
     pub orders: String,
@@ -81,15 +87,17 @@ pub struct AnalyzeArgs {
     pub scene: SceneArgs,
     /// auto | legendre-scan | legendre-ia | chebyshev-scan | chebyshev-ia | taylor | scan |
     /// monte-carlo (default: the sidecar's `[analysis] method`, else auto: legendre-scan on the
-    /// tensor grid for d ≤ 4, a screened sparse design above).
+    /// tensor grid for d ≤ 4, total degree k on a Leja sparse grid when it fits --max-runs, the
+    /// dimension-adaptive design above).
     #[arg(long)]
     pub method: Option<String>,
     /// Polynomial order k of surrogate methods (default: `[analysis] order`, else 4).
     #[arg(long)]
     pub order: Option<usize>,
     /// tensor | total (the tensor Gauss grid, all terms or total degree) | sparse (Leja sparse grid,
-    /// total degree k) | regression (Sobol' least squares, total degree k); default tensor; `auto`
-    /// chooses its own.
+    /// total degree k) | regression (Sobol' least squares, total degree k) | adaptive (Leja terms
+    /// chosen by the runs, within --max-runs) | screened (star screening, then the most important
+    /// parameters refined, within --max-runs); default tensor; `auto` chooses its own.
     #[arg(long)]
     pub design: Option<String>,
     /// Points per dimension of the true-model `scan` (odd; default 21).
@@ -111,8 +119,8 @@ pub struct AnalyzeArgs {
     /// check runs).
     #[arg(long)]
     pub keep_going: bool,
-    /// Most model runs `--method auto` plans above d = 4 (screening, design and check; default
-    /// 3000).
+    /// Most model runs `--method auto` plans above d = 4, and `--design adaptive|screened` (design,
+    /// screening and check; default 3000).
     #[arg(long, value_name = "N")]
     pub max_runs: Option<usize>,
     /// True-model runs of the a-posteriori check at the surrogate's predicted extremes (methods
