@@ -338,8 +338,13 @@ fn compare(
             f64::INFINITY,
             f64::INFINITY,
         ];
-        if ribbon_limit == unlimited {
-            // No <limit>: ribbon's policy is ±∞, urdf-rs's default all zero.
+        let same_bits = ribbon_limit
+            .iter()
+            .zip(&oracle_limit)
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        if ribbon_limit == unlimited && !same_bits {
+            // No <limit>: ribbon's policy is ±∞, urdf-rs's default all zero. (A URDF 1.2
+            // `<limit/>` on a continuous joint reads as ±∞ in both.)
             diff.numbers(
                 &at("<limit> (absent: urdf-rs's default)"),
                 &[0.0; 4],
@@ -682,5 +687,97 @@ fn the_comparison_catches_a_one_ulp_change_in_every_field() {
             found.len() == expected && found[0].starts_with(&format!("every_field: {field}: ")),
             "changing {field} should give one difference naming it, got {found:#?}"
         );
+    }
+}
+
+/// Whitespace around single numbers, which urdfdom, urdf-rs and ribbon all read.
+#[test]
+fn padded_numbers_read_alike() {
+    let padded = EVERY_FIELD
+        .replace("value=\"2.5\"", "value=\" 2.5 \"")
+        .replace("effort=\"87\"", "effort=\"\t87\"")
+        .replace("multiplier=\"-0.5\"", "multiplier=\"-0.5 \"");
+    assert_ne!(padded, EVERY_FIELD);
+    let (ribbon, oracle) = read_both(&padded);
+    let found = compare("padded", &ribbon, &oracle, &mut Coverage::default());
+    assert!(found.is_empty(), "{found:#?}");
+}
+
+/// `EVERY_FIELD` as a URDF 1.2 file: a continuous joint with `<limit effort>` only (lower and
+/// upper ∓∞, velocity ∞ in both readers) and a prismatic one without effort and velocity.
+#[test]
+fn urdf_1_2_limits_read_alike() {
+    let text = EVERY_FIELD
+        .replace(
+            "<robot name=\"every_field\">",
+            "<robot name=\"every_field\" version=\"1.2\">",
+        )
+        .replace("type=\"revolute\"", "type=\"continuous\"")
+        .replace(
+            "lower=\"-1.5\" upper=\"2.25\" effort=\"87\" velocity=\"2.175\"",
+            "effort=\"87\"",
+        )
+        .replace(" effort=\"20\" velocity=\"0.2\"", "");
+    let (ribbon, oracle) = read_both(&text);
+    assert_eq!(ribbon.joints[0].limits, [f64::NEG_INFINITY, f64::INFINITY]);
+    assert_eq!(ribbon.joints[1].effort_velocity, [f64::INFINITY; 2]);
+    let found = compare("urdf_1_2", &ribbon, &oracle, &mut Coverage::default());
+    assert!(found.is_empty(), "{found:#?}");
+}
+
+/// The rotations of ribbon's and urdf-rs's rpy for one orientation differ by at most this much
+/// per matrix entry: both turn `quat_xyzw` into roll, pitch, yaw, by different formulas (urdf-rs
+/// follows urdfdom's, with `asin`), so the angles agree to rounding, not to the bit.
+const QUATERNION_ROTATION_TOLERANCE: f64 = 1e-14;
+
+/// URDF 1.1 `quat_xyzw` orientations (joint and inertial origins, unnormalised too) give the same
+/// rotation in both readers; every other field agrees bit for bit.
+#[test]
+fn urdf_1_1_quaternions_give_the_same_rotation() {
+    let quaternions = [
+        "0 0 0.7071067811865476 0.7071067811865476",
+        "0.3 0.7 -0.2 0.6",
+        "0 0 1 1",
+        "1 0 0 0",
+        "0.1 -0.2 0.3 -0.9",
+    ];
+    for quaternion in quaternions {
+        let text = EVERY_FIELD
+            .replace(
+                "<robot name=\"every_field\">",
+                "<robot name=\"every_field\" version=\"1.1\">",
+            )
+            .replace(
+                "rpy=\"1.5707963267948966 0 -3.141592653589793\"",
+                &format!("quat_xyzw=\"{quaternion}\""),
+            )
+            .replace(
+                "rpy=\"0.1 -2.5E-1 3.\"",
+                &format!("quat_xyzw=\"{quaternion}\""),
+            );
+        let (mut ribbon, oracle) = read_both(&text);
+        let rotation = |rpy: &[f64]| ribbon::spatial::rotation_from_rpy(rpy[0], rpy[1], rpy[2]);
+        let pairs = [
+            (
+                &ribbon.joints[0].origin[3..],
+                &oracle.joints[0].origin.rpy.0[..],
+            ),
+            (
+                &ribbon.links[1].inertial.rpy[..],
+                &oracle.links[1].inertial.origin.rpy.0[..],
+            ),
+        ];
+        for (ours, theirs) in pairs {
+            let gap = (rotation(ours) - rotation(theirs)).abs().max();
+            assert!(
+                gap <= QUATERNION_ROTATION_TOLERANCE,
+                "quat_xyzw=\"{quaternion}\": ribbon rpy {ours:?}, urdf-rs rpy {theirs:?}: rotations differ by {gap:e}"
+            );
+        }
+        // The rest, bit for bit (the rpy compared above are set to urdf-rs's).
+        ribbon.joints[0].origin[3..].copy_from_slice(&oracle.joints[0].origin.rpy.0);
+        ribbon.links[1].inertial.rpy = oracle.links[1].inertial.origin.rpy.0;
+        let found = compare("urdf_1_1", &ribbon, &oracle, &mut Coverage::default());
+        assert!(found.is_empty(), "{found:#?}");
     }
 }
