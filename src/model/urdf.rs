@@ -22,6 +22,12 @@
 //!   (Pinocchio refuses it); `lower > upper` loads with a note (the `joint_limits` effect skips
 //!   that joint); `effort` and `velocity` are required and ≥ 0.
 //! - Nesting deeper than [`MAX_XML_DEPTH`] is refused before anything else reads the tree.
+//! - `<robot version>` (1.0 without it; 1.0 to 1.2 read, others refused, as by Pinocchio): from
+//!   1.1 an `<origin>` may give `quat_xyzw` instead of `rpy` (ignored with a note in a 1.0 file,
+//!   as Pinocchio ignores it); from 1.2 `<limit>` needs no effort or velocity (∞ when omitted),
+//!   revolute and prismatic joints need `lower` and `upper` with `lower ≤ upper`, and other
+//!   joints read omitted ones as ∓∞.
+//! - Whitespace around a single number (`value=" 2.5"`) is allowed.
 //!
 //! Planar joints are refused (not supported yet); types the specification does not define are
 //! refused as such.
@@ -29,6 +35,8 @@
 mod geometry;
 mod joint;
 mod link;
+mod origin;
+mod version;
 mod xml;
 
 pub use xml::MAX_XML_DEPTH;
@@ -71,6 +79,7 @@ fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description
             found: root.tag_name().name().to_string(),
         });
     }
+    reader.version = version::read_version(&reader, root)?;
     let robot_name = match root.attribute("name") {
         Some(name) => name.to_string(),
         None => {

@@ -1,6 +1,8 @@
 //! `<joint>`: type, origin, parent and child, axis, limits, dynamics and mimic. `<calibration>`
 //! and `<safety_controller>` are ignored (no effect on dynamics).
 
+use super::origin::read_origin;
+use super::version::UrdfVersion;
 use super::xml::Reader;
 use crate::model::description::{MimicSpec, UrdfJointType};
 use crate::model::error::ModelError;
@@ -36,9 +38,10 @@ struct Limit {
 /// Policy where the URDF leaves room (Pinocchio 4.1 is the reference, docs in the module above):
 /// - a revolute or prismatic joint without `<limit>` loads unlimited, with a note (Pinocchio
 ///   refuses the file);
-/// - `<limit lower upper>` default to 0; lower > upper loads with a note (Pinocchio loads it as
-///   written; ribbon's `joint_limits` effect skips such a joint); `effort` and `velocity` are
-///   required and must be ≥ 0, as for Pinocchio;
+/// - up to URDF 1.1, `<limit lower upper>` default to 0; lower > upper loads with a note
+///   (Pinocchio loads it as written; ribbon's `joint_limits` effect skips such a joint); `effort`
+///   and `velocity` are required and must be ≥ 0, as for Pinocchio; URDF 1.2 changes these rules
+///   as urdfdom does (see `read_limit`);
 /// - negative `<dynamics damping>` or `friction` is an error: a negative damping adds energy in
 ///   the `joint_damping` effect, a negative friction is refused by Pinocchio too;
 /// - a NaN or infinite value anywhere is an error (Pinocchio cannot read them either).
@@ -83,10 +86,8 @@ pub(super) fn read_joint<'input>(
 
     let origin = reader
         .single(node, "origin", &owner, |reader, origin| {
-            let xyz = reader.vector3(origin, &owner, "xyz", "<origin>")?;
-            let rpy = reader.vector3(origin, &owner, "rpy", "<origin rpy>")?;
-            let [x, y, z] = xyz.unwrap_or_default();
-            let [roll, pitch, yaw] = rpy.unwrap_or_default();
+            let ([x, y, z], [roll, pitch, yaw]) =
+                read_origin(reader, origin, &owner, "<origin>", "<origin rpy>")?;
             Ok([x, y, z, roll, pitch, yaw])
         })?
         .map_or([0.0; 6], |read| read.value);
@@ -130,13 +131,13 @@ pub(super) fn read_joint<'input>(
         });
     }
 
-    let limit = reader.single(node, "limit", &owner, |reader, limit| {
-        read_limit(reader, limit, &owner)
-    })?;
     let bounded = matches!(
         joint_type,
         UrdfJointType::Revolute | UrdfJointType::Prismatic
     );
+    let limit = reader.single(node, "limit", &owner, |reader, limit| {
+        read_limit(reader, limit, &owner, bounded)
+    })?;
     let (limits, effort_velocity) = match &limit {
         Some(read) => {
             let l = read.value;
@@ -201,26 +202,40 @@ pub(super) fn read_joint<'input>(
     })
 }
 
+/// Reads `<limit>` by the rules of the file's URDF version (`bounded`: the joint is revolute or
+/// prismatic). Up to 1.1: `effort` and `velocity` are required, omitted `lower` and `upper` are 0.
+/// From 1.2 (as urdfdom reads it): omitted `effort` and `velocity` are ∞ (no limit), a bounded
+/// joint needs `lower` and `upper` with `lower ≤ upper`, and other joints read omitted ones as
+/// ∓∞. `effort` and `velocity` are ≥ 0 in every version.
 fn read_limit<'input>(
     reader: &mut Reader<'_, 'input>,
     node: Node<'_, 'input>,
     owner: &str,
+    bounded: bool,
 ) -> Result<Limit, ModelError> {
     let element = format!("{owner} <limit>");
-    let value = |attribute: &'static str, required: bool| -> Result<f64, ModelError> {
-        if required {
-            reader.required(
-                node,
-                &element,
-                attribute,
-                "<limit> needs effort (N·m or N) and velocity (rad/s or m/s), as the URDF specification and Pinocchio require",
-            )?;
-        }
+    let since_1_2 = reader.version >= UrdfVersion::V1_2;
+    let require = |attribute: &'static str, hint: &'static str| {
+        reader.required(node, &element, attribute, hint).map(drop)
+    };
+    let read = |attribute: &'static str, omitted: f64| -> Result<f64, ModelError> {
         let field = format!("<limit {attribute}>");
-        let value = reader
+        Ok(reader
             .number(node, owner, attribute, &field)?
-            .unwrap_or_default();
-        if required && value < 0.0 {
+            .unwrap_or(omitted))
+    };
+    let magnitude = |attribute: &'static str| -> Result<f64, ModelError> {
+        let omitted = if since_1_2 {
+            f64::INFINITY
+        } else {
+            require(
+                attribute,
+                "<limit> needs effort (N·m or N) and velocity (rad/s or m/s), as the URDF specification (before version 1.2) and Pinocchio require",
+            )?;
+            0.0
+        };
+        let value = read(attribute, omitted)?;
+        if value < 0.0 {
             return Err(ModelError::NegativeValue {
                 path: reader.path.to_string(),
                 line: reader.line(node),
@@ -232,12 +247,32 @@ fn read_limit<'input>(
         }
         Ok(value)
     };
-    Ok(Limit {
-        lower: value("lower", false)?,
-        upper: value("upper", false)?,
-        effort: value("effort", true)?,
-        velocity: value("velocity", true)?,
-    })
+    let (lower_omitted, upper_omitted) = if !since_1_2 {
+        (0.0, 0.0)
+    } else if bounded {
+        const HINT: &str = "from URDF 1.2 on, revolute and prismatic joints give both lower and upper (Pinocchio refuses the file too)";
+        require("lower", HINT)?;
+        require("upper", HINT)?;
+        (0.0, 0.0)
+    } else {
+        (f64::NEG_INFINITY, f64::INFINITY)
+    };
+    let limit = Limit {
+        lower: read("lower", lower_omitted)?,
+        upper: read("upper", upper_omitted)?,
+        effort: magnitude("effort")?,
+        velocity: magnitude("velocity")?,
+    };
+    if since_1_2 && bounded && limit.lower > limit.upper {
+        return Err(reader.bad_number(
+            node,
+            owner,
+            "upper",
+            node.attribute("upper").unwrap_or_default(),
+            "≥ lower: from URDF 1.2 on, a revolute or prismatic joint needs lower ≤ upper (Pinocchio refuses the file too)",
+        ));
+    }
+    Ok(limit)
 }
 
 fn read_dynamics<'input>(

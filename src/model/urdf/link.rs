@@ -1,6 +1,7 @@
 //! `<link>`: its name and `<inertial>`; `<visual>` and `<collision>` only for notes.
 
 use super::geometry::check_geometry_elements;
+use super::origin::read_origin;
 use super::xml::Reader;
 use crate::model::description::{InertialSpec, LinkSpec};
 use crate::model::error::ModelError;
@@ -41,14 +42,13 @@ fn read_inertial<'input>(
     let owner = format!("link '{link}'");
     let element = format!("{owner} <inertial>");
     let origin = reader.single(node, "origin", &element, |reader, origin| {
-        Ok((
-            reader
-                .vector3(origin, &owner, "xyz", "<inertial><origin>")?
-                .unwrap_or_default(),
-            reader
-                .vector3(origin, &owner, "rpy", "<inertial><origin rpy>")?
-                .unwrap_or_default(),
-        ))
+        read_origin(
+            reader,
+            origin,
+            &owner,
+            "<inertial><origin>",
+            "<inertial><origin rpy>",
+        )
     })?;
     let (com, rpy) = origin.map_or(([0.0; 3], [0.0; 3]), |read| read.value);
 

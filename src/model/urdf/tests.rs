@@ -365,3 +365,201 @@ fn trailing_nul_and_extra_geometry_elements_load_with_notes() {
     let inside = arm("", LIMIT).replace("<joint", "\0<joint");
     assert!(error(&inside).starts_with("t.urdf:5:1: malformed XML"));
 }
+
+#[test]
+fn whitespace_around_a_number_is_read() {
+    // urdfdom (Pinocchio) and urdf-rs read value=" 2.5"; a vector's spacing was already free.
+    let text = urdf(
+        "<link name=\"a\"><inertial><mass value=\" 2.5 \"/>\
+         <inertia ixx=\"1\" ixy=\"0\" ixz=\"0\" iyy=\"\t1\" iyz=\"0\" izz=\"1\n\"/></inertial></link>",
+    );
+    let d = parse_description(&text, "t.urdf").unwrap();
+    assert_eq!(d.links[0].inertial.mass, 2.5);
+    assert_eq!(d.links[0].inertial.inertia, [1.0, 0.0, 0.0, 1.0, 0.0, 1.0]);
+    let inner = urdf("<link name=\"a\"><inertial><mass value=\"2 .5\"/></inertial></link>");
+    assert!(error(&inner).starts_with("t.urdf:3: link 'a' <mass>: value=\"2 .5\" is not a number"));
+}
+
+/// `arm` with `<robot version="VERSION">`.
+fn versioned(version: &str, link_body: &str, joint_body: &str) -> String {
+    arm(link_body, joint_body).replace(
+        "<robot name=\"t\">",
+        &format!("<robot name=\"t\" version=\"{version}\">"),
+    )
+}
+
+#[test]
+fn the_urdf_version_is_read_and_unknown_versions_are_refused() {
+    for good in ["1.0", "1.1", "1.2", " 1.2 "] {
+        parse_description(&versioned(good, "", LIMIT), "t.urdf")
+            .unwrap_or_else(|e| panic!("version {good:?} should load: {e}"));
+    }
+    for bad in ["1.3", "2.0", "0.9", "1", "1.x", "", "+1.0", "1.0.0"] {
+        let msg = error(&versioned(bad, "", LIMIT));
+        assert!(
+            msg.starts_with(&format!(
+                "t.urdf:2: <robot>: version=\"{bad}\" is not a URDF version ribbon reads"
+            )),
+            "{bad:?}: {msg}"
+        );
+    }
+}
+
+/// The rotation of the unit quaternion `[x, y, z, w]` (the textbook matrix).
+fn quaternion_matrix([x, y, z, w]: [f64; 4]) -> [[f64; 3]; 3] {
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
+/// Largest entry difference between the rotation of `rpy` and of the unit quaternion `q`.
+fn rpy_error(q: [f64; 4]) -> f64 {
+    let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    let unit = q.map(|c| c / norm);
+    let [roll, pitch, yaw] = origin::rpy_from_quaternion(q).unwrap();
+    let r = crate::spatial::rotation_from_rpy(roll, pitch, yaw);
+    let expected = quaternion_matrix(unit);
+    (0..3)
+        .flat_map(|i| (0..3).map(move |j| (i, j)))
+        .map(|(i, j)| (r[(i, j)] - expected[i][j]).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn quaternions_become_rpy_of_the_same_rotation() {
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    // Identity, quarter turns about each axis (pitch ±90° is the gimbal lock), a half turn, an
+    // unnormalised quaternion, and near-lock cases.
+    let special = [
+        [0.0, 0.0, 0.0, 1.0],
+        [h, 0.0, 0.0, h],
+        [0.0, h, 0.0, h],
+        [0.0, -h, 0.0, h],
+        [0.0, 0.0, h, h],
+        [0.0, 0.0, 1.0, 0.0],
+        [0.3, h, -0.2, h],
+        [0.0, 0.0, 1.0, 1.0],
+        [1e-9, h, 1e-9, h],
+        [0.0, h + 1e-9, 0.0, h],
+    ];
+    for q in special {
+        let err = rpy_error(q);
+        assert!(err <= 2e-8, "{q:?}: rotation differs by {err:e}");
+    }
+    assert_eq!(
+        origin::rpy_from_quaternion([0.0, 0.0, 0.0, 1.0]),
+        Some([0.0; 3])
+    );
+    assert_eq!(origin::rpy_from_quaternion([0.0; 4]), None);
+    assert_eq!(origin::rpy_from_quaternion([f64::MAX, 0.0, 0.0, 1.0]), None);
+    // Quaternions spread over the sphere (a fixed linear congruential sequence): away from the
+    // lock the rotation is reproduced to rounding.
+    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let mut worst: f64 = 0.0;
+    for _ in 0..2000 {
+        let q = [next(), next(), next(), next()];
+        worst = worst.max(rpy_error(q));
+    }
+    assert!(worst <= 1e-12, "worst rotation error {worst:e}");
+}
+
+#[test]
+fn quat_xyzw_gives_the_orientation_from_version_1_1() {
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let quarter_turn = format!("<origin xyz=\"1 2 3\" quat_xyzw=\"0 0 {h} {h}\"/>{LIMIT}");
+    let d = parse_description(&versioned("1.1", "", &quarter_turn), "t.urdf").unwrap();
+    let [x, y, z, roll, pitch, yaw] = d.joints[0].origin;
+    assert_eq!([x, y, z], [1.0, 2.0, 3.0]);
+    assert_eq!([roll, pitch], [0.0, 0.0]);
+    assert!((yaw - std::f64::consts::FRAC_PI_2).abs() <= 1e-15, "{yaw}");
+    // In the <inertial> too.
+    let inertial = versioned("1.2", "", LIMIT).replace(
+        "<inertial><mass",
+        &format!("<inertial><origin quat_xyzw=\"{h} 0 0 {h}\"/><mass"),
+    );
+    let d = parse_description(&inertial, "t.urdf").unwrap();
+    assert!((d.links[1].inertial.rpy[0] - std::f64::consts::FRAC_PI_2).abs() <= 1e-15);
+
+    // Version 1.0: ignored with a note, as urdfdom ignores it.
+    let old = parse_description(&arm("", &quarter_turn), "t.urdf").unwrap();
+    assert_eq!(old.joints[0].origin, [1.0, 2.0, 3.0, 0.0, 0.0, 0.0]);
+    assert!(
+        old.notes[0].starts_with("t.urdf:6: joint 'j' <origin quat_xyzw="),
+        "{:?}",
+        old.notes
+    );
+    assert!(old.notes[0].contains("ignored, as Pinocchio ignores it"));
+
+    // Errors: with rpy, a wrong count, zero length, not finite.
+    let with = |origin: &str| error(&versioned("1.1", "", &format!("{origin}{LIMIT}")));
+    assert!(
+        with("<origin rpy=\"0 0 1\" quat_xyzw=\"0 0 0 1\"/>").starts_with(
+            "t.urdf:6: joint 'j' <origin>: quat_xyzw=\"0 0 0 1\" is not allowed together with rpy"
+        )
+    );
+    assert!(with("<origin quat_xyzw=\"0 0 1\"/>").starts_with(
+        "t.urdf:6: joint 'j' <origin>: quat_xyzw=\"0 0 1\" is not four numbers x y z w"
+    ));
+    assert!(with("<origin quat_xyzw=\"0 0 0 0\"/>")
+        .starts_with("t.urdf:6: joint 'j' <origin>: quat_xyzw=\"0 0 0 0\" is not a rotation"));
+    assert!(with("<origin quat_xyzw=\"0 0 nan 1\"/>")
+        .starts_with("t.urdf:6: joint 'j' has the non-finite value NaN in <origin quat_xyzw>"));
+}
+
+#[test]
+fn limits_from_version_1_2() {
+    // Effort and velocity may be omitted: no limit.
+    let d = parse_description(
+        &versioned("1.2", "", "<limit lower=\"-1\" upper=\"2\"/>"),
+        "t.urdf",
+    )
+    .unwrap();
+    assert_eq!(d.joints[0].limits, [-1.0, 2.0]);
+    assert_eq!(d.joints[0].effort_velocity, [f64::INFINITY; 2]);
+    // A revolute joint needs lower and upper, in order.
+    let no_upper = versioned(
+        "1.2",
+        "",
+        "<limit lower=\"-1\" effort=\"1\" velocity=\"1\"/>",
+    );
+    assert!(error(&no_upper)
+        .starts_with("t.urdf:6: joint 'j' <limit> has no upper attribute; from URDF 1.2 on"));
+    let inverted = versioned("1.2", "", "<limit lower=\"1\" upper=\"-1\"/>");
+    assert!(error(&inverted)
+        .starts_with("t.urdf:6: joint 'j' <limit>: upper=\"-1\" is not ≥ lower: from URDF 1.2 on"));
+    let negative = versioned(
+        "1.2",
+        "",
+        "<limit lower=\"-1\" upper=\"1\" velocity=\"-1\"/>",
+    );
+    assert!(error(&negative).contains("velocity=\"-1\""));
+    // A continuous joint reads omitted lower and upper as no limit.
+    let continuous =
+        versioned("1.2", "", "<limit effort=\"3\"/>").replace("revolute", "continuous");
+    let d = parse_description(&continuous, "t.urdf").unwrap();
+    assert_eq!(d.joints[0].limits, [f64::NEG_INFINITY, f64::INFINITY]);
+    assert_eq!(d.joints[0].effort_velocity, [3.0, f64::INFINITY]);
+    // Version 1.1 keeps the 1.0 rules.
+    let old = versioned("1.1", "", "<limit lower=\"-1\" upper=\"2\"/>");
+    assert!(error(&old).starts_with("t.urdf:6: joint 'j' <limit> has no effort attribute"));
+}

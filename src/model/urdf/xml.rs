@@ -2,6 +2,7 @@
 //! whitespace, bytes that are not UTF-8), the nesting-depth limit, and typed access to elements
 //! and attributes that turns every problem into an error or a note with the file and line.
 
+use super::version::UrdfVersion;
 use crate::model::error::ModelError;
 use roxmltree::{Document, Node};
 
@@ -249,6 +250,8 @@ pub(super) struct Reader<'a, 'input> {
     namespace: Option<&'a str>,
     /// Non-fatal findings, each naming file, line and element.
     pub notes: Vec<String>,
+    /// The file's URDF version (`<robot version>`; 1.0 until the root has been read).
+    pub version: UrdfVersion,
 }
 
 /// A child element read once, with the line it was read from.
@@ -268,6 +271,7 @@ impl<'a, 'input> Reader<'a, 'input> {
             doc,
             namespace: root.tag_name().namespace(),
             notes: Vec::new(),
+            version: UrdfVersion::V1_0,
         }
     }
 
@@ -312,7 +316,8 @@ impl<'a, 'input> Reader<'a, 'input> {
     }
 
     /// An optional numeric attribute. `owner` is `link 'a'` or `joint 'j'`; `field` names the value
-    /// in a non-finite error (`<mass value>`).
+    /// in a non-finite error (`<mass value>`). Whitespace around the number is allowed (urdfdom,
+    /// and so Pinocchio, reads `value=" 2.5"`).
     pub fn number(
         &self,
         node: Node,
@@ -324,6 +329,7 @@ impl<'a, 'input> Reader<'a, 'input> {
             return Ok(None);
         };
         let value = text
+            .trim_ascii()
             .parse::<f64>()
             .map_err(|_| self.bad_number(node, owner, attribute, text, "a number"))?;
         self.finite(node, owner, field, &[value])?;
@@ -338,23 +344,37 @@ impl<'a, 'input> Reader<'a, 'input> {
         attribute: &'static str,
         field: &str,
     ) -> Result<Option<[f64; 3]>, ModelError> {
+        self.vector(
+            node,
+            owner,
+            attribute,
+            field,
+            "three numbers separated by spaces",
+        )
+    }
+
+    /// An optional attribute of `N` finite numbers separated by whitespace; `expected` says what
+    /// a bad value should have been (`"four numbers x y z w separated by spaces"`).
+    pub fn vector<const N: usize>(
+        &self,
+        node: Node,
+        owner: &str,
+        attribute: &'static str,
+        field: &str,
+        expected: &'static str,
+    ) -> Result<Option<[f64; N]>, ModelError> {
         let Some(text) = node.attribute(attribute) else {
             return Ok(None);
         };
-        let values = parse_vector3(text).ok_or_else(|| {
-            self.bad_number(
-                node,
-                owner,
-                attribute,
-                text,
-                "three numbers separated by spaces",
-            )
-        })?;
+        let values = parse_vector::<N>(text)
+            .ok_or_else(|| self.bad_number(node, owner, attribute, text, expected))?;
         self.finite(node, owner, field, &values)?;
         Ok(Some(values))
     }
 
-    fn bad_number(
+    /// A [`ModelError::BadNumber`] for `attribute="text"` of `node`, which should have been
+    /// `expected`.
+    pub fn bad_number(
         &self,
         node: Node,
         owner: &str,
@@ -433,11 +453,15 @@ impl<'a, 'input> Reader<'a, 'input> {
 
 /// Three numbers separated by ASCII whitespace, or `None`.
 pub(super) fn parse_vector3(text: &str) -> Option<[f64; 3]> {
+    parse_vector::<3>(text)
+}
+
+/// Exactly `N` numbers separated by ASCII whitespace, or `None`.
+fn parse_vector<const N: usize>(text: &str) -> Option<[f64; N]> {
     let mut parts = text.split_ascii_whitespace().map(str::parse::<f64>);
-    let values = [
-        parts.next()?.ok()?,
-        parts.next()?.ok()?,
-        parts.next()?.ok()?,
-    ];
+    let mut values = [0.0; N];
+    for value in &mut values {
+        *value = parts.next()?.ok()?;
+    }
     parts.next().is_none().then_some(values)
 }
