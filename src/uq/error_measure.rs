@@ -26,6 +26,11 @@ pub struct EnvelopeError {
     pub argmax: usize,
     /// `max_t max(|lower − lower_ref|, |upper − upper_ref|)`, in the output's unit.
     pub max_abs: f64,
+    /// The largest share of the reference's range the envelope misses, `max_t max(lower −
+    /// lower_ref, upper_ref − upper, 0)` over the same denominator as `e(t)`: against a reference
+    /// made of true runs (an inner bound) this is the part of the error that is certainly wrong,
+    /// where `e(t)` also counts an envelope wider than runs the reference happened to make.
+    pub max_missed: f64,
 }
 
 /// Computes [`EnvelopeError`] from four equally long time series.
@@ -38,6 +43,8 @@ pub struct EnvelopeError {
 /// let e = envelope_error(&lower, &upper, &lower_ref, &upper_ref)?;
 /// assert_eq!(e.per_time, vec![0.0, 0.125, 0.125]);
 /// assert_eq!((e.max, e.argmax, e.max_abs), (0.125, 1, 0.5));
+/// // Only the upper side at t = 2 is wider; the lower side at t = 1 is wider too: nothing missed.
+/// assert_eq!(e.max_missed, 0.0);
 /// assert!((e.mean - 0.25 / 3.0).abs() < 1e-15);
 /// # Ok::<(), ribbon::uq::UqError>(())
 /// ```
@@ -101,12 +108,18 @@ pub fn envelope_error(
     let floor = WIDTH_FLOOR_FRACTION * max_width;
     let mut per_time = Vec::with_capacity(n);
     let mut max_abs: f64 = 0.0;
+    let mut max_missed: f64 = 0.0;
     for t in 0..n {
         let deviation = (lower[t] - lower_ref[t])
             .abs()
             .max((upper[t] - upper_ref[t]).abs());
         max_abs = max_abs.max(deviation);
-        per_time.push(deviation / (upper_ref[t] - lower_ref[t]).max(floor));
+        let denominator = (upper_ref[t] - lower_ref[t]).max(floor);
+        per_time.push(deviation / denominator);
+        let missed = (lower[t] - lower_ref[t])
+            .max(upper_ref[t] - upper[t])
+            .max(0.0);
+        max_missed = max_missed.max(missed / denominator);
     }
     let (argmax, max) =
         per_time
@@ -127,6 +140,7 @@ pub fn envelope_error(
         mean,
         argmax,
         max_abs,
+        max_missed,
     })
 }
 
