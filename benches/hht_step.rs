@@ -456,8 +456,10 @@ criterion_main!(benches);
 
 /// The cost of the adaptive step against the fixed one on the shipped robots with their own scenes
 /// (issue 12 §3: within 10 %): each scene's whole run, fixed and adaptive alternately, best of
-/// `REPEATS` each; printed as a ratio with the sub-steps and the largest error measure the adaptive
-/// run saw (≤ 1 means no sub-step was needed at the default tolerance).
+/// `REPEATS` each, at the default tolerance and at 1e-6; printed as a ratio with the sub-steps and
+/// the largest error measure the adaptive run saw (≤ 1 means no sub-step was needed). On a loaded
+/// machine the wall-clock ratio is noisy (0.67–1.20 measured for identical work); the instruction
+/// counts of docs/step-control.md §5 are the stable number.
 fn compare_step_control() {
     const REPEATS: usize = 7;
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("robots");
@@ -475,30 +477,32 @@ fn compare_step_control() {
         scene.apply_gravity(&mut model);
         let q0 = DVector::from_column_slice(&scene.initial_q);
         let v0 = DVector::from_column_slice(&scene.initial_v);
-        let mut best = [Duration::MAX; 2];
-        let mut stats = [None, None];
-        for _ in 0..REPEATS {
-            for (k, control) in [StepControl::Fixed, StepControl::Adaptive]
-                .into_iter()
-                .enumerate()
-            {
-                let mut system = RobotSystem::new(model.clone(), &scene);
-                let settings = HhtSettings {
-                    step_control: control,
-                    ..hht_settings(&scene)
-                };
-                let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0)
-                    .expect("consistent start");
-                let start = Instant::now();
-                for _ in 0..scene.n_steps {
-                    hht.step(&mut system).expect("step converges");
+        for tolerance in [hht_settings(&scene).tolerance, 1e-6] {
+            let mut best = [Duration::MAX; 2];
+            let mut stats = [None, None];
+            for _ in 0..REPEATS {
+                for (k, control) in [StepControl::Fixed, StepControl::Adaptive]
+                    .into_iter()
+                    .enumerate()
+                {
+                    let mut system = RobotSystem::new(model.clone(), &scene);
+                    let settings = HhtSettings {
+                        step_control: control,
+                        tolerance,
+                        ..hht_settings(&scene)
+                    };
+                    let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0)
+                        .expect("consistent start");
+                    let start = Instant::now();
+                    for _ in 0..scene.n_steps {
+                        hht.step(&mut system).expect("step converges");
+                    }
+                    best[k] = best[k].min(start.elapsed());
+                    stats[k] = Some(*hht.stats());
                 }
-                best[k] = best[k].min(start.elapsed());
-                stats[k] = Some(*hht.stats());
             }
-        }
-        let adaptive = stats[1].expect("ran");
-        println!(
+            let adaptive = stats[1].expect("ran");
+            println!(
             "step_control/{name}: {} steps; fixed {:.3} ms, adaptive {:.3} ms: ratio {:.3}; adaptive sub-steps {}, largest error measure {:.2e} (tolerance {:.0e})",
             scene.n_steps,
             best[0].as_secs_f64() * 1e3,
@@ -506,7 +510,8 @@ fn compare_step_control() {
             best[1].as_secs_f64() / best[0].as_secs_f64(),
             adaptive.substeps,
             adaptive.max_error_estimate,
-            hht_settings(&scene).tolerance
+            tolerance
         );
+        }
     }
 }

@@ -1563,3 +1563,23 @@ fn hermite_root(g0: f64, d0: f64, g1: f64, d1: f64) -> (f64, f64) {
     }
     (hi, slope(hi))
 }
+
+#[cfg(test)]
+mod step_control_tests {
+    use super::hermite_root;
+
+    #[test]
+    fn hermite_root_finds_the_crossing_and_its_slope() {
+        // A straight line g(θ) = 0.3 − θ (rate −1 per unit θ): the root 0.3, slope −1.
+        let (theta, slope) = hermite_root(0.3, -1.0, -0.7, -1.0);
+        assert!((theta - 0.3).abs() < 1e-15 && (slope + 1.0).abs() < 1e-12);
+        // A parabola g(θ) = 0.25 − θ² (g' = −2θ): root 0.5, slope −1; the cubic Hermite through a
+        // parabola's values and slopes is the parabola itself.
+        let (theta, slope) = hermite_root(0.25, 0.0, -0.75, -2.0);
+        assert!((theta - 0.5).abs() < 1e-15 && (slope + 1.0).abs() < 1e-12);
+        // Starting exactly on the limit and moving in at zero speed: the root at 0 with slope 0
+        // (not an impact; resting contact is the penalty's).
+        let (theta, slope) = hermite_root(0.0, 0.0, -1e-6, -2e-6);
+        assert!(theta < 1e-15 && slope.abs() < 1e-12);
+    }
+}
