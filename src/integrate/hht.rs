@@ -684,6 +684,8 @@ impl HhtIntegrator {
                     plain = false;
                     accepted += 1;
                     locate_attempts = 0;
+                    // The short located step says nothing about the motion after the impact.
+                    self.control.h_next = h_grid;
                     continue;
                 }
             }
