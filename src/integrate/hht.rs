@@ -339,6 +339,13 @@ impl StepControlState {
 /// by the step anyway.
 pub const PREDICTOR_MAX_ACCELERATION_DISPLACEMENT: f64 = 1e-2;
 
+/// Most attempts (accepted and rejected sub-steps, retries, located impact steps) within one grid
+/// step. A plain step is one attempt; the hardest case of `tests/stability.rs` (an elbow spring of
+/// 1e8 N·m/rad released 0.1 rad from rest, resolved adaptively) needs ~350. At the ~2–10 µs of an
+/// arm's sub-step 1e5 attempts are 0.2–1 s: also the bound on the work between two interruption
+/// checks of a run (which check before every grid step).
+pub const MAX_ATTEMPTS_PER_STEP: u64 = 100_000;
+
 /// Where an impact may sit in a step: a crossing located at `θ` of the step is accepted as located
 /// when the rest of the step, `(1 − θ) h`, is below this fraction of the grid step (1e-6: at
 /// 500 rad/s and h = 1 ms, 5e-7 rad past the limit before the impact law puts the joint back on it).
@@ -616,10 +623,20 @@ impl HhtIntegrator {
         // The fixed step retries a failed attempt only while it is locating an impact (the short
         // located steps are not grid steps); any other failure is reported as it is.
         let mut near_impact = false;
+        let mut attempts: u64 = 0;
         loop {
             let remaining = t_end - self.state.t;
             if remaining <= END_OF_INTERVAL_FRACTION * h_grid {
                 break;
+            }
+            attempts += 1;
+            if attempts > MAX_ATTEMPTS_PER_STEP {
+                return Err(IntegrateError::TooManySubsteps {
+                    t: t_end,
+                    step,
+                    attempts: MAX_ATTEMPTS_PER_STEP,
+                    smallest_s: self.stats.smallest_step_s,
+                });
             }
             let planned = self.control.h_next.clamp(h_min, h_grid);
             let mut h = planned.min(remaining);

@@ -50,7 +50,7 @@ pub(crate) mod tests;
 pub use error::{IntegrateError, SystemError, WorstEntry};
 pub use hht::{
     iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtState, HhtStats, HhtTrajectory,
-    StepControlState, IMPACT_LOCATE_FRACTION, IMPACT_MIN_SPEED,
+    StepControlState, IMPACT_LOCATE_FRACTION, IMPACT_MIN_SPEED, MAX_ATTEMPTS_PER_STEP,
     PREDICTOR_MAX_ACCELERATION_DISPLACEMENT,
 };
 pub use linalg::SINGULAR_PIVOT_RELATIVE;

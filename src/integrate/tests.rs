@@ -1506,3 +1506,29 @@ fn steps_allocate_nothing() {
     println!("allocations in 200 steps: tree {tree}, constrained with projection {constrained}");
     assert_eq!((tree, constrained), (0, 0));
 }
+
+/// A tolerance no step can meet makes the adaptive step sub-step down to its floor; the attempts
+/// within one grid step are capped, and the error says what happened.
+#[test]
+fn sub_step_attempts_per_grid_step_are_bounded() {
+    let mut sys = Oscillator {
+        mass_kg: 1.0,
+        stiffness: 4.0,
+        damping: 0.0,
+    };
+    let settings = HhtSettings {
+        step_control: crate::integrate::StepControl::Adaptive,
+        tolerance: 1e-300,
+        ..HhtSettings::default()
+    };
+    let mut hht =
+        HhtIntegrator::new(&mut sys, settings, 0.0, &dvec(&[1.0]), &dvec(&[0.0])).unwrap();
+    let err = hht.step(&mut sys).unwrap_err();
+    println!("{err}");
+    assert!(
+        matches!(err, IntegrateError::TooManySubsteps { attempts, .. } if attempts == crate::integrate::MAX_ATTEMPTS_PER_STEP)
+    );
+    assert!(err
+        .to_string()
+        .contains("smaller step or a looser tolerance"));
+}
