@@ -15,7 +15,9 @@ mod limits;
 mod springs;
 
 pub use friction::FRICTION_SMOOTHING_VELOCITY;
-pub use limits::{JOINT_LIMIT_DAMPING, JOINT_LIMIT_STIFFNESS};
+pub use limits::{
+    LimitEvent, LimitSide, JOINT_LIMIT_DAMPING, JOINT_LIMIT_DAMPING_DEPTH, JOINT_LIMIT_STIFFNESS,
+};
 
 use crate::model::{JointKind, Model};
 use crate::scene::Scene;
@@ -68,7 +70,7 @@ impl Effects {
                 .then(|| springs::JointSprings::new(model, &scene.springs)),
             limits: e
                 .joint_limits
-                .then(|| limits::JointLimits::new(model, &joints)),
+                .then(|| limits::JointLimits::new(model, &joints, scene.limit_restitution)),
         }
     }
 
@@ -78,6 +80,32 @@ impl Effects {
             && self.friction.is_none()
             && self.springs.is_none()
             && self.limits.is_none()
+    }
+
+    /// Number of unilateral limit events (two per joint with finite limits when `joint_limits` is
+    /// declared, else 0).
+    pub fn n_limit_events(&self) -> usize {
+        self.limits.as_ref().map_or(0, |l| l.n_events())
+    }
+
+    /// Limit event `k` (`0..n_limit_events()`) at the model's current limit values.
+    pub fn limit_event(&self, model: &Model, k: usize) -> Option<LimitEvent> {
+        self.limits.as_ref().and_then(|l| l.event(model, k))
+    }
+
+    /// Gaps (allowed side ≥ 0, rad or m) and rates of every limit event (`q: dim nq`, `v: dim nv`,
+    /// `gaps`, `rates`: dim `n_limit_events()`, overwritten).
+    pub fn limit_gaps(
+        &self,
+        model: &Model,
+        q: &[f64],
+        v: &[f64],
+        gaps: &mut [f64],
+        rates: &mut [f64],
+    ) {
+        if let Some(l) = &self.limits {
+            l.gaps(model, q, v, gaps, rates);
+        }
     }
 
     /// Adds the effects' generalised forces to `out` (`q: dim nq`, `v, out: dim nv`).
@@ -116,7 +144,7 @@ impl Effects {
             e.add_diagonal(stiffness, damping);
         }
         if let Some(e) = &self.limits {
-            e.add_diagonal(model, q, stiffness, damping);
+            e.add_diagonal(model, q, v, stiffness, damping);
         }
     }
 }

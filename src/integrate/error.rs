@@ -112,6 +112,24 @@ pub enum IntegrateError {
         /// What the valid range is.
         reason: &'static str,
     },
+    /// One grid step needed more sub-step attempts than [`MAX_ATTEMPTS_PER_STEP`](super::MAX_ATTEMPTS_PER_STEP)
+    /// (adaptive sub-steps, retries, impacts): the motion is far faster than the step, or a Zeno
+    /// sequence of impacts. Also the bound on the work between two interruption checks.
+    #[error(
+        "the step to t = {t} s (step {step}) needed more than {attempts} sub-step attempts \
+         (smallest sub-step {smallest_s:.3e} s): the motion is far faster than the step of the \
+         scene; use a smaller step or a looser tolerance, or check the stiffness and the limits"
+    )]
+    TooManySubsteps {
+        /// Time of the grid step, s.
+        t: f64,
+        /// Grid step number.
+        step: u64,
+        /// The attempts made.
+        attempts: u64,
+        /// The smallest sub-step accepted so far, s.
+        smallest_s: f64,
+    },
     /// An argument or a system output has the wrong size.
     #[error("dimension mismatch for {what}: expected {expected}, got {got}")]
     DimensionMismatch {

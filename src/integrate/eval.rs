@@ -186,3 +186,50 @@ pub(crate) fn check_dimensions<S: DaeSystem + ?Sized>(
     }
     Ok(())
 }
+
+/// `stiffness (nv × nv) = ∂r/∂q`, `damping (nv × nv) = ∂r/∂q̇` of `r = M q̈ + Φ_qᵀλ − Q`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn residual_jacobians<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    qdd: &DVector<f64>,
+    lambda: &DVector<f64>,
+    stiffness: &mut DMatrix<f64>,
+    damping: &mut DMatrix<f64>,
+) -> Result<(), IntegrateError> {
+    sys.residual_jacobians(at.t, q, v, qdd, lambda, stiffness, damping)
+        .map_err(at.system_error("residual_jacobians"))?;
+    at.check_finite("residual_jacobians.stiffness", stiffness.iter())?;
+    at.check_finite("residual_jacobians.damping", damping.iter())
+}
+
+/// `gaps (n_events) = g(q)`, `rates (n_events) = ġ(q, v)` of the unilateral limits.
+pub(crate) fn event_gaps<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    gaps: &mut DVector<f64>,
+    rates: &mut DVector<f64>,
+) -> Result<(), IntegrateError> {
+    sys.event_gaps(at.t, q, v, gaps, rates)
+        .map_err(at.system_error("event_gaps"))?;
+    at.check_finite("event_gaps", gaps.iter())?;
+    at.check_finite("event_gaps.rates", rates.iter())
+}
+
+/// The impact law of limit `event` at `(q, v)` (both overwritten).
+pub(crate) fn apply_impact<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    event: usize,
+    q: &mut DVector<f64>,
+    v: &mut DVector<f64>,
+) -> Result<(), IntegrateError> {
+    sys.apply_impact(at.t, event, q, v)
+        .map_err(at.system_error("apply_impact"))?;
+    at.check_finite("apply_impact.q", q.iter())?;
+    at.check_finite("apply_impact.v", v.iter())
+}

@@ -12,9 +12,14 @@
 //! constraint drift). It works on any system implementing the narrow trait [`DaeSystem`]; it knows
 //! nothing about robots.
 //!
-//! What it does not do (yet): adaptive steps (the step is fixed and shared by every sample of a
-//! study), a full Newton Jacobian (only `M`, `Φ_q` and the diagonal terms of `∂Q/∂q`, `∂Q/∂q̇`), and
-//! the perturbed starting value of Arnold & Brüls for second-order multipliers from the very first
+//! Step control (docs/step-control.md): the Newton matrix is the cheap diagonal one (`M`, `Φ_q`,
+//! the effects' diagonal terms) until it fails, then the full `M + β'h² K_t + γ'h D_t`
+//! ([`NewtonMatrix`]); a failed step is retried as halves; [`StepControl::Adaptive`] sub-steps each
+//! grid interval by a local error estimate; crossings of unilateral limits (joint limits) are
+//! located and the system's impact law applied. Every call of [`HhtIntegrator::step`] still ends on
+//! the grid `t0 + n h`.
+//!
+//! What it does not do (yet): the perturbed starting value of Arnold & Brüls for second-order multipliers from the very first
 //! steps (`a_0 = q̈_0` here: `λ` and `q̈` carry an O(h) transient that the numerical damping removes
 //! within a few dozen steps).
 //!
@@ -45,13 +50,19 @@ pub(crate) mod tests;
 pub use error::{IntegrateError, SystemError, WorstEntry};
 pub use hht::{
     iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtState, HhtStats, HhtTrajectory,
+    StepControlState, IMPACT_LOCATE_FRACTION, IMPACT_MIN_SPEED, MAX_ATTEMPTS_PER_STEP,
+    PREDICTOR_MAX_ACCELERATION_DISPLACEMENT,
 };
 pub use linalg::SINGULAR_PIVOT_RELATIVE;
 pub use sensitivity::{
     HhtSensitivity, SensitivityError, SensitivityStats, JACOBIAN_FD_STEP, PARAMETER_FD_STEP,
     PROJECTION_FD_STEP,
 };
-pub use settings::{HhtCoefficients, HhtSettings, ALPHA_MIN, ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS};
+pub use settings::{
+    HhtCoefficients, HhtSettings, NewtonMatrix, StepControl, ALPHA_MIN,
+    ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS, DEFAULT_STEP_HALVINGS, DEFAULT_STEP_TOLERANCE,
+    FULL_NEWTON_HOLD_STEPS, MAX_STEP_HALVINGS,
+};
 pub use start::{
     consistent_start, ConsistentStart, REDUNDANT_ROW_RELATIVE_SV, START_CONSTRAINT_TOL,
     START_MAX_ITERATIONS,

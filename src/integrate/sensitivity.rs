@@ -81,6 +81,21 @@ pub enum SensitivityError {
         /// The sensitivities' step count.
         sensitivity_step: u64,
     },
+    /// The grid step just taken was not one plain HHT step of `h`: it was subdivided (a Newton
+    /// failure retried as halves, adaptive sub-steps) or contained an impact. The differentiated
+    /// step covers plain steps only; an impact's jump would need its own derivative (a saltation
+    /// matrix), which is not implemented.
+    #[error(
+        "forward sensitivities cover plain steps only, but the step to t = {t} s was subdivided or          contained an impact ({substeps} sub-steps, {impacts} impacts so far): use the fixed step          with a step small enough that Newton converges, and no joint-limit impacts"
+    )]
+    SubdividedStep {
+        /// Time reached, s.
+        t: f64,
+        /// Sub-steps of the trajectory so far.
+        substeps: u64,
+        /// Impacts of the trajectory so far.
+        impacts: u64,
+    },
 }
 
 /// Counters of one sensitivity run.
@@ -573,6 +588,14 @@ impl HhtSensitivity {
         }
         self.v_before.copy_from(integrator.newmark_velocity());
         integrator.step(system)?;
+        if !integrator.control().last_step_plain {
+            let stats = integrator.stats();
+            return Err(SensitivityError::SubdividedStep {
+                t: integrator.state().t,
+                substeps: stats.substeps,
+                impacts: stats.impacts,
+            });
+        }
         self.step += 1;
         self.reported_fresh = false;
         if self.p > 0 {

@@ -233,6 +233,48 @@ pub trait DaeSystem {
         Ok(())
     }
 
+    /// Number of unilateral limits `g_k(q) ≥ 0` the integrator watches for impacts
+    /// (docs/step-control.md §4). Default 0: the integrator then never calls [`event_gaps`](Self::event_gaps) or
+    /// [`apply_impact`](Self::apply_impact).
+    fn n_events(&self) -> usize {
+        0
+    }
+
+    /// The gaps `g_k(q)` (allowed side `g ≥ 0`, m or rad) and their rates `ġ_k = ∂g_k/∂q · q̇` of
+    /// every unilateral limit. A step that starts with `g_k ≥ 0` and ends with `g_k < 0`, crossing
+    /// at an approach speed `−ġ_k` of at least [`IMPACT_MIN_SPEED`](super::IMPACT_MIN_SPEED), is an
+    /// impact: the integrator locates it and calls [`apply_impact`](Self::apply_impact).
+    ///
+    /// - `t`: s; `q`: dim `nq`; `v`: dim `nv`; `gaps_out`, `rates_out`: dim `n_events`, overwritten.
+    fn event_gaps(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        gaps_out: &mut DVector<f64>,
+        rates_out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        let _ = (t, q, v, gaps_out, rates_out);
+        Err("event_gaps is not implemented but n_events() > 0".into())
+    }
+
+    /// The impact law of limit `event` at the located contact state: moves `q` onto the limit
+    /// (`g_event = 0`; a correction of rounding size) and replaces `v` by the post-impact velocity
+    /// (restitution, never more kinetic energy than before). The integrator then restarts from
+    /// `(t, q, v)` with a consistent start.
+    ///
+    /// - `t`: s; `event`: `0..n_events()`; `q`: dim `nq`, `v`: dim `nv`, both overwritten.
+    fn apply_impact(
+        &mut self,
+        t: f64,
+        event: usize,
+        q: &mut DVector<f64>,
+        v: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        let _ = (t, event, q, v);
+        Err("apply_impact is not implemented but n_events() > 0".into())
+    }
+
     /// Whether [`residual_jacobians`](Self::residual_jacobians) is implemented. Default `false`: a
     /// user that needs the full Jacobians (the forward sensitivities of
     /// [`HhtSensitivity`](super::HhtSensitivity)) then forms them by central differences of the

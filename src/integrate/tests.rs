@@ -868,6 +868,7 @@ fn stiff_spring_converges_with_diagonal_terms() {
 #[test]
 fn stiff_spring_fails_without_diagonal_terms() {
     let mut sys = stiff();
+    // The fixed step reports the failure at once.
     let settings = HhtSettings {
         newton_diagonal_terms: false,
         ..HhtSettings::default()
@@ -885,6 +886,26 @@ fn stiff_spring_fails_without_diagonal_terms() {
         other => panic!("expected NewtonNotConverged, got {other}"),
     }
     assert_eq!(hht.state().step, 0, "state left at t_n on failure");
+
+    // The adaptive step retries a failed sub-step with half its size: the same step succeeds as
+    // sub-steps, and says so.
+    let retry = HhtSettings {
+        newton_diagonal_terms: false,
+        newton_matrix: crate::integrate::NewtonMatrix::Diagonal,
+        step_control: crate::integrate::StepControl::Adaptive,
+        ..HhtSettings::default()
+    };
+    let mut sys = stiff();
+    let mut hht = HhtIntegrator::new(&mut sys, retry, 0.0, &dvec(&[0.1]), &dvec(&[0.0])).unwrap();
+    hht.step(&mut sys).expect("halving rescues the step");
+    let st = hht.stats();
+    println!(
+        "without diagonal terms, halving: {} failed attempts, {} sub-steps, smallest {:.3e} s",
+        st.step_failures, st.substeps, st.smallest_step_s
+    );
+    assert!(st.step_failures > 0 && st.substeps > 1);
+    assert!(!hht.control().last_step_plain);
+    assert!((hht.state().t - 1e-3).abs() < 1e-15, "ends on the grid");
 }
 
 /// A moderately stiff spring that plain modified Newton still handles, but at a cost: count the
@@ -1484,4 +1505,30 @@ fn steps_allocate_nothing() {
     let constrained = alloc_counter::allocations() - before;
     println!("allocations in 200 steps: tree {tree}, constrained with projection {constrained}");
     assert_eq!((tree, constrained), (0, 0));
+}
+
+/// A tolerance no step can meet makes the adaptive step sub-step down to its floor; the attempts
+/// within one grid step are capped, and the error says what happened.
+#[test]
+fn sub_step_attempts_per_grid_step_are_bounded() {
+    let mut sys = Oscillator {
+        mass_kg: 1.0,
+        stiffness: 4.0,
+        damping: 0.0,
+    };
+    let settings = HhtSettings {
+        step_control: crate::integrate::StepControl::Adaptive,
+        tolerance: 1e-300,
+        ..HhtSettings::default()
+    };
+    let mut hht =
+        HhtIntegrator::new(&mut sys, settings, 0.0, &dvec(&[1.0]), &dvec(&[0.0])).unwrap();
+    let err = hht.step(&mut sys).unwrap_err();
+    println!("{err}");
+    assert!(
+        matches!(err, IntegrateError::TooManySubsteps { attempts, .. } if attempts == crate::integrate::MAX_ATTEMPTS_PER_STEP)
+    );
+    assert!(err
+        .to_string()
+        .contains("smaller step or a looser tolerance"));
 }

@@ -8,6 +8,7 @@
 mod budget;
 mod constraints;
 mod outputs;
+mod step_control;
 
 pub use budget::{
     check_step_count, check_threads, format_bytes, MAX_STEPS, MAX_THREADS, MEMORY_BUDGET_BYTES,
@@ -188,6 +189,17 @@ pub struct Scene {
     pub alpha: f64,
     /// Post-step velocity projection (with constraint rows).
     pub velocity_projection: bool,
+    /// How the integrator chooses its step (`[scene] step_control`; default fixed).
+    pub step_control: crate::integrate::StepControl,
+    /// Local error tolerance of the adaptive step, rad or m per step (`[scene] tolerance`; default
+    /// [`crate::integrate::DEFAULT_STEP_TOLERANCE`]).
+    pub step_tolerance: f64,
+    /// Coefficient of restitution of joint-limit impacts in `[0, 1]` (`[scene] limit_restitution`;
+    /// default 0, plastic).
+    pub limit_restitution: f64,
+    /// Most halvings of a grid step by the integrator (sub-steps never below the smallest step,
+    /// [`budget::MIN_STEP_S`]).
+    pub max_step_halvings: u32,
     /// Gravity in the world frame, m/s² (applied only when `effects.gravity`).
     pub gravity: [f64; 3],
     /// Simulated effects.
@@ -463,6 +475,7 @@ impl Scene {
                 "every value must be finite".to_string(),
             ));
         }
+        let step_values = step_control::resolve(s, effects.joint_limits, step_s, path)?;
         let outputs = outputs::resolve(&file.outputs, model, &constraints, path)?;
         Ok(Scene {
             duration_s,
@@ -470,6 +483,10 @@ impl Scene {
             n_steps,
             alpha,
             velocity_projection: s.velocity_projection.unwrap_or(true),
+            step_control: step_values.control,
+            step_tolerance: step_values.tolerance,
+            limit_restitution: step_values.limit_restitution,
+            max_step_halvings: step_values.max_step_halvings,
             gravity,
             effects,
             springs,

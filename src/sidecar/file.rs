@@ -42,6 +42,12 @@ pub struct SceneSection {
     pub base: Option<String>,
     /// Post-step velocity projection when there are constraint rows.
     pub velocity_projection: Option<bool>,
+    /// `"fixed"` (default) or `"adaptive"`: how the integrator chooses its step.
+    pub step_control: Option<String>,
+    /// Local error tolerance of the adaptive step, rad or m per step.
+    pub tolerance: Option<f64>,
+    /// Coefficient of restitution of joint-limit impacts, 0 (plastic) to 1 (elastic).
+    pub limit_restitution: Option<f64>,
     /// Gravity in the world frame, m/s².
     pub gravity: Option<[f64; 3]>,
     /// Effect names.

@@ -241,7 +241,7 @@ pub fn integrate_exit_code(source: &IntegrateError) -> u8 {
                 1
             }
         }
-        IntegrateError::NewtonNotConverged { .. } => 1,
+        IntegrateError::NewtonNotConverged { .. } | IntegrateError::TooManySubsteps { .. } => 1,
     }
 }
 

@@ -33,6 +33,9 @@ pub fn hht_settings(scene: &Scene) -> HhtSettings {
         alpha: scene.alpha,
         step_s: scene.step_s,
         velocity_projection: scene.velocity_projection,
+        step_control: scene.step_control,
+        tolerance: scene.step_tolerance,
+        max_step_halvings: scene.max_step_halvings,
         ..HhtSettings::default()
     }
 }

@@ -363,6 +363,97 @@ impl DaeSystem for RobotSystem {
         Ok(())
     }
 
+    fn n_events(&self) -> usize {
+        self.effects.n_limit_events()
+    }
+
+    /// Joint limits as unilateral constraints: `g = q_j − lower` and `g = upper − q_j`.
+    fn event_gaps(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        gaps_out: &mut DVector<f64>,
+        rates_out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.effects.limit_gaps(
+            &self.model,
+            q.as_slice(),
+            v.as_slice(),
+            gaps_out.as_mut_slice(),
+            rates_out.as_mut_slice(),
+        );
+        Ok(())
+    }
+
+    /// The joint-limit impact law (docs/step-control.md §4): the joint is put on its limit and the
+    /// velocity jumps by the impulse that turns the joint's approach speed `−ġ⁻` into a separation
+    /// speed `e·(−ġ⁻)` while keeping every constraint row's velocity:
+    ///
+    /// ```text
+    /// [ M    wᵀ  Φ_qᵀ ] [Δq̇]   [ 0            ]
+    /// [ w    0   0    ] [ν  ] = [ −(1 + e) ġ⁻  ]      w = ∂g/∂q (±1 at the joint)
+    /// [ Φ_q  0   0    ] [μ  ]   [ 0            ]
+    /// ```
+    ///
+    /// Kinetic energy changes by `−½ (1 − e²) (ġ⁻)² / (w M_c⁻¹ wᵀ) ≤ 0` (`M_c`: `M` restricted to
+    /// the constraint-consistent velocities). Allocates (impacts are rare).
+    fn apply_impact(
+        &mut self,
+        _t: f64,
+        event: usize,
+        q: &mut DVector<f64>,
+        v: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        let limit = self
+            .effects
+            .limit_event(&self.model, event)
+            .ok_or_else(|| format!("joint-limit event {event} does not exist"))?;
+        let sign = match limit.side {
+            crate::effects::LimitSide::Lower => 1.0,
+            crate::effects::LimitSide::Upper => -1.0,
+        };
+        let approach_rate = sign * v[limit.v_index];
+        if approach_rate >= 0.0 {
+            // Already separating: nothing to do but keep the joint inside.
+            q[limit.q_index] = limit.limit;
+            return Ok(());
+        }
+        let (nv, m) = (self.model.nv, self.constraints.len());
+        let n = nv + 1 + m;
+        let mut kkt = DMatrix::zeros(n, n);
+        kkt.view_mut((0, 0), (nv, nv))
+            .copy_from(crba(&self.model, &mut self.data, q.as_slice()));
+        kkt[(limit.v_index, nv)] = sign;
+        kkt[(nv, limit.v_index)] = sign;
+        if m > 0 {
+            let mut phi_q = DMatrix::zeros(m, nv);
+            self.constraints
+                .jacobian(&self.model, &mut self.data, q.as_slice(), &mut phi_q);
+            for r in 0..m {
+                for j in 0..nv {
+                    kkt[(j, nv + 1 + r)] = phi_q[(r, j)];
+                    kkt[(nv + 1 + r, j)] = phi_q[(r, j)];
+                }
+            }
+        }
+        let mut rhs = DVector::zeros(n);
+        rhs[nv] = -(1.0 + limit.restitution) * approach_rate;
+        let solution = kkt.lu().solve(&rhs).ok_or_else(|| {
+            let name = &self.model.description.joints[limit.source].name;
+            format!(
+                "joint '{name}': the impact at its limit {} cannot be resolved (the limit's direction \
+                 is blocked by the constraint rows or the mass matrix is singular)",
+                limit.limit
+            )
+        })?;
+        for j in 0..nv {
+            v[j] += solution[j];
+        }
+        q[limit.q_index] = limit.limit;
+        Ok(())
+    }
+
     fn provides_residual_jacobians(&self) -> bool {
         true
     }

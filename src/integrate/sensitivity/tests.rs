@@ -558,3 +558,34 @@ fn misuse_is_refused_clearly() {
         "{message}"
     );
 }
+
+/// The adaptive step covers plain steps at its default tolerance (the sensitivities then work as
+/// with the fixed step) and refuses clearly once a grid step is subdivided.
+#[test]
+fn subdivided_steps_are_refused_and_plain_adaptive_steps_differentiated() {
+    let q0 = DVector::from_element(1, 1.1);
+    let v0 = DVector::from_element(1, -0.4);
+    let system = Oscillator {
+        offset: [0.0; 2],
+        analytic_jacobians: true,
+    };
+    // Default tolerance: every grid step is one plain step, identical to the fixed step's.
+    let fixed = tight(1e-3);
+    let adaptive = HhtSettings {
+        step_control: crate::integrate::StepControl::Adaptive,
+        ..fixed
+    };
+    let (direct_fixed, _) = sensitivities(&system, fixed, &q0, &v0, 200, 50);
+    let (direct_adaptive, _) = sensitivities(&system, adaptive, &q0, &v0, 200, 50);
+    assert_eq!(direct_fixed, direct_adaptive);
+    // A tolerance that forces sub-steps: refused with the reason.
+    let mut system = system;
+    let tight_tolerance = HhtSettings {
+        tolerance: 1e-12,
+        ..adaptive
+    };
+    let mut hht = HhtIntegrator::new(&mut system, tight_tolerance, 0.0, &q0, &v0).unwrap();
+    let mut sens = HhtSensitivity::new(&mut system, &hht, &q0, &v0).unwrap();
+    let message = sens.step(&mut system, &mut hht).unwrap_err().to_string();
+    assert!(message.contains("plain steps only"), "{message}");
+}
