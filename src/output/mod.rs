@@ -1,5 +1,5 @@
 //! Sinks for results: CSV series, the summary JSON of the design contract, MCAP logs for Foxglove and
-//! rerun ([`mcap`]), SVG plots ([`svg`]).
+//! rerun ([`mcap`]) with what the viewers need to show them ([`viewer`]), SVG plots ([`svg`]).
 //!
 //! Every output goes through [`paths`]: checked before any simulation ([`check_outputs`]: never an
 //! input, a directory, a special file or a symlink; never two outputs on one file), written to a
@@ -13,6 +13,7 @@ pub mod mcap;
 pub mod paths;
 mod summary;
 pub mod svg;
+pub mod viewer;
 
 pub use csv::{csv_field, write_csv};
 pub use envelope_log::EnvelopeLog;
