@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes a rerun blueprint (.rbl) for a ribbon MCAP log (docs/mcap.md §5).
 
-Usage: rerun_blueprint.py LOG.mcap OUT.rbl [--manifest OUT.json]
+Usage: rerun_blueprint.py LOG.mcap OUT.rbl [--manifest OUT.json] [--active-tab GROUP]
 
 Reads the log's envelope channels (metadata `output`, `unit`, `group`) and the `ribbon` metadata
 record (`robot`: rerun's entity root for the URDF geometry; `scene_centre_m`, `scene_radius_m`: the
@@ -16,7 +16,8 @@ box the robot moves in), and writes a blueprint with:
 View it with the log converted under the same application id:
     rerun mcap convert --timeline-type duration --application-id ribbon LOG.mcap -o LOG.rrd
     rerun LOG.rrd OUT.rbl
---manifest writes the entity paths the blueprint shows, for checks (tests/viewers.rs).
+--manifest writes the entity paths the blueprint shows, for checks (tests/viewers.rs);
+--active-tab opens the tab of that group (e.g. "frame tool0") instead of the first.
 Needs rerun-sdk 0.41 and mcap (the reference venv: target/reference-venv/bin/python).
 """
 
@@ -87,7 +88,7 @@ def panel_title(name, unit):
     return f"{name} [{unit}]" if unit else name
 
 
-def build(outputs, robot, centre, radius):
+def build(outputs, robot, centre, radius, active_tab=None):
     elevation, azimuth = math.radians(CAMERA_ELEVATION_DEG), math.radians(CAMERA_AZIMUTH_DEG)
     distance = CAMERA_DISTANCE_IN_RADII * radius
     eye = [
@@ -120,12 +121,14 @@ def build(outputs, robot, centre, radius):
             plot_legend=rrb.Corner2D.RightTop,
         )
         groups.setdefault(group, []).append(view)
-    tabs = [
-        rrb.Grid(*views, name=group)
-        for group, views in sorted(groups.items(), key=lambda item: (group_rank(item[0]), item[0]))
-    ]
+    ordered = sorted(groups.items(), key=lambda item: (group_rank(item[0]), item[0]))
+    tabs = [rrb.Grid(*views, name=group) for group, views in ordered]
+    names = [group for group, _ in ordered]
+    if active_tab is not None and active_tab not in names:
+        sys.exit(f"--active-tab {active_tab!r}: the log's groups are {names}")
+    active = names.index(active_tab) if active_tab is not None else 0
     blueprint = rrb.Blueprint(
-        rrb.Horizontal(robot_view, rrb.Tabs(*tabs, name="outputs"), column_shares=[35, 65]),
+        rrb.Horizontal(robot_view, rrb.Tabs(*tabs, name="outputs", active_tab=active), column_shares=[35, 65]),
         rrb.TimePanel(timeline=TIMELINE, expanded=True),
         rrb.SelectionPanel(expanded=False),
         auto_views=False,
@@ -148,8 +151,9 @@ def main():
     parser.add_argument("log")
     parser.add_argument("out")
     parser.add_argument("--manifest")
+    parser.add_argument("--active-tab")
     args = parser.parse_args()
-    blueprint, manifest = build(*read_log(args.log))
+    blueprint, manifest = build(*read_log(args.log), active_tab=args.active_tab)
     blueprint.save(APPLICATION_ID, args.out)
     if args.manifest:
         with open(args.manifest, "w") as f:
