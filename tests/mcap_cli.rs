@@ -80,8 +80,9 @@ fn analyze_log_matches_its_summary_in_every_reader() {
     );
     assert_eq!(metadata.len(), 1);
     assert_eq!(metadata[0].name, "ribbon");
+    let ribbon_record = &metadata[0];
     assert_eq!(
-        metadata[0].metadata.get("partial").map(String::as_str),
+        ribbon_record.metadata.get("partial").map(String::as_str),
         Some("false")
     );
 
@@ -90,7 +91,7 @@ fn analyze_log_matches_its_summary_in_every_reader() {
         "urdf_path": manifest("robots/double_pendulum/double_pendulum.urdf"),
         "robot": "double_pendulum",
         "envelopes": outputs.iter().map(|o| json!({
-            "name": o["name"], "topic": format!("/ribbon/envelope{}", topic(o["name"].as_str().unwrap())),
+            "name": o["name"], "unit": o["unit"], "topic": format!("/ribbon/envelope{}", topic(o["name"].as_str().unwrap())),
             "time": o["time"], "lower": o["lower"], "nominal": o["nominal"], "upper": o["upper"],
         })).collect::<Vec<_>>(),
         "errors": outputs.iter().map(|o| json!({
@@ -99,8 +100,10 @@ fn analyze_log_matches_its_summary_in_every_reader() {
         })).collect::<Vec<_>>(),
         "transform_times": times,
         "transform_links": ["base", "bar1", "bar2", "tip"],
-        "metadata": metadata[0].metadata,
+        "metadata": ribbon_record.metadata,
+        "viewer": true,
         "attachments": [
+            {"name": "foxglove-layout.json", "media_type": "application/json", "foxglove_layout": true},
             {"name": "double_pendulum.urdf", "media_type": "application/xml", "path": manifest("robots/double_pendulum/double_pendulum.urdf")},
             {"name": "double_pendulum.uncertainty.toml", "media_type": "application/toml", "path": manifest("robots/double_pendulum/double_pendulum.uncertainty.toml")},
         ],
@@ -183,7 +186,11 @@ fn sigint_finishes_a_valid_partial_log() {
     assert!(stderr.contains("interrupted"), "{stderr}");
     let (messages, metadata) = read_with_rust(&out);
     assert_eq!(
-        metadata[0].metadata.get("partial").map(String::as_str),
+        metadata
+            .iter()
+            .find(|m| m.name == "ribbon")
+            .and_then(|m| m.metadata.get("partial"))
+            .map(String::as_str),
         Some("true")
     );
     let envelope_times: std::collections::BTreeSet<u64> = messages

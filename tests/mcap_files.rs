@@ -7,7 +7,7 @@
 
 mod common;
 
-use ribbon::output::mcap::{McapError, McapMetadata, McapSink, OutputName, WorldFromLink};
+use ribbon::output::mcap::{McapError, McapMetadata, McapSink, OutputName, ParentFromLink};
 use serde::Deserialize;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -85,21 +85,24 @@ const OUTPUTS: [Series; 3] = [
     ),
 ];
 
-/// Planar double pendulum (bars along +x, joints about z): the world poses of its links.
-fn frames(t: f64) -> Vec<(String, [f64; 3], [f64; 4])> {
+/// Units of [`OUTPUTS`], in order.
+const UNITS: [&str; 3] = ["rad", "rad", "m"];
+
+/// Planar double pendulum (bars along +x, joints about z): each link's pose in its parent link (the
+/// URDF tree: base ← bar1 ← bar2 ← tip), the root in `world`.
+fn frames(t: f64) -> Vec<(String, &'static str, [f64; 3], [f64; 4])> {
     let [q1, q2] = angles(t);
     let about_z = |angle: f64| [0.0, 0.0, (angle / 2.0).sin(), (angle / 2.0).cos()];
-    let elbow = [q1.cos(), q1.sin(), 0.0];
-    let tip = [
-        elbow[0] + 2.0 * (q1 + q2).cos(),
-        elbow[1] + 2.0 * (q1 + q2).sin(),
-        0.0,
-    ];
     vec![
-        ("base".to_string(), [0.0; 3], [0.0, 0.0, 0.0, 1.0]),
-        ("bar1".to_string(), [0.0; 3], about_z(q1)),
-        ("bar2".to_string(), elbow, about_z(q1 + q2)),
-        ("tip".to_string(), tip, about_z(q1 + q2)),
+        ("base".to_string(), "world", [0.0; 3], [0.0, 0.0, 0.0, 1.0]),
+        ("bar1".to_string(), "base", [0.0; 3], about_z(q1)),
+        ("bar2".to_string(), "bar1", [1.0, 0.0, 0.0], about_z(q2)),
+        (
+            "tip".to_string(),
+            "bar2",
+            [2.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ),
     ]
 }
 
@@ -117,12 +120,14 @@ fn write_study(path: &Path, sidecar_path: &Path, partial: bool) -> serde_json::V
     .unwrap_or_else(|e| panic!("create: {e}"));
     let envelope_ids: Vec<_> = OUTPUTS
         .iter()
-        .map(|(name, _, _)| sink.add_output(*name).unwrap())
+        .zip(UNITS)
+        .map(|((name, _, _), unit)| sink.add_output(*name, unit).unwrap())
         .collect();
     // Error estimates for the two joints only (frame.tip.x has none).
     let error_ids: Vec<_> = OUTPUTS[..2]
         .iter()
-        .map(|(name, _, _)| sink.add_error_channel(*name).unwrap())
+        .zip(UNITS)
+        .map(|((name, _, _), unit)| sink.add_error_channel(*name, unit).unwrap())
         .collect();
 
     let mut envelopes: Vec<BTreeMap<&str, Vec<f64>>> = vec![BTreeMap::new(); OUTPUTS.len()];
@@ -151,18 +156,21 @@ fn write_study(path: &Path, sidecar_path: &Path, partial: bool) -> serde_json::V
             }
         }
         let poses = frames(t);
-        let world_from_links: Vec<WorldFromLink<'_>> = poses
+        let parent_from_links: Vec<ParentFromLink<'_>> = poses
             .iter()
-            .map(|(link, translation_m, rotation_xyzw)| WorldFromLink {
-                link,
-                translation_m: *translation_m,
-                rotation_xyzw: *rotation_xyzw,
-            })
+            .map(
+                |(link, parent, translation_m, rotation_xyzw)| ParentFromLink {
+                    parent,
+                    link,
+                    translation_m: *translation_m,
+                    rotation_xyzw: *rotation_xyzw,
+                },
+            )
             .collect();
-        sink.write_transforms(t, &world_from_links).unwrap();
+        sink.write_transforms(t, &parent_from_links).unwrap();
         transforms.push(json!({
             "time": t,
-            "frames": poses.iter().map(|(link, tr, rot)| json!({"link": link, "translation": tr, "rotation": rot}))
+            "frames": poses.iter().map(|(link, parent, tr, rot)| json!({"link": link, "parent": parent, "translation": tr, "rotation": rot}))
                 .collect::<Vec<_>>(),
         }));
     }
@@ -185,9 +193,10 @@ fn write_study(path: &Path, sidecar_path: &Path, partial: bool) -> serde_json::V
     json!({
         "urdf_path": common::manifest_dir().join(URDF),
         "robot": "double_pendulum",
-        "envelopes": OUTPUTS.iter().zip(&envelopes).map(|((name, _, _), series)| {
+        "envelopes": OUTPUTS.iter().zip(&envelopes).zip(UNITS).map(|(((name, _, _), series), unit)| {
             let mut entry = json!(series);
             entry["name"] = json!(name);
+            entry["unit"] = json!(unit);
             entry["topic"] = json!(topic("/ribbon/envelope/", name));
             entry
         }).collect::<Vec<_>>(),
@@ -377,7 +386,7 @@ fn finish_partial_marks_the_metadata() {
         metadata(),
     )
     .unwrap();
-    let q1 = sink.add_output("q.j1").unwrap();
+    let q1 = sink.add_output("q.j1", "rad").unwrap();
     sink.write_envelope(q1, 0.0, -0.1, 0.0, 0.1).unwrap();
     sink.metadata_mut().runs = 3; // stopped early: fewer runs than planned
     sink.finish(true).unwrap();
@@ -412,7 +421,7 @@ fn dropping_an_unfinished_sink_leaves_no_file() {
         metadata(),
     )
     .unwrap();
-    let q1 = sink.add_output("q.j1").unwrap();
+    let q1 = sink.add_output("q.j1", "rad").unwrap();
     for k in 0..1000 {
         sink.write_envelope(q1, k as f64 * 1e-3, -0.1, 0.0, 0.1)
             .unwrap();
@@ -449,23 +458,29 @@ fn errors_name_the_file_and_the_problem() {
         metadata(),
     )
     .unwrap();
-    let q1 = sink.add_output("q.j1").unwrap();
+    let q1 = sink.add_output("q.j1", "rad").unwrap();
 
-    let e = sink.add_output("q.j1").unwrap_err();
+    let e = sink.add_output("q.j1", "rad").unwrap_err();
     assert!(matches!(e, McapError::DuplicateTopic { .. }), "{e}");
     assert!(
         e.to_string().contains("errors.mcap") && e.to_string().contains("/ribbon/envelope/q/j1"),
         "{e}"
     );
-    let e = sink.add_output("q..j1").unwrap_err();
+    let e = sink.add_output("q..j1", "rad").unwrap_err();
     assert!(matches!(e, McapError::BadOutputName { .. }), "{e}");
     for bad in [-1e-3, f64::NAN, f64::INFINITY, 3e9] {
         let e = sink.write_envelope(q1, bad, 0.0, 0.0, 0.0).unwrap_err();
         assert!(matches!(e, McapError::BadTime { .. }), "{e}");
         assert!(e.to_string().contains("errors.mcap"), "{e}");
     }
+    // The study description's keys cannot be overwritten by extra metadata entries.
+    let e = sink
+        .add_metadata_entries(BTreeMap::from([("runs".to_string(), "0".to_string())]))
+        .unwrap_err();
+    assert!(matches!(e, McapError::ReservedMetadataName { .. }), "{e}");
+    assert!(e.to_string().contains("'runs'"), "{e}");
     // A dotted joint name keeps its dot when given as parts.
-    sink.add_output(OutputName::from_parts(&["q", "joint_0.0"]))
+    sink.add_output(OutputName::from_parts(&["q", "joint_0.0"]), "rad")
         .unwrap();
     drop(sink);
 

@@ -1,6 +1,6 @@
 //! `ribbon analyze ROBOT.urdf [--uncertainty F] [--method M] [--order K] [--design tensor|total]
 //! [--grid N] [--scan-grid N] [--samples N] [--seed S] [--threads N] [--keep-going] [--summary F]
-//! [--csv F] [--out F.mcap]`: bound envelopes. A progress line on stderr, a table on stdout.
+//! [--csv F] [--out F.mcap] [--report DIR]`: bound envelopes. A progress line on stderr, a table on stdout.
 //! Outputs are checked before anything runs. SIGINT/SIGTERM finish the current block, write what was
 //! computed (MCAP marked partial) and exit 1; a second signal exits at once, removing the temporary
 //! files.
@@ -65,6 +65,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         space,
     } = prepare(&args.scene)?;
     let options = study_options(args, &sidecar.analysis)?;
+    let report_stems = prepare_report(args, &sidecar_path, &scene)?;
     // Kept per record time: the envelope (time; lower, upper, nominal and an error estimate per
     // output) and, with --summary, its five copies per output; plus one block of samples.
     let per_output = 4 + if args.summary.is_some() { 5 } else { 0 };
@@ -162,9 +163,14 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     if let Some(path) = &args.csv {
         write_envelope_csv(path, &report)?;
     }
+    let foxglove_layout = log.as_ref().map(EnvelopeLog::foxglove_layout);
     if let Some(mut log) = log.take() {
         log.metadata_mut().runs = report.runs;
         log.finish(report.partial)?;
+    }
+    let table_text = table(&options, &space, &report, wall_seconds);
+    if let (Some(dir), Some(stems)) = (&args.report, &report_stems) {
+        write_report(dir, &robot, &report, &table_text, stems, foxglove_layout)?;
     }
     eprintln!(
         "{} runs, {} steps, {} Newton iterations ({:.2} per step); simulate {:.3} s, fit + bound {:.3} s ({:.1} % of the total), {} threads, {} records per block; wall {:.3} s{}",
@@ -180,7 +186,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         wall_seconds,
         peak_memory().map_or(String::new(), |bytes| format!("; peak memory {:.1} MiB", bytes as f64 / 1048576.0)),
     );
-    write_stdout(&table(&options, &space, &report, wall_seconds))?;
+    write_stdout(&table_text)?;
     if report.partial {
         let done = report.envelope.times.last().copied().unwrap_or(0.0);
         return Err(Error::Interrupted(format!(
@@ -188,6 +194,90 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
             scene.duration_s
         )));
     }
+    Ok(())
+}
+
+/// Checks and creates `--report DIR` before the study runs: every file it will hold (one plot pair
+/// per output) must be a valid output, distinct from the inputs and from `--summary`, `--csv` and
+/// `--out`. Returns the plot file stems, one per output.
+fn prepare_report(
+    args: &AnalyzeArgs,
+    sidecar_path: &Path,
+    scene: &Scene,
+) -> Result<Option<Vec<String>>, Error> {
+    let Some(dir) = &args.report else {
+        return Ok(None);
+    };
+    let stems = crate::output::report::file_stems(scene.outputs.iter().map(|o| o.name.as_str()));
+    let files = crate::output::report::report_files(&stems, args.out.is_some());
+    let names: Vec<&str> = files.iter().map(String::as_str).collect();
+    let inputs = [
+        ("URDF", args.scene.urdf.as_path()),
+        ("sidecar", sidecar_path),
+    ];
+    crate::output::prepare_output_directory("--report", dir, &names, &inputs)?;
+    let paths: Vec<std::path::PathBuf> = files.iter().map(|f| dir.join(f)).collect();
+    let mut outputs: Vec<(&str, &Path)> = paths.iter().map(|p| ("--report", p.as_path())).collect();
+    for (flag, path) in [
+        ("--summary", &args.summary),
+        ("--csv", &args.csv),
+        ("--out", &args.out),
+    ] {
+        if let Some(path) = path {
+            outputs.push((flag, path.as_path()));
+        }
+    }
+    crate::output::check_outputs(&inputs, &outputs)?;
+    Ok(Some(stems))
+}
+
+/// Writes `--report DIR` (docs/mcap.md §7): the table, a band plot per output, the log's layout.
+fn write_report(
+    dir: &Path,
+    robot: &str,
+    report: &StudyReport,
+    table_text: &str,
+    stems: &[String],
+    foxglove_layout: Option<serde_json::Value>,
+) -> Result<(), Error> {
+    use crate::output::report::{write_analyze_report, AnalyzeReport, ReportOutput};
+    let e = &report.envelope;
+    let outputs = e
+        .outputs
+        .iter()
+        .enumerate()
+        .map(|(o, output)| ReportOutput {
+            name: &output.name,
+            unit: output.unit,
+            lower: &e.lower[o],
+            upper: &e.upper[o],
+            nominal: &e.nominal[o],
+            outer: e
+                .outer
+                .as_ref()
+                .map(|(lower, upper)| (lower[o].as_slice(), upper[o].as_slice())),
+        })
+        .collect();
+    write_analyze_report(
+        dir,
+        &AnalyzeReport {
+            title: format!(
+                "ribbon analyze: {robot}{}",
+                if report.partial {
+                    " (partial: stopped early)"
+                } else {
+                    ""
+                }
+            ),
+            table: table_text,
+            times: &e.times,
+            outputs,
+            stems,
+            bound_kind: report.method.bound_kind(),
+            foxglove_layout,
+        },
+    )?;
+    eprintln!("report written to {}", dir.display());
     Ok(())
 }
 

@@ -3,15 +3,16 @@
 //! costs in time. Runs the true-model scan as the reference, then every method (and order, and Monte
 //! Carlo size) on the same scene, and reports model runs, wall time and the docs/method.md §4 error of
 //! each against the reference: a table on stdout, and in the report directory `report.md`,
-//! `compare.json`, `error_vs_time.svg` and `envelope.svg` (the widest output, reference vs the most
-//! accurate surrogate).
+//! `compare.json`, `error_vs_time.{svg,png}` and `envelope.{svg,png}` (the widest output, reference vs the
+//! highest-order legendre-scan run).
 
 use super::analyze_cmd::{parse_design, prepare, sidecar_path_of, Prepared, DESIGN_NAMES};
 use super::{install_interrupt, write_stdout, CompareArgs};
 use crate::analysis::{
     DesignKind, Method, Study, StudyOptions, StudyReport, VertexReferenceOptions, DEFAULT_MAX_RUNS,
 };
-use crate::output::svg::{Plot, Series};
+use crate::output::plot::{Layer, ScatterPlot, ScatterSeries, TimePlot, PALETTE};
+use crate::output::report::{axis_label, write_plot, BAND_COLOUR, NOMINAL_COLOUR, SECOND_COLOUR};
 use crate::output::write_atomically;
 use crate::scene::check_threads;
 use crate::uq::{envelope_error, Truncation};
@@ -508,11 +509,13 @@ fn short_output(name: &str) -> String {
 }
 
 /// The files `--report DIR` receives.
-const REPORT_FILES: [&str; 4] = [
+const REPORT_FILES: [&str; 6] = [
     "report.md",
     "compare.json",
     "error_vs_time.svg",
+    "error_vs_time.png",
     "envelope.svg",
+    "envelope.png",
 ];
 
 fn write_report(
@@ -526,7 +529,9 @@ fn write_report(
 ) -> Result<(), Error> {
     let markdown = format!(
         "# ribbon compare\n\nWhat accuracy costs in time: every method against a reference made of true-model runs ({reference_label}).\n\n```text\n{table}```\n\n\
-         ![error vs time](error_vs_time.svg)\n\n![envelope](envelope.svg)\n"
+         ![error vs time](error_vs_time.svg)\n\nThe widest output: the shaded band is the reference (true-model runs), \
+         the solid line the nominal run, the dashed lines the bounds of the legendre-scan run of the highest order.\n\n\
+         ![envelope](envelope.svg)\n\nEvery plot is also a PNG beside its SVG.\n"
     );
     write_atomically(&dir.join("report.md"), "report", markdown.as_bytes())?;
     let json = serde_json::json!({
@@ -541,12 +546,9 @@ fn write_report(
             .as_bytes(),
     )?;
 
-    let mut series: Vec<Series> = Vec::new();
+    let mut series: Vec<ScatterSeries> = Vec::new();
     for row in rows {
-        let label = match row.method.as_str() {
-            "monte-carlo" => format!("monte-carlo ({})", row.bound_kind),
-            other => format!("{other} ({})", row.bound_kind),
-        };
+        let label = format!("{} ({})", row.method, row.bound_kind);
         let point_label = match (row.method.as_str(), row.setting) {
             ("monte-carlo", Some(n)) => format!("N={n}"),
             ("taylor", _) => String::new(),
@@ -558,33 +560,31 @@ fn write_report(
                 s.points.push((row.wall_seconds, row.max_error));
                 s.point_labels.push(point_label);
             }
-            None => series.push(Series {
-                label,
-                points: vec![(row.wall_seconds, row.max_error)],
-                point_labels: vec![point_label],
-                joined: true,
-                dashed: false,
-            }),
+            None => {
+                let colour = PALETTE[series.len() % PALETTE.len()];
+                series.push(ScatterSeries {
+                    label,
+                    points: vec![(row.wall_seconds, row.max_error)],
+                    point_labels: vec![point_label],
+                    colour,
+                })
+            }
         }
     }
-    let plot = Plot {
+    let plot = ScatterPlot {
         title: format!(
             "error vs wall time (reference: {reference_label}, {} runs, {reference_seconds:.2} s)",
             reference.runs
         ),
-        x_label: "wall time (s)".to_string(),
-        y_label: "max envelope error (fraction of reference width)".to_string(),
+        x_label: "wall time [s]".to_string(),
+        y_label: "max envelope error [fraction of the reference width]".to_string(),
         log_x: true,
         log_y: true,
         series,
     };
-    write_atomically(
-        &dir.join("error_vs_time.svg"),
-        "plot",
-        plot.to_svg().as_bytes(),
-    )?;
+    write_plot(dir, "error_vs_time", plot.svg(), plot.png())?;
 
-    // The widest output: reference envelope against the last Legendre-scan run.
+    // The widest output: the reference band against the best surrogate's bounds.
     let r = &reference.envelope;
     let widest = (0..r.outputs.len())
         .max_by(|a, b| {
@@ -598,42 +598,42 @@ fn write_report(
             width(*a).total_cmp(&width(*b))
         })
         .unwrap_or(0);
-    let line = |label: &str, values: &[f64], dashed: bool| Series {
-        label: label.to_string(),
-        points: r
-            .times
-            .iter()
-            .copied()
-            .zip(values.iter().copied())
-            .collect(),
-        point_labels: Vec::new(),
-        joined: true,
-        dashed,
-    };
-    let mut envelope_series = vec![
-        line("reference lower", &r.lower[widest], false),
-        line("reference upper", &r.upper[widest], false),
-        line("nominal", &r.nominal[widest], false),
+    let output = &r.outputs[widest];
+    let mut layers = vec![
+        Layer::Band {
+            label: format!("reference: {reference_label}"),
+            lower: &r.lower[widest],
+            upper: &r.upper[widest],
+            colour: BAND_COLOUR,
+        },
+        Layer::Line {
+            label: "nominal".to_string(),
+            values: &r.nominal[widest],
+            colour: NOMINAL_COLOUR,
+            width: 2,
+            dashed: false,
+        },
     ];
     if let Some((label, report)) = best {
         let e = &report.envelope;
-        envelope_series.push(line(&format!("{label} lower"), &e.lower[widest], true));
-        envelope_series.push(line(&format!("{label} upper"), &e.upper[widest], true));
+        for (line_label, values) in [
+            (label.clone(), &e.lower[widest]),
+            (String::new(), &e.upper[widest]),
+        ] {
+            layers.push(Layer::Line {
+                label: line_label,
+                values,
+                colour: SECOND_COLOUR,
+                width: 2,
+                dashed: true,
+            });
+        }
     }
-    let envelope_plot = Plot {
-        title: format!(
-            "envelope of {} ({})",
-            r.outputs[widest].name, r.outputs[widest].unit
-        ),
-        x_label: "t (s)".to_string(),
-        y_label: format!("{} ({})", r.outputs[widest].name, r.outputs[widest].unit),
-        log_x: false,
-        log_y: false,
-        series: envelope_series,
+    let envelope_plot = TimePlot {
+        title: format!("envelope of {}", axis_label(&output.name, output.unit)),
+        y_label: axis_label(&output.name, output.unit),
+        times: &r.times,
+        layers,
     };
-    write_atomically(
-        &dir.join("envelope.svg"),
-        "plot",
-        envelope_plot.to_svg().as_bytes(),
-    )
+    write_plot(dir, "envelope", envelope_plot.svg(), envelope_plot.png())
 }

@@ -136,6 +136,10 @@ pub struct AnalyzeArgs {
     /// Write an MCAP log for Foxglove and rerun.
     #[arg(long, value_name = "FILE.mcap")]
     pub out: Option<PathBuf>,
+    /// Write a report into this directory (created if missing): `report.md` with the table, a band
+    /// plot per output (`<output>.svg`, `<output>.png`) and, with `--out`, `foxglove-layout.json`.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
 }
 
 /// `ribbon simulate`.

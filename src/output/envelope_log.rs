@@ -1,10 +1,14 @@
 //! An MCAP log of envelopes, one record time at a time: a channel per output (lower, nominal,
 //! upper), optionally an error-estimate channel per output, and the nominal robot's frames on `/tf`.
-//! Used by `simulate` (lower = nominal = upper) and `analyze`.
+//! Used by `simulate` (lower = nominal = upper) and `analyze`. On [`finish`](EnvelopeLog::finish)
+//! it adds what the viewers need (docs/mcap.md §4–§5): the Foxglove layout as an attachment and
+//! the box the robot moved in as entries of the `ribbon` metadata record.
 
 use super::mcap::{
-    EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, WorldFromLink,
+    EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, ParentFromLink,
+    ENVELOPE_PREFIX, WORLD_FRAME,
 };
+use super::viewer::{foxglove_layout, LayoutOutput, SceneExtent, FOXGLOVE_LAYOUT_NAME};
 use crate::analysis::BlockView;
 use crate::dynamics::{forward_kinematics, frame_placements, Data};
 use crate::model::Model;
@@ -19,6 +23,13 @@ pub struct EnvelopeLog {
     names: Vec<String>,
     channels: Vec<EnvelopeChannel>,
     error_channels: Vec<ErrorChannel>,
+    /// What the Foxglove layout plots, in channel order.
+    layout_outputs: Vec<LayoutOutput>,
+    /// The box of every link origin written to `/tf`.
+    extent: SceneExtent,
+    /// Per URDF link, its parent link (the parent of the joint whose child it is); `None` for a
+    /// root. Filled by the first [`write_frames`](EnvelopeLog::write_frames).
+    parent_links: Option<Vec<Option<usize>>>,
 }
 
 fn mcap_error(error: super::mcap::McapError) -> Error {
@@ -71,21 +82,36 @@ impl EnvelopeLog {
         let mut error_channels = Vec::new();
         for output in outputs {
             channels.push(
-                sink.add_output(OutputName::from_parts(&output.parts))
+                sink.add_output(OutputName::from_parts(&output.parts), output.unit)
                     .map_err(mcap_error)?,
             );
             if with_errors {
                 error_channels.push(
-                    sink.add_error_channel(OutputName::from_parts(&output.parts))
+                    sink.add_error_channel(OutputName::from_parts(&output.parts), output.unit)
                         .map_err(mcap_error)?,
                 );
             }
         }
+        let layout_outputs = outputs
+            .iter()
+            .map(|output| LayoutOutput {
+                name: output.name.clone(),
+                parts: output.parts.clone(),
+                unit: output.unit.to_string(),
+                topic: format!(
+                    "{ENVELOPE_PREFIX}{}",
+                    OutputName::from_parts(&output.parts).topic_suffix()
+                ),
+            })
+            .collect();
         Ok(EnvelopeLog {
             sink,
             names: outputs.iter().map(|o| o.name.clone()).collect(),
             channels,
             error_channels,
+            layout_outputs,
+            extent: SceneExtent::default(),
+            parent_links: None,
         })
     }
 
@@ -135,29 +161,48 @@ impl EnvelopeLog {
     }
 
     /// Writes every URDF link's placement on `/tf` at time `t`, from the body placements of the
-    /// last forward kinematics in `data`.
+    /// last forward kinematics in `data`: each link relative to its parent link in the URDF tree
+    /// (the root relative to `world`), so that the viewers' frame trees follow the kinematic chain.
     pub fn write_frames(&mut self, t: f64, model: &Model, data: &Data) -> Result<(), Error> {
-        let placements: Vec<(usize, crate::spatial::Transform)> =
-            (0..model.description.links.len())
-                .map(|l| (l, frame_placements(model, data, l)))
-                .collect();
-        let frames: Vec<WorldFromLink> = placements
-            .iter()
-            .map(|(l, placement)| {
-                let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
-                    &nalgebra::Rotation3::from_matrix_unchecked(placement.rotation),
-                );
-                WorldFromLink {
-                    link: &model.description.links[*l].name,
-                    translation_m: [
-                        placement.translation.x,
-                        placement.translation.y,
-                        placement.translation.z,
-                    ],
-                    rotation_xyzw: [rotation.i, rotation.j, rotation.k, rotation.w],
+        let links = &model.description.links;
+        let parents = self.parent_links.get_or_insert_with(|| {
+            let mut parents = vec![None; links.len()];
+            for joint in &model.description.joints {
+                if let Some(slot) = parents.get_mut(joint.child) {
+                    slot.get_or_insert(joint.parent);
                 }
-            })
+            }
+            parents
+        });
+        let world_from_links: Vec<crate::spatial::Transform> = (0..links.len())
+            .map(|l| frame_placements(model, data, l))
             .collect();
+        let mut frames = Vec::with_capacity(links.len());
+        for (l, world_from_link) in world_from_links.iter().enumerate() {
+            let translation = world_from_link.translation;
+            self.extent
+                .include([translation.x, translation.y, translation.z]);
+            let (parent, parent_from_link) = match parents[l] {
+                Some(p) => (
+                    links[p].name.as_str(),
+                    world_from_links[p].inverse().compose(world_from_link),
+                ),
+                None => (WORLD_FRAME, *world_from_link),
+            };
+            let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
+                &nalgebra::Rotation3::from_matrix_unchecked(parent_from_link.rotation),
+            );
+            frames.push(ParentFromLink {
+                parent,
+                link: &links[l].name,
+                translation_m: [
+                    parent_from_link.translation.x,
+                    parent_from_link.translation.y,
+                    parent_from_link.translation.z,
+                ],
+                rotation_xyzw: [rotation.i, rotation.j, rotation.k, rotation.w],
+            });
+        }
         self.sink.write_transforms(t, &frames).map_err(mcap_error)
     }
 
@@ -195,8 +240,24 @@ impl EnvelopeLog {
         self.sink.metadata_mut()
     }
 
-    /// Writes the metadata record, summary and index, and renames the file into place.
-    pub fn finish(self, partial: bool) -> Result<(), Error> {
+    /// The Foxglove layout of this log (docs/mcap.md §4): one plot per output, grouped in tabs,
+    /// and the robot with a camera framing every link origin written so far.
+    pub fn foxglove_layout(&self) -> serde_json::Value {
+        foxglove_layout(&self.layout_outputs, &self.extent)
+    }
+
+    /// Writes the viewer facts (the Foxglove layout as the attachment `foxglove-layout.json`, the
+    /// scene extent as `scene_centre_m` / `scene_radius_m` in the `ribbon` metadata record), the
+    /// metadata record, summary and index, and renames the file into place.
+    pub fn finish(mut self, partial: bool) -> Result<(), Error> {
+        // `{:#}` pretty-prints a JSON value (infallible, unlike `to_vec_pretty`'s signature).
+        let layout = format!("{:#}", self.foxglove_layout());
+        self.sink
+            .attach(FOXGLOVE_LAYOUT_NAME, "application/json", layout.as_bytes())
+            .map_err(mcap_error)?;
+        self.sink
+            .add_metadata_entries(self.extent.metadata())
+            .map_err(mcap_error)?;
         self.sink.finish(partial).map_err(mcap_error)
     }
 }

@@ -10,15 +10,23 @@ EXPECTED.json says what was written (numbers exactly as given to the writer):
       "envelopes": [{"name": "q.j1", "topic": "/ribbon/envelope/q/j1",
                      "time": [...], "lower": [...], "nominal": [...], "upper": [...]}],
       "errors":    [{"name": "q.j1", "topic": "/ribbon/error/q/j1", "time": [...], "estimate": [...]}],
-      "transforms": [{"time": t, "frames": [{"link": "bar1", "translation": [x, y, z],
-                                              "rotation": [x, y, z, w]}]}],
+      "transforms": [{"time": t, "frames": [{"link": "bar1", "parent": "base", "translation": [x, y, z],
+                                              "rotation": [x, y, z, w]}]}],   # parent default "world"
       # or, when the poses are not known to the caller (a `ribbon analyze` run), instead of
       # "transforms": "transform_times": [t, ...], "transform_links": ["bar1", ...] — every /tf
-      # message is then decoded and its time, parent and child frames checked, not its numbers.
+      # message is then decoded and its time and child frames checked, and each parent against the
+      # URDF's joint tree (parsed here: the parent link of the joint whose child the link is, `world`
+      # for the root), not its numbers.
       "metadata": {"robot": ..., "method": ..., "order": ..., "runs": ..., "ribbon_version": ...,
                    "partial": "true|false", "parameters": "<JSON text>"},
-      "attachments": [{"name": ..., "media_type": ..., "path": "<file with the expected bytes>"}]
+      "attachments": [{"name": ..., "media_type": ..., "path": "<file with the expected bytes>"}],
+      # an attachment with "foxglove_layout": true instead of "path" must be a Foxglove layout whose
+      # Plot paths name only envelope topics of the file (fields position[0..2], labelled lower,
+      # nominal, upper) and whose 3D panel takes the URDF from /robot_description.
+      "viewer": true   # optional: `scene_centre_m` and a positive `scene_radius_m` in the `ribbon` record,
+                       # and the first message at log time 0
     }
+Envelope entries may carry "unit": the channel metadata must then hold it (and the output name).
 
 Checks, each failure collected and reported (exit 1):
 - Python `mcap` reads the file through its summary (lz4 chunks, chunk indexes, statistics) and
@@ -96,7 +104,7 @@ def foxglove_encode(transforms_entry):
         transforms=[
             FrameTransform(
                 timestamp=stamp,
-                parent_frame_id="world",
+                parent_frame_id=frame.get("parent", "world"),
                 child_frame_id=frame["link"],
                 translation=Vector3(x=frame["translation"][0], y=frame["translation"][1], z=frame["translation"][2]),
                 rotation=Quaternion(
@@ -211,6 +219,10 @@ def check_file(mcap_path, expected, work_dir):
                 if list(value.velocity) or list(value.effort):
                     fail(f"{topic}[{i}]: velocity/effort not empty")
 
+        urdf_root = ET.parse(expected["urdf_path"]).getroot()
+        urdf_parents = {
+            joint.find("child").get("link"): joint.find("parent").get("link") for joint in urdf_root.findall("joint")
+        }
         got = decoded.get("/tf", [])
         if "transforms" not in expected:
             times, links = expected["transform_times"], expected["transform_links"]
@@ -220,9 +232,11 @@ def check_file(mcap_path, expected, work_dir):
                 if not same_time(message.log_time, t):
                     fail(f"/tf[{i}]: log time {message.log_time} ns, expected {t} s")
                 children = [transform.child_frame_id for transform in value.transforms]
-                parents = {transform.parent_frame_id for transform in value.transforms}
-                if children != links or parents != {"world"}:
-                    fail(f"/tf[{i}]: frames {parents} -> {children}, expected world -> {links}")
+                parents = [transform.parent_frame_id for transform in value.transforms]
+                want_parents = [urdf_parents.get(link, "world") for link in links]
+                if children != links or parents != want_parents:
+                    fail(f"/tf[{i}]: frames {parents} -> {children}, expected {want_parents} -> {links} (the URDF tree)")
+            check_chain_against_frame_outputs(got, times, expected)
             expected["transforms"] = [{"time": t, "frames": [{"link": link} for link in links]} for t in times]
             check_values = False
         else:
@@ -245,7 +259,7 @@ def check_file(mcap_path, expected, work_dir):
                     [transform.translation.x, transform.translation.y, transform.translation.z],
                     [transform.rotation.x, transform.rotation.y, transform.rotation.z, transform.rotation.w],
                 )
-                want_frame = ("world", frame["link"], frame["translation"], frame["rotation"])
+                want_frame = (frame.get("parent", "world"), frame["link"], frame["translation"], frame["rotation"])
                 if got_frame != want_frame or stamp_ns != message.log_time:
                     fail(f"/tf[{i}]: decoded {got_frame} at {stamp_ns} ns, expected {want_frame} at {message.log_time} ns")
 
@@ -269,15 +283,142 @@ def check_file(mcap_path, expected, work_dir):
         else:
             json.loads(metadata[0].metadata["parameters"])  # must parse
 
+        if expected.get("viewer"):
+            if summary.statistics is not None and summary.statistics.message_start_time != 0:
+                fail(f"first log time {summary.statistics.message_start_time} ns, expected 0 (simulation time)")
+            viewer = [m for m in reader.iter_metadata() if m.name == "ribbon"]
+            if len(viewer) != 1:
+                fail(f"{len(viewer)} `ribbon` metadata records, expected 1")
+            else:
+                centre = json.loads(viewer[0].metadata.get("scene_centre_m", "null"))
+                radius = float(viewer[0].metadata.get("scene_radius_m", "nan"))
+                if not (isinstance(centre, list) and len(centre) == 3 and radius > 0):
+                    fail(f"`ribbon` record {viewer[0].metadata}: expected scene_centre_m [x, y, z] and scene_radius_m > 0")
+
+        for entry in expected["envelopes"]:
+            if "unit" not in entry:
+                continue
+            channel = next((c for c in summary.channels.values() if c.topic == entry["topic"]), None)
+            want = {"output": entry["name"], "unit": entry["unit"]}
+            got_meta = {k: channel.metadata.get(k) for k in want} if channel else None
+            if got_meta != want:
+                fail(f"{entry['topic']}: channel metadata {channel and channel.metadata}, expected {want}")
+
         attachments = {a.name: a for a in reader.iter_attachments()}
         want_names = {a["name"] for a in expected["attachments"]}
         if set(attachments) != want_names:
             fail(f"attachments {sorted(attachments)}, expected {sorted(want_names)}")
         for a in expected["attachments"]:
             got = attachments.get(a["name"])
-            if got is not None and (got.media_type != a["media_type"] or got.data != Path(a["path"]).read_bytes()):
+            if got is not None and a.get("foxglove_layout"):
+                check_foxglove_layout(got, {c.topic for c in summary.channels.values()}, expected)
+            elif got is not None and (got.media_type != a["media_type"] or got.data != Path(a["path"]).read_bytes()):
                 fail(f"attachment {a['name']}: media type {got.media_type}, bytes equal: {got.data == Path(a['path']).read_bytes()}")
         return {topic: len(v) for topic, v in decoded.items()}
+
+
+# Composing a chain of /tf transforms in float64 against ribbon's own world placement of the frame:
+# a few rounding errors per link, far below this (m).
+CHAIN_TOLERANCE_M = 1e-9
+
+
+def quaternion_rotate(q, v):
+    """Rotates v by the unit quaternion q = [x, y, z, w]."""
+    x, y, z, w = q
+    # v + 2 w (u × v) + 2 u × (u × v), u = (x, y, z)
+    cx, cy, cz = y * v[2] - z * v[1], z * v[0] - x * v[2], x * v[1] - y * v[0]
+    ccx, ccy, ccz = y * cz - z * cy, z * cx - x * cz, x * cy - y * cx
+    return [v[0] + 2 * (w * cx + ccx), v[1] + 2 * (w * cy + ccy), v[2] + 2 * (w * cz + ccz)]
+
+
+def quaternion_multiply(a, b):
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return [
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ]
+
+
+def check_chain_against_frame_outputs(tf_messages, times, expected):
+    """Walks each /tf message's parent chain up to `world` for every link that has `frame.LINK.x|y|z`
+    envelopes, and compares the composed origin with the envelopes' nominal values at that time."""
+    wanted = {}
+    for entry in expected["envelopes"]:
+        parts = entry["name"].split(".")
+        if len(parts) == 3 and parts[0] == "frame" and parts[2] in ("x", "y", "z"):
+            wanted.setdefault(parts[1], {})["xyz".index(parts[2])] = entry["nominal"]
+    for i, ((_, value), t) in enumerate(zip(tf_messages, times)):
+        by_child = {tr.child_frame_id: tr for tr in value.transforms}
+        for link, axes in wanted.items():
+            position, rotation, frame, hops = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], link, 0
+            # world_from_link = parent chain applied from the link upwards
+            while frame != "world" and hops <= len(by_child):
+                tr = by_child.get(frame)
+                if tr is None:
+                    fail(f"/tf[{i}]: frame {frame} (on the chain of {link}) has no transform")
+                    break
+                q = [tr.rotation.x, tr.rotation.y, tr.rotation.z, tr.rotation.w]
+                rotated = quaternion_rotate(q, position)
+                position = [rotated[k] + [tr.translation.x, tr.translation.y, tr.translation.z][k] for k in range(3)]
+                rotation = quaternion_multiply(q, rotation)
+                frame, hops = tr.parent_frame_id, hops + 1
+            if frame != "world":
+                fail(f"/tf[{i}]: the chain of {link} does not reach world")
+                continue
+            for axis, nominal in axes.items():
+                if abs(position[axis] - nominal[i]) > CHAIN_TOLERANCE_M:
+                    fail(f"/tf[{i}] at t = {t}: {link} composed along its chain is at {position}, but frame.{link}.{'xyz'[axis]} nominal is {nominal[i]}")
+
+
+PLOT_PATH = re.compile(r'^(?P<topic>/[^.\s"]+)\.position\[(?P<index>\d)\]$')
+
+
+def check_foxglove_layout(attachment, topics, expected):
+    """The Foxglove layout attachment: valid JSON of the layout shape, one Plot per envelope channel
+    (paths into existing topics, lower/nominal/upper), a 3D panel on /robot_description, every
+    panel of configById placed in the layout tree (directly or in a tab)."""
+    if attachment.media_type != "application/json":
+        fail(f"layout attachment media type {attachment.media_type}, expected application/json")
+    try:
+        layout = json.loads(attachment.data)
+    except ValueError as e:
+        fail(f"layout attachment is not JSON: {e}")
+        return
+    config = layout.get("configById", {})
+    plotted = {}
+    for panel_id, panel in config.items():
+        if not panel_id.startswith("Plot!"):
+            continue
+        labels = []
+        for path in panel.get("paths", []):
+            match = PLOT_PATH.match(path.get("value", ""))
+            if not match or match["topic"] not in topics:
+                fail(f"layout {panel_id}: path {path.get('value')!r} does not name an envelope topic of the file")
+                continue
+            labels.append((int(match["index"]), path.get("label")))
+            plotted.setdefault(match["topic"], panel.get("foxglovePanelTitle", ""))
+        if sorted(labels) != [(0, "lower"), (1, "nominal"), (2, "upper")]:
+            fail(f"layout {panel_id}: series {labels}, expected lower, nominal, upper at position[0..2]")
+    for entry in expected["envelopes"]:
+        title = plotted.get(entry["topic"])
+        if title is None:
+            fail(f"layout: no Plot for {entry['topic']}")
+        elif "unit" in entry and entry["unit"] and f"[{entry['unit']}]" not in title:
+            fail(f"layout: the Plot of {entry['topic']} is titled {title!r}, without its unit [{entry['unit']}]")
+    threes = [p for i, p in config.items() if i.startswith("3D!")]
+    urdf_topics = [
+        layer.get("topic") for p in threes for layer in p.get("layers", {}).values() if layer.get("layerId") == "foxglove.Urdf"
+    ]
+    if urdf_topics != ["/robot_description"]:
+        fail(f"layout: 3D URDF layers on {urdf_topics}, expected one on /robot_description")
+    placed = set(re.findall(r'"([A-Za-z0-9]+![^"]+)"', json.dumps(layout["layout"])))
+    for tab in (p for i, p in config.items() if i.startswith("Tab!")):
+        placed |= set(re.findall(r'"([A-Za-z0-9]+![^"]+)"', json.dumps(tab.get("tabs", []))))
+    if placed != set(config):
+        fail(f"layout: panels {sorted(set(config) - placed)} are configured but not placed, {sorted(placed - set(config))} placed but not configured")
 
 
 def rerun_binary():

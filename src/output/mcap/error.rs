@@ -68,6 +68,14 @@ pub enum McapError {
         /// The topic.
         topic: String,
     },
+    /// A caller's metadata entry would replace a key of the study description.
+    #[error("{}: the metadata key '{name}' is reserved for the study description of the `ribbon` record; choose another key", .path.display())]
+    ReservedMetadataName {
+        /// The output file.
+        path: PathBuf,
+        /// The key asked for.
+        name: String,
+    },
     /// A channel handle from another sink (its index is out of range here).
     #[error("{}: channel handle #{index} does not belong to this file", .path.display())]
     UnknownChannel {

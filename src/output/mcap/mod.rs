@@ -5,9 +5,12 @@
 //! - per output, topic `/ribbon/envelope/<parts joined by '/'>` (see [`OutputName`]): ROS 2
 //!   `sensor_msgs/msg/JointState` in CDR with `name = ["lower", "nominal", "upper"]` and the
 //!   values in `position`; an error estimate on `/ribbon/error/…` with `name = ["estimate"]`;
-//! - `/tf`: `foxglove.FrameTransforms` (protobuf), parent `world`, child frame = link name;
+//! - `/tf`: `foxglove.FrameTransforms` (protobuf), child frame = link name, parent = its parent
+//!   link in the URDF tree (`world` for the root);
 //! - `/robot_description`: the URDF text once at t = 0 as `std_msgs/msg/String`;
 //! - a metadata record `ribbon` (see [`McapMetadata`]) and the URDF and sidecar as attachments;
+//!   callers may add entries to that record and attachments ([`McapSink::add_metadata_entries`],
+//!   [`McapSink::attach`]: the viewer facts and the Foxglove layout of docs/mcap.md §4);
 //! - lz4-compressed chunks, message and chunk indexes, and the summary section.
 //!
 //! Every time stamp is simulation time from 0: log time = publish time = `header.stamp`, in
@@ -51,8 +54,18 @@ pub const TF_TOPIC: &str = "/tf";
 pub const ROBOT_DESCRIPTION_TOPIC: &str = "/robot_description";
 /// Name of the metadata record.
 pub const METADATA_NAME: &str = "ribbon";
-/// Parent frame of every transform on `/tf`.
+/// Parent frame of the root link on `/tf`.
 pub const WORLD_FRAME: &str = "world";
+/// Keys of the `ribbon` metadata record that describe the study (set from [`McapMetadata`]).
+const STUDY_METADATA_KEYS: [&str; 7] = [
+    "robot",
+    "method",
+    "order",
+    "runs",
+    "ribbon_version",
+    "partial",
+    "parameters",
+];
 /// Series names of an envelope message, in `position` order.
 pub const ENVELOPE_SERIES: [&str; 3] = ["lower", "nominal", "upper"];
 /// Series name of an error-estimate message.
@@ -84,14 +97,18 @@ pub struct McapMetadata {
     pub parameters_json: String,
 }
 
-/// One frame of the nominal robot at one time: the pose of link `link` in the world frame.
+/// One frame of the nominal robot at one time: the pose of link `link` in its parent frame
+/// `parent` (the parent link of its URDF joint, or [`WORLD_FRAME`] for the root link), so that the
+/// viewers' frame trees follow the kinematic chain.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct WorldFromLink<'a> {
+pub struct ParentFromLink<'a> {
+    /// Parent frame name (a link name, or [`WORLD_FRAME`]).
+    pub parent: &'a str,
     /// Link (frame) name; the child frame id on `/tf`.
     pub link: &'a str,
-    /// The link origin in the world frame, m.
+    /// The link origin in the parent frame, m.
     pub translation_m: [f64; 3],
-    /// The link orientation in the world frame, unit quaternion `[x, y, z, w]`.
+    /// The link orientation in the parent frame, unit quaternion `[x, y, z, w]`.
     pub rotation_xyzw: [f64; 4],
 }
 
@@ -125,7 +142,7 @@ struct Channel {
 /// An MCAP file being written; see the [module docs](self).
 ///
 /// ```no_run
-/// use ribbon::output::mcap::{McapMetadata, McapSink, WorldFromLink};
+/// use ribbon::output::mcap::{McapMetadata, McapSink, ParentFromLink};
 /// # fn main() -> Result<(), ribbon::output::mcap::McapError> {
 /// let metadata = McapMetadata {
 ///     robot: "double_pendulum".into(),
@@ -136,9 +153,10 @@ struct Channel {
 /// };
 /// let urdf = std::fs::read_to_string("robots/double_pendulum/double_pendulum.urdf").unwrap();
 /// let mut sink = McapSink::create("out.mcap".as_ref(), "double_pendulum.urdf", &urdf, None, metadata)?;
-/// let q1 = sink.add_output("q.j1")?;
+/// let q1 = sink.add_output("q.j1", "rad")?;
 /// sink.write_envelope(q1, 0.0, -0.01, 0.0, 0.01)?;
-/// sink.write_transforms(0.0, &[WorldFromLink {
+/// sink.write_transforms(0.0, &[ParentFromLink {
+///     parent: "world",
 ///     link: "bar1",
 ///     translation_m: [0.0; 3],
 ///     rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
@@ -156,6 +174,8 @@ pub struct McapSink {
     /// `None` once finished or dropped.
     writer: Option<Writer<BufWriter<File>>>,
     metadata: McapMetadata,
+    /// Entries added to the `ribbon` record besides the study description.
+    extra_metadata: BTreeMap<String, String>,
     joint_state_schema: u16,
     /// Every channel; handles index into it.
     channels: Vec<Channel>,
@@ -200,6 +220,7 @@ impl McapSink {
             temporary_path,
             writer: None,
             metadata,
+            extra_metadata: BTreeMap::new(),
             joint_state_schema: 0,
             channels: Vec::new(),
             topics: HashSet::new(),
@@ -280,22 +301,27 @@ impl McapSink {
     /// Registers an output: topic `/ribbon/envelope/<parts joined by '/'>`, messages
     /// `sensor_msgs/msg/JointState` with names `lower`, `nominal`, `upper`. A `&str` splits at
     /// every dot (`"q.elbow_joint"` → `/ribbon/envelope/q/elbow_joint`); see [`OutputName`] for
-    /// names with dots inside. The channel's metadata holds the output name as `output`.
+    /// names with dots inside. The channel's metadata holds the output name as `output`, its
+    /// `unit` (`rad`, `m`, `N·m`, …, empty when unitless) and the viewer tab it belongs to as
+    /// `group` (see [`crate::output::viewer::view_group`]).
     pub fn add_output(
         &mut self,
         name: impl Into<OutputName>,
+        unit: &str,
     ) -> Result<EnvelopeChannel, McapError> {
-        self.add_joint_state_channel(ChannelKind::Envelope, ENVELOPE_PREFIX, &name.into())
+        self.add_joint_state_channel(ChannelKind::Envelope, ENVELOPE_PREFIX, &name.into(), unit)
             .map(EnvelopeChannel)
     }
 
     /// Registers an output's error-estimate channel: topic `/ribbon/error/<parts joined by '/'>`,
-    /// `sensor_msgs/msg/JointState` with the one name `estimate`.
+    /// `sensor_msgs/msg/JointState` with the one name `estimate` (in `unit`, the output's), channel
+    /// metadata as for [`add_output`](Self::add_output).
     pub fn add_error_channel(
         &mut self,
         name: impl Into<OutputName>,
+        unit: &str,
     ) -> Result<ErrorChannel, McapError> {
-        self.add_joint_state_channel(ChannelKind::Error, ERROR_PREFIX, &name.into())
+        self.add_joint_state_channel(ChannelKind::Error, ERROR_PREFIX, &name.into(), unit)
             .map(ErrorChannel)
     }
 
@@ -329,11 +355,11 @@ impl McapSink {
     }
 
     /// Writes the nominal robot's frames at simulation time `time_s` on `/tf`: one
-    /// `foxglove.FrameTransform` per entry, parent `world`, child the link, time stamp `time_s`.
+    /// `foxglove.FrameTransform` per entry (parent, child the link), time stamp `time_s`.
     pub fn write_transforms(
         &mut self,
         time_s: f64,
-        frames: &[WorldFromLink<'_>],
+        frames: &[ParentFromLink<'_>],
     ) -> Result<(), McapError> {
         let nanos = self.nanos(time_s, TF_TOPIC)?;
         let timestamp = foxglove::Timestamp {
@@ -345,7 +371,7 @@ impl McapSink {
                 .iter()
                 .map(|frame| foxglove::FrameTransform {
                     timestamp: Some(timestamp),
-                    parent_frame_id: WORLD_FRAME.to_string(),
+                    parent_frame_id: frame.parent.to_string(),
                     child_frame_id: frame.link.to_string(),
                     translation: Some(foxglove::Vector3 {
                         x: frame.translation_m[0],
@@ -366,6 +392,41 @@ impl McapSink {
         self.write_message(tf.expect("`create` adds /tf"), nanos, &payload)
     }
 
+    /// Attaches a file (`name`, IANA `media_type`, its bytes) at log time 0, e.g. the Foxglove
+    /// layout of docs/mcap.md §4.
+    pub fn attach(&mut self, name: &str, media_type: &str, data: &[u8]) -> Result<(), McapError> {
+        let attachment = Attachment {
+            log_time: 0,
+            create_time: 0,
+            name: name.to_string(),
+            media_type: media_type.to_string(),
+            data: Cow::Borrowed(data),
+        };
+        let result = self.writer_mut().attach(&attachment);
+        result.map_err(|source| self.mcap_error(&format!("attach {name}"), source))
+    }
+
+    /// Adds entries to the `ribbon` metadata record written by [`finish`](Self::finish) (e.g. the
+    /// viewer facts of docs/mcap.md §4: `scene_centre_m`, `scene_radius_m`). A key of the study
+    /// description (`robot`, `method`, `order`, `runs`, `ribbon_version`, `partial`, `parameters`)
+    /// is refused ([`McapError::ReservedMetadataName`]); a key given twice keeps the last value.
+    pub fn add_metadata_entries(
+        &mut self,
+        entries: BTreeMap<String, String>,
+    ) -> Result<(), McapError> {
+        if let Some(key) = entries
+            .keys()
+            .find(|k| STUDY_METADATA_KEYS.contains(&k.as_str()))
+        {
+            return Err(McapError::ReservedMetadataName {
+                path: self.path.clone(),
+                name: key.clone(),
+            });
+        }
+        self.extra_metadata.extend(entries);
+        Ok(())
+    }
+
     /// Completes the file: the `ribbon` metadata record with `partial` = `"true"` or `"false"`,
     /// the last chunk, the indexes and the summary; then syncs it and renames the temporary file to
     /// `path` (replacing a regular file there, never a symlink, directory or special file). On
@@ -376,24 +437,26 @@ impl McapSink {
     pub fn finish(mut self, partial: bool) -> Result<(), McapError> {
         check_parameters(&self.path, &self.metadata.parameters_json)?;
         let m = &self.metadata;
+        let mut entries = self.extra_metadata.clone();
+        entries.extend([
+            ("robot".to_string(), m.robot.clone()),
+            ("method".to_string(), m.method.clone()),
+            (
+                "order".to_string(),
+                m.order
+                    .map_or_else(|| "null".to_string(), |k| k.to_string()),
+            ),
+            ("runs".to_string(), m.runs.to_string()),
+            (
+                "ribbon_version".to_string(),
+                env!("CARGO_PKG_VERSION").to_string(),
+            ),
+            ("partial".to_string(), partial.to_string()),
+            ("parameters".to_string(), m.parameters_json.clone()),
+        ]);
         let record = Metadata {
             name: METADATA_NAME.to_string(),
-            metadata: BTreeMap::from([
-                ("robot".to_string(), m.robot.clone()),
-                ("method".to_string(), m.method.clone()),
-                (
-                    "order".to_string(),
-                    m.order
-                        .map_or_else(|| "null".to_string(), |k| k.to_string()),
-                ),
-                ("runs".to_string(), m.runs.to_string()),
-                (
-                    "ribbon_version".to_string(),
-                    env!("CARGO_PKG_VERSION").to_string(),
-                ),
-                ("partial".to_string(), partial.to_string()),
-                ("parameters".to_string(), m.parameters_json.clone()),
-            ]),
+            metadata: entries,
         };
         let result = self.writer_mut().write_metadata(&record);
         result.map_err(|source| self.mcap_error("write the `ribbon` metadata record", source))?;
@@ -500,6 +563,7 @@ impl McapSink {
         kind: ChannelKind,
         prefix: &str,
         name: &OutputName,
+        unit: &str,
     ) -> Result<usize, McapError> {
         if name.has_empty_part() {
             return Err(McapError::BadOutputName {
@@ -508,7 +572,14 @@ impl McapSink {
             });
         }
         let topic = format!("{prefix}{}", name.topic_suffix());
-        let metadata = BTreeMap::from([("output".to_string(), name.name())]);
+        let metadata = BTreeMap::from([
+            ("output".to_string(), name.name()),
+            ("unit".to_string(), unit.to_string()),
+            (
+                "group".to_string(),
+                crate::output::viewer::view_group(name.parts()).title,
+            ),
+        ]);
         self.add_channel(kind, self.joint_state_schema, &topic, "cdr", metadata)
     }
 

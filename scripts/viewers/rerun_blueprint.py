@@ -1,0 +1,164 @@
+#!/usr/bin/env python3
+"""Writes a rerun blueprint (.rbl) for a ribbon MCAP log (docs/mcap.md §5).
+
+Usage: rerun_blueprint.py LOG.mcap OUT.rbl [--manifest OUT.json] [--active-tab GROUP]
+
+Reads the log's envelope channels (metadata `output`, `unit`, `group`) and the `ribbon` metadata
+record (`robot`: rerun's entity root for the URDF geometry; `scene_centre_m`, `scene_radius_m`: the
+box the robot moves in), and writes a blueprint with:
+- left, a 3D view of the nominal robot (URDF visual geometry moved by /tf), the eye placed like the
+  Foxglove layout's camera (3.2 scene radii from the centre, 30° up, 45° azimuth);
+- right, one tab per group, one time-series view per output titled `name [unit]`, holding only the
+  output's `/ribbon/envelope/…/position` entity, series lower / nominal / upper in the layout's
+  fixed colours;
+- the time panel on `message_log_time` (seconds from 0 when converted with --timeline-type duration).
+
+View it with the log converted under the same application id:
+    rerun mcap convert --timeline-type duration --application-id ribbon LOG.mcap -o LOG.rrd
+    rerun LOG.rrd OUT.rbl
+--manifest writes the entity paths the blueprint shows, for checks (tests/viewers.rs);
+--active-tab opens the tab of that group (e.g. "frame tool0") instead of the first.
+Needs rerun-sdk 0.41 and mcap (the reference venv: target/reference-venv/bin/python).
+"""
+
+import argparse
+import json
+import math
+import sys
+
+import rerun as rr
+import rerun.blueprint as rrb
+from mcap.reader import make_reader
+
+APPLICATION_ID = "ribbon"
+ENVELOPE_PREFIX = "/ribbon/envelope/"
+TIMELINE = "message_log_time"
+# Must match src/output/viewer/mod.rs SERIES_COLOURS and foxglove_layout.rs's camera constants.
+SERIES = [("lower", "#0072b2", 1.5), ("nominal", "#009e73", 2.5), ("upper", "#d55e00", 1.5)]
+CAMERA_ELEVATION_DEG = 30.0
+CAMERA_AZIMUTH_DEG = 45.0
+CAMERA_DISTANCE_IN_RADII = 3.2
+GROUP_ORDER = [
+    "joint positions",
+    "frame ",
+    "joint velocities",
+    "joint accelerations",
+    "drive efforts",
+    "constraint forces",
+]
+
+
+def group_rank(title):
+    for rank, prefix in enumerate(GROUP_ORDER):
+        if title == prefix or (prefix.endswith(" ") and title.startswith(prefix)):
+            return rank
+    return len(GROUP_ORDER)
+
+
+def rgba(hex_colour):
+    value = int(hex_colour.lstrip("#"), 16)
+    return [(value >> 16) & 255, (value >> 8) & 255, value & 255, 255]
+
+
+def read_log(path):
+    """(outputs [(name, unit, group, topic)], robot name, scene centre, scene radius)."""
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        if summary is None:
+            sys.exit(f"{path}: no summary section; is it a complete ribbon log?")
+        outputs = [
+            (c.metadata["output"], c.metadata.get("unit", ""), c.metadata.get("group", "outputs"), c.topic)
+            for c in sorted(summary.channels.values(), key=lambda c: c.id)
+            if c.topic.startswith(ENVELOPE_PREFIX) and "output" in c.metadata
+        ]
+        records = {m.name: m.metadata for m in reader.iter_metadata()}
+    if not outputs:
+        sys.exit(f"{path}: no envelope channels with `output` metadata (written by ribbon ≥ this version)")
+    robot = records.get("ribbon", {}).get("robot")
+    if not robot:
+        sys.exit(f"{path}: no `ribbon` metadata record naming the robot")
+    viewer = records.get("ribbon", {})
+    centre = json.loads(viewer.get("scene_centre_m", "[0, 0, 0]"))
+    radius = float(viewer.get("scene_radius_m", "1"))
+    return outputs, robot, centre, radius
+
+
+def panel_title(name, unit):
+    return f"{name} [{unit}]" if unit else name
+
+
+def build(outputs, robot, centre, radius, active_tab=None):
+    elevation, azimuth = math.radians(CAMERA_ELEVATION_DEG), math.radians(CAMERA_AZIMUTH_DEG)
+    distance = CAMERA_DISTANCE_IN_RADII * radius
+    eye = [
+        centre[0] + distance * math.cos(elevation) * math.cos(azimuth),
+        centre[1] + distance * math.cos(elevation) * math.sin(azimuth),
+        centre[2] + distance * math.sin(elevation),
+    ]
+    robot_root = f"/{robot}"
+    robot_view = rrb.Spatial3DView(
+        origin="/",
+        name="nominal robot",
+        contents=[f"+ {robot_root}/visual_geometries/**", "+ /tf"],
+        eye_controls=rrb.EyeControls3D(position=eye, look_target=centre, eye_up=[0.0, 0.0, 1.0]),
+    )
+    groups = {}
+    shown = []
+    for name, unit, group, topic in outputs:
+        entity = f"{topic}/position"
+        shown.append(entity)
+        lines = rr.SeriesLines(
+            colors=[rgba(colour) for _, colour, _ in SERIES],
+            names=[label for label, _, _ in SERIES],
+            widths=[width for _, _, width in SERIES],
+        )
+        view = rrb.TimeSeriesView(
+            origin=entity,
+            contents="$origin",
+            name=panel_title(name, unit),
+            overrides={entity: lines.visualizer()},
+            plot_legend=rrb.Corner2D.RightTop,
+        )
+        groups.setdefault(group, []).append(view)
+    ordered = sorted(groups.items(), key=lambda item: (group_rank(item[0]), item[0]))
+    tabs = [rrb.Grid(*views, name=group) for group, views in ordered]
+    names = [group for group, _ in ordered]
+    if active_tab is not None and active_tab not in names:
+        sys.exit(f"--active-tab {active_tab!r}: the log's groups are {names}")
+    active = names.index(active_tab) if active_tab is not None else 0
+    blueprint = rrb.Blueprint(
+        rrb.Horizontal(robot_view, rrb.Tabs(*tabs, name="outputs", active_tab=active), column_shares=[35, 65]),
+        rrb.TimePanel(timeline=TIMELINE, expanded=True),
+        rrb.SelectionPanel(expanded=False),
+        auto_views=False,
+    )
+    manifest = {
+        "application_id": APPLICATION_ID,
+        "timeline": TIMELINE,
+        "robot_root": robot_root,
+        "plotted_entities": shown,
+        "tabs": [group for group, _ in sorted(groups.items(), key=lambda item: (group_rank(item[0]), item[0]))],
+        "titles": [panel_title(name, unit) for name, unit, _, _ in outputs],
+        "eye": eye,
+        "look_target": centre,
+    }
+    return blueprint, manifest
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("log")
+    parser.add_argument("out")
+    parser.add_argument("--manifest")
+    parser.add_argument("--active-tab")
+    args = parser.parse_args()
+    blueprint, manifest = build(*read_log(args.log), active_tab=args.active_tab)
+    blueprint.save(APPLICATION_ID, args.out)
+    if args.manifest:
+        with open(args.manifest, "w") as f:
+            json.dump(manifest, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,663 @@
+//! Report plots drawn with `plotters` (docs/mcap.md §7), each as SVG text and as PNG bytes:
+//! [`TimePlot`] (an output over time: shaded bands, lines, dashed lines) and [`ScatterPlot`]
+//! (labelled points on linear or logarithmic axes, e.g. error against wall time).
+//!
+//! Text is laid out and, in PNGs, drawn with a subset of DejaVu Sans embedded in the binary
+//! (`assets/fonts/`, Bitstream Vera licence), so the plots look the same on every machine; the
+//! SVGs name the family `sans-serif`. Nothing here writes files: callers pass the bytes to
+//! [`crate::output::write_atomically`].
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::sync::OnceLock;
+
+/// The embedded font (DejaVu Sans, subset to Latin, Greek and the symbols of our labels and units).
+const FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-ribbon-subset.ttf");
+/// The family name plots ask for.
+const FONT_FAMILY: &str = "sans-serif";
+/// Plot size, pixels (SVG user units).
+pub const PLOT_SIZE: (u32, u32) = (900, 460);
+/// Relative margin added above and below the data of a linear y axis, so that lines at the
+/// extremes stay off the frame.
+const Y_MARGIN: f64 = 0.06;
+/// Half-height given to a y range whose data are constant, relative to the value (or absolute
+/// when the value is 0): a flat line is then drawn mid-plot instead of an empty range.
+const FLAT_RANGE_RELATIVE: f64 = 1e-3;
+/// Smallest half-height of a flat y range at 0.
+const FLAT_RANGE_ABSOLUTE: f64 = 1e-9;
+/// Below this ratio of tick step to the largest tick magnitude, ticks would need more than five
+/// significant digits in fixed notation: they switch to scientific notation.
+const SCIENTIFIC_STEP_RATIO: f64 = 1e-5;
+
+/// A colour as `#rrggbb`.
+pub type HexColour = &'static str;
+
+/// Why a plot could not be drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// The embedded font did not load.
+    #[error("the embedded plot font did not load")]
+    Font,
+    /// A plot with no finite point.
+    #[error("plot '{0}' has no finite data to draw")]
+    NoData(String),
+    /// plotters failed while drawing.
+    #[error("drawing plot '{title}' failed: {message}")]
+    Draw {
+        /// The plot's title.
+        title: String,
+        /// plotters' message.
+        message: String,
+    },
+    /// The PNG encoder failed.
+    #[error("encoding plot '{title}' as PNG failed: {message}")]
+    Png {
+        /// The plot's title.
+        title: String,
+        /// The encoder's message.
+        message: String,
+    },
+}
+
+/// One thing drawn on a [`TimePlot`], in drawing order.
+#[derive(Clone, Debug)]
+pub enum Layer<'a> {
+    /// The region between two series, filled (alpha 0.25) and edged by thin lines.
+    Band {
+        /// Legend label.
+        label: String,
+        /// Lower edge, one value per time.
+        lower: &'a [f64],
+        /// Upper edge, one value per time.
+        upper: &'a [f64],
+        /// Fill and edge colour.
+        colour: HexColour,
+    },
+    /// A series as a line.
+    Line {
+        /// Legend label.
+        label: String,
+        /// One value per time.
+        values: &'a [f64],
+        /// Colour.
+        colour: HexColour,
+        /// Stroke width, pixels.
+        width: u32,
+        /// Dashed instead of solid.
+        dashed: bool,
+    },
+}
+
+/// An output over time.
+#[derive(Clone, Debug)]
+pub struct TimePlot<'a> {
+    /// Title (above the plot).
+    pub title: String,
+    /// y-axis label, with its unit (`frame.tool0.z [m]`).
+    pub y_label: String,
+    /// Times, s; the x axis.
+    pub times: &'a [f64],
+    /// What is drawn, in order; legend entries in the same order.
+    pub layers: Vec<Layer<'a>>,
+}
+
+/// One labelled series of a [`ScatterPlot`].
+#[derive(Clone, Debug)]
+pub struct ScatterSeries {
+    /// Legend label.
+    pub label: String,
+    /// `(x, y)` points, in drawing order; joined by a line when more than one.
+    pub points: Vec<(f64, f64)>,
+    /// A label per point drawn beside its marker (may be empty).
+    pub point_labels: Vec<String>,
+    /// Colour.
+    pub colour: HexColour,
+}
+
+/// Points against two axes.
+#[derive(Clone, Debug)]
+pub struct ScatterPlot {
+    /// Title.
+    pub title: String,
+    /// x-axis label with unit.
+    pub x_label: String,
+    /// y-axis label with unit.
+    pub y_label: String,
+    /// Logarithmic x axis (non-positive values are left out).
+    pub log_x: bool,
+    /// Logarithmic y axis (non-positive values are left out).
+    pub log_y: bool,
+    /// The series.
+    pub series: Vec<ScatterSeries>,
+}
+
+/// A qualitative palette for series without a meaning of their own (Okabe–Ito, then greys).
+pub const PALETTE: [HexColour; 8] = [
+    "#0072b2", "#d55e00", "#009e73", "#cc79a7", "#e69f00", "#56b4e9", "#000000", "#999999",
+];
+
+/// Registers the embedded font once.
+fn ensure_font() -> Result<(), PlotError> {
+    static LOADED: OnceLock<bool> = OnceLock::new();
+    let ok = *LOADED.get_or_init(|| {
+        plotters::style::register_font(FONT_FAMILY, FontStyle::Normal, FONT_BYTES).is_ok()
+    });
+    if ok {
+        Ok(())
+    } else {
+        Err(PlotError::Font)
+    }
+}
+
+fn rgb(colour: HexColour) -> RGBColor {
+    let value = u32::from_str_radix(colour.trim_start_matches('#'), 16).unwrap_or(0);
+    RGBColor((value >> 16) as u8, (value >> 8) as u8, value as u8)
+}
+
+fn draw_error(title: &str, error: impl std::fmt::Display) -> PlotError {
+    PlotError::Draw {
+        title: title.to_string(),
+        message: error.to_string(),
+    }
+}
+
+/// Tick label of `value` on an axis whose ticks are about `step` apart: as many decimals as the
+/// step needs, scientific notation when fixed notation would need more than five significant
+/// digits or the values are large.
+pub fn tick_label(value: f64, step: f64, largest: f64) -> String {
+    if value == 0.0 {
+        return "0".to_string();
+    }
+    let step = step.abs().max(f64::MIN_POSITIVE);
+    if largest >= 1e5 || (largest > 0.0 && step / largest < SCIENTIFIC_STEP_RATIO) || largest < 1e-3
+    {
+        let digits = ((largest / step).log10().ceil().max(1.0) as usize).min(8);
+        return format!(
+            "{value:.digits$e}",
+            digits = digits.saturating_sub(1).max(1)
+        );
+    }
+    let decimals = (-step.log10().floor()).max(0.0) as usize;
+    format!("{value:.decimals$}")
+}
+
+/// y range of the data, padded; a flat range is widened around its value.
+fn linear_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    if !lo.is_finite() {
+        return None;
+    }
+    let span = hi - lo;
+    let half = if span > FLAT_RANGE_RELATIVE * lo.abs().max(hi.abs()) {
+        0.5 * span * (1.0 + 2.0 * Y_MARGIN)
+    } else {
+        (FLAT_RANGE_RELATIVE * lo.abs().max(hi.abs())).max(FLAT_RANGE_ABSOLUTE) + 0.5 * span
+    };
+    let mid = 0.5 * (lo + hi);
+    Some((mid - half, mid + half))
+}
+
+/// Decade-aligned range of the positive data, for a log axis.
+fn log_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    if !lo.is_finite() {
+        return None;
+    }
+    let lo = 10f64.powf(lo.log10().floor());
+    let hi = 10f64.powf(hi.log10().ceil()).max(lo * 10.0);
+    Some((lo, hi))
+}
+
+/// About how far apart plotters puts `count` ticks over `range` (its steps are 1, 2, 5 × 10^k).
+fn tick_step(range: (f64, f64), count: usize) -> f64 {
+    let raw = (range.1 - range.0).abs() / count.max(1) as f64;
+    if raw <= 0.0 || !raw.is_finite() {
+        return 1.0;
+    }
+    let decade = 10f64.powf(raw.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * decade)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * decade)
+}
+
+/// Encodes an RGB buffer as PNG.
+fn encode_png(title: &str, rgb_pixels: &[u8], (w, h): (u32, u32)) -> Result<Vec<u8>, PlotError> {
+    let png_error = |e: png::EncodingError| PlotError::Png {
+        title: title.to_string(),
+        message: e.to_string(),
+    };
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, w, h);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(png_error)?;
+    writer.write_image_data(rgb_pixels).map_err(png_error)?;
+    writer.finish().map_err(png_error)?;
+    Ok(bytes)
+}
+
+/// Renders `draw` to SVG text.
+fn render_svg<F>(title: &str, draw: F) -> Result<String, PlotError>
+where
+    F: FnOnce(DrawingArea<SVGBackend, Shift>) -> Result<(), PlotError>,
+{
+    ensure_font()?;
+    let mut text = String::new();
+    {
+        let root = SVGBackend::with_string(&mut text, PLOT_SIZE).into_drawing_area();
+        draw(root)?;
+    }
+    if text.is_empty() {
+        return Err(draw_error(title, "the SVG backend produced nothing"));
+    }
+    Ok(text)
+}
+
+/// Renders `draw` to PNG bytes.
+fn render_png<F>(title: &str, draw: F) -> Result<Vec<u8>, PlotError>
+where
+    F: FnOnce(DrawingArea<BitMapBackend, Shift>) -> Result<(), PlotError>,
+{
+    ensure_font()?;
+    let (w, h) = PLOT_SIZE;
+    let mut pixels = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut pixels, PLOT_SIZE).into_drawing_area();
+        draw(root)?;
+    }
+    encode_png(title, &pixels, PLOT_SIZE)
+}
+
+impl TimePlot<'_> {
+    fn y_values(&self) -> impl Iterator<Item = f64> + '_ {
+        self.layers.iter().flat_map(|layer| match layer {
+            Layer::Band { lower, upper, .. } => lower.iter().chain(upper.iter()).copied(),
+            Layer::Line { values, .. } => values.iter().chain([].iter()).copied(),
+        })
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), PlotError> {
+        let title = self.title.as_str();
+        let fail = |e: DrawingAreaErrorKind<DB::ErrorType>| draw_error(title, e);
+        let (t0, t1) = linear_range(self.times.iter().copied())
+            .map(|_| {
+                let first = self.times.first().copied().unwrap_or(0.0);
+                let last = self.times.last().copied().unwrap_or(1.0);
+                if last > first {
+                    (first, last)
+                } else {
+                    (first, first + 1.0)
+                }
+            })
+            .ok_or_else(|| PlotError::NoData(self.title.clone()))?;
+        let (y0, y1) =
+            linear_range(self.y_values()).ok_or_else(|| PlotError::NoData(self.title.clone()))?;
+        root.fill(&WHITE).map_err(fail)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, (FONT_FAMILY, 20))
+            .margin(12)
+            .x_label_area_size(44)
+            .y_label_area_size(96)
+            .build_cartesian_2d(t0..t1, y0..y1)
+            .map_err(fail)?;
+        let y_step = tick_step((y0, y1), 6);
+        let y_largest = y0.abs().max(y1.abs());
+        let x_step = tick_step((t0, t1), 10);
+        let x_formatter = |v: &f64| tick_label(*v, x_step, t0.abs().max(t1.abs()));
+        let y_formatter = |v: &f64| tick_label(*v, y_step, y_largest);
+        chart
+            .configure_mesh()
+            .x_desc("t [s]")
+            .y_desc(self.y_label.as_str())
+            .x_labels(10)
+            .y_labels(6)
+            .x_label_formatter(&x_formatter)
+            .y_label_formatter(&y_formatter)
+            .label_style((FONT_FAMILY, 14))
+            .axis_desc_style((FONT_FAMILY, 15))
+            .light_line_style(RGBColor(235, 235, 235))
+            .bold_line_style(RGBColor(205, 205, 205))
+            .draw()
+            .map_err(fail)?;
+        let times = self.times;
+        for layer in &self.layers {
+            match layer {
+                Layer::Band {
+                    label,
+                    lower,
+                    upper,
+                    colour,
+                } => {
+                    let colour = rgb(colour);
+                    let outline: Vec<(f64, f64)> = times
+                        .iter()
+                        .zip(lower.iter())
+                        .map(|(t, v)| (*t, *v))
+                        .chain(times.iter().zip(upper.iter()).rev().map(|(t, v)| (*t, *v)))
+                        .filter(|(_, v)| v.is_finite())
+                        .collect();
+                    chart
+                        .draw_series(std::iter::once(Polygon::new(
+                            outline,
+                            colour.mix(0.25).filled(),
+                        )))
+                        .map_err(fail)?
+                        .label(label.as_str())
+                        .legend(move |(x, y)| {
+                            Rectangle::new([(x, y - 6), (x + 20, y + 6)], colour.mix(0.25).filled())
+                        });
+                    for edge in [lower, upper] {
+                        chart
+                            .draw_series(LineSeries::new(
+                                times.iter().copied().zip(edge.iter().copied()),
+                                colour.stroke_width(1),
+                            ))
+                            .map_err(fail)?;
+                    }
+                }
+                Layer::Line {
+                    label,
+                    values,
+                    colour,
+                    width,
+                    dashed,
+                } => {
+                    let style = rgb(colour).stroke_width(*width);
+                    let points = times.iter().copied().zip(values.iter().copied());
+                    let drawn = if *dashed {
+                        chart
+                            .draw_series(DashedLineSeries::new(points, 8, 5, style))
+                            .map_err(fail)?
+                    } else {
+                        chart
+                            .draw_series(LineSeries::new(points, style))
+                            .map_err(fail)?
+                    };
+                    // An empty label (the second edge of a dashed bound) gets no legend entry.
+                    if !label.is_empty() {
+                        let length = if *dashed { 8 } else { 20 };
+                        drawn.label(label.as_str()).legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + length, y)], style)
+                        });
+                    }
+                }
+            }
+        }
+        chart
+            .configure_series_labels()
+            .label_font((FONT_FAMILY, 14))
+            .background_style(WHITE.mix(0.85))
+            .border_style(RGBColor(160, 160, 160))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(fail)?;
+        root.present().map_err(fail)
+    }
+
+    /// The plot as SVG text.
+    pub fn svg(&self) -> Result<String, PlotError> {
+        render_svg(&self.title, |root| self.draw(root))
+    }
+
+    /// The plot as PNG bytes.
+    pub fn png(&self) -> Result<Vec<u8>, PlotError> {
+        render_png(&self.title, |root| self.draw(root))
+    }
+}
+
+impl ScatterPlot {
+    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), PlotError> {
+        let title = self.title.as_str();
+        let fail = |e: DrawingAreaErrorKind<DB::ErrorType>| draw_error(title, e);
+        let usable = |(x, y): &(f64, f64)| {
+            x.is_finite() && y.is_finite() && (!self.log_x || *x > 0.0) && (!self.log_y || *y > 0.0)
+        };
+        let xs = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .filter(|p| usable(p));
+        let ys = xs.clone().map(|p| p.1);
+        let xs = xs.map(|p| p.0);
+        let no_data = || PlotError::NoData(self.title.clone());
+        let x_range = if self.log_x {
+            log_range(xs)
+        } else {
+            linear_range(xs)
+        }
+        .ok_or_else(no_data)?;
+        let y_range = if self.log_y {
+            log_range(ys)
+        } else {
+            linear_range(ys)
+        }
+        .ok_or_else(no_data)?;
+        root.fill(&WHITE).map_err(fail)?;
+        let mut builder = ChartBuilder::on(&root);
+        builder
+            .caption(title, (FONT_FAMILY, 20))
+            .margin(12)
+            .x_label_area_size(44)
+            .y_label_area_size(96);
+        // Four axis combinations are four coordinate types in plotters; one generic body draws all.
+        macro_rules! body {
+            ($chart:expr) => {{
+                let mut chart = $chart;
+                let x_step = tick_step(x_range, 8);
+                let y_step = tick_step(y_range, 6);
+                let x_largest = x_range.0.abs().max(x_range.1.abs());
+                let y_largest = y_range.0.abs().max(y_range.1.abs());
+                let x_formatter = |v: &f64| {
+                    if self.log_x {
+                        log_tick_label(*v)
+                    } else {
+                        tick_label(*v, x_step, x_largest)
+                    }
+                };
+                let y_formatter = |v: &f64| {
+                    if self.log_y {
+                        log_tick_label(*v)
+                    } else {
+                        tick_label(*v, y_step, y_largest)
+                    }
+                };
+                chart
+                    .configure_mesh()
+                    .x_desc(self.x_label.as_str())
+                    .y_desc(self.y_label.as_str())
+                    .x_label_formatter(&x_formatter)
+                    .y_label_formatter(&y_formatter)
+                    .label_style((FONT_FAMILY, 14))
+                    .axis_desc_style((FONT_FAMILY, 15))
+                    .light_line_style(RGBColor(235, 235, 235))
+                    .bold_line_style(RGBColor(205, 205, 205))
+                    .draw()
+                    .map_err(fail)?;
+                for series in &self.series {
+                    let colour = rgb(series.colour);
+                    let points: Vec<(f64, f64)> = series
+                        .points
+                        .iter()
+                        .copied()
+                        .filter(|p| usable(p))
+                        .collect();
+                    if points.len() > 1 {
+                        chart
+                            .draw_series(LineSeries::new(
+                                points.iter().copied(),
+                                colour.stroke_width(1),
+                            ))
+                            .map_err(fail)?;
+                    }
+                    chart
+                        .draw_series(points.iter().map(|p| Circle::new(*p, 4, colour.filled())))
+                        .map_err(fail)?
+                        .label(series.label.as_str())
+                        .legend(move |(x, y)| Circle::new((x + 8, y), 4, colour.filled()));
+                    let labelled = series
+                        .points
+                        .iter()
+                        .zip(&series.point_labels)
+                        .filter(|(p, label)| usable(p) && !label.is_empty());
+                    chart
+                        .draw_series(labelled.map(|(p, label)| {
+                            EmptyElement::at(*p)
+                                + Text::new(label.clone(), (6, -16), (FONT_FAMILY, 12).into_font())
+                        }))
+                        .map_err(fail)?;
+                }
+                chart
+                    .configure_series_labels()
+                    .label_font((FONT_FAMILY, 14))
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(RGBColor(160, 160, 160))
+                    .position(SeriesLabelPosition::UpperRight)
+                    .draw()
+                    .map_err(fail)?;
+            }};
+        }
+        let (x0, x1) = x_range;
+        let (y0, y1) = y_range;
+        match (self.log_x, self.log_y) {
+            (true, true) => body!(builder
+                .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+                .map_err(fail)?),
+            (true, false) => {
+                body!(builder
+                    .build_cartesian_2d((x0..x1).log_scale(), y0..y1)
+                    .map_err(fail)?)
+            }
+            (false, true) => {
+                body!(builder
+                    .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+                    .map_err(fail)?)
+            }
+            (false, false) => body!(builder.build_cartesian_2d(x0..x1, y0..y1).map_err(fail)?),
+        }
+        root.present().map_err(fail)
+    }
+
+    /// The plot as SVG text.
+    pub fn svg(&self) -> Result<String, PlotError> {
+        render_svg(&self.title, |root| self.draw(root))
+    }
+
+    /// The plot as PNG bytes.
+    pub fn png(&self) -> Result<Vec<u8>, PlotError> {
+        render_png(&self.title, |root| self.draw(root))
+    }
+}
+
+/// Tick label on a log axis: `1e-3`, `0.01`, `0.1`, `1`, `10`, `100`, `1e3`; other ticks (plotters
+/// adds 2×, 5× between decades) the same way with their mantissa.
+fn log_tick_label(value: f64) -> String {
+    if !(value.is_finite() && value > 0.0) {
+        return String::new();
+    }
+    let exponent = value.log10().floor();
+    let mantissa = value / 10f64.powf(exponent);
+    let mantissa = (mantissa * 10.0).round() / 10.0;
+    if (-2.0..=2.0).contains(&exponent) {
+        let decimals = (-exponent).max(0.0) as usize;
+        format!("{value:.decimals$}")
+    } else if (mantissa - 1.0).abs() < 1e-9 {
+        format!("1e{exponent}")
+    } else {
+        format!("{mantissa}e{exponent}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_embedded_font_has_every_glyph_of_our_labels() {
+        use ab_glyph::Font;
+        let font = ab_glyph::FontRef::try_from_slice(FONT_BYTES).expect("the font parses");
+        let text = "0123456789 abcdefghijklmnopqrstuvwxyz ABCDEFGHIJKLMNOPQRSTUVWXYZ .,:;()[]{}+-=/_%<>|#*'\" −×·²≤≥±…λξΔσµ°";
+        let missing: Vec<char> = text
+            .chars()
+            .filter(|c| !c.is_whitespace() && font.glyph_id(*c).0 == 0)
+            .collect();
+        assert!(
+            missing.is_empty(),
+            "glyphs missing from the font: {missing:?}"
+        );
+        ensure_font().expect("plotters registers it");
+    }
+
+    #[test]
+    fn tick_labels_have_the_decimals_the_step_needs() {
+        assert_eq!(tick_label(0.25, 0.05, 1.0), "0.25");
+        assert_eq!(tick_label(1.0, 0.5, 2.0), "1.0");
+        assert_eq!(tick_label(120.0, 20.0, 200.0), "120");
+        assert_eq!(tick_label(0.0, 0.1, 1.0), "0");
+        // Ticks 1e-6 apart around 0.47 need scientific notation only past five digits.
+        assert_eq!(tick_label(0.4741, 1e-4, 0.48), "0.4741");
+        assert!(tick_label(0.47400001, 1e-8, 0.48).contains('e'));
+        assert!(tick_label(2e-6, 1e-6, 5e-6).contains('e'));
+        assert_eq!(log_tick_label(0.01), "0.01");
+        assert_eq!(log_tick_label(1e-5), "1e-5");
+        assert_eq!(log_tick_label(100.0), "100");
+    }
+
+    #[test]
+    fn flat_and_empty_ranges() {
+        let (lo, hi) = linear_range([2.0, 2.0].into_iter()).unwrap();
+        assert!(lo < 2.0 && hi > 2.0);
+        let (lo, hi) = linear_range([0.0].into_iter()).unwrap();
+        assert!(lo < 0.0 && hi > 0.0);
+        assert!(linear_range([f64::NAN].into_iter()).is_none());
+        assert_eq!(log_range([0.02, 3.0].into_iter()), Some((0.01, 10.0)));
+    }
+
+    #[test]
+    fn a_band_plot_renders_to_svg_and_png() {
+        let times: Vec<f64> = (0..50).map(|k| k as f64 * 0.02).collect();
+        let nominal: Vec<f64> = times.iter().map(|t| (3.0 * t).sin()).collect();
+        let lower: Vec<f64> = nominal.iter().map(|v| v - 0.1).collect();
+        let upper: Vec<f64> = nominal.iter().map(|v| v + 0.1).collect();
+        let plot = TimePlot {
+            title: "q.j1".to_string(),
+            y_label: "q.j1 [rad]".to_string(),
+            times: &times,
+            layers: vec![
+                Layer::Band {
+                    label: "inner bound".to_string(),
+                    lower: &lower,
+                    upper: &upper,
+                    colour: PALETTE[0],
+                },
+                Layer::Line {
+                    label: "nominal".to_string(),
+                    values: &nominal,
+                    colour: PALETTE[2],
+                    width: 2,
+                    dashed: false,
+                },
+            ],
+        };
+        let svg = plot.svg().unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("q.j1 [rad]") && svg.contains("<polygon"));
+        let png = plot.png().unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+        let empty = TimePlot {
+            title: "none".to_string(),
+            y_label: String::new(),
+            times: &[],
+            layers: vec![],
+        };
+        assert!(matches!(empty.svg(), Err(PlotError::NoData(_))));
+    }
+}

@@ -1,0 +1,139 @@
+//! The viewer files against a fresh log (docs/mcap.md §4–§5): the rerun blueprint written by
+//! `scripts/viewers/rerun_blueprint.py` plots only entities that exist and are non-empty in the
+//! converted recording, titles carry units, the timeline counts seconds from 0
+//! (`tests/reference/check_blueprint.py`). The Foxglove layout attachment is checked by
+//! `tests/mcap_cli.rs` through `tests/reference/check_mcap.py`. No browser and no GPU here: the
+//! screenshot check is `scripts/viewers/screenshots.sh`.
+
+mod common;
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = common::target_dir().join("tmp").join("viewers");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn rerun_blueprint_plots_only_live_entities_of_a_fresh_log() {
+    let out = scratch("slider_crank.mcap");
+    let status = Command::new(common::ribbon_bin())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "analyze",
+            "robots/slider_crank/slider_crank.urdf",
+            "--duration",
+            "0.3",
+            "--out",
+        ])
+        .arg(&out)
+        .status()
+        .expect("ribbon runs");
+    assert!(status.success());
+    let python = common::reference_python();
+    let result = Command::new(&python)
+        .arg(common::manifest_dir().join("tests/reference/check_blueprint.py"))
+        .arg(&out)
+        .arg(scratch("blueprint_work"))
+        .output()
+        .expect("python runs");
+    assert!(
+        result.status.success(),
+        "check_blueprint.py failed:\n{}\n{}",
+        String::from_utf8_lossy(&result.stdout),
+        String::from_utf8_lossy(&result.stderr)
+    );
+    println!("{}", String::from_utf8_lossy(&result.stdout));
+}
+
+#[test]
+fn analyze_report_holds_a_band_plot_per_output_and_the_logs_layout() {
+    let dir = scratch("report_dp");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = scratch("report_dp.mcap");
+    let result = Command::new(common::ribbon_bin())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "analyze",
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--duration",
+            "0.3",
+            "--out",
+        ])
+        .arg(&out)
+        .arg("--report")
+        .arg(&dir)
+        .output()
+        .expect("ribbon runs");
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    let page = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    for (name, unit) in [
+        ("q.j1", "rad"),
+        ("q.j2", "rad"),
+        ("frame.tip.x", "m"),
+        ("frame.tip.y", "m"),
+        ("frame.tip.z", "m"),
+    ] {
+        assert!(page.contains(&format!("## {name} [{unit}]")), "{page}");
+        assert!(page.contains(&format!("({name}.svg)")), "{page}");
+        let svg = std::fs::read_to_string(dir.join(format!("{name}.svg"))).unwrap();
+        assert!(svg.starts_with("<svg"), "{name}.svg");
+        assert!(
+            svg.contains(&format!("{name} [{unit}]")),
+            "{name}.svg names its unit"
+        );
+        assert!(svg.contains("<polygon"), "{name}.svg shades the band");
+        assert!(svg.contains("nominal") && svg.contains("inner bound"));
+        let png = std::fs::read(dir.join(format!("{name}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{name}.png");
+    }
+    // The layout file is the one attached to the log.
+    let bytes = std::fs::read(&out).unwrap();
+    let attached = mcap::read::LinearReader::new(&bytes)
+        .unwrap()
+        .filter_map(|record| match record.unwrap() {
+            mcap::records::Record::Attachment { header, data, .. }
+                if header.name == "foxglove-layout.json" =>
+            {
+                Some(data.into_owned())
+            }
+            _ => None,
+        })
+        .next()
+        .expect("the log holds the layout");
+    assert_eq!(
+        std::fs::read(dir.join("foxglove-layout.json")).unwrap(),
+        attached
+    );
+}
+
+#[test]
+fn a_report_file_that_is_another_output_is_refused_before_running() {
+    let dir = scratch("report_clash");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let result = Command::new(common::ribbon_bin())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "analyze",
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--duration",
+            "0.3",
+            "--csv",
+        ])
+        .arg(dir.join("q.j1.png"))
+        .arg("--report")
+        .arg(&dir)
+        .output()
+        .expect("ribbon runs");
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("q.j1.png"), "{stderr}");
+    assert!(!dir.join("report.md").exists());
+}
