@@ -32,10 +32,12 @@ initial.q = { shoulder_lift_joint = -1.2, elbow_joint = 1.0, wrist_1_joint = -0.
 /// Budget: below C(8 + 4, 4) = 495 runs with the check, above the 9-run start.
 const MAX_RUNS: usize = 300;
 
-fn study_parts() -> (Model, Scene, ParameterSpace) {
+/// The model, scene and box; `test` names the sidecar file (tests run in parallel, and a file
+/// rewritten while another test reads it would be read empty).
+fn study_parts(test: &str) -> (Model, Scene, ParameterSpace) {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("adaptive_design");
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("ur5.toml");
+    let path = dir.join(format!("{test}.toml"));
     std::fs::write(&path, SIDECAR).unwrap();
     let urdf = Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5/ur5.urdf");
     let (sidecar, _) = read_sidecar(&path).unwrap();
@@ -70,7 +72,7 @@ fn run(study: &Study, interrupt: &AtomicBool, progress: &mut dyn FnMut(Progress)
 
 #[test]
 fn auto_chooses_the_adaptive_design_and_its_envelopes_do_not_depend_on_threads() {
-    let (model, scene, space) = study_parts();
+    let (model, scene, space) = study_parts("threads");
     assert_eq!(space.len(), 8);
     let interrupt = AtomicBool::new(false);
     let mut reports = Vec::new();
@@ -112,7 +114,7 @@ fn auto_chooses_the_adaptive_design_and_its_envelopes_do_not_depend_on_threads()
 
 #[test]
 fn an_interrupted_adaptive_study_keeps_the_rounds_it_finished() {
-    let (model, scene, space) = study_parts();
+    let (model, scene, space) = study_parts("interrupted");
     let study = Study {
         model,
         scene: &scene,
@@ -151,7 +153,7 @@ fn an_interrupted_adaptive_study_keeps_the_rounds_it_finished() {
 fn a_budget_too_small_for_the_rounds_still_runs_the_start() {
     // 12 runs cannot hold the start (d + 1 = 9), the nominal run and the least check (8): the
     // design still runs its start, and stops there.
-    let (model, scene, space) = study_parts();
+    let (model, scene, space) = study_parts("tiny_budget");
     let study = Study {
         model,
         scene: &scene,
