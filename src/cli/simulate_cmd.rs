@@ -148,6 +148,18 @@ fn print_statistics(trajectory: &Trajectory, scene: &Scene, wall_seconds: f64) {
         s.refreshes,
         wall_seconds
     );
+    if s.substeps > s.steps || s.impacts > 0 || s.stiff_predictions > 0 {
+        eprintln!(
+            "step control: {} sub-steps for {} grid steps (smallest {:.3e} s; {} Newton failures and {} error rejections retried), {} joint-limit impacts, {} steps with the stiff-mode predictor",
+            s.substeps,
+            s.steps,
+            s.smallest_step_s,
+            s.step_failures,
+            s.error_rejections,
+            s.impacts,
+            s.stiff_predictions
+        );
+    }
 }
 
 fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
@@ -185,6 +197,12 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
             "factorisations": s.factorisations,
             "refreshes": s.refreshes,
             "max_iterations_in_a_step": s.max_iterations_in_a_step,
+            "substeps": s.substeps,
+            "smallest_step_s": s.smallest_step_s,
+            "step_failures": s.step_failures,
+            "error_rejections": s.error_rejections,
+            "impacts": s.impacts,
+            "stiff_predictions": s.stiff_predictions,
             "partial": trajectory.partial,
         }),
     }
