@@ -162,6 +162,11 @@ fn a_budget_too_small_for_the_rounds_still_runs_the_start() {
     };
     let plan = study.plan().unwrap();
     assert_eq!(plan.design_name, "sparse-adaptive");
+    let reason = &plan.auto.as_ref().expect("auto's choice").reason;
+    assert!(
+        reason.contains("--max-runs 12 cannot hold it") && reason.contains("18 runs in all"),
+        "{reason}"
+    );
     let report = run(&study, &AtomicBool::new(false), &mut |_| {});
     let adaptive = report.adaptive.expect("an adaptive report");
     assert_eq!(adaptive.runs, space.len() + 1);

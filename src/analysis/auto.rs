@@ -174,15 +174,23 @@ pub fn adaptive_choice(
     while budget > 0 && budget + 1 + check_runs(budget) > max_runs {
         budget -= 1;
     }
-    // The start alone (centre and one point per parameter) must fit.
-    let budget = budget.max(dim + 1);
+    // The start (centre and one point per parameter) runs whatever the budget: say so when it
+    // does not fit.
+    let start = dim + 1;
+    let over = (budget < start).then(|| {
+        format!(
+            " (--max-runs {max_runs} cannot hold it with the nominal run and the check: the start alone runs, {} runs in all)",
+            start + 1 + check_runs(start)
+        )
+    });
+    let budget = budget.max(start);
     AutoChoice {
         design: AutoDesign::Adaptive { budget },
         screening_runs: 0,
         design_runs: budget,
         reason: format!(
-            "the dimension-adaptive design starts from every parameter alone ({} runs) and adds the terms the runs show matter, up to {budget} runs, stopping early when every remaining term moves the outputs by less than {ADAPTIVE_TOLERANCE:e} of their spread",
-            dim + 1
+            "the dimension-adaptive design starts from every parameter alone ({start} runs{}) and adds the terms the runs show matter, up to {budget} runs, stopping early when every remaining term moves the outputs by less than {ADAPTIVE_TOLERANCE:e} of their spread",
+            over.unwrap_or_default()
         ),
     }
 }
