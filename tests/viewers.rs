@@ -90,6 +90,13 @@ fn analyze_report_holds_a_band_plot_per_output_and_the_logs_layout() {
         );
         assert!(svg.contains("<polygon"), "{name}.svg shades the band");
         assert!(svg.contains("nominal") && svg.contains("inner bound"));
+        if name.starts_with("q.") {
+            // The a-posteriori check's true runs at the predicted extremes are drawn as dots.
+            assert!(
+                svg.contains("true runs at predicted extremes") && svg.contains("<circle"),
+                "{name}.svg has no check dots"
+            );
+        }
         let png = std::fs::read(dir.join(format!("{name}.png"))).unwrap();
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{name}.png");
     }

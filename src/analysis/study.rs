@@ -195,6 +195,9 @@ pub struct CheckReport {
     pub untrusted_outputs: Vec<usize>,
     /// Whether the check ran over the whole horizon (false when interrupted).
     pub complete: bool,
+    /// Every checked prediction: `(output, record, true value)` at the record time where the
+    /// surrogate put an extreme (for plots: true runs on the envelope's edge).
+    pub checked: Vec<(usize, usize, f64)>,
 }
 
 /// What a study did.
@@ -934,6 +937,7 @@ impl Study<'_> {
                 by_record[record].push((run, output, predicted));
             }
         }
+        let mut checked: Vec<(usize, usize, f64)> = Vec::new();
         let mut misfit = vec![vec![0.0_f64; n_records]; n_outputs];
         let policy = self.exclusion_policy("check run");
         report.runs += runs;
@@ -961,6 +965,7 @@ impl Study<'_> {
                             continue;
                         }
                         let truth = block.record(run, r)[output];
+                        checked.push((output, record, truth));
                         let m = &mut misfit[output][record];
                         *m = m.max((truth - predicted).abs());
                     }
@@ -1002,6 +1007,7 @@ impl Study<'_> {
             relative_misfit,
             untrusted_outputs,
             complete,
+            checked,
         })
     }
 

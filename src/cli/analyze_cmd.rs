@@ -231,6 +231,9 @@ fn prepare_report(
     Ok(Some(stems))
 }
 
+/// Most dots of true-model runs in one report plot.
+const REPORT_TRUE_RUN_DOTS: usize = 40;
+
 /// Writes `--report DIR` (docs/mcap.md §7): the table, a band plot per output, the log's layout.
 fn write_report(
     dir: &Path,
@@ -242,6 +245,25 @@ fn write_report(
 ) -> Result<(), Error> {
     use crate::output::report::{write_analyze_report, AnalyzeReport, ReportOutput};
     let e = &report.envelope;
+    // The check's true runs at the predicted extremes, per output.
+    let mut true_runs: Vec<Vec<(f64, f64)>> = vec![Vec::new(); e.outputs.len()];
+    if let Some(check) = &report.check {
+        for &(output, record, truth) in &check.checked {
+            if let (Some(runs), Some(&t)) = (true_runs.get_mut(output), e.times.get(record)) {
+                runs.push((t, truth));
+            }
+        }
+    }
+    // A dot per record would hide a narrow band: at most REPORT_TRUE_RUN_DOTS, evenly spread in time.
+    for runs in &mut true_runs {
+        runs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        if runs.len() > REPORT_TRUE_RUN_DOTS {
+            let n = runs.len();
+            *runs = (0..REPORT_TRUE_RUN_DOTS)
+                .map(|k| runs[k * (n - 1) / (REPORT_TRUE_RUN_DOTS - 1)])
+                .collect();
+        }
+    }
     let outputs = e
         .outputs
         .iter()
@@ -256,6 +278,7 @@ fn write_report(
                 .outer
                 .as_ref()
                 .map(|(lower, upper)| (lower[o].as_slice(), upper[o].as_slice())),
+            true_runs: &true_runs[o],
         })
         .collect();
     write_analyze_report(

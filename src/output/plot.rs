@@ -86,6 +86,15 @@ pub enum Layer<'a> {
         /// Dashed instead of solid.
         dashed: bool,
     },
+    /// Single values as dots, `(time, value)`.
+    Points {
+        /// Legend label.
+        label: String,
+        /// The dots.
+        points: &'a [(f64, f64)],
+        /// Colour.
+        colour: HexColour,
+    },
 }
 
 /// An output over time.
@@ -279,11 +288,19 @@ where
 }
 
 impl TimePlot<'_> {
-    fn y_values(&self) -> impl Iterator<Item = f64> + '_ {
-        self.layers.iter().flat_map(|layer| match layer {
-            Layer::Band { lower, upper, .. } => lower.iter().chain(upper.iter()).copied(),
-            Layer::Line { values, .. } => values.iter().chain([].iter()).copied(),
-        })
+    fn y_values(&self) -> Vec<f64> {
+        let mut values = Vec::new();
+        for layer in &self.layers {
+            match layer {
+                Layer::Band { lower, upper, .. } => {
+                    values.extend_from_slice(lower);
+                    values.extend_from_slice(upper);
+                }
+                Layer::Line { values: line, .. } => values.extend_from_slice(line),
+                Layer::Points { points, .. } => values.extend(points.iter().map(|&(_, y)| y)),
+            }
+        }
+        values
     }
 
     fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), PlotError> {
@@ -300,8 +317,8 @@ impl TimePlot<'_> {
                 }
             })
             .ok_or_else(|| PlotError::NoData(self.title.clone()))?;
-        let (y0, y1) =
-            linear_range(self.y_values()).ok_or_else(|| PlotError::NoData(self.title.clone()))?;
+        let (y0, y1) = linear_range(self.y_values().into_iter())
+            .ok_or_else(|| PlotError::NoData(self.title.clone()))?;
         root.fill(&WHITE).map_err(fail)?;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, (FONT_FAMILY, 20))
@@ -390,6 +407,23 @@ impl TimePlot<'_> {
                             PathElement::new(vec![(x, y), (x + length, y)], style)
                         });
                     }
+                }
+                Layer::Points {
+                    label,
+                    points,
+                    colour,
+                } => {
+                    let colour = rgb(colour);
+                    chart
+                        .draw_series(
+                            points
+                                .iter()
+                                .filter(|(t, y)| t.is_finite() && y.is_finite())
+                                .map(|&p| Circle::new(p, 2, colour.filled())),
+                        )
+                        .map_err(fail)?
+                        .label(label.as_str())
+                        .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
                 }
             }
         }

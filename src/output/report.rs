@@ -22,6 +22,8 @@ pub const BAND_COLOUR: &str = "#0072b2";
 pub const NOMINAL_COLOUR: &str = "#009e73";
 /// Colour of an outer bound's dashed lines.
 pub const OUTER_COLOUR: &str = "#d55e00";
+/// Colour of the dots of true-model runs (Okabe–Ito black: apart from the three series colours).
+pub const TRUE_RUN_COLOUR: &str = "#000000";
 /// Colour of a second method's dashed bound (compare's report).
 pub const SECOND_COLOUR: &str = "#cc79a7";
 /// Longest file stem made from an output name (bytes), leaving room for a suffix and extension
@@ -43,6 +45,9 @@ pub struct ReportOutput<'a> {
     pub nominal: &'a [f64],
     /// The outer bound (lower, upper) per record time, where the method gives one.
     pub outer: Option<(&'a [f64], &'a [f64])>,
+    /// True-model runs to draw as dots, `(time, value)`: the a-posteriori check's runs at the
+    /// times where the surrogate put this output's extremes (empty without a check).
+    pub true_runs: &'a [(f64, f64)],
 }
 
 /// The y-axis label of an output: `name [unit]`.
@@ -76,6 +81,13 @@ pub fn band_plot<'a>(
                 dashed: true,
             });
         }
+    }
+    if !output.true_runs.is_empty() {
+        layers.push(Layer::Points {
+            label: "true runs at predicted extremes".to_string(),
+            points: output.true_runs,
+            colour: TRUE_RUN_COLOUR,
+        });
     }
     layers.push(Layer::Line {
         label: "nominal".to_string(),
@@ -197,10 +209,16 @@ pub fn write_analyze_report(dir: &Path, report: &AnalyzeReport<'_>) -> Result<()
     );
     page.push_str(&format!(
         "Each plot: the shaded region lies between the lower and upper {} bound, the solid line is \
-         the nominal run{}. Every plot is also a PNG beside its SVG.\n\n",
+         the nominal run{}{}. Every plot is also a PNG beside its SVG.\n\n",
         report.bound_kind,
         if report.outputs.iter().any(|o| o.outer.is_some()) {
             ", dashed lines are the outer bound"
+        } else {
+            ""
+        },
+        if report.outputs.iter().any(|o| !o.true_runs.is_empty()) {
+            ", dots are true-model runs where the surrogate predicted an extreme (the a-posteriori \
+             check: a dot away from the band's edge is a misfit)"
         } else {
             ""
         }
@@ -276,6 +294,7 @@ mod tests {
             upper: &upper,
             nominal: &nominal,
             outer: Some((&outer_lower, &outer_upper)),
+            true_runs: &[],
         };
         let plot = band_plot(&times, &output, "inner");
         assert_eq!(plot.y_label, "q.j1 [rad]");
@@ -285,5 +304,18 @@ mod tests {
         assert!(
             svg.contains("outer bound") && svg.contains("inner bound") && svg.contains("nominal")
         );
+        // With check runs, their dots are drawn and named in the legend.
+        let dots = [(0.5, 1.1), (1.0, 0.2)];
+        let with_dots = ReportOutput {
+            true_runs: &dots,
+            ..output
+        };
+        let plot = band_plot(&times, &with_dots, "inner");
+        assert_eq!(plot.layers.len(), 5);
+        assert!(matches!(plot.layers[3], Layer::Points { points, .. } if points.len() == 2));
+        assert!(plot
+            .svg()
+            .unwrap()
+            .contains("true runs at predicted extremes"));
     }
 }
