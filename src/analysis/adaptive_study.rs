@@ -17,7 +17,7 @@ use super::adaptive::{
     AdaptiveSet, ADAPTIVE_BATCH_FRACTION, ADAPTIVE_MIN_BATCH, ADAPTIVE_TOLERANCE,
 };
 use super::study::{n_records, record_time, Accumulator, Progress, Study, StudyError, StudyReport};
-use crate::uq::{SparseGrid, UqError};
+use crate::uq::{Factor, SparseGrid, UqError};
 use rayon::prelude::*;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -62,11 +62,7 @@ pub(super) struct AdaptiveOutcome {
 impl AdaptiveOutcome {
     /// Record `r`'s values in grid order, row-major `points × outputs`.
     pub(super) fn record(&self, r: usize, n_outputs: usize) -> Vec<f64> {
-        let mut row = Vec::with_capacity(self.row_of_point.len() * n_outputs);
-        for &run in &self.row_of_point {
-            row.extend_from_slice(&self.values[run][r * n_outputs..(r + 1) * n_outputs]);
-        }
-        row
+        gather_record(&self.values, &self.row_of_point, r, n_outputs)
     }
 }
 
@@ -95,7 +91,8 @@ impl Study<'_> {
         let mut set = AdaptiveSet::new(d);
         let mut values: Vec<Vec<f64>> = Vec::new();
         let mut new_terms = set.evaluated().to_vec();
-        let mut grid: Option<SparseGrid> = None;
+        // The last complete round's grid and, per grid point, its row of `values`.
+        let mut grid: Option<(SparseGrid, Vec<usize>)> = None;
         let mut rounds = 0;
         let policy = self.design_failure_policy(super::Method::LegendreScan);
         let (stop, complete) = loop {
@@ -148,14 +145,13 @@ impl Study<'_> {
             // Fit the set evaluated so far and measure the candidates.
             let t_fit = Instant::now();
             let round_grid = SparseGrid::new(Arc::new(set.multi_index_set()?))?;
-            let coefficients = fit_all_records(&round_grid, &set, &values, n_outputs, threads)?;
+            let rows = rows_of_points(&round_grid, &set)?;
+            let coefficients = fit_all_records(&round_grid, &rows, &values, n_outputs, threads)?;
             let spread = output_spreads(&values, n_outputs);
             let mi = round_grid.set().clone();
             set.measure(|term| {
-                let dense: Vec<usize> = (0..d)
-                    .map(|j| term.iter().find(|(i, _)| *i == j).map_or(0, |t| t.1))
-                    .collect();
-                let Some(t) = mi.index_of_dense(&dense) else {
+                let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
+                let Some(t) = mi.index_of(&factors) else {
                     return 0.0;
                 };
                 coefficients
@@ -167,7 +163,7 @@ impl Study<'_> {
                     })
                     .fold(0.0, f64::max)
             });
-            grid = Some(round_grid);
+            grid = Some((round_grid, rows));
             report.bound_seconds += t_fit.elapsed().as_secs_f64();
             if set.len() >= budget {
                 break ("budget", true);
@@ -182,22 +178,8 @@ impl Study<'_> {
                 break ("converged", true);
             }
         };
-        let grid = grid.expect("a complete round built a grid");
+        let (grid, row_of_point) = grid.expect("a complete round built a grid");
         let set_of_grid = grid.set().clone();
-        let row_of_point = (0..set_of_grid.len())
-            .map(|t| {
-                let term: Vec<(usize, usize)> = set_of_grid
-                    .term(t)
-                    .iter()
-                    .map(|f| (f.dim as usize, f.degree as usize))
-                    .collect();
-                set.row_of(&term).ok_or_else(|| {
-                    StudyError::Uq(UqError::Empty {
-                        what: "adaptive design row of a grid term",
-                    })
-                })
-            })
-            .collect::<Result<Vec<usize>, StudyError>>()?;
         let interactions = (0..set_of_grid.len())
             .filter(|&t| set_of_grid.term(t).len() >= 2)
             .count();
@@ -221,35 +203,47 @@ impl Study<'_> {
     }
 }
 
-/// The Legendre coefficients of every record: `[record][term · outputs + output]`, by the grid's
-/// term order; `values` rows follow `set`'s evaluation order.
-fn fit_all_records(
-    grid: &SparseGrid,
-    set: &AdaptiveSet,
-    values: &[Vec<f64>],
-    n_outputs: usize,
-    threads: &rayon::ThreadPool,
-) -> Result<Vec<Vec<f64>>, StudyError> {
+/// Per point of `grid` (built on `set`'s evaluated terms), the row of its run in the values.
+fn rows_of_points(grid: &SparseGrid, set: &AdaptiveSet) -> Result<Vec<usize>, StudyError> {
     let mi = grid.set();
-    let rows: Vec<usize> = (0..mi.len())
+    (0..mi.len())
         .map(|t| {
             let term: Vec<(usize, usize)> = mi
                 .term(t)
                 .iter()
                 .map(|f| (f.dim as usize, f.degree as usize))
                 .collect();
-            set.row_of(&term).unwrap_or(0)
+            set.row_of(&term).ok_or(StudyError::Uq(UqError::Empty {
+                what: "adaptive design row of a grid term",
+            }))
         })
-        .collect();
+        .collect()
+}
+
+/// Record `r` of the runs `rows` (in that order), row-major `rows × outputs`.
+fn gather_record(values: &[Vec<f64>], rows: &[usize], r: usize, n_outputs: usize) -> Vec<f64> {
+    let mut record = Vec::with_capacity(rows.len() * n_outputs);
+    for &row in rows {
+        record.extend_from_slice(&values[row][r * n_outputs..(r + 1) * n_outputs]);
+    }
+    record
+}
+
+/// The Legendre coefficients of every record: `[record][term · outputs + output]`, by the grid's
+/// term order; `rows` maps the grid's points to rows of `values` ([`rows_of_points`]).
+fn fit_all_records(
+    grid: &SparseGrid,
+    rows: &[usize],
+    values: &[Vec<f64>],
+    n_outputs: usize,
+    threads: &rayon::ThreadPool,
+) -> Result<Vec<Vec<f64>>, StudyError> {
     let n_records = values.first().map_or(0, |v| v.len() / n_outputs.max(1));
     threads.install(|| {
         (0..n_records)
             .into_par_iter()
             .map(|r| {
-                let mut record = Vec::with_capacity(rows.len() * n_outputs);
-                for &row in &rows {
-                    record.extend_from_slice(&values[row][r * n_outputs..(r + 1) * n_outputs]);
-                }
+                let record = gather_record(values, rows, r, n_outputs);
                 grid.fit().fit(&record, n_outputs).map_err(StudyError::Uq)
             })
             .collect()
