@@ -136,3 +136,23 @@ fn a_bad_method_design_token_is_refused_naming_the_flag() {
         );
     }
 }
+
+#[test]
+fn compare_refuses_a_run_budget_that_cannot_hold_a_design() {
+    let out = Command::new(env!("CARGO_BIN_EXE_ribbon"))
+        .args([
+            "compare",
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--max-runs",
+            "1",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--max-runs") && stderr.contains("give at least 2"),
+        "{stderr}"
+    );
+}

@@ -429,13 +429,7 @@ fn study_options(
             "--method auto chooses the design itself; name a method (e.g. --method legendre-scan) to choose a design".to_string(),
         ));
     }
-    let max_runs = args.max_runs.unwrap_or(DEFAULT_MAX_RUNS);
-    if max_runs < 2 {
-        return Err(bad(
-            "--max-runs",
-            format!("{max_runs} runs cannot hold a design and its nominal run; give at least 2"),
-        ));
-    }
+    let max_runs = max_runs_of(args.max_runs)?;
     let threads = check_threads("--threads", args.threads.unwrap_or(0))?;
     Ok(StudyOptions {
         method,
@@ -451,6 +445,18 @@ fn study_options(
         design,
         max_runs,
     })
+}
+
+/// `--max-runs` (default [`DEFAULT_MAX_RUNS`]), refused below 2: a design and its nominal run.
+pub fn max_runs_of(flag: Option<usize>) -> Result<usize, Error> {
+    let max_runs = flag.unwrap_or(DEFAULT_MAX_RUNS);
+    if max_runs < 2 {
+        return Err(bad(
+            "--max-runs",
+            format!("{max_runs} runs cannot hold a design and its nominal run; give at least 2"),
+        ));
+    }
+    Ok(max_runs)
 }
 
 /// The designs `--design` accepts.

@@ -6,10 +6,12 @@
 //! `compare.json`, `error_vs_time.{svg,png}` and `envelope.{svg,png}` (the widest output, reference vs the
 //! highest-order legendre-scan run).
 
-use super::analyze_cmd::{parse_design, prepare, sidecar_path_of, Prepared, DESIGN_NAMES};
+use super::analyze_cmd::{
+    max_runs_of, parse_design, prepare, sidecar_path_of, Prepared, DESIGN_NAMES,
+};
 use super::{install_interrupt, write_stdout, CompareArgs};
 use crate::analysis::{
-    DesignKind, Method, Study, StudyOptions, StudyReport, VertexReferenceOptions, DEFAULT_MAX_RUNS,
+    DesignKind, Method, Study, StudyOptions, StudyReport, VertexReferenceOptions,
 };
 use crate::output::plot::{Layer, ScatterPlot, ScatterSeries, TimePlot, PALETTE};
 use crate::output::report::{axis_label, write_plot, BAND_COLOUR, NOMINAL_COLOUR, SECOND_COLOUR};
@@ -275,7 +277,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
         keep_going: false,
         check_runs: None,
         design: DesignKind::Tensor,
-        max_runs: args.max_runs.unwrap_or(DEFAULT_MAX_RUNS),
+        max_runs: max_runs_of(args.max_runs)?,
     };
     let interrupt = crate::interrupt::flag();
     let run_study = |options: StudyOptions| -> Result<(StudyReport, f64), Error> {
