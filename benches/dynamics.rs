@@ -3,6 +3,9 @@
 //! created by `cargo test --release`). Compare with `python benches/pinocchio_timing.py` run in the same
 //! session: see README "Speed".
 
+#[path = "support/reference_venv.rs"]
+mod reference_venv;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use ribbon::dynamics::{crba, forward_dynamics, rnea, Data};
 use ribbon::model::{LoadOptions, Model};
@@ -12,9 +15,8 @@ use std::path::PathBuf;
 fn robots() -> Vec<(String, PathBuf)> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let mut list = vec![("ribbon-ur5".to_string(), root.join("robots/ur5/ur5.urdf"))];
-    let share = root.join(
-        "target/reference-venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots",
-    );
+    let share = reference_venv::example_robot_data_robots(&root)
+        .unwrap_or_else(|| root.join("target/reference-venv (not created yet)"));
     for (name, relative) in [
         ("erd-ur5", "ur_description/urdf/ur5_robot.urdf"),
         ("erd-panda", "panda_description/urdf/panda.urdf"),

@@ -17,6 +17,9 @@
 //! First of all, the adaptive step's cost against the fixed step on the shipped robots with their own
 //! scenes, as a ratio (`step_control/NAME`, docs/step-control.md §5).
 
+#[path = "support/reference_venv.rs"]
+mod reference_venv;
+
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -39,9 +42,8 @@ const PRISMATIC_Q0: f64 = 0.02;
 fn robots() -> Vec<(String, PathBuf)> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let mut list = vec![("ribbon-ur5".to_string(), root.join("robots/ur5/ur5.urdf"))];
-    let share = root.join(
-        "target/reference-venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots",
-    );
+    let share = reference_venv::example_robot_data_robots(&root)
+        .unwrap_or_else(|| root.join("target/reference-venv (not created yet)"));
     for (name, relative) in [
         ("erd-ur5", "ur_description/urdf/ur5_robot.urdf"),
         ("erd-panda", "panda_description/urdf/panda.urdf"),

@@ -40,6 +40,7 @@ positions (`reference_qpos_at_end`) each variant's `max_abs_error_at_end_vs_refe
 against (ribbon's HHT end positions are printed by benches/hht_step.rs for the same comparison).
 """
 
+import glob
 import json
 import os
 import re
@@ -54,7 +55,8 @@ REVOLUTE_Q0 = [0.3, -0.8, 0.5, -1.2, 0.4, 1.0, 0.7]  # keep in sync with benches
 PRISMATIC_Q0 = 0.02
 TIMESTEP = 1e-3
 
-ERD = "lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots"
+# Inside the reference venv, under whichever Python 3 made it.
+ERD_GLOB = "lib/python3*/site-packages/cmeel.prefix/share/example-robot-data/robots"
 ERD_ROBOTS = [
     ("erd-ur5", "ur_description/urdf/ur5_robot.urdf"),
     ("erd-panda", "panda_description/urdf/panda.urdf"),
@@ -230,7 +232,8 @@ def main(argv):
     if not urdfs:
         urdfs.append(("ribbon-ur5", "robots/ur5/ur5.urdf"))
         for label, relative in ERD_ROBOTS:
-            path = os.path.join(venv, ERD, relative)
+            found = sorted(glob.glob(os.path.join(venv, ERD_GLOB)))
+            path = os.path.join(found[-1] if found else os.path.join(venv, ERD_GLOB), relative)
             if os.path.isfile(path):
                 urdfs.append((label, path))
             else:

@@ -4,12 +4,14 @@
 //! `M[i, i] = S_iᵀ F`, then walking up the ancestors `F ← X F`, `M[j, i] = M[i, j]ᵀ = S_jᵀ F`.
 
 use super::{forward_kinematics, Data};
-use crate::model::Model;
+use crate::model::{JointKind, Model};
+use crate::spatial::{Force, Inertia, Motion};
 
 /// Joint-space mass matrix: `data.mass_matrix = M(q)` (full, symmetric).
 ///
-/// `q: dim nq`. Overwrites `data.parent_from_body`, `data.world_from_body`, `data.composite` and
-/// `data.mass_matrix`; returns `data.mass_matrix`.
+/// `q: dim nq`. Overwrites `data.parent_from_body`, `data.world_from_body` (the algorithm itself
+/// needs only the former; callers read the latter, e.g. for a potential energy beside `M`),
+/// `data.composite` and `data.mass_matrix`; returns `data.mass_matrix`.
 pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::DMatrix<f64> {
     forward_kinematics(model, data, q);
     for (composite, body) in data.composite.iter_mut().zip(&model.bodies) {
@@ -21,29 +23,58 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::D
             data.composite[p] += in_parent;
         }
     }
-    data.mass_matrix.fill(0.0);
+    let n = model.nv;
+    let Data {
+        parent_from_body,
+        composite,
+        mass_matrix,
+        ..
+    } = data;
+    // Column-major storage: entry (row, column) at `row + column · n`.
+    let mass = mass_matrix.as_mut_slice();
+    mass.fill(0.0);
     let mut projected = [0.0; 6];
     for (i, joint) in model.joints.iter().enumerate() {
         for k in 0..joint.nv() {
             let column = joint.v_index + k;
-            let mut force = data.composite[i].apply(&joint.subspace_column(k));
+            let mut force =
+                apply_to_subspace_column(&composite[i], joint.kind, &joint.subspace_column(k));
             joint.project_force(&force, &mut projected);
             for (kk, value) in projected[..joint.nv()].iter().enumerate() {
-                data.mass_matrix[(joint.v_index + kk, column)] = *value;
+                mass[joint.v_index + kk + column * n] = *value;
             }
             let mut child = i;
             while let Some(ancestor) = model.joints[child].parent {
-                force = data.parent_from_body[child].act_force(&force);
+                force = parent_from_body[child].act_force(&force);
                 let ancestor_joint = &model.joints[ancestor];
                 ancestor_joint.project_force(&force, &mut projected);
                 for (kk, value) in projected[..ancestor_joint.nv()].iter().enumerate() {
                     let row = ancestor_joint.v_index + kk;
-                    data.mass_matrix[(row, column)] = *value;
-                    data.mass_matrix[(column, row)] = *value;
+                    mass[row + column * n] = *value;
+                    mass[column + row * n] = *value;
                 }
                 child = ancestor;
             }
         }
     }
     &data.mass_matrix
+}
+
+/// `I S_k` for a column of a joint's motion subspace: [`Inertia::apply`] with the products by the
+/// column's known zero half left out (a revolute column is purely angular, a prismatic one purely
+/// linear). The products left out are exact zeros and so are the sums they would enter, so the
+/// result has the same bits as `inertia.apply(column)` (signs of zero aside).
+#[inline]
+fn apply_to_subspace_column(inertia: &Inertia, kind: JointKind, column: &Motion) -> Force {
+    match kind {
+        JointKind::Revolute => Force {
+            linear: -inertia.first_moment.cross(&column.angular),
+            angular: inertia.rotational * column.angular,
+        },
+        JointKind::Prismatic => Force {
+            linear: column.linear * inertia.mass,
+            angular: inertia.first_moment.cross(&column.linear),
+        },
+        JointKind::Floating => inertia.apply(column),
+    }
 }

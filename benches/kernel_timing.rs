@@ -1,0 +1,116 @@
+//! ribbon's `crba`, `rnea` and `forward_dynamics` timed exactly as `benches/pinocchio_cpp/timing.cpp`
+//! times Pinocchio's kernels in C++: the same state (q_i = 0.3 + 0.1 i, v_i = 0.5 − 0.2 i,
+//! a_i = −0.4 + 0.15 i, τ_i = 1.0 − 0.3 i), the minimum over RUNS of the mean of CALLS calls, one JSON
+//! line on stdout. `benches/pinocchio_cpp.py` runs the two programs alternately and reports ratios.
+//!
+//! Usage: `cargo bench --bench kernel_timing -- URDF [CALLS] [RUNS] [KERNEL]`; with KERNEL (`crba`,
+//! `rnea`, `forward_dynamics`) only that kernel runs and the others print −1 (for instruction counts).
+
+use ribbon::dynamics::{crba, forward_dynamics, rnea, Data};
+use ribbon::model::{LoadOptions, Model};
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// `offset + step · i` for i = 0 … n−1.
+fn ramp(n: usize, offset: f64, step: f64) -> Vec<f64> {
+    (0..n).map(|i| offset + step * i as f64).collect()
+}
+
+/// The minimum over `runs` of the mean time of `calls` calls of `kernel`, in microseconds.
+fn best_mean_us(
+    name: &str,
+    only: Option<&str>,
+    mut kernel: impl FnMut(),
+    calls: u64,
+    runs: u32,
+) -> f64 {
+    if only.is_some_and(|only| only != name) {
+        return -1.0;
+    }
+    let mut best = f64::INFINITY;
+    for _ in 0..runs {
+        let start = Instant::now();
+        for _ in 0..calls {
+            kernel();
+        }
+        best = best.min(start.elapsed().as_secs_f64() * 1e6 / calls as f64);
+    }
+    best
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; everything else is ours.
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
+    let Some(urdf) = args.first() else {
+        eprintln!("usage: cargo bench --bench kernel_timing -- URDF [CALLS] [RUNS] [KERNEL]");
+        std::process::exit(2);
+    };
+    let calls: u64 = args
+        .get(1)
+        .map_or(200_000, |s| s.parse().expect("CALLS is an integer"));
+    let runs: u32 = args
+        .get(2)
+        .map_or(7, |s| s.parse().expect("RUNS is an integer"));
+    let only = args.get(3).map(String::as_str);
+    let model = match Model::from_urdf_file(&PathBuf::from(urdf), LoadOptions::default()) {
+        Ok(model) => model,
+        Err(error) => {
+            eprintln!("kernel_timing: {urdf}: {error}");
+            std::process::exit(2);
+        }
+    };
+    let mut data = Data::new(&model);
+    let q = ramp(model.nq, 0.3, 0.1);
+    let v = ramp(model.nv, 0.5, -0.2);
+    let a = ramp(model.nv, -0.4, 0.15);
+    let tau = ramp(model.nv, 1.0, -0.3);
+    let crba_us = best_mean_us(
+        "crba",
+        only,
+        || {
+            black_box(crba(&model, &mut data, black_box(&q)));
+        },
+        calls,
+        runs,
+    );
+    let rnea_us = best_mean_us(
+        "rnea",
+        only,
+        || {
+            black_box(rnea(
+                &model,
+                &mut data,
+                black_box(&q),
+                black_box(&v),
+                black_box(&a),
+            ));
+        },
+        calls,
+        runs,
+    );
+    let forward_us = best_mean_us(
+        "forward_dynamics",
+        only,
+        || {
+            let qdd = forward_dynamics(
+                &model,
+                &mut data,
+                black_box(&q),
+                black_box(&v),
+                black_box(&tau),
+            )
+            .expect("the benchmark state has a positive-definite mass matrix");
+            black_box(qdd);
+        },
+        calls,
+        runs,
+    );
+    println!(
+        "{{\"nq\": {}, \"nv\": {}, \"calls_per_run\": {calls}, \"runs\": {runs}, \"us\": {{\"crba\": {crba_us:.5}, \"rnea\": {rnea_us:.5}, \"forward_dynamics\": {forward_us:.5}}}}}",
+        model.nq, model.nv
+    );
+}
