@@ -406,6 +406,15 @@ fn bad_shard_sets_are_named_and_refused() {
     let message = refuse(merge_args(&edited));
     assert!(message.contains("edited"), "{message}");
 
+    // No output may overwrite the plan or a record block.
+    let plan_before = std::fs::read(&plan).expect("plan");
+    let message = refused(&["merge", s(&plan), s(&shards), "--csv", s(&plan)]);
+    assert!(message.contains("--csv"), "{message}");
+    let message = refused(&["merge", s(&plan), s(&shards), "--out", s(&file(0))]);
+    assert!(message.contains("--out"), "{message}");
+    assert!(plan_before == std::fs::read(&plan).expect("plan"));
+    assert!(before[0] == std::fs::read(file(0)).expect("shard"));
+
     // Everything restored: the merge gives the same bytes again.
     ok(&merge_args(&plan)
         .iter()

@@ -15,6 +15,26 @@ pub fn run(args: &MergeArgs) -> Result<(), Error> {
     let plan = PlanFile::read(&args.plan)?;
     plan.body.urdf.check(&args.plan, "URDF")?;
     plan.body.sidecar.check(&args.plan, "sidecar")?;
+    // The plan and the record blocks are inputs too: no output may overwrite them.
+    let blocks: Vec<std::path::PathBuf> = std::fs::read_dir(&args.dir)
+        .map(|entries| {
+            entries
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
+                .collect()
+        })
+        .unwrap_or_default();
+    let mut inputs = vec![("plan", args.plan.as_path())];
+    inputs.extend(blocks.iter().map(|p| ("record block", p.as_path())));
+    let outputs: Vec<(&str, &std::path::Path)> = [
+        ("--summary", &args.summary),
+        ("--csv", &args.csv),
+        ("--out", &args.out),
+    ]
+    .into_iter()
+    .filter_map(|(flag, path)| path.as_deref().map(|p| (flag, p)))
+    .collect();
+    crate::output::check_outputs(&inputs, &outputs)?;
     let mut analyze_args = analyze_args_of(&plan, args.threads);
     analyze_args.summary = args.summary.clone();
     analyze_args.csv = args.csv.clone();
