@@ -5,11 +5,10 @@
 
 use ribbon::analysis::{Method, Study, StudyOptions};
 use ribbon::dynamics::Data;
-use ribbon::model::{LoadOptions, Model};
 use ribbon::output::mcap::McapMetadata;
 use ribbon::output::EnvelopeLog;
-use ribbon::scene::{read_sidecar, Scene, SceneOverrides};
-use ribbon::uncertainty::ParameterSpace;
+use ribbon::scene::SceneOverrides;
+use ribbon::setup::{print_message, Setup, SetupRequest};
 use ribbon::uq::Truncation;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -38,15 +37,21 @@ fn main() -> ExitCode {
 fn run(out: &Path) -> Result<usize, ribbon::Error> {
     let urdf = Path::new("robots/double_pendulum/double_pendulum.urdf");
     let sidecar_path = Path::new("robots/double_pendulum/double_pendulum.uncertainty.toml");
-    let (sidecar, _) = read_sidecar(sidecar_path)?;
-    let mut model = Model::from_urdf_file(urdf, LoadOptions::default())?;
-    let overrides = SceneOverrides {
-        duration_s: Some(0.5),
-        ..SceneOverrides::default()
+    let request = SetupRequest {
+        urdf,
+        uncertainty: Some(sidecar_path),
+        floating: false,
+        overrides: SceneOverrides {
+            duration_s: Some(0.5),
+            ..SceneOverrides::default()
+        },
     };
-    let scene = Scene::resolve(&sidecar, &model, "example", overrides)?;
-    scene.apply_gravity(&mut model);
-    let space = ParameterSpace::from_sidecar(&sidecar, &model, "example")?;
+    let Setup {
+        model,
+        scene,
+        space,
+        ..
+    } = Setup::load(&request, &mut print_message)?;
     let options = StudyOptions {
         method: Method::LegendreScan,
         order: 4,

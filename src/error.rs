@@ -61,6 +61,9 @@ pub enum Error {
         /// The value found (NaN or ±inf).
         value: f64,
     },
+    /// A plan, a shard's record block or the set of shards was refused (`plan`, `run`, `merge`).
+    #[error(transparent)]
+    Shard(#[from] crate::distributed::ShardError),
     /// Writing a result failed.
     #[error("cannot write {what}: {source}")]
     Output {
@@ -96,7 +99,11 @@ impl Error {
             Error::Study(
                 crate::analysis::StudyError::BadOptions(_) | crate::analysis::StudyError::Uq(_),
             ) => 2,
-            Error::Study(crate::analysis::StudyError::Sink(inner)) => inner.exit_code(),
+            Error::Study(
+                crate::analysis::StudyError::Sink(inner)
+                | crate::analysis::StudyError::Records(inner),
+            ) => inner.exit_code(),
+            Error::Shard(error) => error.exit_code(),
             // A sample that fails at t = 0 failed its consistent start: its parameters make a
             // model that cannot start (the nominal one is checked before the study).
             Error::Study(crate::analysis::StudyError::SampleFailed { failure, .. })

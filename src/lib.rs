@@ -13,6 +13,8 @@
 //!   [`dynamics::Data`];
 //! - [`integrate`] — the second-order HHT-I3 integrator for index-3 DAEs;
 //! - [`uq`] — quadrature, Legendre/Chebyshev surrogates and their bounds (pure mathematics);
+//! - [`setup`] — URDF, sidecar, scene and parameter box loaded and checked in one place;
+//! - [`distributed`] — one study across many machines: plan, shards of runs, merge;
 //! - [`output`] — CSV, summary JSON, MCAP and SVG writers, and the output-path rules;
 //! - [`interrupt`] — SIGINT/SIGTERM: stop at the next step, or at once on a second signal;
 //! - [`cli`] — the `ribbon` command line.
@@ -24,6 +26,7 @@
 pub mod analysis;
 pub mod cli;
 pub mod constraints;
+pub mod distributed;
 pub mod dynamics;
 pub mod effects;
 mod error;
@@ -33,6 +36,7 @@ pub mod model;
 pub mod output;
 pub mod params;
 pub mod scene;
+pub mod setup;
 pub mod sidecar;
 pub mod simulate;
 pub mod spatial;

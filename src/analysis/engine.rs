@@ -11,6 +11,8 @@
 //! Interruption: every sample checks the study's interrupt flag before each step, so a signal takes
 //! effect after at most one step per worker thread, also inside a long block or a single long run.
 
+use super::schedule::RecordSchedule;
+use super::study::StudyError;
 use crate::integrate::{HhtIntegrator, HhtSettings, HhtTrajectory, IntegrateError};
 use crate::scene::Scene;
 use crate::simulate::{
@@ -32,8 +34,52 @@ pub struct SampleFailure {
     pub values: Vec<f64>,
     /// Time of the failure, s.
     pub time_s: f64,
+    /// The record the sample was heading for when it failed: its values are missing from this
+    /// record on (a study leaves the sample out of the block holding this record and after).
+    pub record: usize,
     /// What went wrong.
     pub message: String,
+}
+
+/// Where the recorded values of a phase's samples come from, one block of record times at a time:
+/// simulated here ([`LockStep`]) or read from the record blocks of shards simulated elsewhere
+/// (`crate::distributed`). A study's stages only see this interface, so that a merged study and a
+/// single-machine one compute the same numbers from the same values in the same order.
+pub trait RecordSource: Sync {
+    /// Number of samples (the nominal run included).
+    fn len(&self) -> usize;
+
+    /// Whether there are no samples.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Index of the nominal run among the samples, when the source has one.
+    fn nominal_index(&self) -> Option<usize>;
+
+    /// Makes the records `first..first + count` available ([`RecordSource::record`]).
+    fn advance(
+        &mut self,
+        first: usize,
+        count: usize,
+        threads: &rayon::ThreadPool,
+        interrupt: &AtomicBool,
+    ) -> Result<BlockOutcome, StudyError>;
+
+    /// Record `r` of the current block for sample `i` (`dim outputs`).
+    fn record(&self, i: usize, r: usize) -> &[f64];
+
+    /// The nominal run's configuration at record `r` of the current block (empty without one).
+    fn nominal_positions(&self, r: usize) -> &[f64];
+
+    /// Whether sample `i` failed at or before the current block's last record.
+    fn failed(&self, i: usize) -> bool;
+
+    /// Failures at or before the current block's last record, by sample index.
+    fn failures(&self) -> Vec<SampleFailure>;
+
+    /// Total Newton iterations and steps of the samples' runs so far.
+    fn counters(&self) -> (u64, u64);
 }
 
 /// One sample's carried state.
@@ -126,6 +172,11 @@ impl<'a> LockStep<'a> {
         self.samples.len()
     }
 
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
     /// Index of the nominal run, when the lock-step has one.
     pub fn nominal_index(&self) -> Option<usize> {
         self.nominal
@@ -168,7 +219,8 @@ impl<'a> LockStep<'a> {
         let recorder = &self.recorder;
         let template = &self.template;
         let start_step = self.step;
-        let record_step = |r: usize| (r * scene.record_every).min(scene.n_steps);
+        let schedule = RecordSchedule::of(scene);
+        let record_step = |r: usize| schedule.step_of(r);
         let counters: Vec<(u64, u64)> = threads.install(|| {
             self.samples
                 .par_iter_mut()
@@ -205,12 +257,18 @@ impl<'a> LockStep<'a> {
                                 interrupt,
                             },
                         );
-                        if let Err(SampleStop::Failed { time_s, message }) = result {
+                        if let Err(SampleStop::Failed {
+                            time_s,
+                            record,
+                            message,
+                        }) = result
+                        {
                             sample.failure = Some(SampleFailure {
                                 index,
                                 xi: sample.xi.clone(),
                                 values: space.values_at(&sample.xi),
                                 time_s,
+                                record,
                                 message,
                             });
                         }
@@ -256,6 +314,46 @@ impl<'a> LockStep<'a> {
     }
 }
 
+impl RecordSource for LockStep<'_> {
+    fn len(&self) -> usize {
+        LockStep::len(self)
+    }
+
+    fn nominal_index(&self) -> Option<usize> {
+        LockStep::nominal_index(self)
+    }
+
+    fn advance(
+        &mut self,
+        first: usize,
+        count: usize,
+        threads: &rayon::ThreadPool,
+        interrupt: &AtomicBool,
+    ) -> Result<BlockOutcome, StudyError> {
+        Ok(LockStep::advance(self, first, count, threads, interrupt))
+    }
+
+    fn record(&self, i: usize, r: usize) -> &[f64] {
+        LockStep::record(self, i, r)
+    }
+
+    fn nominal_positions(&self, r: usize) -> &[f64] {
+        LockStep::nominal_positions(self, r)
+    }
+
+    fn failed(&self, i: usize) -> bool {
+        LockStep::failed(self, i)
+    }
+
+    fn failures(&self) -> Vec<SampleFailure> {
+        LockStep::failures(self)
+    }
+
+    fn counters(&self) -> (u64, u64) {
+        LockStep::counters(self)
+    }
+}
+
 /// Which part of the horizon one call of [`run_sample`] covers.
 struct SampleBlock<'a> {
     /// The step the samples are at.
@@ -272,14 +370,23 @@ struct SampleBlock<'a> {
 
 /// Why a sample stopped before the end of its block.
 enum SampleStop {
-    /// The simulation failed at this time, s, for this reason (rows and joints named).
-    Failed { time_s: f64, message: String },
+    /// The simulation failed at this time, s, heading for this record, for this reason (rows and
+    /// joints named).
+    Failed {
+        time_s: f64,
+        record: usize,
+        message: String,
+    },
     /// The interrupt flag was raised.
     Interrupted,
 }
 
-fn failed(time_s: f64, message: String) -> SampleStop {
-    SampleStop::Failed { time_s, message }
+fn failed(time_s: f64, record: usize, message: String) -> SampleStop {
+    SampleStop::Failed {
+        time_s,
+        record,
+        message,
+    }
 }
 
 /// Starts (at the first call) and advances one sample through a block; on failure returns the time
@@ -324,14 +431,24 @@ fn run_sample(
             let (q0, v0) = start();
             match HhtIntegrator::new(system, settings, 0.0, &q0, &v0) {
                 Ok(h) => integrator.insert(h),
-                Err(error) => return Err(failed(0.0, describe(error, system, &scene.initial_q))),
+                Err(error) => {
+                    return Err(failed(
+                        0.0,
+                        first_record,
+                        describe(error, system, &scene.initial_q),
+                    ))
+                }
             }
         }
     };
     if sample.trajectory.is_none() {
         let (q0, v0) = start();
         if let Err(error) = hht.restart(system, 0.0, &q0, &v0) {
-            return Err(failed(0.0, describe(error, system, &scene.initial_q)));
+            return Err(failed(
+                0.0,
+                first_record,
+                describe(error, system, &scene.initial_q),
+            ));
         }
         sample.initial = Recorder::initial_orientations(&system.model, hht.state().q.as_slice());
         sample.trajectory = Some(hht.trajectory());
@@ -339,11 +456,12 @@ fn run_sample(
     let Some(trajectory) = sample.trajectory.as_mut() else {
         return Err(failed(
             0.0,
+            first_record,
             "internal: sample has no trajectory".to_string(),
         ));
     };
     hht.swap_trajectory(trajectory)
-        .map_err(|e| failed(0.0, e.to_string()))?;
+        .map_err(|e| failed(0.0, first_record, e.to_string()))?;
     let n_outputs = recorder.outputs().len();
     let nq = system.model.nq;
     let mut step = start_step;
@@ -359,7 +477,7 @@ fn run_sample(
                 // The step that failed was heading for t_n + h.
                 let time = hht.state().t + settings.step_s;
                 let q = hht.state().q.as_slice().to_vec();
-                outcome = Err(failed(time, describe(error, system, &q)));
+                outcome = Err(failed(time, first_record + r, describe(error, system, &q)));
                 break 'records;
             }
             step += 1;
@@ -379,10 +497,11 @@ fn run_sample(
     let Some(trajectory) = sample.trajectory.as_mut() else {
         return Err(failed(
             0.0,
+            first_record,
             "internal: sample has no trajectory".to_string(),
         ));
     };
     hht.swap_trajectory(trajectory)
-        .map_err(|e| failed(0.0, e.to_string()))?;
+        .map_err(|e| failed(0.0, first_record, e.to_string()))?;
     outcome
 }

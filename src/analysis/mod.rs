@@ -18,6 +18,7 @@ mod lyapunov;
 mod method;
 mod plan;
 mod reference;
+mod schedule;
 mod screening;
 mod sparse;
 mod study;
@@ -37,7 +38,7 @@ pub use check::{
     automatic_check_runs, CheckCandidates, CheckPlan, Side, CHECK_POINT_TOLERANCE,
     CHECK_RUNS_FRACTION, MIN_CHECK_RUNS, TRUST_RELATIVE_MISFIT,
 };
-pub use engine::SampleFailure;
+pub use engine::{BlockOutcome, LockStep, RecordSource, SampleFailure};
 pub use lyapunov::{
     estimate_lyapunov, LyapunovEstimate, CHAOS_AMPLIFICATION, COLLAPSED_SEPARATION, MAX_PULL,
     RENORMALISATION_INTERVAL_S, SHADOW_SEPARATION, VELOCITY_TIME_SCALE_S,
@@ -45,9 +46,10 @@ pub use lyapunov::{
 pub use method::{Method, METHODS};
 pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
+pub use schedule::RecordSchedule;
 pub use screening::{DimensionScreening, Screening};
 pub use sparse::{screened_set, SparseDesign, REGRESSION_OVERSAMPLING, REGRESSION_SEED};
 pub use study::{
-    BlockView, CheckReport, DesignKind, Envelope, OuterBounds, Progress, Study, StudyError,
-    StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,
+    BlockView, CheckReport, DesignKind, DesignPart, Envelope, OuterBounds, PartSink, Progress,
+    Study, StudyError, StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,
 };

@@ -19,9 +19,10 @@ use super::auto::{
 };
 use super::bounds::{Bounder, EnvelopePoint};
 use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side, TRUST_RELATIVE_MISFIT};
-use super::engine::{BlockOutcome, LockStep, SampleFailure};
+use super::engine::{BlockOutcome, LockStep, RecordSource, SampleFailure};
 use super::lyapunov::{estimate_lyapunov, LyapunovEstimate};
 use super::plan::{Plan, MAX_RUNS};
+pub use super::schedule::{RecordSchedule, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS};
 use super::screening::Screening;
 use super::sparse::SparseDesign;
 use super::Method;
@@ -34,12 +35,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 use thiserror::Error;
-
-/// Values (samples × outputs × records) one block may hold: 4 M values = 32 MB.
-pub const BLOCK_VALUE_BUDGET: usize = 4_000_000;
-/// Most record times per block: keeps memory flat in the horizon (the 10×-longer-run test) while a
-/// block still amortises the threads' start-up.
-pub const MAX_BLOCK_RECORDS: usize = 50;
 
 /// Options of a study (command-line flags override the sidecar's `[analysis]`).
 #[derive(Clone, Debug)]
@@ -113,6 +108,9 @@ pub enum StudyError {
     /// A sink (MCAP, …) failed.
     #[error(transparent)]
     Sink(Box<crate::Error>),
+    /// The recorded values of a phase could not be read (a shard's record block).
+    #[error(transparent)]
+    Records(Box<crate::Error>),
     /// The worker threads could not be started.
     #[error("cannot start {threads} worker threads: {message}")]
     Threads {
@@ -275,6 +273,26 @@ impl StudyPlan {
     }
 }
 
+/// What [`Study::simulate_design_part`] calls after each block: `(first record, records, the
+/// part's recorded values)`.
+pub type PartSink<'s> = dyn FnMut(usize, usize, &dyn RecordSource) -> Result<(), crate::Error> + 's;
+
+/// What simulating a part of a design did ([`Study::simulate_design_part`]).
+#[derive(Clone, Debug)]
+pub struct DesignPart {
+    /// Whether every record time was simulated (false when interrupted).
+    pub complete: bool,
+    /// Samples left out under `--keep-going`, by their index in the whole design (the nominal
+    /// run, which may not fail, never appears).
+    pub failures: Vec<SampleFailure>,
+    /// Newton iterations of the part's runs.
+    pub newton_iterations: u64,
+    /// Steps of the part's runs.
+    pub steps: u64,
+    /// Seconds spent simulating.
+    pub simulate_seconds: f64,
+}
+
 /// A study ready to run.
 pub struct Study<'a> {
     /// The nominal model (scene gravity applied).
@@ -299,16 +317,16 @@ pub(super) struct FailurePolicy {
 }
 
 /// Per record of one block of one phase: the samples' values.
-pub(super) struct PhaseBlock<'b, 'a> {
+pub(super) struct PhaseBlock<'b> {
     /// The block's first record.
     pub(super) first: usize,
     /// Records in the block.
     pub(super) count: usize,
     /// The phase's samples.
-    pub(super) lockstep: &'b LockStep<'a>,
+    pub(super) lockstep: &'b dyn RecordSource,
 }
 
-impl PhaseBlock<'_, '_> {
+impl PhaseBlock<'_> {
     /// Record `r` of the block for sample `i` (`dim outputs`).
     pub(super) fn record(&self, i: usize, r: usize) -> &[f64] {
         self.lockstep.record(i, r)
@@ -560,8 +578,90 @@ impl Study<'_> {
         })
     }
 
+    /// Simulates the design's samples `range` (indices into [`Study::design_points`]) and, with
+    /// `with_nominal`, the nominal run after them, block by block over the horizon under the
+    /// design's failure policy (the same as [`Study::run_stages`]); `on_block(first, count,
+    /// records)` after each block. This is one shard of a distributed study (`ribbon run`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn simulate_design_part(
+        &self,
+        study_plan: &StudyPlan,
+        points: &[f64],
+        range: std::ops::Range<usize>,
+        with_nominal: bool,
+        interrupt: &AtomicBool,
+        progress: &mut dyn FnMut(Progress),
+        on_block: &mut PartSink<'_>,
+    ) -> Result<DesignPart, StudyError> {
+        let started = Instant::now();
+        let d = self.space.len().max(1);
+        let threads = self.thread_pool()?;
+        let mut report = self.empty_report(&threads);
+        let nominal_xi = self.space.nominal_xi();
+        let design_samples = points.len() / d;
+        let part = points.get(range.start * d..range.end * d).ok_or_else(|| {
+            StudyError::BadOptions(format!(
+                "internal: samples {}..{} are outside the design's {design_samples}",
+                range.start, range.end
+            ))
+        })?;
+        let mut lockstep = self.lockstep(part, with_nominal.then_some(nominal_xi.as_slice()));
+        let offset = |mut failure: SampleFailure, nominal: Option<usize>| {
+            if Some(failure.index) != nominal {
+                failure.index += range.start;
+            }
+            failure
+        };
+        let nominal = lockstep.nominal_index();
+        let result = self.run_source(
+            "design",
+            &mut lockstep,
+            self.design_failure_policy(study_plan.method),
+            &threads,
+            interrupt,
+            started,
+            &mut report,
+            progress,
+            &mut |block, _| {
+                on_block(block.first, block.count, block.lockstep)
+                    .map_err(|e| StudyError::Sink(Box::new(e)))
+            },
+        );
+        let complete = match result {
+            Ok(complete) => complete,
+            Err(StudyError::SampleFailed { run, failure, hint }) => {
+                // Name the sample by its index in the whole design, not in this part.
+                let run = if Some(failure.index) == nominal {
+                    run
+                } else {
+                    format!(
+                        "sample {} of {design_samples}",
+                        failure.index + range.start + 1
+                    )
+                };
+                return Err(StudyError::SampleFailed {
+                    run,
+                    failure: Box::new(offset(*failure, nominal)),
+                    hint,
+                });
+            }
+            Err(other) => return Err(other),
+        };
+        Ok(DesignPart {
+            complete,
+            failures: report
+                .excluded
+                .into_iter()
+                .map(|f| offset(f, nominal))
+                .collect(),
+            newton_iterations: report.newton_iterations,
+            steps: report.steps,
+            simulate_seconds: report.simulate_seconds,
+        })
+    }
+
     /// The worker threads of `options.threads`.
-    pub(super) fn thread_pool(&self) -> Result<rayon::ThreadPool, StudyError> {
+    pub fn thread_pool(&self) -> Result<rayon::ThreadPool, StudyError> {
         let threads = self.options.threads;
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -654,6 +754,32 @@ impl Study<'_> {
         progress: &mut dyn FnMut(Progress),
         sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
     ) -> Result<StudyReport, StudyError> {
+        self.run_stages(study_plan, None, interrupt, progress, sink)
+    }
+
+    /// The design's sample points (row-major `runs × d`, the nominal run not included) when the
+    /// plan fixes them before any run; `None` for designs that depend on runs (screened,
+    /// adaptive).
+    pub fn design_points(&self, study_plan: &StudyPlan) -> Option<Vec<f64>> {
+        study_plan
+            .plan
+            .as_ref()
+            .map(|plan| plan.points(self.space.len()))
+    }
+
+    /// The study's stages — design, fit and bound, the a-posteriori check, the chaos estimate,
+    /// the sinks — with the design's recorded values either simulated here (`design_records` is
+    /// `None`: `analyze`) or read from `design_records` (`merge`: the record blocks of shards
+    /// that simulated [`Study::design_points`] and the nominal run elsewhere). Either way the
+    /// values reach the fits in the same order, so the results are the same bit for bit.
+    pub fn run_stages(
+        &self,
+        study_plan: StudyPlan,
+        design_records: Option<&mut dyn RecordSource>,
+        interrupt: &AtomicBool,
+        progress: &mut dyn FnMut(Progress),
+        sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
+    ) -> Result<StudyReport, StudyError> {
         let started = Instant::now();
         let o = &self.options;
         let method = study_plan.method;
@@ -661,11 +787,12 @@ impl Study<'_> {
         let threads = self.thread_pool()?;
         let scene = self.scene;
         let n_outputs = scene.outputs.len();
-        let n_records = n_records(scene);
+        let schedule = RecordSchedule::of(scene);
+        let n_records = schedule.len();
         let design_runs = study_plan.design_runs;
         let mut report = StudyReport {
             runs: 0,
-            block_records: block_records(design_runs, n_outputs, n_records),
+            block_records: schedule.block_records(design_runs, n_outputs),
             method,
             design: study_plan.design_name,
             auto: study_plan.auto.clone(),
@@ -690,6 +817,12 @@ impl Study<'_> {
                 report.runs += design_runs;
                 plan
             }
+            None if design_records.is_some() => {
+                return Err(StudyError::BadOptions(format!(
+                    "the {} design chooses its runs from earlier runs, so its record blocks cannot be simulated ahead of the study",
+                    study_plan.design_name
+                )))
+            }
             None => {
                 let Some(choice) = &study_plan.auto else {
                     return Err(StudyError::BadOptions(
@@ -712,7 +845,7 @@ impl Study<'_> {
                     };
                     let outcome = adapted.insert(outcome);
                     report.adaptive = Some(outcome.report.clone());
-                    report.block_records = block_records(grid.n_points() + 1, n_outputs, n_records);
+                    report.block_records = schedule.block_records(grid.n_points() + 1, n_outputs);
                     Plan::Sparse(Arc::new(SparseDesign::Grid(grid)))
                 } else {
                     let (screening, complete) = self.screen(
@@ -776,10 +909,25 @@ impl Study<'_> {
             }
             None => {
                 let points = plan.points(d);
-                self.run_phase(
+                let mut simulated;
+                let source: &mut dyn RecordSource = match design_records {
+                    Some(source) => source,
+                    None => {
+                        simulated = self.lockstep(&points, Some(&nominal_xi));
+                        &mut simulated
+                    }
+                };
+                let Some(nominal_index) = source.nominal_index() else {
+                    return Err(StudyError::BadOptions(
+                        "internal: the design's records hold no nominal run".to_string(),
+                    ));
+                };
+                // The design's samples in plan order; the nominal run is named, not positional.
+                let plan_samples: Vec<usize> =
+                    (0..source.len()).filter(|&i| i != nominal_index).collect();
+                self.run_source(
                     "design",
-                    &points,
-                    Some(&nominal_xi),
+                    source,
                     self.design_failure_policy(method),
                     &threads,
                     interrupt,
@@ -789,10 +937,8 @@ impl Study<'_> {
                     &mut |block, report| {
                         let t_bound = Instant::now();
                         let lockstep = block.lockstep;
-                        let plan_samples = lockstep.len() - 1;
-                        let nominal_index = lockstep.nominal_index().unwrap_or(plan_samples);
                         for r in 0..block.count {
-                            accumulator.times.push(record_time(scene, block.first + r));
+                            accumulator.times.push(schedule.time(block.first + r));
                             accumulator
                                 .nominal
                                 .extend_from_slice(block.record(nominal_index, r));
@@ -801,8 +947,8 @@ impl Study<'_> {
                                 .extend_from_slice(lockstep.nominal_positions(r));
                         }
                         let values = |r: usize| -> Vec<f64> {
-                            let mut row = Vec::with_capacity(plan_samples * n_outputs);
-                            for i in 0..plan_samples {
+                            let mut row = Vec::with_capacity(plan_samples.len() * n_outputs);
+                            for &i in &plan_samples {
                                 row.extend_from_slice(lockstep.record(i, r));
                             }
                             row
@@ -1028,20 +1174,56 @@ impl Study<'_> {
         progress: &mut dyn FnMut(Progress),
         on_block: &mut dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError>,
     ) -> Result<bool, StudyError> {
+        let mut lockstep = self.lockstep(points, nominal_xi);
+        self.run_source(
+            phase,
+            &mut lockstep,
+            policy,
+            threads,
+            interrupt,
+            started,
+            report,
+            progress,
+            on_block,
+        )
+    }
+
+    /// The lock-step simulation of `points` (row-major `n × d`) and, when given, the nominal run
+    /// after them, with this study's model, scene and box.
+    pub fn lockstep(&self, points: &[f64], nominal_xi: Option<&[f64]>) -> LockStep<'_> {
         let scene = self.scene;
         let template = RobotSystem::new(self.model.clone(), scene);
-        let mut lockstep = LockStep::new(
+        LockStep::new(
             template,
             self.space,
             scene,
             hht_settings(scene),
             points,
             nominal_xi,
-        );
+        )
+    }
+
+    /// [`Study::run_phase`] over any source of recorded values: block by block over the horizon,
+    /// the failure policy applied after each block, then `on_block`.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn run_source(
+        &self,
+        phase: &'static str,
+        lockstep: &mut dyn RecordSource,
+        policy: FailurePolicy,
+        threads: &rayon::ThreadPool,
+        interrupt: &AtomicBool,
+        started: Instant,
+        report: &mut StudyReport,
+        progress: &mut dyn FnMut(Progress),
+        on_block: &mut dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError>,
+    ) -> Result<bool, StudyError> {
+        let scene = self.scene;
         let runs = lockstep.len();
         let n_outputs = scene.outputs.len();
-        let n_records = n_records(scene);
-        let block_records = block_records(runs, n_outputs, n_records);
+        let schedule = RecordSchedule::of(scene);
+        let n_records = schedule.len();
+        let block_records = schedule.block_records(runs, n_outputs);
         let mut first = 0;
         let mut complete = true;
         while first < n_records {
@@ -1051,7 +1233,7 @@ impl Study<'_> {
             }
             let count = block_records.min(n_records - first);
             let t_simulate = Instant::now();
-            let outcome = lockstep.advance(first, count, threads, interrupt);
+            let outcome = lockstep.advance(first, count, threads, interrupt)?;
             report.simulate_seconds += t_simulate.elapsed().as_secs_f64();
             if outcome == BlockOutcome::Interrupted {
                 complete = false;
@@ -1085,7 +1267,7 @@ impl Study<'_> {
                 &PhaseBlock {
                     first,
                     count,
-                    lockstep: &lockstep,
+                    lockstep: &*lockstep,
                 },
                 report,
             )?;
@@ -1171,20 +1353,12 @@ impl Study<'_> {
     }
 }
 
-/// Record times of `scene`'s horizon: every `record_every` steps, and the last step.
+/// Record times of `scene`'s horizon ([`RecordSchedule::len`]).
 pub(super) fn n_records(scene: &Scene) -> usize {
-    scene.n_steps.div_ceil(scene.record_every) + 1
+    RecordSchedule::of(scene).len()
 }
 
-/// The time of record `record`, s.
+/// The time of record `record`, s ([`RecordSchedule::time`]).
 pub(super) fn record_time(scene: &Scene, record: usize) -> f64 {
-    (record * scene.record_every).min(scene.n_steps) as f64 * scene.step_s
-}
-
-/// Record times per block for `runs` samples: as many as [`BLOCK_VALUE_BUDGET`] values allow, at
-/// most [`MAX_BLOCK_RECORDS`] and the horizon.
-fn block_records(runs: usize, n_outputs: usize, n_records: usize) -> usize {
-    (BLOCK_VALUE_BUDGET / (runs * n_outputs).max(1))
-        .clamp(1, MAX_BLOCK_RECORDS)
-        .min(n_records)
+    RecordSchedule::of(scene).time(record)
 }

@@ -6,20 +6,21 @@
 //! files.
 
 use super::{
-    check_finite, check_output_paths, check_start, install_interrupt, print_warnings, write_stdout,
-    AnalyzeArgs, SceneArgs,
+    check_finite, check_output_paths, install_interrupt, write_stdout, AnalyzeArgs, SceneArgs,
 };
 use crate::analysis::{
-    CheckReport, DesignKind, Method, Progress, Study, StudyOptions, StudyReport,
-    ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TRUST_RELATIVE_MISFIT,
+    CheckReport, DesignKind, Method, Progress, RecordSchedule, RecordSource, Study, StudyOptions,
+    StudyPlan, StudyReport, ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS,
+    TRUST_RELATIVE_MISFIT,
 };
+use crate::distributed::{PlanFile, ShardError, ShardSet};
 use crate::dynamics::Data;
-use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
 use crate::output::{
     write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, SensitivitySummary, Summary,
 };
-use crate::scene::{check_threads, default_sidecar_path, read_sidecar, wants_floating_base, Scene};
+use crate::scene::{check_threads, Scene};
+use crate::setup::{print_message, Setup};
 use crate::text::closest_suggestion;
 use crate::uncertainty::ParameterSpace;
 use crate::uq::Truncation;
@@ -46,6 +47,22 @@ fn bad(flag: &str, message: String) -> Error {
 
 /// Runs `ribbon analyze`.
 pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
+    run_study(args, None)
+}
+
+/// The design's records of a merge: the plan and the directory of its shards' record blocks.
+pub struct MergeInput<'a> {
+    /// The plan file.
+    pub plan: &'a PlanFile,
+    /// Its path.
+    pub plan_path: &'a Path,
+    /// The directory holding the record blocks.
+    pub dir: &'a Path,
+}
+
+/// `analyze` (`merge` is `None`: the design is simulated here) or `merge` (the design's records are
+/// read from the shards): the same stages and sinks either way.
+pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Error> {
     let started = Instant::now();
     check_output_paths(
         &args.scene,
@@ -57,7 +74,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         ],
     )?;
     install_interrupt();
-    let Prepared {
+    let Setup {
         sidecar_path,
         sidecar,
         model,
@@ -82,6 +99,20 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         options: options.clone(),
     };
     let plan = study.plan()?;
+    let mut shard_set = match &merge {
+        Some(input) => {
+            check_plan_matches(input.plan, input.plan_path, &study, &plan)?;
+            let set = ShardSet::open(input.plan, input.dir)?;
+            eprintln!(
+                "merge: {} record blocks of plan {} from {}",
+                set.files().len(),
+                input.plan.plan_hash,
+                input.dir.display()
+            );
+            Some(set)
+        }
+        None => None,
+    };
     let runs = plan.max_runs();
     eprintln!(
         "analyze: {} parameters, method {}{} ({}), design {}, {}{} model runs{} of {} s at h = {} s",
@@ -132,8 +163,9 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     let kinematic_model = model;
     let mut data = Data::new(&kinematic_model);
     let mut reporter = ProgressReporter::new();
-    let report = study.run_planned(
+    let report = study.run_stages(
         plan,
+        shard_set.as_mut().map(|s| s as &mut dyn RecordSource),
         interrupt,
         &mut |progress| reporter.report(progress),
         &mut |block| match log.as_mut() {
@@ -193,6 +225,67 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
             "stopped after t = {done} s of {} s; the envelopes computed so far were written (MCAP marked partial)",
             scene.duration_s
         )));
+    }
+    Ok(())
+}
+
+/// Refuses a plan that this ribbon, with these inputs, would not make: the same method, design,
+/// box, outputs, record schedule and sample points, bit for bit (a different build or edited
+/// inputs would merge records of another design).
+pub fn check_plan_matches(
+    plan: &PlanFile,
+    plan_path: &Path,
+    study: &Study,
+    study_plan: &StudyPlan,
+) -> Result<(), Error> {
+    let body = &plan.body;
+    let mismatch = |what: &str| {
+        Error::from(ShardError::Plan {
+            path: plan_path.to_path_buf(),
+            message: format!(
+                "its {what} differs from what this ribbon plans from the same inputs; make the plan again with this ribbon (`ribbon plan`)"
+            ),
+        })
+    };
+    let schedule = RecordSchedule::of(study.scene);
+    let names: Vec<&str> = study
+        .scene
+        .outputs
+        .iter()
+        .map(|o| o.name.as_str())
+        .collect();
+    let parameters: Vec<&str> = study
+        .space
+        .dimensions()
+        .iter()
+        .map(|d| d.name.as_str())
+        .collect();
+    if body.method != study_plan.method.name() || body.design != study_plan.design_name {
+        return Err(mismatch("method or design"));
+    }
+    if body.outputs != names || body.parameters != parameters || body.nq != study.model.nq {
+        return Err(mismatch("outputs or parameters"));
+    }
+    if (
+        body.n_steps,
+        body.record_every,
+        body.step_s.to_bits(),
+        body.records,
+    ) != (
+        schedule.n_steps,
+        schedule.record_every,
+        schedule.step_bits,
+        schedule.len(),
+    ) {
+        return Err(mismatch("record schedule"));
+    }
+    let points = study.design_points(study_plan).unwrap_or_default();
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+    if bits(&points) != bits(&plan.points())
+        || bits(&study.space.nominal_xi()) != bits(&body.nominal_xi)
+        || body.check_runs != study_plan.check_runs
+    {
+        return Err(mismatch("sample list"));
     }
     Ok(())
 }
@@ -304,25 +397,9 @@ fn write_report(
     Ok(())
 }
 
-/// A loaded robot, its scene and its interval parameters, ready for studies.
-pub struct Prepared {
-    /// The sidecar file.
-    pub sidecar_path: std::path::PathBuf,
-    /// Its contents.
-    pub sidecar: crate::scene::SidecarFile,
-    /// The nominal model (scene gravity applied).
-    pub model: Model,
-    /// The scene.
-    pub scene: Scene,
-    /// The interval parameters.
-    pub space: ParameterSpace,
-}
-
 /// The sidecar a study reads: `--uncertainty`, or `ROBOT.uncertainty.toml` beside the URDF.
 pub fn sidecar_path_of(args: &SceneArgs) -> std::path::PathBuf {
-    args.uncertainty
-        .clone()
-        .unwrap_or_else(|| default_sidecar_path(&args.urdf))
+    args.request().sidecar_path()
 }
 
 /// Refuses envelopes that hold a NaN or infinity (exit 1, naming the output and time) before
@@ -349,48 +426,13 @@ fn check_envelope_finite(report: &StudyReport) -> Result<(), Error> {
 
 /// Loads the URDF and its sidecar (`uncertainty`, or `ROBOT.uncertainty.toml` beside the URDF),
 /// resolves the scene and the parameter box, checks that the nominal model can start the scene
-/// (exit 2 naming the joints when it cannot), and prints the warnings.
-pub fn prepare(args: &SceneArgs) -> Result<Prepared, Error> {
-    let (urdf, uncertainty, floating) = (
-        args.urdf.as_path(),
-        args.uncertainty.as_deref(),
-        args.floating,
-    );
-    let sidecar_path = sidecar_path_of(args);
-    if uncertainty.is_none() && !sidecar_path.exists() {
-        return Err(bad(
-            "--uncertainty",
-            format!(
-                "no sidecar: '{}' does not exist; write one with [parameters] (see README) or pass --uncertainty FILE",
-                sidecar_path.display()
-            ),
-        ));
-    }
-    let sidecar_name = sidecar_path.display().to_string();
-    let (sidecar, _) = read_sidecar(&sidecar_path)?;
-    let floating_base = floating || wants_floating_base(&sidecar, &sidecar_name)?;
-    let mut model = Model::from_urdf_file(urdf, LoadOptions { floating_base })?;
-    print_warnings(&model);
-    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, args.overrides())?;
-    scene.apply_gravity(&mut model);
-    let space = ParameterSpace::from_sidecar(&sidecar, &model, &sidecar_name)?;
-    for warning in space.warnings() {
-        eprintln!("warning: {warning}");
-    }
-    for note in space.notes() {
-        eprintln!("note: {note}");
-    }
-    check_start(&model, &scene)?;
-    Ok(Prepared {
-        sidecar_path,
-        sidecar,
-        model,
-        scene,
-        space,
-    })
+/// (exit 2 naming the joints when it cannot), and prints the warnings ([`Setup::load`]).
+pub fn prepare(args: &SceneArgs) -> Result<Setup, Error> {
+    Setup::load(&args.request(), &mut print_message)
 }
 
-fn study_options(
+/// The study's options from the flags and the sidecar's `[analysis]` (flags first).
+pub fn study_options(
     args: &AnalyzeArgs,
     section: &crate::scene::AnalysisSection,
 ) -> Result<StudyOptions, Error> {
@@ -856,20 +898,22 @@ pub fn peak_memory() -> Option<u64> {
 
 /// Progress on stderr: a rewritten line on a terminal, otherwise a line at most every
 /// [`PROGRESS_INTERVAL_S`] (and always the first).
-struct ProgressReporter {
+pub(super) struct ProgressReporter {
     terminal: bool,
     last_line_s: Option<f64>,
 }
 
 impl ProgressReporter {
-    fn new() -> Self {
+    /// A reporter for stderr.
+    pub(super) fn new() -> Self {
         Self {
             terminal: std::io::stderr().is_terminal(),
             last_line_s: None,
         }
     }
 
-    fn report(&mut self, p: Progress) {
+    /// Reports one block's progress.
+    pub(super) fn report(&mut self, p: Progress) {
         let fraction = p.records_done as f64 / p.records_total.max(1) as f64;
         let eta = if fraction > 0.0 {
             p.elapsed_s * (1.0 - fraction) / fraction
@@ -897,7 +941,8 @@ impl ProgressReporter {
         }
     }
 
-    fn finish(&self) {
+    /// Ends the line on a terminal.
+    pub(super) fn finish(&self) {
         if self.terminal {
             eprintln!();
         }

@@ -6,9 +6,7 @@
 //! `compare.json`, `error_vs_time.{svg,png}` and `envelope.{svg,png}` (the widest output, reference vs the
 //! highest-order legendre-scan run).
 
-use super::analyze_cmd::{
-    max_runs_of, parse_design, prepare, sidecar_path_of, Prepared, DESIGN_NAMES,
-};
+use super::analyze_cmd::{max_runs_of, parse_design, prepare, sidecar_path_of, DESIGN_NAMES};
 use super::{install_interrupt, write_stdout, CompareArgs};
 use crate::analysis::{
     DesignKind, Method, Study, StudyOptions, StudyReport, VertexReferenceOptions,
@@ -17,6 +15,7 @@ use crate::output::plot::{Layer, ScatterPlot, ScatterSeries, TimePlot, PALETTE};
 use crate::output::report::{axis_label, write_plot, BAND_COLOUR, NOMINAL_COLOUR, SECOND_COLOUR};
 use crate::output::write_atomically;
 use crate::scene::check_threads;
+use crate::setup::Setup;
 use crate::uq::{envelope_error, Truncation};
 use crate::Error;
 use std::path::Path;
@@ -243,7 +242,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
     }
     install_interrupt();
     let threads = check_threads("--threads", args.threads.unwrap_or(0))?;
-    let Prepared {
+    let Setup {
         model,
         scene,
         space,

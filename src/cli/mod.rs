@@ -4,7 +4,10 @@
 mod analyze_cmd;
 mod compare_cmd;
 mod dynamics_cmd;
+mod merge_cmd;
 mod params_cmd;
+mod plan_cmd;
+mod run_cmd;
 mod simulate_cmd;
 mod values;
 
@@ -37,6 +40,68 @@ pub enum Command {
     Analyze(AnalyzeArgs),
     /// What accuracy costs in time: every method against a scan of the true model.
     Compare(CompareArgs),
+    /// Plan a study for many machines: write the plan file (inputs' hashes, options, box, sample
+    /// list, record schedule) and print the runs, bytes and expected wall time per shard.
+    Plan(PlanArgs),
+    /// Simulate one shard of a planned study into its record block file.
+    Run(RunArgs),
+    /// Merge the shards' record blocks into the study's outputs (the same as `analyze`).
+    Merge(MergeArgs),
+}
+
+/// `ribbon plan`.
+#[derive(Debug, Args)]
+pub struct PlanArgs {
+    /// The study, with the options of `analyze` (its outputs go to `merge`).
+    #[command(flatten)]
+    pub analyze: AnalyzeArgs,
+    /// The plan file to write.
+    #[arg(long, value_name = "FILE")]
+    pub plan: PathBuf,
+}
+
+/// `ribbon run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// The plan file (from `ribbon plan`).
+    pub plan: PathBuf,
+    /// This shard: K/N, K counted from 0 (e.g. 0/4 … 3/4).
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+    /// The shard count, K read from SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX (both from 0).
+    #[arg(long, value_name = "N")]
+    pub shards: Option<usize>,
+    /// The directory of the record blocks (created if missing); this shard writes
+    /// `shard-K-of-N.records.mcap` there and nothing else.
+    #[arg(long, value_name = "DIR")]
+    pub into: PathBuf,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// `ribbon merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// The plan file.
+    pub plan: PathBuf,
+    /// The directory of the shards' record blocks.
+    pub dir: PathBuf,
+    /// Worker threads for the fits and the check runs (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Write the summary JSON.
+    #[arg(long, value_name = "FILE")]
+    pub summary: Option<PathBuf>,
+    /// Write the envelopes as CSV.
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Write an MCAP log for Foxglove and rerun.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub out: Option<PathBuf>,
+    /// Write a report into this directory (as `analyze --report`).
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
 }
 
 /// `ribbon compare`.
@@ -185,6 +250,16 @@ pub struct SceneArgs {
 }
 
 impl SceneArgs {
+    /// What [`crate::setup::Setup::load`] loads for these flags.
+    pub fn request(&self) -> crate::setup::SetupRequest<'_> {
+        crate::setup::SetupRequest {
+            urdf: &self.urdf,
+            uncertainty: self.uncertainty.as_deref(),
+            floating: self.floating,
+            overrides: self.overrides(),
+        }
+    }
+
     /// The command-line values that override the sidecar's `[scene]`.
     pub fn overrides(&self) -> crate::scene::SceneOverrides {
         crate::scene::SceneOverrides {
@@ -249,6 +324,9 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Command::Simulate(args) => simulate_cmd::run(&args),
         Command::Analyze(args) => analyze_cmd::run(&args),
         Command::Compare(args) => compare_cmd::run(&args),
+        Command::Plan(args) => plan_cmd::run(&args),
+        Command::Run(args) => run_cmd::run(&args),
+        Command::Merge(args) => merge_cmd::run(&args),
     }
 }
 

@@ -5,15 +5,15 @@
 //! once, removing the temporary files.
 
 use super::{
-    check_finite, check_output_paths, check_start, install_interrupt, print_warnings, write_stdout,
-    SimulateArgs,
+    check_finite, check_output_paths, check_start, install_interrupt, write_stdout, SimulateArgs,
 };
 use crate::cli::values::apply_set_flags;
 use crate::dynamics::{forward_kinematics, Data};
-use crate::model::{LoadOptions, Model};
+use crate::model::Model;
 use crate::output::mcap::McapMetadata;
 use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, Summary};
-use crate::scene::{default_sidecar_path, read_sidecar, wants_floating_base, Scene, SidecarFile};
+use crate::scene::Scene;
+use crate::setup::{print_message, SceneSetup};
 use crate::simulate::{simulate_interruptible, Trajectory};
 use crate::Error;
 use std::time::Instant;
@@ -25,7 +25,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
         .scene
         .uncertainty
         .clone()
-        .or_else(|| Some(default_sidecar_path(&args.scene.urdf)).filter(|p| p.exists()));
+        .or_else(|| Some(args.scene.request().sidecar_path()).filter(|p| p.exists()));
     check_output_paths(
         &args.scene,
         sidecar_path.as_deref(),
@@ -36,15 +36,9 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
         ],
     )?;
     install_interrupt();
-    let (sidecar, sidecar_name) = match &sidecar_path {
-        Some(path) => (read_sidecar(path)?.0, path.display().to_string()),
-        None => (SidecarFile::default(), "(no sidecar)".to_string()),
-    };
-    let floating_base = args.scene.floating || wants_floating_base(&sidecar, &sidecar_name)?;
-    let mut model = Model::from_urdf_file(&args.scene.urdf, LoadOptions { floating_base })?;
-    print_warnings(&model);
-    let scene = Scene::resolve(&sidecar, &model, &sidecar_name, args.scene.overrides())?;
-    scene.apply_gravity(&mut model);
+    let SceneSetup {
+        mut model, scene, ..
+    } = SceneSetup::load(&args.scene.request(), &mut print_message)?;
     apply_set_flags(&mut model, &args.set)?;
     // Kept per record time: the time, the configuration, every output, and the summary's four
     // copies of each output (time, lower, upper, nominal).

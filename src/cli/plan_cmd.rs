@@ -1,0 +1,212 @@
+//! `ribbon plan ROBOT.urdf [analyze options] --plan study.plan`: the first stage of a distributed
+//! study (docs/distributed.md): writes the plan file and prints one line on stdout with the runs,
+//! the record-block bytes and the expected wall time per shard from a short calibration run.
+
+use super::analyze_cmd::{prepare, sidecar_path_of, study_options};
+use super::{check_output_paths, write_stdout, PlanArgs};
+use crate::analysis::{BlockOutcome, RecordSchedule, Study};
+use crate::distributed::{InputFile, PlanBody, PlanFile, PlanOptions};
+use crate::output::write_atomically;
+use crate::Error;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+/// Steps of each calibration run (fewer when the horizon is shorter).
+pub const CALIBRATION_STEPS: usize = 500;
+/// Repetitions of the calibration; the fastest counts (a shared machine's load only slows runs
+/// down).
+pub const CALIBRATION_REPEATS: usize = 3;
+/// Design samples the calibration runs, spread over the sample list (corners of the box can need
+/// more Newton iterations than its centre).
+pub const CALIBRATION_RUNS: usize = 4;
+/// Shard counts the plan line estimates the wall time for.
+const ESTIMATED_SHARD_COUNTS: [usize; 4] = [1, 4, 16, 64];
+/// Bytes of an MCAP message record besides its data (opcode, length, channel, sequence, times).
+const MESSAGE_OVERHEAD_BYTES: u64 = 9 + 2 + 4 + 8 + 8;
+
+/// Runs `ribbon plan`.
+pub fn run(args: &PlanArgs) -> Result<(), Error> {
+    let a = &args.analyze;
+    for (flag, given) in [
+        ("--summary", a.summary.is_some()),
+        ("--csv", a.csv.is_some()),
+        ("--out", a.out.is_some()),
+        ("--report", a.report.is_some()),
+    ] {
+        if given {
+            return Err(Error::BadArgument {
+                flag: flag.to_string(),
+                message: "outputs are written by `ribbon merge PLAN DIR`, not by `plan`; give the flag to merge".to_string(),
+            });
+        }
+    }
+    let sidecar_path = sidecar_path_of(&a.scene);
+    check_output_paths(
+        &a.scene,
+        Some(&sidecar_path),
+        &[("--plan", Some(&args.plan))],
+    )?;
+    let setup = prepare(&a.scene)?;
+    let options = study_options(a, &setup.sidecar.analysis)?;
+    let study = Study {
+        model: setup.model.clone(),
+        scene: &setup.scene,
+        space: &setup.space,
+        options,
+    };
+    let study_plan = study.plan()?;
+    let Some(points) = study.design_points(&study_plan) else {
+        return Err(Error::BadArgument {
+            flag: "--design".to_string(),
+            message: format!(
+                "the {} design chooses its runs from earlier runs (a screening, or adaptive rounds), so they cannot be planned ahead for shards; plan a fixed design instead — --method legendre-scan --design sparse (total degree --order on a Leja sparse grid) or --design regression — or run `ribbon analyze` on one machine",
+                study_plan.design_name
+            ),
+        });
+    };
+    let d = setup.space.len();
+    let schedule = RecordSchedule::of(&setup.scene);
+    let samples = points.len() / d.max(1);
+    let body = PlanBody {
+        urdf: InputFile::of(&a.scene.urdf)?,
+        sidecar: InputFile::of(&sidecar_path)?,
+        options: PlanOptions {
+            duration: a.scene.duration,
+            step: a.scene.step,
+            alpha: a.scene.alpha,
+            floating: a.scene.floating,
+            method: a.method.clone(),
+            order: a.order,
+            design: a.design.clone(),
+            grid: a.grid,
+            scan_grid: a.scan_grid,
+            samples: a.samples,
+            seed: a.seed,
+            keep_going: a.keep_going,
+            max_runs: a.max_runs,
+            check_runs: a.check_runs,
+        },
+        method: study_plan.method.name().to_string(),
+        design: study_plan.design_name.to_string(),
+        parameters: setup
+            .space
+            .dimensions()
+            .iter()
+            .map(|dim| dim.name.clone())
+            .collect(),
+        outputs: setup.scene.outputs.iter().map(|o| o.name.clone()).collect(),
+        nq: setup.model.nq,
+        n_steps: schedule.n_steps,
+        record_every: schedule.record_every,
+        step_s: schedule.step_s(),
+        records: schedule.len(),
+        samples,
+        points_xi: points.chunks(d.max(1)).map(<[f64]>::to_vec).collect(),
+        nominal_xi: setup.space.nominal_xi(),
+        check_runs: study_plan.check_runs,
+    };
+    let plan = PlanFile::new(body);
+    write_atomically(&args.plan, "plan", plan.to_json().as_bytes())?;
+
+    // The cost model: record-block bytes exactly (besides a few kB of headers per shard), and
+    // the wall time from the nominal run's first steps on one core.
+    let n_outputs = setup.scene.outputs.len() as u64;
+    let records = schedule.len() as u64;
+    let data_bytes = records
+        * (2 * MESSAGE_OVERHEAD_BYTES
+            + 8 * (samples as u64 * n_outputs + n_outputs + setup.model.nq as u64));
+    let mut seconds_per_step = f64::INFINITY;
+    for _ in 0..CALIBRATION_REPEATS {
+        seconds_per_step = seconds_per_step.min(calibrate(&study, &schedule, &points)?);
+    }
+    let run_seconds = seconds_per_step * schedule.n_steps as f64;
+    let per_shard: Vec<String> = ESTIMATED_SHARD_COUNTS
+        .iter()
+        .map(|&n| {
+            let runs = samples.div_ceil(n) + 1;
+            format!("N={n}: {}", duration(runs as f64 * run_seconds))
+        })
+        .collect();
+    write_stdout(&format!(
+        "plan {}: {} design runs + the nominal run in shards (merge adds up to {} check runs and 2 chaos runs), {} record times of {} outputs; record blocks {} in all (+ ~2 kB per shard); calibration {:.3e} s per step per run ⇒ expected wall time per shard on one core: {}; written to {}\n",
+        plan.plan_hash,
+        samples,
+        study_plan.check_runs,
+        records,
+        n_outputs,
+        bytes(data_bytes),
+        seconds_per_step,
+        per_shard.join(", "),
+        args.plan.display()
+    ))
+}
+
+/// Seconds per integrator step of one run: [`CALIBRATION_RUNS`] design samples spread over the
+/// sample list, through their first [`CALIBRATION_STEPS`] steps after their start, on one thread
+/// (0 when every one of them fails).
+fn calibrate(study: &Study, schedule: &RecordSchedule, points: &[f64]) -> Result<f64, Error> {
+    let d = study.space.len().max(1);
+    let samples = points.len() / d;
+    let runs = CALIBRATION_RUNS.min(samples).max(1);
+    let chosen: Vec<f64> = (0..runs)
+        .flat_map(|k| {
+            let i = k * samples.saturating_sub(1) / (runs - 1).max(1);
+            points[i * d..(i + 1) * d].iter().copied()
+        })
+        .collect();
+    let mut lockstep = study.lockstep(&chosen, None);
+    let threads = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| crate::analysis::StudyError::Threads {
+            threads: 1,
+            message: e.to_string(),
+        })?;
+    // Record 0 holds the consistent start (a one-off cost per run, not per step): timed apart.
+    let interrupt = AtomicBool::new(false);
+    let start = lockstep.advance(0, 1, &threads, &interrupt);
+    let records = (CALIBRATION_STEPS.div_ceil(schedule.record_every) + 1).min(schedule.len());
+    let started = Instant::now();
+    let outcome = if records > 1 {
+        lockstep.advance(1, records - 1, &threads, &interrupt)
+    } else {
+        start
+    };
+    let seconds = started.elapsed().as_secs_f64();
+    let steps = (schedule.step_of(records - 1) * runs).max(1);
+    // A sample that fails (possible with --keep-going) stops early: its steps are not counted.
+    if start != BlockOutcome::Complete || outcome != BlockOutcome::Complete {
+        return Err(Error::Interrupted(
+            "internal: the calibration runs did not finish".to_string(),
+        ));
+    }
+    let failed = lockstep.failures().len();
+    if failed == runs {
+        return Ok(0.0);
+    }
+    let steps = (steps / runs * (runs - failed)).max(1);
+    Ok(seconds / steps as f64)
+}
+
+fn duration(seconds: f64) -> String {
+    if seconds < 10.0 {
+        format!("{seconds:.3} s")
+    } else if seconds < 120.0 {
+        format!("{seconds:.1} s")
+    } else if seconds < 7200.0 {
+        format!("{:.1} min", seconds / 60.0)
+    } else {
+        format!("{:.1} h", seconds / 3600.0)
+    }
+}
+
+fn bytes(n: u64) -> String {
+    let n = n as f64;
+    if n < 1e6 {
+        format!("{:.1} kB", n / 1e3)
+    } else if n < 1e9 {
+        format!("{:.1} MB", n / 1e6)
+    } else {
+        format!("{:.2} GB", n / 1e9)
+    }
+}

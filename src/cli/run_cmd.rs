@@ -1,0 +1,181 @@
+//! `ribbon run study.plan --shard K/N --into DIR` (or `--shards N`, K from `SLURM_ARRAY_TASK_ID`
+//! or `JOB_COMPLETION_INDEX`): simulates one shard of a planned study into its record block
+//! `DIR/shard-K-of-N.records.mcap` (docs/distributed.md §3). The file appears only when the shard
+//! is complete (written beside it and renamed); a re-run replaces only that shard's file.
+
+use super::analyze_cmd::{check_plan_matches, prepare, study_options, ProgressReporter};
+use super::{install_interrupt, AnalyzeArgs, RunArgs, SceneArgs};
+use crate::analysis::{RecordSchedule, Study};
+use crate::distributed::{
+    shard_file_name, BlockHeader, BlockTrailer, PlanFile, RecordBlockWriter, ShardError, ShardSpec,
+};
+use crate::Error;
+use std::time::Instant;
+
+/// Runs `ribbon run`.
+pub fn run(args: &RunArgs) -> Result<(), Error> {
+    let started = Instant::now();
+    let plan = PlanFile::read(&args.plan)?;
+    let spec = match (&args.shard, args.shards) {
+        (Some(text), None) => ShardSpec::parse(text)?,
+        (None, Some(count)) => ShardSpec::from_environment(count, &|k| std::env::var(k).ok())?,
+        (Some(_), Some(_)) => {
+            return Err(ShardError::BadShard {
+                flag: "--shards".to_string(),
+                message: "give either --shard K/N or --shards N (K from the scheduler), not both"
+                    .to_string(),
+            }
+            .into())
+        }
+        (None, None) => return Err(ShardError::BadShard {
+            flag: "--shard".to_string(),
+            message:
+                "which shard? give --shard K/N (K from 0), or --shards N under Slurm or Kubernetes"
+                    .to_string(),
+        }
+        .into()),
+    };
+    plan.body.urdf.check(&args.plan, "URDF")?;
+    plan.body.sidecar.check(&args.plan, "sidecar")?;
+    let analyze_args = analyze_args_of(&plan, args.threads);
+    std::fs::create_dir_all(&args.into).map_err(|source| ShardError::Io {
+        what: "create the shard directory",
+        path: args.into.clone(),
+        source,
+    })?;
+    let path = args.into.join(shard_file_name(spec));
+    crate::output::check_outputs(
+        &[
+            ("URDF", plan.body.urdf.path.as_path()),
+            ("sidecar", plan.body.sidecar.path.as_path()),
+            ("plan", args.plan.as_path()),
+        ],
+        &[("--into", path.as_path())],
+    )?;
+    install_interrupt();
+    let setup = prepare(&analyze_args.scene)?;
+    let options = study_options(&analyze_args, &setup.sidecar.analysis)?;
+    let study = Study {
+        model: setup.model.clone(),
+        scene: &setup.scene,
+        space: &setup.space,
+        options,
+    };
+    let study_plan = study.plan()?;
+    check_plan_matches(&plan, &args.plan, &study, &study_plan)?;
+    let points = plan.points();
+    let range = spec.samples(plan.body.samples);
+    let schedule = RecordSchedule::of(&setup.scene);
+    let n_outputs = setup.scene.outputs.len();
+    let header = BlockHeader {
+        plan_hash: plan.plan_hash.clone(),
+        shard: spec.index,
+        shards: spec.count,
+        first_sample: range.start,
+        end_sample: range.end,
+        nominal: spec.runs_nominal(),
+        outputs: n_outputs,
+        records: schedule.len(),
+        nq: setup.model.nq,
+    };
+    eprintln!(
+        "run: shard {}/{} of plan {}: samples {}..{}{} of {}, {} record times",
+        spec.index,
+        spec.count,
+        plan.plan_hash,
+        range.start,
+        range.end,
+        if spec.runs_nominal() {
+            " and the nominal run"
+        } else {
+            ""
+        },
+        plan.body.samples,
+        schedule.len()
+    );
+    let mut writer = RecordBlockWriter::create(&path, header)?;
+    let part_samples = range.len();
+    let mut row: Vec<f64> = Vec::with_capacity(part_samples * n_outputs);
+    let mut reporter = ProgressReporter::new();
+    let part = study.simulate_design_part(
+        &study_plan,
+        &points,
+        range.clone(),
+        spec.runs_nominal(),
+        crate::interrupt::flag(),
+        &mut |progress| reporter.report(progress),
+        &mut |first, count, records| {
+            for r in 0..count {
+                row.clear();
+                for i in 0..part_samples {
+                    if records.failed(i) {
+                        // Left out by the merge from this block on, as by `analyze`.
+                        row.extend(std::iter::repeat_n(0.0, n_outputs));
+                    } else {
+                        row.extend_from_slice(records.record(i, r));
+                    }
+                }
+                let nominal = records
+                    .nominal_index()
+                    .map(|n| (records.record(n, r), records.nominal_positions(r)));
+                writer.write_record(schedule.time(first + r), &row, nominal)?;
+            }
+            Ok(())
+        },
+    )?;
+    reporter.finish();
+    if !part.complete {
+        return Err(Error::Interrupted(format!(
+            "shard {}/{} stopped before the end; no record block was written (run it again)",
+            spec.index, spec.count
+        )));
+    }
+    let failures = part.failures.len();
+    writer.finish(&BlockTrailer {
+        complete: true,
+        failures: part.failures,
+        newton_iterations: part.newton_iterations,
+        steps: part.steps,
+    })?;
+    let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+    eprintln!(
+        "run: wrote {} ({size} bytes): {} runs, {} steps, {failures} samples excluded; simulate {:.3} s, wall {:.3} s",
+        path.display(),
+        part_samples + usize::from(spec.runs_nominal()),
+        part.steps,
+        part.simulate_seconds,
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The `analyze` flags the plan was made with (`--uncertainty` naming the planned sidecar), with
+/// `threads` and no outputs.
+pub(super) fn analyze_args_of(plan: &PlanFile, threads: Option<usize>) -> AnalyzeArgs {
+    let o = &plan.body.options;
+    AnalyzeArgs {
+        scene: SceneArgs {
+            urdf: plan.body.urdf.path.clone(),
+            uncertainty: Some(plan.body.sidecar.path.clone()),
+            duration: o.duration,
+            step: o.step,
+            alpha: o.alpha,
+            floating: o.floating,
+        },
+        method: o.method.clone(),
+        order: o.order,
+        design: o.design.clone(),
+        grid: o.grid,
+        scan_grid: o.scan_grid,
+        samples: o.samples,
+        seed: o.seed,
+        threads,
+        keep_going: o.keep_going,
+        max_runs: o.max_runs,
+        check_runs: o.check_runs,
+        summary: None,
+        csv: None,
+        out: None,
+        report: None,
+    }
+}

@@ -1,0 +1,213 @@
+//! The plan file (`study.plan`, JSON; docs/distributed.md §2): what every shard and the merge
+//! must agree on, fingerprinted by the hash of its body.
+
+use super::error::ShardError;
+use super::hash::{fnv1a64, fnv1a64_file};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The `format` field of a plan file.
+pub const PLAN_FORMAT: &str = "ribbon-study-plan";
+/// The version of the plan format this build writes and reads.
+pub const PLAN_VERSION: u32 = 1;
+
+/// An input file of the plan, by path (as given to `plan`, relative to the working directory of
+/// `run` and `merge`) and content hash.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct InputFile {
+    /// The path as given.
+    pub path: PathBuf,
+    /// FNV-1a 64 of its bytes, 16 lowercase hex digits.
+    pub fnv1a64: String,
+}
+
+impl InputFile {
+    /// Fingerprints the file at `path`.
+    pub fn of(path: &Path) -> Result<InputFile, ShardError> {
+        let hash = fnv1a64_file(path).map_err(|source| ShardError::Io {
+            what: "read",
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Ok(InputFile {
+            path: path.to_path_buf(),
+            fnv1a64: format!("{hash:016x}"),
+        })
+    }
+
+    /// Refuses a file whose content is no longer the one planned (`what`: "URDF", "sidecar").
+    pub fn check(&self, plan: &Path, what: &'static str) -> Result<(), ShardError> {
+        let now = InputFile::of(&self.path)?;
+        if now.fnv1a64 != self.fnv1a64 {
+            return Err(ShardError::InputChanged {
+                plan: plan.to_path_buf(),
+                what,
+                path: self.path.clone(),
+                expected: self.fnv1a64.clone(),
+                found: now.fnv1a64,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The `analyze` options the plan was made with (`None`: not given, the sidecar's `[analysis]` or
+/// the default applies, exactly as for `analyze`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PlanOptions {
+    /// `--duration`, s.
+    pub duration: Option<f64>,
+    /// `--step`, s.
+    pub step: Option<f64>,
+    /// `--alpha`.
+    pub alpha: Option<f64>,
+    /// `--floating`.
+    pub floating: bool,
+    /// `--method`.
+    pub method: Option<String>,
+    /// `--order`.
+    pub order: Option<usize>,
+    /// `--design`.
+    pub design: Option<String>,
+    /// `--grid`.
+    pub grid: Option<usize>,
+    /// `--scan-grid`.
+    pub scan_grid: Option<usize>,
+    /// `--samples`.
+    pub samples: Option<usize>,
+    /// `--seed`.
+    pub seed: Option<u64>,
+    /// `--keep-going`.
+    pub keep_going: bool,
+    /// `--max-runs`.
+    pub max_runs: Option<usize>,
+    /// `--check-runs`.
+    pub check_runs: Option<usize>,
+}
+
+/// Everything the plan fixes; its canonical JSON is what the plan hash covers.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlanBody {
+    /// The robot.
+    pub urdf: InputFile,
+    /// The sidecar.
+    pub sidecar: InputFile,
+    /// The options.
+    pub options: PlanOptions,
+    /// The method that runs (`auto` resolved).
+    pub method: String,
+    /// The design's name.
+    pub design: String,
+    /// Names of the box's dimensions, in order.
+    pub parameters: Vec<String>,
+    /// Names of the recorded outputs, in order.
+    pub outputs: Vec<String>,
+    /// Configuration coordinates of the model (the nominal run's positions per record).
+    pub nq: usize,
+    /// Steps of the horizon.
+    pub n_steps: usize,
+    /// Steps between records.
+    pub record_every: usize,
+    /// The step, s.
+    pub step_s: f64,
+    /// Record times (t = 0 and the last step included).
+    pub records: usize,
+    /// Design samples (the nominal run not counted).
+    pub samples: usize,
+    /// The samples' points in standard coordinates ξ ∈ [-1, 1]^d, one row per sample.
+    pub points_xi: Vec<Vec<f64>>,
+    /// The nominal run's point, named (it is not one of the samples).
+    pub nominal_xi: Vec<f64>,
+    /// Most runs the a-posteriori check adds at merge time.
+    pub check_runs: usize,
+}
+
+/// A plan file: its format, version, hash and body.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlanFile {
+    /// [`PLAN_FORMAT`].
+    pub format: String,
+    /// [`PLAN_VERSION`].
+    pub version: u32,
+    /// FNV-1a 64 of the body's canonical JSON, 16 lowercase hex digits: the plan's identity,
+    /// written into every record block.
+    pub plan_hash: String,
+    /// The plan.
+    pub body: PlanBody,
+}
+
+impl PlanFile {
+    /// A plan file around `body`, with its hash.
+    pub fn new(body: PlanBody) -> PlanFile {
+        PlanFile {
+            format: PLAN_FORMAT.to_string(),
+            version: PLAN_VERSION,
+            plan_hash: hash_of(&body),
+            body,
+        }
+    }
+
+    /// The plan file as JSON text (pretty, ending in a newline).
+    pub fn to_json(&self) -> String {
+        let mut text = serde_json::to_string_pretty(self).unwrap_or_default();
+        text.push('\n');
+        text
+    }
+
+    /// Reads and checks a plan file: its format, version and hash (an edited plan is refused).
+    pub fn read(path: &Path) -> Result<PlanFile, ShardError> {
+        let bad = |message: String| ShardError::Plan {
+            path: path.to_path_buf(),
+            message,
+        };
+        let text = std::fs::read_to_string(path).map_err(|source| ShardError::Io {
+            what: "read the plan",
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let value: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| bad(format!("not JSON ({e}); make it with `ribbon plan`")))?;
+        if value.get("format").and_then(|f| f.as_str()) != Some(PLAN_FORMAT) {
+            return Err(bad(format!(
+                "not a ribbon plan (no \"format\": \"{PLAN_FORMAT}\"); make one with `ribbon plan ROBOT.urdf … --plan FILE`"
+            )));
+        }
+        let version = value.get("version").and_then(|v| v.as_u64());
+        if version != Some(u64::from(PLAN_VERSION)) {
+            return Err(bad(format!(
+                "plan format version {version:?}, this ribbon reads version {PLAN_VERSION}; make the plan again with this ribbon"
+            )));
+        }
+        let plan: PlanFile = serde_json::from_value(value)
+            .map_err(|e| bad(format!("{e}; make the plan again with `ribbon plan`")))?;
+        let hash = hash_of(&plan.body);
+        if hash != plan.plan_hash {
+            return Err(bad(format!(
+                "its body hashes to {hash}, not the {} it records: the plan was edited; make it again with `ribbon plan`",
+                plan.plan_hash
+            )));
+        }
+        let d = plan.body.parameters.len();
+        if plan.body.points_xi.len() != plan.body.samples
+            || plan.body.points_xi.iter().any(|p| p.len() != d)
+            || plan.body.nominal_xi.len() != d
+        {
+            return Err(bad(format!(
+                "{} samples of {d} parameters declared, but the points do not match; make the plan again",
+                plan.body.samples
+            )));
+        }
+        Ok(plan)
+    }
+
+    /// The design's points, row-major `samples × d`.
+    pub fn points(&self) -> Vec<f64> {
+        self.body.points_xi.iter().flatten().copied().collect()
+    }
+}
+
+/// FNV-1a 64 of the body's canonical (compact, field-ordered) JSON.
+fn hash_of(body: &PlanBody) -> String {
+    let canonical = serde_json::to_string(body).unwrap_or_default();
+    format!("{:016x}", fnv1a64(canonical.as_bytes()))
+}

@@ -1,0 +1,547 @@
+//! One study across many machines (issue 14): `plan` → `run --shard K/N` → `merge` gives outputs
+//! byte-identical to a single-machine `analyze` (timing fields aside) for 1, 2, 4 and 7 shards with
+//! different thread counts; bad shard sets are named and refused.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The summary fields that depend on the machine and the moment, not on the study.
+const TIMING_FIELDS: [&str; 4] = [
+    "simulate_seconds",
+    "bound_seconds",
+    "threads",
+    "peak_memory_bytes",
+];
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("target/test-scratch/shards")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create scratch directory");
+    dir
+}
+
+fn ribbon(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ribbon"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .output()
+        .expect("run ribbon")
+}
+
+fn ok(args: &[&str]) -> Output {
+    let out = ribbon(args);
+    assert!(
+        out.status.success(),
+        "ribbon {args:?} failed ({:?}): {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn refused(args: &[&str]) -> String {
+    let out = ribbon(args);
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "ribbon {args:?} should be refused with exit 2: {stderr}"
+    );
+    stderr
+}
+
+fn s(path: &Path) -> &str {
+    path.to_str().expect("UTF-8 path")
+}
+
+/// The summary with its timing fields set to null, re-serialised (exact: float_roundtrip).
+fn masked_summary(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).expect("read summary");
+    let mut value: serde_json::Value = serde_json::from_str(&text).expect("summary is JSON");
+    value["wall_seconds"] = serde_json::Value::Null;
+    if let Some(stats) = value.get_mut("stats").and_then(|s| s.as_object_mut()) {
+        for field in TIMING_FIELDS {
+            stats.insert(field.to_string(), serde_json::Value::Null);
+        }
+    }
+    serde_json::to_string_pretty(&value).expect("serialise")
+}
+
+/// The stdout table with the wall time masked.
+fn masked_table(text: &[u8]) -> String {
+    String::from_utf8_lossy(text)
+        .lines()
+        .map(|line| match line.find(" s wall") {
+            Some(end) => {
+                let start = line[..end].rfind(' ').map_or(0, |i| i + 1);
+                format!("{}X{}", &line[..start], &line[end..])
+            }
+            None => line.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The outputs of one study: (CSV bytes, MCAP bytes, masked summary, masked table).
+type Outputs = (Vec<u8>, Vec<u8>, String, String);
+
+fn outputs_flags(dir: &Path) -> Vec<String> {
+    ["summary.json", "out.csv", "out.mcap"]
+        .iter()
+        .zip(["--summary", "--csv", "--out"])
+        .flat_map(|(file, flag)| [flag.to_string(), s(&dir.join(file)).to_string()])
+        .collect()
+}
+
+fn read_outputs(dir: &Path, stdout: &[u8]) -> Outputs {
+    (
+        std::fs::read(dir.join("out.csv")).expect("CSV"),
+        std::fs::read(dir.join("out.mcap")).expect("MCAP"),
+        masked_summary(&dir.join("summary.json")),
+        masked_table(stdout),
+    )
+}
+
+fn analyze(dir: &Path, study: &[&str]) -> Outputs {
+    let flags = outputs_flags(dir);
+    let mut args = vec!["analyze"];
+    args.extend_from_slice(study);
+    args.extend(flags.iter().map(String::as_str));
+    let out = ok(&args);
+    read_outputs(dir, &out.stdout)
+}
+
+fn plan(dir: &Path, study: &[&str]) -> PathBuf {
+    let plan = dir.join("study.plan");
+    let mut args = vec!["plan"];
+    args.extend_from_slice(study);
+    args.extend(["--plan", s(&plan)]);
+    let out = ok(&args);
+    let line = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        line.contains("design runs") && line.contains("expected wall time per shard"),
+        "{line}"
+    );
+    plan
+}
+
+fn run_shards(plan: &Path, shards: &Path, n: usize, threads: usize) {
+    for k in 0..n {
+        ok(&[
+            "run",
+            s(plan),
+            "--shard",
+            &format!("{k}/{n}"),
+            "--into",
+            s(shards),
+            "--threads",
+            &threads.to_string(),
+        ]);
+    }
+}
+
+fn merge(plan: &Path, shards: &Path, dir: &Path, threads: usize) -> Outputs {
+    let flags = outputs_flags(dir);
+    let threads = threads.to_string();
+    let mut args = vec!["merge", s(plan), s(shards), "--threads", &threads];
+    args.extend(flags.iter().map(String::as_str));
+    let out = ok(&args);
+    read_outputs(dir, &out.stdout)
+}
+
+fn assert_same(name: &str, expected: &Outputs, found: &Outputs) {
+    assert!(expected.0 == found.0, "{name}: the CSV differs");
+    assert!(expected.1 == found.1, "{name}: the MCAP log differs");
+    assert_eq!(expected.2, found.2, "{name}: the summary differs");
+    assert_eq!(expected.3, found.3, "{name}: the table differs");
+}
+
+/// `analyze` once, then plan and merge 1, 2, 4 and 7 shards with different thread counts.
+fn check_study(name: &str, study: &[&str]) {
+    let dir = scratch(name);
+    let single = dir.join("single");
+    std::fs::create_dir_all(&single).expect("mkdir");
+    let expected = analyze(&single, study);
+    let plan = plan(&dir, study);
+    for (n, run_threads, merge_threads) in [(1, 2, 1), (2, 1, 2), (4, 2, 2), (7, 1, 1)] {
+        let shards = dir.join(format!("shards-{n}"));
+        run_shards(&plan, &shards, n, run_threads);
+        let merged = dir.join(format!("merged-{n}"));
+        std::fs::create_dir_all(&merged).expect("mkdir");
+        let found = merge(&plan, &shards, &merged, merge_threads);
+        assert_same(&format!("{name}, {n} shards"), &expected, &found);
+    }
+}
+
+#[test]
+fn ur5_shards_merge_to_the_single_machine_bytes() {
+    check_study("ur5", &["robots/ur5/ur5.urdf", "--duration", "0.2"]);
+}
+
+#[test]
+fn four_bar_shards_merge_to_the_single_machine_bytes() {
+    check_study(
+        "four_bar",
+        &["robots/four_bar/four_bar.urdf", "--duration", "0.5"],
+    );
+}
+
+#[test]
+fn ur5_all_values_d72_sparse_shards_merge_to_the_single_machine_bytes() {
+    check_study(
+        "ur5_all_values",
+        &[
+            "robots/ur5/ur5.urdf",
+            "--uncertainty",
+            "robots/ur5/ur5.all-values.uncertainty.toml",
+            "--method",
+            "legendre-scan",
+            "--design",
+            "sparse",
+            "--order",
+            "2",
+            "--duration",
+            "0.02",
+        ],
+    );
+}
+
+/// A box where some samples diverge: `--keep-going` leaves them out, sharded or not.
+#[test]
+fn failing_samples_are_carried_by_their_shards() {
+    let dir = scratch("keep_going");
+    let urdf = dir.join("stiff.urdf");
+    std::fs::write(
+        &urdf,
+        r#"<robot name="stiff"><link name="w"/>
+        <link name="bar"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+        <inertia ixx="0" ixy="0" ixz="0" iyy="0.08" iyz="0" izz="0.08"/></inertial></link>
+        <joint name="hinge" type="continuous"><parent link="w"/><child link="bar"/><axis xyz="0 0 1"/></joint></robot>"#,
+    )
+    .expect("write URDF");
+    let sidecar = dir.join("stiff.uncertainty.toml");
+    std::fs::write(
+        &sidecar,
+        "[parameters]\n\"scene.gravity.y\" = [-1e9, -9.81]\n[scene]\nduration = 0.2\nstep = 0.01\ngravity = [0.0, -9.81, 0.0]\ninitial.q = { hinge = 0.5 }\n",
+    )
+    .expect("write sidecar");
+    let study = [
+        s(&urdf),
+        "--uncertainty",
+        s(&sidecar),
+        "--method",
+        "scan",
+        "--grid",
+        "5",
+        "--keep-going",
+    ];
+    let single = dir.join("single");
+    std::fs::create_dir_all(&single).expect("mkdir");
+    let expected = analyze(&single, &study);
+    assert!(
+        expected.2.contains("\"excluded_samples\": [\n    {"),
+        "the box should make failing samples: {}",
+        expected.2
+    );
+    let plan = plan(&dir, &study);
+    for n in [2, 3] {
+        let shards = dir.join(format!("shards-{n}"));
+        run_shards(&plan, &shards, n, 1);
+        let merged = dir.join(format!("merged-{n}"));
+        std::fs::create_dir_all(&merged).expect("mkdir");
+        let found = merge(&plan, &shards, &merged, 2);
+        assert_same(&format!("keep-going, {n} shards"), &expected, &found);
+    }
+    // Without --keep-going the shard holding a failing sample stops, naming it, and writes
+    // nothing.
+    let strict: Vec<&str> = study[..study.len() - 1].to_vec();
+    let strict_plan = {
+        let strict_dir = dir.join("strict");
+        std::fs::create_dir_all(&strict_dir).expect("mkdir");
+        plan_with(&strict_dir, &strict)
+    };
+    let shards = dir.join("strict-shards");
+    let mut failed = 0;
+    for k in 0..2 {
+        let out = ribbon(&[
+            "run",
+            s(&strict_plan),
+            "--shard",
+            &format!("{k}/2"),
+            "--into",
+            s(&shards),
+        ]);
+        if !out.status.success() {
+            failed += 1;
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(stderr.contains("failed at t ="), "{stderr}");
+            assert!(!shards.join(format!("shard-{k}-of-2.records.mcap")).exists());
+        }
+    }
+    assert!(failed > 0, "a shard should have failed");
+}
+
+#[test]
+fn bad_shard_sets_are_named_and_refused() {
+    let dir = scratch("refusals");
+    let study = [
+        "robots/double_pendulum/double_pendulum.urdf",
+        "--duration",
+        "0.3",
+    ];
+    let plan = plan(&dir, &study);
+    let shards = dir.join("shards");
+    run_shards(&plan, &shards, 3, 1);
+    let merged = dir.join("merged");
+    std::fs::create_dir_all(&merged).expect("mkdir");
+    let merge_args = |plan: &Path| -> Vec<String> {
+        vec![
+            "merge".into(),
+            s(plan).into(),
+            s(&shards).into(),
+            "--csv".into(),
+            s(&merged.join("out.csv")).into(),
+        ]
+    };
+    let refuse = |args: Vec<String>| {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(&args)
+    };
+    ok(&merge_args(&plan)
+        .iter()
+        .map(String::as_str)
+        .collect::<Vec<_>>());
+    let good = std::fs::read(merged.join("out.csv")).expect("CSV");
+
+    // A re-run shard replaces only its own file, with the same bytes.
+    let file = |k: usize| shards.join(format!("shard-{k}-of-3.records.mcap"));
+    let before: Vec<Vec<u8>> = (0..3)
+        .map(|k| std::fs::read(file(k)).expect("shard"))
+        .collect();
+    let modified = std::fs::metadata(file(0)).and_then(|m| m.modified()).ok();
+    ok(&[
+        "run",
+        s(&plan),
+        "--shard",
+        "1/3",
+        "--into",
+        s(&shards),
+        "--threads",
+        "2",
+    ]);
+    let after: Vec<Vec<u8>> = (0..3)
+        .map(|k| std::fs::read(file(k)).expect("shard"))
+        .collect();
+    assert!(before == after, "a re-run shard changed bytes");
+    assert_eq!(
+        modified,
+        std::fs::metadata(file(0)).and_then(|m| m.modified()).ok()
+    );
+
+    // Missing: named by shard.
+    let saved = dir.join("saved-shard-2");
+    std::fs::rename(file(2), &saved).expect("move");
+    let message = refuse(merge_args(&plan));
+    assert!(
+        message.contains("shard-2-of-3") && message.contains("no record block holds"),
+        "{message}"
+    );
+    std::fs::rename(&saved, file(2)).expect("move back");
+
+    // Duplicated: a shard of another shard count of the same plan.
+    ok(&["run", s(&plan), "--shard", "1/2", "--into", s(&shards)]);
+    let message = refuse(merge_args(&plan));
+    assert!(
+        message.contains("both hold samples") && message.contains("shard-1-of-2"),
+        "{message}"
+    );
+    std::fs::remove_file(shards.join("shard-1-of-2.records.mcap")).expect("remove");
+
+    // Foreign: a shard of another plan.
+    let other_dir = dir.join("other");
+    std::fs::create_dir_all(&other_dir).expect("mkdir");
+    let other = plan_with(
+        &other_dir,
+        &[
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--duration",
+            "0.2",
+        ],
+    );
+    let other_shards = dir.join("other-shards");
+    run_shards(&other, &other_shards, 4, 1);
+    let foreign = shards.join("shard-3-of-4.records.mcap");
+    std::fs::copy(other_shards.join("shard-3-of-4.records.mcap"), &foreign).expect("copy");
+    let message = refuse(merge_args(&plan));
+    assert!(
+        message.contains("belongs to another plan") && message.contains("shard-3-of-4"),
+        "{message}"
+    );
+    std::fs::remove_file(&foreign).expect("remove");
+
+    // Truncated: named, with what to do.
+    let bytes = std::fs::read(file(1)).expect("shard");
+    std::fs::write(file(1), &bytes[..bytes.len() * 2 / 3]).expect("truncate");
+    let message = refuse(merge_args(&plan));
+    assert!(
+        message.contains("shard-1-of-3") && message.contains("truncated"),
+        "{message}"
+    );
+    std::fs::write(file(1), &bytes).expect("restore");
+
+    // An edited plan is refused; so is a plan whose sidecar changed.
+    let text = std::fs::read_to_string(&plan).expect("plan");
+    let edited = dir.join("edited.plan");
+    std::fs::write(
+        &edited,
+        text.replacen("\"samples\": 25", "\"samples\": 24", 1),
+    )
+    .expect("write");
+    let message = refuse(merge_args(&edited));
+    assert!(message.contains("edited"), "{message}");
+
+    // No output may overwrite the plan or a record block.
+    let plan_before = std::fs::read(&plan).expect("plan");
+    let message = refused(&["merge", s(&plan), s(&shards), "--csv", s(&plan)]);
+    assert!(message.contains("--csv"), "{message}");
+    let message = refused(&["merge", s(&plan), s(&shards), "--out", s(&file(0))]);
+    assert!(message.contains("--out"), "{message}");
+    assert!(plan_before == std::fs::read(&plan).expect("plan"));
+    assert!(before[0] == std::fs::read(file(0)).expect("shard"));
+
+    // Everything restored: the merge gives the same bytes again.
+    ok(&merge_args(&plan)
+        .iter()
+        .map(String::as_str)
+        .collect::<Vec<_>>());
+    assert!(good == std::fs::read(merged.join("out.csv")).expect("CSV"));
+}
+
+fn plan_with(dir: &Path, study: &[&str]) -> PathBuf {
+    plan(dir, study)
+}
+
+#[test]
+fn shard_indices_come_from_the_scheduler_and_count_from_zero() {
+    let dir = scratch("environment");
+    let plan = plan(
+        &dir,
+        &[
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--duration",
+            "0.1",
+        ],
+    );
+    let shards = dir.join("shards");
+    for (variable, k) in [("SLURM_ARRAY_TASK_ID", "0"), ("JOB_COMPLETION_INDEX", "1")] {
+        let out = Command::new(env!("CARGO_BIN_EXE_ribbon"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["run", s(&plan), "--shards", "2", "--into", s(&shards)])
+            .env_remove("SLURM_ARRAY_TASK_ID")
+            .env_remove("JOB_COMPLETION_INDEX")
+            .env(variable, k)
+            .output()
+            .expect("run");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(shards.join(format!("shard-{k}-of-2.records.mcap")).exists());
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_ribbon"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["run", s(&plan), "--shards", "2", "--into", s(&shards)])
+        .env("SLURM_ARRAY_TASK_ID", "2")
+        .env("SLURM_ARRAY_TASK_MIN", "1")
+        .output()
+        .expect("run");
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--array=0-1"), "{stderr}");
+    let message = refused(&["run", s(&plan), "--shard", "2/2", "--into", s(&shards)]);
+    assert!(message.contains("counted from 0"), "{message}");
+}
+
+#[test]
+fn designs_that_depend_on_runs_are_refused_naming_the_fixed_ones() {
+    let dir = scratch("adaptive");
+    let message = refused(&[
+        "plan",
+        "robots/ur5/ur5.urdf",
+        "--uncertainty",
+        "robots/ur5/ur5.all-values.uncertainty.toml",
+        "--plan",
+        s(&dir.join("study.plan")),
+    ]);
+    assert!(
+        message.contains("--design sparse") && message.contains("cannot be planned ahead"),
+        "{message}"
+    );
+    assert!(!dir.join("study.plan").exists());
+}
+
+/// The record block is MCAP that the `mcap` Python package reads: the header metadata, one
+/// `/records` message per record time with samples × outputs doubles.
+#[test]
+fn record_blocks_are_readable_elsewhere() {
+    let dir = scratch("python");
+    let plan = plan(
+        &dir,
+        &[
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--duration",
+            "0.1",
+        ],
+    );
+    let shards = dir.join("shards");
+    run_shards(&plan, &shards, 2, 1);
+    let python = common::reference_python();
+    let script = r#"
+import sys, struct
+from mcap.reader import make_reader
+with open(sys.argv[1], "rb") as f:
+    reader = make_reader(f)
+    meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    f.seek(0)
+    reader = make_reader(f)
+    h = meta["ribbon.shard"]
+    n = (int(h["end_sample"]) - int(h["first_sample"])) * int(h["outputs"])
+    count = 0
+    for schema, channel, message in reader.iter_messages(topics=["/records"]):
+        assert len(message.data) == 8 * n, (len(message.data), n)
+        values = struct.unpack("<%dd" % n, message.data)
+        count += 1
+    print(h["plan_hash"], count, h["records"], meta["ribbon.shard.end"]["complete"])
+"#;
+    let out = Command::new(&python)
+        .arg("-c")
+        .arg(script)
+        .arg(shards.join("shard-1-of-2.records.mcap"))
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {}: {e}", python.display()));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let fields: Vec<&str> = stdout.split_whitespace().collect();
+    assert_eq!(fields.len(), 4, "{stdout}");
+    assert_eq!(
+        fields[1], fields[2],
+        "one message per record time: {stdout}"
+    );
+    assert_eq!(fields[3], "true");
+    let plan_text = std::fs::read_to_string(&plan).expect("plan");
+    assert!(
+        plan_text.contains(fields[0]),
+        "the plan hash is in the block"
+    );
+}
