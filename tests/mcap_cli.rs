@@ -41,6 +41,34 @@ fn read_with_rust(path: &Path) -> (Vec<(String, u64)>, Vec<mcap::records::Metada
     (messages, metadata)
 }
 
+/// The expected Sobol' channels of check_mcap.py from the summary's `sobol_indices`: per output,
+/// `main` and `total`, one series per dimension.
+fn sobol_entries(summary: &Value) -> Vec<Value> {
+    let sobol = &summary["sobol_indices"];
+    let dimensions: Vec<Value> = sobol["dimensions"]
+        .as_array()
+        .expect("a surrogate study's summary has sobol_indices")
+        .iter()
+        .map(|d| d["name"].clone())
+        .collect();
+    let times = &summary["outputs"][0]["time"];
+    let mut entries = Vec::new();
+    for output in sobol["outputs"].as_array().unwrap() {
+        let name = output["name"].as_str().unwrap();
+        for index in ["main", "total"] {
+            entries.push(json!({
+                "name": name,
+                "topic": format!("/ribbon/sobol/{index}/{}", name.replace('.', "/")),
+                "index": index,
+                "dimensions": dimensions,
+                "time": times,
+                "values": output[index],
+            }));
+        }
+    }
+    entries
+}
+
 #[test]
 fn analyze_log_matches_its_summary_in_every_reader() {
     let out = scratch("double_pendulum.mcap");
@@ -98,6 +126,7 @@ fn analyze_log_matches_its_summary_in_every_reader() {
             "name": o["name"], "topic": format!("/ribbon/error{}", topic(o["name"].as_str().unwrap())),
             "time": o["time"], "estimate": o["error_estimate"],
         })).collect::<Vec<_>>(),
+        "sobol": sobol_entries(&summary),
         "transform_times": times,
         "transform_links": ["base", "bar1", "bar2", "tip"],
         "metadata": ribbon_record.metadata,

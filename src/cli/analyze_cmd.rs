@@ -10,14 +10,16 @@ use super::{
     AnalyzeArgs, SceneArgs,
 };
 use crate::analysis::{
-    CheckReport, DesignKind, Method, Progress, Study, StudyOptions, StudyReport,
-    ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TRUST_RELATIVE_MISFIT,
+    has_sobol_indices, sobol_values_per_record, CheckReport, DesignKind, Method, Progress, Study,
+    StudyOptions, StudyReport, ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS,
+    TABLE_SOBOL_CONTRIBUTORS, TRUST_RELATIVE_MISFIT,
 };
 use crate::dynamics::Data;
 use crate::model::{LoadOptions, Model};
 use crate::output::mcap::McapMetadata;
 use crate::output::{
-    write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, SensitivitySummary, Summary,
+    write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, SensitivitySummary, SobolSummary,
+    Summary,
 };
 use crate::scene::{check_threads, default_sidecar_path, read_sidecar, wants_floating_base, Scene};
 use crate::text::closest_suggestion;
@@ -68,7 +70,9 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
     let report_stems = prepare_report(args, &sidecar_path, &scene)?;
     // Kept per record time: the envelope (time; lower, upper, nominal and an error estimate per
     // output) and, with --summary, its five copies per output; plus one block of samples.
-    let per_output = 4 + if args.summary.is_some() { 5 } else { 0 };
+    // Surrogate studies also keep their Sobol' indices (and, with --summary, a copy).
+    let sobol = sobol_values_per_record(options.method, space.len());
+    let per_output = 4 + sobol + if args.summary.is_some() { 5 + sobol } else { 0 };
     scene.check_memory(
         "analyze",
         (1 + scene.outputs.len() * per_output) as u64,
@@ -129,6 +133,10 @@ pub fn run(args: &AnalyzeArgs) -> Result<(), Error> {
         )?),
         None => None,
     };
+    if let (Some(log), true) = (log.as_mut(), has_sobol_indices(plan.method)) {
+        let names: Vec<String> = space.dimensions().iter().map(|d| d.name.clone()).collect();
+        log.add_sobol_channels(&names)?;
+    }
     let kinematic_model = model;
     let mut data = Data::new(&kinematic_model);
     let mut reporter = ProgressReporter::new();
@@ -574,6 +582,10 @@ fn summary(
                 "chaos_amplification": CHAOS_AMPLIFICATION,
             })),
         }),
+        sobol_indices: report
+            .sobol
+            .as_ref()
+            .map(|series| SobolSummary::from_study(series, e, space)),
     }
 }
 
@@ -815,6 +827,10 @@ fn table(
             a.max_degree,
             a.largest_remaining_indicator
         ));
+    }
+    if let Some(series) = &report.sobol {
+        let names: Vec<String> = space.dimensions().iter().map(|d| d.name.clone()).collect();
+        text.push_str(&series.table(e, &names, TABLE_SOBOL_CONTRIBUTORS));
     }
     if let Some(rows) = sensitivities(space, report) {
         text.push_str(&format!(

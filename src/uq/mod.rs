@@ -9,6 +9,7 @@
 //! model runs (caller)                          values: n_points × n_outputs, run-major
 //!   └─ Projector::fit                          coefficients: n_terms per output, output-major
 //!        └─ Surrogate::set_from_matrix         one output
+//!             ├─ sobol_indices                          main and total Sobol' indices (exact)
 //!             ├─ interval_bound / chebyshev_inclusion   Outer (of the surrogate's range)
 //!             └─ Scanner::scan                          Inner (grid + Newton refinement)
 //! TaylorStencil (2d+1 runs) ─ bounds           Approximate (linearisation)
@@ -23,7 +24,7 @@
 //!                                                condition number, leverages, leave-one-out
 //! model runs (caller)                            values: n_points × n_outputs, run-major
 //!   └─ LinearFit::fit_into                       coefficients: n_terms × n_outputs, term-major
-//!        └─ SparseSurrogate::set_from_fit        one output; Sobol' indices, top order
+//!        └─ SparseSurrogate::set_from_fit        one output; Sobol' indices (sobol_indices), top order
 //!             └─ BoxOptimizer::bound_into        inner (attained, with argmin/argmax) + outer
 //! ```
 //!
@@ -55,6 +56,7 @@ pub(crate) mod refine;
 pub mod regression;
 pub mod scan;
 pub mod sobol;
+pub mod sobol_indices;
 pub mod sparse_grid;
 pub mod sparse_surrogate;
 pub mod surrogate;
@@ -78,7 +80,8 @@ pub use quadrature::{gauss_chebyshev, gauss_legendre, GaussRule};
 pub use regression::{LooError, Regression, MIN_GOOD_OVERSAMPLING};
 pub use scan::{ScanOptions, ScanOutcome, Scanner};
 pub use sobol::{sobol_design, SOBOL_MAX_DIM, SOBOL_MAX_POINTS};
+pub use sobol_indices::{sobol_indices_monte_carlo, tensor_sobol_indices_into, SobolIndices};
 pub use sparse_grid::SparseGrid;
-pub use sparse_surrogate::{SobolIndices, SparseSurrogate, SurrogateWorkspace};
+pub use sparse_surrogate::{SparseSurrogate, SurrogateWorkspace};
 pub use surrogate::Surrogate;
 pub use taylor::{taylor_first_order, TaylorStencil};
