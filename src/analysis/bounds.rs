@@ -1,8 +1,8 @@
 //! From the values of every sample at one record time to each output's envelope there.
 //!
 //! - surrogate methods: fit all outputs at once ([`Projector::fit_into`]), then bound each output's
-//!   surrogate by scanning (inner) or interval arithmetic (outer); the error estimate is the
-//!   magnitude of the top-order coefficients;
+//!   surrogate by scanning (inner), interval arithmetic or its Bernstein form (outer); the error
+//!   estimate is the magnitude of the top-order coefficients;
 //! - `taylor`: first-order inclusion from the central differences;
 //! - `scan`, `monte-carlo`: min and max over the runs.
 //!
@@ -14,9 +14,9 @@ use super::plan::Plan;
 use super::sparse::SparseDesign;
 use super::Method;
 use crate::uq::{
-    chebyshev_inclusion, interval_bound, BoxBounds, BoxOptimizer, CoefficientMatrix, Projector,
-    RangeMode, ScanOptions, Scanner, SobolIndices, SparseSurrogate, Surrogate, TaylorStencil,
-    UqError,
+    chebyshev_inclusion, interval_bound, BernsteinBounder, Bound, BoundKind, BoxBounds,
+    BoxOptimizer, CoefficientMatrix, Projector, RangeMode, ScanOptions, Scanner, SobolIndices,
+    SparseSurrogate, Surrogate, TaylorStencil, UqError,
 };
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -195,6 +195,7 @@ impl Bounder {
                         .flatten(),
                     sparse: None,
                     indices: SobolIndices::zeros(self.dim),
+                    bernstein: None,
                 }
             }
             None => Workspace {
@@ -203,6 +204,7 @@ impl Bounder {
                 scanner: None,
                 sparse: None,
                 indices: SobolIndices::zeros(self.dim),
+                bernstein: None,
             },
         };
         workspace.sparse = sparse;
@@ -263,6 +265,18 @@ impl Bounder {
                             outcome.bound
                         }
                         (Method::ChebyshevIa, _) => chebyshev_inclusion(surrogate)?,
+                        (Method::LegendreBernstein, _) => {
+                            let bernstein = workspace
+                                .bernstein
+                                .get_or_insert_with(BernsteinBounder::default);
+                            let b = bernstein.bound(surrogate)?;
+                            Bound {
+                                lower: b.lower,
+                                upper: b.upper,
+                                kind: BoundKind::Outer,
+                                error: surrogate.error_estimate(),
+                            }
+                        }
                         _ => interval_bound(surrogate, RangeMode::Exact)?,
                     };
                     points.push(EnvelopePoint {
@@ -389,6 +403,8 @@ struct Workspace {
     sparse: Option<SparseWorkspace>,
     /// One surrogate's Sobol' indices.
     indices: SobolIndices,
+    /// `legendre-bernstein`: the bounder (made on first use).
+    bernstein: Option<BernsteinBounder>,
 }
 
 /// One record's Sobol' indices, output after output.

@@ -11,6 +11,8 @@
 //!        └─ Surrogate::set_from_matrix         one output
 //!             ├─ sobol_indices                          main and total Sobol' indices (exact)
 //!             ├─ interval_bound / chebyshev_inclusion   Outer (of the surrogate's range)
+//!             ├─ BernsteinBounder::bound                Outer, sharpened by subdivision, with the
+//!             │                                         attained values (its gap) beside it
 //!             └─ Scanner::scan                          Inner (grid + Newton refinement)
 //! TaylorStencil (2d+1 runs) ─ bounds           Approximate (linearisation)
 //! envelope_error(lower, upper, lower_ref, upper_ref)   max / mean relative error over time
@@ -38,6 +40,7 @@
 //! (truncation and aliasing are estimated, not bounded); interval arithmetic uses round-to-nearest.
 
 pub mod basis;
+pub mod bernstein;
 pub mod bounds;
 pub mod box_optimize;
 pub(crate) mod contract;
@@ -66,6 +69,7 @@ pub mod taylor;
 mod test_support;
 
 pub use basis::{legendre_min, Family, MAX_ORDER};
+pub use bernstein::{BernsteinBound, BernsteinBounder, BernsteinOptions, BERNSTEIN_MAX_ORDER};
 pub use bounds::{chebyshev_inclusion, interval_bound, Bound, BoundKind, ErrorEstimate, RangeMode};
 pub use box_optimize::{BoxBounds, BoxOptimizer};
 pub use design::{Design, Truncation};

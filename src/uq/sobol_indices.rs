@@ -189,7 +189,11 @@ pub fn chebyshev_in_legendre(order: usize) -> Result<Vec<f64>, UqError> {
 
 /// The dense Chebyshev tensor rewritten in the Legendre basis: the 1-D change of basis applied
 /// along each dimension in turn.
-fn chebyshev_to_legendre(dim: usize, order: usize, dense: &[f64]) -> Result<Vec<f64>, UqError> {
+pub(crate) fn chebyshev_to_legendre(
+    dim: usize,
+    order: usize,
+    dense: &[f64],
+) -> Result<Vec<f64>, UqError> {
     let m = order + 1;
     let a = chebyshev_in_legendre(order)?;
     let mut current = dense.to_vec();
