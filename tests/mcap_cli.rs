@@ -114,6 +114,42 @@ fn analyze_log_matches_its_summary_in_every_reader() {
         Some("false")
     );
 
+    // The `ribbon` record's study description, from what this test asked for and from the
+    // summary (not from the file under test): robot, method, order, runs, version, partial, and the
+    // parameters the summary lists.
+    let record = &ribbon_record.metadata;
+    let study_keys = [
+        ("robot", "double_pendulum".to_string()),
+        ("method", "legendre-scan".to_string()),
+        ("order", "4".to_string()),
+        ("runs", summary["samples"].as_u64().unwrap().to_string()),
+        ("ribbon_version", env!("CARGO_PKG_VERSION").to_string()),
+        ("partial", "false".to_string()),
+    ];
+    for (key, want) in &study_keys {
+        assert_eq!(record.get(*key), Some(want), "`ribbon` record key {key}");
+    }
+    let parameters: Value =
+        serde_json::from_str(record.get("parameters").expect("parameters")).unwrap();
+    assert_eq!(parameters, summary["parameters"]);
+    let mut keys: Vec<&str> = record.keys().map(String::as_str).collect();
+    keys.sort_unstable();
+    assert_eq!(
+        keys,
+        [
+            "method",
+            "order",
+            "parameters",
+            "partial",
+            "ribbon_version",
+            "robot",
+            "runs",
+            "scene_centre_m",
+            "scene_radius_m"
+        ],
+        "no other key in the `ribbon` record"
+    );
+
     let topic = |name: &str| format!("/{}", name.replace('.', "/"));
     let expected = json!({
         "urdf_path": manifest("robots/double_pendulum/double_pendulum.urdf"),
@@ -129,6 +165,7 @@ fn analyze_log_matches_its_summary_in_every_reader() {
         "sobol": sobol_entries(&summary),
         "transform_times": times,
         "transform_links": ["base", "bar1", "bar2", "tip"],
+        // Checked above against the request and the summary; the Python reader must read the same.
         "metadata": ribbon_record.metadata,
         "viewer": true,
         "attachments": [
