@@ -23,6 +23,8 @@
 //! - URDF planar and spherical joints are refused with a clear message (not supported yet).
 //! - Visual and collision geometry, materials, transmissions and Gazebo tags are ignored.
 
+#![warn(missing_docs)]
+
 pub mod analysis;
 pub mod cli;
 pub mod constraints;

@@ -9,6 +9,13 @@ use std::process::{Command, Output};
 
 /// docs/method.md §4: Legendre scan within 1 % of the reference width at every record time.
 const LEGENDRE_SCAN_MAX_ERROR: f64 = 0.01;
+/// How far `legendre-ia` may sit inside the reference, as a fraction of the output's widest
+/// reference envelope, whatever its error estimate says (the estimate may excuse a surrogate's
+/// truncation error, but not without limit). Measured on the double pendulum: at most 1.2e-6.
+const IA_MAX_INSIDE_FRACTION: f64 = 1e-5;
+/// `legendre-ia` overestimates: its widest ratio to the reference width over time lies in
+/// (1, this]. Measured 1.06–1.60 on the double pendulum at ±1 % and ±5 %.
+const IA_MAX_WIDTH_RATIO: f64 = 2.0;
 /// The closed-form comparison: envelope bounds equal the analytic min/max to 1e-6 (m).
 const CLOSED_FORM_TOLERANCE: f64 = 1e-6;
 
@@ -223,6 +230,11 @@ fn legendre_scan_matches_dense_scan_and_ia_contains_it_on_the_double_pendulum() 
             // IA is tight and the surrogate's truncation error is all that separates them).
             let (lower_ia, upper_ia) = (series(&ia, &name, "lower"), series(&ia, &name, "upper"));
             let estimate = series(&ia, &name, "error_estimate");
+            let widest_ref = upper_ref
+                .iter()
+                .zip(&lower_ref)
+                .map(|(u, l)| u - l)
+                .fold(0.0, f64::max);
             let mut deepest_inside: f64 = 0.0;
             let mut widest_ratio: f64 = 0.0;
             for k in 0..lower_ref.len() {
@@ -233,8 +245,8 @@ fn legendre_scan_matches_dense_scan_and_ia_contains_it_on_the_double_pendulum() 
                     widest_ratio = widest_ratio.max((upper_ia[k] - lower_ia[k]) / width_ref);
                 }
                 assert!(
-                    inside <= estimate[k],
-                    "{name} ±{relative} at record {k}: IA [{}, {}] inside reference [{}, {}] by {inside:.3e} > its error estimate {:.3e}",
+                    inside <= estimate[k].min(IA_MAX_INSIDE_FRACTION * widest_ref),
+                    "{name} ±{relative} at record {k}: IA [{}, {}] inside reference [{}, {}] by {inside:.3e} > its error estimate {:.3e} or {IA_MAX_INSIDE_FRACTION:e} of the width",
                     lower_ia[k],
                     upper_ia[k],
                     lower_ref[k],
@@ -243,7 +255,12 @@ fn legendre_scan_matches_dense_scan_and_ia_contains_it_on_the_double_pendulum() 
                 );
             }
             println!(
-                "    legendre-ia: at most {deepest_inside:.1e} inside the reference (within its error estimate); up to {widest_ratio:.2}× the reference width"
+                "    legendre-ia: at most {deepest_inside:.1e} inside the reference ({:.1e} of its width; within its error estimate); up to {widest_ratio:.2}× the reference width",
+                deepest_inside / widest_ref
+            );
+            assert!(
+                widest_ratio > 1.0 && widest_ratio <= IA_MAX_WIDTH_RATIO,
+                "{name} ±{relative}: legendre-ia at most {widest_ratio}× the reference width"
             );
         }
     }

@@ -1,6 +1,9 @@
 //! Second-order convergence of HHT-I3 on real robot trees, against references nobody here wrote:
 //! Pinocchio ABA + RK4 at h = 1e-5 (`tests/reference/rk4_reference.py`, committed in
-//! `tests/fixtures/rk4/`). Also energy behaviour and a spring-damper against its closed form.
+//! `tests/fixtures/rk4/` with the FNV-1a hash of the URDF it was computed from, checked here). Also
+//! energy behaviour and a spring-damper against its closed form.
+
+mod common;
 
 use nalgebra::DVector;
 use ribbon::dynamics::{crba, Data};
@@ -53,6 +56,13 @@ fn error_against_fixture(urdf: &str, fixture: &str, gravity: &str, step: f64, al
     let reference: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(manifest(fixture)).expect("fixture exists"))
             .expect("json");
+    // The fixture was computed from this very URDF (regenerate it when the URDF changes).
+    let urdf_bytes = std::fs::read(manifest(urdf)).expect("urdf");
+    assert_eq!(
+        reference["urdf_fnv1a64"].as_str(),
+        Some(common::fnv1a64(&urdf_bytes).as_str()),
+        "{fixture} was computed from another {urdf}: rerun tests/reference/rk4_reference.py"
+    );
     let model = load(urdf);
     let sidecar = format!("[scene]\nduration = 1.0\ngravity = {gravity}\n[outputs]\nrate = 100");
     let scene = scene(&model, &sidecar, step, alpha);
@@ -378,5 +388,11 @@ fn data_is_reusable_across_models_of_same_shape() {
     heavier.description.links[3].inertial.mass *= 1.1;
     heavier.refresh();
     let m2 = crba(&heavier, &mut data, &q).clone();
-    assert!((m1 - m2).amax() > 1e-6);
+    assert!((&m1 - &m2).amax() > 1e-6);
+    // Reused, the Data gives exactly what a fresh one gives for the perturbed model (nothing of the
+    // first model is left in it), and back again.
+    let fresh = crba(&heavier, &mut Data::new(&heavier), &q).clone();
+    assert_eq!(m2, fresh);
+    let back = crba(&model, &mut data, &q).clone();
+    assert_eq!(back, m1);
 }

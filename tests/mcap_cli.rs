@@ -41,6 +41,34 @@ fn read_with_rust(path: &Path) -> (Vec<(String, u64)>, Vec<mcap::records::Metada
     (messages, metadata)
 }
 
+/// The expected Sobol' channels of check_mcap.py from the summary's `sobol_indices`: per output,
+/// `main` and `total`, one series per dimension.
+fn sobol_entries(summary: &Value) -> Vec<Value> {
+    let sobol = &summary["sobol_indices"];
+    let dimensions: Vec<Value> = sobol["dimensions"]
+        .as_array()
+        .expect("a surrogate study's summary has sobol_indices")
+        .iter()
+        .map(|d| d["name"].clone())
+        .collect();
+    let times = &summary["outputs"][0]["time"];
+    let mut entries = Vec::new();
+    for output in sobol["outputs"].as_array().unwrap() {
+        let name = output["name"].as_str().unwrap();
+        for index in ["main", "total"] {
+            entries.push(json!({
+                "name": name,
+                "topic": format!("/ribbon/sobol/{index}/{}", name.replace('.', "/")),
+                "index": index,
+                "dimensions": dimensions,
+                "time": times,
+                "values": output[index],
+            }));
+        }
+    }
+    entries
+}
+
 #[test]
 fn analyze_log_matches_its_summary_in_every_reader() {
     let out = scratch("double_pendulum.mcap");
@@ -86,6 +114,42 @@ fn analyze_log_matches_its_summary_in_every_reader() {
         Some("false")
     );
 
+    // The `ribbon` record's study description, from what this test asked for and from the
+    // summary (not from the file under test): robot, method, order, runs, version, partial, and the
+    // parameters the summary lists.
+    let record = &ribbon_record.metadata;
+    let study_keys = [
+        ("robot", "double_pendulum".to_string()),
+        ("method", "legendre-scan".to_string()),
+        ("order", "4".to_string()),
+        ("runs", summary["samples"].as_u64().unwrap().to_string()),
+        ("ribbon_version", env!("CARGO_PKG_VERSION").to_string()),
+        ("partial", "false".to_string()),
+    ];
+    for (key, want) in &study_keys {
+        assert_eq!(record.get(*key), Some(want), "`ribbon` record key {key}");
+    }
+    let parameters: Value =
+        serde_json::from_str(record.get("parameters").expect("parameters")).unwrap();
+    assert_eq!(parameters, summary["parameters"]);
+    let mut keys: Vec<&str> = record.keys().map(String::as_str).collect();
+    keys.sort_unstable();
+    assert_eq!(
+        keys,
+        [
+            "method",
+            "order",
+            "parameters",
+            "partial",
+            "ribbon_version",
+            "robot",
+            "runs",
+            "scene_centre_m",
+            "scene_radius_m"
+        ],
+        "no other key in the `ribbon` record"
+    );
+
     let topic = |name: &str| format!("/{}", name.replace('.', "/"));
     let expected = json!({
         "urdf_path": manifest("robots/double_pendulum/double_pendulum.urdf"),
@@ -98,8 +162,10 @@ fn analyze_log_matches_its_summary_in_every_reader() {
             "name": o["name"], "topic": format!("/ribbon/error{}", topic(o["name"].as_str().unwrap())),
             "time": o["time"], "estimate": o["error_estimate"],
         })).collect::<Vec<_>>(),
+        "sobol": sobol_entries(&summary),
         "transform_times": times,
         "transform_links": ["base", "bar1", "bar2", "tip"],
+        // Checked above against the request and the summary; the Python reader must read the same.
         "metadata": ribbon_record.metadata,
         "viewer": true,
         "attachments": [

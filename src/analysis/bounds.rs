@@ -1,8 +1,8 @@
 //! From the values of every sample at one record time to each output's envelope there.
 //!
 //! - surrogate methods: fit all outputs at once ([`Projector::fit_into`]), then bound each output's
-//!   surrogate by scanning (inner) or interval arithmetic (outer); the error estimate is the
-//!   magnitude of the top-order coefficients;
+//!   surrogate by scanning (inner), interval arithmetic or its Bernstein form (outer); the error
+//!   estimate is the magnitude of the top-order coefficients;
 //! - `taylor`: first-order inclusion from the central differences;
 //! - `scan`, `monte-carlo`: min and max over the runs.
 //!
@@ -14,8 +14,9 @@ use super::plan::Plan;
 use super::sparse::SparseDesign;
 use super::Method;
 use crate::uq::{
-    chebyshev_inclusion, interval_bound, BoxBounds, BoxOptimizer, CoefficientMatrix, Projector,
-    RangeMode, ScanOptions, Scanner, SparseSurrogate, Surrogate, TaylorStencil, UqError,
+    chebyshev_inclusion, interval_bound, BernsteinBounder, Bound, BoundKind, BoxBounds,
+    BoxOptimizer, CoefficientMatrix, Projector, RangeMode, ScanOptions, Scanner, SobolIndices,
+    SparseSurrogate, Surrogate, TaylorStencil, UqError,
 };
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -56,16 +57,26 @@ pub struct BoundedBlock {
     pub points: Vec<EnvelopePoint>,
     /// Predicted extremes, record-major (`None` where the method does not locate them).
     pub extremes: Vec<Option<Extremes>>,
-    /// Sparse designs: the total Sobol' index of every parameter for every output, from the
-    /// surrogate's coefficients (record-major `records × outputs × d`); empty otherwise.
+    /// Surrogate methods: the main Sobol' index of every dimension for every output, from the
+    /// surrogate's coefficients (record-major `records × outputs × d`, docs/sobol-indices.md);
+    /// empty otherwise.
+    pub main_indices: Vec<f64>,
+    /// Surrogate methods: the total Sobol' indices, laid out as `main_indices`; empty otherwise.
     pub total_indices: Vec<f64>,
+    /// Surrogate methods: each surrogate's variance under uniform ξ (record-major `records ×
+    /// outputs`, the output's unit squared); empty otherwise.
+    pub variances: Vec<f64>,
 }
 
 /// One record's bounds, as a worker computes them.
 struct RecordBounds {
     points: Vec<EnvelopePoint>,
     extremes: Vec<Option<Extremes>>,
+    /// `outputs × d` main indices, then as many total indices, then `outputs` variances (empty
+    /// for methods without a surrogate).
+    main_indices: Vec<f64>,
     total_indices: Vec<f64>,
+    variances: Vec<f64>,
 }
 
 /// How many of the best design points (per side) start the sparse surrogate's box search, besides
@@ -146,13 +157,15 @@ impl Bounder {
         let mut out = BoundedBlock {
             points: Vec::with_capacity(records * n_outputs),
             extremes: Vec::with_capacity(records * n_outputs),
-            total_indices: Vec::new(),
+            ..BoundedBlock::default()
         };
         for record in per_record {
             let record = record?;
             out.points.extend(record.points);
             out.extremes.extend(record.extremes);
+            out.main_indices.extend(record.main_indices);
             out.total_indices.extend(record.total_indices);
+            out.variances.extend(record.variances);
         }
         Ok(out)
     }
@@ -165,7 +178,6 @@ impl Bounder {
             bounds: BoxBounds::default(),
             starts: Vec::new(),
             order: Vec::new(),
-            importance: vec![0.0; self.dim],
         });
         let mut workspace = match &self.projector {
             Some(projector) => {
@@ -182,6 +194,8 @@ impl Bounder {
                         })
                         .flatten(),
                     sparse: None,
+                    indices: SobolIndices::zeros(self.dim),
+                    bernstein: None,
                 }
             }
             None => Workspace {
@@ -189,6 +203,8 @@ impl Bounder {
                 surrogate: None,
                 scanner: None,
                 sparse: None,
+                indices: SobolIndices::zeros(self.dim),
+                bernstein: None,
             },
         };
         workspace.sparse = sparse;
@@ -204,7 +220,7 @@ impl Bounder {
     ) -> Result<RecordBounds, UqError> {
         let n_samples = values.len() / n_outputs.max(1);
         let mut extremes = vec![None; n_outputs];
-        let mut total_indices = Vec::new();
+        let mut sobol = SobolRows::default();
         let mut points: Vec<EnvelopePoint> = match (&self.projector, &self.stencil) {
             (None, None) if self.sparse.is_some() => {
                 let (Some(design), Some(ws)) = (&self.sparse, &mut workspace.sparse) else {
@@ -212,14 +228,14 @@ impl Bounder {
                         what: "analysis workspace",
                     });
                 };
-                total_indices.resize(n_outputs * self.dim, 0.0);
                 self.bound_sparse(
                     design,
                     values,
                     n_outputs,
                     ws,
+                    &mut workspace.indices,
                     &mut extremes,
-                    &mut total_indices,
+                    &mut sobol,
                 )?
             }
             (Some(projector), _) => {
@@ -235,6 +251,8 @@ impl Bounder {
                 let mut points = Vec::with_capacity(n_outputs);
                 for (o, extreme) in extremes.iter_mut().enumerate() {
                     surrogate.set_from_matrix(design, coefficients, o)?;
+                    surrogate.sobol_indices_into(&mut workspace.indices)?;
+                    sobol.push(&workspace.indices);
                     let bound = match (self.method, &mut workspace.scanner) {
                         (Method::LegendreScan | Method::ChebyshevScan, Some(scanner)) => {
                             let outcome = scanner.scan(surrogate)?;
@@ -247,6 +265,18 @@ impl Bounder {
                             outcome.bound
                         }
                         (Method::ChebyshevIa, _) => chebyshev_inclusion(surrogate)?,
+                        (Method::LegendreBernstein, _) => {
+                            let bernstein = workspace
+                                .bernstein
+                                .get_or_insert_with(BernsteinBounder::default);
+                            let b = bernstein.bound(surrogate)?;
+                            Bound {
+                                lower: b.lower,
+                                upper: b.upper,
+                                kind: BoundKind::Outer,
+                                error: surrogate.error_estimate(),
+                            }
+                        }
                         _ => interval_bound(surrogate, RangeMode::Exact)?,
                     };
                     points.push(EnvelopePoint {
@@ -292,21 +322,26 @@ impl Bounder {
         Ok(RecordBounds {
             points,
             extremes,
-            total_indices,
+            main_indices: sobol.main,
+            total_indices: sobol.total,
+            variances: sobol.variance,
         })
     }
 
     /// Fits a sparse design's surrogates and bounds each: inner by multi-start projected Newton
     /// (the centre, the sign vertices of the linear part, and the best design points), outer by
-    /// interval arithmetic (`legendre-ia` reports that one).
+    /// interval arithmetic (`legendre-ia` reports that one); each surrogate's Sobol' indices go to
+    /// `sobol` (through `indices`).
+    #[allow(clippy::too_many_arguments)]
     fn bound_sparse(
         &self,
         design: &SparseDesign,
         values: &[f64],
         n_outputs: usize,
         ws: &mut SparseWorkspace,
+        indices: &mut SobolIndices,
         extremes: &mut [Option<Extremes>],
-        total_indices: &mut [f64],
+        sobol: &mut SobolRows,
     ) -> Result<Vec<EnvelopePoint>, UqError> {
         let d = self.dim;
         let n_points = design.n_points();
@@ -354,12 +389,8 @@ impl Bounder {
                 }
             };
             points.push(bound);
-            let variance = ws.surrogate.variance();
-            ws.surrogate.importance_into(&mut ws.importance)?;
-            let row = &mut total_indices[o * d..(o + 1) * d];
-            for (t, v) in row.iter_mut().zip(&ws.importance) {
-                *t = if variance > 0.0 { v / variance } else { 0.0 };
-            }
+            ws.surrogate.sobol_indices_into(indices);
+            sobol.push(indices);
         }
         Ok(points)
     }
@@ -370,6 +401,26 @@ struct Workspace {
     surrogate: Option<Surrogate>,
     scanner: Option<Scanner>,
     sparse: Option<SparseWorkspace>,
+    /// One surrogate's Sobol' indices.
+    indices: SobolIndices,
+    /// `legendre-bernstein`: the bounder (made on first use).
+    bernstein: Option<BernsteinBounder>,
+}
+
+/// One record's Sobol' indices, output after output.
+#[derive(Default)]
+struct SobolRows {
+    main: Vec<f64>,
+    total: Vec<f64>,
+    variance: Vec<f64>,
+}
+
+impl SobolRows {
+    fn push(&mut self, indices: &SobolIndices) {
+        self.main.extend_from_slice(&indices.main);
+        self.total.extend_from_slice(&indices.total);
+        self.variance.push(indices.variance);
+    }
 }
 
 /// Per-thread buffers of the sparse bounds.
@@ -383,6 +434,4 @@ struct SparseWorkspace {
     starts: Vec<f64>,
     /// Design points sorted by value.
     order: Vec<usize>,
-    /// Per parameter, the variance of the terms involving it.
-    importance: Vec<f64>,
 }

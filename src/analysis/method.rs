@@ -9,6 +9,9 @@ pub enum Method {
     LegendreScan,
     /// Legendre surrogate bounded by interval arithmetic with exact `P_n` ranges (outer).
     LegendreIa,
+    /// Legendre surrogate bounded by its Bernstein form, sharpened by subdivision (outer, within
+    /// 1e-6 of the width of the surrogate's range when converged; docs/bernstein.md).
+    LegendreBernstein,
     /// Chebyshev surrogate on the Gauss–Chebyshev grid, bounded by scanning it (inner).
     ChebyshevScan,
     /// Chebyshev inclusion function `c_0 ± Σ|c_i|` (outer).
@@ -26,10 +29,11 @@ pub enum Method {
 }
 
 /// Every method with its name, in documentation order.
-pub const METHODS: [(&str, Method); 8] = [
+pub const METHODS: [(&str, Method); 9] = [
     ("auto", Method::Auto),
     ("legendre-scan", Method::LegendreScan),
     ("legendre-ia", Method::LegendreIa),
+    ("legendre-bernstein", Method::LegendreBernstein),
     ("chebyshev-scan", Method::ChebyshevScan),
     ("chebyshev-ia", Method::ChebyshevIa),
     ("taylor", Method::Taylor),
@@ -56,7 +60,7 @@ impl Method {
     pub fn bound_kind(self) -> &'static str {
         match self {
             Method::LegendreScan | Method::ChebyshevScan | Method::MonteCarlo => "inner",
-            Method::LegendreIa | Method::ChebyshevIa => "outer",
+            Method::LegendreIa | Method::LegendreBernstein | Method::ChebyshevIa => "outer",
             Method::Scan => "reference",
             Method::Taylor => "approximate",
             Method::Auto => "inner",
@@ -66,7 +70,10 @@ impl Method {
     /// The polynomial family of a surrogate method.
     pub fn family(self) -> Option<Family> {
         match self {
-            Method::LegendreScan | Method::LegendreIa | Method::Auto => Some(Family::Legendre),
+            Method::LegendreScan
+            | Method::LegendreIa
+            | Method::LegendreBernstein
+            | Method::Auto => Some(Family::Legendre),
             Method::ChebyshevScan | Method::ChebyshevIa => Some(Family::Chebyshev),
             _ => None,
         }

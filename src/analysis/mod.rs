@@ -20,6 +20,7 @@ mod plan;
 mod reference;
 mod schedule;
 mod screening;
+mod sobol_indices;
 mod sparse;
 mod study;
 
@@ -48,6 +49,10 @@ pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
 pub use schedule::RecordSchedule;
 pub use screening::{DimensionScreening, Screening};
+pub use sobol_indices::{
+    has_sobol_indices, sobol_values_per_record, widest_record, SobolBlock, SobolSeries,
+    TABLE_SOBOL_CONTRIBUTORS,
+};
 pub use sparse::{screened_set, SparseDesign, REGRESSION_OVERSAMPLING, REGRESSION_SEED};
 pub use study::{
     BlockView, CheckReport, DesignKind, DesignPart, Envelope, OuterBounds, PartSink, Progress,

@@ -24,6 +24,7 @@ use super::lyapunov::{estimate_lyapunov, LyapunovEstimate};
 use super::plan::{Plan, MAX_RUNS};
 pub use super::schedule::{RecordSchedule, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS};
 use super::screening::Screening;
+use super::sobol_indices::{has_sobol_indices, SobolBlock, SobolSeries};
 use super::sparse::SparseDesign;
 use super::Method;
 use crate::model::Model;
@@ -133,6 +134,8 @@ pub struct BlockView<'a> {
     pub nominal: &'a [f64],
     /// The nominal run's configuration per record (`records × nq`).
     pub nominal_positions: &'a [f64],
+    /// Surrogate methods: the block's Sobol' indices.
+    pub sobol: Option<SobolBlock<'a>>,
 }
 
 /// Progress after a block.
@@ -236,6 +239,9 @@ pub struct StudyReport {
     /// Sparse designs: per dimension, the largest total Sobol' index over outputs and record times
     /// of the surrogates, with the output and record where it occurs.
     pub total_index_max: Option<Vec<(f64, usize, usize)>>,
+    /// Surrogate methods: the main and total Sobol' indices of every output at every record time
+    /// (docs/sobol-indices.md).
+    pub sobol: Option<SobolSeries>,
     /// Sparse designs: the condition number of the design's basis matrix.
     pub condition_number: Option<f64>,
     /// The adaptive design's rounds, when it ran.
@@ -362,11 +368,10 @@ struct DesignBounding<'b> {
     bounder: &'b Bounder,
     threads: &'b rayon::ThreadPool,
     n_outputs: usize,
-    dim: usize,
     locates_extremes: bool,
     candidates: CheckCandidates,
-    /// Per dimension: the largest total Sobol' index, its output and record.
-    total_index_max: Vec<(f64, usize, usize)>,
+    /// The surrogates' Sobol' indices, record after record.
+    sobol: SobolSeries,
     /// Min/max of the screening runs per record and output (empty without screening).
     screen_hull: &'b [EnvelopePoint],
 }
@@ -382,18 +387,12 @@ impl DesignBounding<'_> {
         excluded: &(dyn Fn(usize) -> bool + Sync),
         accumulator: &mut Accumulator,
     ) -> Result<(), StudyError> {
-        let (n_outputs, d) = (self.n_outputs, self.dim);
+        let n_outputs = self.n_outputs;
         let bounded =
             self.bounder
                 .bound_records(count, n_outputs, values, excluded, self.threads)?;
         accumulator.points.extend_from_slice(&bounded.points);
-        for (k, index) in bounded.total_indices.iter().enumerate() {
-            let (r, rest) = (k / (n_outputs * d), k % (n_outputs * d));
-            let (output, j) = (rest / d, rest % d);
-            if *index > self.total_index_max[j].0 {
-                self.total_index_max[j] = (*index, output, first + r);
-            }
-        }
+        self.sobol.extend(&bounded);
         for r in 0..count {
             let record = first + r;
             // The nominal run is a true response inside the box: the envelope contains it.
@@ -701,6 +700,7 @@ impl Study<'_> {
             screening: None,
             ranking: None,
             total_index_max: None,
+            sobol: None,
             condition_number: None,
             adaptive: None,
         }
@@ -877,15 +877,13 @@ impl Study<'_> {
         let bounder = Bounder::new(method, &plan, d, o.order, o.scan_grid)?;
         let candidates = CheckCandidates::new(d);
         let locates_extremes = study_plan.check_runs > 0;
-        let total_index_max: Vec<(f64, usize, usize)> = vec![(0.0, 0, 0); d];
         let mut bounding = DesignBounding {
             bounder: &bounder,
             threads: &threads,
             n_outputs,
-            dim: d,
             locates_extremes,
             candidates,
-            total_index_max,
+            sobol: SobolSeries::new(d, n_outputs),
             screen_hull: &screen_hull,
         };
 
@@ -968,7 +966,10 @@ impl Study<'_> {
             }
         };
         if matches!(plan, Plan::Sparse(_)) {
-            report.total_index_max = Some(bounding.total_index_max.clone());
+            report.total_index_max = Some(bounding.sobol.total_index_max());
+        }
+        if has_sobol_indices(method) {
+            report.sobol = Some(bounding.sobol);
         }
         let candidates = bounding.candidates;
 
@@ -1345,6 +1346,7 @@ impl Study<'_> {
                 points: &accumulator.points[values.clone()],
                 nominal: &accumulator.nominal[values],
                 nominal_positions: &accumulator.nominal_positions[positions],
+                sobol: report.sobol.as_ref().and_then(|s| s.block(first, count)),
             })
             .map_err(|e| StudyError::Sink(Box::new(e)))?;
             first += count;

@@ -9,15 +9,17 @@ use super::{
     check_finite, check_output_paths, install_interrupt, write_stdout, AnalyzeArgs, SceneArgs,
 };
 use crate::analysis::{
-    CheckReport, DesignKind, Method, Progress, RecordSchedule, RecordSource, Study, StudyOptions,
-    StudyPlan, StudyReport, ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS,
+    has_sobol_indices, sobol_values_per_record, CheckReport, DesignKind, Method, Progress,
+    RecordSchedule, RecordSource, Study, StudyOptions, StudyPlan, StudyReport, ADAPTIVE_TOLERANCE,
+    CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TABLE_SOBOL_CONTRIBUTORS,
     TRUST_RELATIVE_MISFIT,
 };
 use crate::distributed::{PlanFile, ShardError, ShardSet};
 use crate::dynamics::Data;
 use crate::output::mcap::McapMetadata;
 use crate::output::{
-    write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, SensitivitySummary, Summary,
+    write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, SensitivitySummary, SobolSummary,
+    Summary,
 };
 use crate::scene::{check_threads, Scene};
 use crate::setup::{print_message, Setup};
@@ -85,7 +87,9 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     let report_stems = prepare_report(args, &sidecar_path, &scene)?;
     // Kept per record time: the envelope (time; lower, upper, nominal and an error estimate per
     // output) and, with --summary, its five copies per output; plus one block of samples.
-    let per_output = 4 + if args.summary.is_some() { 5 } else { 0 };
+    // Surrogate studies also keep their Sobol' indices (and, with --summary, a copy).
+    let sobol = sobol_values_per_record(options.method, space.len());
+    let per_output = 4 + sobol + if args.summary.is_some() { 5 + sobol } else { 0 };
     scene.check_memory(
         "analyze",
         (1 + scene.outputs.len() * per_output) as u64,
@@ -160,6 +164,10 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         )?),
         None => None,
     };
+    if let (Some(log), true) = (log.as_mut(), has_sobol_indices(plan.method)) {
+        let names: Vec<String> = space.dimensions().iter().map(|d| d.name.clone()).collect();
+        log.add_sobol_channels(&names)?;
+    }
     let kinematic_model = model;
     let mut data = Data::new(&kinematic_model);
     let mut reporter = ProgressReporter::new();
@@ -616,6 +624,10 @@ fn summary(
                 "chaos_amplification": CHAOS_AMPLIFICATION,
             })),
         }),
+        sobol_indices: report
+            .sobol
+            .as_ref()
+            .map(|series| SobolSummary::from_study(series, e, space)),
     }
 }
 
@@ -857,6 +869,10 @@ fn table(
             a.max_degree,
             a.largest_remaining_indicator
         ));
+    }
+    if let Some(series) = &report.sobol {
+        let names: Vec<String> = space.dimensions().iter().map(|d| d.name.clone()).collect();
+        text.push_str(&series.table(e, &names, TABLE_SOBOL_CONTRIBUTORS));
     }
     if let Some(rows) = sensitivities(space, report) {
         text.push_str(&format!(

@@ -150,8 +150,8 @@ pub struct AnalyzeArgs {
     /// The robot, its sidecar and scene overrides.
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// auto | legendre-scan | legendre-ia | chebyshev-scan | chebyshev-ia | taylor | scan |
-    /// monte-carlo (default: the sidecar's `[analysis] method`, else auto: legendre-scan on the
+    /// auto | legendre-scan | legendre-ia | legendre-bernstein | chebyshev-scan | chebyshev-ia |
+    /// taylor | scan | monte-carlo (default: the sidecar's `[analysis] method`, else auto: legendre-scan on the
     /// tensor grid for d ≤ 4, total degree k on a Leja sparse grid when it fits --max-runs, the
     /// dimension-adaptive design above).
     #[arg(long)]

@@ -199,6 +199,7 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
             "stiff_predictions": s.stiff_predictions,
             "partial": trajectory.partial,
         }),
+        sobol_indices: None,
     }
 }
 

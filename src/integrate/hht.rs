@@ -392,6 +392,9 @@ struct Crossing {
     theta: f64,
 }
 
+/// The HHT-I3 integrator of one trajectory (docs/method.md §5) over a [`DaeSystem`]: its settings,
+/// the step coefficients, the Newton workspaces and the trajectory's state; [`HhtIntegrator::step`]
+/// advances it by one grid step.
 #[derive(Debug, Clone)]
 pub struct HhtIntegrator {
     settings: HhtSettings,

@@ -801,8 +801,15 @@ fn energy_error_with_alpha_zero_is_second_order() {
     }
 }
 
+/// Largest one-step rise of the oscillator's physical energy, relative to E0, with α = −0.3 and
+/// h = T/100: measured 8.7e-6 (the state's energy oscillates about the monotone algorithmic energy
+/// by O(h²)); a tenfold margin.
+const MAX_STEP_ENERGY_RISE: f64 = 1e-4;
+
 /// With α < 0 the linear oscillator loses energy (numerical damping of high frequencies), and never
-/// gains any.
+/// gains any over the run. The physical energy `½mv² + ½kq²` of the step's state is not the
+/// method's (monotone) algorithmic energy: within a period it may rise by a little from one step
+/// to the next. How little is asserted: at most [`MAX_STEP_ENERGY_RISE`] of E0 per step.
 #[test]
 fn negative_alpha_dissipates_on_linear_oscillator() {
     let mut osc = Oscillator {
@@ -822,18 +829,27 @@ fn negative_alpha_dissipates_on_linear_oscillator() {
     .unwrap();
     let mut previous = e0;
     let mut max_rise: f64 = 0.0;
+    let mut max_energy: f64 = 0.0;
     for _ in 0..n_steps(10.0, h) {
         hht.step(&mut osc).unwrap();
         let s = hht.state();
         let e = osc.energy(s.q[0], s.v[0]);
         max_rise = max_rise.max(e - previous);
+        max_energy = max_energy.max(e);
         previous = e;
     }
     println!(
-        "linear oscillator, α = −0.3, h = 1e-2: E(10 s)/E0 = {:.6}, max per-step rise {max_rise:.2e}",
-        previous / e0
+        "linear oscillator, α = −0.3, h = 1e-2: E(10 s)/E0 = {:.6}, max per-step rise {max_rise:.2e}, max E/E0 {:.8}",
+        previous / e0,
+        max_energy / e0
     );
     assert!(previous < e0);
+    assert!(
+        max_rise <= MAX_STEP_ENERGY_RISE * e0,
+        "per-step rise {max_rise:e} of E0 = {e0:e}"
+    );
+    // Measured max E/E0 = 0.99999978: the state's energy never exceeds the initial one.
+    assert!(max_energy < e0, "max E {max_energy:e} ≥ E0 = {e0:e}");
 }
 
 // ---------------------------------------------------------------------------------------------

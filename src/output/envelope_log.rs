@@ -1,12 +1,13 @@
 //! An MCAP log of envelopes, one record time at a time: a channel per output (lower, nominal,
-//! upper), optionally an error-estimate channel per output, and the nominal robot's frames on `/tf`.
+//! upper), optionally an error-estimate channel per output and two Sobol' index channels per output
+//! (main, total; docs/sobol-indices.md §5), and the nominal robot's frames on `/tf`.
 //! Used by `simulate` (lower = nominal = upper) and `analyze`. On [`finish`](EnvelopeLog::finish)
 //! it adds what the viewers need (docs/mcap.md §4–§5): the Foxglove layout as an attachment and
 //! the box the robot moved in as entries of the `ribbon` metadata record.
 
 use super::mcap::{
     EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, ParentFromLink,
-    ENVELOPE_PREFIX, WORLD_FRAME,
+    SobolChannel, SobolIndexKind, ENVELOPE_PREFIX, WORLD_FRAME,
 };
 use super::viewer::{foxglove_layout, LayoutOutput, SceneExtent, FOXGLOVE_LAYOUT_NAME};
 use crate::analysis::BlockView;
@@ -23,6 +24,9 @@ pub struct EnvelopeLog {
     names: Vec<String>,
     channels: Vec<EnvelopeChannel>,
     error_channels: Vec<ErrorChannel>,
+    /// Per output, its main and total Sobol' index channels (empty unless
+    /// [`add_sobol_channels`](EnvelopeLog::add_sobol_channels) was called).
+    sobol_channels: Vec<(SobolChannel, SobolChannel)>,
     /// What the Foxglove layout plots, in channel order.
     layout_outputs: Vec<LayoutOutput>,
     /// The box of every link origin written to `/tf`.
@@ -109,10 +113,63 @@ impl EnvelopeLog {
             names: outputs.iter().map(|o| o.name.clone()).collect(),
             channels,
             error_channels,
+            sobol_channels: Vec::new(),
             layout_outputs,
             extent: SceneExtent::default(),
             parent_links: None,
         })
+    }
+
+    /// Adds the main and total Sobol' index channels of every output (docs/mcap.md §1), one series
+    /// per dimension of the box named by `dimensions`; [`write_block`](Self::write_block) then
+    /// writes the indices a block carries. Call before the first block.
+    pub fn add_sobol_channels(&mut self, dimensions: &[String]) -> Result<(), Error> {
+        for output in &self.layout_outputs {
+            let name = OutputName::from_parts(&output.parts);
+            let main = self
+                .sink
+                .add_sobol_channel(SobolIndexKind::Main, name.clone(), dimensions)
+                .map_err(mcap_error)?;
+            let total = self
+                .sink
+                .add_sobol_channel(SobolIndexKind::Total, name, dimensions)
+                .map_err(mcap_error)?;
+            self.sobol_channels.push((main, total));
+        }
+        Ok(())
+    }
+
+    /// Writes one record time's Sobol' indices: `main(o)` and `total(o)` give output o's indices.
+    /// A NaN or infinity is refused as in [`write_time`](Self::write_time).
+    fn write_sobol(
+        &mut self,
+        t: f64,
+        main: &dyn Fn(usize) -> Vec<f64>,
+        total: &dyn Fn(usize) -> Vec<f64>,
+    ) -> Result<(), Error> {
+        for o in 0..self.sobol_channels.len() {
+            let (main_channel, total_channel) = self.sobol_channels[o];
+            for (label, channel, values) in [
+                ("main Sobol' index", main_channel, main(o)),
+                ("total Sobol' index", total_channel, total(o)),
+            ] {
+                if let Some(value) = values.iter().find(|v| !v.is_finite()) {
+                    return Err(Error::NonFiniteResult {
+                        what: format!("MCAP '{}'", self.sink.path().display()),
+                        output: format!(
+                            "{} ({label})",
+                            self.names.get(o).map_or("?", String::as_str)
+                        ),
+                        time_s: t,
+                        value: *value,
+                    });
+                }
+                self.sink
+                    .write_sobol(channel, t, &values)
+                    .map_err(mcap_error)?;
+            }
+        }
+        Ok(())
     }
 
     /// Writes every output's envelope at time `t` (s); `error` per output when the log has error
@@ -207,7 +264,8 @@ impl EnvelopeLog {
     }
 
     /// Writes one block of a study: every record time's envelopes (and error estimates, where the
-    /// method has them) and the nominal robot's frames, placed by forward kinematics of the nominal
+    /// method has them; Sobol' indices, where the block has them and the log has their channels)
+    /// and the nominal robot's frames, placed by forward kinematics of the nominal
     /// run's configuration into `data`.
     pub fn write_block(
         &mut self,
@@ -229,6 +287,11 @@ impl EnvelopeLog {
                 &upper,
                 errors.as_deref(),
             )?;
+            if let (Some(sobol), false) = (&block.sobol, self.sobol_channels.is_empty()) {
+                self.write_sobol(*t, &|o| sobol.main(r, n, o).to_vec(), &|o| {
+                    sobol.total(r, n, o).to_vec()
+                })?;
+            }
             forward_kinematics(model, data, &block.nominal_positions[r * nq..(r + 1) * nq]);
             self.write_frames(*t, model, data)?;
         }

@@ -22,7 +22,10 @@ pub use envelope_log::EnvelopeLog;
 pub use paths::{
     check_outputs, prepare_output_directory, remove_live_temporaries, write_atomically, AtomicFile,
 };
-pub use summary::{EnvelopeSeries, ParameterSummary, SensitivitySummary, Summary};
+pub use summary::{
+    EnvelopeSeries, OutputSobol, ParameterSummary, SensitivitySummary, SobolDimension,
+    SobolSummary, Summary,
+};
 
 /// The first NaN or infinity of a set of series.
 #[derive(Clone, Copy, Debug, PartialEq)]

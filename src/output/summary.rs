@@ -1,8 +1,11 @@
 //! The summary JSON (design contract): robot, method, parameters, runs, and per output the time
-//! series of lower, upper and nominal bounds with an error estimate.
+//! series of lower, upper and nominal bounds with an error estimate; for surrogate studies also the
+//! Sobol' indices of every output at every record time (`sobol_indices`, docs/sobol-indices.md §5).
 
 use super::first_non_finite;
 use super::paths::AtomicFile;
+use crate::analysis::{widest_record, Envelope, SobolSeries};
+use crate::uncertainty::ParameterSpace;
 use crate::Error;
 use serde::Serialize;
 use std::path::Path;
@@ -74,6 +77,105 @@ pub struct EnvelopeSeries {
     pub outer_upper: Option<Vec<f64>>,
 }
 
+/// One dimension of the box as the Sobol' indices name it.
+#[derive(Clone, Debug, Serialize)]
+pub struct SobolDimension {
+    /// The dimension's name (a path, a symbol, or a shared group's pattern key), as in
+    /// `parameters`.
+    pub name: String,
+    /// The `[parameters]` key it came from.
+    pub source: String,
+}
+
+/// One output's Sobol' indices over time (index `[k][j]`: record time k, dimension j).
+#[derive(Clone, Debug, Serialize)]
+pub struct OutputSobol {
+    /// Output name, as in `outputs`.
+    pub name: String,
+    /// The surrogate's variance under uniform ξ per record time, in the output's unit squared.
+    pub variance: Vec<f64>,
+    /// Main indices, `[record][dimension]`.
+    pub main: Vec<Vec<f64>>,
+    /// Total indices, `[record][dimension]`.
+    pub total: Vec<Vec<f64>>,
+    /// The record time of the output's widest envelope, s (`null` without records).
+    pub widest_time: Option<f64>,
+    /// Main indices there.
+    pub widest_main: Option<Vec<f64>>,
+    /// Total indices there.
+    pub widest_total: Option<Vec<f64>>,
+}
+
+/// The summary's `sobol_indices`: variance-based sensitivity of every output's surrogate at every
+/// record time, per dimension of the box (docs/sobol-indices.md §5).
+#[derive(Clone, Debug, Serialize)]
+pub struct SobolSummary {
+    /// The dimensions, in index order (shared groups are one dimension; `[bind]`-bound parameters
+    /// have none).
+    pub dimensions: Vec<SobolDimension>,
+    /// Per output, in `outputs` order.
+    pub outputs: Vec<OutputSobol>,
+}
+
+impl SobolSummary {
+    /// From a study's series, its envelope (names, times, widths) and its box.
+    pub fn from_study(series: &SobolSeries, envelope: &Envelope, space: &ParameterSpace) -> Self {
+        let records = series.records().min(envelope.times.len());
+        let dimensions = space
+            .dimensions()
+            .iter()
+            .map(|d| SobolDimension {
+                name: d.name.clone(),
+                source: d.source.clone(),
+            })
+            .collect();
+        let outputs = envelope
+            .outputs
+            .iter()
+            .enumerate()
+            .take(series.n_outputs())
+            .map(|(o, output)| {
+                let widest = widest_record(envelope, o).filter(|&k| k < records);
+                OutputSobol {
+                    name: output.name.clone(),
+                    variance: (0..records).map(|k| series.variance(k, o)).collect(),
+                    main: (0..records).map(|k| series.main(k, o).to_vec()).collect(),
+                    total: (0..records).map(|k| series.total(k, o).to_vec()).collect(),
+                    widest_time: widest.map(|k| envelope.times[k]),
+                    widest_main: widest.map(|k| series.main(k, o).to_vec()),
+                    widest_total: widest.map(|k| series.total(k, o).to_vec()),
+                }
+            })
+            .collect();
+        SobolSummary {
+            dimensions,
+            outputs,
+        }
+    }
+
+    /// The first non-finite number: `(output, what, record)`.
+    fn first_non_finite(&self) -> Option<(&str, &'static str, usize, f64)> {
+        for output in &self.outputs {
+            for (k, v) in output.variance.iter().enumerate() {
+                if !v.is_finite() {
+                    return Some((&output.name, "Sobol' variance", k, *v));
+                }
+            }
+            for (what, rows) in [
+                ("main Sobol' index", &output.main),
+                ("total Sobol' index", &output.total),
+            ] {
+                for (k, row) in rows.iter().enumerate() {
+                    if let Some(v) = row.iter().find(|v| !v.is_finite()) {
+                        return Some((&output.name, what, k, *v));
+                    }
+                }
+            }
+        }
+        None
+    }
+}
+
 /// The whole summary.
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {
@@ -102,6 +204,10 @@ pub struct Summary {
     pub outputs: Vec<EnvelopeSeries>,
     /// Integrator and method statistics.
     pub stats: serde_json::Value,
+    /// Surrogate studies: the Sobol' indices of every output at every record time; absent
+    /// otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sobol_indices: Option<SobolSummary>,
 }
 
 impl Summary {
@@ -135,6 +241,24 @@ impl Summary {
                     value: bad.value,
                 });
             }
+        }
+        if let Some((output, what, record, value)) = self
+            .sobol_indices
+            .as_ref()
+            .and_then(SobolSummary::first_non_finite)
+        {
+            let time_s = self
+                .outputs
+                .iter()
+                .find(|o| o.name == output)
+                .and_then(|o| o.time.get(record).copied())
+                .unwrap_or(f64::NAN);
+            return Err(Error::NonFiniteResult {
+                what: format!("summary '{}'", path.display()),
+                output: format!("{output} ({what})"),
+                time_s,
+                value,
+            });
         }
         let mut file = AtomicFile::create(path, "summary")?;
         serde_json::to_writer_pretty(&mut file, self)
@@ -177,6 +301,7 @@ mod tests {
             wall_seconds: 0.0,
             outputs: vec![series(f64::INFINITY)],
             stats: serde_json::Value::Null,
+            sobol_indices: None,
         };
         let m = summary.write(&path).unwrap_err().to_string();
         assert!(
@@ -189,6 +314,28 @@ mod tests {
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         assert_eq!(json["outputs"][0]["upper"][1], serde_json::json!(2.0));
+        assert!(json.get("sobol_indices").is_none());
+        // A non-finite Sobol' index is refused too.
+        summary.sobol_indices = Some(SobolSummary {
+            dimensions: vec![SobolDimension {
+                name: "l1".to_string(),
+                source: "l1".to_string(),
+            }],
+            outputs: vec![OutputSobol {
+                name: "frame.tip.x".to_string(),
+                variance: vec![0.0, 1.0],
+                main: vec![vec![0.0], vec![f64::NAN]],
+                total: vec![vec![0.0], vec![1.0]],
+                widest_time: Some(0.25),
+                widest_main: Some(vec![1.0]),
+                widest_total: Some(vec![1.0]),
+            }],
+        });
+        let m = summary.write(&path).unwrap_err().to_string();
+        assert!(
+            m.contains("frame.tip.x (main Sobol' index)") && m.contains("t = 0.25 s"),
+            "{m}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -412,9 +412,32 @@ mod tests {
     #[test]
     fn every_listed_path_resolves_to_itself() {
         let m = model();
-        for p in list(&m) {
+        let listed = list(&m);
+        for p in &listed {
             assert_eq!(resolve(&m, &p.path).unwrap(), p.target, "{}", p.path);
         }
+        // Not vacuous: every kind of target is listed, every path once.
+        let kinds = [
+            ParamTarget::LinkMass(1),
+            ParamTarget::LinkScale(1),
+            ParamTarget::LinkCom(1, 0),
+            ParamTarget::LinkInertia(1, 5),
+            ParamTarget::JointOrigin(0, 5),
+            ParamTarget::JointAxis(0, 2),
+            ParamTarget::JointDamping(0),
+            ParamTarget::JointFriction(0),
+            ParamTarget::Gravity(2),
+        ];
+        for kind in kinds {
+            assert!(
+                listed.iter().any(|p| p.target == kind),
+                "{kind:?} not listed"
+            );
+        }
+        let mut paths: Vec<&str> = listed.iter().map(|p| p.path.as_str()).collect();
+        paths.sort_unstable();
+        paths.dedup();
+        assert_eq!(paths.len(), listed.len(), "a path listed twice");
     }
 
     #[test]

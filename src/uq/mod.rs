@@ -9,7 +9,10 @@
 //! model runs (caller)                          values: n_points × n_outputs, run-major
 //!   └─ Projector::fit                          coefficients: n_terms per output, output-major
 //!        └─ Surrogate::set_from_matrix         one output
+//!             ├─ sobol_indices                          main and total Sobol' indices (exact)
 //!             ├─ interval_bound / chebyshev_inclusion   Outer (of the surrogate's range)
+//!             ├─ BernsteinBounder::bound                Outer, sharpened by subdivision, with the
+//!             │                                         attained values (its gap) beside it
 //!             └─ Scanner::scan                          Inner (grid + Newton refinement)
 //! TaylorStencil (2d+1 runs) ─ bounds           Approximate (linearisation)
 //! envelope_error(lower, upper, lower_ref, upper_ref)   max / mean relative error over time
@@ -23,7 +26,7 @@
 //!                                                condition number, leverages, leave-one-out
 //! model runs (caller)                            values: n_points × n_outputs, run-major
 //!   └─ LinearFit::fit_into                       coefficients: n_terms × n_outputs, term-major
-//!        └─ SparseSurrogate::set_from_fit        one output; Sobol' indices, top order
+//!        └─ SparseSurrogate::set_from_fit        one output; Sobol' indices (sobol_indices), top order
 //!             └─ BoxOptimizer::bound_into        inner (attained, with argmin/argmax) + outer
 //! ```
 //!
@@ -37,6 +40,7 @@
 //! (truncation and aliasing are estimated, not bounded); interval arithmetic uses round-to-nearest.
 
 pub mod basis;
+pub mod bernstein;
 pub mod bounds;
 pub mod box_optimize;
 pub(crate) mod contract;
@@ -55,6 +59,7 @@ pub(crate) mod refine;
 pub mod regression;
 pub mod scan;
 pub mod sobol;
+pub mod sobol_indices;
 pub mod sparse_grid;
 pub mod sparse_surrogate;
 pub mod surrogate;
@@ -64,6 +69,7 @@ pub mod taylor;
 mod test_support;
 
 pub use basis::{legendre_min, Family, MAX_ORDER};
+pub use bernstein::{BernsteinBound, BernsteinBounder, BernsteinOptions, BERNSTEIN_MAX_ORDER};
 pub use bounds::{chebyshev_inclusion, interval_bound, Bound, BoundKind, ErrorEstimate, RangeMode};
 pub use box_optimize::{BoxBounds, BoxOptimizer};
 pub use design::{Design, Truncation};
@@ -78,7 +84,8 @@ pub use quadrature::{gauss_chebyshev, gauss_legendre, GaussRule};
 pub use regression::{LooError, Regression, MIN_GOOD_OVERSAMPLING};
 pub use scan::{ScanOptions, ScanOutcome, Scanner};
 pub use sobol::{sobol_design, SOBOL_MAX_DIM, SOBOL_MAX_POINTS};
+pub use sobol_indices::{sobol_indices_monte_carlo, tensor_sobol_indices_into, SobolIndices};
 pub use sparse_grid::SparseGrid;
-pub use sparse_surrogate::{SobolIndices, SparseSurrogate, SurrogateWorkspace};
+pub use sparse_surrogate::{SparseSurrogate, SurrogateWorkspace};
 pub use surrogate::Surrogate;
 pub use taylor::{taylor_first_order, TaylorStencil};

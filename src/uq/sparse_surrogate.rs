@@ -15,6 +15,7 @@ use crate::uq::basis::Family;
 use crate::uq::bounds::ErrorEstimate;
 use crate::uq::error::UqError;
 use crate::uq::multi_index::MultiIndexSet;
+use crate::uq::sobol_indices::SobolIndices;
 
 /// Work buffers for evaluating sparse surrogates: per-dimension tables of `P_n`, `P_n'`, `P_n''`.
 /// Grows to the largest set it is used with; reuse it across calls and surrogates.
@@ -54,17 +55,6 @@ impl SurrogateWorkspace {
             }
         }
     }
-}
-
-/// Variance-based sensitivity of a surrogate under uniform ξ (docs/high-dimension.md §6).
-#[derive(Debug, Clone, PartialEq)]
-pub struct SobolIndices {
-    /// Total variance `D = Σ_{α≠0} c_α² Π_r 1/(2α_r+1)`, in the output's unit squared.
-    pub variance: f64,
-    /// Main (first-order) index per dimension: the share of D from terms in ξ_r alone.
-    pub main: Vec<f64>,
-    /// Total index per dimension: the share of D from every term involving ξ_r.
-    pub total: Vec<f64>,
 }
 
 /// A sparse Legendre surrogate of one output.
@@ -423,56 +413,28 @@ impl SparseSurrogate {
         (1..self.set.len()).map(|t| self.term_variance(t)).sum()
     }
 
-    /// Per dimension r, the variance of every term involving ξ_r (the total Sobol' index's
-    /// numerator), into `out` (length d, overwritten): the first-order importance used for
-    /// screening.
-    ///
-    /// Errors: `out.len() != d`.
-    pub fn importance_into(&self, out: &mut [f64]) -> Result<(), UqError> {
-        if out.len() != self.dim() {
-            return Err(UqError::WrongLength {
-                what: "sparse surrogate: importance",
-                expected: self.dim(),
-                got: out.len(),
-            });
-        }
-        out.fill(0.0);
-        for t in 1..self.set.len() {
-            let v = self.term_variance(t);
-            for f in self.set.term(t) {
-                out[f.dim as usize] += v;
-            }
-        }
-        Ok(())
-    }
-
-    /// Main and total Sobol' indices per dimension (docs/high-dimension.md §6). A constant
+    /// Main and total Sobol' indices per dimension (docs/sobol-indices.md §2). A constant
     /// surrogate (variance 0) has every index 0.
     pub fn sobol_indices(&self) -> SobolIndices {
-        let d = self.dim();
-        let mut main = vec![0.0; d];
-        let mut total = vec![0.0; d];
-        let mut variance = 0.0;
+        let mut out = SobolIndices::zeros(self.dim());
+        self.sobol_indices_into(&mut out);
+        out
+    }
+
+    /// As [`SparseSurrogate::sobol_indices`], overwriting `out` (resized to d) to reuse its
+    /// allocation.
+    pub fn sobol_indices_into(&self, out: &mut SobolIndices) {
+        out.reset(self.dim());
         for t in 1..self.set.len() {
-            let v = self.term_variance(t);
-            variance += v;
             let term = self.set.term(t);
-            if term.len() == 1 {
-                main[term[0].dim as usize] += v;
-            }
-            for f in term {
-                total[f.dim as usize] += v;
-            }
+            let single = (term.len() == 1).then(|| term[0].dim as usize);
+            out.add_term(
+                self.term_variance(t),
+                single,
+                term.iter().map(|f| f.dim as usize),
+            );
         }
-        if variance > 0.0 {
-            main.iter_mut().for_each(|s| *s /= variance);
-            total.iter_mut().for_each(|s| *s /= variance);
-        }
-        SobolIndices {
-            variance,
-            main,
-            total,
-        }
+        out.normalise();
     }
 
     /// Largest `|y − surrogate(ξ)|` over model runs: `points` `n × d` row-major, `values` the n
@@ -614,9 +576,7 @@ mod tests {
         assert_eq!(idx.main[2], 0.0);
         assert!((idx.total[0] - (3.0 + 16.0 / 9.0) / want).abs() < TOL);
         assert!((idx.total[2] - 16.0 / 9.0 / want).abs() < TOL);
-        let mut imp = [0.0; 3];
-        s.importance_into(&mut imp).unwrap();
-        assert!((imp[0] - (3.0 + 16.0 / 9.0)).abs() < TOL);
+        assert!((idx.variance - want).abs() < TOL);
         // Monte Carlo check of the variance: uniform samples.
         let mut rng = SplitMix64::new(2);
         let mut ws = SurrogateWorkspace::new();

@@ -11,6 +11,7 @@ use crate::uq::contract::PointEvaluator;
 use crate::uq::design::{Design, Truncation};
 use crate::uq::error::UqError;
 use crate::uq::projection::CoefficientMatrix;
+use crate::uq::sobol_indices::{tensor_sobol_indices_into, SobolIndices};
 
 /// A polynomial surrogate of one output.
 #[derive(Debug, Clone, PartialEq)]
@@ -216,6 +217,32 @@ impl Surrogate {
             .zip(values)
             .map(|(xi, y)| (y - ev.value(&self.dense, xi)).abs())
             .fold(0.0, f64::max))
+    }
+
+    /// Main and total Sobol' indices per dimension under uniform ξ, from the coefficients
+    /// (docs/sobol-indices.md §2–§3; a Chebyshev surrogate is rewritten in the Legendre basis
+    /// first). A constant surrogate has every index 0.
+    ///
+    /// ```
+    /// use ribbon::uq::{Design, Family, Surrogate, Truncation};
+    /// // y = ξ1 + 2 ξ2: variances 1/3 and 4/3, no interaction.
+    /// let design = Design::new(Family::Legendre, 2, 1, Truncation::Tensor)?;
+    /// let s = Surrogate::from_terms(&design, &[0.0, 2.0, 1.0, 0.0])?;
+    /// let indices = s.sobol_indices()?;
+    /// assert!((indices.main[0] - 0.2).abs() < 1e-15 && (indices.total[1] - 0.8).abs() < 1e-15);
+    /// # Ok::<(), ribbon::uq::UqError>(())
+    /// ```
+    ///
+    /// Errors: an order beyond the quadrature's range (Chebyshev change of basis).
+    pub fn sobol_indices(&self) -> Result<SobolIndices, UqError> {
+        let mut out = SobolIndices::zeros(self.dim);
+        self.sobol_indices_into(&mut out)?;
+        Ok(out)
+    }
+
+    /// As [`Surrogate::sobol_indices`], overwriting `out` (resized to d).
+    pub fn sobol_indices_into(&self, out: &mut SobolIndices) -> Result<(), UqError> {
+        tensor_sobol_indices_into(self.family, self.dim, self.order, &self.dense, out)
     }
 
     /// The error estimate attached to every bound of this surrogate: top-order magnitude, no

@@ -10,6 +10,8 @@ EXPECTED.json says what was written (numbers exactly as given to the writer):
       "envelopes": [{"name": "q.j1", "topic": "/ribbon/envelope/q/j1",
                      "time": [...], "lower": [...], "nominal": [...], "upper": [...]}],
       "errors":    [{"name": "q.j1", "topic": "/ribbon/error/q/j1", "time": [...], "estimate": [...]}],
+      "sobol":     [{"name": "q.j1", "topic": "/ribbon/sobol/main/q/j1", "index": "main",   # optional
+                     "dimensions": ["l1", ...], "time": [...], "values": [[...per dimension], ...]}],
       "transforms": [{"time": t, "frames": [{"link": "bar1", "parent": "base", "translation": [x, y, z],
                                               "rotation": [x, y, z, w]}]}],   # parent default "world"
       # or, when the poses are not known to the caller (a `ribbon analyze` run), instead of
@@ -32,7 +34,8 @@ Checks, each failure collected and reported (exit 1):
 - Python `mcap` reads the file through its summary (lz4 chunks, chunk indexes, statistics) and
   decodes every message: CDR with `mcap-ros2-support`, protobuf with `mcap-protobuf-support`;
 - every JointState decodes to exactly the numbers given, names [lower, nominal, upper] or
-  [estimate], header.stamp = log time = publish time = round(time * 1e9);
+  [estimate] (a Sobol' channel: the dimensions' names, channel metadata `index` and `unit` ""),
+  header.stamp = log time = publish time = round(time * 1e9);
 - every /tf message decodes to the frames given, and re-encoding them with foxglove-sdk's
   `foxglove.messages.FrameTransforms` gives the same bytes;
 - the `foxglove.FrameTransforms` schema record equals, byte for byte, the one foxglove-sdk writes
@@ -136,7 +139,9 @@ def check_file(mcap_path, expected, work_dir):
 
         channels_by_topic = {c.topic: c for c in summary.channels.values()}
         schemas = summary.schemas
+        sobol = expected.get("sobol", [])
         expected_topics = {e["topic"] for e in expected["envelopes"]} | {e["topic"] for e in expected["errors"]}
+        expected_topics |= {e["topic"] for e in sobol}
         expected_topics |= {"/tf", "/robot_description"}
         if set(channels_by_topic) != expected_topics:
             fail(f"topics {sorted(channels_by_topic)} differ from the expected {sorted(expected_topics)}")
@@ -146,7 +151,13 @@ def check_file(mcap_path, expected, work_dir):
             channel = channels_by_topic.get(topic)
             return schemas.get(channel.schema_id) if channel else None
 
-        for entry in expected["envelopes"] + expected["errors"]:
+        for entry in sobol:
+            channel = channels_by_topic.get(entry["topic"])
+            if channel is not None and (
+                channel.metadata.get("index") != entry["index"] or channel.metadata.get("unit") != ""
+            ):
+                fail(f"{entry['topic']}: channel metadata {channel.metadata}, expected index = {entry['index']}, unit ''")
+        for entry in expected["envelopes"] + expected["errors"] + sobol:
             schema = schema_of(entry["topic"])
             channel = channels_by_topic.get(entry["topic"])
             if schema is None:
@@ -194,15 +205,21 @@ def check_file(mcap_path, expected, work_dir):
         if summary.statistics is not None and count != summary.statistics.message_count:
             fail(f"decoded {count} messages, the statistics say {summary.statistics.message_count}")
 
-        for entry, names in [(e, ["lower", "nominal", "upper"]) for e in expected["envelopes"]] + [
-            (e, ["estimate"]) for e in expected["errors"]
-        ]:
+        for entry, names in (
+            [(e, ["lower", "nominal", "upper"]) for e in expected["envelopes"]]
+            + [(e, ["estimate"]) for e in expected["errors"]]
+            + [(e, e["dimensions"]) for e in sobol]
+        ):
             topic = entry["topic"]
             got = decoded.get(topic, [])
             if len(got) != len(entry["time"]):
                 fail(f"{topic}: {len(got)} messages, expected {len(entry['time'])}")
                 continue
-            columns = [entry[n] for n in names]
+            if "values" in entry:
+                # A Sobol' channel: one row of values per message, one value per dimension.
+                columns = [[row[j] for row in entry["values"]] for j in range(len(names))]
+            else:
+                columns = [entry[n] for n in names]
             for i, (message, value) in enumerate(got):
                 t = entry["time"][i]
                 stamp_ns = value.header.stamp.sec * NANOS_PER_SECOND + value.header.stamp.nanosec

@@ -17,6 +17,8 @@ import math
 import numpy as np
 import pinocchio as pin
 
+from pin_dynamics import fnv1a64  # the same hash as tests/common/mod.rs
+
 
 def angles(model, q):
     out = {}
@@ -74,6 +76,7 @@ def main():
 
     result = {
         "urdf": args.urdf,
+        "urdf_fnv1a64": fnv1a64(open(args.urdf, "rb").read()),
         "gravity": [float(x) for x in args.gravity.split(",")],
         "method": "pinocchio aba + RK4",
         "pinocchio": pin.__version__,

@@ -92,4 +92,16 @@ pub enum McapError {
         /// What is wrong with it.
         message: String,
     },
+    /// A Sobol' message whose values do not match the channel's dimensions.
+    #[error("{}: {topic}: {got} Sobol' indices for {expected} dimensions", .path.display())]
+    SobolLength {
+        /// The output file.
+        path: PathBuf,
+        /// The channel's topic.
+        topic: String,
+        /// Dimensions the channel names.
+        expected: usize,
+        /// Values given.
+        got: usize,
+    },
 }

@@ -5,6 +5,9 @@
 //! - per output, topic `/ribbon/envelope/<parts joined by '/'>` (see [`OutputName`]): ROS 2
 //!   `sensor_msgs/msg/JointState` in CDR with `name = ["lower", "nominal", "upper"]` and the
 //!   values in `position`; an error estimate on `/ribbon/error/…` with `name = ["estimate"]`;
+//! - for surrogate studies, per output the main and total Sobol' indices on
+//!   `/ribbon/sobol/main/…` and `/ribbon/sobol/total/…`, one JointState series per dimension of
+//!   the box (`name` = the dimensions' names, docs/mcap.md §1);
 //! - `/tf`: `foxglove.FrameTransforms` (protobuf), child frame = link name, parent = its parent
 //!   link in the URDF tree (`world` for the root);
 //! - `/robot_description`: the URDF text once at t = 0 as `std_msgs/msg/String`;
@@ -48,6 +51,8 @@ use std::path::{Path, PathBuf};
 pub const ENVELOPE_PREFIX: &str = "/ribbon/envelope/";
 /// Topic prefix of the error-estimate channels.
 pub const ERROR_PREFIX: &str = "/ribbon/error/";
+/// Topic prefix of the Sobol' index channels (then `main/` or `total/` and the output's parts).
+pub const SOBOL_PREFIX: &str = "/ribbon/sobol/";
 /// Topic of the nominal frames.
 pub const TF_TOPIC: &str = "/tf";
 /// Topic of the URDF text.
@@ -120,11 +125,35 @@ pub struct EnvelopeChannel(usize);
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ErrorChannel(usize);
 
+/// Handle of a Sobol' index channel, from [`McapSink::add_sobol_channel`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SobolChannel(usize);
+
+/// Which Sobol' index a channel carries (docs/sobol-indices.md §1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SobolIndexKind {
+    /// The main (first-order) index: the share of the variance from one dimension alone.
+    Main,
+    /// The total index: the share of the variance from every term involving a dimension.
+    Total,
+}
+
+impl SobolIndexKind {
+    /// `main` or `total`: the topic part and the channel metadata's `index`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SobolIndexKind::Main => "main",
+            SobolIndexKind::Total => "total",
+        }
+    }
+}
+
 /// What a registered channel carries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum ChannelKind {
     Envelope,
     Error,
+    Sobol,
     Tf,
     RobotDescription,
 }
@@ -179,6 +208,9 @@ pub struct McapSink {
     joint_state_schema: u16,
     /// Every channel; handles index into it.
     channels: Vec<Channel>,
+    /// The series names of every Sobol' channel: the box's dimensions, in order (set by the first
+    /// [`add_sobol_channel`](McapSink::add_sobol_channel)).
+    sobol_dimensions: Vec<String>,
     topics: HashSet<String>,
     /// Set when `finish` has renamed the file: nothing left to clean up.
     finished: bool,
@@ -223,6 +255,7 @@ impl McapSink {
             extra_metadata: BTreeMap::new(),
             joint_state_schema: 0,
             channels: Vec::new(),
+            sobol_dimensions: Vec::new(),
             topics: HashSet::new(),
             finished: false,
         };
@@ -323,6 +356,67 @@ impl McapSink {
     ) -> Result<ErrorChannel, McapError> {
         self.add_joint_state_channel(ChannelKind::Error, ERROR_PREFIX, &name.into(), unit)
             .map(ErrorChannel)
+    }
+
+    /// Registers an output's Sobol' index channel (docs/mcap.md §1): topic
+    /// `/ribbon/sobol/{main|total}/<parts joined by '/'>`, `sensor_msgs/msg/JointState` with one
+    /// name per dimension of the box (`dimensions`, the same for every Sobol' channel of the
+    /// file), unitless. The channel metadata holds `output`, `unit` (empty), `group` as for
+    /// [`add_output`](Self::add_output), and `index` (`main` or `total`).
+    ///
+    /// Errors: as [`add_output`](Self::add_output); `dimensions` differing from an earlier Sobol'
+    /// channel's ([`McapError::SobolLength`]).
+    pub fn add_sobol_channel(
+        &mut self,
+        kind: SobolIndexKind,
+        name: impl Into<OutputName>,
+        dimensions: &[String],
+    ) -> Result<SobolChannel, McapError> {
+        let name = name.into();
+        let prefix = format!("{SOBOL_PREFIX}{}/", kind.name());
+        if self.sobol_dimensions.is_empty() {
+            self.sobol_dimensions = dimensions.to_vec();
+        } else if self.sobol_dimensions != dimensions {
+            return Err(McapError::SobolLength {
+                path: self.path.clone(),
+                topic: format!("{prefix}{}", name.topic_suffix()),
+                expected: self.sobol_dimensions.len(),
+                got: dimensions.len(),
+            });
+        }
+        let index = self.add_joint_state_channel_with(
+            ChannelKind::Sobol,
+            &prefix,
+            &name,
+            "",
+            Some(("index", kind.name())),
+        )?;
+        Ok(SobolChannel(index))
+    }
+
+    /// Writes one output's Sobol' indices (one per dimension, in the channel's order) at
+    /// simulation time `time_s` (s from 0).
+    pub fn write_sobol(
+        &mut self,
+        channel: SobolChannel,
+        time_s: f64,
+        indices: &[f64],
+    ) -> Result<(), McapError> {
+        self.check_handle(channel.0, ChannelKind::Sobol)?;
+        if indices.len() != self.sobol_dimensions.len() {
+            return Err(McapError::SobolLength {
+                path: self.path.clone(),
+                topic: self.channels[channel.0].topic.clone(),
+                expected: self.sobol_dimensions.len(),
+                got: indices.len(),
+            });
+        }
+        let names = std::mem::take(&mut self.sobol_dimensions);
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        let result = self.write_joint_state(channel.0, time_s, &refs, indices);
+        drop(refs);
+        self.sobol_dimensions = names;
+        result
     }
 
     /// Writes one envelope sample at simulation time `time_s` (s from 0).
@@ -565,6 +659,18 @@ impl McapSink {
         name: &OutputName,
         unit: &str,
     ) -> Result<usize, McapError> {
+        self.add_joint_state_channel_with(kind, prefix, name, unit, None)
+    }
+
+    /// [`add_joint_state_channel`](Self::add_joint_state_channel) with one more metadata entry.
+    fn add_joint_state_channel_with(
+        &mut self,
+        kind: ChannelKind,
+        prefix: &str,
+        name: &OutputName,
+        unit: &str,
+        extra: Option<(&str, &str)>,
+    ) -> Result<usize, McapError> {
         if name.has_empty_part() {
             return Err(McapError::BadOutputName {
                 path: self.path.clone(),
@@ -572,7 +678,7 @@ impl McapSink {
             });
         }
         let topic = format!("{prefix}{}", name.topic_suffix());
-        let metadata = BTreeMap::from([
+        let mut metadata = BTreeMap::from([
             ("output".to_string(), name.name()),
             ("unit".to_string(), unit.to_string()),
             (
@@ -580,6 +686,9 @@ impl McapSink {
                 crate::output::viewer::view_group(name.parts()).title,
             ),
         ]);
+        if let Some((key, value)) = extra {
+            metadata.insert(key.to_string(), value.to_string());
+        }
         self.add_channel(kind, self.joint_state_schema, &topic, "cdr", metadata)
     }
 

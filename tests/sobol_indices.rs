@@ -1,0 +1,153 @@
+//! Sobol' indices of a study on a shipped robot (docs/sobol-indices.md): the ur5 with its shipped
+//! box (a free symbol `s` that `[bind]` spreads over every link's mass and inertia, and the
+//! payload's mass and height: d = 3), `legendre-scan` on the tensor grid. The study's indices are
+//! checked against
+//! - the same surrogate fitted here from independent runs (`simulate` at every design point, one
+//!   by one, outside the lock-step engine), and a Saltelli/Jansen Monte Carlo estimate on it
+//!   (within 1 % on the index scale);
+//! - the index inequalities at every output and record time: Σ main ≤ 1, main ≤ total ≤ 1.
+
+use ribbon::analysis::{DesignKind, Method, Study, StudyOptions};
+use ribbon::model::{LoadOptions, Model};
+use ribbon::scene::{read_sidecar, Scene, SceneOverrides};
+use ribbon::simulate::simulate;
+use ribbon::uncertainty::ParameterSpace;
+use ribbon::uq::{sobol_indices_monte_carlo, Design, Family, Projector, Surrogate, Truncation};
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+/// The Monte Carlo estimate's agreement with the coefficients' indices (the "within 1 %":
+/// 0.01 on the index scale [0, 1]).
+const MONTE_CARLO_TOL: f64 = 0.01;
+/// Monte Carlo pairs (quasi-random, d + 2 surrogate evaluations each).
+const MONTE_CARLO_SAMPLES: usize = 1 << 15;
+/// The study's indices against the ones fitted here from separate runs: the same design, the same
+/// projection; the runs may differ in the last bits (lock-step vs one at a time), not more.
+const SAME_SURROGATE_TOL: f64 = 1e-9;
+/// Rounding allowance of the inequalities.
+const ROUNDING: f64 = 1e-12;
+/// Polynomial order of the study.
+const ORDER: usize = 4;
+
+#[test]
+fn ur5_study_indices_match_a_refit_and_a_monte_carlo_estimate() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let (sidecar, _) = read_sidecar(&root.join("robots/ur5/ur5.uncertainty.toml")).unwrap();
+    let mut model =
+        Model::from_urdf_file(&root.join("robots/ur5/ur5.urdf"), LoadOptions::default()).unwrap();
+    let overrides = SceneOverrides {
+        duration_s: Some(0.5),
+        ..SceneOverrides::default()
+    };
+    let scene = Scene::resolve(&sidecar, &model, "ur5 sidecar", overrides).unwrap();
+    scene.apply_gravity(&mut model);
+    let space = ParameterSpace::from_sidecar(&sidecar, &model, "ur5 sidecar").unwrap();
+    let d = space.len();
+    assert_eq!(d, 3, "the shipped box: s, the payload mass and its height");
+
+    let study = Study {
+        model: model.clone(),
+        scene: &scene,
+        space: &space,
+        options: StudyOptions {
+            method: Method::LegendreScan,
+            order: ORDER,
+            truncation: Truncation::Tensor,
+            design: DesignKind::Tensor,
+            max_runs: 10_000,
+            grid: 21,
+            scan_grid: None,
+            samples: 0,
+            seed: 0,
+            threads: 2,
+            keep_going: false,
+            check_runs: Some(0),
+        },
+    };
+    let report = study
+        .run(&AtomicBool::new(false), &mut |_| {}, &mut |_| Ok(()))
+        .unwrap();
+    let sobol = report
+        .sobol
+        .as_ref()
+        .expect("a surrogate study has indices");
+    let records = report.envelope.times.len();
+    assert_eq!(sobol.records(), records);
+    assert_eq!(sobol.n_outputs(), scene.outputs.len());
+
+    // The inequalities everywhere.
+    let mut moving = 0;
+    for k in 0..records {
+        for o in 0..scene.outputs.len() {
+            let (main, total) = (sobol.main(k, o), sobol.total(k, o));
+            let sum: f64 = main.iter().sum();
+            assert!(sum <= 1.0 + ROUNDING, "record {k} output {o}: Σ main {sum}");
+            for j in 0..d {
+                assert!(
+                    main[j] >= 0.0 && total[j] + ROUNDING >= main[j] && total[j] <= 1.0 + ROUNDING,
+                    "record {k} output {o} dimension {j}: main {} total {}",
+                    main[j],
+                    total[j]
+                );
+            }
+            if sobol.variance(k, o) > 0.0 {
+                moving += 1;
+            }
+        }
+    }
+    assert!(moving > records, "the box moves the outputs: {moving}");
+
+    // Independent runs at the design points, one at a time.
+    let design = Design::new(Family::Legendre, d, ORDER, Truncation::Tensor).unwrap();
+    let points = design.points();
+    let runs: Vec<_> = points
+        .chunks_exact(d)
+        .map(|xi| {
+            let mut m = model.clone();
+            space.apply(&mut m, xi);
+            simulate(m, &scene).unwrap()
+        })
+        .collect();
+    let projector = Projector::new(design.clone()).unwrap();
+    let names: Vec<&str> = scene.outputs.iter().map(|o| o.name.as_str()).collect();
+    let last = records - 1;
+    let mut compared = 0;
+    for output in ["frame.tool0.z", "q.shoulder_lift_joint", "q.wrist_1_joint"] {
+        let o = names
+            .iter()
+            .position(|n| *n == output)
+            .unwrap_or_else(|| panic!("output {output} in {names:?}"));
+        let values: Vec<f64> = runs.iter().map(|run| run.values[o][last]).collect();
+        let matrix = projector.fit(&values, 1).unwrap();
+        let surrogate = Surrogate::from_matrix(&design, &matrix, 0).unwrap();
+        let exact = surrogate.sobol_indices().unwrap();
+        for j in 0..d {
+            assert!(
+                (exact.main[j] - sobol.main(last, o)[j]).abs() < SAME_SURROGATE_TOL
+                    && (exact.total[j] - sobol.total(last, o)[j]).abs() < SAME_SURROGATE_TOL,
+                "{output} dimension {j}: refit {:?} / {:?}, study {:?} / {:?}",
+                exact.main,
+                exact.total,
+                sobol.main(last, o),
+                sobol.total(last, o)
+            );
+        }
+        let estimate =
+            sobol_indices_monte_carlo(d, MONTE_CARLO_SAMPLES, 3, |xi| surrogate.eval(xi).unwrap())
+                .unwrap();
+        let worst = (0..d)
+            .map(|j| {
+                (estimate.main[j] - exact.main[j])
+                    .abs()
+                    .max((estimate.total[j] - exact.total[j]).abs())
+            })
+            .fold(0.0, f64::max);
+        println!(
+            "{output} at t = {} s: main {:?}, total {:?}; Monte Carlo main {:?}, total {:?}; largest difference {worst:.2e}",
+            report.envelope.times[last], exact.main, exact.total, estimate.main, estimate.total
+        );
+        assert!(worst < MONTE_CARLO_TOL, "{output}: {worst}");
+        compared += 1;
+    }
+    assert_eq!(compared, 3);
+}
