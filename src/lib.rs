@@ -27,6 +27,7 @@ pub mod constraints;
 pub mod dynamics;
 pub mod effects;
 mod error;
+pub mod geometry;
 pub mod integrate;
 pub mod interrupt;
 pub mod model;
