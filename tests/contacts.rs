@@ -465,3 +465,39 @@ fn contact_sizes_and_material_are_parameters() {
         .to_string();
     assert!(message.contains("has no length"), "{message}");
 }
+
+#[test]
+fn adaptive_step_shortens_fast_touch_downs_but_not_deep_rest() {
+    // A 4.4 m/s touch-down penetrates ~4 mm in one 1 ms step; the scene allows 0.1 mm of growth per
+    // sub-step, so the adaptive step must shorten the steps around the impact. At rest the ball sits
+    // 0.46 mm deep — deeper than the allowance — which must not stop it from stepping on.
+    let urdf = slider_urdf(r#"<sphere radius="0.1"/>"#, false);
+    let sidecar = r#"[scene]
+duration = 3.0
+step = 1e-3
+step_control = "adaptive"
+initial.q = { z = 1.1 }
+[scene.contact]
+pairs = [["body", "ground"]]
+damping = 2.0
+max_penetration = 1e-4
+[[scene.geometry]]
+name = "ground"
+type = "halfspace"
+[outputs]
+velocities = true
+"#;
+    let trajectory = run(&urdf, sidecar);
+    let z = *column(&trajectory, "q.z").last().unwrap();
+    let v = *column(&trajectory, "v.z").last().unwrap();
+    let rest = 0.1 - resting_depth(ribbon::geometry::DEFAULT_CONTACT_STIFFNESS, 1.0);
+    eprintln!(
+        "adaptive touch-down: {} state rejections, {} sub-steps; rest at {z:.7} m (equilibrium {rest:.7}), v {v:.2e}",
+        trajectory.stats.state_rejections, trajectory.stats.substeps
+    );
+    assert!(trajectory.stats.state_rejections > 0);
+    assert!(
+        (z - rest).abs() < 1e-5 && v.abs() < 1e-4,
+        "{z} vs {rest}, v {v}"
+    );
+}

@@ -10,9 +10,7 @@
 //! queries ran.
 
 use crate::dynamics::{add_external_forces, drift_kinematics, Data};
-use crate::geometry::{
-    contact_between, Attachment, ContactMaterial, ContactPoint, GeometryModel, PairTest,
-};
+use crate::geometry::{contact_between, ContactMaterial, ContactPoint, GeometryModel, PairTest};
 use crate::model::Model;
 use crate::spatial::{Force, Mat3, Vec3};
 use nalgebra::DMatrix;
@@ -114,6 +112,9 @@ pub struct Contacts {
     touching: Vec<bool>,
     /// Whether each pair touches now, work buffer of [`Contacts::observe`].
     touching_now: Vec<bool>,
+    /// Whether any pair passed the bounding-sphere test at the last force evaluation: when none
+    /// did, the Newton coupling is zero and is not computed.
+    near: bool,
 }
 
 impl Contacts {
@@ -126,6 +127,7 @@ impl Contacts {
             stats: ContactStats::default(),
             touching: vec![false; n_pairs],
             touching_now: vec![false; n_pairs],
+            near: true,
         }
     }
 
@@ -147,11 +149,10 @@ impl Contacts {
         data: &Data,
         k: usize,
     ) -> Option<ContactPoint> {
-        let pair = geometry.pairs[k];
+        let pair = &geometry.pairs[k];
         stats.pair_tests += 1;
-        let placed = |x: Attachment| geometry.placed(model, &data.world_from_body, x);
-        let (Ok((shape_a, world_from_a)), Ok((shape_b, world_from_b))) =
-            (placed(pair.a), placed(pair.b))
+        let Ok([(shape_a, world_from_a), (shape_b, world_from_b)]) =
+            geometry.placed_pair(model, &data.world_from_body, pair)
         else {
             // Sizes moved outside the valid range by a parameter: no contact (the parameter
             // check refuses such boxes before a run; this keeps a stray evaluation from panicking).
@@ -187,6 +188,10 @@ impl Contacts {
     }
 
     /// The active contacts at `(q, v)`: calls `visit(pair, contact, force)` for each touching pair.
+    /// With `from_rnea`, `data` already holds RNEA's `parent_from_body` and body velocities at
+    /// `(q, v)` and only the world placements are composed from them (cheap); otherwise a
+    /// kinematics pass computes everything.
+    #[allow(clippy::too_many_arguments)]
     fn for_each_contact(
         geometry: &GeometryModel,
         stats: &mut ContactStats,
@@ -194,12 +199,22 @@ impl Contacts {
         data: &mut Data,
         q: &[f64],
         v: &[f64],
+        from_rnea: bool,
         mut visit: impl FnMut(&Data, usize, &ContactPoint, &ContactForce),
     ) {
         let Some(material) = model.contact else {
             return;
         };
-        drift_kinematics(model, data, q, v);
+        if from_rnea {
+            for (i, joint) in model.joints.iter().enumerate() {
+                data.world_from_body[i] = match joint.parent {
+                    Some(p) => data.world_from_body[p].compose(&data.parent_from_body[i]),
+                    None => data.parent_from_body[i],
+                };
+            }
+        } else {
+            drift_kinematics(model, data, q, v);
+        }
         for k in 0..geometry.pairs.len() {
             let Some(contact) = Self::test_pair(geometry, stats, model, data, k) else {
                 continue;
@@ -214,8 +229,9 @@ impl Contacts {
         }
     }
 
-    /// Adds the contacts' generalised forces to `out` (`q: dim nq`, `v, out: dim nv`). Overwrites
-    /// the kinematic buffers of `data`.
+    /// Adds the contacts' generalised forces to `out` (`q: dim nq`, `v, out: dim nv`). `data` must
+    /// hold RNEA's kinematics at `(q, v)` (`rnea` or `nonlinear_effects` just before, as every
+    /// residual does); overwrites `data.world_from_body`.
     pub(super) fn add_forces(
         &mut self,
         model: &Model,
@@ -228,8 +244,10 @@ impl Contacts {
             geometry,
             stats,
             external,
+            near,
             ..
         } = self;
+        let narrow_before = stats.narrow_queries;
         external.fill(Force::zero());
         let mut any = false;
         Self::for_each_contact(
@@ -239,6 +257,7 @@ impl Contacts {
             data,
             q,
             v,
+            true,
             |data, k, contact, force| {
                 let pair = geometry.pairs[k];
                 if let Some(a) = GeometryModel::body_of(model, pair.a) {
@@ -251,6 +270,7 @@ impl Contacts {
                 }
             },
         );
+        *near = stats.narrow_queries > narrow_before;
         if any {
             add_external_forces(model, &data.parent_from_body, external, out);
         }
@@ -291,6 +311,12 @@ impl Contacts {
         stiffness: &mut DMatrix<f64>,
         damping: &mut DMatrix<f64>,
     ) {
+        if !self.near {
+            // No pair was within its bounding spheres at the last force evaluation (the previous
+            // iterate): the coupling is zero there, and a touch-down since then is caught by the
+            // refresh of a failing Newton pass, which evaluates forces first.
+            return;
+        }
         let Self {
             geometry,
             stats,
@@ -304,6 +330,7 @@ impl Contacts {
             data,
             q,
             v,
+            false,
             |data, k, contact, force| {
                 let pair = geometry.pairs[k];
                 jacobian.fill(0.0);
@@ -347,11 +374,15 @@ impl Contacts {
             ..
         } = self;
         touching_now.fill(false);
+        let _ = v;
+        crate::dynamics::forward_kinematics(model, data, q);
         let mut deepest = 0.0f64;
-        Self::for_each_contact(geometry, stats, model, data, q, v, |_, k, contact, _| {
-            touching_now[k] = true;
-            deepest = deepest.max(contact.depth);
-        });
+        for (k, now) in touching_now.iter_mut().enumerate() {
+            if let Some(contact) = Self::test_pair(geometry, stats, model, data, k) {
+                *now = true;
+                deepest = deepest.max(contact.depth);
+            }
+        }
         for (before, after) in touching.iter_mut().zip(touching_now.iter()) {
             match (*before, *after) {
                 (false, true) => stats.made += 1,

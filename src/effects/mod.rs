@@ -172,8 +172,10 @@ impl Effects {
         }
     }
 
-    /// Adds the effects' generalised forces to `out` (`q: dim nq`, `v, out: dim nv`). With contacts
-    /// it overwrites the kinematic buffers of `data` (placements and velocities at `(q, v)`).
+    /// Adds the effects' generalised forces to `out` (`q: dim nq`, `v, out: dim nv`). With contacts,
+    /// `data` must hold RNEA's kinematics at `(q, v)` (call [`crate::dynamics::rnea`] or
+    /// [`crate::dynamics::nonlinear_effects`] at the same `q`, `v` just before, as every residual
+    /// does); contacts overwrite `data.world_from_body`.
     pub fn add_forces(
         &mut self,
         model: &Model,

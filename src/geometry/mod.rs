@@ -89,6 +89,9 @@ pub enum Shape {
     HalfSpace,
 }
 
+/// A shape with its placement in the world frame.
+pub type PlacedShape = (Shape, Transform);
+
 /// A fixed shape of the scene (`[[scene.geometry]]`), placed in the world frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneObject {
@@ -116,12 +119,16 @@ pub enum Attachment {
 }
 
 /// One pair of shapes that may touch: `a` is always on a link, `b` on a link or in the scene.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ContactPair {
     /// The first shape (on a link).
     pub a: Attachment,
     /// The second shape.
     pub b: Attachment,
+    /// `a`'s shape frame in its link frame (its `<collision><origin>`; not a parameter, so kept).
+    pub link_from_a: Transform,
+    /// `b`'s shape frame in its link frame, or in the world for a scene shape.
+    pub link_from_b: Transform,
 }
 
 /// The shapes and pairs of one scene; only [`GeometryModel::pairs`] are ever queried.
@@ -272,7 +279,12 @@ impl GeometryModel {
                             ));
                         }
                     }
-                    let pair = ContactPair { a: *x, b: *y };
+                    let pair = ContactPair {
+                        a: *x,
+                        b: *y,
+                        link_from_a: out.frame_of(model, *x),
+                        link_from_b: out.frame_of(model, *y),
+                    };
                     if !supported(&out.shape_of(model, *x)?, &out.shape_of(model, *y)?) {
                         return Err(bad(&format!(
                             "parry cannot compute contacts between {} and {}",
@@ -318,6 +330,44 @@ impl GeometryModel {
         Ok((0..n)
             .map(|collision| Attachment::Link { link, collision })
             .collect())
+    }
+
+    /// The shape frame of `attachment` in its link frame (a scene shape: in the world frame).
+    fn frame_of(&self, model: &Model, attachment: Attachment) -> Transform {
+        match attachment {
+            Attachment::Scene(i) => self.scene[i].world_from_shape,
+            Attachment::Link { link, collision } => link_from_collision(model, link, collision),
+        }
+    }
+
+    /// Shape and world placement of both sides of `pair` (see [`GeometryModel::placed`]), with
+    /// the pair's stored shape frames.
+    pub fn placed_pair(
+        &self,
+        model: &Model,
+        world_from_body: &[Transform],
+        pair: &ContactPair,
+    ) -> Result<[PlacedShape; 2], GeometryError> {
+        let side = |attachment: Attachment,
+                    frame: &Transform|
+         -> Result<(Shape, Transform), GeometryError> {
+            match attachment {
+                Attachment::Scene(i) => Ok((self.scene[i].shape, *frame)),
+                Attachment::Link { link, collision } => {
+                    let shape = link_shape(model, link, collision)?;
+                    let placement = &model.links[link];
+                    let world_from_link = match placement.body {
+                        Some(b) => world_from_body[b].compose(&placement.body_from_link),
+                        None => placement.body_from_link,
+                    };
+                    Ok((shape, world_from_link.compose(frame)))
+                }
+            }
+        };
+        Ok([
+            side(pair.a, &pair.link_from_a)?,
+            side(pair.b, &pair.link_from_b)?,
+        ])
     }
 
     /// The shape of `attachment` at the model's current sizes.

@@ -719,7 +719,7 @@ impl HhtIntegrator {
                     ADAPTIVE_MAX_GROWTH
                 };
                 let rejection = system
-                    .state_rejection(t1, &self.ws.q)
+                    .state_rejection(t1, &self.state.q, &self.ws.q)
                     .map_err(At { t: t1, step }.system_error("state_rejection"))?;
                 if rejection > 1.0 && h > h_min * (1.0 + 1e-12) {
                     plain = false;

@@ -210,13 +210,19 @@ pub trait DaeSystem {
     }
 
     /// A state check of the adaptive step (docs/step-control.md §3, docs/contacts.md §4): a value
-    /// above 1 at the end of a sub-step makes [`StepControl::Adaptive`](super::StepControl) reject
-    /// it and retry with half the step (down to the smallest sub-step), e.g. a contact that
-    /// penetrates deeper than the scene allows. Default 0 (every state acceptable).
+    /// above 1 for a sub-step from `q_start` to `q_end` makes
+    /// [`StepControl::Adaptive`](super::StepControl) reject it and retry with half the step (down
+    /// to the smallest sub-step), e.g. a contact whose penetration grew by more than the scene
+    /// allows in one sub-step (a fast touch-down). Default 0 (every sub-step acceptable).
     ///
-    /// - `t`: s; `q`: dim `nq`; returns a unitless ratio ≥ 0.
-    fn state_rejection(&mut self, t: f64, q: &DVector<f64>) -> Result<f64, SystemError> {
-        let _ = (t, q);
+    /// - `t`: s (end of the sub-step); `q_start`, `q_end`: dim `nq`; returns a ratio ≥ 0.
+    fn state_rejection(
+        &mut self,
+        t: f64,
+        q_start: &DVector<f64>,
+        q_end: &DVector<f64>,
+    ) -> Result<f64, SystemError> {
+        let _ = (t, q_start, q_end);
         Ok(0.0)
     }
 

@@ -7,9 +7,10 @@ use crate::model::Model;
 use crate::sidecar::{ContactSection, GeometrySection};
 use crate::spatial::Transform;
 
-/// Default of `[scene.contact] max_penetration`, m: the adaptive step rejects a sub-step that ends
-/// deeper (10 mm: 50 times the resting depth of 1 kg on the default stiffness).
-pub const DEFAULT_MAX_PENETRATION_M: f64 = 1e-2;
+/// Default of `[scene.contact] max_penetration`, m: the adaptive step rejects a sub-step over which
+/// the deepest penetration grows by more (1 mm: twice the resting depth of 1 kg on the default
+/// stiffness; a 1 m/s touch-down penetrates 1 mm in one 1 ms step).
+pub const DEFAULT_MAX_PENETRATION_M: f64 = 1e-3;
 
 /// The scene's contacts, resolved.
 #[derive(Clone, Debug, PartialEq)]
@@ -18,7 +19,7 @@ pub struct SceneContacts {
     pub geometry: GeometryModel,
     /// The material (nominal values; parameters `scene.contact.*` override them in the model).
     pub material: ContactMaterial,
-    /// Adaptive step: the deepest penetration a sub-step may end with, m.
+    /// Adaptive step: the largest growth of the deepest penetration over one sub-step, m.
     pub max_penetration_m: f64,
 }
 

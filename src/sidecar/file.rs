@@ -87,7 +87,8 @@ pub struct ContactSection {
     pub friction: Option<f64>,
     /// Stiction velocity of the regularised friction, m/s.
     pub stiction_velocity: Option<f64>,
-    /// Adaptive step only: a sub-step that ends deeper than this is rejected, m.
+    /// Adaptive step only: a sub-step over which the deepest penetration grows by more than this
+    /// is rejected, m.
     pub max_penetration: Option<f64>,
 }
 

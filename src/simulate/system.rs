@@ -26,8 +26,8 @@ pub struct RobotSystem {
     /// The scene's constraint rows.
     pub constraints: ConstraintSet,
     has_floating_joint: bool,
-    /// Adaptive step: the deepest contact penetration a sub-step may end with, m (∞ without
-    /// contacts or with the fixed step).
+    /// Adaptive step: the largest growth of the deepest contact penetration over one sub-step, m
+    /// (∞ without contacts or with the fixed step).
     max_penetration_m: f64,
     /// The parameters `p_k` of the forward sensitivities (none unless
     /// [`RobotSystem::set_parameter_directions`] was called).
@@ -406,16 +406,25 @@ impl DaeSystem for RobotSystem {
         Ok(())
     }
 
-    /// The deepest contact penetration over `[scene.contact] max_penetration` (adaptive step only;
-    /// 0 otherwise).
-    fn state_rejection(&mut self, _t: f64, q: &DVector<f64>) -> Result<f64, SystemError> {
+    /// How much deeper the deepest contact got over the sub-step, over `[scene.contact]
+    /// max_penetration` (adaptive step only; 0 otherwise). Growth, not depth: a contact resting
+    /// deep under a heavy load is not a reason to shorten steps, a fast touch-down is.
+    fn state_rejection(
+        &mut self,
+        _t: f64,
+        q_start: &DVector<f64>,
+        q_end: &DVector<f64>,
+    ) -> Result<f64, SystemError> {
         if !self.max_penetration_m.is_finite() {
             return Ok(0.0);
         }
-        let depth = self
+        let before =
+            self.effects
+                .deepest_penetration(&self.model, &mut self.data, q_start.as_slice());
+        let after = self
             .effects
-            .deepest_penetration(&self.model, &mut self.data, q.as_slice());
-        Ok(depth / self.max_penetration_m)
+            .deepest_penetration(&self.model, &mut self.data, q_end.as_slice());
+        Ok((after - before).max(0.0) / self.max_penetration_m)
     }
 
     fn n_events(&self) -> usize {
