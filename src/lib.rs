@@ -32,6 +32,7 @@ pub mod distributed;
 pub mod dynamics;
 pub mod effects;
 mod error;
+pub mod geometry;
 pub mod integrate;
 pub mod interrupt;
 pub mod model;

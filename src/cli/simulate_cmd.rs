@@ -198,6 +198,8 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
             "impacts": s.impacts,
             "stiff_predictions": s.stiff_predictions,
             "partial": trajectory.partial,
+            "state_rejections": s.state_rejections,
+            "contacts": trajectory.contacts,
         }),
         sobol_indices: None,
     }

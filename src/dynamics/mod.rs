@@ -29,7 +29,7 @@ pub use derivatives::{
     InertialField, RneaDerivatives,
 };
 pub use kinematics::{drift_kinematics, forward_kinematics, frame_placements};
-pub use rnea::{nonlinear_effects, rnea};
+pub use rnea::{add_external_forces, nonlinear_effects, rnea, rnea_with_external};
 
 use crate::model::Model;
 use thiserror::Error;

@@ -84,3 +84,58 @@ fn backward(
         }
     }
 }
+
+/// Inverse dynamics with external wrenches: `data.tau = M(q) q̈ + C(q, v) v + g(q) − Σ_i J_iᵀ f_i`,
+/// where `external[i]` is the wrench applied to body `i` by its surroundings, in body `i`'s frame
+/// about its origin (Featherstone §5.3: `f_i = I_i a_i + v_i ×* I_i v_i − f_i^ext`).
+///
+/// `q: dim nq`, `v, qdd: dim nv`, `external`: one per body. Overwrites the same buffers as
+/// [`rnea`]; returns `data.tau`. With every external wrench zero the result is [`rnea`]'s.
+pub fn rnea_with_external<'a>(
+    model: &Model,
+    data: &'a mut Data,
+    q: &[f64],
+    v: &[f64],
+    qdd: &[f64],
+    external: &[crate::spatial::Force],
+) -> &'a [f64] {
+    run(model, data, q, v, Some(qdd));
+    for (f, e) in data.force.iter_mut().zip(external) {
+        *f = *f - *e;
+    }
+    let Data {
+        parent_from_body,
+        force,
+        tau,
+        ..
+    } = data;
+    backward(model, parent_from_body, force, tau.as_mut_slice());
+    data.tau.as_slice()
+}
+
+/// Adds the generalised forces `Σ_i J_iᵀ f_i` of external wrenches to `out` (dim nv): RNEA's
+/// backward pass with the external wrenches as the only body forces. `external[i]` is body `i`'s
+/// wrench in its own frame; it is consumed (wrenches accumulate into parents). `parent_from_body`
+/// must be the placements at the current `q` (any kinematics pass writes them).
+pub fn add_external_forces(
+    model: &Model,
+    parent_from_body: &[crate::spatial::Transform],
+    external: &mut [crate::spatial::Force],
+    out: &mut [f64],
+) {
+    let mut projected = [0.0; 6];
+    for (i, joint) in model.joints.iter().enumerate().rev() {
+        let nv = joint.nv();
+        joint.project_force(&external[i], &mut projected[..nv]);
+        for (o, p) in out[joint.v_index..joint.v_index + nv]
+            .iter_mut()
+            .zip(&projected[..nv])
+        {
+            *o += p;
+        }
+        if let Some(p) = joint.parent {
+            let in_parent = parent_from_body[i].act_force(&external[i]);
+            external[p] += in_parent;
+        }
+    }
+}

@@ -9,18 +9,22 @@
 //! Values that parameters can change (URDF damping, friction, limits) are read from the model at each
 //! evaluation, so a sample's parameter values take effect without re-assembly.
 
+mod contact;
 mod damping;
 mod friction;
 mod limits;
 mod springs;
 
+pub use contact::{contact_force, ContactForce, ContactStats};
 pub use friction::FRICTION_SMOOTHING_VELOCITY;
 pub use limits::{
     LimitEvent, LimitSide, JOINT_LIMIT_DAMPING, JOINT_LIMIT_DAMPING_DEPTH, JOINT_LIMIT_STIFFNESS,
 };
 
+use crate::dynamics::Data;
 use crate::model::{JointKind, Model};
 use crate::scene::Scene;
+use nalgebra::DMatrix;
 
 /// A 1-dof joint an effect acts on: its coordinates and its URDF joint.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,6 +57,7 @@ pub struct Effects {
     friction: Option<friction::JointFriction>,
     springs: Option<springs::JointSprings>,
     limits: Option<limits::JointLimits>,
+    contacts: Option<contact::Contacts>,
 }
 
 impl Effects {
@@ -71,6 +76,64 @@ impl Effects {
             limits: e
                 .joint_limits
                 .then(|| limits::JointLimits::new(model, &joints, scene.limit_restitution)),
+            contacts: scene
+                .contact
+                .as_ref()
+                .map(|c| contact::Contacts::new(model, c.geometry.clone())),
+        }
+    }
+
+    /// Whether the scene declares contacts (then the generalised forces couple joints: see
+    /// [`Effects::add_newton_matrices`]).
+    pub fn has_contacts(&self) -> bool {
+        self.contacts.is_some()
+    }
+
+    /// The contact counters so far (`None` without contacts).
+    pub fn contact_stats(&self) -> Option<ContactStats> {
+        self.contacts.as_ref().map(|c| c.stats())
+    }
+
+    /// The declared contact geometry (`None` without contacts).
+    pub fn contact_geometry(&self) -> Option<&crate::geometry::GeometryModel> {
+        self.contacts.as_ref().map(|c| c.geometry())
+    }
+
+    /// At an accepted state: counts contacts made and broken since the last call and returns the
+    /// deepest penetration, m (0 without contacts). Overwrites the kinematic buffers of `data`.
+    pub fn observe_contacts(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        q: &[f64],
+        v: &[f64],
+    ) -> f64 {
+        self.contacts
+            .as_mut()
+            .map_or(0.0, |c| c.observe(model, data, q, v))
+    }
+
+    /// The deepest penetration over the declared pairs at `q`, m (0 without contacts).
+    pub fn deepest_penetration(&mut self, model: &Model, data: &mut Data, q: &[f64]) -> f64 {
+        self.contacts
+            .as_mut()
+            .map_or(0.0, |c| c.deepest_penetration(model, data, q))
+    }
+
+    /// Adds the coupling terms of the effects that act on several joints at once — contacts:
+    /// `Jᵀ K J` to `stiffness` and `Jᵀ C J` to `damping` (nv × nv; docs/contacts.md §4). Nothing
+    /// without contacts. Overwrites the kinematic buffers of `data`.
+    pub fn add_newton_matrices(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        q: &[f64],
+        v: &[f64],
+        stiffness: &mut DMatrix<f64>,
+        damping: &mut DMatrix<f64>,
+    ) {
+        if let Some(c) = &mut self.contacts {
+            c.add_newton_matrices(model, data, q, v, stiffness, damping);
         }
     }
 
@@ -80,6 +143,7 @@ impl Effects {
             && self.friction.is_none()
             && self.springs.is_none()
             && self.limits.is_none()
+            && self.contacts.is_none()
     }
 
     /// Number of unilateral limit events (two per joint with finite limits when `joint_limits` is
@@ -108,8 +172,18 @@ impl Effects {
         }
     }
 
-    /// Adds the effects' generalised forces to `out` (`q: dim nq`, `v, out: dim nv`).
-    pub fn add_forces(&self, model: &Model, q: &[f64], v: &[f64], out: &mut [f64]) {
+    /// Adds the effects' generalised forces to `out` (`q: dim nq`, `v, out: dim nv`). With contacts,
+    /// `data` must hold RNEA's kinematics at `(q, v)` (call [`crate::dynamics::rnea`] or
+    /// [`crate::dynamics::nonlinear_effects`] at the same `q`, `v` just before, as every residual
+    /// does); contacts overwrite `data.world_from_body`.
+    pub fn add_forces(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        q: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
         if let Some(e) = &self.damping {
             e.add_forces(model, v, out);
         }
@@ -121,6 +195,9 @@ impl Effects {
         }
         if let Some(e) = &self.limits {
             e.add_forces(model, q, v, out);
+        }
+        if let Some(e) = &mut self.contacts {
+            e.add_forces(model, data, q, v, out);
         }
     }
 
@@ -179,16 +256,17 @@ mod tests {
 
     /// Central difference of the effects' force with respect to q (or v) at coordinate 0.
     fn numeric_derivative(
-        effects: &Effects,
+        effects: &mut Effects,
         model: &Model,
         q: f64,
         v: f64,
         of_velocity: bool,
     ) -> f64 {
         let h = 1e-7;
-        let eval = |dq: f64, dv: f64| {
+        let mut eval = |dq: f64, dv: f64| {
             let mut out = [0.0];
-            effects.add_forces(model, &[q + dq], &[v + dv], &mut out);
+            let mut data = Data::new(model);
+            effects.add_forces(model, &mut data, &[q + dq], &[v + dv], &mut out);
             out[0]
         };
         if of_velocity {
@@ -212,13 +290,13 @@ mod tests {
         let sidecar = "[scene]\neffects = [\"joint_damping\", \"joint_friction\", \"joint_springs\", \"joint_limits\"]\n\
                        [[scene.spring]]\njoint = \"hinge\"\nstiffness = 30.0\nrest = 0.2\ndamping = 1.5";
         let (model, scene) = setup(sidecar);
-        let effects = Effects::assemble(&model, &scene);
+        let mut effects = Effects::assemble(&model, &scene);
         // Inside the limits and beyond the upper one; slow and fast.
         for (q, v) in [(0.3, 0.004), (1.05, 0.5), (-1.2, -2.0)] {
             let (mut k, mut c) = ([0.0], [0.0]);
             effects.add_newton_diagonal(&model, &[q], &[v], &mut k, &mut c);
-            let k_numeric = numeric_derivative(&effects, &model, q, v, false);
-            let c_numeric = numeric_derivative(&effects, &model, q, v, true);
+            let k_numeric = numeric_derivative(&mut effects, &model, q, v, false);
+            let c_numeric = numeric_derivative(&mut effects, &model, q, v, true);
             assert!(
                 (k[0] - k_numeric).abs() <= 1e-5 * k_numeric.abs().max(1.0),
                 "k at {q}: {} vs {k_numeric}",

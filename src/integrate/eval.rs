@@ -102,6 +102,21 @@ pub(crate) fn newton_diagonal<S: DaeSystem + ?Sized>(
     at.check_finite("newton_diagonal.damping", damping.iter())
 }
 
+/// The coupling terms of [`DaeSystem::newton_coupling`], checked finite.
+pub(crate) fn newton_coupling<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    stiffness: &mut DMatrix<f64>,
+    damping: &mut DMatrix<f64>,
+) -> Result<(), IntegrateError> {
+    sys.newton_coupling(at.t, q, v, stiffness, damping)
+        .map_err(at.system_error("newton_coupling"))?;
+    at.check_finite("newton_coupling.stiffness", stiffness.iter())?;
+    at.check_finite("newton_coupling.damping", damping.iter())
+}
+
 /// `out (m) = Φ(q, t)`.
 pub(crate) fn constraints<S: DaeSystem + ?Sized>(
     sys: &mut S,

@@ -52,6 +52,9 @@ pub struct HhtState {
 pub struct HhtStats {
     /// Accepted steps.
     pub steps: u64,
+    /// Adaptive sub-steps rejected by the system's state check
+    /// ([`DaeSystem::state_rejection`]: a contact deeper than allowed) and retried at half size.
+    pub state_rejections: u64,
     /// Newton iterations (residual evaluations + solves), all passes.
     pub newton_iterations: u64,
     /// Factorisations of the Newton iteration matrix (one per step, plus refreshes).
@@ -718,6 +721,15 @@ impl HhtIntegrator {
                 } else {
                     ADAPTIVE_MAX_GROWTH
                 };
+                let rejection = system
+                    .state_rejection(t1, &self.state.q, &self.ws.q)
+                    .map_err(At { t: t1, step }.system_error("state_rejection"))?;
+                if rejection > 1.0 && h > h_min * (1.0 + 1e-12) {
+                    plain = false;
+                    self.stats.state_rejections += 1;
+                    self.control.h_next = 0.5 * h;
+                    continue;
+                }
                 if error > 1.0 {
                     if h > h_min * (1.0 + 1e-12) {
                         plain = false;
@@ -1164,6 +1176,25 @@ impl HhtIntegrator {
             1.0,
             &mut ws.matrix,
         );
+        if self.settings.newton_diagonal_terms && system.provides_newton_coupling() {
+            // Forces that couple joints (contacts): their Jacobians beside the diagonal ones,
+            // in the buffers of the full matrix (unused on this path).
+            eval::newton_coupling(
+                system,
+                at,
+                &ws.q,
+                &ws.v,
+                &mut ws.stiffness_full,
+                &mut ws.damping_full,
+            )?;
+            let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
+            for c in 0..self.nv {
+                for r in 0..self.nv {
+                    ws.matrix[(r, c)] +=
+                        beta_h2 * ws.stiffness_full[(r, c)] + gamma_h * ws.damping_full[(r, c)];
+                }
+            }
+        }
         ws.solver
             .factor(&ws.matrix)
             .map_err(|b| IntegrateError::SingularMatrix {

@@ -180,6 +180,52 @@ pub trait DaeSystem {
         Ok(())
     }
 
+    /// Whether [`newton_coupling`](Self::newton_coupling) adds anything. Default `false`.
+    fn provides_newton_coupling(&self) -> bool {
+        false
+    }
+
+    /// The parts of `−∂Q/∂q` and `−∂Q/∂q̇` that couple coordinates — forces acting on several
+    /// joints at once, such as contacts (`Jᵀ K J`, `Jᵀ C J`; docs/contacts.md §4) — which the
+    /// modified Newton matrix adds as `β'h² K + γ'h C` beside the diagonal of
+    /// [`newton_diagonal`](Self::newton_diagonal) (which must not contain them too).
+    ///
+    /// - `t`: s; `q`: dim `nq`; `v`: dim `nv`;
+    /// - `stiffness_out`, `damping_out`: `nv × nv`, overwritten (N·m/rad or N/m; N·m·s/rad or
+    ///   N·s/m per column).
+    ///
+    /// Only called when [`provides_newton_coupling`](Self::provides_newton_coupling) is `true`.
+    fn newton_coupling(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        let _ = (t, q, v);
+        stiffness_out.fill(0.0);
+        damping_out.fill(0.0);
+        Ok(())
+    }
+
+    /// A state check of the adaptive step (docs/step-control.md §3, docs/contacts.md §4): a value
+    /// above 1 for a sub-step from `q_start` to `q_end` makes
+    /// [`StepControl::Adaptive`](super::StepControl) reject it and retry with half the step (down
+    /// to the smallest sub-step), e.g. a contact whose penetration grew by more than the scene
+    /// allows in one sub-step (a fast touch-down). Default 0 (every sub-step acceptable).
+    ///
+    /// - `t`: s (end of the sub-step); `q_start`, `q_end`: dim `nq`; returns a ratio ≥ 0.
+    fn state_rejection(
+        &mut self,
+        t: f64,
+        q_start: &DVector<f64>,
+        q_end: &DVector<f64>,
+    ) -> Result<f64, SystemError> {
+        let _ = (t, q_start, q_end);
+        Ok(0.0)
+    }
+
     /// The constraint values `Φ(q, t)`.
     ///
     /// - `t`: time, s; `q`: dim `nq`; `out`: dim `m`, overwritten (m or rad, per row).

@@ -77,8 +77,63 @@ pub struct LinkSpec {
     pub has_inertial: bool,
     /// The inertial values (all zero without `<inertial>`).
     pub inertial: InertialSpec,
+    /// The link's `<collision>` elements in file order (only contacts read them).
+    pub collisions: Vec<CollisionSpec>,
     /// 1-based line of the `<link>` element in the file.
     pub line: u32,
+}
+
+/// One URDF `<collision>` element of a link: a shape placed in the link frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CollisionSpec {
+    /// `<collision name>` when given.
+    pub name: Option<String>,
+    /// `<origin>` as `[x, y, z, roll, pitch, yaw]` (m, rad): the shape's frame in the link frame.
+    pub origin: [f64; 6],
+    /// The shape and its sizes (sizes are parameters: `link.NAME.collision.K.radius`, …).
+    pub shape: CollisionShape,
+    /// 1-based line of the `<collision>` element.
+    pub line: u32,
+}
+
+/// The shape of a `<collision><geometry>`, in URDF conventions (cylinders and capsules along the
+/// shape frame's z axis, boxes centred on its origin).
+#[derive(Clone, Debug, PartialEq)]
+pub enum CollisionShape {
+    /// `<sphere radius>`, m.
+    Sphere {
+        /// Radius, m.
+        radius: f64,
+    },
+    /// `<box size>`: full edge lengths along x, y, z, m.
+    Box {
+        /// Edge lengths, m.
+        size: [f64; 3],
+    },
+    /// `<cylinder radius length>`: axis along z, `length` end to end, m.
+    Cylinder {
+        /// Radius, m.
+        radius: f64,
+        /// Length along z, m.
+        length: f64,
+    },
+    /// `<capsule radius length>`: a cylinder of `length` along z with hemispherical caps, m.
+    Capsule {
+        /// Radius, m.
+        radius: f64,
+        /// Length of the cylindrical part along z, m.
+        length: f64,
+    },
+    /// `<mesh filename>`: not loaded (contacts refuse it with a message naming the element).
+    Mesh {
+        /// The file name as written.
+        filename: String,
+    },
+    /// A `<geometry>` ribbon could not read (the loader's note says why).
+    Unreadable {
+        /// What is wrong with it.
+        reason: String,
+    },
 }
 
 /// A `<mimic>` element: `q_self = multiplier · q_leader + offset`.

@@ -25,7 +25,10 @@ mod singular;
 mod urdf;
 
 pub use consistency::{check_inertia, InertiaViolation, INERTIA_RELATIVE_TOLERANCE};
-pub use description::{Description, InertialSpec, JointSpec, LinkSpec, MimicSpec, UrdfJointType};
+pub use description::{
+    CollisionShape, CollisionSpec, Description, InertialSpec, JointSpec, LinkSpec, MimicSpec,
+    UrdfJointType,
+};
 pub use error::ModelError;
 pub use singular::{explain_null_motion, NULL_DIRECTION_RELATIVE_THRESHOLD};
 pub use urdf::{parse_description, read_description, MAX_XML_DEPTH};
@@ -118,6 +121,10 @@ pub struct Model {
     pub inertial_scales: Vec<f64>,
     /// Gravity in the world frame (m/s²).
     pub gravity: Vec3,
+    /// The contact material of the scene (`[scene.contact]`), `None` when the scene declares no
+    /// contacts; set by [`crate::scene::Scene::apply_gravity`] like gravity, so that parameters
+    /// (`scene.contact.*`) can override it.
+    pub contact: Option<crate::geometry::ContactMaterial>,
     /// Moving joints in coordinate order.
     pub joints: Vec<Joint>,
     /// Moving bodies; body `i` is moved by joint `i`.
@@ -350,6 +357,7 @@ impl Model {
             description,
             inertial_scales: vec![1.0; n_links],
             gravity: Vec3::from(DEFAULT_GRAVITY),
+            contact: None,
             joints: Vec::new(),
             bodies: Vec::new(),
             links: vec![

@@ -8,7 +8,11 @@
 //!   It multiplies whatever mass and inertia values the link has, including declared ones;
 //! - `joint.NAME.origin.{x,y,z,roll,pitch,yaw}`, `joint.NAME.axis.{x,y,z}`, `joint.NAME.damping`,
 //!   `joint.NAME.friction` (axis, damping and friction only on moving joints);
-//! - `scene.gravity.{x,y,z}`.
+//! - `scene.gravity.{x,y,z}`;
+//! - with contacts declared (`[scene.contact]`, docs/contacts.md): `scene.contact.{stiffness,
+//!   exponent, damping, friction, stiction_velocity}` and the sizes of links' `<collision>`
+//!   primitives, `link.NAME.collision.K.{radius, length, size.x, size.y, size.z}` (`K` counts the
+//!   link's `<collision>` elements from 0; only the fields its shape has).
 //!
 //! `NAME` is everything between the kind prefix and a known field suffix, so names containing dots
 //! or slashes (`joint_0.0`, `iris__/imu_link`) work. A path resolves once to a [`ParamTarget`];
@@ -41,6 +45,41 @@ pub enum ParamTarget {
     JointFriction(usize),
     /// Component `0` of gravity.
     Gravity(usize),
+    /// Field `0` of the contact material ([`CONTACT_FIELDS`]: stiffness, exponent, damping,
+    /// friction, stiction velocity).
+    Contact(usize),
+    /// Size field `2` ([`COLLISION_FIELDS`]: radius, length, size.x, size.y, size.z) of collision
+    /// element `1` of link `0`.
+    CollisionSize(usize, usize, usize),
+}
+
+/// The fields of `scene.contact.*`, in [`ParamTarget::Contact`] order.
+pub const CONTACT_FIELDS: [&str; 5] = [
+    "stiffness",
+    "exponent",
+    "damping",
+    "friction",
+    "stiction_velocity",
+];
+const CONTACT_PATHS: [&str; 5] = [
+    "contact.stiffness",
+    "contact.exponent",
+    "contact.damping",
+    "contact.friction",
+    "contact.stiction_velocity",
+];
+/// The size fields of `link.NAME.collision.K.*`, in [`ParamTarget::CollisionSize`] order.
+pub const COLLISION_FIELDS: [&str; 5] = ["radius", "length", "size.x", "size.y", "size.z"];
+
+/// The size fields collision `k` of link `l` has (indices into [`COLLISION_FIELDS`]).
+fn collision_fields(model: &Model, l: usize, k: usize) -> &'static [usize] {
+    use crate::model::CollisionShape;
+    match model.description.links[l].collisions[k].shape {
+        CollisionShape::Sphere { .. } => &[0],
+        CollisionShape::Cylinder { .. } | CollisionShape::Capsule { .. } => &[0, 1],
+        CollisionShape::Box { .. } => &[2, 3, 4],
+        CollisionShape::Mesh { .. } | CollisionShape::Unreadable { .. } => &[],
+    }
 }
 
 /// One listed parameter.
@@ -135,12 +174,21 @@ pub fn parts_of(model: &Model, target: ParamTarget) -> PathParts<'_> {
         ParamTarget::JointDamping(j) => ("joint", joint(j), "damping"),
         ParamTarget::JointFriction(j) => ("joint", joint(j), "friction"),
         ParamTarget::Gravity(c) => ("scene", None, GRAVITY_PATHS[c]),
+        ParamTarget::Contact(c) => ("scene", None, CONTACT_PATHS[c]),
+        // The element number is part of the path ([`path_of`]); the field part names the size.
+        ParamTarget::CollisionSize(l, _, c) => ("link", link(l), COLLISION_FIELDS[c]),
     };
     PathParts { kind, name, field }
 }
 
 /// The dotted path of a target.
 pub fn path_of(model: &Model, target: ParamTarget) -> String {
+    if let ParamTarget::CollisionSize(l, k, c) = target {
+        return format!(
+            "link.{}.collision.{k}.{}",
+            model.description.links[l].name, COLLISION_FIELDS[c]
+        );
+    }
     let parts = parts_of(model, target);
     match parts.name {
         Some(name) => format!("{}.{name}.{}", parts.kind, parts.field),
@@ -164,6 +212,11 @@ pub fn unit_of(model: &Model, target: ParamTarget) -> &'static str {
         ParamTarget::JointFriction(j) if prismatic(j) => "N",
         ParamTarget::JointFriction(_) => "N·m",
         ParamTarget::Gravity(_) => "m/s²",
+        ParamTarget::Contact(0) => "N/m^e",
+        ParamTarget::Contact(2) => "s/m",
+        ParamTarget::Contact(4) => "m/s",
+        ParamTarget::Contact(_) => "",
+        ParamTarget::CollisionSize(..) => "m",
     }
 }
 
@@ -190,6 +243,18 @@ pub fn list(model: &Model) -> Vec<ParamInfo> {
         }
     }
     targets.extend((0..3).map(ParamTarget::Gravity));
+    if model.contact.is_some() {
+        targets.extend((0..CONTACT_FIELDS.len()).map(ParamTarget::Contact));
+        for (l, link) in model.description.links.iter().enumerate() {
+            for k in 0..link.collisions.len() {
+                targets.extend(
+                    collision_fields(model, l, k)
+                        .iter()
+                        .map(|&c| ParamTarget::CollisionSize(l, k, c)),
+                );
+            }
+        }
+    }
     targets
         .into_iter()
         .map(|target| ParamInfo {
@@ -218,6 +283,22 @@ pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
             .position(|f| *f == field)
             .map(ParamTarget::Gravity)
             .ok_or_else(unknown);
+    }
+    if let Some(field) = path.strip_prefix("scene.contact.") {
+        let c = CONTACT_FIELDS
+            .iter()
+            .position(|f| *f == field)
+            .ok_or_else(unknown)?;
+        if model.contact.is_none() {
+            return Err(ParamError::NotApplicable {
+                path: path.to_string(),
+                reason: "the scene declares no contacts; add a [scene.contact] table".to_string(),
+            });
+        }
+        return Ok(ParamTarget::Contact(c));
+    }
+    if let Some(target) = resolve_collision(model, path)? {
+        return Ok(target);
     }
     if let Some(rest) = path.strip_prefix("link.") {
         let mut fields: Vec<(String, u8, usize)> =
@@ -290,6 +371,42 @@ pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
     Err(unknown())
 }
 
+/// `link.NAME.collision.K.FIELD` (`None` when the path has another form).
+fn resolve_collision(model: &Model, path: &str) -> Result<Option<ParamTarget>, ParamError> {
+    let Some(rest) = path.strip_prefix("link.") else {
+        return Ok(None);
+    };
+    for (c, field) in COLLISION_FIELDS.iter().enumerate() {
+        let Some(before) = rest.strip_suffix(field).and_then(|r| r.strip_suffix('.')) else {
+            continue;
+        };
+        let Some((name, number)) = before.rsplit_once(".collision.") else {
+            continue;
+        };
+        let (Some(l), Ok(k)) = (model.description.link_index(name), number.parse::<usize>()) else {
+            continue;
+        };
+        let not_applicable = |reason: String| ParamError::NotApplicable {
+            path: path.to_string(),
+            reason,
+        };
+        let n = model.description.links[l].collisions.len();
+        if k >= n {
+            return Err(not_applicable(format!(
+                "link '{name}' has {n} <collision> element(s), numbered from 0"
+            )));
+        }
+        if !collision_fields(model, l, k).contains(&c) {
+            return Err(not_applicable(format!(
+                "<collision> {k} of link '{name}' (line {}) has no {field}",
+                model.description.links[l].collisions[k].line
+            )));
+        }
+        return Ok(Some(ParamTarget::CollisionSize(l, k, c)));
+    }
+    Ok(None)
+}
+
 /// `NAME` in `NAME.field`, when `rest` ends with `.field`.
 fn name_before<'a>(rest: &'a str, field: &str) -> Option<&'a str> {
     rest.strip_suffix(field).and_then(|n| n.strip_suffix('.'))
@@ -308,6 +425,38 @@ pub fn get(model: &Model, target: ParamTarget) -> f64 {
         ParamTarget::JointDamping(j) => d.joints[j].damping,
         ParamTarget::JointFriction(j) => d.joints[j].friction,
         ParamTarget::Gravity(c) => model.gravity[c],
+        ParamTarget::Contact(c) => model.contact.map_or(0.0, |m| contact_field(&m, c)),
+        ParamTarget::CollisionSize(l, k, c) => {
+            *collision_value(&mut d.links[l].collisions[k].shape.clone(), c)
+        }
+    }
+}
+
+/// Field `c` ([`CONTACT_FIELDS`]) of a contact material.
+fn contact_field(m: &crate::geometry::ContactMaterial, c: usize) -> f64 {
+    match c {
+        0 => m.stiffness,
+        1 => m.exponent,
+        2 => m.damping,
+        3 => m.friction,
+        _ => m.stiction_velocity,
+    }
+}
+
+/// The size field `c` ([`COLLISION_FIELDS`]) of a collision shape (a shape without it — excluded
+/// by [`resolve`] — gives a scratch value).
+fn collision_value(shape: &mut crate::model::CollisionShape, c: usize) -> &mut f64 {
+    use crate::model::CollisionShape;
+    match (shape, c) {
+        (CollisionShape::Sphere { radius }, _)
+        | (CollisionShape::Cylinder { radius, .. }, 0)
+        | (CollisionShape::Capsule { radius, .. }, 0) => radius,
+        (CollisionShape::Cylinder { length, .. }, _)
+        | (CollisionShape::Capsule { length, .. }, _) => length,
+        (CollisionShape::Box { size }, c) => &mut size[c.clamp(2, 4) - 2],
+        (CollisionShape::Mesh { .. } | CollisionShape::Unreadable { .. }, _) => {
+            unreachable!("resolve() gives no size target for a mesh or an unreadable collision")
+        }
     }
 }
 
@@ -326,6 +475,20 @@ pub fn set(model: &mut Model, target: ParamTarget, value: f64) {
         ParamTarget::JointDamping(j) => d.joints[j].damping = value,
         ParamTarget::JointFriction(j) => d.joints[j].friction = value,
         ParamTarget::Gravity(c) => model.gravity[c] = value,
+        ParamTarget::Contact(c) => {
+            if let Some(m) = model.contact.as_mut() {
+                *match c {
+                    0 => &mut m.stiffness,
+                    1 => &mut m.exponent,
+                    2 => &mut m.damping,
+                    3 => &mut m.friction,
+                    _ => &mut m.stiction_velocity,
+                } = value;
+            }
+        }
+        ParamTarget::CollisionSize(l, k, c) => {
+            *collision_value(&mut d.links[l].collisions[k].shape, c) = value;
+        }
     }
 }
 
@@ -355,6 +518,18 @@ pub fn validate_value(model: &Model, target: ParamTarget, value: f64) -> Result<
         )),
         ParamTarget::JointDamping(_) if value < 0.0 => Err(invalid("damping must be ≥ 0")),
         ParamTarget::JointFriction(_) if value < 0.0 => Err(invalid("friction must be ≥ 0")),
+        ParamTarget::Contact(0) if value <= 0.0 => Err(invalid("a contact stiffness must be > 0")),
+        ParamTarget::Contact(1) if value < 1.0 => Err(invalid(
+            "the Hunt–Crossley exponent must be ≥ 1 (1: linear, 1.5: Hertz)",
+        )),
+        ParamTarget::Contact(2) if value < 0.0 => Err(invalid("contact damping must be ≥ 0")),
+        ParamTarget::Contact(3) if value < 0.0 => {
+            Err(invalid("a friction coefficient must be ≥ 0"))
+        }
+        ParamTarget::Contact(4) if value <= 0.0 => Err(invalid("a stiction velocity must be > 0")),
+        ParamTarget::CollisionSize(..) if value <= 0.0 => {
+            Err(invalid("a collision size must be > 0"))
+        }
         _ => Ok(()),
     }
 }

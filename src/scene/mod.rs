@@ -7,6 +7,7 @@
 
 mod budget;
 mod constraints;
+mod contacts;
 mod outputs;
 mod step_control;
 
@@ -14,6 +15,7 @@ pub use budget::{
     check_step_count, check_threads, format_bytes, MAX_STEPS, MAX_THREADS, MEMORY_BUDGET_BYTES,
     MIN_STEP_S,
 };
+pub use contacts::{SceneContacts, DEFAULT_MAX_PENETRATION_M};
 pub use outputs::{Output, OutputKind};
 // The file format lives in `crate::sidecar`; these re-exports keep `crate::scene::SidecarFile` and
 // friends working for the study commands, benches and examples. `constraints` and `outputs` read
@@ -217,6 +219,8 @@ pub struct Scene {
     pub constraints: crate::constraints::ConstraintSet,
     /// Recorded outputs, in order.
     pub outputs: Vec<Output>,
+    /// `[scene.contact]` and `[[scene.geometry]]` (`None`: no contacts, nothing is ever queried).
+    pub contact: Option<SceneContacts>,
     /// Recording rate, Hz.
     pub rate_hz: f64,
     /// Steps between records.
@@ -477,7 +481,9 @@ impl Scene {
         }
         let step_values = step_control::resolve(s, effects.joint_limits, step_s, path)?;
         let outputs = outputs::resolve(&file.outputs, model, &constraints, path)?;
+        let contact = contacts::resolve(s.contact.as_ref(), &s.geometry, model, path)?;
         Ok(Scene {
+            contact,
             duration_s,
             step_s,
             n_steps,
@@ -504,9 +510,11 @@ impl Scene {
         })
     }
 
-    /// Gives the model the scene's gravity (before parameters, which may override it).
+    /// Gives the model the scene's gravity and contact material (before parameters, which may
+    /// override them).
     pub fn apply_gravity(&self, model: &mut Model) {
         model.gravity = crate::spatial::Vec3::from(self.gravity);
+        model.contact = self.contact.as_ref().map(|c| c.material);
     }
 
     /// Whether step `k` (0 ..= n_steps) is recorded: every `record_every` steps, plus the last.

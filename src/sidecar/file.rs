@@ -64,6 +64,55 @@ pub struct SceneSection {
     /// `[[scene.loop]]`: loop closures.
     #[serde(default, rename = "loop")]
     pub loops: Vec<LoopSection>,
+    /// `[scene.contact]`: which bodies may touch and the contact material (docs/contacts.md).
+    pub contact: Option<ContactSection>,
+    /// `[[scene.geometry]]`: fixed shapes of the scene (ground, boxes, an incline, a bump).
+    #[serde(default)]
+    pub geometry: Vec<GeometrySection>,
+}
+
+/// `[scene.contact]`: the pairs that may touch and one material for all of them.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSection {
+    /// `[["foot", "ground"], …]`: link names or `[[scene.geometry]]` names.
+    pub pairs: Vec<[String; 2]>,
+    /// Hunt–Crossley stiffness `k`, N/m^exponent.
+    pub stiffness: Option<f64>,
+    /// Hunt–Crossley exponent `e` (≥ 1).
+    pub exponent: Option<f64>,
+    /// Hunt–Crossley dissipation `d`, s/m.
+    pub damping: Option<f64>,
+    /// Coulomb friction coefficient.
+    pub friction: Option<f64>,
+    /// Stiction velocity of the regularised friction, m/s.
+    pub stiction_velocity: Option<f64>,
+    /// Adaptive step only: a sub-step over which the deepest penetration grows by more than this
+    /// is rejected, m.
+    pub max_penetration: Option<f64>,
+}
+
+/// `[[scene.geometry]]`: a fixed shape placed in the world frame.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeometrySection {
+    /// Its name (used in `[scene.contact] pairs`).
+    pub name: String,
+    /// `box`, `sphere`, `cylinder`, `capsule` or `halfspace`.
+    #[serde(rename = "type")]
+    pub shape_type: String,
+    /// Box: full edge lengths, m.
+    pub size: Option<[f64; 3]>,
+    /// Sphere, cylinder, capsule: radius, m.
+    pub radius: Option<f64>,
+    /// Cylinder, capsule: length along the shape's z axis, m.
+    pub length: Option<f64>,
+    /// Position of the shape's frame in the world, m.
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    /// Orientation (URDF roll-pitch-yaw), rad.
+    #[serde(default)]
+    pub rpy: [f64; 3],
 }
 
 /// `[[scene.drive]]`: `q_joint = f(t)` with the profile's parameters.

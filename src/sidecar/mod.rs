@@ -29,8 +29,9 @@ pub use expand::{
     expand_parameters, is_symbol_name, key_label, EntryKind, ExpandedParameters, ParameterEntry,
 };
 pub use file::{
-    parse_sidecar, AnalysisSection, BaseSection, DriveSection, InitialSection, JointSelection,
-    LoopSection, OutputsSection, SceneSection, SidecarFile, SpringSection,
+    parse_sidecar, AnalysisSection, BaseSection, ContactSection, DriveSection, GeometrySection,
+    InitialSection, JointSelection, LoopSection, OutputsSection, SceneSection, SidecarFile,
+    SpringSection,
 };
 pub use interval::{read_interval, IntervalForm, IntervalSpec, FORMS};
 pub use pattern::{PathPattern, PATTERN_KINDS};

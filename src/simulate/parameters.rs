@@ -73,7 +73,9 @@ impl Refresh {
             let urdf_joint = match m.target {
                 ParamTarget::JointDamping(_)
                 | ParamTarget::JointFriction(_)
-                | ParamTarget::Gravity(_) => continue,
+                | ParamTarget::Gravity(_)
+                | ParamTarget::Contact(_)
+                | ParamTarget::CollisionSize(..) => continue,
                 ParamTarget::JointOrigin(j, _) | ParamTarget::JointAxis(j, _) => j,
                 ParamTarget::LinkMass(_)
                 | ParamTarget::LinkCom(..)
@@ -147,6 +149,10 @@ pub fn target_scale(target: ParamTarget, value: f64) -> f64 {
         ParamTarget::LinkMass(_) => 0.1,
         ParamTarget::LinkInertia(..) => 1e-3,
         ParamTarget::LinkScale(_) => 1.0,
+        // Contact values: relative to their own size (a stiffness of 1e6 N/m^1.5), with a 1 mm
+        // floor for collision sizes.
+        ParamTarget::Contact(_) => 1e-12,
+        ParamTarget::CollisionSize(..) => 1e-3,
         ParamTarget::JointOrigin(..)
         | ParamTarget::JointAxis(..)
         | ParamTarget::JointDamping(_)
@@ -181,7 +187,9 @@ fn inertial_field(target: ParamTarget) -> Option<(usize, InertialField)> {
         | ParamTarget::JointAxis(..)
         | ParamTarget::JointDamping(_)
         | ParamTarget::JointFriction(_)
-        | ParamTarget::Gravity(_) => None,
+        | ParamTarget::Gravity(_)
+        | ParamTarget::Contact(_)
+        | ParamTarget::CollisionSize(..) => None,
     }
 }
 
@@ -195,7 +203,9 @@ fn moves_frames(target: ParamTarget) -> bool {
         | ParamTarget::LinkScale(_)
         | ParamTarget::JointDamping(_)
         | ParamTarget::JointFriction(_)
-        | ParamTarget::Gravity(_) => false,
+        | ParamTarget::Gravity(_)
+        | ParamTarget::Contact(_)
+        | ParamTarget::CollisionSize(..) => false,
     }
 }
 
@@ -400,7 +410,7 @@ impl ParameterDirections {
     fn residual(
         model: &Model,
         data: &mut Data,
-        effects: &Effects,
+        effects: &mut Effects,
         constraints: &ConstraintSet,
         q: &[f64],
         v: &[f64],
@@ -413,7 +423,7 @@ impl ParameterDirections {
         for (o, t) in out.iter_mut().zip(tau) {
             *o = -t;
         }
-        effects.add_forces(model, q, v, out.as_mut_slice());
+        effects.add_forces(model, data, q, v, out.as_mut_slice());
         out.neg_mut();
         if !lambda.is_empty() {
             constraints.jacobian(model, data, q, phi_q);
@@ -429,7 +439,7 @@ impl ParameterDirections {
         &mut self,
         model: &mut Model,
         data: &mut Data,
-        effects: &Effects,
+        effects: &mut Effects,
         constraints: &ConstraintSet,
         t: f64,
         q: &[f64],

@@ -22,6 +22,8 @@ pub struct Trajectory {
     pub positions: Vec<Vec<f64>>,
     /// Integrator statistics.
     pub stats: HhtStats,
+    /// Contact counters (`None` when the scene declares no contacts).
+    pub contacts: Option<crate::effects::ContactStats>,
     /// Whether the run stopped early (interrupted): the series end at the last record before the
     /// stop.
     pub partial: bool,
@@ -224,6 +226,15 @@ fn simulate_system(
             last_q.clear();
             last_q.extend_from_slice(integrator.state().q.as_slice());
             integrator.step(system)?;
+            if system.effects.has_contacts() {
+                let state = integrator.state();
+                system.effects.observe_contacts(
+                    &system.model,
+                    &mut system.data,
+                    state.q.as_slice(),
+                    state.v.as_slice(),
+                );
+            }
         }
         if scene.records_step(k) {
             let state = integrator.state();
@@ -241,6 +252,7 @@ fn simulate_system(
         values,
         positions,
         stats: *integrator.stats(),
+        contacts: system.effects.contact_stats(),
         partial,
     })
 }

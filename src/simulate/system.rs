@@ -26,6 +26,9 @@ pub struct RobotSystem {
     /// The scene's constraint rows.
     pub constraints: ConstraintSet,
     has_floating_joint: bool,
+    /// Adaptive step: the largest growth of the deepest contact penetration over one sub-step, m
+    /// (∞ without contacts or with the fixed step).
+    max_penetration_m: f64,
     /// The parameters `p_k` of the forward sensitivities (none unless
     /// [`RobotSystem::set_parameter_directions`] was called).
     parameters: ParameterDirections,
@@ -82,6 +85,10 @@ impl RobotSystem {
             effects,
             constraints: scene.constraints.clone(),
             has_floating_joint,
+            max_penetration_m: match (&scene.contact, scene.step_control) {
+                (Some(c), crate::integrate::StepControl::Adaptive) => c.max_penetration_m,
+                _ => f64::INFINITY,
+            },
             parameters: ParameterDirections::default(),
             jacobians: None,
         }
@@ -309,8 +316,13 @@ impl DaeSystem for RobotSystem {
         for (o, b) in out.iter_mut().zip(bias) {
             *o = -b;
         }
-        self.effects
-            .add_forces(&self.model, q.as_slice(), v.as_slice(), out.as_mut_slice());
+        self.effects.add_forces(
+            &self.model,
+            &mut self.data,
+            q.as_slice(),
+            v.as_slice(),
+            out.as_mut_slice(),
+        );
         Ok(())
     }
 
@@ -337,8 +349,13 @@ impl DaeSystem for RobotSystem {
         for (o, t) in out.iter_mut().zip(tau) {
             *o = -t;
         }
-        self.effects
-            .add_forces(&self.model, q.as_slice(), v.as_slice(), out.as_mut_slice());
+        self.effects.add_forces(
+            &self.model,
+            &mut self.data,
+            q.as_slice(),
+            v.as_slice(),
+            out.as_mut_slice(),
+        );
         out.neg_mut();
         Ok(())
     }
@@ -361,6 +378,53 @@ impl DaeSystem for RobotSystem {
             damping_out.as_mut_slice(),
         );
         Ok(())
+    }
+
+    fn provides_newton_coupling(&self) -> bool {
+        self.effects.has_contacts()
+    }
+
+    /// Contacts: `Jᵀ K J` and `Jᵀ C J` over the touching pairs (docs/contacts.md §4).
+    fn newton_coupling(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        stiffness_out.fill(0.0);
+        damping_out.fill(0.0);
+        self.effects.add_newton_matrices(
+            &self.model,
+            &mut self.data,
+            q.as_slice(),
+            v.as_slice(),
+            stiffness_out,
+            damping_out,
+        );
+        Ok(())
+    }
+
+    /// How much deeper the deepest contact got over the sub-step, over `[scene.contact]
+    /// max_penetration` (adaptive step only; 0 otherwise). Growth, not depth: a contact resting
+    /// deep under a heavy load is not a reason to shorten steps, a fast touch-down is.
+    fn state_rejection(
+        &mut self,
+        _t: f64,
+        q_start: &DVector<f64>,
+        q_end: &DVector<f64>,
+    ) -> Result<f64, SystemError> {
+        if !self.max_penetration_m.is_finite() {
+            return Ok(0.0);
+        }
+        let before =
+            self.effects
+                .deepest_penetration(&self.model, &mut self.data, q_start.as_slice());
+        let after = self
+            .effects
+            .deepest_penetration(&self.model, &mut self.data, q_end.as_slice());
+        Ok((after - before).max(0.0) / self.max_penetration_m)
     }
 
     fn n_events(&self) -> usize {
@@ -454,8 +518,11 @@ impl DaeSystem for RobotSystem {
         Ok(())
     }
 
+    /// Not with contacts: their Jacobians here would leave out the geometric terms (the normal
+    /// and the contact point move with `q`; docs/contacts.md §4), so users such as the forward
+    /// sensitivities form the exact Jacobians by central differences of the residual instead.
     fn provides_residual_jacobians(&self) -> bool {
-        true
+        !self.effects.has_contacts()
     }
 
     /// `∂r/∂q`, `∂r/∂q̇` of `r = M q̈ + Φ_qᵀ λ − Q` (docs/sensitivities.md §2): RNEA's analytic
@@ -599,7 +666,7 @@ impl DaeSystem for RobotSystem {
         self.parameters.jacobians(
             &mut self.model,
             &mut self.data,
-            &self.effects,
+            &mut self.effects,
             &self.constraints,
             t,
             q.as_slice(),

@@ -4,6 +4,7 @@
 //! the file elsewhere knows what to fix.
 
 use super::xml::{parse_vector3, Reader};
+use crate::model::description::{CollisionShape, CollisionSpec};
 use roxmltree::Node;
 
 /// The shapes of `<geometry>` and the attributes each requires.
@@ -139,4 +140,83 @@ fn shape_problem<'input>(
         }
     }
     None
+}
+
+/// The `<collision>` elements of the link `node`, in file order. Lenient like the notes above: an
+/// element whose `<origin>` or `<geometry>` cannot be read is kept as
+/// [`CollisionShape::Unreadable`] (with the note's reason), so that only a scene that declares
+/// contacts for this link refuses it, naming the element.
+pub(super) fn read_collisions<'input>(
+    reader: &Reader<'_, 'input>,
+    node: Node<'_, 'input>,
+) -> Vec<CollisionSpec> {
+    reader
+        .children(node, "collision")
+        .into_iter()
+        .map(|element| {
+            let line = reader.line(element);
+            let problems = problems(reader, element, "collision");
+            let mut origin = [0.0; 6];
+            if let Some(o) = reader.children(element, "origin").first() {
+                for (k, attribute) in ["xyz", "rpy"].into_iter().enumerate() {
+                    if let Some(v) = o.attribute(attribute).and_then(parse_vector3) {
+                        origin[3 * k..3 * k + 3].copy_from_slice(&v);
+                    }
+                }
+            }
+            let shape = if problems.is_empty() {
+                read_shape(reader, element)
+            } else {
+                CollisionShape::Unreadable {
+                    reason: problems.join("; "),
+                }
+            };
+            CollisionSpec {
+                name: element.attribute("name").map(str::to_string),
+                origin,
+                shape,
+                line,
+            }
+        })
+        .collect()
+}
+
+/// The shape of a `<collision>` whose markup [`problems`] found valid.
+fn read_shape<'input>(reader: &Reader<'_, 'input>, element: Node<'_, 'input>) -> CollisionShape {
+    let unreadable = |reason: &str| CollisionShape::Unreadable {
+        reason: reason.to_string(),
+    };
+    let Some(geometry) = reader.children(element, "geometry").first().copied() else {
+        return unreadable("no <geometry>");
+    };
+    let Some(shape) = geometry.children().find(|n| n.is_element()) else {
+        return unreadable("<geometry> holds no shape");
+    };
+    let number = |attribute: &str| {
+        shape
+            .attribute(attribute)
+            .and_then(|t| t.parse::<f64>().ok())
+            .unwrap_or(f64::NAN)
+    };
+    match shape.tag_name().name() {
+        "sphere" => CollisionShape::Sphere {
+            radius: number("radius"),
+        },
+        "box" => match shape.attribute("size").and_then(parse_vector3) {
+            Some(size) => CollisionShape::Box { size },
+            None => unreadable("<box size> is not three numbers"),
+        },
+        "cylinder" => CollisionShape::Cylinder {
+            radius: number("radius"),
+            length: number("length"),
+        },
+        "capsule" => CollisionShape::Capsule {
+            radius: number("radius"),
+            length: number("length"),
+        },
+        "mesh" => CollisionShape::Mesh {
+            filename: shape.attribute("filename").unwrap_or_default().to_string(),
+        },
+        other => unreadable(&format!("unknown shape <{other}>")),
+    }
 }

@@ -1,6 +1,6 @@
 //! `<link>`: its name and `<inertial>`; `<visual>` and `<collision>` only for notes.
 
-use super::geometry::check_geometry_elements;
+use super::geometry::{check_geometry_elements, read_collisions};
 use super::origin::read_origin;
 use super::xml::Reader;
 use crate::model::description::{InertialSpec, LinkSpec};
@@ -26,7 +26,9 @@ pub(super) fn read_link<'input>(
         read_inertial(reader, inertial, &name)
     })?;
     check_geometry_elements(reader, node, &owner);
+    let collisions = read_collisions(reader, node);
     Ok(LinkSpec {
+        collisions,
         has_inertial: inertial.is_some(),
         inertial: inertial.map_or(InertialSpec::default(), |read| read.value),
         name,

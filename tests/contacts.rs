@@ -1,0 +1,503 @@
+//! Contacts (issue 13): closed forms of the compliant contact model (docs/contacts.md), the query
+//! counters of declared and undeclared pairs, and bad contact input.
+
+use ribbon::model::{parse_description, LoadOptions, Model};
+use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
+use ribbon::simulate::{simulate, Trajectory};
+
+/// Standard gravity of the scenes, m/s².
+const G: f64 = 9.81;
+/// Relative tolerance of the rebound height against docs/contacts.md §2 (the issue's 1e-3).
+const REBOUND_RELATIVE: f64 = 1e-3;
+/// Relative tolerance of the sliding distance and the incline acceleration (the issue's 0.5 %).
+const FRICTION_RELATIVE: f64 = 5e-3;
+/// Largest speed of a box resting for 10 s (the issue's 1 µm/s).
+const RESTING_SPEED: f64 = 1e-6;
+
+/// A body on prismatic joints `x` (when `planar`) and `z` in the world, carrying `collision`.
+fn slider_urdf(collision: &str, planar: bool) -> String {
+    let x_joint = if planar {
+        r#"<link name="carriage"/>
+           <joint name="x" type="prismatic"><parent link="world"/><child link="carriage"/>
+             <axis xyz="1 0 0"/><limit lower="-100" upper="100" effort="1" velocity="1"/></joint>
+           <joint name="z" type="prismatic"><parent link="carriage"/><child link="body"/>"#
+    } else {
+        r#"<joint name="z" type="prismatic"><parent link="world"/><child link="body"/>"#
+    };
+    format!(
+        r#"<robot name="slider"><link name="world"/>
+        {x_joint}
+          <axis xyz="0 0 1"/><limit lower="-100" upper="100" effort="1" velocity="1"/></joint>
+        <link name="body"><inertial><mass value="1"/>
+          <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+          <collision><geometry>{collision}</geometry></collision></link></robot>"#
+    )
+}
+
+fn model_of(urdf: &str) -> Model {
+    Model::from_description(
+        parse_description(urdf, "test.urdf").expect("URDF parses"),
+        LoadOptions::default(),
+        "test.urdf",
+    )
+    .expect("model builds")
+}
+
+fn scene_of(model: &Model, sidecar: &str) -> Result<Scene, String> {
+    let file = parse_sidecar(sidecar)?;
+    Scene::resolve(&file, model, "test.toml", SceneOverrides::default()).map_err(|e| e.to_string())
+}
+
+fn run(urdf: &str, sidecar: &str) -> Trajectory {
+    let mut model = model_of(urdf);
+    let scene = scene_of(&model, sidecar).expect("scene resolves");
+    scene.apply_gravity(&mut model);
+    simulate(model, &scene).expect("simulation runs")
+}
+
+fn column<'a>(trajectory: &'a Trajectory, name: &str) -> &'a [f64] {
+    let i = trajectory
+        .outputs
+        .iter()
+        .position(|o| o.name == name)
+        .unwrap_or_else(|| panic!("no output {name}"));
+    &trajectory.values[i]
+}
+
+/// The outgoing speed of a Hunt–Crossley impact at `v_in` (docs/contacts.md §2): the root
+/// `u_out ∈ (−1, 0)` of `u − ln(1 + u) = u_in − ln(1 + u_in)`, `u = d v`, by bisection.
+fn rebound_speed(v_in: f64, damping: f64) -> f64 {
+    let u_in = damping * v_in;
+    let target = u_in - u_in.ln_1p();
+    let f = |u: f64| u - u.ln_1p() - target;
+    let (mut low, mut high) = (-1.0 + 1e-15, 0.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (low + high);
+        // f decreases on (−1, 0): positive near −1, −target at 0.
+        if f(mid) > 0.0 {
+            low = mid;
+        } else {
+            high = mid;
+        }
+    }
+    -0.5 * (low + high) / damping
+}
+
+#[test]
+fn ball_rebounds_to_the_height_of_the_hunt_crossley_restitution() {
+    let radius = 0.1;
+    let drop = 1.0;
+    let damping = 0.3;
+    let urdf = slider_urdf(&format!(r#"<sphere radius="{radius}"/>"#), false);
+    let sidecar = format!(
+        r#"[scene]
+duration = 0.75
+step = 1e-6
+alpha = 0.0
+initial.q = {{ z = {} }}
+[scene.contact]
+pairs = [["body", "ground"]]
+stiffness = 1e11
+exponent = 1.5
+damping = {damping}
+friction = 0.0
+[[scene.geometry]]
+name = "ground"
+type = "halfspace"
+[outputs]
+velocities = true
+rate = 1000
+"#,
+        radius + drop
+    );
+    let trajectory = run(&urdf, &sidecar);
+    let (z, v) = (column(&trajectory, "q.z"), column(&trajectory, "v.z"));
+    // Ballistic after the rebound: the apex follows from any record (energy), exactly.
+    let k = (0..z.len())
+        .find(|&k| v[k] > 0.0 && z[k] > radius + 0.01)
+        .expect("the ball rebounds");
+    let apex = z[k] - radius + v[k] * v[k] / (2.0 * G);
+    let v_in = (2.0 * G * drop).sqrt();
+    let v_out = rebound_speed(v_in, damping);
+    let predicted = v_out * v_out / (2.0 * G);
+    let stats = trajectory.contacts.expect("contact counters");
+    eprintln!(
+        "rebound apex {apex:.6} m, predicted {predicted:.6} m (e = {:.5}); {stats:?}",
+        v_out / v_in
+    );
+    assert!(
+        (apex - predicted).abs() <= REBOUND_RELATIVE * predicted,
+        "apex {apex} vs {predicted}"
+    );
+    assert_eq!((stats.made, stats.broken), (1, 1), "{stats:?}");
+}
+
+/// Equilibrium depth of a 1 kg body pressed by `g·cos θ` on the default exponent 1.5, m.
+fn resting_depth(stiffness: f64, cos_theta: f64) -> f64 {
+    (G * cos_theta / stiffness).powf(1.0 / 1.5)
+}
+
+#[test]
+fn block_sliding_on_flat_ground_stops_after_v2_over_2_mu_g() {
+    let (speed, mu, stiffness) = (2.0, 0.5, 1e6);
+    let urdf = slider_urdf(r#"<box size="0.2 0.2 0.2"/>"#, true);
+    let sidecar = format!(
+        r#"[scene]
+duration = 1.0
+step = 1e-4
+initial.q = {{ z = {} }}
+initial.v = {{ x = {speed} }}
+[scene.contact]
+pairs = [["body", "ground"]]
+stiffness = {stiffness}
+friction = {mu}
+[[scene.geometry]]
+name = "ground"
+type = "halfspace"
+[outputs]
+velocities = true
+"#,
+        0.1 - resting_depth(stiffness, 1.0)
+    );
+    let trajectory = run(&urdf, &sidecar);
+    let x = column(&trajectory, "q.x");
+    let vx = column(&trajectory, "v.x");
+    let distance = *x.last().unwrap();
+    let predicted = speed * speed / (2.0 * mu * G);
+    eprintln!(
+        "sliding distance {distance:.6} m, predicted {predicted:.6} m; final speed {:.3e} m/s; {:?}",
+        vx.last().unwrap(),
+        trajectory.contacts
+    );
+    assert!(
+        (distance - predicted).abs() <= FRICTION_RELATIVE * predicted,
+        "{distance} vs {predicted}"
+    );
+    assert!(
+        vx.last().unwrap().abs() < 1e-4,
+        "the block must have stopped"
+    );
+}
+
+/// A sphere on an incline of `degrees` (a tilted half-space) with friction `mu`: the slope
+/// coordinate `s` (down the slope) at every record.
+fn incline(degrees: f64, mu: f64) -> (Vec<f64>, Vec<f64>) {
+    let (stiffness, radius) = (1e6, 0.1);
+    let theta = degrees.to_radians();
+    let depth = resting_depth(stiffness, theta.cos());
+    let urdf = slider_urdf(&format!(r#"<sphere radius="{radius}"/>"#), true);
+    let centre = radius - depth;
+    let sidecar = format!(
+        r#"[scene]
+duration = 1.0
+step = 1e-4
+initial.q = {{ x = {}, z = {} }}
+[scene.contact]
+pairs = [["body", "incline"]]
+stiffness = {stiffness}
+friction = {mu}
+[[scene.geometry]]
+name = "incline"
+type = "halfspace"
+rpy = [0.0, {theta}, 0.0]
+"#,
+        centre * theta.sin(),
+        centre * theta.cos()
+    );
+    let trajectory = run(&urdf, &sidecar);
+    let (x, z) = (column(&trajectory, "q.x"), column(&trajectory, "q.z"));
+    let slope: Vec<f64> = x
+        .iter()
+        .zip(z)
+        .map(|(x, z)| x * theta.cos() - z * theta.sin())
+        .collect();
+    (trajectory.times.clone(), slope)
+}
+
+#[test]
+fn incline_slides_with_g_sin_minus_mu_cos_above_atan_mu() {
+    let (degrees, mu) = (25.0f64, 0.3);
+    let (times, s) = incline(degrees, mu);
+    let at = |t: f64| {
+        let k = times
+            .iter()
+            .position(|x| (x - t).abs() < 1e-9)
+            .expect("record");
+        s[k]
+    };
+    let dt = 0.35;
+    let measured = (at(1.0) - 2.0 * at(0.65) + at(0.3)) / (dt * dt);
+    let theta = degrees.to_radians();
+    let predicted = G * (theta.sin() - mu * theta.cos());
+    eprintln!("incline {degrees}°: acceleration {measured:.6} m/s², predicted {predicted:.6}");
+    assert!(
+        (measured - predicted).abs() <= FRICTION_RELATIVE * predicted,
+        "{measured} vs {predicted}"
+    );
+}
+
+#[test]
+fn incline_holds_below_atan_mu_creeping_at_the_regularised_speed() {
+    let (degrees, mu) = (10.0f64, 0.3);
+    let (times, s) = incline(degrees, mu);
+    let n = times.len();
+    let k = times
+        .iter()
+        .position(|t| (t - 0.5).abs() < 1e-9)
+        .expect("record");
+    let speed = (s[n - 1] - s[k]) / (times[n - 1] - times[k]);
+    // docs/contacts.md §3: μ f_n v/√(v² + v_s²) = m g sin θ with f_n = m g cos θ.
+    let ratio = degrees.to_radians().tan() / mu;
+    let creep = ribbon::geometry::DEFAULT_STICTION_VELOCITY * ratio / (1.0 - ratio * ratio).sqrt();
+    eprintln!("incline {degrees}°: creep {speed:.4e} m/s, predicted {creep:.4e} m/s");
+    assert!(
+        speed < ribbon::geometry::DEFAULT_STICTION_VELOCITY,
+        "{speed}"
+    );
+    assert!((speed - creep).abs() <= 0.02 * creep, "{speed} vs {creep}");
+}
+
+#[test]
+fn resting_box_holds_still_for_ten_seconds() {
+    let stiffness = 1e6;
+    let urdf = slider_urdf(r#"<box size="0.2 0.2 0.2"/>"#, true);
+    let sidecar = format!(
+        r#"[scene]
+duration = 10.0
+step = 1e-3
+initial.q = {{ z = {} }}
+[scene.contact]
+pairs = [["body", "ground"]]
+stiffness = {stiffness}
+[[scene.geometry]]
+name = "ground"
+type = "box"
+size = [20.0, 20.0, 1.0]
+xyz = [0.0, 0.0, -0.5]
+[outputs]
+velocities = true
+"#,
+        0.1 - resting_depth(stiffness, 1.0)
+    );
+    let trajectory = run(&urdf, &sidecar);
+    let n = trajectory.times.len();
+    let k = trajectory
+        .times
+        .iter()
+        .position(|t| (t - 5.0).abs() < 1e-9)
+        .unwrap();
+    for joint in ["x", "z"] {
+        let q = column(&trajectory, &format!("q.{joint}"));
+        let v = column(&trajectory, &format!("v.{joint}"));
+        let drift = (q[n - 1] - q[k]).abs() / 5.0;
+        eprintln!(
+            "resting box {joint}: drift {drift:.3e} m/s, final speed {:.3e} m/s",
+            v[n - 1]
+        );
+        assert!(
+            drift < RESTING_SPEED && v[n - 1].abs() < RESTING_SPEED,
+            "{joint}: {drift}"
+        );
+    }
+}
+
+const FALLING_BALL: &str = r#"[scene]
+duration = 0.5
+step = 1e-3
+initial.q = { z = 10.0 }
+"#;
+
+#[test]
+fn declared_contacts_that_never_touch_change_nothing() {
+    let urdf = slider_urdf(r#"<sphere radius="0.1"/>"#, false);
+    let without = run(&urdf, FALLING_BALL);
+    let with = run(
+        &urdf,
+        &format!(
+            "{FALLING_BALL}[scene.contact]\npairs = [[\"body\", \"ground\"]]\n[[scene.geometry]]\nname = \"ground\"\ntype = \"halfspace\"\n"
+        ),
+    );
+    assert!(without.contacts.is_none());
+    let stats = with.contacts.expect("contact counters");
+    assert!(
+        stats.pair_tests > 0 && stats.narrow_queries == 0,
+        "{stats:?}"
+    );
+    assert_eq!(
+        with.values, without.values,
+        "a contact that never touches changed the motion"
+    );
+    assert_eq!(with.times, without.times);
+}
+
+#[test]
+fn undeclared_pairs_are_never_queried() {
+    // The ground exists but only a far-away table is paired with the ball: the ball falls
+    // through the ground as if it were not there, and parry is never asked.
+    let urdf = slider_urdf(r#"<sphere radius="0.1"/>"#, false);
+    let sidecar = "[scene]\nduration = 0.5\nstep = 1e-3\ninitial.q = { z = 0.5 }\n\
+        [scene.contact]\npairs = [[\"table\", \"body\"]]\n\
+        [[scene.geometry]]\nname = \"ground\"\ntype = \"halfspace\"\n\
+        [[scene.geometry]]\nname = \"table\"\ntype = \"box\"\nsize = [1.0, 1.0, 1.0]\nxyz = [100.0, 0.0, 0.0]\n";
+    let trajectory = run(&urdf, sidecar);
+    let stats = trajectory.contacts.expect("contact counters");
+    assert_eq!(stats.narrow_queries, 0, "{stats:?}");
+    let z = column(&trajectory, "q.z");
+    let t = *trajectory.times.last().unwrap();
+    let free_fall = 0.5 - 0.5 * G * t * t;
+    assert!(
+        (z.last().unwrap() - free_fall).abs() < 1e-9,
+        "{} vs {free_fall}",
+        z.last().unwrap()
+    );
+}
+
+fn contact_error(urdf: &str, sidecar: &str) -> String {
+    let model = model_of(urdf);
+    scene_of(&model, sidecar).expect_err("the scene must be refused")
+}
+
+#[test]
+fn bad_contact_input_is_refused_naming_the_key() {
+    let ball = slider_urdf(r#"<sphere radius="0.1"/>"#, false);
+    let ground = "[[scene.geometry]]\nname = \"ground\"\ntype = \"halfspace\"\n";
+    let pair = "[scene.contact]\npairs = [[\"body\", \"ground\"]]\n";
+    let cases: Vec<(String, String, &[&str])> = vec![
+        (
+            ball.clone(),
+            format!("{pair}[[scene.geometry]]\nname = \"ground\"\ntype = \"cone\"\n"),
+            &["[[scene.geometry]] 'ground' type", "unknown shape 'cone'"],
+        ),
+        (
+            slider_urdf(r#"<mesh filename="foot.stl"/>"#, false),
+            format!("{pair}{ground}"),
+            &[
+                "[scene.contact] pairs",
+                "link 'body' <collision> at line",
+                "meshes are not supported",
+            ],
+        ),
+        (
+            ball.clone(),
+            format!("[scene.contact]\npairs = [[\"foot\", \"ground\"]]\n{ground}"),
+            &["[scene.contact] pairs", "'foot' is neither a link"],
+        ),
+        (
+            ball.clone(),
+            format!("{pair}stiffness = -1e6\n{ground}"),
+            &[
+                "[scene.contact] stiffness",
+                "-1000000 must be a finite number > 0",
+            ],
+        ),
+        (
+            ball.clone(),
+            format!("{pair}friction = -0.2\n{ground}"),
+            &["[scene.contact] friction", "must be a finite number ≥ 0"],
+        ),
+        (
+            slider_urdf("", false).replace("<collision><geometry></geometry></collision>", ""),
+            format!("{pair}{ground}"),
+            &["[scene.contact] pairs", "link 'body' has no <collision>"],
+        ),
+    ];
+    for (urdf, sidecar, expected) in cases {
+        let message = contact_error(&urdf, &sidecar);
+        for part in expected {
+            assert!(message.contains(part), "'{part}' not in: {message}");
+        }
+    }
+    // A negative friction inside the parameter box is refused the same way as a negative mass.
+    let mut model = model_of(&ball);
+    let file = parse_sidecar(&format!(
+        "[parameters]\n\"scene.contact.friction\" = [-0.1, 0.7]\n{pair}{ground}"
+    ))
+    .unwrap();
+    let scene = Scene::resolve(&file, &model, "test.toml", SceneOverrides::default()).unwrap();
+    scene.apply_gravity(&mut model);
+    let message = ribbon::uncertainty::ParameterSpace::from_sidecar(&file, &model, "test.toml")
+        .map(|_| ())
+        .expect_err("a negative friction must be refused")
+        .to_string();
+    assert!(
+        message.contains("scene.contact.friction")
+            && message.contains("friction coefficient must be ≥ 0"),
+        "{message}"
+    );
+}
+
+#[test]
+fn contact_sizes_and_material_are_parameters() {
+    let mut model = model_of(&slider_urdf(r#"<sphere radius="0.1"/>"#, false));
+    let listed = |m: &Model| -> Vec<String> {
+        ribbon::params::list(m)
+            .into_iter()
+            .map(|p| p.path)
+            .collect()
+    };
+    assert!(!listed(&model).iter().any(|p| p.contains("collision")));
+    let scene = scene_of(
+        &model,
+        "[scene.contact]\npairs = [[\"body\", \"ground\"]]\n[[scene.geometry]]\nname = \"ground\"\ntype = \"halfspace\"\n",
+    )
+    .unwrap();
+    scene.apply_gravity(&mut model);
+    let paths = listed(&model);
+    for expected in [
+        "link.body.collision.0.radius",
+        "scene.contact.stiffness",
+        "scene.contact.damping",
+        "scene.contact.friction",
+    ] {
+        assert!(
+            paths.iter().any(|p| p == expected),
+            "{expected} not in {paths:?}"
+        );
+        let target = ribbon::params::resolve(&model, expected).unwrap();
+        assert_eq!(ribbon::params::path_of(&model, target), expected);
+    }
+    let radius = ribbon::params::resolve(&model, "link.body.collision.0.radius").unwrap();
+    assert_eq!(ribbon::params::get(&model, radius), 0.1);
+    ribbon::params::apply(&mut model, &[radius], &[0.12]);
+    assert_eq!(ribbon::params::get(&model, radius), 0.12);
+    let message = ribbon::params::resolve(&model, "link.body.collision.0.length")
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("has no length"), "{message}");
+}
+
+#[test]
+fn adaptive_step_shortens_fast_touch_downs_but_not_deep_rest() {
+    // A 4.4 m/s touch-down penetrates ~4 mm in one 1 ms step; the scene allows 0.1 mm of growth per
+    // sub-step, so the adaptive step must shorten the steps around the impact. At rest the ball sits
+    // 0.46 mm deep — deeper than the allowance — which must not stop it from stepping on.
+    let urdf = slider_urdf(r#"<sphere radius="0.1"/>"#, false);
+    let sidecar = r#"[scene]
+duration = 3.0
+step = 1e-3
+step_control = "adaptive"
+initial.q = { z = 1.1 }
+[scene.contact]
+pairs = [["body", "ground"]]
+damping = 2.0
+max_penetration = 1e-4
+[[scene.geometry]]
+name = "ground"
+type = "halfspace"
+[outputs]
+velocities = true
+"#;
+    let trajectory = run(&urdf, sidecar);
+    let z = *column(&trajectory, "q.z").last().unwrap();
+    let v = *column(&trajectory, "v.z").last().unwrap();
+    let rest = 0.1 - resting_depth(ribbon::geometry::DEFAULT_CONTACT_STIFFNESS, 1.0);
+    eprintln!(
+        "adaptive touch-down: {} state rejections, {} sub-steps; rest at {z:.7} m (equilibrium {rest:.7}), v {v:.2e}",
+        trajectory.stats.state_rejections, trajectory.stats.substeps
+    );
+    assert!(trajectory.stats.state_rejections > 0);
+    assert!(
+        (z - rest).abs() < 1e-5 && v.abs() < 1e-4,
+        "{z} vs {rest}, v {v}"
+    );
+}
