@@ -501,3 +501,59 @@ velocities = true
         "{z} vs {rest}, v {v}"
     );
 }
+
+/// `[outputs] contact_forces = true` records each declared pair's normal force: zero while the ball
+/// is in the air, its weight m·g once it rests (the settled Hunt–Crossley force balances gravity;
+/// 1e-6 relative is far above the resting drift measured above).
+#[test]
+fn contact_force_outputs_read_zero_in_the_air_and_the_weight_at_rest() {
+    let urdf = slider_urdf(r#"<sphere radius="0.1"/>"#, false);
+    let sidecar = r#"[scene]
+duration = 3.0
+step = 1e-3
+gravity = [0.0, 0.0, -9.81]
+initial.q = { z = 0.3 }
+[scene.contact]
+pairs = [["body", "ground"]]
+damping = 50.0
+[[scene.geometry]]
+name = "ground"
+type = "halfspace"
+[outputs]
+contact_forces = true
+"#;
+    let trajectory = run(&urdf, sidecar);
+    let force = column(&trajectory, "contact.body.ground.normal");
+    let unit = trajectory
+        .outputs
+        .iter()
+        .find(|o| o.name == "contact.body.ground.normal")
+        .map(|o| o.unit);
+    assert_eq!(unit, Some("N"));
+    let airborne = trajectory.times.iter().position(|t| *t > 0.1).unwrap();
+    assert!(
+        force[..airborne].iter().all(|f| *f == 0.0),
+        "in the air the force must be exactly 0: {:?}",
+        &force[..airborne]
+    );
+    let last = force[force.len() - 1];
+    eprintln!("resting normal force {last:.9} N (weight 9.81 N)");
+    assert!(
+        ((last - 9.81) / 9.81).abs() < 1e-6,
+        "resting normal force {last} N, weight 9.81 N"
+    );
+    assert!(force.iter().all(|f| f.is_finite() && *f >= 0.0));
+}
+
+#[test]
+fn contact_force_outputs_without_contacts_are_refused_naming_the_key() {
+    let urdf = slider_urdf(r#"<sphere radius="0.1"/>"#, false);
+    let message = contact_error(
+        &urdf,
+        "[scene]\nduration = 0.1\n[outputs]\ncontact_forces = true\n",
+    );
+    assert!(
+        message.contains("[outputs] contact_forces") && message.contains("[scene.contact]"),
+        "{message}"
+    );
+}

@@ -486,6 +486,7 @@ fn run_sample(
         recorder.record_state(
             &system.model,
             &mut system.data,
+            &mut system.effects,
             state,
             &sample.initial,
             &mut sample.block[r * n_outputs..(r + 1) * n_outputs],

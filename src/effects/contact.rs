@@ -112,6 +112,8 @@ pub struct Contacts {
     touching: Vec<bool>,
     /// Whether each pair touches now, work buffer of [`Contacts::observe`].
     touching_now: Vec<bool>,
+    /// The normal force of each pair, N, work buffer of [`Contacts::normal_forces`].
+    normal_forces: Vec<f64>,
     /// Whether any pair passed the bounding-sphere test at the last force evaluation: when none
     /// did, the Newton coupling is zero and is not computed.
     near: bool,
@@ -127,8 +129,39 @@ impl Contacts {
             stats: ContactStats::default(),
             touching: vec![false; n_pairs],
             touching_now: vec![false; n_pairs],
+            normal_forces: vec![0.0; n_pairs],
             near: true,
         }
+    }
+
+    /// The normal force `f · n ≥ 0` of every declared pair at `(q, v)`, N (0 while apart), in pair
+    /// order: what the `contact.A.B.normal` outputs record. Not counted in the stats (recording
+    /// is not simulating); overwrites the kinematic buffers of `data`.
+    pub(super) fn normal_forces(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        q: &[f64],
+        v: &[f64],
+    ) -> &[f64] {
+        let Self {
+            geometry,
+            normal_forces,
+            ..
+        } = self;
+        normal_forces.fill(0.0);
+        let mut uncounted = ContactStats::default();
+        Self::for_each_contact(
+            geometry,
+            &mut uncounted,
+            model,
+            data,
+            q,
+            v,
+            false,
+            |_, k, contact, force| normal_forces[k] = force.force.dot(&contact.normal),
+        );
+        &self.normal_forces
     }
 
     /// The counters so far.

@@ -94,6 +94,22 @@ impl Effects {
         self.contacts.as_ref().map(|c| c.stats())
     }
 
+    /// The normal force of every declared contact pair at `(q, v)`, N, in pair order (empty without
+    /// contacts; docs/contacts.md). Not counted in [`Effects::contact_stats`]; overwrites the
+    /// kinematic buffers of `data`.
+    pub fn contact_normal_forces(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        q: &[f64],
+        v: &[f64],
+    ) -> &[f64] {
+        match &mut self.contacts {
+            Some(c) => c.normal_forces(model, data, q, v),
+            None => &[],
+        }
+    }
+
     /// The declared contact geometry (`None` without contacts).
     pub fn contact_geometry(&self) -> Option<&crate::geometry::GeometryModel> {
         self.contacts.as_ref().map(|c| c.geometry())

@@ -480,8 +480,9 @@ impl Scene {
             ));
         }
         let step_values = step_control::resolve(s, effects.joint_limits, step_s, path)?;
-        let outputs = outputs::resolve(&file.outputs, model, &constraints, path)?;
+        let mut outputs = outputs::resolve(&file.outputs, model, &constraints, path)?;
         let contact = contacts::resolve(s.contact.as_ref(), &s.geometry, model, path)?;
+        outputs::add_contact_outputs(&file.outputs, contact.as_ref(), model, path, &mut outputs)?;
         Ok(Scene {
             contact,
             duration_s,

@@ -48,6 +48,12 @@ pub enum OutputKind {
         /// 0, 1, 2.
         axis: usize,
     },
+    /// The normal force of declared contact pair `pair` (index into the scene's contact pairs), N;
+    /// 0 while the pair is apart.
+    ContactNormalForce {
+        /// Index into `GeometryModel::pairs`.
+        pair: usize,
+    },
     /// `sign · λ[row]`: a drive's effort and a loop's reaction force use `−λ`, a mimic row `λ`.
     Multiplier {
         /// Constraint row.
@@ -257,6 +263,46 @@ pub fn resolve(
     }
     refuse_duplicates(&outputs, path)?;
     Ok(outputs)
+}
+
+/// `[outputs] contact_forces = true`: one `contact.A.B.normal` output (N) per declared contact pair,
+/// named by the link or scene object on each side, appended to `outputs`. Refused without
+/// `[scene.contact]`.
+pub fn add_contact_outputs(
+    section: &OutputsSection,
+    contact: Option<&super::SceneContacts>,
+    model: &Model,
+    path: &str,
+    outputs: &mut Vec<Output>,
+) -> Result<(), SceneError> {
+    if !section.contact_forces.unwrap_or(false) {
+        return Ok(());
+    }
+    let Some(contact) = contact else {
+        return Err(SceneError::Invalid {
+            path: path.to_string(),
+            key: "[outputs] contact_forces".to_string(),
+            message: "there are no contact pairs to record: declare them in [scene.contact] \
+                      (see docs/contacts.md), or remove contact_forces"
+                .to_string(),
+        });
+    };
+    let name_of = |attachment: crate::geometry::Attachment| match attachment {
+        crate::geometry::Attachment::Scene(i) => contact.geometry.scene[i].name.clone(),
+        crate::geometry::Attachment::Link { link, .. } => {
+            model.description.links[link].name.clone()
+        }
+    };
+    for (pair, declared) in contact.geometry.pairs.iter().enumerate() {
+        let (a, b) = (name_of(declared.a), name_of(declared.b));
+        outputs.push(Output {
+            name: format!("contact.{a}.{b}.normal"),
+            parts: parts(&["contact", &a, &b, "normal"]),
+            unit: "N",
+            kind: OutputKind::ContactNormalForce { pair },
+        });
+    }
+    refuse_duplicates(outputs, path)
 }
 
 /// Two outputs with one name would be two CSV columns, summary entries and MCAP topics that no

@@ -241,6 +241,8 @@ pub struct OutputsSection {
     pub constraint_forces: Option<bool>,
     /// Links whose world position is recorded (`frame.LINK.x|y|z`).
     pub frames: Option<Vec<String>>,
+    /// Record the normal force of every declared contact pair (`contact.A.B.normal`, N).
+    pub contact_forces: Option<bool>,
     /// Recording rate, Hz.
     pub rate: Option<f64>,
 }

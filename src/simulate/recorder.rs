@@ -1,6 +1,7 @@
 //! Evaluates a scene's outputs at a state: `(q, v, q̈) ⇒ one value per output`.
 
 use crate::dynamics::{forward_kinematics, frame_placements, Data};
+use crate::effects::Effects;
 use crate::model::Model;
 use crate::scene::{Output, OutputKind};
 use nalgebra::{Quaternion, UnitQuaternion};
@@ -11,6 +12,7 @@ use nalgebra::{Quaternion, UnitQuaternion};
 pub struct Recorder {
     outputs: Vec<Output>,
     needs_kinematics: bool,
+    needs_contact_forces: bool,
 }
 
 /// The initial orientation of each floating joint of a trajectory (`None` for other joints).
@@ -33,6 +35,9 @@ impl Recorder {
             needs_kinematics: outputs
                 .iter()
                 .any(|o| matches!(o.kind, OutputKind::FramePosition { .. })),
+            needs_contact_forces: outputs
+                .iter()
+                .any(|o| matches!(o.kind, OutputKind::ContactNormalForce { .. })),
         }
     }
 
@@ -55,6 +60,7 @@ impl Recorder {
         &self,
         model: &Model,
         data: &mut Data,
+        effects: &mut Effects,
         state: &crate::integrate::HhtState,
         initial: &[Option<UnitQuaternion<f64>>],
         row: &mut [f64],
@@ -62,6 +68,7 @@ impl Recorder {
         self.record(
             model,
             data,
+            effects,
             state.q.as_slice(),
             state.v.as_slice(),
             state.qdd.as_slice(),
@@ -72,12 +79,14 @@ impl Recorder {
     }
 
     /// Writes one value per output into `row` (`dim outputs.len()`). `q: dim nq`, `v, qdd: dim nv`,
-    /// `lambda: dim m`; `initial` from [`Recorder::initial_orientations`].
+    /// `lambda: dim m`; `initial` from [`Recorder::initial_orientations`]; `effects` only for
+    /// contact-force outputs. Overwrites the kinematic buffers of `data`.
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         model: &Model,
         data: &mut Data,
+        effects: &mut Effects,
         q: &[f64],
         v: &[f64],
         qdd: &[f64],
@@ -85,6 +94,11 @@ impl Recorder {
         initial: &[Option<UnitQuaternion<f64>>],
         row: &mut [f64],
     ) {
+        let contact_forces: &[f64] = if self.needs_contact_forces {
+            effects.contact_normal_forces(model, data, q, v)
+        } else {
+            &[]
+        };
         if self.needs_kinematics {
             forward_kinematics(model, data, q);
         }
@@ -103,6 +117,9 @@ impl Recorder {
                     (reference.inverse() * now).scaled_axis()[axis]
                 }
                 OutputKind::Multiplier { row, sign } => sign * lambda[row],
+                OutputKind::ContactNormalForce { pair } => {
+                    contact_forces.get(pair).copied().unwrap_or(0.0)
+                }
             };
         }
     }

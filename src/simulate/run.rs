@@ -238,7 +238,14 @@ fn simulate_system(
         }
         if scene.records_step(k) {
             let state = integrator.state();
-            recorder.record_state(&system.model, &mut system.data, state, &initial, &mut row);
+            recorder.record_state(
+                &system.model,
+                &mut system.data,
+                &mut system.effects,
+                state,
+                &initial,
+                &mut row,
+            );
             times.push(state.t);
             positions.push(state.q.as_slice().to_vec());
             for (series, value) in values.iter_mut().zip(&row) {

@@ -293,7 +293,14 @@ pub fn sensitivity_run_with(
             continue;
         }
         let state = integrator.state();
-        recorder.record_state(&system.model, &mut system.data, state, &initial, &mut row);
+        recorder.record_state(
+            &system.model,
+            &mut system.data,
+            &mut system.effects,
+            state,
+            &initial,
+            &mut row,
+        );
         times.push(state.t);
         values.extend_from_slice(&row);
         derivatives.velocity.copy_from(
@@ -384,6 +391,11 @@ impl OutputDerivatives {
                 OutputKind::FramePosition { link, axis } => Ok(Rule::Frame { link, axis }),
                 OutputKind::BasePosition { joint, axis } => Ok(Rule::BasePosition { joint, axis }),
                 OutputKind::BaseRotation { joint, axis } => Ok(Rule::BaseRotation { joint, axis }),
+                OutputKind::ContactNormalForce { .. } => {
+                    Err(SensitivityRunError::UnsupportedOutput {
+                        name: o.name.clone(),
+                    })
+                }
             })
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
@@ -644,7 +656,14 @@ fn plain_run(
         }
         if scene.records_step(k) {
             let state = integrator.state();
-            recorder.record_state(&system.model, &mut system.data, state, &initial, &mut row);
+            recorder.record_state(
+                &system.model,
+                &mut system.data,
+                &mut system.effects,
+                state,
+                &initial,
+                &mut row,
+            );
             times.push(state.t);
             values.extend_from_slice(&row);
         }
