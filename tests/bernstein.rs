@@ -2,12 +2,10 @@
 //! envelope contains the scanned surrogate's at every output and record time (it is an outer
 //! bound of the same surrogate) and closes on it, where interval arithmetic stays wide.
 
+mod common;
+
 use ribbon::analysis::{DesignKind, Method, Study, StudyOptions, StudyReport};
-use ribbon::model::{LoadOptions, Model};
-use ribbon::scene::{read_sidecar, Scene, SceneOverrides};
-use ribbon::uncertainty::ParameterSpace;
 use ribbon::uq::Truncation;
-use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 /// Largest gap allowed between the Bernstein envelope and the scan's, relative to the output's
@@ -18,17 +16,12 @@ const GAP_TOL: f64 = 1e-5;
 const ROUNDING: f64 = 1e-12;
 
 fn run(method: Method) -> StudyReport {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let (sidecar, _) = read_sidecar(&root.join("robots/ur5/ur5.uncertainty.toml")).unwrap();
-    let mut model =
-        Model::from_urdf_file(&root.join("robots/ur5/ur5.urdf"), LoadOptions::default()).unwrap();
-    let overrides = SceneOverrides {
-        duration_s: Some(1.0),
-        ..SceneOverrides::default()
-    };
-    let scene = Scene::resolve(&sidecar, &model, "ur5 sidecar", overrides).unwrap();
-    scene.apply_gravity(&mut model);
-    let space = ParameterSpace::from_sidecar(&sidecar, &model, "ur5 sidecar").unwrap();
+    let setup = common::shipped_setup(
+        "robots/ur5/ur5.urdf",
+        "robots/ur5/ur5.uncertainty.toml",
+        1.0,
+    );
+    let (model, scene, space) = (setup.model, setup.scene, setup.space);
     let study = Study {
         model,
         scene: &scene,

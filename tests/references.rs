@@ -2,34 +2,24 @@
 //! made of true-model runs only, so they are inner bounds that ribbon's envelopes must contain up to
 //! their own error.
 
+mod common;
+
 use ribbon::analysis::{Method, Study, StudyOptions, VertexReferenceOptions};
-use ribbon::model::{LoadOptions, Model};
-use ribbon::scene::{read_sidecar, Scene, SceneOverrides};
-use ribbon::uncertainty::ParameterSpace;
 use ribbon::uq::Truncation;
-use std::path::Path;
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
 /// Rounding slack when comparing envelopes of runs made by the same code (m or rad).
 const ROUNDING: f64 = 1e-12;
 
-fn manifest(path: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
-
 #[test]
 fn the_vertex_reference_is_inside_the_legendre_envelope_and_contains_the_nominal_run() {
-    let urdf = manifest("robots/ur5/ur5.urdf");
-    let (sidecar, _) = read_sidecar(&manifest("robots/ur5/ur5.uncertainty.toml")).unwrap();
-    let mut model = Model::from_urdf_file(&urdf, LoadOptions::default()).unwrap();
-    let overrides = SceneOverrides {
-        duration_s: Some(0.5),
-        ..SceneOverrides::default()
-    };
-    let scene = Scene::resolve(&sidecar, &model, "ur5 sidecar", overrides).unwrap();
-    scene.apply_gravity(&mut model);
-    let space = ParameterSpace::from_sidecar(&sidecar, &model, "ur5 sidecar").unwrap();
+    let setup = common::shipped_setup(
+        "robots/ur5/ur5.urdf",
+        "robots/ur5/ur5.uncertainty.toml",
+        0.5,
+    );
+    let (model, scene, space) = (setup.model, setup.scene, setup.space);
     let study = Study {
         model,
         scene: &scene,

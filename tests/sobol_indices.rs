@@ -7,13 +7,11 @@
 //!   (within 1 % on the index scale);
 //! - the index inequalities at every output and record time: Σ main ≤ 1, main ≤ total ≤ 1.
 
+mod common;
+
 use ribbon::analysis::{DesignKind, Method, Study, StudyOptions};
-use ribbon::model::{LoadOptions, Model};
-use ribbon::scene::{read_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::simulate;
-use ribbon::uncertainty::ParameterSpace;
 use ribbon::uq::{sobol_indices_monte_carlo, Design, Family, Projector, Surrogate, Truncation};
-use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 /// The Monte Carlo estimate's agreement with the coefficients' indices (the "within 1 %":
@@ -31,17 +29,12 @@ const ORDER: usize = 4;
 
 #[test]
 fn ur5_study_indices_match_a_refit_and_a_monte_carlo_estimate() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let (sidecar, _) = read_sidecar(&root.join("robots/ur5/ur5.uncertainty.toml")).unwrap();
-    let mut model =
-        Model::from_urdf_file(&root.join("robots/ur5/ur5.urdf"), LoadOptions::default()).unwrap();
-    let overrides = SceneOverrides {
-        duration_s: Some(0.5),
-        ..SceneOverrides::default()
-    };
-    let scene = Scene::resolve(&sidecar, &model, "ur5 sidecar", overrides).unwrap();
-    scene.apply_gravity(&mut model);
-    let space = ParameterSpace::from_sidecar(&sidecar, &model, "ur5 sidecar").unwrap();
+    let setup = common::shipped_setup(
+        "robots/ur5/ur5.urdf",
+        "robots/ur5/ur5.uncertainty.toml",
+        0.5,
+    );
+    let (model, scene, space) = (setup.model, setup.scene, setup.space);
     let d = space.len();
     assert_eq!(d, 3, "the shipped box: s, the payload mass and its height");
 

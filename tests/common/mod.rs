@@ -355,3 +355,21 @@ pub fn files_with_extension(dir: &Path, ext: &str) -> Vec<PathBuf> {
     found.sort();
     found
 }
+
+/// A shipped robot and its sidecar (paths relative to the crate root) loaded the way `analyze` loads
+/// them (`ribbon::setup::Setup::load`: model with the scene's gravity, scene, parameter box, start
+/// check), with `[scene] duration` overridden to `duration_s`. Panics naming the files on failure.
+pub fn shipped_setup(urdf: &str, sidecar: &str, duration_s: f64) -> ribbon::setup::Setup {
+    let (urdf_path, sidecar_path) = (manifest_dir().join(urdf), manifest_dir().join(sidecar));
+    let request = ribbon::setup::SetupRequest {
+        urdf: &urdf_path,
+        uncertainty: Some(&sidecar_path),
+        floating: false,
+        overrides: ribbon::scene::SceneOverrides {
+            duration_s: Some(duration_s),
+            ..ribbon::scene::SceneOverrides::default()
+        },
+    };
+    ribbon::setup::Setup::load(&request, &mut |_, _| {})
+        .unwrap_or_else(|e| panic!("{urdf} with {sidecar}: {e}"))
+}
