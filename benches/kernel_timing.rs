@@ -39,6 +39,24 @@ fn best_mean_us(
     best
 }
 
+/// A positional count: `default` when absent; a clear message and exit 2 when not a positive integer.
+fn count_argument<T: std::str::FromStr + PartialOrd + From<u8>>(
+    text: Option<&String>,
+    name: &str,
+    default: T,
+) -> T {
+    let Some(text) = text else {
+        return default;
+    };
+    match text.parse::<T>() {
+        Ok(value) if value >= T::from(1) => value,
+        _ => {
+            eprintln!("kernel_timing: {name} must be a positive integer, got '{text}'");
+            std::process::exit(2);
+        }
+    }
+}
+
 fn main() {
     // `cargo bench` passes `--bench`; everything else is ours.
     let args: Vec<String> = std::env::args()
@@ -49,12 +67,8 @@ fn main() {
         eprintln!("usage: cargo bench --bench kernel_timing -- URDF [CALLS] [RUNS] [KERNEL]");
         std::process::exit(2);
     };
-    let calls: u64 = args
-        .get(1)
-        .map_or(200_000, |s| s.parse().expect("CALLS is an integer"));
-    let runs: u32 = args
-        .get(2)
-        .map_or(7, |s| s.parse().expect("RUNS is an integer"));
+    let calls: u64 = count_argument(args.get(1), "CALLS", 200_000);
+    let runs: u32 = count_argument(args.get(2), "RUNS", 7);
     let only = args.get(3).map(String::as_str);
     let model = match Model::from_urdf_file(&PathBuf::from(urdf), LoadOptions::default()) {
         Ok(model) => model,
