@@ -2,7 +2,7 @@
 //! Values of all degrees 0..=k at one point (and their first two derivatives) by the three-term
 //! recurrences, and the exact range of each basis function on [-1, 1] for interval arithmetic.
 //!
-//! Does not: evaluate multivariate expansions (see `contract.rs` and
+//! Does not: evaluate multivariate expansions (see `tensor_contraction.rs` and
 //! [`crate::uq::surrogate`]).
 
 use std::sync::OnceLock;

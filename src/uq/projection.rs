@@ -14,10 +14,10 @@
 //! Does not: bound or evaluate anything (see [`crate::uq::Surrogate`]).
 
 use crate::uq::basis::Family;
-use crate::uq::contract::apply_axis;
 use crate::uq::design::Design;
 use crate::uq::error::UqError;
 use crate::uq::quadrature;
+use crate::uq::tensor_contraction::apply_axis;
 
 /// Outputs transformed together: bounds the work buffers to `m^d × CHUNK` doubles (cache-sized for
 /// d ≤ 4, k ≤ 4) while keeping the axpy loops at least `CHUNK` long.

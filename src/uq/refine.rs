@@ -13,7 +13,7 @@
 //!
 //! Does not: choose start points (see [`crate::uq::scan`]).
 
-use crate::uq::contract::PointEvaluator;
+use crate::uq::tensor_contraction::PointEvaluator;
 
 /// Newton stops once the accepted step is this small in every coordinate: the extremum is then
 /// located to ~1e-12 and its value (stationary there) to ~1e-24 relative.

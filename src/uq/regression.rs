@@ -360,7 +360,7 @@ fn lanczos_max(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::uq::sobol::sobol_design;
+    use crate::uq::sobol_design::sobol_design;
     use crate::uq::test_support::SplitMix64;
 
     /// Least squares reproduces polynomials in the span exactly; rounding scales with κ ≈ 2–5.

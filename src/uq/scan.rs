@@ -16,11 +16,11 @@
 
 use crate::uq::basis::{Family, MAX_ORDER};
 use crate::uq::bounds::{Bound, BoundKind};
-use crate::uq::contract::{apply_axis, PointEvaluator};
 use crate::uq::design::{checked_grid_size, decode_multi_index, MAX_TENSOR_SIZE};
 use crate::uq::error::UqError;
 use crate::uq::refine::{refine, RefineWorkspace};
 use crate::uq::surrogate::Surrogate;
+use crate::uq::tensor_contraction::{apply_axis, PointEvaluator};
 
 /// Grid points per dimension by default for d ≤ 2 (docs/method.md §3b: odd so that ξ = 0 and the
 /// midpoints ±½ are on it; 21 catches the ξ + ξ² minimum at −½ exactly).

@@ -18,7 +18,7 @@
 use crate::uq::basis::Family;
 use crate::uq::error::UqError;
 use crate::uq::quadrature::gauss_legendre;
-use crate::uq::sobol::{sobol_design, SOBOL_MAX_DIM};
+use crate::uq::sobol_design::{sobol_design, SOBOL_MAX_DIM};
 
 /// Variance-based sensitivity of a surrogate under uniform ξ (docs/sobol-indices.md §1).
 #[derive(Debug, Clone, PartialEq, Default)]

@@ -7,11 +7,11 @@
 
 use crate::uq::basis::Family;
 use crate::uq::bounds::ErrorEstimate;
-use crate::uq::contract::PointEvaluator;
 use crate::uq::design::{Design, Truncation};
 use crate::uq::error::UqError;
 use crate::uq::projection::CoefficientMatrix;
 use crate::uq::sobol_indices::{tensor_sobol_indices_into, SobolIndices};
+use crate::uq::tensor_contraction::PointEvaluator;
 
 /// A polynomial surrogate of one output.
 #[derive(Debug, Clone, PartialEq)]
