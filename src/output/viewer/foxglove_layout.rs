@@ -2,7 +2,9 @@
 //! (docs/mcap.md §4): the nominal robot in a 3D panel on the left, and on the right one tab per
 //! [`ViewGroup`](super::ViewGroup), each holding one Plot panel per output with the series
 //! lower / nominal / upper in the fixed [`SERIES_COLOURS`](super::SERIES_COLOURS) and the
-//! output's name and unit as the panel title.
+//! output's name and unit as the panel title. Lichtblick, the open-source continuation of
+//! Foxglove Studio, reads the same layout but takes panel titles from its own key, so both keys
+//! are written (docs/mcap.md §8).
 
 use super::{view_group, SceneExtent, SERIES_COLOURS};
 use crate::output::mcap::{ROBOT_DESCRIPTION_TOPIC, WORLD_FRAME};
@@ -96,6 +98,7 @@ fn plot_panel(output: &LayoutOutput) -> Value {
     let title = panel_title(&output.name, &output.unit);
     json!({
         "foxglovePanelTitle": title,
+        "lichtblickPanelTitle": title,
         "title": title,
         "paths": paths,
         "showLegend": true,
@@ -116,6 +119,7 @@ fn robot_panel(extent: &SceneExtent) -> Value {
     let [x, y, z] = extent.centre();
     json!({
         "foxglovePanelTitle": "nominal robot",
+        "lichtblickPanelTitle": "nominal robot",
         "followTf": WORLD_FRAME,
         "followMode": "follow-none",
         "cameraState": {
@@ -133,6 +137,7 @@ fn robot_panel(extent: &SceneExtent) -> Value {
         "scene": {
             "enableStats": false,
             "transforms": {
+                "enablePreloading": true,
                 "showLabel": false,
                 "axisScale": AXIS_LENGTH_IN_RADII * radius,
                 "lineWidth": 1.0,
@@ -256,6 +261,8 @@ mod tests {
         assert_eq!(plots.len(), 4);
         let tool = &config["Plot!ribbon0"];
         assert_eq!(tool["foxglovePanelTitle"], "frame.tool0.z [m]");
+        // Lichtblick (the open-source Foxglove Studio) reads its own title key.
+        assert_eq!(tool["lichtblickPanelTitle"], "frame.tool0.z [m]");
         assert_eq!(
             tool["paths"][2]["value"],
             "/ribbon/envelope/frame/tool0/z.position[2]"
@@ -269,7 +276,10 @@ mod tests {
             tabs[0]["layout"],
             json!({"first": "Plot!ribbon1", "second": "Plot!ribbon2", "direction": "column", "splitPercentage": 50.0})
         );
-        let camera = &config["3D!ribbon-robot"]["cameraState"];
+        let robot = &config["3D!ribbon-robot"];
+        assert_eq!(robot["lichtblickPanelTitle"], robot["foxglovePanelTitle"]);
+        assert_eq!(robot["scene"]["transforms"]["enablePreloading"], true);
+        let camera = &robot["cameraState"];
         assert_eq!(camera["targetOffset"], json!([0.0, 0.0, 0.5]));
         assert!((camera["distance"].as_f64().unwrap() - 1.6).abs() < 1e-12);
     }
