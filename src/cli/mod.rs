@@ -72,9 +72,12 @@ pub struct RunArgs {
     #[arg(long, value_name = "N")]
     pub shards: Option<usize>,
     /// The directory of the record blocks (created if missing); this shard writes
-    /// `shard-K-of-N.records.mcap` there and nothing else.
+    /// `shard-K-of-N.records.mcap` there (a staged study: in `DIR/stage-S/`) and nothing else.
     #[arg(long, value_name = "DIR")]
     pub into: PathBuf,
+    /// A staged study's stage to run, from 1 (default: the last one `merge` planned in DIR).
+    #[arg(long, value_name = "S")]
+    pub stage: Option<usize>,
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
