@@ -45,7 +45,8 @@ pub enum Command {
     Plan(PlanArgs),
     /// Simulate one shard of a planned study into its record block file.
     Run(RunArgs),
-    /// Merge the shards' record blocks into the study's outputs (the same as `analyze`).
+    /// Merge the shards' record blocks into the study's outputs (the same as `analyze`); a
+    /// screened or adaptive study that needs another stage gets its plan instead (exit 3).
     Merge(MergeArgs),
 }
 

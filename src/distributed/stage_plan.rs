@@ -233,3 +233,49 @@ impl Stage {
         k
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn body() -> StageBody {
+        StageBody {
+            study_plan_hash: "0123456789abcdef".to_string(),
+            previous_stage_hash: "0123456789abcdef".to_string(),
+            stage: 2,
+            phase: "adaptive".to_string(),
+            nominal: false,
+            samples: 2,
+            points_xi: vec![vec![0.5, -1.0], vec![0.0, 0.25]],
+        }
+    }
+
+    #[test]
+    fn a_stage_plan_reads_back_and_an_edited_one_is_refused() {
+        let dir = std::env::temp_dir().join(format!("ribbon-stage-plan-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("mkdir");
+        let path = dir.join(STAGE_PLAN_FILE);
+        let plan = StagePlanFile::new(body());
+        std::fs::write(&path, plan.to_json()).expect("write");
+        assert_eq!(StagePlanFile::read(&path, 2).ok(), Some(plan.clone()));
+        // Another body, another hash.
+        let mut other = body();
+        other.points_xi[1][1] = 0.5;
+        assert_ne!(StagePlanFile::new(other).stage_hash, plan.stage_hash);
+        // Points of the wrong dimension.
+        let message = StagePlanFile::read(&path, 3)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(message.contains("do not match"), "{message}");
+        // An edited body no longer hashes to its stage_hash.
+        let edited = plan.to_json().replacen("\"stage\": 2", "\"stage\": 3", 1);
+        std::fs::write(&path, edited).expect("write");
+        let message = StagePlanFile::read(&path, 2)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(message.contains("edited"), "{message}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
