@@ -661,6 +661,28 @@ fn adaptive_d19_stages_merge_to_the_single_machine_bytes() {
     assert!(message.contains("has not been planned"), "{message}");
     // Restored, the merge is done.
     ok(&merge_args);
+
+    // A merge before the next stage's shards ran finds its plan written, leaves it as it is, and
+    // exits 3 again.
+    let fresh = dir.join("fresh");
+    run_stage_shards(&plan, &fresh, 1, 1);
+    let merge_fresh = ["merge", s(&plan), s(&fresh)];
+    assert_eq!(ribbon(&merge_fresh).status.code(), Some(3));
+    let stage_plan = fresh.join("stage-2/stage.plan");
+    let written = std::fs::read(&stage_plan).expect("stage 2 planned");
+    let modified = std::fs::metadata(&stage_plan)
+        .and_then(|m| m.modified())
+        .ok();
+    let again = ribbon(&merge_fresh);
+    assert_eq!(again.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&again.stdout).contains("(already)"));
+    assert!(written == std::fs::read(&stage_plan).expect("stage plan"));
+    assert_eq!(
+        modified,
+        std::fs::metadata(&stage_plan)
+            .and_then(|m| m.modified())
+            .ok()
+    );
 }
 
 /// A screened design: the screening is stage 1, the design built on its ranking stage 2.
