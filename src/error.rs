@@ -1,5 +1,5 @@
 //! The crate-level error: every module's error, plus bad command-line values, each mapped to the
-//! documented exit code (0 ok, 1 failure, 2 bad arguments or bad input).
+//! documented exit code (0 ok, 1 failure, 2 bad arguments or bad input, 3 another stage to run).
 
 use crate::dynamics::DynamicsError;
 use crate::integrate::IntegrateError;
@@ -81,7 +81,9 @@ impl Error {
     ///   or a non-finite value at the initial state, constraints that cannot close, a `dynamics`
     ///   query that fails);
     /// - 1 — a run that started failed later (Newton divergence, a NaN after t = 0, a failing
-    ///   sample of a study), was interrupted, or its results could not be written.
+    ///   sample of a study), was interrupted, or its results could not be written;
+    /// - 3 — not a failure: `merge` planned the next stage of a staged study and wrote no output
+    ///   ([`crate::distributed::NEXT_STAGE_EXIT_CODE`]).
     pub fn exit_code(&self) -> u8 {
         match self {
             Error::Model(_)

@@ -1,5 +1,6 @@
 //! The `ribbon` command: parses the command line, runs the subcommand, maps errors to exit codes
-//! (0 ok, 1 failure, 2 bad arguments or bad input; clap's own usage errors also exit 2).
+//! (0 ok, 1 failure, 2 bad arguments or bad input, 3 `merge` planned another stage; clap's own
+//! usage errors also exit 2).
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -9,8 +10,14 @@ fn main() -> ExitCode {
     match ribbon::cli::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("error: {error}");
-            ExitCode::from(error.exit_code())
+            let code = error.exit_code();
+            // Another stage to run is the documented outcome of a staged merge, not an error.
+            if code == ribbon::distributed::NEXT_STAGE_EXIT_CODE {
+                eprintln!("{error}");
+            } else {
+                eprintln!("error: {error}");
+            }
+            ExitCode::from(code)
         }
     }
 }

@@ -1,6 +1,7 @@
 //! One study across many machines (issue 14): `plan` → `run --shard K/N` → `merge` gives outputs
 //! byte-identical to a single-machine `analyze` (timing fields aside) for 1, 2, 4 and 7 shards with
-//! different thread counts; bad shard sets are named and refused.
+//! different thread counts; bad shard sets are named and refused. Designs that choose runs from
+//! earlier runs (adaptive, screened) run in stages, each merge planning the next, to the same bytes.
 
 mod common;
 
@@ -469,22 +470,243 @@ fn shard_indices_come_from_the_scheduler_and_count_from_zero() {
     assert!(message.contains("counted from 0"), "{message}");
 }
 
+/// A box of d = 19 values of the ur5 (every link's mass and scale, every joint origin's z, the
+/// payload mass), with the all-values scene: `auto` chooses the dimension-adaptive design there.
+fn ur5_d19_sidecar(dir: &Path) -> PathBuf {
+    let all = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5/ur5.all-values.uncertainty.toml"),
+    )
+    .expect("read the all-values sidecar");
+    let scene = &all[all.find("[scene]").expect("a [scene] table")..];
+    let path = dir.join("ur5.d19.uncertainty.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "[parameters]\n\"link.*.mass\" = {{ rel = 0.03 }}\n\"link.*.scale\" = {{ rel = 0.05 }}\n\"joint.*.origin.z\" = {{ abs = 0.0005 }}\n\"link.wrist_3_link.mass\" = [0.15, 1.2]\n\n{scene}"
+        ),
+    )
+    .expect("write sidecar");
+    path
+}
+
+/// `ribbon run` of every shard of the current stage, with `RAYON_NUM_THREADS` = `threads`.
+fn run_stage_shards(plan: &Path, shards: &Path, n: usize, threads: usize) {
+    for k in 0..n {
+        let args = [
+            "run",
+            s(plan),
+            "--shard",
+            &format!("{k}/{n}"),
+            "--into",
+            s(shards),
+        ];
+        let out = Command::new(env!("CARGO_BIN_EXE_ribbon"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(args)
+            .env_remove("SLURM_ARRAY_TASK_ID")
+            .env_remove("JOB_COMPLETION_INDEX")
+            .env("RAYON_NUM_THREADS", threads.to_string())
+            .output()
+            .expect("run ribbon");
+        assert!(
+            out.status.success(),
+            "ribbon {args:?} failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+/// Runs the stage loop of a staged study — the shards of the stage, then `merge` — until merge
+/// exits 0; every merge before must exit 3, say which stage comes next and write no output.
+/// Returns the outputs and the number of stages.
+fn staged_loop(
+    plan: &Path,
+    shards: &Path,
+    out: &Path,
+    n: usize,
+    threads: usize,
+) -> (Outputs, usize) {
+    let flags = outputs_flags(out);
+    for stage in 1..100 {
+        run_stage_shards(plan, shards, n, threads);
+        let mut args = vec!["merge", s(plan), s(shards)];
+        args.extend(flags.iter().map(String::as_str));
+        let merged = Command::new(env!("CARGO_BIN_EXE_ribbon"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(&args)
+            .env("RAYON_NUM_THREADS", threads.to_string())
+            .output()
+            .expect("run ribbon");
+        let stdout = String::from_utf8_lossy(&merged.stdout).to_string();
+        match merged.status.code() {
+            Some(0) => return (read_outputs(out, &merged.stdout), stage),
+            Some(3) => {
+                let next = (stage + 1).to_string();
+                assert!(
+                    stdout.split([' ', ':']).nth(1) == Some(next.as_str())
+                        && stdout.contains("run the shards again"),
+                    "{stdout}"
+                );
+                assert!(
+                    shards
+                        .join(format!("stage-{}/stage.plan", stage + 1))
+                        .exists(),
+                    "{stdout}"
+                );
+                for file in ["summary.json", "out.csv", "out.mcap"] {
+                    assert!(!out.join(file).exists(), "a pending merge wrote {file}");
+                }
+            }
+            other => panic!(
+                "merge exited {other:?}: {}",
+                String::from_utf8_lossy(&merged.stderr)
+            ),
+        }
+    }
+    panic!("no end after 100 stages");
+}
+
+/// `analyze` once, then the staged plan → shards → merge loop with 1, 2 and 3 shards and 1 or 2
+/// threads: the same bytes every time. Returns the stage count and the directory of the 2-shard
+/// run.
+fn check_staged_study(name: &str, study: &[&str]) -> (usize, PathBuf, PathBuf) {
+    let dir = scratch(name);
+    let single = dir.join("single");
+    std::fs::create_dir_all(&single).expect("mkdir");
+    let expected = analyze(&single, study);
+    let plan = dir.join("study.plan");
+    let mut args = vec!["plan"];
+    args.extend_from_slice(study);
+    args.extend(["--plan", s(&plan)]);
+    let line = String::from_utf8_lossy(&ok(&args).stdout).to_string();
+    assert!(line.contains("stage 1 of the staged"), "{line}");
+    let mut stages = Vec::new();
+    for (n, threads) in [(1, 2), (2, 1), (3, 2)] {
+        let shards = dir.join(format!("shards-{n}"));
+        let merged = dir.join(format!("merged-{n}"));
+        std::fs::create_dir_all(&merged).expect("mkdir");
+        let (found, count) = staged_loop(&plan, &shards, &merged, n, threads);
+        assert_same(&format!("{name}, {n} shards"), &expected, &found);
+        stages.push(count);
+    }
+    assert!(stages.iter().all(|&c| c == stages[0]), "{stages:?}");
+    (stages[0], plan, dir.join("shards-2"))
+}
+
+/// `--method auto` at d = 19 chooses the dimension-adaptive design; each round is a stage, and
+/// the staged merges give analyze's bytes. A record block of one stage in another stage's
+/// directory, an edited stage plan and a stage that was not planned are refused, named.
 #[test]
-fn designs_that_depend_on_runs_are_refused_naming_the_fixed_ones() {
-    let dir = scratch("adaptive");
-    let message = refused(&[
-        "plan",
+fn adaptive_d19_stages_merge_to_the_single_machine_bytes() {
+    let dir = scratch("adaptive_sidecar");
+    let sidecar = ur5_d19_sidecar(&dir);
+    let study = [
         "robots/ur5/ur5.urdf",
         "--uncertainty",
-        "robots/ur5/ur5.all-values.uncertainty.toml",
-        "--plan",
-        s(&dir.join("study.plan")),
-    ]);
+        s(&sidecar),
+        "--duration",
+        "0.05",
+    ];
+    let (stages, plan, shards) = check_staged_study("adaptive", &study);
+    let summary = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("target/test-scratch/shards/adaptive/single/summary.json"),
+    )
+    .expect("summary");
     assert!(
-        message.contains("--design sparse") && message.contains("cannot be planned ahead"),
+        summary.contains("sparse-adaptive") && summary.contains("\"converged\""),
+        "the study should be a converged adaptive design"
+    );
+    assert!(
+        stages >= 3,
+        "an adaptive design of a few rounds: {stages} stages"
+    );
+
+    let merge_args = ["merge", s(&plan), s(&shards)];
+    // A block of stage 1 among stage 2's blocks belongs to another stage: refused, named.
+    let stage2 = shards.join("stage-2/shard-0-of-2.records.mcap");
+    let saved = std::fs::read(&stage2).expect("stage 2 block");
+    std::fs::copy(shards.join("stage-1/shard-0-of-2.records.mcap"), &stage2).expect("copy");
+    let message = refused(&merge_args);
+    assert!(
+        message.contains("belongs to another plan") && message.contains("stage-2/shard-0-of-2"),
         "{message}"
     );
-    assert!(!dir.join("study.plan").exists());
+    std::fs::write(&stage2, &saved).expect("restore");
+    // An edited stage plan is refused, and so is one whose points are not the study's.
+    let stage_plan = shards.join("stage-2/stage.plan");
+    let text = std::fs::read_to_string(&stage_plan).expect("stage plan");
+    std::fs::write(
+        &stage_plan,
+        text.replacen("\"stage\": 2", "\"stage\": 3", 1),
+    )
+    .expect("edit");
+    let message = refused(&merge_args);
+    assert!(
+        message.contains("edited") && message.contains("stage-2"),
+        "{message}"
+    );
+    std::fs::write(&stage_plan, &text).expect("restore");
+    // A stage that was not planned cannot be run.
+    let message = refused(&[
+        "run",
+        s(&plan),
+        "--shard",
+        "0/2",
+        "--into",
+        s(&shards),
+        "--stage",
+        &(stages + 1).to_string(),
+    ]);
+    assert!(message.contains("has not been planned"), "{message}");
+    // Restored, the merge is done.
+    ok(&merge_args);
+
+    // A merge before the next stage's shards ran finds its plan written, leaves it as it is, and
+    // exits 3 again.
+    let fresh = dir.join("fresh");
+    run_stage_shards(&plan, &fresh, 1, 1);
+    let merge_fresh = ["merge", s(&plan), s(&fresh)];
+    assert_eq!(ribbon(&merge_fresh).status.code(), Some(3));
+    let stage_plan = fresh.join("stage-2/stage.plan");
+    let written = std::fs::read(&stage_plan).expect("stage 2 planned");
+    let modified = std::fs::metadata(&stage_plan)
+        .and_then(|m| m.modified())
+        .ok();
+    let again = ribbon(&merge_fresh);
+    assert_eq!(again.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&again.stdout).contains("(already)"));
+    assert!(written == std::fs::read(&stage_plan).expect("stage plan"));
+    assert_eq!(
+        modified,
+        std::fs::metadata(&stage_plan)
+            .and_then(|m| m.modified())
+            .ok()
+    );
+}
+
+/// A screened design: the screening is stage 1, the design built on its ranking stage 2.
+#[test]
+fn screened_stages_merge_to_the_single_machine_bytes() {
+    let dir = scratch("screened_sidecar");
+    let sidecar = ur5_d19_sidecar(&dir);
+    let (stages, _, _) = check_staged_study(
+        "screened",
+        &[
+            "robots/ur5/ur5.urdf",
+            "--uncertainty",
+            s(&sidecar),
+            "--method",
+            "legendre-scan",
+            "--design",
+            "screened",
+            "--order",
+            "2",
+            "--duration",
+            "0.05",
+        ],
+    );
+    assert_eq!(stages, 2);
 }
 
 /// The record block is MCAP that the `mcap` Python package reads: the header metadata, one

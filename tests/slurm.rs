@@ -1,7 +1,8 @@
 //! A real single-node Slurm on loopback runs a sharded study (issue 14): `slurmctld` and `slurmd`
 //! started here without systemd (`auth/none`, a configuration under `target/`), the shipped
 //! `examples/slurm/shard.sbatch` submitted as a 4-task array with `sbatch --wait`, the shards
-//! merged, and the outputs compared byte for byte with a single-machine `analyze`.
+//! merged, and the outputs compared byte for byte with a single-machine `analyze`; then a staged
+//! study (a screened design, two stages) through `examples/slurm/stages.sh`, the same way.
 //!
 //! When Slurm is absent the test installs Debian's `slurm-wlm` (`apt-get install -y slurm-wlm`,
 //! as root); when it cannot, it fails with the command to run. It never skips.
@@ -257,5 +258,63 @@ fn a_slurm_array_runs_the_shards_and_the_merge_matches_analyze() {
         masked_summary(&work.join("single.json")),
         masked_summary(&work.join("merged.json")),
         "the merged summary differs from analyze's (timing fields masked)"
+    );
+
+    // A staged study (a screened design: the screening, then the design built on its ranking)
+    // through examples/slurm/stages.sh: one array per stage, merge after each, until merge
+    // exits 0.
+    let staged = [
+        "robots/ur5/ur5.urdf",
+        "--duration",
+        "0.2",
+        "--method",
+        "legendre-scan",
+        "--design",
+        "screened",
+        "--order",
+        "2",
+    ];
+    let mut args: Vec<String> = vec!["analyze".into()];
+    args.extend(staged.iter().map(|a| a.to_string()));
+    args.extend(outputs("staged-single"));
+    ribbon(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let staged_plan = work.join("staged.plan");
+    let mut args: Vec<String> = vec!["plan".into()];
+    args.extend(staged.iter().map(|a| a.to_string()));
+    args.extend(["--plan".to_string(), s(&staged_plan)]);
+    ribbon(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let submitted = Instant::now();
+    let driver = run(
+        Command::new("sh")
+            .current_dir(manifest())
+            .args(["examples/slurm/stages.sh", "2"])
+            .env("SLURM_CONF", &conf)
+            .env("RIBBON", env!("CARGO_BIN_EXE_ribbon"))
+            .env("PLAN", &staged_plan)
+            .env("SHARDS", work.join("staged-shards"))
+            .env("SUMMARY", work.join("staged-merged.json"))
+            .env("CSV", work.join("staged-merged.csv"))
+            .env("MCAP", work.join("staged-merged.mcap"))
+            .env(
+                "SBATCH_FLAGS",
+                format!("--output={}/slurm-staged-%A_%a.out", s(&work)),
+            ),
+        "examples/slurm/stages.sh (task logs in target/slurm-test/study/slurm-staged-*.out)",
+    );
+    let stderr = String::from_utf8_lossy(&driver.stderr);
+    assert!(stderr.contains("done after 2 stages"), "{stderr}");
+    println!(
+        "the two-stage study (2 arrays of 2 tasks and 2 merges) took {:.1} s",
+        submitted.elapsed().as_secs_f64()
+    );
+    for ext in ["csv", "mcap"] {
+        let single = std::fs::read(work.join(format!("staged-single.{ext}"))).expect("single");
+        let merged = std::fs::read(work.join(format!("staged-merged.{ext}"))).expect("merged");
+        assert!(single == merged, "the staged {ext} differs from analyze's");
+    }
+    assert_eq!(
+        masked_summary(&work.join("staged-single.json")),
+        masked_summary(&work.join("staged-merged.json")),
+        "the staged summary differs from analyze's (timing fields masked)"
     );
 }

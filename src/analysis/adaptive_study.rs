@@ -8,7 +8,8 @@
 //! stop:    the budget is spent, or every candidate's indicator is below ADAPTIVE_TOLERANCE
 //! ```
 //!
-//! Every round is a lock-step phase over the whole horizon, and every run's values are kept (the
+//! Every round is a lock-step phase over the whole horizon (and a stage of a distributed study:
+//! docs/distributed.md §7), and every run's values are kept (the
 //! next round's fit needs them): `runs × outputs × records` values, which `auto` checks against
 //! [`super::auto::ADAPTIVE_VALUE_BUDGET`] before choosing this design. The study then bounds the
 //! final interpolant from the stored values like any other sparse design.
@@ -16,6 +17,7 @@
 use super::adaptive::{
     AdaptiveSet, ADAPTIVE_BATCH_FRACTION, ADAPTIVE_MIN_BATCH, ADAPTIVE_TOLERANCE,
 };
+use super::stages::StageCursor;
 use super::study::{n_records, record_time, Accumulator, Progress, Study, StudyError, StudyReport};
 use crate::uq::{Factor, SparseGrid, UqError};
 use rayon::prelude::*;
@@ -74,6 +76,7 @@ impl Study<'_> {
     #[allow(clippy::too_many_arguments)]
     pub(super) fn adapt(
         &self,
+        stages: &mut StageCursor,
         budget: usize,
         nominal_xi: &[f64],
         threads: &rayon::ThreadPool,
@@ -102,7 +105,8 @@ impl Study<'_> {
             values.resize_with(first_row + new_terms.len(), || vec![0.0; stride]);
             let with_nominal = rounds == 0;
             report.runs += new_terms.len() + usize::from(with_nominal);
-            let round_complete = self.run_phase(
+            let round_complete = self.run_stage(
+                stages,
                 "adaptive",
                 &points,
                 with_nominal.then_some(nominal_xi),

@@ -22,6 +22,7 @@ mod schedule;
 mod screening;
 mod sobol_indices;
 mod sparse;
+mod stages;
 mod study;
 
 pub use adaptive::{
@@ -54,6 +55,7 @@ pub use sobol_indices::{
     TABLE_SOBOL_CONTRIBUTORS,
 };
 pub use sparse::{screened_set, SparseDesign, REGRESSION_OVERSAMPLING, REGRESSION_SEED};
+pub use stages::{FirstStage, PendingStage, SimulateHere, StageRecords, StageRequest, StageSource};
 pub use study::{
     BlockView, CheckReport, DesignKind, DesignPart, Envelope, OuterBounds, PartSink, Progress,
     Study, StudyError, StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,

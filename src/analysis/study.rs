@@ -26,6 +26,7 @@ pub use super::schedule::{RecordSchedule, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS}
 use super::screening::Screening;
 use super::sobol_indices::{has_sobol_indices, SobolBlock, SobolSeries};
 use super::sparse::SparseDesign;
+use super::stages::{PendingStage, SimulateHere, StageCursor, StageRecords};
 use super::Method;
 use crate::model::Model;
 use crate::scene::{Output, Scene};
@@ -112,6 +113,10 @@ pub enum StudyError {
     /// The recorded values of a phase could not be read (a shard's record block).
     #[error(transparent)]
     Records(Box<crate::Error>),
+    /// Not a failure: the study needs the records of a stage that has not run yet (`plan` and
+    /// `merge` write its plan; `analyze` never stops here). See docs/distributed.md §7.
+    #[error("the study needs the records of stage {} ({} phase) before it can go on", .0.stage, .0.phase)]
+    StageNeeded(Box<PendingStage>),
     /// The worker threads could not be started.
     #[error("cannot start {threads} worker threads: {message}")]
     Threads {
@@ -754,7 +759,7 @@ impl Study<'_> {
         progress: &mut dyn FnMut(Progress),
         sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
     ) -> Result<StudyReport, StudyError> {
-        self.run_stages(study_plan, None, interrupt, progress, sink)
+        self.run_stages(study_plan, &mut SimulateHere, interrupt, progress, sink)
     }
 
     /// The design's sample points (row-major `runs × d`, the nominal run not included) when the
@@ -767,15 +772,18 @@ impl Study<'_> {
             .map(|plan| plan.points(self.space.len()))
     }
 
-    /// The study's stages — design, fit and bound, the a-posteriori check, the chaos estimate,
-    /// the sinks — with the design's recorded values either simulated here (`design_records` is
-    /// `None`: `analyze`) or read from `design_records` (`merge`: the record blocks of shards
-    /// that simulated [`Study::design_points`] and the nominal run elsewhere). Either way the
-    /// values reach the fits in the same order, so the results are the same bit for bit.
+    /// The study's phases — screening or adaptive rounds where the design has them, design, fit
+    /// and bound, the a-posteriori check, the chaos estimate, the sinks — with the records of
+    /// each *stage* (a phase of runs planned before it runs: the design, the screening, each
+    /// adaptive round; docs/distributed.md §7) from `stages`: simulated here
+    /// ([`SimulateHere`]: `analyze`) or read from the record blocks of shards that simulated
+    /// them elsewhere (`merge`). Either way the values reach the fits in the same order, so the
+    /// decisions between stages and the results are the same bit for bit. A stage whose records
+    /// do not exist yet ends the study with [`StudyError::StageNeeded`] naming its points.
     pub fn run_stages(
         &self,
         study_plan: StudyPlan,
-        design_records: Option<&mut dyn RecordSource>,
+        stages: &mut dyn StageRecords,
         interrupt: &AtomicBool,
         progress: &mut dyn FnMut(Progress),
         sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
@@ -812,16 +820,11 @@ impl Study<'_> {
         let mut screen_hull: Vec<EnvelopePoint> = Vec::new();
         let nominal_xi = self.space.nominal_xi();
         let mut adapted = None;
+        let mut stages = StageCursor::new(stages, d);
         let plan = match study_plan.plan {
             Some(plan) => {
                 report.runs += design_runs;
                 plan
-            }
-            None if design_records.is_some() => {
-                return Err(StudyError::BadOptions(format!(
-                    "the {} design chooses its runs from earlier runs, so its record blocks cannot be simulated ahead of the study",
-                    study_plan.design_name
-                )))
             }
             None => {
                 let Some(choice) = &study_plan.auto else {
@@ -831,6 +834,7 @@ impl Study<'_> {
                 };
                 if let AutoDesign::Adaptive { budget } = choice.design {
                     let Some((grid, outcome)) = self.adapt(
+                        &mut stages,
                         budget,
                         &nominal_xi,
                         &threads,
@@ -849,6 +853,7 @@ impl Study<'_> {
                     Plan::Sparse(Arc::new(SparseDesign::Grid(grid)))
                 } else {
                     let (screening, complete) = self.screen(
+                        &mut stages,
                         &threads,
                         interrupt,
                         started,
@@ -908,7 +913,8 @@ impl Study<'_> {
             None => {
                 let points = plan.points(d);
                 let mut simulated;
-                let source: &mut dyn RecordSource = match design_records {
+                let mut recorded = stages.source("design", &points, true)?;
+                let source: &mut dyn RecordSource = match recorded.as_deref_mut() {
                     Some(source) => source,
                     None => {
                         simulated = self.lockstep(&points, Some(&nominal_xi));
@@ -1006,8 +1012,10 @@ impl Study<'_> {
     /// The screening phase: the star design (`±e_j` and the centre, 2d + 1 runs). Returns the
     /// screening and whether it ran to the end; `hull` receives the runs' min/max per record and
     /// output (record-major), since they are true responses the envelopes must contain.
+    #[allow(clippy::too_many_arguments)]
     fn screen(
         &self,
+        stages: &mut StageCursor,
         threads: &rayon::ThreadPool,
         interrupt: &AtomicBool,
         started: Instant,
@@ -1026,7 +1034,8 @@ impl Study<'_> {
             noun: "screening run",
         };
         report.runs += 2 * d + 1;
-        let complete = self.run_phase(
+        let complete = self.run_stage(
+            stages,
             "screening",
             &points,
             None,
@@ -1156,6 +1165,42 @@ impl Study<'_> {
             complete,
             checked,
         })
+    }
+
+    /// [`Study::run_phase`] of the next stage: its records read from where `stages` says, or
+    /// simulated here.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn run_stage(
+        &self,
+        stages: &mut StageCursor,
+        phase: &'static str,
+        points: &[f64],
+        nominal_xi: Option<&[f64]>,
+        policy: FailurePolicy,
+        threads: &rayon::ThreadPool,
+        interrupt: &AtomicBool,
+        started: Instant,
+        report: &mut StudyReport,
+        progress: &mut dyn FnMut(Progress),
+        on_block: &mut dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError>,
+    ) -> Result<bool, StudyError> {
+        match stages.source(phase, points, nominal_xi.is_some())? {
+            Some(mut source) => self.run_source(
+                phase,
+                &mut *source,
+                policy,
+                threads,
+                interrupt,
+                started,
+                report,
+                progress,
+                on_block,
+            ),
+            None => self.run_phase(
+                phase, points, nominal_xi, policy, threads, interrupt, started, report, progress,
+                on_block,
+            ),
+        }
     }
 
     /// Simulates `points` (and the nominal run when given) in lock-step over the whole horizon,

@@ -10,11 +10,11 @@ use super::{
 };
 use crate::analysis::{
     has_sobol_indices, sobol_values_per_record, CheckReport, DesignKind, Method, Progress,
-    RecordSchedule, RecordSource, Study, StudyOptions, StudyPlan, StudyReport, ADAPTIVE_TOLERANCE,
-    CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TABLE_SOBOL_CONTRIBUTORS,
+    RecordSchedule, SimulateHere, StageRecords, Study, StudyOptions, StudyPlan, StudyReport,
+    ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TABLE_SOBOL_CONTRIBUTORS,
     TRUST_RELATIVE_MISFIT,
 };
-use crate::distributed::{PlanFile, ShardError, ShardSet};
+use crate::distributed::{PlanFile, ShardError, ShardStages};
 use crate::dynamics::Data;
 use crate::output::mcap::McapMetadata;
 use crate::output::{
@@ -103,19 +103,16 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         options: options.clone(),
     };
     let plan = study.plan()?;
-    let mut shard_set = match &merge {
+    // Where the records of each stage come from: simulated here, or the shards' record blocks.
+    let mut simulate_here = SimulateHere;
+    let mut shard_stages;
+    let stages: &mut dyn StageRecords = match &merge {
         Some(input) => {
             check_plan_matches(input.plan, input.plan_path, &study, &plan)?;
-            let set = ShardSet::open(input.plan, input.dir)?;
-            eprintln!(
-                "merge: {} record blocks of plan {} from {}",
-                set.files().len(),
-                input.plan.plan_hash,
-                input.dir.display()
-            );
-            Some(set)
+            shard_stages = ShardStages::new(input.plan, input.plan_path, input.dir);
+            &mut shard_stages
         }
-        None => None,
+        None => &mut simulate_here,
     };
     let runs = plan.max_runs();
     eprintln!(
@@ -173,7 +170,7 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     let mut reporter = ProgressReporter::new();
     let report = study.run_stages(
         plan,
-        shard_set.as_mut().map(|s| s as &mut dyn RecordSource),
+        stages,
         interrupt,
         &mut |progress| reporter.report(progress),
         &mut |block| match log.as_mut() {
@@ -287,9 +284,14 @@ pub fn check_plan_matches(
     ) {
         return Err(mismatch("record schedule"));
     }
-    let points = study.design_points(study_plan).unwrap_or_default();
+    // A staged design's first stage is checked when the study reaches it (its points are chosen
+    // by the study's first phase, not by the plan).
+    let points = study.design_points(study_plan);
+    if points.is_none() != body.staged.is_some() {
+        return Err(mismatch("design (fixed or staged)"));
+    }
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
-    if bits(&points) != bits(&plan.points())
+    if points.is_some_and(|points| bits(&points) != bits(&plan.points()))
         || bits(&study.space.nominal_xi()) != bits(&body.nominal_xi)
         || body.check_runs != study_plan.check_runs
     {

@@ -45,7 +45,8 @@ pub enum Command {
     Plan(PlanArgs),
     /// Simulate one shard of a planned study into its record block file.
     Run(RunArgs),
-    /// Merge the shards' record blocks into the study's outputs (the same as `analyze`).
+    /// Merge the shards' record blocks into the study's outputs (the same as `analyze`); a
+    /// screened or adaptive study that needs another stage gets its plan instead (exit 3).
     Merge(MergeArgs),
 }
 
@@ -72,9 +73,12 @@ pub struct RunArgs {
     #[arg(long, value_name = "N")]
     pub shards: Option<usize>,
     /// The directory of the record blocks (created if missing); this shard writes
-    /// `shard-K-of-N.records.mcap` there and nothing else.
+    /// `shard-K-of-N.records.mcap` there (a staged study: in `DIR/stage-S/`) and nothing else.
     #[arg(long, value_name = "DIR")]
     pub into: PathBuf,
+    /// A staged study's stage to run, from 1 (default: the last one `merge` planned in DIR).
+    #[arg(long, value_name = "S")]
+    pub stage: Option<usize>,
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,

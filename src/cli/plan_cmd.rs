@@ -4,8 +4,10 @@
 
 use super::analyze_cmd::{prepare, sidecar_path_of, study_options};
 use super::{check_output_paths, write_stdout, PlanArgs};
-use crate::analysis::{BlockOutcome, RecordSchedule, Study};
-use crate::distributed::{InputFile, PlanBody, PlanFile, PlanOptions};
+use crate::analysis::{
+    BlockOutcome, FirstStage, PendingStage, RecordSchedule, Study, StudyError, StudyPlan,
+};
+use crate::distributed::{InputFile, PlanBody, PlanFile, PlanOptions, StagedDesign};
 use crate::output::write_atomically;
 use crate::Error;
 use std::sync::atomic::AtomicBool;
@@ -55,14 +57,18 @@ pub fn run(args: &PlanArgs) -> Result<(), Error> {
         options,
     };
     let study_plan = study.plan()?;
-    let Some(points) = study.design_points(&study_plan) else {
-        return Err(Error::BadArgument {
-            flag: "--design".to_string(),
-            message: format!(
-                "the {} design chooses its runs from earlier runs (a screening, or adaptive rounds), so they cannot be planned ahead for shards; plan a fixed design instead — --method legendre-scan --design sparse (total degree --order on a Leja sparse grid) or --design regression — or run `ribbon analyze` on one machine",
-                study_plan.design_name
-            ),
-        });
+    // A design that chooses runs from earlier runs (screened, adaptive) runs in stages: the plan
+    // holds stage 1, as far as the study gets without any record (docs/distributed.md §7).
+    let (points, staged) = match study.design_points(&study_plan) {
+        Some(points) => (points, None),
+        None => {
+            let first = first_stage(&study, &study_plan)?;
+            let staged = StagedDesign {
+                phase: first.phase.to_string(),
+                nominal: first.nominal,
+            };
+            (first.points, Some(staged))
+        }
     };
     let d = setup.space.len();
     let schedule = RecordSchedule::of(&setup.scene);
@@ -104,6 +110,7 @@ pub fn run(args: &PlanArgs) -> Result<(), Error> {
         points_xi: points.chunks(d.max(1)).map(<[f64]>::to_vec).collect(),
         nominal_xi: setup.space.nominal_xi(),
         check_runs: study_plan.check_runs,
+        staged: staged.clone(),
     };
     let plan = PlanFile::new(body);
     write_atomically(&args.plan, "plan", plan.to_json().as_bytes())?;
@@ -112,9 +119,14 @@ pub fn run(args: &PlanArgs) -> Result<(), Error> {
     // the wall time from the nominal run's first steps on one core.
     let n_outputs = setup.scene.outputs.len() as u64;
     let records = schedule.len() as u64;
+    let nominal_run = staged.as_ref().is_none_or(|s| s.nominal);
     let data_bytes = records
-        * (2 * MESSAGE_OVERHEAD_BYTES
-            + 8 * (samples as u64 * n_outputs + n_outputs + setup.model.nq as u64));
+        * if nominal_run {
+            2 * MESSAGE_OVERHEAD_BYTES
+                + 8 * (samples as u64 * n_outputs + n_outputs + setup.model.nq as u64)
+        } else {
+            MESSAGE_OVERHEAD_BYTES + 8 * samples as u64 * n_outputs
+        };
     let mut seconds_per_step = f64::INFINITY;
     for _ in 0..CALIBRATION_REPEATS {
         seconds_per_step = seconds_per_step.min(calibrate(&study, &schedule, &points)?);
@@ -123,14 +135,23 @@ pub fn run(args: &PlanArgs) -> Result<(), Error> {
     let per_shard: Vec<String> = ESTIMATED_SHARD_COUNTS
         .iter()
         .map(|&n| {
-            let runs = samples.div_ceil(n) + 1;
+            let runs = samples.div_ceil(n) + usize::from(nominal_run);
             format!("N={n}: {}", duration(runs as f64 * run_seconds))
         })
         .collect();
+    let runs_text = match &staged {
+        None => format!("{samples} design runs + the nominal run in shards"),
+        Some(s) => format!(
+            "stage 1 of the staged {} design: {samples} {} runs{} in shards, then `merge` plans each later stage from the records before it (up to {} design runs in all)",
+            study_plan.design_name,
+            s.phase,
+            if nominal_run { " + the nominal run" } else { "" },
+            study_plan.screening_runs + study_plan.design_runs.saturating_sub(1)
+        ),
+    };
     write_stdout(&format!(
-        "plan {}: {} design runs + the nominal run in shards (merge adds up to {} check runs and 2 chaos runs), {} record times of {} outputs; record blocks {} in all (+ ~2 kB per shard); calibration {:.3e} s per step per run ⇒ expected wall time per shard on one core: {}; written to {}\n",
+        "plan {}: {runs_text} (merge adds up to {} check runs and 2 chaos runs), {} record times of {} outputs; record blocks {} in all (+ ~2 kB per shard); calibration {:.3e} s per step per run ⇒ expected wall time per shard on one core: {}; written to {}\n",
         plan.plan_hash,
-        samples,
         study_plan.check_runs,
         records,
         n_outputs,
@@ -139,6 +160,26 @@ pub fn run(args: &PlanArgs) -> Result<(), Error> {
         per_shard.join(", "),
         args.plan.display()
     ))
+}
+
+/// Stage 1 of a staged design: the study run with no records at all stops at its first stage,
+/// naming its points — the same code that chooses them in `analyze`.
+fn first_stage(study: &Study, study_plan: &StudyPlan) -> Result<PendingStage, Error> {
+    let interrupt = AtomicBool::new(false);
+    match study.run_stages(
+        study_plan.clone(),
+        &mut FirstStage,
+        &interrupt,
+        &mut |_| {},
+        &mut |_| Ok(()),
+    ) {
+        Err(StudyError::StageNeeded(pending)) => Ok(*pending),
+        Err(other) => Err(other.into()),
+        Ok(_) => Err(Error::Study(StudyError::BadOptions(format!(
+            "internal: the {} design ran without a stage",
+            study_plan.design_name
+        )))),
+    }
 }
 
 /// Seconds per integrator step of one run: [`CALIBRATION_RUNS`] design samples spread over the

@@ -1,13 +1,16 @@
 //! `ribbon run study.plan --shard K/N --into DIR` (or `--shards N`, K from `SLURM_ARRAY_TASK_ID`
 //! or `JOB_COMPLETION_INDEX`): simulates one shard of a planned study into its record block
 //! `DIR/shard-K-of-N.records.mcap` (docs/distributed.md §3). The file appears only when the shard
-//! is complete (written beside it and renamed); a re-run replaces only that shard's file.
+//! is complete (written beside it and renamed); a re-run replaces only that shard's file. A staged
+//! study's shard runs the last stage planned under DIR (or `--stage K`) into
+//! `DIR/stage-K/shard-K-of-N.records.mcap` (docs/distributed.md §7).
 
 use super::analyze_cmd::{check_plan_matches, prepare, study_options, ProgressReporter};
 use super::{install_interrupt, AnalyzeArgs, RunArgs, SceneArgs};
 use crate::analysis::{RecordSchedule, Study};
 use crate::distributed::{
     shard_file_name, BlockHeader, BlockTrailer, PlanFile, RecordBlockWriter, ShardError, ShardSpec,
+    Stage,
 };
 use crate::Error;
 use std::time::Instant;
@@ -43,7 +46,24 @@ pub fn run(args: &RunArgs) -> Result<(), Error> {
         path: args.into.clone(),
         source,
     })?;
-    let path = args.into.join(shard_file_name(spec));
+    // The stage to run: --stage, or the last one planned in DIR (stage 1 for a fixed design).
+    let number = args
+        .stage
+        .unwrap_or_else(|| Stage::latest_number(&plan, &args.into));
+    if number == 0 {
+        return Err(ShardError::BadShard {
+            flag: "--stage".to_string(),
+            message: "stages are counted from 1".to_string(),
+        }
+        .into());
+    }
+    let stage = Stage::resolve(&plan, &args.plan, &args.into, number)?;
+    std::fs::create_dir_all(&stage.directory).map_err(|source| ShardError::Io {
+        what: "create the stage directory",
+        path: stage.directory.clone(),
+        source,
+    })?;
+    let path = stage.directory.join(shard_file_name(spec));
     crate::output::check_outputs(
         &[
             ("URDF", plan.body.urdf.path.as_path()),
@@ -63,34 +83,40 @@ pub fn run(args: &RunArgs) -> Result<(), Error> {
     };
     let study_plan = study.plan()?;
     check_plan_matches(&plan, &args.plan, &study, &study_plan)?;
-    let points = plan.points();
-    let range = spec.samples(plan.body.samples);
+    let points = &stage.points;
+    let range = spec.samples(stage.samples);
+    let with_nominal = spec.runs_nominal() && stage.nominal;
     let schedule = RecordSchedule::of(&setup.scene);
     let n_outputs = setup.scene.outputs.len();
     let header = BlockHeader {
-        plan_hash: plan.plan_hash.clone(),
+        plan_hash: stage.hash.clone(),
         shard: spec.index,
         shards: spec.count,
         first_sample: range.start,
         end_sample: range.end,
-        nominal: spec.runs_nominal(),
+        nominal: with_nominal,
         outputs: n_outputs,
         records: schedule.len(),
         nq: setup.model.nq,
     };
     eprintln!(
-        "run: shard {}/{} of plan {}: samples {}..{}{} of {}, {} record times",
+        "run: shard {}/{} of {}{}: samples {}..{}{} of {}, {} record times",
         spec.index,
         spec.count,
-        plan.plan_hash,
+        if plan.body.staged.is_some() {
+            format!("stage {} ", stage.number)
+        } else {
+            String::new()
+        },
+        stage.hash,
         range.start,
         range.end,
-        if spec.runs_nominal() {
+        if with_nominal {
             " and the nominal run"
         } else {
             ""
         },
-        plan.body.samples,
+        stage.samples,
         schedule.len()
     );
     let mut writer = RecordBlockWriter::create(&path, header)?;
@@ -99,9 +125,9 @@ pub fn run(args: &RunArgs) -> Result<(), Error> {
     let mut reporter = ProgressReporter::new();
     let part = study.simulate_design_part(
         &study_plan,
-        &points,
+        points,
         range.clone(),
-        spec.runs_nominal(),
+        with_nominal,
         crate::interrupt::flag(),
         &mut |progress| reporter.report(progress),
         &mut |first, count, records| {
@@ -141,7 +167,7 @@ pub fn run(args: &RunArgs) -> Result<(), Error> {
     eprintln!(
         "run: wrote {} ({size} bytes): {} runs, {} steps, {failures} samples excluded; simulate {:.3} s, wall {:.3} s",
         path.display(),
-        part_samples + usize::from(spec.runs_nominal()),
+        part_samples + usize::from(with_nominal),
         part.steps,
         part.simulate_seconds,
         started.elapsed().as_secs_f64()

@@ -53,7 +53,7 @@ pub enum ShardError {
         message: String,
     },
     /// A record block of another plan lies among the shards.
-    #[error("record block '{path}' belongs to another plan (plan hash {found}; this plan is {expected}); move it out of the directory, or merge it with its own plan")]
+    #[error("record block '{path}' belongs to another plan, or to another stage of this one (hash {found}; this plan or stage is {expected}); move it out of the directory, or merge it with its own plan")]
     Foreign {
         /// The file.
         path: PathBuf,
@@ -86,6 +86,17 @@ pub enum ShardError {
         /// The commands or shard names that would make them.
         shards: String,
     },
+    /// Not a failure of the input: the study needs another stage before it can write its outputs
+    /// (exit status [`super::NEXT_STAGE_EXIT_CODE`]).
+    #[error("stage {stage} is planned in '{plan}' and has no record blocks yet: run its shards ({command}), then merge again")]
+    NextStage {
+        /// The stage's number.
+        stage: usize,
+        /// Its stage plan.
+        plan: PathBuf,
+        /// The command that runs one of its shards.
+        command: String,
+    },
     /// Reading or writing a file failed.
     #[error("{what} '{path}': {source}")]
     Io {
@@ -99,10 +110,12 @@ pub enum ShardError {
 }
 
 impl ShardError {
-    /// The exit code: 2 when the input (plan, shards, flags) is at fault, 1 when writing failed.
+    /// The exit code: 2 when the input (plan, shards, flags) is at fault, 1 when writing failed,
+    /// [`super::NEXT_STAGE_EXIT_CODE`] (3) when another stage must run first.
     pub fn exit_code(&self) -> u8 {
         match self {
             ShardError::Io { .. } => 1,
+            ShardError::NextStage { .. } => super::NEXT_STAGE_EXIT_CODE,
             _ => 2,
         }
     }

@@ -120,6 +120,20 @@ pub struct PlanBody {
     pub nominal_xi: Vec<f64>,
     /// Most runs the a-posteriori check adds at merge time.
     pub check_runs: usize,
+    /// Designs that choose runs from earlier runs (screened, adaptive): the study runs in stages
+    /// and `samples`/`points_xi` are those of stage 1; `merge` plans the later ones
+    /// (docs/distributed.md §7). Absent for fixed designs (their plans hash as before).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub staged: Option<StagedDesign>,
+}
+
+/// What a plan of a staged design says about its first stage.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StagedDesign {
+    /// The phase of stage 1: `screening` (screened designs) or `adaptive` (round 0).
+    pub phase: String,
+    /// Whether stage 1's first shard also runs the nominal run.
+    pub nominal: bool,
 }
 
 /// A plan file: its format, version, hash and body.

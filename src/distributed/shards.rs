@@ -3,6 +3,7 @@
 use super::error::ShardError;
 use super::plan_file::PlanFile;
 use super::record_block::RecordBlockReader;
+use super::stage_plan::Stage;
 use crate::analysis::{BlockOutcome, RecordSource, SampleFailure, StudyError};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -124,6 +125,8 @@ pub fn shard_file_name(spec: ShardSpec) -> String {
 pub struct ShardSet {
     readers: Vec<RecordBlockReader>,
     samples: usize,
+    /// Whether the set holds the nominal run (after the samples).
+    nominal: bool,
     outputs: usize,
     nq: usize,
     /// The current block: per record, `(samples + 1) × outputs` (the nominal run last).
@@ -142,13 +145,23 @@ impl ShardSet {
     /// they belong to `plan` and tile its samples exactly once, with one nominal run. Names the
     /// missing, duplicated, foreign and truncated ones.
     pub fn open(plan: &PlanFile, dir: &Path) -> Result<ShardSet, ShardError> {
+        ShardSet::open_stage(plan, &Stage::first(plan, Path::new(""), dir))
+    }
+
+    /// The record block files of `dir` (`shard-K-of-N.records.mcap`), sorted; none when the
+    /// directory does not exist.
+    pub fn block_files(dir: &Path) -> Result<Vec<PathBuf>, ShardError> {
         let io = |source| ShardError::Io {
             what: "list the shard directory",
             path: dir.to_path_buf(),
             source,
         };
-        let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
-            .map_err(io)?
+        let entries = match std::fs::read_dir(dir) {
+            Ok(entries) => entries,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+            Err(e) => return Err(io(e)),
+        };
+        let mut paths: Vec<PathBuf> = entries
             .map(|entry| entry.map(|e| e.path()))
             .collect::<Result<_, _>>()
             .map_err(io)?;
@@ -158,36 +171,49 @@ impl ShardSet {
                 .is_some_and(|n| n.starts_with("shard-") && n.ends_with(".records.mcap"))
         });
         paths.sort();
+        Ok(paths)
+    }
+
+    /// [`ShardSet::open`] for one stage of `plan` (docs/distributed.md §7): the record blocks in
+    /// `stage.directory`, which must carry the stage's hash (a block of another stage or study
+    /// is foreign) and tile its samples exactly once, with the nominal run where the stage has
+    /// one.
+    pub fn open_stage(plan: &PlanFile, stage: &Stage) -> Result<ShardSet, ShardError> {
+        let dir = stage.directory.as_path();
+        let paths = ShardSet::block_files(dir)?;
         let body = &plan.body;
         let mut readers = Vec::with_capacity(paths.len());
         for path in &paths {
             let reader = RecordBlockReader::open(path)?;
             let header = reader.header();
-            if header.plan_hash != plan.plan_hash {
+            if header.plan_hash != stage.hash {
                 return Err(ShardError::Foreign {
                     path: path.clone(),
                     found: header.plan_hash.clone(),
-                    expected: plan.plan_hash.clone(),
+                    expected: stage.hash.clone(),
                 });
             }
             let expected = (body.outputs.len(), body.records, body.nq);
             if (header.outputs, header.records, header.nq) != expected
-                || header.end_sample > body.samples
+                || header.end_sample > stage.samples
+                || (header.nominal && !stage.nominal)
             {
                 return Err(ShardError::Malformed {
                     path: path.clone(),
                     message: format!(
-                        "its sizes (outputs, records, nq) = {:?} and samples ..{} do not fit the plan's {expected:?} and {} samples",
+                        "its sizes (outputs, records, nq) = {:?}, samples ..{} and nominal run {} do not fit the stage's {expected:?}, {} samples and nominal run {}",
                         (header.outputs, header.records, header.nq),
                         header.end_sample,
-                        body.samples
+                        header.nominal,
+                        stage.samples,
+                        stage.nominal
                     ),
                 });
             }
             readers.push(reader);
         }
         readers.sort_by_key(|r| (r.header().first_sample, r.header().end_sample));
-        check_tiling(&readers, body.samples, dir)?;
+        check_tiling(&readers, stage.samples, stage.nominal, dir)?;
         // Empty shards (more shards than samples) hold no samples: keep only those with data
         // or the nominal run.
         readers.retain(|r| r.header().samples() > 0 || r.header().nominal);
@@ -201,7 +227,8 @@ impl ShardSet {
         });
         Ok(ShardSet {
             readers,
-            samples: body.samples,
+            samples: stage.samples,
+            nominal: stage.nominal,
             outputs: body.outputs.len(),
             nq: body.nq,
             block: Vec::new(),
@@ -223,6 +250,7 @@ impl ShardSet {
 fn check_tiling(
     readers: &[RecordBlockReader],
     samples: usize,
+    with_nominal: bool,
     dir: &Path,
 ) -> Result<(), ShardError> {
     let mut covered = 0;
@@ -267,7 +295,7 @@ fn check_tiling(
             nominal: true,
         });
     }
-    if nominal.is_empty() {
+    if nominal.is_empty() && with_nominal {
         missing.push("the nominal run (shard 0)".to_string());
     }
     if !missing.is_empty() {
@@ -294,11 +322,11 @@ fn check_tiling(
 
 impl RecordSource for ShardSet {
     fn len(&self) -> usize {
-        self.samples + 1
+        self.samples + usize::from(self.nominal)
     }
 
     fn nominal_index(&self) -> Option<usize> {
-        Some(self.samples)
+        self.nominal.then_some(self.samples)
     }
 
     fn advance(
@@ -308,7 +336,7 @@ impl RecordSource for ShardSet {
         _threads: &rayon::ThreadPool,
         _interrupt: &AtomicBool,
     ) -> Result<BlockOutcome, StudyError> {
-        let width = (self.samples + 1) * self.outputs;
+        let width = self.len() * self.outputs;
         self.block.resize_with(count, Vec::new);
         self.positions.resize_with(count, Vec::new);
         let (outputs, nq) = (self.outputs, self.nq);

@@ -1,0 +1,281 @@
+//! The stages of a staged study on disk (docs/distributed.md §7): stage 1 is described by the
+//! study plan itself; stage k ≥ 2 by `DIR/stage-k/stage.plan`, written by the `merge` that chose
+//! its points, hash-linked to the study plan and to stage k − 1. The record blocks of stage k lie
+//! beside its plan, `DIR/stage-k/shard-K-of-N.records.mcap`, and carry the stage's hash.
+
+use super::error::ShardError;
+use super::hash::fnv1a64;
+use super::plan_file::PlanFile;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The `format` field of a stage plan.
+pub const STAGE_PLAN_FORMAT: &str = "ribbon-stage-plan";
+/// The version of the stage plan format this build writes and reads.
+pub const STAGE_PLAN_VERSION: u32 = 1;
+/// The file name of a stage's plan in its directory.
+pub const STAGE_PLAN_FILE: &str = "stage.plan";
+
+/// The directory of stage `stage` (from 1) of a staged study in `dir`: `dir/stage-K`.
+pub fn stage_directory(dir: &Path, stage: usize) -> PathBuf {
+    dir.join(format!("stage-{stage}"))
+}
+
+/// What a stage plan fixes; its canonical JSON is what the stage hash covers.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StageBody {
+    /// The study plan's hash.
+    pub study_plan_hash: String,
+    /// The hash of stage `stage − 1` (the study plan's hash for stage 2).
+    pub previous_stage_hash: String,
+    /// The stage's number, from 2 (stage 1 is the study plan).
+    pub stage: usize,
+    /// Its phase: `design` (of a screened design) or `adaptive` (a round).
+    pub phase: String,
+    /// Whether its first shard also runs the nominal run.
+    pub nominal: bool,
+    /// Design samples of the stage (the nominal run not counted).
+    pub samples: usize,
+    /// The samples' points in standard coordinates ξ ∈ [-1, 1]^d, one row per sample.
+    pub points_xi: Vec<Vec<f64>>,
+}
+
+/// A stage plan file: format, version, hash and body.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StagePlanFile {
+    /// [`STAGE_PLAN_FORMAT`].
+    pub format: String,
+    /// [`STAGE_PLAN_VERSION`].
+    pub version: u32,
+    /// FNV-1a 64 of the body's canonical JSON, 16 lowercase hex digits: the stage's identity,
+    /// written into its record blocks.
+    pub stage_hash: String,
+    /// The stage.
+    pub body: StageBody,
+}
+
+impl StagePlanFile {
+    /// A stage plan around `body`, with its hash.
+    pub fn new(body: StageBody) -> StagePlanFile {
+        let canonical = serde_json::to_string(&body).unwrap_or_default();
+        StagePlanFile {
+            format: STAGE_PLAN_FORMAT.to_string(),
+            version: STAGE_PLAN_VERSION,
+            stage_hash: format!("{:016x}", fnv1a64(canonical.as_bytes())),
+            body,
+        }
+    }
+
+    /// The stage plan as JSON text (pretty, ending in a newline).
+    pub fn to_json(&self) -> String {
+        let mut text = serde_json::to_string_pretty(self).unwrap_or_default();
+        text.push('\n');
+        text
+    }
+
+    /// Reads and checks a stage plan: format, version, hash, and that its points have `dim`
+    /// coordinates.
+    pub fn read(path: &Path, dim: usize) -> Result<StagePlanFile, ShardError> {
+        let bad = |message: String| ShardError::Plan {
+            path: path.to_path_buf(),
+            message,
+        };
+        let text = std::fs::read_to_string(path).map_err(|source| ShardError::Io {
+            what: "read the stage plan",
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+            bad(format!(
+                "not JSON ({e}); stage plans are written by `ribbon merge`: remove its directory and merge again"
+            ))
+        })?;
+        if value.get("format").and_then(|f| f.as_str()) != Some(STAGE_PLAN_FORMAT)
+            || value.get("version").and_then(|v| v.as_u64()) != Some(u64::from(STAGE_PLAN_VERSION))
+        {
+            return Err(bad(format!(
+                "not a ribbon stage plan of version {STAGE_PLAN_VERSION} (\"format\": \"{STAGE_PLAN_FORMAT}\"); remove its directory and merge again"
+            )));
+        }
+        let plan: StagePlanFile = serde_json::from_value(value)
+            .map_err(|e| bad(format!("{e}; remove its directory and merge again")))?;
+        let again = StagePlanFile::new(plan.body.clone());
+        if again.stage_hash != plan.stage_hash {
+            return Err(bad(format!(
+                "its body hashes to {}, not the {} it records: the stage plan was edited; remove its directory and merge again",
+                again.stage_hash, plan.stage_hash
+            )));
+        }
+        if plan.body.points_xi.len() != plan.body.samples
+            || plan.body.points_xi.iter().any(|p| p.len() != dim)
+        {
+            return Err(bad(format!(
+                "{} samples of {dim} parameters declared, but the points do not match; remove its directory and merge again",
+                plan.body.samples
+            )));
+        }
+        Ok(plan)
+    }
+}
+
+/// One stage of a planned study, resolved: its identity, samples and where its files go.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stage {
+    /// The stage's number, from 1 (a study of a fixed design has stage 1 only).
+    pub number: usize,
+    /// The hash its record blocks carry: the study plan's for stage 1, the stage plan's after.
+    pub hash: String,
+    /// Its sample points, row-major `samples × d`.
+    pub points: Vec<f64>,
+    /// Design samples (the nominal run not counted).
+    pub samples: usize,
+    /// Whether its first shard also runs the nominal run.
+    pub nominal: bool,
+    /// The directory of its record blocks: `DIR` for a fixed design, `DIR/stage-K` for a staged
+    /// one.
+    pub directory: PathBuf,
+    /// The file that defines it: the study plan, or the stage plan.
+    pub plan_path: PathBuf,
+}
+
+impl Stage {
+    /// Stage 1 of `plan` (the only stage of a fixed design), its record blocks under `dir`.
+    pub fn first(plan: &PlanFile, plan_path: &Path, dir: &Path) -> Stage {
+        let staged = plan.body.staged.as_ref();
+        Stage {
+            number: 1,
+            hash: plan.plan_hash.clone(),
+            points: plan.points(),
+            samples: plan.body.samples,
+            nominal: staged.is_none_or(|s| s.nominal),
+            directory: match staged {
+                Some(_) => stage_directory(dir, 1),
+                None => dir.to_path_buf(),
+            },
+            plan_path: plan_path.to_path_buf(),
+        }
+    }
+
+    /// Stage `number` of the staged `plan` with its stage plans under `dir`, checking the chain of
+    /// hashes from the study plan to it (each stage plan names the study plan and the stage
+    /// before).
+    pub fn resolve(
+        plan: &PlanFile,
+        plan_path: &Path,
+        dir: &Path,
+        number: usize,
+    ) -> Result<Stage, ShardError> {
+        let mut stage = Stage::first(plan, plan_path, dir);
+        if number <= 1 {
+            return Ok(stage);
+        }
+        if plan.body.staged.is_none() {
+            return Err(ShardError::Plan {
+                path: plan_path.to_path_buf(),
+                message: format!(
+                    "its {} design runs in one stage, so there is no stage {number}",
+                    plan.body.design
+                ),
+            });
+        }
+        let dim = plan.body.parameters.len();
+        for k in 2..=number {
+            let directory = stage_directory(dir, k);
+            let path = directory.join(STAGE_PLAN_FILE);
+            if !path.exists() {
+                return Err(ShardError::Plan {
+                    path: path.clone(),
+                    message: format!(
+                        "stage {k} has not been planned: `ribbon merge {} {}` plans it after stage {} has run",
+                        plan_path.display(),
+                        dir.display(),
+                        k - 1
+                    ),
+                });
+            }
+            let file = StagePlanFile::read(&path, dim)?;
+            let b = &file.body;
+            if b.study_plan_hash != plan.plan_hash
+                || b.stage != k
+                || b.previous_stage_hash != stage.hash
+            {
+                return Err(ShardError::Plan {
+                    path,
+                    message: format!(
+                        "it is stage {} of study {} after stage {}, but this is stage {k} of study {} after stage {}: it belongs to another study or was moved; remove its directory and merge again",
+                        b.stage, b.study_plan_hash, b.previous_stage_hash, plan.plan_hash, stage.hash
+                    ),
+                });
+            }
+            stage = Stage {
+                number: k,
+                hash: file.stage_hash.clone(),
+                points: b.points_xi.iter().flatten().copied().collect(),
+                samples: b.samples,
+                nominal: b.nominal,
+                directory,
+                plan_path: path,
+            };
+        }
+        Ok(stage)
+    }
+
+    /// The last stage planned under `dir` for `plan`: the highest k with `DIR/stage-k/stage.plan`
+    /// (counting up from 2 without gaps), else 1.
+    pub fn latest_number(plan: &PlanFile, dir: &Path) -> usize {
+        if plan.body.staged.is_none() {
+            return 1;
+        }
+        let mut k = 1;
+        while stage_directory(dir, k + 1).join(STAGE_PLAN_FILE).exists() {
+            k += 1;
+        }
+        k
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn body() -> StageBody {
+        StageBody {
+            study_plan_hash: "0123456789abcdef".to_string(),
+            previous_stage_hash: "0123456789abcdef".to_string(),
+            stage: 2,
+            phase: "adaptive".to_string(),
+            nominal: false,
+            samples: 2,
+            points_xi: vec![vec![0.5, -1.0], vec![0.0, 0.25]],
+        }
+    }
+
+    #[test]
+    fn a_stage_plan_reads_back_and_an_edited_one_is_refused() {
+        let dir = std::env::temp_dir().join(format!("ribbon-stage-plan-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("mkdir");
+        let path = dir.join(STAGE_PLAN_FILE);
+        let plan = StagePlanFile::new(body());
+        std::fs::write(&path, plan.to_json()).expect("write");
+        assert_eq!(StagePlanFile::read(&path, 2).ok(), Some(plan.clone()));
+        // Another body, another hash.
+        let mut other = body();
+        other.points_xi[1][1] = 0.5;
+        assert_ne!(StagePlanFile::new(other).stage_hash, plan.stage_hash);
+        // Points of the wrong dimension.
+        let message = StagePlanFile::read(&path, 3)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(message.contains("do not match"), "{message}");
+        // An edited body no longer hashes to its stage_hash.
+        let edited = plan.to_json().replacen("\"stage\": 2", "\"stage\": 3", 1);
+        std::fs::write(&path, edited).expect("write");
+        let message = StagePlanFile::read(&path, 2)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(message.contains("edited"), "{message}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
