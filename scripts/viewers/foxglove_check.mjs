@@ -143,7 +143,7 @@ function rfc3339(seconds) {
     return `${date}.${String(nanos).padStart(9, "0")}Z`;
 }
 
-/** Waits until the plot legends show values at the seek time and then the page has drawn the
+/** Waits until a plot legend shows values at the seek time and then the page has drawn the
  * same picture STILL_FRAMES times in a row (the plots fill in block by block while the app reads
  * the log; a still page has read all of it). A timeout is a failure. */
 async function waitUntilDrawn(page, failures) {
@@ -152,7 +152,8 @@ async function waitUntilDrawn(page, failures) {
     let previous = null;
     while (still < STILL_FRAMES && Date.now() < deadline) {
         await page.waitForTimeout(STILL_INTERVAL_MS);
-        const hasValues = await page.evaluate(() => /lower\s+-?[0-9]/.test(document.body.innerText));
+        // Legend values are the page's only numbers in text (axis ticks are drawn on canvases).
+        const hasValues = await page.evaluate(() => /(^|\s)-?[0-9]+\.[0-9]/.test(document.body.innerText));
         const frame = await page.screenshot();
         still = hasValues && previous !== null && frame.equals(previous) ? still + 1 : 0;
         previous = frame;

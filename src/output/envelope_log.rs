@@ -7,15 +7,23 @@
 
 use super::mcap::{
     EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, ParentFromLink,
-    SobolChannel, SobolIndexKind, ENVELOPE_PREFIX, WORLD_FRAME,
+    SobolChannel, SobolIndexKind, ENVELOPE_PREFIX, SOBOL_PREFIX, WORLD_FRAME,
 };
-use super::viewer::{foxglove_layout, LayoutOutput, SceneExtent, FOXGLOVE_LAYOUT_NAME};
+use super::viewer::{
+    foxglove_layout, LayoutOutput, LayoutSensitivity, SceneExtent, FOXGLOVE_LAYOUT_NAME,
+    SENSITIVITY_COLOURS,
+};
 use crate::analysis::BlockView;
 use crate::dynamics::{forward_kinematics, frame_placements, Data};
 use crate::model::Model;
 use crate::scene::Output;
 use crate::Error;
 use std::path::Path;
+
+/// The smallest peak total Sobol' index (over the record times) of a parameter that an output's
+/// sensitivity plot shows: a parameter that never explains 1 % of the output's variance only
+/// crowds the plot.
+pub const SENSITIVITY_PLOT_FLOOR: f64 = 0.01;
 
 /// An open envelope log.
 pub struct EnvelopeLog {
@@ -27,6 +35,11 @@ pub struct EnvelopeLog {
     /// Per output, its main and total Sobol' index channels (empty unless
     /// [`add_sobol_channels`](EnvelopeLog::add_sobol_channels) was called).
     sobol_channels: Vec<(SobolChannel, SobolChannel)>,
+    /// The box's dimension names (the Sobol' channels' series), empty without Sobol' channels.
+    sobol_dimensions: Vec<String>,
+    /// Per output, per dimension, the largest total Sobol' index written so far: which
+    /// parameters the layout's sensitivity plots show.
+    sobol_peaks: Vec<Vec<f64>>,
     /// What the Foxglove layout plots, in channel order.
     layout_outputs: Vec<LayoutOutput>,
     /// The box of every link origin written to `/tf`.
@@ -106,6 +119,7 @@ impl EnvelopeLog {
                     "{ENVELOPE_PREFIX}{}",
                     OutputName::from_parts(&output.parts).topic_suffix()
                 ),
+                sensitivity: None,
             })
             .collect();
         Ok(EnvelopeLog {
@@ -114,6 +128,8 @@ impl EnvelopeLog {
             channels,
             error_channels,
             sobol_channels: Vec::new(),
+            sobol_dimensions: Vec::new(),
+            sobol_peaks: Vec::new(),
             layout_outputs,
             extent: SceneExtent::default(),
             parent_links: None,
@@ -135,7 +151,9 @@ impl EnvelopeLog {
                 .add_sobol_channel(SobolIndexKind::Total, name, dimensions)
                 .map_err(mcap_error)?;
             self.sobol_channels.push((main, total));
+            self.sobol_peaks.push(vec![0.0; dimensions.len()]);
         }
+        self.sobol_dimensions = dimensions.to_vec();
         Ok(())
     }
 
@@ -167,6 +185,11 @@ impl EnvelopeLog {
                 self.sink
                     .write_sobol(channel, t, &values)
                     .map_err(mcap_error)?;
+                if channel == total_channel {
+                    for (peak, value) in self.sobol_peaks[o].iter_mut().zip(&values) {
+                        *peak = peak.max(*value);
+                    }
+                }
             }
         }
         Ok(())
@@ -306,7 +329,34 @@ impl EnvelopeLog {
     /// The Foxglove layout of this log (docs/mcap.md §4): one plot per output, grouped in tabs,
     /// and the robot with a camera framing every link origin written so far.
     pub fn foxglove_layout(&self) -> serde_json::Value {
-        foxglove_layout(&self.layout_outputs, &self.extent)
+        let mut outputs = self.layout_outputs.clone();
+        for (o, output) in outputs.iter_mut().enumerate() {
+            output.sensitivity = self.sensitivity(o, output);
+        }
+        foxglove_layout(&outputs, &self.extent)
+    }
+
+    /// What output `o`'s sensitivity plot shows: the parameters whose total Sobol' index reached
+    /// [`SENSITIVITY_PLOT_FLOOR`] at some record time, largest peak first (ties by dimension
+    /// order), at most as many as there are sensitivity colours; `None` without Sobol' channels.
+    fn sensitivity(&self, o: usize, output: &LayoutOutput) -> Option<LayoutSensitivity> {
+        let peaks = self.sobol_peaks.get(o)?;
+        let mut ranked: Vec<usize> = (0..peaks.len())
+            .filter(|&j| peaks[j] >= SENSITIVITY_PLOT_FLOOR)
+            .collect();
+        ranked.sort_by(|&a, &b| peaks[b].total_cmp(&peaks[a]).then(a.cmp(&b)));
+        ranked.truncate(SENSITIVITY_COLOURS.len());
+        Some(LayoutSensitivity {
+            topic: format!(
+                "{SOBOL_PREFIX}{}/{}",
+                SobolIndexKind::Total.name(),
+                OutputName::from_parts(&output.parts).topic_suffix()
+            ),
+            parameters: ranked
+                .into_iter()
+                .map(|j| (j, self.sobol_dimensions[j].clone()))
+                .collect(),
+        })
     }
 
     /// Writes the viewer facts (the Foxglove layout as the attachment `foxglove-layout.json`, the

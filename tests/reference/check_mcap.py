@@ -24,7 +24,8 @@ EXPECTED.json says what was written (numbers exactly as given to the writer):
       "attachments": [{"name": ..., "media_type": ..., "path": "<file with the expected bytes>"}],
       # an attachment with "foxglove_layout": true instead of "path" must be a Foxglove layout whose
       # Plot paths name only envelope topics of the file (fields position[0..2], labelled lower,
-      # nominal, upper) and whose 3D panel takes the URDF from /robot_description.
+      # nominal, upper) — or, in a sensitivity plot, total Sobol' topics of the file (position[j]
+      # labelled with dimension j's name) — and whose 3D panel takes the URDF from /robot_description.
       "viewer": true   # optional: `scene_centre_m` and a positive `scene_radius_m` in the `ribbon` record,
                        # and the first message at log time 0
     }
@@ -390,7 +391,30 @@ def check_chain_against_frame_outputs(tf_messages, times, expected):
                     fail(f"/tf[{i}] at t = {t}: {link} composed along its chain is at {position}, but frame.{link}.{'xyz'[axis]} nominal is {nominal[i]}")
 
 
-PLOT_PATH = re.compile(r'^(?P<topic>/[^.\s"]+)\.position\[(?P<index>\d)\]$')
+PLOT_PATH = re.compile(r'^(?P<topic>/[^.\s"]+)\.position\[(?P<index>\d+)\]$')
+SOBOL_TOTAL_PREFIX = "/ribbon/sobol/total/"
+
+
+def check_sensitivity_panel(panel_id, panel, topics, sobol):
+    """A sensitivity Plot: every path is position[j] of one total-index topic of the file, j a
+    dimension of its channel, labelled with that dimension's name; titled after the output."""
+    paths = panel.get("paths", [])
+    if not paths:
+        fail(f"layout {panel_id}: a sensitivity plot without series")
+    for path in paths:
+        match = PLOT_PATH.match(path.get("value", ""))
+        if not match or not match["topic"].startswith(SOBOL_TOTAL_PREFIX) or match["topic"] not in topics:
+            fail(f"layout {panel_id}: path {path.get('value')!r} does not name a total Sobol' topic of the file")
+            continue
+        entry = sobol.get(match["topic"])
+        if entry is None:
+            continue  # the caller did not say what the topic holds; the topic exists
+        index = int(match["index"])
+        if index >= len(entry["dimensions"]) or path.get("label") != entry["dimensions"][index]:
+            fail(f"layout {panel_id}: series {index} labelled {path.get('label')!r}, dimensions {entry['dimensions']}")
+        title = f"{entry['name']}: total Sobol' index"
+        if panel.get("foxglovePanelTitle") != title:
+            fail(f"layout {panel_id}: titled {panel.get('foxglovePanelTitle')!r}, expected {title!r}")
 
 
 def check_foxglove_layout(attachment, topics, expected):
@@ -406,8 +430,12 @@ def check_foxglove_layout(attachment, topics, expected):
         return
     config = layout.get("configById", {})
     plotted = {}
+    sobol = {e["topic"]: e for e in expected.get("sobol", [])}
     for panel_id, panel in config.items():
         if not panel_id.startswith("Plot!"):
+            continue
+        if panel_id.startswith("Plot!ribbon-sobol"):
+            check_sensitivity_panel(panel_id, panel, topics, sobol)
             continue
         labels = []
         for path in panel.get("paths", []):

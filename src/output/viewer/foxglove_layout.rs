@@ -26,6 +26,21 @@ const AXIS_LENGTH_IN_RADII: f64 = 0.12;
 /// Share of the window's width given to the 3D panel, %.
 const ROBOT_PANEL_PERCENT: f64 = 35.0;
 
+/// Colours of the parameters in a sensitivity plot, in rank order: the Okabe–Ito colours that the
+/// envelope series ([`SERIES_COLOURS`](super::SERIES_COLOURS)) do not use, so a sensitivity
+/// series is never mistaken for a bound.
+pub const SENSITIVITY_COLOURS: [&str; 4] = ["#e69f00", "#56b4e9", "#cc79a7", "#000000"];
+
+/// The total Sobol' indices of one output to plot: its index topic and the parameters shown.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LayoutSensitivity {
+    /// The output's total-index topic (`/ribbon/sobol/total/frame/tool0/z`).
+    pub topic: String,
+    /// The parameters plotted, in rank order: (dimension index into the topic's `position`,
+    /// parameter name); at most [`SENSITIVITY_COLOURS`]`.len()` of them.
+    pub parameters: Vec<(usize, String)>,
+}
+
 /// One plotted output.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LayoutOutput {
@@ -37,6 +52,9 @@ pub struct LayoutOutput {
     pub unit: String,
     /// Its envelope topic (`/ribbon/envelope/frame/tool0/z`).
     pub topic: String,
+    /// Its total Sobol' indices, when the log has them and some parameter matters (a plot in the
+    /// group's sensitivity tab).
+    pub sensitivity: Option<LayoutSensitivity>,
 }
 
 /// The panel title of an output: `frame.tool0.z [m]`, or the name alone when unitless.
@@ -108,6 +126,44 @@ fn plot_panel(output: &LayoutOutput) -> Value {
         "showYAxisLabels": true,
         "isSynced": true,
         "xAxisVal": "timestamp",
+        "sidebarDimension": 240,
+    })
+}
+
+/// The Plot panel of one output's total Sobol' indices: one series per plotted parameter,
+/// labelled with its name, titled `NAME: total Sobol' index`.
+fn sensitivity_panel(output: &LayoutOutput, sensitivity: &LayoutSensitivity) -> Value {
+    let paths: Vec<Value> = sensitivity
+        .parameters
+        .iter()
+        .zip(SENSITIVITY_COLOURS)
+        .map(|((dimension, name), colour)| {
+            json!({
+                "value": message_path(&sensitivity.topic, &format!("position[{dimension}]")),
+                "enabled": true,
+                "timestampMethod": "receiveTime",
+                "label": name,
+                "color": colour,
+                "lineSize": 1.0,
+                "showLine": true,
+            })
+        })
+        .collect();
+    let title = format!("{}: total Sobol' index", output.name);
+    json!({
+        "foxglovePanelTitle": title,
+        "lichtblickPanelTitle": title,
+        "title": title,
+        "paths": paths,
+        "showLegend": true,
+        "legendDisplay": "floating",
+        "showPlotValuesInLegend": true,
+        "showXAxisLabels": true,
+        "showYAxisLabels": true,
+        "isSynced": true,
+        "xAxisVal": "timestamp",
+        "minYValue": 0.0,
+        "maxYValue": 1.0,
         "sidebarDimension": 240,
     })
 }
@@ -188,26 +244,54 @@ pub fn foxglove_layout(outputs: &[LayoutOutput], extent: &SceneExtent) -> Value 
     let mut config = Map::new();
     config.insert("3D!ribbon-robot".to_string(), robot_panel(extent));
 
-    let mut groups: Vec<(super::ViewGroup, Vec<String>)> = Vec::new();
+    // Per group: its envelope plots, and the sensitivity plots of those outputs that have one.
+    let mut groups: Vec<(super::ViewGroup, Vec<String>, Vec<String>)> = Vec::new();
     for (index, output) in outputs.iter().enumerate() {
         let id = format!("Plot!ribbon{index}");
         config.insert(id.clone(), plot_panel(output));
+        let sensitivity_id = output
+            .sensitivity
+            .as_ref()
+            .filter(|s| !s.parameters.is_empty())
+            .map(|sensitivity| {
+                let id = format!("Plot!ribbon-sobol{index}");
+                config.insert(id.clone(), sensitivity_panel(output, sensitivity));
+                id
+            });
         let group = view_group(&output.parts);
-        match groups.iter_mut().find(|(g, _)| *g == group) {
-            Some((_, ids)) => ids.push(id),
-            None => groups.push((group, vec![id])),
-        }
+        let slot = match groups.iter().position(|(g, _, _)| *g == group) {
+            Some(slot) => slot,
+            None => {
+                groups.push((group, Vec::new(), Vec::new()));
+                groups.len() - 1
+            }
+        };
+        groups[slot].1.push(id);
+        groups[slot].2.extend(sensitivity_id);
     }
     groups.sort_by(|a, b| a.0.cmp(&b.0));
-    let tabs: Vec<Value> = groups
+    let mut tabs: Vec<Value> = groups
         .iter()
-        .map(|(group, ids)| {
+        .map(|(group, ids, _)| {
             json!({
                 "title": group.title,
                 "layout": mosaic(ids, "column"),
             })
         })
         .collect();
+    // The sensitivity tabs come after every envelope tab: the envelopes are the answer, the
+    // indices say which parameter it depends on when (docs/sobol-indices.md).
+    tabs.extend(
+        groups
+            .iter()
+            .filter(|(_, _, sensitivity_ids)| !sensitivity_ids.is_empty())
+            .map(|(group, _, sensitivity_ids)| {
+                json!({
+                    "title": format!("{} · sensitivity", group.title),
+                    "layout": mosaic(sensitivity_ids, "column"),
+                })
+            }),
+    );
     config.insert(
         "Tab!ribbon-outputs".to_string(),
         json!({"activeTabIdx": 0, "tabs": tabs}),
@@ -237,6 +321,7 @@ mod tests {
             topic: format!("/ribbon/envelope/{}", parts.join("/")),
             parts,
             unit: unit.to_string(),
+            sensitivity: None,
         }
     }
 
@@ -282,6 +367,55 @@ mod tests {
         let camera = &robot["cameraState"];
         assert_eq!(camera["targetOffset"], json!([0.0, 0.0, 0.5]));
         assert!((camera["distance"].as_f64().unwrap() - 1.6).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sensitivity_plots_go_to_a_tab_after_the_envelopes() {
+        let mut elbow = output("q.elbow_joint", "rad");
+        elbow.sensitivity = Some(LayoutSensitivity {
+            topic: "/ribbon/sobol/total/q/elbow_joint".to_string(),
+            parameters: vec![
+                (2, "link.a.mass".to_string()),
+                (0, "link.b.mass".to_string()),
+            ],
+        });
+        let mut wrist = output("q.wrist_joint", "rad");
+        // No parameter reached the floor: no plot.
+        wrist.sensitivity = Some(LayoutSensitivity {
+            topic: "/ribbon/sobol/total/q/wrist_joint".to_string(),
+            parameters: Vec::new(),
+        });
+        let layout = foxglove_layout(
+            &[elbow, wrist, output("frame.tool0.z", "m")],
+            &SceneExtent::default(),
+        );
+        let config = layout["configById"].as_object().unwrap();
+        let tabs = config["Tab!ribbon-outputs"]["tabs"].as_array().unwrap();
+        let titles: Vec<&str> = tabs.iter().map(|t| t["title"].as_str().unwrap()).collect();
+        assert_eq!(
+            titles,
+            [
+                "joint positions",
+                "frame tool0",
+                "joint positions · sensitivity"
+            ]
+        );
+        assert_eq!(tabs[2]["layout"], "Plot!ribbon-sobol0");
+        assert!(!config.contains_key("Plot!ribbon-sobol1"));
+        let plot = &config["Plot!ribbon-sobol0"];
+        assert_eq!(
+            plot["foxglovePanelTitle"],
+            "q.elbow_joint: total Sobol' index"
+        );
+        assert_eq!(
+            plot["paths"][0]["value"],
+            "/ribbon/sobol/total/q/elbow_joint.position[2]"
+        );
+        assert_eq!(plot["paths"][0]["label"], "link.a.mass");
+        assert_eq!(plot["paths"][1]["color"], SENSITIVITY_COLOURS[1]);
+        for (_, envelope_colour) in SERIES_COLOURS {
+            assert!(!SENSITIVITY_COLOURS.contains(&envelope_colour));
+        }
     }
 
     #[test]

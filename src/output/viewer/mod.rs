@@ -9,7 +9,9 @@
 
 mod foxglove_layout;
 
-pub use foxglove_layout::{foxglove_layout, LayoutOutput, FOXGLOVE_LAYOUT_NAME};
+pub use foxglove_layout::{
+    foxglove_layout, LayoutOutput, LayoutSensitivity, FOXGLOVE_LAYOUT_NAME, SENSITIVITY_COLOURS,
+};
 
 use std::collections::BTreeMap;
 
