@@ -164,6 +164,13 @@ impl Contacts {
         &self.normal_forces
     }
 
+    /// Whether the Newton coupling is non-zero: some pair passed its bounding-sphere test at the
+    /// last force evaluation (or none has run yet). When `false`,
+    /// [`Contacts::add_newton_matrices`] would add only zeros.
+    pub(super) fn coupling_active(&self) -> bool {
+        self.near
+    }
+
     /// The counters so far.
     pub(super) fn stats(&self) -> ContactStats {
         self.stats
@@ -175,6 +182,7 @@ impl Contacts {
     }
 
     /// Tests pair `k` at the placements in `data` (counted).
+    #[inline]
     fn test_pair(
         geometry: &GeometryModel,
         stats: &mut ContactStats,
@@ -184,6 +192,11 @@ impl Contacts {
     ) -> Option<ContactPoint> {
         let pair = &geometry.pairs[k];
         stats.pair_tests += 1;
+        if geometry.provably_apart(model, &data.world_from_body, pair) {
+            // The bounding-sphere test of `contact_between` would answer `Apart` (docs/contacts.md
+            // §4): the same result, without building both placements.
+            return None;
+        }
         let Ok([(shape_a, world_from_a), (shape_b, world_from_b)]) =
             geometry.placed_pair(model, &data.world_from_body, pair)
         else {

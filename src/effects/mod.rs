@@ -89,6 +89,13 @@ impl Effects {
         self.contacts.is_some()
     }
 
+    /// Whether [`Effects::add_newton_matrices`] would add anything now: contacts are declared and
+    /// some pair passed its bounding-sphere test at the last force evaluation (docs/contacts.md §4).
+    /// Changes from step to step.
+    pub fn has_contact_coupling(&self) -> bool {
+        self.contacts.as_ref().is_some_and(|c| c.coupling_active())
+    }
+
     /// The contact counters so far (`None` without contacts).
     pub fn contact_stats(&self) -> Option<ContactStats> {
         self.contacts.as_ref().map(|c| c.stats())
