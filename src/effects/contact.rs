@@ -41,6 +41,25 @@ impl ContactStats {
     }
 }
 
+/// What the contact effect carries from step to step of one run: the counters, which pairs touched
+/// at the last accepted step, and whether any pair was near at the last force evaluation (which
+/// decides whether the Newton matrix gets the contact coupling). A study that steps many samples
+/// through one system swaps each sample's state in and out ([`crate::effects::Effects::swap_contact_state`]),
+/// so that a sample's run does not depend on which samples ran before it on the same thread.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ContactState {
+    stats: ContactStats,
+    touching: Vec<bool>,
+    near: bool,
+}
+
+impl ContactState {
+    /// The counters of this run so far.
+    pub fn stats(&self) -> ContactStats {
+        self.stats
+    }
+}
+
 /// The force of one contact and its derivatives.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ContactForce {
@@ -169,6 +188,22 @@ impl Contacts {
     /// [`Contacts::add_newton_matrices`] would add only zeros.
     pub(super) fn coupling_active(&self) -> bool {
         self.near
+    }
+
+    /// The state of a run that has not started: no counts, nothing touching, coupling on.
+    pub(super) fn fresh_state(&self) -> ContactState {
+        ContactState {
+            stats: ContactStats::default(),
+            touching: vec![false; self.geometry.pairs.len()],
+            near: true,
+        }
+    }
+
+    /// Exchanges the run state with `state` (made by [`Contacts::fresh_state`] of this scene).
+    pub(super) fn swap_state(&mut self, state: &mut ContactState) {
+        std::mem::swap(&mut self.stats, &mut state.stats);
+        std::mem::swap(&mut self.touching, &mut state.touching);
+        std::mem::swap(&mut self.near, &mut state.near);
     }
 
     /// The counters so far.
