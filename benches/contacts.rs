@@ -3,11 +3,15 @@
 //! and without its `[scene.contact]` table, and a 1-dof ball (the worst case: the dynamics cost
 //! almost nothing, so the pair tests weigh the most). Fixed step h = 1 ms. The ratio is printed
 //! after the criterion groups; results in docs/contacts.md §4.
+//!
+//! For instruction counts (independent of machine load): `contacts once SCENE MODE` runs one
+//! simulation of `SCENE` (`quadruped`, `ball`) with `MODE` (`none`, `declared`) and nothing else, e.g.
+//! `valgrind --tool=callgrind target/release/deps/contacts-HASH once ball declared`.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::Criterion;
 use ribbon::model::{parse_description, LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::simulate;
@@ -105,5 +109,40 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench);
-criterion_main!(benches);
+/// `once SCENE MODE`: one run, for callgrind; a bad argument gets a message and exit 2.
+fn run_once(args: &[String]) {
+    let usage = "usage: contacts once quadruped|ball none|declared";
+    let (model, scene, pairs) = match args.first().map(String::as_str) {
+        Some("quadruped") => quadruped(),
+        Some("ball") => ball(),
+        _ => {
+            eprintln!("contacts: {usage}");
+            std::process::exit(2);
+        }
+    };
+    let (without, with) = scenes(&model, &scene, &pairs);
+    let chosen = match args.get(1).map(String::as_str) {
+        Some("none") => without,
+        Some("declared") => with,
+        _ => {
+            eprintln!("contacts: {usage}");
+            std::process::exit(2);
+        }
+    };
+    let seconds = time_runs(&model, &chosen, 1);
+    println!("one run: {seconds:.6} s");
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| a != "--bench")
+        .collect();
+    if args.first().map(String::as_str) == Some("once") {
+        run_once(&args[1..]);
+        return;
+    }
+    let mut criterion = Criterion::default().configure_from_args();
+    bench(&mut criterion);
+    criterion.final_summary();
+}

@@ -1,6 +1,8 @@
 //! Contacts (issue 13): closed forms of the compliant contact model (docs/contacts.md), the query
 //! counters of declared and undeclared pairs, and bad contact input.
 
+mod common;
+
 use ribbon::model::{parse_description, LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::{simulate, Trajectory};
@@ -555,5 +557,98 @@ fn contact_force_outputs_without_contacts_are_refused_naming_the_key() {
     assert!(
         message.contains("[outputs] contact_forces") && message.contains("[scene.contact]"),
         "{message}"
+    );
+}
+
+/// `ribbon analyze` of a ball dropped 0.3 m onto the ground (contact damping uncertain) with
+/// `threads` workers: the summary JSON and the CSV bytes.
+fn analyze_ball_drop(
+    dir: &std::path::Path,
+    contacts: bool,
+    threads: u32,
+) -> (serde_json::Value, Vec<u8>) {
+    std::fs::create_dir_all(dir).expect("scratch directory");
+    let urdf = dir.join("ball.urdf");
+    std::fs::write(&urdf, slider_urdf(r#"<sphere radius="0.1"/>"#, false)).expect("write URDF");
+    let contact_table = if contacts {
+        "[scene.contact]\npairs = [[\"body\", \"ground\"]]\n\
+         [[scene.geometry]]\nname = \"ground\"\ntype = \"halfspace\"\n"
+    } else {
+        ""
+    };
+    let parameter = if contacts {
+        "\"scene.contact.damping\" = [0.4, 0.6]"
+    } else {
+        "\"link.body.mass\" = [0.9, 1.1]"
+    };
+    let sidecar = dir.join("ball.uncertainty.toml");
+    std::fs::write(
+        &sidecar,
+        format!(
+            "[parameters]\n{parameter}\n[scene]\nduration = 0.5\nstep = 0.001\n\
+             initial.q = {{ z = 0.4 }}\n{contact_table}"
+        ),
+    )
+    .expect("write sidecar");
+    let summary = dir.join(format!("summary.{threads}.json"));
+    let csv = dir.join(format!("envelopes.{threads}.csv"));
+    let path = |p: &std::path::Path| p.to_string_lossy().into_owned();
+    common::run_checked(
+        &common::ribbon_bin(),
+        &common::args([
+            "analyze".to_string(),
+            path(&urdf),
+            "--uncertainty".to_string(),
+            path(&sidecar),
+            "--order".to_string(),
+            "2".to_string(),
+            "--threads".to_string(),
+            threads.to_string(),
+            "--summary".to_string(),
+            path(&summary),
+            "--csv".to_string(),
+            path(&csv),
+        ]),
+        "analyze of a ball drop",
+    );
+    let json = serde_json::from_str(&std::fs::read_to_string(&summary).expect("summary written"))
+        .expect("summary is JSON");
+    (json, std::fs::read(&csv).expect("CSV written"))
+}
+
+#[test]
+fn a_study_sums_the_contact_counters_of_its_runs_whatever_the_thread_count() {
+    let dir = common::target_dir().join("tests-contacts-study-counters");
+    let (one, csv_one) = analyze_ball_drop(&dir, true, 1);
+    let (two, csv_two) = analyze_ball_drop(&dir, true, 2);
+    // Each sample carries its own contact state: neither the counters nor the numbers depend on
+    // which samples ran before it on a thread.
+    assert_eq!(csv_one, csv_two);
+    let counters = &one["stats"]["contacts"];
+    assert_eq!(counters, &two["stats"]["contacts"]);
+    let runs = one["samples"].as_u64().expect("samples");
+    let steps = one["stats"]["steps"].as_u64().expect("steps");
+    let count = |key: &str| {
+        counters[key]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{key} in {counters}"))
+    };
+    // Every run lands (from 0.3 m the ball touches down at t ≈ 0.25 s) and the counters add up
+    // over runs: at least one pair test per step of every run, a parry query at each touching one.
+    assert!(
+        count("made") >= runs && runs >= 3,
+        "{counters}, {runs} runs"
+    );
+    assert!(count("pair_tests") >= steps, "{counters}, {steps} steps");
+    assert!(count("narrow_queries") > 0 && count("narrow_queries") < count("pair_tests"));
+    let depth = counters["max_depth_m"].as_f64().expect("max_depth_m");
+    // A 1 kg ball landing at 2.4 m/s on k = 1e6 N/m^1.5 sinks millimetres, not more.
+    assert!(depth > 1e-4 && depth < 1e-2, "{depth}");
+    // Without [scene.contact] the summary has no contacts key (and nothing else changes).
+    let (plain, _) = analyze_ball_drop(&dir, false, 1);
+    assert!(
+        plain["stats"].get("contacts").is_none(),
+        "no contacts declared, no contacts key: {}",
+        plain["stats"]
     );
 }

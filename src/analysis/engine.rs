@@ -13,6 +13,7 @@
 
 use super::schedule::RecordSchedule;
 use super::study::StudyError;
+use crate::effects::{ContactState, ContactStats};
 use crate::integrate::{HhtIntegrator, HhtSettings, HhtTrajectory, IntegrateError};
 use crate::scene::Scene;
 use crate::simulate::{
@@ -80,6 +81,12 @@ pub trait RecordSource: Sync {
 
     /// Total Newton iterations and steps of the samples' runs so far.
     fn counters(&self) -> (u64, u64);
+
+    /// The contact counters of the samples' runs so far, summed (the deepest penetration: the
+    /// largest); `None` when the scene declares no contacts or the source does not count them.
+    fn contact_counters(&self) -> Option<ContactStats> {
+        None
+    }
 }
 
 /// One sample's carried state.
@@ -92,6 +99,9 @@ struct Sample {
     /// This block's configurations (`records × nq`), kept for the nominal run only.
     positions: Option<Vec<f64>>,
     failure: Option<SampleFailure>,
+    /// The sample's contact state (counters, touching pairs), swapped into the thread's system
+    /// while the sample steps; `None` without contacts.
+    contacts: Option<ContactState>,
 }
 
 /// How a call to [`LockStep::advance`] ended.
@@ -131,6 +141,7 @@ impl<'a> LockStep<'a> {
         nominal_xi: Option<&[f64]>,
     ) -> LockStep<'a> {
         let d = space.len().max(1);
+        let contacts = template.effects.fresh_contact_state();
         let mut samples: Vec<Sample> = points
             .chunks_exact(d)
             .map(|xi| Sample {
@@ -140,6 +151,7 @@ impl<'a> LockStep<'a> {
                 block: Vec::new(),
                 positions: None,
                 failure: None,
+                contacts: contacts.clone(),
             })
             .collect();
         let nominal = nominal_xi.map(|xi| {
@@ -150,6 +162,7 @@ impl<'a> LockStep<'a> {
                 block: Vec::new(),
                 positions: Some(Vec::new()),
                 failure: None,
+                contacts: contacts.clone(),
             });
             samples.len() - 1
         });
@@ -185,6 +198,17 @@ impl<'a> LockStep<'a> {
     /// Total Newton iterations and steps so far (all samples).
     pub fn counters(&self) -> (u64, u64) {
         (self.newton_iterations, self.steps_taken)
+    }
+
+    /// The contact counters of all samples so far, merged ([`ContactStats::merge`]); `None`
+    /// without contacts.
+    pub fn contact_counters(&self) -> Option<ContactStats> {
+        let mut states = self.samples.iter().filter_map(|s| s.contacts.as_ref());
+        let mut total = states.next()?.stats();
+        for state in states {
+            total.merge(&state.stats());
+        }
+        Some(total)
     }
 
     /// Failures so far, by sample index.
@@ -352,6 +376,10 @@ impl RecordSource for LockStep<'_> {
     fn counters(&self) -> (u64, u64) {
         LockStep::counters(self)
     }
+
+    fn contact_counters(&self) -> Option<ContactStats> {
+        LockStep::contact_counters(self)
+    }
 }
 
 /// Which part of the horizon one call of [`run_sample`] covers.
@@ -389,11 +417,77 @@ fn failed(time_s: f64, record: usize, message: String) -> SampleStop {
     }
 }
 
-/// Starts (at the first call) and advances one sample through a block; on failure returns the time
-/// and the message with the rows named.
+/// Advances one sample through a block ([`step_sample`]) with the sample's contact state swapped
+/// into `system` for the time, so that its counters and its Newton coupling state are its own
+/// whichever samples ran before it on the thread. The thread's integrator workspace is made first,
+/// outside any sample's state (its start is no sample's run).
 fn run_sample(
     system: &mut RobotSystem,
     integrator: &mut Option<HhtIntegrator>,
+    sample: &mut Sample,
+    settings: HhtSettings,
+    scene: &Scene,
+    recorder: &Recorder,
+    block: SampleBlock,
+) -> Result<(), SampleStop> {
+    let hht = match integrator {
+        Some(hht) => hht,
+        None => {
+            let (q0, v0) = start_state(scene);
+            match HhtIntegrator::new(system, settings, 0.0, &q0, &v0) {
+                Ok(h) => integrator.insert(h),
+                Err(error) => {
+                    return Err(failed(
+                        0.0,
+                        block.first_record,
+                        describe_failure(error, system, scene, &scene.initial_q),
+                    ))
+                }
+            }
+        }
+    };
+    let mut contacts = sample.contacts.take();
+    if let Some(state) = &mut contacts {
+        system.effects.swap_contact_state(state);
+    }
+    let result = step_sample(system, hht, sample, settings, scene, recorder, block);
+    if let Some(state) = &mut contacts {
+        system.effects.swap_contact_state(state);
+    }
+    sample.contacts = contacts;
+    result
+}
+
+/// The scene's initial position and velocity.
+fn start_state(scene: &Scene) -> (DVector<f64>, DVector<f64>) {
+    (
+        DVector::from_column_slice(&scene.initial_q),
+        DVector::from_column_slice(&scene.initial_v),
+    )
+}
+
+/// The message of a failed run at `q`, with the rows named.
+fn describe_failure(
+    error: IntegrateError,
+    system: &mut RobotSystem,
+    scene: &Scene,
+    q: &[f64],
+) -> String {
+    let violation = crate::simulate::initial_violation(system, scene);
+    let context = FailureContext {
+        model: &system.model,
+        scene,
+        q,
+        initial_violation: violation,
+    };
+    SimulationError::from_failure(error, &context).to_string()
+}
+
+/// Starts (at the sample's first block) and advances one sample through a block; on failure
+/// returns the time and the message with the rows named.
+fn step_sample(
+    system: &mut RobotSystem,
+    hht: &mut HhtIntegrator,
     sample: &mut Sample,
     settings: HhtSettings,
     scene: &Scene,
@@ -408,39 +502,11 @@ fn run_sample(
         interrupt,
     } = block;
     let describe = |error: IntegrateError, system: &mut RobotSystem, q: &[f64]| {
-        let violation = crate::simulate::initial_violation(system, scene);
-        let context = FailureContext {
-            model: &system.model,
-            scene,
-            q,
-            initial_violation: violation,
-        };
-        SimulationError::from_failure(error, &context).to_string()
+        describe_failure(error, system, scene, q)
     };
-    let start = || {
-        (
-            DVector::from_column_slice(&scene.initial_q),
-            DVector::from_column_slice(&scene.initial_v),
-        )
-    };
-    // One integrator workspace per thread; a sample's first block starts its trajectory with
-    // the sample's parameters (already applied to `system.model`).
-    let hht = match integrator {
-        Some(hht) => hht,
-        None => {
-            let (q0, v0) = start();
-            match HhtIntegrator::new(system, settings, 0.0, &q0, &v0) {
-                Ok(h) => integrator.insert(h),
-                Err(error) => {
-                    return Err(failed(
-                        0.0,
-                        first_record,
-                        describe(error, system, &scene.initial_q),
-                    ))
-                }
-            }
-        }
-    };
+    let start = || start_state(scene);
+    // A sample's first block starts its trajectory with the sample's parameters (already applied
+    // to `system.model`).
     if sample.trajectory.is_none() {
         let (q0, v0) = start();
         if let Err(error) = hht.restart(system, 0.0, &q0, &v0) {
@@ -481,6 +547,16 @@ fn run_sample(
                 break 'records;
             }
             step += 1;
+            if system.effects.has_contacts() {
+                // Contacts made and broken, deepest penetration: counted as `simulate` does.
+                let state = hht.state();
+                system.effects.observe_contacts(
+                    &system.model,
+                    &mut system.data,
+                    state.q.as_slice(),
+                    state.v.as_slice(),
+                );
+            }
         }
         let state = hht.state();
         recorder.record_state(

@@ -28,6 +28,7 @@ use super::sobol_indices::{has_sobol_indices, SobolBlock, SobolSeries};
 use super::sparse::SparseDesign;
 use super::stages::{PendingStage, SimulateHere, StageCursor, StageRecords};
 use super::Method;
+use crate::effects::ContactStats;
 use crate::model::Model;
 use crate::scene::{Output, Scene};
 use crate::simulate::{hht_settings, RobotSystem};
@@ -255,6 +256,9 @@ pub struct StudyReport {
     /// parameters and a shadow with a perturbed state; `None` when either failed or the study was
     /// interrupted before).
     pub lyapunov: Option<LyapunovEstimate>,
+    /// The contact counters of all runs, summed (the deepest penetration: the largest;
+    /// docs/contacts.md §4); `None` when the scene declares no contacts.
+    pub contacts: Option<ContactStats>,
 }
 
 /// What a study will do, known before it runs.
@@ -699,6 +703,7 @@ impl Study<'_> {
             block_records: 0,
             check: None,
             lyapunov: None,
+            contacts: None,
             method: self.options.method,
             design: "",
             auto: None,
@@ -1329,6 +1334,12 @@ impl Study<'_> {
         let (newton_iterations, steps) = lockstep.counters();
         report.newton_iterations += newton_iterations;
         report.steps += steps;
+        if let Some(counters) = lockstep.contact_counters() {
+            report
+                .contacts
+                .get_or_insert_with(ContactStats::default)
+                .merge(&counters);
+        }
         report.excluded.extend(lockstep.failures());
         if !complete {
             report.partial = true;

@@ -558,7 +558,7 @@ fn summary(
     wall_seconds: f64,
 ) -> Summary {
     let e = &report.envelope;
-    Summary {
+    let mut summary = Summary {
         robot: robot.to_string(),
         method: report.method.name().to_string(),
         order: order_of(report.method, options),
@@ -630,7 +630,12 @@ fn summary(
             .sobol
             .as_ref()
             .map(|series| SobolSummary::from_study(series, e, space)),
+    };
+    // Only when the scene declares contacts: a summary without them keeps its keys.
+    if let (Some(contacts), Some(stats)) = (&report.contacts, summary.stats.as_object_mut()) {
+        stats.insert("contacts".to_string(), serde_json::json!(contacts));
     }
+    summary
 }
 
 /// Per dimension, how much it moves the outputs, from what the study measured (issue 11 §2):

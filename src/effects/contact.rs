@@ -41,6 +41,25 @@ impl ContactStats {
     }
 }
 
+/// What the contact effect carries from step to step of one run: the counters, which pairs touched
+/// at the last accepted step, and whether any pair was near at the last force evaluation (which
+/// decides whether the Newton matrix gets the contact coupling). A study that steps many samples
+/// through one system swaps each sample's state in and out ([`crate::effects::Effects::swap_contact_state`]),
+/// so that a sample's run does not depend on which samples ran before it on the same thread.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ContactState {
+    stats: ContactStats,
+    touching: Vec<bool>,
+    near: bool,
+}
+
+impl ContactState {
+    /// The counters of this run so far.
+    pub fn stats(&self) -> ContactStats {
+        self.stats
+    }
+}
+
 /// The force of one contact and its derivatives.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ContactForce {
@@ -164,6 +183,29 @@ impl Contacts {
         &self.normal_forces
     }
 
+    /// Whether the Newton coupling is non-zero: some pair passed its bounding-sphere test at the
+    /// last force evaluation (or none has run yet). When `false`,
+    /// [`Contacts::add_newton_matrices`] would add only zeros.
+    pub(super) fn coupling_active(&self) -> bool {
+        self.near
+    }
+
+    /// The state of a run that has not started: no counts, nothing touching, coupling on.
+    pub(super) fn fresh_state(&self) -> ContactState {
+        ContactState {
+            stats: ContactStats::default(),
+            touching: vec![false; self.geometry.pairs.len()],
+            near: true,
+        }
+    }
+
+    /// Exchanges the run state with `state` (made by [`Contacts::fresh_state`] of this scene).
+    pub(super) fn swap_state(&mut self, state: &mut ContactState) {
+        std::mem::swap(&mut self.stats, &mut state.stats);
+        std::mem::swap(&mut self.touching, &mut state.touching);
+        std::mem::swap(&mut self.near, &mut state.near);
+    }
+
     /// The counters so far.
     pub(super) fn stats(&self) -> ContactStats {
         self.stats
@@ -175,6 +217,7 @@ impl Contacts {
     }
 
     /// Tests pair `k` at the placements in `data` (counted).
+    #[inline]
     fn test_pair(
         geometry: &GeometryModel,
         stats: &mut ContactStats,
@@ -184,6 +227,11 @@ impl Contacts {
     ) -> Option<ContactPoint> {
         let pair = &geometry.pairs[k];
         stats.pair_tests += 1;
+        if geometry.provably_apart(model, &data.world_from_body, pair) {
+            // The bounding-sphere test of `contact_between` would answer `Apart` (docs/contacts.md
+            // §4): the same result, without building both placements.
+            return None;
+        }
         let Ok([(shape_a, world_from_a), (shape_b, world_from_b)]) =
             geometry.placed_pair(model, &data.world_from_body, pair)
         else {

@@ -15,7 +15,7 @@ mod friction;
 mod limits;
 mod springs;
 
-pub use contact::{contact_force, ContactForce, ContactStats};
+pub use contact::{contact_force, ContactForce, ContactState, ContactStats};
 pub use friction::FRICTION_SMOOTHING_VELOCITY;
 pub use limits::{
     LimitEvent, LimitSide, JOINT_LIMIT_DAMPING, JOINT_LIMIT_DAMPING_DEPTH, JOINT_LIMIT_STIFFNESS,
@@ -87,6 +87,27 @@ impl Effects {
     /// [`Effects::add_newton_matrices`]).
     pub fn has_contacts(&self) -> bool {
         self.contacts.is_some()
+    }
+
+    /// Whether [`Effects::add_newton_matrices`] would add anything now: contacts are declared and
+    /// some pair passed its bounding-sphere test at the last force evaluation (docs/contacts.md §4).
+    /// Changes from step to step.
+    pub fn has_contact_coupling(&self) -> bool {
+        self.contacts.as_ref().is_some_and(|c| c.coupling_active())
+    }
+
+    /// The contact state of a run that has not started (`None` without contacts).
+    pub fn fresh_contact_state(&self) -> Option<ContactState> {
+        self.contacts.as_ref().map(|c| c.fresh_state())
+    }
+
+    /// Exchanges the contact run state (counters, which pairs touch, whether the Newton coupling is
+    /// on) with `state`, which must come from [`Effects::fresh_contact_state`] of the same scene.
+    /// Nothing without contacts.
+    pub fn swap_contact_state(&mut self, state: &mut ContactState) {
+        if let Some(c) = &mut self.contacts {
+            c.swap_state(state);
+        }
     }
 
     /// The contact counters so far (`None` without contacts).

@@ -9,6 +9,7 @@
 
 mod query;
 
+use query::bounding_radius;
 pub use query::{contact_between, supported, ContactPoint, PairTest};
 
 use crate::model::{CollisionShape, Model};
@@ -56,6 +57,13 @@ impl Default for ContactMaterial {
         }
     }
 }
+
+/// Relative margin of [`GeometryModel::provably_apart`]: the gap between bounding spheres must
+/// exceed this times the lengths the sphere centres are computed from (m) before a pair is skipped.
+/// The cheap and the full computation of a centre differ by rounding only (a few ulps, ~1e-15 of
+/// those lengths, for rotation matrices whose entries are at most 1 in size); 1e-9 leaves a factor
+/// of about a million, and costs nothing: it is a nanometre on a metre-sized robot.
+pub const BOUNDING_TEST_MARGIN: f64 = 1e-9;
 
 /// A primitive shape in its own frame, in URDF conventions: box centred on the origin; cylinder
 /// and capsule along z; half-space `z ≤ 0` (outward normal +z).
@@ -370,6 +378,108 @@ impl GeometryModel {
         ])
     }
 
+    /// Whether `pair` provably passes no bounding-sphere test at the body placements
+    /// `world_from_body`: a cheaper test than [`contact_between`]'s first step, which never answers
+    /// `true` where that step would let the pair through to parry (docs/contacts.md §4, "A cheaper
+    /// first test"). `false` means "test it".
+    ///
+    /// Only the centres of the bounding spheres are computed, as `R_wb (R_bl t_lc + t_bl) + t_wb`
+    /// instead of composing the two rotations first; the two orders differ by rounding only, far
+    /// below [`BOUNDING_TEST_MARGIN`] times the lengths involved, which the gap must exceed.
+    #[inline]
+    pub fn provably_apart(
+        &self,
+        model: &Model,
+        world_from_body: &[Transform],
+        pair: &ContactPair,
+    ) -> bool {
+        let Some((radius_a, centre_a, scale_a)) =
+            self.bounding_sphere(model, world_from_body, pair.a, &pair.link_from_a)
+        else {
+            return false;
+        };
+        let (radius_b, centre_b, scale_b, half_space_normal) = match pair.b {
+            Attachment::Scene(i) => {
+                let object = &self.scene[i];
+                let t = &pair.link_from_b;
+                let normal = matches!(object.shape, Shape::HalfSpace)
+                    .then(|| t.rotation.column(2).into_owned());
+                let radius = if normal.is_some() {
+                    0.0
+                } else {
+                    bounding_radius(&object.shape)
+                };
+                (radius, t.translation, sum_abs(&t.translation), normal)
+            }
+            Attachment::Link { .. } => {
+                let Some((radius, centre, scale)) =
+                    self.bounding_sphere(model, world_from_body, pair.b, &pair.link_from_b)
+                else {
+                    return false;
+                };
+                (radius, centre, scale, None)
+            }
+        };
+        let margin = BOUNDING_TEST_MARGIN * (1.0 + scale_a + scale_b + radius_a + radius_b);
+        let gap = match half_space_normal {
+            Some(normal) => normal.dot(&(centre_a - centre_b)) - radius_a,
+            None => (centre_a - centre_b).norm() - radius_a - radius_b,
+        };
+        // NaN anywhere makes the comparison false: then the full test runs.
+        gap > margin
+    }
+
+    /// Bounding radius, world centre and a length scale (the sum of the absolute coordinates of
+    /// the translations the centre is made of, m) of a link's shape; `None` for a scene shape or
+    /// a mesh. The radius is [`query`]'s bounding radius of [`link_shape`]'s shape, computed the
+    /// same way from the sizes without checking them (invalid sizes make the full test answer "no
+    /// contact" too).
+    #[inline]
+    fn bounding_sphere(
+        &self,
+        model: &Model,
+        world_from_body: &[Transform],
+        attachment: Attachment,
+        link_from_shape: &Transform,
+    ) -> Option<(f64, Vec3, f64)> {
+        let Attachment::Link { link, collision } = attachment else {
+            return None;
+        };
+        let shape = match model.description.links[link].collisions[collision].shape {
+            CollisionShape::Sphere { radius } => Shape::Sphere { radius },
+            CollisionShape::Box { size } => Shape::Box {
+                half_extents: [0.5 * size[0], 0.5 * size[1], 0.5 * size[2]],
+            },
+            CollisionShape::Cylinder { radius, length } => Shape::Cylinder {
+                radius,
+                half_length: 0.5 * length,
+            },
+            CollisionShape::Capsule { radius, length } => Shape::Capsule {
+                radius,
+                half_length: 0.5 * length,
+            },
+            _ => return None,
+        };
+        let radius = bounding_radius(&shape);
+        let placement = &model.links[link];
+        let in_body = placement
+            .body_from_link
+            .transform_point(&link_from_shape.translation);
+        let scale =
+            sum_abs(&link_from_shape.translation) + sum_abs(&placement.body_from_link.translation);
+        Some(match placement.body {
+            Some(b) => {
+                let world_from = &world_from_body[b];
+                (
+                    radius,
+                    world_from.transform_point(&in_body),
+                    scale + sum_abs(&world_from.translation),
+                )
+            }
+            None => (radius, in_body, scale),
+        })
+    }
+
     /// The shape of `attachment` at the model's current sizes.
     pub fn shape_of(&self, model: &Model, attachment: Attachment) -> Result<Shape, GeometryError> {
         match attachment {
@@ -422,6 +532,11 @@ impl GeometryModel {
     }
 }
 
+/// `|x| + |y| + |z|` of `v` (an upper bound of its length), m.
+fn sum_abs(v: &Vec3) -> f64 {
+    v.x.abs() + v.y.abs() + v.z.abs()
+}
+
 /// The unit vector `v / |v|`, or `fallback` when `|v|` is not a usable length.
 pub(crate) fn normalized_or(v: Vec3, fallback: Vec3) -> Vec3 {
     let n = v.norm();
@@ -429,5 +544,127 @@ pub(crate) fn normalized_or(v: Vec3, fallback: Vec3) -> Vec3 {
         v / n
     } else {
         fallback
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dynamics::{forward_kinematics, Data};
+    use crate::model::{parse_description, LoadOptions};
+
+    /// An arm swinging a box (offset collision origin, on a link fixed to the moving body) and a
+    /// capsule over a tilted half-space and a sphere.
+    const ARM: &str = r#"<robot name="arm"><link name="world"/>
+      <joint name="lift" type="prismatic"><parent link="world"/><child link="carriage"/>
+        <axis xyz="0 0 1"/><limit lower="-10" upper="10" effort="1" velocity="1"/></joint>
+      <link name="carriage"><inertial><mass value="1"/>
+        <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+      <joint name="swing" type="revolute"><parent link="carriage"/><child link="upper"/>
+        <origin xyz="0.1 0.2 0.3" rpy="0.3 -0.2 0.1"/><axis xyz="0.6 0 0.8"/>
+        <limit lower="-10" upper="10" effort="1" velocity="1"/></joint>
+      <link name="upper"><inertial><mass value="1"/>
+        <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+        <collision><origin xyz="0.7 -0.1 0.05" rpy="0.4 0.5 0.6"/>
+          <geometry><capsule radius="0.05" length="0.3"/></geometry></collision></link>
+      <joint name="weld" type="fixed"><parent link="upper"/><child link="hand"/>
+        <origin xyz="0.9 0.1 -0.2" rpy="0.1 0.2 0.3"/></joint>
+      <link name="hand"><collision><origin xyz="0.05 0.02 -0.01" rpy="0.7 0.1 -0.3"/>
+        <geometry><box size="0.1 0.2 0.05"/></geometry></collision></link></robot>"#;
+
+    /// The cheap test never skips a pair that the full bounding-sphere test lets through to parry,
+    /// over configurations sweeping every pair across its boundary in steps of 1e-12 m and more.
+    #[test]
+    fn provably_apart_never_skips_a_pair_the_full_test_keeps() {
+        let model = Model::from_description(
+            parse_description(ARM, "arm.urdf").unwrap(),
+            LoadOptions::default(),
+            "arm.urdf",
+        )
+        .unwrap();
+        let scene = vec![
+            SceneObject {
+                name: "slope".into(),
+                shape: Shape::HalfSpace,
+                world_from_shape: Transform::from_xyz_rpy([0.3, -0.2, 0.0], [0.2, -0.1, 0.0]),
+            },
+            SceneObject {
+                name: "post".into(),
+                shape: Shape::Sphere { radius: 0.25 },
+                world_from_shape: Transform::from_xyz_rpy([1.0, 0.5, 0.2], [0.0, 0.0, 0.0]),
+            },
+        ];
+        let names = |a: &str, b: &str| [a.to_string(), b.to_string()];
+        let geometry = GeometryModel::new(
+            &model,
+            scene,
+            &[
+                names("upper", "slope"),
+                names("hand", "slope"),
+                names("upper", "post"),
+                names("hand", "post"),
+            ],
+        )
+        .unwrap();
+        let mut data = Data::new(&model);
+        let (mut skipped, mut kept_near_boundary) = (0, 0);
+        for i in 0..400 {
+            let swing = -3.0 + 0.015 * f64::from(i);
+            for j in 0..200 {
+                // Heights around every boundary: coarse, then fine steps.
+                let lift = -1.5 + 0.015 * f64::from(j) + 1e-12 * f64::from(i % 7);
+                forward_kinematics(&model, &mut data, &[lift, swing]);
+                for pair in &geometry.pairs {
+                    let [(a, world_from_a), (b, world_from_b)] = geometry
+                        .placed_pair(&model, &data.world_from_body, pair)
+                        .unwrap();
+                    let full = contact_between(&a, &world_from_a, &b, &world_from_b);
+                    if geometry.provably_apart(&model, &data.world_from_body, pair) {
+                        skipped += 1;
+                        assert_eq!(full, PairTest::Apart, "lift {lift}, swing {swing}");
+                    } else if full == PairTest::Apart {
+                        kept_near_boundary += 1;
+                    }
+                }
+            }
+        }
+        // Both answers occur, and the margin rarely costs a full test.
+        assert!(skipped > 100_000, "{skipped}");
+        assert!(kept_near_boundary < 100, "{kept_near_boundary}");
+        // At the boundary itself: bisect the lift at which the full test of a pair on the slope
+        // flips, then step across it by 1e-13 m.
+        for pair in geometry
+            .pairs
+            .iter()
+            .filter(|p| p.b == Attachment::Scene(0))
+        {
+            for i in 0..20 {
+                let swing = -3.0 + 0.3 * f64::from(i);
+                let mut apart_at = |lift: f64| {
+                    forward_kinematics(&model, &mut data, &[lift, swing]);
+                    let [(a, wa), (b, wb)] = geometry
+                        .placed_pair(&model, &data.world_from_body, pair)
+                        .unwrap();
+                    (
+                        contact_between(&a, &wa, &b, &wb) == PairTest::Apart,
+                        geometry.provably_apart(&model, &data.world_from_body, pair),
+                    )
+                };
+                let (mut low, mut high) = (-5.0, 5.0);
+                assert!(!apart_at(low).0 && apart_at(high).0);
+                for _ in 0..200 {
+                    let mid = 0.5 * (low + high);
+                    if apart_at(mid).0 {
+                        high = mid;
+                    } else {
+                        low = mid;
+                    }
+                }
+                for k in -1000..=1000 {
+                    let (full_apart, skipped) = apart_at(high + 1e-13 * f64::from(k));
+                    assert!(!skipped || full_apart, "swing {swing}, step {k}");
+                }
+            }
+        }
     }
 }

@@ -52,7 +52,7 @@ fn to_pose(t: &Transform) -> Pose {
 }
 
 /// Radius of a sphere about the shape's origin that contains it (`∞` for a half-space).
-fn bounding_radius(shape: &Shape) -> f64 {
+pub(crate) fn bounding_radius(shape: &Shape) -> f64 {
     match *shape {
         Shape::Sphere { radius } => radius,
         Shape::Box { half_extents: h } => (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt(),

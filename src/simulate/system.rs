@@ -380,8 +380,11 @@ impl DaeSystem for RobotSystem {
         Ok(())
     }
 
+    /// Contacts, and only while some pair is near (passed its bounding-sphere test at the last force
+    /// evaluation): otherwise the coupling is zero, and not adding it keeps the Newton matrix
+    /// bitwise that of the same scene without contacts (docs/contacts.md §4).
     fn provides_newton_coupling(&self) -> bool {
-        self.effects.has_contacts()
+        self.effects.has_contact_coupling()
     }
 
     /// Contacts: `Jᵀ K J` and `Jᵀ C J` over the touching pairs (docs/contacts.md §4).
