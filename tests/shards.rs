@@ -193,6 +193,32 @@ fn four_bar_shards_merge_to_the_single_machine_bytes() {
     );
 }
 
+/// A scene with contacts: the summary's `stats.contacts` (pair tests, queries, made, broken,
+/// deepest penetration, summed over the runs) travels in the record blocks, so a merge reports
+/// what `analyze` reports; the quadruped's feet touch down within the 0.3 s.
+#[test]
+fn quadruped_contact_shards_merge_to_the_single_machine_bytes() {
+    let study = [
+        "robots/quadruped/quadruped.urdf",
+        "--duration",
+        "0.3",
+        "--order",
+        "2",
+    ];
+    check_study("quadruped", &study);
+    // check_study's single-machine summary (scratch("quadruped")/single).
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("target/test-scratch/shards/quadruped/single/summary.json");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).expect("summary")).expect("JSON");
+    let made = summary["stats"]["contacts"]["made"].as_u64();
+    assert!(
+        made.is_some_and(|m| m > 0),
+        "the feet touch down: {}",
+        summary["stats"]
+    );
+}
+
 #[test]
 fn ur5_all_values_d72_sparse_shards_merge_to_the_single_machine_bytes() {
     check_study(

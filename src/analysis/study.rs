@@ -304,6 +304,8 @@ pub struct DesignPart {
     pub newton_iterations: u64,
     /// Steps of the part's runs.
     pub steps: u64,
+    /// Contact counters of the part's runs, summed; `None` when the scene declares no contacts.
+    pub contacts: Option<ContactStats>,
     /// Seconds spent simulating.
     pub simulate_seconds: f64,
 }
@@ -664,6 +666,7 @@ impl Study<'_> {
                 .collect(),
             newton_iterations: report.newton_iterations,
             steps: report.steps,
+            contacts: report.contacts,
             simulate_seconds: report.simulate_seconds,
         })
     }

@@ -162,6 +162,7 @@ pub fn run(args: &RunArgs) -> Result<(), Error> {
         failures: part.failures,
         newton_iterations: part.newton_iterations,
         steps: part.steps,
+        contacts: part.contacts,
     })?;
     let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     eprintln!(

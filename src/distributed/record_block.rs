@@ -14,6 +14,7 @@
 
 use super::error::ShardError;
 use crate::analysis::SampleFailure;
+use crate::effects::ContactStats;
 use crate::output::paths::TemporaryFile;
 use ::mcap::records::{MessageHeader, Metadata, Record};
 use ::mcap::{WriteOptions, Writer};
@@ -143,6 +144,9 @@ pub struct BlockTrailer {
     pub newton_iterations: u64,
     /// Steps of the shard's runs.
     pub steps: u64,
+    /// Contact counters of the shard's runs, summed (the `contacts` entry, absent when the scene
+    /// declares no contacts), so that a merge reports what `analyze` reports.
+    pub contacts: Option<ContactStats>,
 }
 
 impl BlockTrailer {
@@ -157,7 +161,7 @@ impl BlockTrailer {
                 })
             })
             .collect();
-        [
+        let mut map: BTreeMap<String, String> = [
             ("complete", self.complete.to_string()),
             ("newton_iterations", self.newton_iterations.to_string()),
             ("steps", self.steps.to_string()),
@@ -165,7 +169,19 @@ impl BlockTrailer {
         ]
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
-        .collect()
+        .collect();
+        if let Some(contacts) = &self.contacts {
+            // Counts as integers; the depth's shortest round-trip text reads back to the same f64.
+            let entry = serde_json::json!({
+                "pair_tests": contacts.pair_tests,
+                "narrow_queries": contacts.narrow_queries,
+                "made": contacts.made,
+                "broken": contacts.broken,
+                "max_depth_m": contacts.max_depth_m,
+            });
+            map.insert("contacts".to_string(), entry.to_string());
+        }
+        map
     }
 
     fn from_metadata(map: &BTreeMap<String, String>) -> Result<BlockTrailer, String> {
@@ -197,11 +213,37 @@ impl BlockTrailer {
             })
             .collect::<Option<Vec<_>>>()
             .ok_or_else(|| "a failure in ribbon.shard.end lacks a field".to_string())?;
+        let contacts = match map.get("contacts") {
+            None => None,
+            Some(entry) => {
+                let value: serde_json::Value = serde_json::from_str(entry)
+                    .map_err(|e| format!("ribbon.shard.end 'contacts' is not JSON: {e}"))?;
+                let count = |key: &str| {
+                    value
+                        .get(key)
+                        .and_then(serde_json::Value::as_u64)
+                        .ok_or_else(|| {
+                            format!("ribbon.shard.end 'contacts' lacks the count '{key}'")
+                        })
+                };
+                Some(ContactStats {
+                    pair_tests: count("pair_tests")?,
+                    narrow_queries: count("narrow_queries")?,
+                    made: count("made")?,
+                    broken: count("broken")?,
+                    max_depth_m: value
+                        .get("max_depth_m")
+                        .and_then(serde_json::Value::as_f64)
+                        .ok_or("ribbon.shard.end 'contacts' lacks 'max_depth_m'")?,
+                })
+            }
+        };
         Ok(BlockTrailer {
             complete: text("complete")? == "true",
             failures,
             newton_iterations: count("newton_iterations")?,
             steps: count("steps")?,
+            contacts,
         })
     }
 }

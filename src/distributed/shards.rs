@@ -5,6 +5,7 @@ use super::plan_file::PlanFile;
 use super::record_block::RecordBlockReader;
 use super::stage_plan::Stage;
 use crate::analysis::{BlockOutcome, RecordSource, SampleFailure, StudyError};
+use crate::effects::ContactStats;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -138,6 +139,8 @@ pub struct ShardSet {
     /// One past the last record of the current block.
     end: usize,
     counters: (u64, u64),
+    /// Every shard's contact counters, merged; `None` without contacts.
+    contacts: Option<ContactStats>,
 }
 
 impl ShardSet {
@@ -225,6 +228,14 @@ impl ShardSet {
         let counters = readers.iter().fold((0, 0), |(n, s), r| {
             (n + r.trailer().newton_iterations, s + r.trailer().steps)
         });
+        let contacts =
+            readers
+                .iter()
+                .filter_map(|r| r.trailer().contacts)
+                .reduce(|mut all, shard| {
+                    all.merge(&shard);
+                    all
+                });
         Ok(ShardSet {
             readers,
             samples: stage.samples,
@@ -236,6 +247,7 @@ impl ShardSet {
             failures,
             end: 0,
             counters,
+            contacts,
         })
     }
 
@@ -389,6 +401,10 @@ impl RecordSource for ShardSet {
 
     fn counters(&self) -> (u64, u64) {
         self.counters
+    }
+
+    fn contact_counters(&self) -> Option<ContactStats> {
+        self.contacts
     }
 }
 
