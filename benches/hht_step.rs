@@ -23,7 +23,7 @@ mod reference_venv;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::{criterion_group, Criterion};
 use nalgebra::{DMatrix, DVector};
 use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, StepControl, SystemError};
 use ribbon::model::{JointKind, LoadOptions, Model};
@@ -72,7 +72,14 @@ struct Fall {
 }
 
 impl Fall {
+    /// The robot at `path` with the default settings (a fresh Newton matrix at every step).
     fn new(path: &Path) -> Self {
+        Self::with_reuse(path, false)
+    }
+
+    /// The robot at `path`; with `reuse_newton_matrix` the opt-in reuse of the Newton matrix
+    /// across steps ([`HhtSettings::reuse_newton_matrix`]).
+    fn with_reuse(path: &Path, reuse_newton_matrix: bool) -> Self {
         let model = Model::from_urdf_file(path, LoadOptions::default()).expect("robot loads");
         let file = parse_sidecar("[scene]\ngravity = [0.0, 0.0, -9.81]\n").expect("sidecar parses");
         let scene = Scene::resolve(
@@ -102,8 +109,12 @@ impl Fall {
         }
         let v0 = DVector::from_column_slice(&scene.initial_v);
         let mut system = RobotSystem::new(model, &scene);
-        let hht = HhtIntegrator::new(&mut system, hht_settings(&scene), 0.0, &q0, &v0)
-            .expect("consistent start");
+        let settings = HhtSettings {
+            reuse_newton_matrix,
+            ..hht_settings(&scene)
+        };
+        let hht =
+            HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).expect("consistent start");
         Self {
             system,
             hht,
@@ -450,11 +461,70 @@ fn hht_step(c: &mut Criterion) {
         c.bench_function(&format!("hht_step/{name}"), |b| {
             b.iter_custom(|iters| fall.timed_steps(iters))
         });
+        let mut reusing = Fall::with_reuse(&path, true);
+        report(&format!("{name}/reuse"), &mut reusing);
+        reusing.restart();
+        c.bench_function(&format!("hht_step/{name}/reuse"), |b| {
+            b.iter_custom(|iters| reusing.timed_steps(iters))
+        });
     }
 }
 
 criterion_group!(benches, hht_step);
-criterion_main!(benches);
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if let Some(at) = args.iter().position(|a| a == "--count-steps") {
+        count_steps(&args[at + 1..]);
+        return;
+    }
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}
+
+/// `hht_step --count-steps ROBOT STEPS [fresh|reuse]`: only the fall of ROBOT (a name of
+/// [`robots`]), restarted, then STEPS steps (0 ..= 1000) with the Newton matrix factorised at every
+/// step (the default settings) or reused across steps (the opt-in
+/// [`HhtSettings::reuse_newton_matrix`]); prints the statistics and exits. Run under
+/// `valgrind --tool=callgrind` with STEPS = 1000 and 0: the difference of the two instruction
+/// counts over 1000 is the instructions per step (benches/README.md).
+fn count_steps(args: &[String]) {
+    let usage = "usage: hht_step --count-steps ROBOT STEPS [fresh|reuse]";
+    let (Some(robot), Some(steps)) = (args.first(), args.get(1)) else {
+        eprintln!("{usage}");
+        std::process::exit(2);
+    };
+    let Ok(steps) = steps.parse::<u64>() else {
+        eprintln!("hht_step: STEPS must be a whole number of steps, got '{steps}'; {usage}");
+        std::process::exit(2);
+    };
+    if steps > STEPS_PER_FALL {
+        eprintln!("hht_step: STEPS must be at most {STEPS_PER_FALL} (one 1 s fall), got {steps}");
+        std::process::exit(2);
+    }
+    let reuse = match args.get(2).map(String::as_str) {
+        None | Some("fresh") => false,
+        Some("reuse") => true,
+        Some(other) => {
+            eprintln!("hht_step: expected 'fresh' or 'reuse', got '{other}'; {usage}");
+            std::process::exit(2);
+        }
+    };
+    let Some((_, path)) = robots().into_iter().find(|(name, _)| name == robot) else {
+        eprintln!("hht_step: no robot '{robot}' (ribbon-ur5, erd-ur5, erd-panda; the last two need the reference venv)");
+        std::process::exit(2);
+    };
+    let mut fall = Fall::with_reuse(&path, reuse);
+    fall.restart();
+    for _ in 0..steps {
+        fall.hht.step(&mut fall.system).expect("step converges");
+    }
+    let stats = fall.hht.stats();
+    println!(
+        "{{\"robot\": \"{robot}\", \"reuse\": {reuse}, \"steps\": {}, \"newton_iterations\": {}, \"factorisations\": {}, \"projection_factorisations\": {}, \"refreshes\": {}}}",
+        stats.steps, stats.newton_iterations, stats.factorisations, stats.projection_factorisations, stats.refreshes
+    );
+}
 
 /// The cost of the adaptive step against the fixed one on the shipped robots with their own scenes
 /// (issue 12 §3: within 10 %): each scene's whole run, fixed and adaptive alternately, best of

@@ -5,7 +5,9 @@
 //!
 //! ```text
 //! (t_n, q_n, q̇_n, a_n, q̈_n, λ_n) => predictor q̈ = 2q̈_n − q̈_{n−1}, λ = 2λ_n − λ_{n−1}
-//!   => factorise the iteration matrix at the predicted (q, q̇)          (modified Newton)
+//!   => without constraint rows: iterate with the trajectory's stored factorisation if the last
+//!      step contracted fast (ρ ≤ NEWTON_REUSE_MAX_RATE) at the same h; slower drops it at once
+//!   => else factorise the iteration matrix at the predicted (q, q̇)     (modified Newton)
 //!   => iterate: residual at (q(q̈), q̇(q̈)), solve, correct, WRMS test   (≤ max_newton_iterations)
 //!   => not converged: refactorise at the current iterate, iterate again; then fail loudly
 //!   => (q_{n+1}, q̇_{n+1}, a_{n+1}, q̈_{n+1}, λ_{n+1})
@@ -21,6 +23,7 @@ use super::eval::{self, At};
 use super::linalg::{DenseSolver, FactorKind};
 use super::settings::{
     HhtCoefficients, HhtSettings, NewtonMatrix, StepControl, FULL_NEWTON_HOLD_STEPS,
+    NEWTON_REUSE_MAX_RATE,
 };
 use super::start::{consistent_start, ConsistentStart};
 use super::system::DaeSystem;
@@ -57,7 +60,8 @@ pub struct HhtStats {
     pub state_rejections: u64,
     /// Newton iterations (residual evaluations + solves), all passes.
     pub newton_iterations: u64,
-    /// Factorisations of the Newton iteration matrix (one per step, plus refreshes).
+    /// Factorisations of the Newton iteration matrix (at most one per step while the stored one is
+    /// reused, see [`HhtSettings::reuse_newton_matrix`]; plus refreshes).
     pub factorisations: u64,
     /// Steps whose first Newton pass failed and that refreshed the matrix.
     pub refreshes: u64,
@@ -148,8 +152,6 @@ struct Workspace {
     matrix: DMatrix<f64>,
     /// Right-hand side, then solution, dim n.
     rhs: DVector<f64>,
-    /// Factorisation of `matrix`.
-    solver: DenseSolver,
     /// `a_n` as the attempted step sees it, dim nv: `a_n` itself for a step of the last size, else
     /// rescaled to the new size (`q̈_n + (h/h_last)(a_n − q̈_n)`, docs/step-control.md §3).
     a_start: DVector<f64>,
@@ -178,11 +180,6 @@ struct Workspace {
 impl Workspace {
     fn new(nq: usize, nv: usize, m: usize, n_events: usize) -> Self {
         let n = nv + m;
-        let kind = if m == 0 {
-            FactorKind::Cholesky
-        } else {
-            FactorKind::Lu
-        };
         Self {
             qdd: DVector::zeros(nv),
             lambda: DVector::zeros(m),
@@ -201,7 +198,6 @@ impl Workspace {
             phi_dot: DVector::zeros(m),
             matrix: DMatrix::zeros(n, n),
             rhs: DVector::zeros(n),
-            solver: DenseSolver::new(n, kind),
             a_start: DVector::zeros(nv),
             stiffness_full: DMatrix::zeros(nv, nv),
             damping_full: DMatrix::zeros(nv, nv),
@@ -215,6 +211,40 @@ impl Workspace {
             impact_v: DVector::zeros(nv),
             mass_fresh: false,
             phi_q_fresh: false,
+        }
+    }
+}
+
+/// The Newton factorisation a trajectory carries from step to step (docs/method.md §5, "Reusing the
+/// Newton matrix"). It belongs to the trajectory, not to the workspace, so that whether a step
+/// reuses it never depends on which samples the same integrator advanced before (a study's results
+/// stay independent of threads and blocks).
+#[derive(Debug, Clone)]
+struct NewtonMemory {
+    /// Factorisation of the diagonal Newton matrix `[M + β'h² K + γ'h C, Φ_qᵀ; Φ_q, 0]` (Cholesky
+    /// without constraint rows, else LU); after a constrained step with the velocity projection, of
+    /// the projection's `[M Φ_qᵀ; Φ_q 0]` at `q_{n+1}` (then not reusable).
+    solver: DenseSolver,
+    /// `solver` holds a Newton matrix of this trajectory that the next step may iterate with.
+    reusable: bool,
+    /// The step size the stored matrix was assembled for, s.
+    h: f64,
+    /// Slowest contraction `ρ` the last step's converging pass saw (0 when one iteration sufficed).
+    rate: f64,
+}
+
+impl NewtonMemory {
+    fn new(nv: usize, m: usize) -> Self {
+        let kind = if m == 0 {
+            FactorKind::Cholesky
+        } else {
+            FactorKind::Lu
+        };
+        Self {
+            solver: DenseSolver::new(nv + m, kind),
+            reusable: false,
+            h: 0.0,
+            rate: 0.0,
         }
     }
 }
@@ -308,6 +338,8 @@ pub struct HhtTrajectory {
     pub stats: HhtStats,
     /// Step control of this trajectory (the next sub-step, the last one, the full-matrix hold).
     pub control: StepControlState,
+    /// The Newton factorisation this trajectory's next step may reuse.
+    newton: NewtonMemory,
 }
 
 /// What the step control carries from step to step of one trajectory: part of [`HhtTrajectory`], so
@@ -425,6 +457,8 @@ pub struct HhtIntegrator {
     /// Test-only: it makes q̈ and λ first order (tests.rs pins it).
     projection_feedback: bool,
     stats: HhtStats,
+    /// The carried trajectory's Newton factorisation (swapped with the trajectory).
+    newton: NewtonMemory,
     ws: Workspace,
 }
 
@@ -471,6 +505,7 @@ impl HhtIntegrator {
             has_previous: false,
             projection_feedback: false,
             stats: HhtStats::default(),
+            newton: NewtonMemory::new(nv, m),
             ws: Workspace::new(nq, nv, m, n_events),
         };
         integrator.restart(system, t0, q0, v0)?;
@@ -497,6 +532,7 @@ impl HhtIntegrator {
         self.state.v.copy_from(&start.v);
         self.v_newmark.copy_from(&start.v);
         self.has_previous = false;
+        self.newton.reusable = false;
         self.state.qdd.copy_from(&start.qdd);
         self.state.a.copy_from(&start.qdd);
         self.state.lambda.copy_from(&start.lambda);
@@ -527,6 +563,7 @@ impl HhtIntegrator {
             has_previous: self.has_previous,
             stats: self.stats,
             control: self.control,
+            newton: self.newton.clone(),
         }
     }
 
@@ -544,7 +581,12 @@ impl HhtIntegrator {
                 other.v_newmark.len(),
             ),
         ];
-        for (what, expected, got) in checks {
+        let newton_size = (
+            "trajectory Newton factorisation",
+            self.nv + self.m,
+            other.newton.solver.dimension(),
+        );
+        for (what, expected, got) in checks.into_iter().chain([newton_size]) {
             if expected != got {
                 return Err(IntegrateError::DimensionMismatch {
                     what,
@@ -561,6 +603,7 @@ impl HhtIntegrator {
         std::mem::swap(&mut self.has_previous, &mut other.has_previous);
         std::mem::swap(&mut self.stats, &mut other.stats);
         std::mem::swap(&mut self.control, &mut other.control);
+        std::mem::swap(&mut self.newton, &mut other.newton);
         self.ws.mass_fresh = false;
         self.ws.phi_q_fresh = false;
         Ok(())
@@ -891,38 +934,64 @@ impl HhtIntegrator {
         let full_on_refresh =
             provides_full && self.settings.newton_matrix != NewtonMatrix::Diagonal;
         let max_iterations = self.settings.max_newton_iterations;
+        // Pass 0 iterates with the trajectory's stored factorisation (docs/method.md §5, "Reusing
+        // the Newton matrix"); pass 1 factorises at the predictor (or, after a failed pass 0, at the
+        // current iterate); pass 2 is the refresh.
+        let reuse = self.settings.reuse_newton_matrix
+            && self.m == 0
+            && !full_first
+            && !system.provides_newton_coupling()
+            && self.newton.reusable
+            && self.newton.h == h
+            && self.newton.rate <= NEWTON_REUSE_MAX_RATE;
+        self.newton.reusable = false;
         let mut iterations = 0;
         let mut converged = false;
         let mut converged_with_full = false;
+        let mut converged_rate = 0.0_f64;
         let mut last: Option<IterationReport> = None;
-        for pass in 0..2 {
-            if pass == 1 {
-                self.stats.refreshes += 1;
-            }
-            let full = if pass == 0 {
-                full_first
-            } else {
-                full_on_refresh
+        for pass in if reuse { 0..3 } else { 1..3 } {
+            let full = match pass {
+                0 => false,
+                1 => full_first,
+                _ => {
+                    self.stats.refreshes += 1;
+                    full_on_refresh
+                }
             };
-            self.factorise_at_iterate(system, at, full)?;
+            if pass == 0 {
+                self.ws.use_full = false;
+            } else {
+                self.factorise_at_iterate(system, at, full)?;
+            }
             let mut previous: Option<IterationReport> = None;
+            let mut slowest = 0.0_f64;
             for _ in 0..max_iterations {
                 iterations += 1;
                 let report = self.newton_iteration(system, at)?;
                 last = Some(report);
+                let rate = previous.map(|prev| report.wrms() / prev.wrms());
+                if let Some(rate) = rate {
+                    slowest = slowest.max(rate);
+                }
                 if report.wrms() < 1.0 {
                     converged = true;
                     break;
                 }
-                if let Some(prev) = previous {
+                if let (Some(prev), Some(rate)) = (previous, rate) {
                     // Rate-based test (Hairer & Wanner, Radau5): modified Newton contracts
                     // linearly with ρ = ‖Δ_k‖/‖Δ_{k−1}‖, so the iterate's remaining error is about
                     // ρ/(1−ρ)·‖Δ_k‖; accept when that estimate is within tolerance instead of
                     // spending one more iteration to see a correction below it.
-                    let rate = report.wrms() / prev.wrms();
                     if rate < RATE_TEST_MAX_CONTRACTION && rate / (1.0 - rate) * report.wrms() < 1.0
                     {
                         converged = true;
+                        break;
+                    }
+                    if pass == 0 && rate > NEWTON_REUSE_MAX_RATE {
+                        // The stored matrix has aged (a stagnating Δλ included: that test is for
+                        // a fresh matrix): factorise a fresh one now rather than spend the
+                        // iterations a slow contraction needs.
                         break;
                     }
                     // Multipliers at the rounding floor of Φ/(β'h²): positions converged twice in a
@@ -944,6 +1013,7 @@ impl HhtIntegrator {
             }
             if converged {
                 converged_with_full = full;
+                converged_rate = slowest;
                 break;
             }
         }
@@ -968,6 +1038,10 @@ impl HhtIntegrator {
             }
         }
         self.stats.max_iterations_in_a_step = self.stats.max_iterations_in_a_step.max(iterations);
+        // The full matrix lives in its own solver; the diagonal one just used stays for the next step.
+        self.newton.reusable = !converged_with_full;
+        self.newton.h = h;
+        self.newton.rate = converged_rate;
         Ok(Attempt::Converged)
     }
 
@@ -1108,6 +1182,7 @@ impl HhtIntegrator {
         self.state.a.copy_from(&start.qdd);
         self.state.lambda.copy_from(&start.lambda);
         self.has_previous = false;
+        self.newton.reusable = false;
         self.stats.impacts += 1;
         self.ws.mass_fresh = false;
         self.ws.phi_q_fresh = false;
@@ -1195,7 +1270,8 @@ impl HhtIntegrator {
                 }
             }
         }
-        ws.solver
+        self.newton
+            .solver
             .factor(&ws.matrix)
             .map_err(|b| IntegrateError::SingularMatrix {
                 t: at.t,
@@ -1311,7 +1387,7 @@ impl HhtIntegrator {
         if ws.use_full {
             ws.full_solver.solve_in_place(&mut ws.rhs);
         } else {
-            ws.solver.solve_in_place(&mut ws.rhs);
+            self.newton.solver.solve_in_place(&mut ws.rhs);
         }
         at.check_finite("newton_update", ws.rhs.iter())?;
 
@@ -1409,7 +1485,11 @@ impl HhtIntegrator {
         eval::mass_matrix(system, at, &self.state.q, &mut ws.mass)?;
         ws.mass_fresh = false;
         assemble_iteration_matrix(&ws.mass, None, &ws.phi_q, 0.0, 0.0, 1.0, &mut ws.matrix);
-        ws.solver
+        // The projection's matrix replaces the stored Newton factorisation (never reused with
+        // constraint rows).
+        self.newton.reusable = false;
+        self.newton
+            .solver
             .factor(&ws.matrix)
             .map_err(|b| IntegrateError::SingularMatrix {
                 t: at.t,
@@ -1425,7 +1505,7 @@ impl HhtIntegrator {
         for j in 0..m {
             ws.rhs[nv + j] = -ws.phi_dot[j];
         }
-        ws.solver.solve_in_place(&mut ws.rhs);
+        self.newton.solver.solve_in_place(&mut ws.rhs);
         at.check_finite("velocity_projection", ws.rhs.iter())?;
         for i in 0..nv {
             self.state.v[i] += ws.rhs[i];

@@ -48,6 +48,11 @@ impl DenseSolver {
         }
     }
 
+    /// The dimension `n` of the systems it solves.
+    pub fn dimension(&self) -> usize {
+        self.factors.nrows()
+    }
+
     /// Factorises `a` (dimension `n × n`; only the lower triangle is read for Cholesky), overwriting
     /// the stored factors. Allocation-free.
     pub fn factor(&mut self, a: &DMatrix<f64>) -> Result<(), Breakdown> {

@@ -61,7 +61,7 @@ pub use sensitivity::{
 pub use settings::{
     HhtCoefficients, HhtSettings, NewtonMatrix, StepControl, ALPHA_MIN,
     ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS, DEFAULT_STEP_HALVINGS, DEFAULT_STEP_TOLERANCE,
-    FULL_NEWTON_HOLD_STEPS, MAX_STEP_HALVINGS,
+    FULL_NEWTON_HOLD_STEPS, MAX_STEP_HALVINGS, NEWTON_REUSE_MAX_RATE,
 };
 pub use start::{
     consistent_start, ConsistentStart, REDUNDANT_ROW_RELATIVE_SV, START_CONSTRAINT_TOL,

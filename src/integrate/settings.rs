@@ -58,6 +58,20 @@ pub struct HhtSettings {
     /// [`DEFAULT_STEP_HALVINGS`]: the floor of the adaptive step's sub-steps (and of its retries of
     /// a failed sub-step, by halving) and of the short steps that locate an impact (both modes).
     pub max_step_halvings: u32,
+    /// Keep a trajectory's Newton factorisation from step to step while Newton contracts fast
+    /// (default `false`, opt-in; docs/method.md §5, "Reusing the Newton matrix"): a step refactorises only
+    /// when the step size changed, the last step contracted slower than
+    /// [`NEWTON_REUSE_MAX_RATE`], the old matrix fails to converge, or after a restart or an impact.
+    /// Systems without constraint rows only: with rows an old `Φ_q` leaves `Φ` at the position
+    /// tolerance after convergence instead of at rounding (1.4e-9 m against ≤ 1e-10 m with a fresh
+    /// matrix, Cartesian pendulum at h = 1e-2), and the drift bound of the tests is rounding.
+    /// Off, every step factorises at its predictor. Results differ between the two by the Newton
+    /// tolerance only, but that is the point of the default: a reused matrix accepts an iterate
+    /// anywhere below the tolerance where a fresh one overshoots it by far, so the Newton noise
+    /// across the samples of a study grows, and with it the surrogate's misfit (double pendulum's
+    /// a-posteriori check: 9e-8 → 1.0e-5 of the envelope width, over the 1e-5 that
+    /// `tests/analysis.rs` accepts as smooth). Worth it for single trajectories; not yet for studies.
+    pub reuse_newton_matrix: bool,
 }
 
 /// Which matrix the Newton iteration of a step factorises (docs/step-control.md §1).
@@ -123,6 +137,18 @@ pub const MAX_STEP_HALVINGS: u32 = 20;
 /// each of them would pay a failed pass every step; after the hold the cheap matrix is tried again.
 pub const FULL_NEWTON_HOLD_STEPS: u32 = 50;
 
+/// Slowest contraction `ρ = ‖Δ_k‖/‖Δ_{k−1}‖` of a step's Newton iteration after which the next step
+/// still reuses the factorisation ([`HhtSettings::reuse_newton_matrix`]); a reused matrix that
+/// contracts slower than this within a step is dropped at once and the step refactorises at its
+/// current iterate. On the shipped arms an iteration (RNEA, solve, test) and a refactorisation
+/// (CRBA, assembly, Cholesky or LU) cost about the same (≈ 9 000 instructions each on the ur5), so
+/// a refactorisation pays when it saves one iteration. Measured in instructions per step of the
+/// benches' 1 s falls (benches/README.md, 2026-11-23) for thresholds 0.02, 0.05, 0.1, 0.2, 0.3,
+/// 0.5: the fast-spinning ur5 is cheapest at 0.02 and already worse than no reuse at 0.05 (its
+/// fresh matrix contracts at ρ ≈ 0.02–0.05, the Coriolis terms the modified matrix leaves out);
+/// the example-robot-data ur5 gains 30–32 % at every threshold, the panda 2–7 %.
+pub const NEWTON_REUSE_MAX_RATE: f64 = 0.02;
+
 impl Default for HhtSettings {
     fn default() -> Self {
         Self {
@@ -138,6 +164,7 @@ impl Default for HhtSettings {
             step_control: StepControl::Fixed,
             tolerance: DEFAULT_STEP_TOLERANCE,
             max_step_halvings: DEFAULT_STEP_HALVINGS,
+            reuse_newton_matrix: false,
         }
     }
 }

@@ -1548,3 +1548,101 @@ fn sub_step_attempts_per_grid_step_are_bounded() {
         .to_string()
         .contains("smaller step or a looser tolerance"));
 }
+
+// ---------------------------------------------------------------------------------------------
+// Reusing the Newton matrix across steps (opt-in)
+// ---------------------------------------------------------------------------------------------
+
+/// Largest difference of the ur5's positions (rad) after 0.5 s of its own scene between the reused
+/// and the fresh Newton matrix: both are converged to the position tolerance (1e-10 per step), so
+/// over 500 steps they may part by a few hundred times that, not more.
+const REUSE_MAX_POSITION_DIFFERENCE: f64 = 1e-7;
+
+/// The ur5 of the shipped robots with its scene (springs and dampers on the joints, no rows).
+fn shipped_ur5() -> (crate::simulate::RobotSystem, crate::scene::Scene) {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5");
+    let model = crate::model::Model::from_urdf_file(
+        &root.join("ur5.urdf"),
+        crate::model::LoadOptions::default(),
+    )
+    .expect("ur5 loads");
+    let (file, _) =
+        crate::scene::read_sidecar(&root.join("ur5.uncertainty.toml")).expect("sidecar reads");
+    let scene = crate::scene::Scene::resolve(
+        &file,
+        &model,
+        "ur5",
+        crate::scene::SceneOverrides::default(),
+    )
+    .expect("scene resolves");
+    let mut model = model;
+    scene.apply_gravity(&mut model);
+    (crate::simulate::RobotSystem::new(model, &scene), scene)
+}
+
+#[test]
+fn reused_newton_matrix_saves_factorisations_at_the_newton_tolerance() {
+    let (mut system, scene) = shipped_ur5();
+    let (q0, v0) = (dvec(&scene.initial_q), dvec(&scene.initial_v));
+    let fresh = crate::simulate::hht_settings(&scene);
+    assert!(!fresh.reuse_newton_matrix, "the reuse is opt-in");
+    let reuse = HhtSettings {
+        reuse_newton_matrix: true,
+        ..fresh
+    };
+    let mut run = |settings: HhtSettings| {
+        let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).expect("start");
+        for _ in 0..500 {
+            hht.step(&mut system).expect("step");
+        }
+        (hht.state().q.clone(), *hht.stats())
+    };
+    let (q_fresh, s_fresh) = run(fresh);
+    let (q_reuse, s_reuse) = run(reuse);
+    let difference = (&q_reuse - &q_fresh).amax();
+    println!(
+        "ur5 0.5 s: fresh {} factorisations, {} iterations; reused {} factorisations, {} iterations; max |Δq| {difference:.2e} rad",
+        s_fresh.factorisations, s_fresh.newton_iterations, s_reuse.factorisations, s_reuse.newton_iterations
+    );
+    assert_eq!(s_fresh.factorisations, 500);
+    assert!(s_reuse.factorisations < s_fresh.factorisations);
+    assert!(difference > 0.0 && difference <= REUSE_MAX_POSITION_DIFFERENCE);
+}
+
+/// The stored factorisation travels with the trajectory: a trajectory swapped out for another one
+/// and back continues bitwise as if it had never left (a study's samples do not depend on which
+/// samples a thread advanced in between).
+#[test]
+fn reused_newton_matrix_travels_with_the_trajectory() {
+    let (mut system, scene) = shipped_ur5();
+    let settings = HhtSettings {
+        reuse_newton_matrix: true,
+        ..crate::simulate::hht_settings(&scene)
+    };
+    let (q0, v0) = (dvec(&scene.initial_q), dvec(&scene.initial_v));
+    let mut other_q0 = q0.clone();
+    other_q0[1] += 0.3;
+    let mut alone = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).expect("start");
+    for _ in 0..200 {
+        alone.step(&mut system).expect("step");
+    }
+    let mut shared = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).expect("start");
+    let mut other = HhtIntegrator::new(&mut system, settings, 0.0, &other_q0, &v0)
+        .expect("start")
+        .trajectory();
+    for _ in 0..100 {
+        shared.step(&mut system).expect("step");
+    }
+    shared.swap_trajectory(&mut other).expect("same dimensions");
+    for _ in 0..37 {
+        shared.step(&mut system).expect("step");
+    }
+    shared.swap_trajectory(&mut other).expect("same dimensions");
+    for _ in 0..100 {
+        shared.step(&mut system).expect("step");
+    }
+    // Vacuous unless some steps reused the matrix.
+    assert!(alone.stats().factorisations < 200);
+    assert_eq!(shared.state(), alone.state());
+    assert_eq!(shared.stats().factorisations, alone.stats().factorisations);
+}
