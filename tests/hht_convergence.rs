@@ -396,3 +396,83 @@ fn data_is_reusable_across_models_of_same_shape() {
     let back = crba(&model, &mut data, &q).clone();
     assert_eq!(back, m1);
 }
+
+/// Largest change of any recorded value that `[scene] newton_matrix = "reuse"` may cause on the
+/// ur5 scene over its 2 s: a reused matrix accepts iterates anywhere below the Newton position
+/// tolerance (1e-10 rad) instead of overshooting it, and that difference may accumulate over the
+/// 2000 steps; 1e-7 is a thousand times the tolerance, far below any envelope width.
+const REUSE_MAX_CHANGE: f64 = 1e-7;
+
+/// The sidecar key reaches the integrator: with `newton_matrix = "reuse"` the ur5 (springs, no
+/// constraint rows) factorises far less often and records the same trajectory to Newton noise.
+#[test]
+fn newton_matrix_reuse_from_the_sidecar_saves_factorisations_and_keeps_the_trajectory() {
+    let dir = common::target_dir().join("tests-newton-matrix-reuse");
+    std::fs::create_dir_all(&dir).expect("scratch directory");
+    let shipped =
+        std::fs::read_to_string(manifest("robots/ur5/ur5.uncertainty.toml")).expect("ur5 sidecar");
+    assert!(
+        shipped.contains("\n[scene]\n"),
+        "the ur5 sidecar has a [scene] table"
+    );
+    let reuse_sidecar = dir.join("ur5.reuse.uncertainty.toml");
+    std::fs::write(
+        &reuse_sidecar,
+        shipped.replacen("\n[scene]\n", "\n[scene]\nnewton_matrix = \"reuse\"\n", 1),
+    )
+    .expect("write sidecar");
+    let run = |sidecar: &Path, name: &str| {
+        let summary = dir.join(format!("{name}.json"));
+        let csv = dir.join(format!("{name}.csv"));
+        let path = |p: &Path| p.to_string_lossy().into_owned();
+        common::run_checked(
+            &common::ribbon_bin(),
+            &common::args([
+                "simulate".to_string(),
+                path(&manifest("robots/ur5/ur5.urdf")),
+                "--uncertainty".to_string(),
+                path(sidecar),
+                "--summary".to_string(),
+                path(&summary),
+                "--csv".to_string(),
+                path(&csv),
+            ]),
+            "simulate of the ur5",
+        );
+        let stats: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(summary).expect("summary"))
+                .expect("JSON");
+        let values: Vec<f64> = std::fs::read_to_string(csv)
+            .expect("CSV")
+            .lines()
+            .skip(1)
+            .flat_map(|line| {
+                line.split(',')
+                    .map(|v| v.parse::<f64>().expect("a number"))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        (
+            stats["stats"]["factorisations"]
+                .as_u64()
+                .expect("factorisations"),
+            values,
+        )
+    };
+    let (fresh_factorisations, fresh) = run(&manifest("robots/ur5/ur5.uncertainty.toml"), "fresh");
+    let (reuse_factorisations, reused) = run(&reuse_sidecar, "reuse");
+    assert_eq!(fresh.len(), reused.len());
+    let change = fresh
+        .iter()
+        .zip(&reused)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    println!(
+        "factorisations {fresh_factorisations} fresh, {reuse_factorisations} reused; largest change {change:.2e}"
+    );
+    assert!(
+        reuse_factorisations * 2 < fresh_factorisations,
+        "{reuse_factorisations} factorisations with reuse, {fresh_factorisations} without"
+    );
+    assert!(change <= REUSE_MAX_CHANGE, "largest change {change:e}");
+}

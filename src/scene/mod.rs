@@ -202,6 +202,9 @@ pub struct Scene {
     /// Most halvings of a grid step by the integrator (sub-steps never below the smallest step,
     /// [`budget::MIN_STEP_S`]).
     pub max_step_halvings: u32,
+    /// Whether the integrator keeps its Newton factorisation across steps (`[scene] newton_matrix
+    /// = "reuse"`; default false, docs/method.md §5).
+    pub reuse_newton_matrix: bool,
     /// Gravity in the world frame, m/s² (applied only when `effects.gravity`).
     pub gravity: [f64; 3],
     /// Simulated effects.
@@ -494,6 +497,7 @@ impl Scene {
             step_tolerance: step_values.tolerance,
             limit_restitution: step_values.limit_restitution,
             max_step_halvings: step_values.max_step_halvings,
+            reuse_newton_matrix: step_values.reuse_newton_matrix,
             gravity,
             effects,
             springs,

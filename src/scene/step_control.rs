@@ -1,5 +1,6 @@
-//! `[scene] step_control`, `tolerance` and `limit_restitution`: how the integrator chooses its step
-//! and what a joint-limit impact does (docs/step-control.md §3–§4), checked before anything runs.
+//! `[scene] step_control`, `tolerance`, `limit_restitution` and `newton_matrix`: how the integrator
+//! chooses its step, what a joint-limit impact does (docs/step-control.md §3–§4) and whether the
+//! Newton matrix is kept across steps (docs/method.md §5), checked before anything runs.
 
 use super::budget::MIN_STEP_S;
 use super::SceneError;
@@ -18,6 +19,8 @@ pub struct StepControlValues {
     /// Sub-steps (adaptive, impact location) down to `h / 2^k`: [`DEFAULT_STEP_HALVINGS`], fewer
     /// when `h / 2^k` would fall below [`MIN_STEP_S`].
     pub max_step_halvings: u32,
+    /// Whether the Newton factorisation is kept across steps (`newton_matrix = "reuse"`).
+    pub reuse_newton_matrix: bool,
 }
 
 /// Reads and checks the keys of `section` for a scene with grid step `step_s` whose effects declare
@@ -81,11 +84,24 @@ pub(super) fn resolve(
             ))
         }
     };
+    let reuse_newton_matrix = match section.newton_matrix.as_deref() {
+        None | Some("fresh") => false,
+        Some("reuse") => true,
+        Some(other) => {
+            return Err(invalid(
+                "[scene] newton_matrix",
+                format!(
+                    "unknown choice '{other}': use \"fresh\" (the default: factorised every step) or \"reuse\" (kept across steps while Newton contracts well; unconstrained scenes without contacts only)"
+                ),
+            ))
+        }
+    };
     Ok(StepControlValues {
         control,
         tolerance,
         limit_restitution,
         max_step_halvings: halvings_above_min_step(step_s, DEFAULT_STEP_HALVINGS),
+        reuse_newton_matrix,
     })
 }
 
@@ -105,6 +121,37 @@ mod tests {
 
     fn section(text: &str) -> SceneSection {
         toml::from_str(text).unwrap()
+    }
+
+    #[test]
+    fn newton_matrix_is_fresh_unless_reuse_is_asked_for() {
+        assert!(
+            !resolve(&section(""), false, 1e-3, "s.toml")
+                .unwrap()
+                .reuse_newton_matrix
+        );
+        let fresh = section("newton_matrix = \"fresh\"");
+        assert!(
+            !resolve(&fresh, false, 1e-3, "s.toml")
+                .unwrap()
+                .reuse_newton_matrix
+        );
+        let reuse = section("newton_matrix = \"reuse\"");
+        assert!(
+            resolve(&reuse, false, 1e-3, "s.toml")
+                .unwrap()
+                .reuse_newton_matrix
+        );
+        let bad = section("newton_matrix = \"old\"");
+        let message = resolve(&bad, false, 1e-3, "s.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.contains("s.toml")
+                && message.contains("[scene] newton_matrix")
+                && message.contains("'old'"),
+            "{message}"
+        );
     }
 
     #[test]

@@ -48,6 +48,9 @@ pub struct SceneSection {
     pub tolerance: Option<f64>,
     /// Coefficient of restitution of joint-limit impacts, 0 (plastic) to 1 (elastic).
     pub limit_restitution: Option<f64>,
+    /// `"fresh"` (default) or `"reuse"`: whether the Newton matrix is factorised every step or kept
+    /// across steps while Newton contracts well (docs/method.md §5).
+    pub newton_matrix: Option<String>,
     /// Gravity in the world frame, m/s².
     pub gravity: Option<[f64; 3]>,
     /// Effect names.

@@ -38,6 +38,7 @@ pub fn hht_settings(scene: &Scene) -> HhtSettings {
         step_control: scene.step_control,
         tolerance: scene.step_tolerance,
         max_step_halvings: scene.max_step_halvings,
+        reuse_newton_matrix: scene.reuse_newton_matrix,
         ..HhtSettings::default()
     }
 }
