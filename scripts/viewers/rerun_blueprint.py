@@ -10,7 +10,10 @@ box the robot moves in), and writes a blueprint with:
   Foxglove layout's camera (3.2 scene radii from the centre, 30° up, 45° azimuth);
 - right, one tab per group, one time-series view per output titled `name [unit]`, holding only the
   output's `/ribbon/envelope/…/position` entity, series lower / nominal / upper in the layout's
-  fixed colours;
+  fixed colours; then, when the log has Sobol' indices, one tab `GROUP · sensitivity` per group
+  with a view per output of its total indices (`/ribbon/sobol/total/…/position`), showing the
+  parameters whose index ever reaches SENSITIVITY_PLOT_FLOOR (at most four, largest peak first:
+  the Foxglove layout's rule and colours, src/output/envelope_log.rs);
 - the time panel on `message_log_time` (seconds from 0 when converted with --timeline-type duration).
 
 View it with the log converted under the same application id:
@@ -29,9 +32,16 @@ import sys
 import rerun as rr
 import rerun.blueprint as rrb
 from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 
 APPLICATION_ID = "ribbon"
 ENVELOPE_PREFIX = "/ribbon/envelope/"
+SOBOL_TOTAL_PREFIX = "/ribbon/sobol/total/"
+# Must match src/output/envelope_log.rs SENSITIVITY_PLOT_FLOOR and foxglove_layout.rs
+# SENSITIVITY_COLOURS: the parameters a sensitivity view shows, and their colours in rank order.
+SENSITIVITY_PLOT_FLOOR = 0.01
+SENSITIVITY_COLOURS = ["#e69f00", "#56b4e9", "#cc79a7", "#000000"]
+HIDDEN_SERIES_COLOUR = "#9aa5b1"
 TIMELINE = "message_log_time"
 # Must match src/output/viewer/mod.rs SERIES_COLOURS and foxglove_layout.rs's camera constants.
 SERIES = [("lower", "#0072b2", 1.5), ("nominal", "#009e73", 2.5), ("upper", "#d55e00", 1.5)]
@@ -60,8 +70,29 @@ def rgba(hex_colour):
     return [(value >> 16) & 255, (value >> 8) & 255, value & 255, 255]
 
 
+def read_sensitivities(path, channels):
+    """Per total-index channel: (output, group, topic, [(dimension index, name)] shown, all
+    dimension names), the shown ones ranked by their largest index over the record times."""
+    peaks, names = {}, {}
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for _, channel, _, message in reader.iter_decoded_messages(topics=[c.topic for c in channels]):
+            names.setdefault(channel.topic, list(message.name))
+            old = peaks.get(channel.topic, [0.0] * len(message.position))
+            peaks[channel.topic] = [max(a, b) for a, b in zip(old, message.position)]
+    result = []
+    for c in channels:
+        peak = peaks.get(c.topic, [])
+        ranked = sorted((j for j in range(len(peak)) if peak[j] >= SENSITIVITY_PLOT_FLOOR), key=lambda j: (-peak[j], j))
+        shown = [(j, names[c.topic][j]) for j in ranked[: len(SENSITIVITY_COLOURS)]]
+        if shown:
+            result.append((c.metadata["output"], c.metadata.get("group", "outputs"), c.topic, shown, names[c.topic]))
+    return result
+
+
 def read_log(path):
-    """(outputs [(name, unit, group, topic)], robot name, scene centre, scene radius)."""
+    """(outputs [(name, unit, group, topic)], robot name, scene centre, scene radius,
+    sensitivities (read_sensitivities))."""
     with open(path, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
@@ -72,6 +103,11 @@ def read_log(path):
             for c in sorted(summary.channels.values(), key=lambda c: c.id)
             if c.topic.startswith(ENVELOPE_PREFIX) and "output" in c.metadata
         ]
+        totals = [
+            c
+            for c in sorted(summary.channels.values(), key=lambda c: c.id)
+            if c.topic.startswith(SOBOL_TOTAL_PREFIX) and "output" in c.metadata
+        ]
         records = {m.name: m.metadata for m in reader.iter_metadata()}
     if not outputs:
         sys.exit(f"{path}: no envelope channels with `output` metadata (written by ribbon ≥ this version)")
@@ -81,14 +117,34 @@ def read_log(path):
     viewer = records.get("ribbon", {})
     centre = json.loads(viewer.get("scene_centre_m", "[0, 0, 0]"))
     radius = float(viewer.get("scene_radius_m", "1"))
-    return outputs, robot, centre, radius
+    return outputs, robot, centre, radius, read_sensitivities(path, totals)
 
 
 def panel_title(name, unit):
     return f"{name} [{unit}]" if unit else name
 
 
-def build(outputs, robot, centre, radius, active_tab=None):
+def sensitivity_view(output, topic, shown, dimensions):
+    """A time-series view of one output's total Sobol' indices: every dimension is a series of the
+    entity, only the shown ones visible, in the sensitivity colours."""
+    entity = f"{topic}/position"
+    colour = {j: SENSITIVITY_COLOURS[rank] for rank, (j, _) in enumerate(shown)}
+    lines = rr.SeriesLines(
+        colors=[rgba(colour.get(j, HIDDEN_SERIES_COLOUR)) for j in range(len(dimensions))],
+        names=dimensions,
+        widths=[1.5] * len(dimensions),
+        visible_series=[j in colour for j in range(len(dimensions))],
+    )
+    return entity, rrb.TimeSeriesView(
+        origin=entity,
+        contents="$origin",
+        name=f"{output}: total Sobol' index",
+        overrides={entity: lines.visualizer()},
+        plot_legend=rrb.Corner2D.RightTop,
+    )
+
+
+def build(outputs, robot, centre, radius, sensitivities=(), active_tab=None):
     elevation, azimuth = math.radians(CAMERA_ELEVATION_DEG), math.radians(CAMERA_AZIMUTH_DEG)
     distance = CAMERA_DISTANCE_IN_RADII * radius
     eye = [
@@ -124,6 +180,15 @@ def build(outputs, robot, centre, radius, active_tab=None):
     ordered = sorted(groups.items(), key=lambda item: (group_rank(item[0]), item[0]))
     tabs = [rrb.Grid(*views, name=group) for group, views in ordered]
     names = [group for group, _ in ordered]
+    # After every envelope tab: per group, its outputs' sensitivity views.
+    sensitivity_groups, sensitivity_entities = {}, []
+    for output, group, topic, ranked, dimensions in sensitivities:
+        entity, view = sensitivity_view(output, topic, ranked, dimensions)
+        sensitivity_entities.append(entity)
+        sensitivity_groups.setdefault(group, []).append(view)
+    for group, views in sorted(sensitivity_groups.items(), key=lambda item: (group_rank(item[0]), item[0])):
+        tabs.append(rrb.Grid(*views, name=f"{group} · sensitivity"))
+        names.append(f"{group} · sensitivity")
     if active_tab is not None and active_tab not in names:
         sys.exit(f"--active-tab {active_tab!r}: the log's groups are {names}")
     active = names.index(active_tab) if active_tab is not None else 0
@@ -140,6 +205,8 @@ def build(outputs, robot, centre, radius, active_tab=None):
         "plotted_entities": shown,
         "tabs": [group for group, _ in sorted(groups.items(), key=lambda item: (group_rank(item[0]), item[0]))],
         "titles": [panel_title(name, unit) for name, unit, _, _ in outputs],
+        "sensitivity_entities": sensitivity_entities,
+        "sensitivity_tabs": [name for name in names if name.endswith(" · sensitivity")],
         "eye": eye,
         "look_target": centre,
     }
@@ -153,7 +220,8 @@ def main():
     parser.add_argument("--manifest")
     parser.add_argument("--active-tab")
     args = parser.parse_args()
-    blueprint, manifest = build(*read_log(args.log), active_tab=args.active_tab)
+    outputs, robot, centre, radius, sensitivities = read_log(args.log)
+    blueprint, manifest = build(outputs, robot, centre, radius, sensitivities, active_tab=args.active_tab)
     blueprint.save(APPLICATION_ID, args.out)
     if args.manifest:
         with open(args.manifest, "w") as f:

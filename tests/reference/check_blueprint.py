@@ -87,6 +87,27 @@ def main():
     groups = sorted({metadata["group"] for metadata, _ in channels.values()})
     if sorted(manifest["tabs"]) != groups:
         fail(f"tabs {manifest['tabs']}, expected one per group {groups}")
+    # Sensitivity views: total-index entities of the log, each with its channel's rows, one tab
+    # `GROUP · sensitivity` per group that has them.
+    with open(log, "rb") as f:
+        summary = make_reader(f).get_summary()
+        counts = summary.statistics.channel_message_counts
+        totals = {
+            c.topic: (c.metadata, counts.get(c.id, 0))
+            for c in summary.channels.values()
+            if c.topic.startswith("/ribbon/sobol/total/")
+        }
+    for entity in manifest["sensitivity_entities"]:
+        topic = entity.removesuffix("/position")
+        got = rows.get((entity, "Scalars:scalars"), 0)
+        want = totals.get(topic, ({}, -1))[1]
+        if topic not in totals or got == 0 or got != want:
+            fail(f"{entity}: {got} rows of Scalars in the recording, expected {want} (a total Sobol' channel's messages)")
+    shown_groups = sorted({totals[e.removesuffix("/position")][0]["group"] for e in manifest["sensitivity_entities"] if e.removesuffix("/position") in totals})
+    if sorted(manifest["sensitivity_tabs"]) != sorted(f"{g} · sensitivity" for g in shown_groups):
+        fail(f"sensitivity tabs {manifest['sensitivity_tabs']}, expected one per group of {shown_groups}")
+    if totals and not manifest["sensitivity_entities"]:
+        fail("the log has total Sobol' channels but the blueprint shows none")
     root = manifest["robot_root"] + "/visual_geometries/"
     if not any(entity.startswith(root) for entity, _ in rows):
         fail(f"no robot geometry under {root} in the recording")
