@@ -113,7 +113,12 @@ fn plot_panel(output: &LayoutOutput) -> Value {
             })
         })
         .collect();
-    let title = panel_title(&output.name, &output.unit);
+    plot_config(&panel_title(&output.name, &output.unit), paths)
+}
+
+/// A Plot panel's configuration: `paths` against time, titled `title` (under both viewers' title
+/// keys), the legend floating over the plot with the values at the playback time.
+fn plot_config(title: &str, paths: Vec<Value>) -> Value {
     json!({
         "foxglovePanelTitle": title,
         "lichtblickPanelTitle": title,
@@ -149,23 +154,11 @@ fn sensitivity_panel(output: &LayoutOutput, sensitivity: &LayoutSensitivity) -> 
             })
         })
         .collect();
-    let title = format!("{}: total Sobol' index", output.name);
-    json!({
-        "foxglovePanelTitle": title,
-        "lichtblickPanelTitle": title,
-        "title": title,
-        "paths": paths,
-        "showLegend": true,
-        "legendDisplay": "floating",
-        "showPlotValuesInLegend": true,
-        "showXAxisLabels": true,
-        "showYAxisLabels": true,
-        "isSynced": true,
-        "xAxisVal": "timestamp",
-        "minYValue": 0.0,
-        "maxYValue": 1.0,
-        "sidebarDimension": 240,
-    })
+    let mut config = plot_config(&format!("{}: total Sobol' index", output.name), paths);
+    // An index lies in [0, 1]: a fixed axis keeps the plots of one tab comparable.
+    config["minYValue"] = json!(0.0);
+    config["maxYValue"] = json!(1.0);
+    config
 }
 
 /// The 3D panel: the URDF from `/robot_description` moved by `/tf`, a camera that frames
