@@ -375,8 +375,9 @@ fn bad_contact_input_is_refused_naming_the_key() {
             format!("{pair}{ground}"),
             &[
                 "[scene.contact] pairs",
-                "link 'body' <collision> at line",
-                "meshes are not supported",
+                "test.urdf: link 'body' <collision> 0 (line",
+                "mesh file 'foot.stl'",
+                "cannot read the file",
             ],
         ),
         (

@@ -7,10 +7,13 @@
 //! (`link.NAME.collision.K.radius`, …) takes effect without rebuilding anything. Queries go through
 //! `parry3d-f64` (`query.rs`, the only file that sees parry's glam types).
 
+mod mesh;
 mod query;
 
+pub use mesh::{resolve_mesh_path, CONCAVITY_NOTE_RELATIVE};
 use query::bounding_radius;
-pub use query::{contact_between, supported, ContactPoint, PairTest};
+pub use query::{contact_between, supported, ContactPoint, ConvexHull, PairTest};
+use std::sync::Arc;
 
 use crate::model::{CollisionShape, Model};
 use crate::spatial::{Transform, Vec3};
@@ -65,9 +68,9 @@ impl Default for ContactMaterial {
 /// of about a million, and costs nothing: it is a nanometre on a metre-sized robot.
 pub const BOUNDING_TEST_MARGIN: f64 = 1e-9;
 
-/// A primitive shape in its own frame, in URDF conventions: box centred on the origin; cylinder
-/// and capsule along z; half-space `z ≤ 0` (outward normal +z).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A shape in its own frame, in URDF conventions: box centred on the origin; cylinder and capsule
+/// along z; half-space `z ≤ 0` (outward normal +z); a mesh's convex hull in the mesh frame.
+#[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     /// A sphere of radius `radius`, m.
     Sphere {
@@ -95,6 +98,9 @@ pub enum Shape {
     },
     /// The half-space `z ≤ 0` of its frame (a ground without edges).
     HalfSpace,
+    /// The convex hull of a collision mesh's scaled vertices (docs/contacts.md §1, "Meshes"),
+    /// shared: loaded once per scene.
+    ConvexHull(Arc<ConvexHull>),
 }
 
 /// A shape with its placement in the world frame.
@@ -139,6 +145,17 @@ pub struct ContactPair {
     pub link_from_b: Transform,
 }
 
+/// The convex hull of mesh `<collision>` number `collision` of link `link`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinkHull {
+    /// The URDF link (index into `description.links`).
+    pub link: usize,
+    /// The collision element of that link.
+    pub collision: usize,
+    /// The hull (scaled, in the collision frame).
+    pub hull: Arc<ConvexHull>,
+}
+
 /// The shapes and pairs of one scene; only [`GeometryModel::pairs`] are ever queried.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GeometryModel {
@@ -146,6 +163,12 @@ pub struct GeometryModel {
     pub scene: Vec<SceneObject>,
     /// Declared pairs, expanded to shapes (a link with two `<collision>` elements gives two pairs).
     pub pairs: Vec<ContactPair>,
+    /// Hulls of the mesh collisions of the links in `pairs`, loaded once by
+    /// [`GeometryModel::new`] (no other mesh is ever read).
+    pub hulls: Vec<LinkHull>,
+    /// One note per hulled mesh that encloses less than its hull (a concave mesh: contacts see the
+    /// larger hull), naming the link, the file and both volumes. Also printed to stderr once.
+    pub notes: Vec<String>,
 }
 
 /// Why a contact declaration was refused.
@@ -175,6 +198,25 @@ pub enum GeometryError {
         /// What is wrong and what to do.
         reason: String,
     },
+    /// A mesh `<collision>` that cannot become a convex hull (file missing or unreadable,
+    /// unsupported format, no vertices, all vertices on one plane).
+    #[error(
+        "{urdf}: link '{link}' <collision> {collision} (line {line}), mesh file '{path}': {reason}"
+    )]
+    Mesh {
+        /// The URDF file.
+        urdf: String,
+        /// The link.
+        link: String,
+        /// Index of the `<collision>` element in the link (0 = first).
+        collision: usize,
+        /// Its line in the URDF.
+        line: u32,
+        /// The path the mesh file name resolved to.
+        path: String,
+        /// What is wrong and what to do.
+        reason: String,
+    },
     /// A pair ribbon cannot evaluate (two scene objects, a link with itself).
     #[error("pair ['{a}', '{b}']: {reason}")]
     BadPair {
@@ -187,9 +229,10 @@ pub enum GeometryError {
     },
 }
 
-/// The shape of collision `collision` of link `link` at the model's current values.
+/// The primitive shape of collision `collision` of link `link` at the model's current values.
 ///
-/// Errors: meshes (not supported yet), unreadable markup, sizes that are not finite and > 0.
+/// Errors: meshes (they are loaded once by [`GeometryModel::new`]; ask
+/// [`GeometryModel::shape_of`]), unreadable markup, sizes that are not finite and > 0.
 pub fn link_shape(model: &Model, link: usize, collision: usize) -> Result<Shape, GeometryError> {
     let spec = &model.description.links[link];
     let element = &spec.collisions[collision];
@@ -226,10 +269,10 @@ pub fn link_shape(model: &Model, link: usize, collision: usize) -> Result<Shape,
             radius: positive("radius", *radius)?,
             half_length: 0.5 * positive("length", *length)?,
         },
-        CollisionShape::Mesh { filename } => {
+        CollisionShape::Mesh { filename, .. } => {
             return Err(unsupported(format!(
-                "<mesh filename=\"{filename}\">: meshes are not supported for contacts yet; \
-                 give the link a primitive <collision> (sphere, box, cylinder or capsule)"
+                "<mesh filename=\"{filename}\"> is loaded by the scene's geometry model \
+                 (GeometryModel::new), not here"
             )))
         }
         CollisionShape::Unreadable { reason } => return Err(unsupported(reason.clone())),
@@ -254,6 +297,8 @@ impl GeometryModel {
         let mut out = GeometryModel {
             scene,
             pairs: Vec::new(),
+            hulls: Vec::new(),
+            notes: Vec::new(),
         };
         for [a, b] in pairs {
             let left = out.attachments(model, a)?;
@@ -310,7 +355,7 @@ impl GeometryModel {
     }
 
     /// The shapes a pair name stands for.
-    fn attachments(&self, model: &Model, name: &str) -> Result<Vec<Attachment>, GeometryError> {
+    fn attachments(&mut self, model: &Model, name: &str) -> Result<Vec<Attachment>, GeometryError> {
         if let Some(i) = self.scene.iter().position(|s| s.name == name) {
             return Ok(vec![Attachment::Scene(i)]);
         }
@@ -333,11 +378,78 @@ impl GeometryModel {
             });
         }
         for collision in 0..n {
-            link_shape(model, link, collision)?;
+            self.load_hull(model, link, collision)?;
+            self.link_shape(model, link, collision)?;
         }
         Ok((0..n)
             .map(|collision| Attachment::Link { link, collision })
             .collect())
+    }
+
+    /// Loads the hull of collision `collision` of `link` when it is a mesh not loaded yet.
+    fn load_hull(
+        &mut self,
+        model: &Model,
+        link: usize,
+        collision: usize,
+    ) -> Result<(), GeometryError> {
+        let spec = &model.description.links[link];
+        let element = &spec.collisions[collision];
+        let CollisionShape::Mesh { filename, scale } = &element.shape else {
+            return Ok(());
+        };
+        if self.hull_of(link, collision).is_some() {
+            return Ok(());
+        }
+        let urdf = &model.description.path;
+        let loaded =
+            mesh::load_mesh(urdf, filename, *scale).map_err(|problem| GeometryError::Mesh {
+                urdf: urdf.clone(),
+                link: spec.name.clone(),
+                collision,
+                line: element.line,
+                path: problem.path,
+                reason: problem.reason,
+            })?;
+        if let Some((hull_volume, mesh_volume)) = loaded.concave {
+            let note = format!(
+                "{urdf}: link '{}' <collision> {collision} (line {}), mesh '{}': contacts use its convex hull ({hull_volume:.6e} m³), which over-approximates the mesh ({mesh_volume:.6e} m³ enclosed, {:.1} % of the hull; docs/contacts.md §1)",
+                spec.name,
+                element.line,
+                loaded.path,
+                100.0 * mesh_volume / hull_volume
+            );
+            eprintln!("note: {note}");
+            self.notes.push(note);
+        }
+        self.hulls.push(LinkHull {
+            link,
+            collision,
+            hull: Arc::new(loaded.hull),
+        });
+        Ok(())
+    }
+
+    /// The loaded hull of mesh collision `collision` of `link`, if any.
+    fn hull_of(&self, link: usize, collision: usize) -> Option<&Arc<ConvexHull>> {
+        self.hulls
+            .iter()
+            .find(|h| h.link == link && h.collision == collision)
+            .map(|h| &h.hull)
+    }
+
+    /// The shape of collision `collision` of `link`: its loaded hull for a mesh, else
+    /// [`link_shape`] at the model's current sizes.
+    fn link_shape(
+        &self,
+        model: &Model,
+        link: usize,
+        collision: usize,
+    ) -> Result<Shape, GeometryError> {
+        match self.hull_of(link, collision) {
+            Some(hull) => Ok(Shape::ConvexHull(Arc::clone(hull))),
+            None => link_shape(model, link, collision),
+        }
     }
 
     /// The shape frame of `attachment` in its link frame (a scene shape: in the world frame).
@@ -360,9 +472,9 @@ impl GeometryModel {
                     frame: &Transform|
          -> Result<(Shape, Transform), GeometryError> {
             match attachment {
-                Attachment::Scene(i) => Ok((self.scene[i].shape, *frame)),
+                Attachment::Scene(i) => Ok((self.scene[i].shape.clone(), *frame)),
                 Attachment::Link { link, collision } => {
-                    let shape = link_shape(model, link, collision)?;
+                    let shape = self.link_shape(model, link, collision)?;
                     let placement = &model.links[link];
                     let world_from_link = match placement.body {
                         Some(b) => world_from_body[b].compose(&placement.body_from_link),
@@ -483,8 +595,8 @@ impl GeometryModel {
     /// The shape of `attachment` at the model's current sizes.
     pub fn shape_of(&self, model: &Model, attachment: Attachment) -> Result<Shape, GeometryError> {
         match attachment {
-            Attachment::Scene(i) => Ok(self.scene[i].shape),
-            Attachment::Link { link, collision } => link_shape(model, link, collision),
+            Attachment::Scene(i) => Ok(self.scene[i].shape.clone()),
+            Attachment::Link { link, collision } => self.link_shape(model, link, collision),
         }
     }
 
@@ -497,9 +609,11 @@ impl GeometryModel {
         attachment: Attachment,
     ) -> Result<(Shape, Transform), GeometryError> {
         match attachment {
-            Attachment::Scene(i) => Ok((self.scene[i].shape, self.scene[i].world_from_shape)),
+            Attachment::Scene(i) => {
+                Ok((self.scene[i].shape.clone(), self.scene[i].world_from_shape))
+            }
             Attachment::Link { link, collision } => {
-                let shape = link_shape(model, link, collision)?;
+                let shape = self.link_shape(model, link, collision)?;
                 let placement = &model.links[link];
                 let world_from_link = match placement.body {
                     Some(b) => world_from_body[b].compose(&placement.body_from_link),

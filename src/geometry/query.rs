@@ -1,13 +1,72 @@
 //! The one boundary to `parry3d-f64` (docs/contacts.md §1): ribbon's nalgebra transforms become
 //! parry's glam poses here, a cheap bounding-sphere test runs first, and parry's `contact` query
 //! answers the rest. Cylinders: parry's run along local y, URDF's along z, so a URDF cylinder is
-//! given to parry with a quarter turn about x; capsules are built along z directly.
+//! given to parry with a quarter turn about x; capsules are built along z directly. Mesh hulls
+//! are built here too (parry's `ConvexPolyhedron`), from vertices `mesh.rs` loaded.
 
 use super::{normalized_or, Shape};
 use crate::spatial::{Transform, Vec3};
 use parry3d_f64::math::{Pose, Rotation, Vector};
 use parry3d_f64::query;
-use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, HalfSpace};
+use parry3d_f64::shape::{Ball, Capsule, ConvexPolyhedron, Cuboid, Cylinder, HalfSpace};
+
+/// The convex hull of a collision mesh's vertices in its shape frame (docs/contacts.md §1,
+/// "Meshes"): the shape parry queries, with its bounding radius and volume.
+#[derive(Clone, Debug)]
+pub struct ConvexHull {
+    polyhedron: ConvexPolyhedron,
+    bounding_radius: f64,
+    volume: f64,
+}
+
+impl ConvexHull {
+    /// The hull of `points` (m, shape frame), or `None` when parry finds none (fewer than four
+    /// points not all on one plane, or non-finite coordinates).
+    pub fn of_points(points: &[Vec3]) -> Option<ConvexHull> {
+        if points.iter().any(|p| !p.iter().all(|x| x.is_finite())) {
+            return None;
+        }
+        let vectors: Vec<Vector> = points.iter().map(to_vector).collect();
+        let polyhedron = ConvexPolyhedron::from_convex_hull(&vectors)?;
+        let bounding_radius = polyhedron
+            .points()
+            .iter()
+            .map(|p| p.length())
+            .fold(0.0, f64::max);
+        let volume = parry3d_f64::shape::Shape::mass_properties(&polyhedron, 1.0).mass();
+        (volume.is_finite() && volume > 0.0).then_some(ConvexHull {
+            polyhedron,
+            bounding_radius,
+            volume,
+        })
+    }
+
+    /// Volume enclosed by the hull, m³.
+    pub fn volume(&self) -> f64 {
+        self.volume
+    }
+
+    /// Radius of the smallest sphere about the shape frame's origin that contains the hull, m.
+    pub fn bounding_radius(&self) -> f64 {
+        self.bounding_radius
+    }
+
+    /// The hull's vertices in the shape frame, m.
+    pub fn vertices(&self) -> Vec<Vec3> {
+        self.polyhedron
+            .points()
+            .iter()
+            .map(|p| to_vec3(*p))
+            .collect()
+    }
+}
+
+impl PartialEq for ConvexHull {
+    /// Two hulls are equal when their vertices are (parry builds the rest from them).
+    fn eq(&self, other: &Self) -> bool {
+        self.polyhedron.points() == other.polyhedron.points()
+    }
+}
 
 /// A contact between shape `a` and shape `b`, in the world frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,6 +124,7 @@ pub(crate) fn bounding_radius(shape: &Shape) -> f64 {
             half_length,
         } => radius + half_length,
         Shape::HalfSpace => f64::INFINITY,
+        Shape::ConvexHull(ref hull) => hull.bounding_radius,
     }
 }
 
@@ -156,6 +216,7 @@ fn with_parry_shape<R>(
     f: impl FnOnce(&dyn parry3d_f64::shape::Shape, Pose) -> R,
 ) -> R {
     match *shape {
+        Shape::ConvexHull(ref hull) => f(&hull.polyhedron, to_pose(world_from_shape)),
         Shape::Sphere { radius } => f(&Ball::new(radius), to_pose(world_from_shape)),
         Shape::Box { half_extents: h } => f(
             &Cuboid::new(Vector::new(h[0], h[1], h[2])),

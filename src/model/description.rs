@@ -124,10 +124,13 @@ pub enum CollisionShape {
         /// Length of the cylindrical part along z, m.
         length: f64,
     },
-    /// `<mesh filename>`: not loaded (contacts refuse it with a message naming the element).
+    /// `<mesh filename scale>`: loaded only when a scene declares contacts for its link
+    /// (`crate::geometry`, docs/contacts.md §1).
     Mesh {
-        /// The file name as written.
+        /// The file name as written (`package://`, `file://`, absolute or relative to the URDF).
         filename: String,
+        /// `scale` along x, y, z of the mesh frame (1 when absent), unitless.
+        scale: [f64; 3],
     },
     /// A `<geometry>` ribbon could not read (the loader's note says why).
     Unreadable {
@@ -181,6 +184,9 @@ pub struct JointSpec {
 pub struct Description {
     /// `<robot name>`.
     pub robot_name: String,
+    /// The URDF file's path as given to the loader (relative collision meshes are resolved against
+    /// its directory).
+    pub path: String,
     /// Links in file order.
     pub links: Vec<LinkSpec>,
     /// Joints in file order.

@@ -173,6 +173,7 @@ fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description
     }
     Ok(Description {
         robot_name,
+        path: path.to_string(),
         links,
         joints,
         notes: reader.notes,

@@ -214,8 +214,12 @@ fn read_shape<'input>(reader: &Reader<'_, 'input>, element: Node<'_, 'input>) ->
             radius: number("radius"),
             length: number("length"),
         },
-        "mesh" => CollisionShape::Mesh {
-            filename: shape.attribute("filename").unwrap_or_default().to_string(),
+        "mesh" => match shape.attribute("scale").map(parse_vector3) {
+            Some(None) => unreadable("<mesh scale> is not three numbers"),
+            scale => CollisionShape::Mesh {
+                filename: shape.attribute("filename").unwrap_or_default().to_string(),
+                scale: scale.flatten().unwrap_or([1.0; 3]),
+            },
         },
         other => unreadable(&format!("unknown shape <{other}>")),
     }
