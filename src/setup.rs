@@ -159,6 +159,11 @@ fn load_model_and_scene(
         message(SetupMessage::Warning, warning);
     }
     let scene = Scene::resolve(sidecar, &model, sidecar_name, request.overrides)?;
+    if let Some(contact) = &scene.contact {
+        for note in &contact.geometry.notes {
+            message(SetupMessage::Note, note);
+        }
+    }
     scene.apply_gravity(&mut model);
     Ok((model, scene))
 }

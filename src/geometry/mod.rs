@@ -167,7 +167,8 @@ pub struct GeometryModel {
     /// [`GeometryModel::new`] (no other mesh is ever read).
     pub hulls: Vec<LinkHull>,
     /// One note per hulled mesh that encloses less than its hull (a concave mesh: contacts see the
-    /// larger hull), naming the link, the file and both volumes. Also printed to stderr once.
+    /// larger hull), naming the link, the file and both volumes. The commands print them as
+    /// `note: …` (through [`crate::setup`]'s message callback).
     pub notes: Vec<String>,
 }
 
@@ -419,7 +420,6 @@ impl GeometryModel {
                 loaded.path,
                 100.0 * mesh_volume / hull_volume
             );
-            eprintln!("note: {note}");
             self.notes.push(note);
         }
         self.hulls.push(LinkHull {
