@@ -8,7 +8,7 @@
 //! measures the design, not the basis scaling; the coefficients returned are those of the plain
 //! `P_α` (the surrogates' basis), `c_α = √(…) · c̃_α`.
 //!
-//! Does not: choose points (see [`crate::uq::sobol_design`]) or terms (see
+//! Does not: choose points (see [`crate::uq::sobol_design()`]) or terms (see
 //! [`crate::uq::MultiIndexSet`]).
 
 use std::sync::Arc;
