@@ -20,7 +20,7 @@
 mod common;
 
 use ribbon::dynamics::{
-    crba, forward_dynamics, forward_kinematics, frame_placements, nonlinear_effects, rnea, Data,
+    crba, forward_dynamics, forward_kinematics, nonlinear_effects, rnea, world_from_link, Data,
     DynamicsError,
 };
 use ribbon::model::{LoadOptions, Model};
@@ -622,7 +622,7 @@ fn compare_dynamics(
             );
             match model.description.link_index(link) {
                 Some(l) => {
-                    let t = frame_placements(model, &data, l);
+                    let t = world_from_link(model, &data, l);
                     ours.extend(t.translation.iter());
                     ours.extend(t.rotation.transpose().iter()); // row-major
                 }

@@ -4,7 +4,7 @@
 use super::{print_warnings, write_stdout, DynamicsArgs};
 use crate::cli::values::{apply_set_flags, parse_vector};
 use crate::dynamics::{
-    crba, forward_dynamics, forward_kinematics, frame_placements, nonlinear_effects, rnea, Data,
+    crba, forward_dynamics, forward_kinematics, nonlinear_effects, rnea, world_from_link, Data,
 };
 use crate::model::{JointKind, LoadOptions, Model};
 use crate::Error;
@@ -47,7 +47,7 @@ pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
         .map(|l| {
             (
                 model.description.links[l].name.clone(),
-                frame_placements(&model, &data, l),
+                world_from_link(&model, &data, l),
             )
         })
         .collect();

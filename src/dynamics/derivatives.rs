@@ -14,7 +14,7 @@
 //!
 //! Nothing here allocates after [`RneaDerivatives::new`].
 
-use super::{forward_kinematics, frame_placements, rnea, Data};
+use super::{forward_kinematics, rnea, world_from_link, Data};
 use crate::model::{InertialSpec, Model};
 use crate::spatial::{rotation_from_rpy, Force, Inertia, Mat3, Motion, Vec3};
 use nalgebra::DMatrix;
@@ -140,7 +140,7 @@ pub fn rnea_inertia_derivative(
 /// (docs/sensitivities.md §7). A link fixed to the world gives zeros.
 pub fn link_origin_jacobian(model: &Model, data: &Data, link: usize, out: &mut DMatrix<f64>) {
     out.fill(0.0);
-    let point = frame_placements(model, data, link).translation;
+    let point = world_from_link(model, data, link).translation;
     let mut current = model.links[link].body;
     while let Some(body) = current {
         let joint = &model.joints[body];
@@ -559,7 +559,7 @@ mod tests {
                     let mut moved = q;
                     moved[i] += sign * h;
                     forward_kinematics(&model, &mut data, &moved);
-                    *position = frame_placements(&model, &data, link).translation;
+                    *position = world_from_link(&model, &data, link).translation;
                 }
                 let numeric = (positions[0] - positions[1]) / (2.0 * h);
                 for axis in 0..3 {

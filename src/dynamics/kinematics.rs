@@ -17,9 +17,12 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
     }
 }
 
-/// `world_from_link` of URDF link `link` (an index into `model.description.links`), from the body
-/// placements of the last [`forward_kinematics`].
-pub fn frame_placements(model: &Model, data: &Data, link: usize) -> Transform {
+/// The placement of URDF link `link` (an index into `model.links`, same order as
+/// `model.description.links`) in the world frame: `world_from_body[b] ∘ body_from_link` of the body
+/// `b` it is fixed to (`body_from_link` itself for a link on the world). Reads only
+/// `data.world_from_body`, so `data` must hold a [`forward_kinematics`] (or [`drift_kinematics`])
+/// pass at the `q` of interest; writes nothing.
+pub fn world_from_link(model: &Model, data: &Data, link: usize) -> Transform {
     let placement = &model.links[link];
     match placement.body {
         Some(b) => data.world_from_body[b].compose(&placement.body_from_link),

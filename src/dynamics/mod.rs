@@ -5,7 +5,7 @@
 //! - [`forward_dynamics`] — `q̈ = M⁻¹ (τ − C q̇ − g)` through CRBA, RNEA and an in-place Cholesky
 //!   factorisation (for the small dense systems of robot arms this is as fast as ABA and reuses the
 //!   pieces the implicit integrator needs anyway);
-//! - [`frame_placements`] — every URDF link in the world frame;
+//! - [`world_from_link`] — one URDF link's placement in the world frame;
 //! - derivatives for the forward sensitivities ([`link_inertia_derivative`],
 //!   [`rnea_inertia_derivative`], [`link_origin_jacobian`], [`rnea_derivatives`];
 //!   docs/sensitivities.md).
@@ -28,7 +28,7 @@ pub use derivatives::{
     link_inertia_derivative, link_origin_jacobian, rnea_derivatives, rnea_inertia_derivative,
     InertialField, RneaDerivatives,
 };
-pub use kinematics::{drift_kinematics, forward_kinematics, frame_placements};
+pub use kinematics::{drift_kinematics, forward_kinematics, world_from_link};
 pub use rnea::{add_external_forces, nonlinear_effects, rnea, rnea_with_external};
 
 use crate::model::Model;

@@ -318,8 +318,10 @@ const LAMBDA_STAGNATION_RATIO: f64 = 0.5;
 pub const RATE_TEST_MAX_CONTRACTION: f64 = 0.5;
 
 /// Everything that carries one trajectory from step to step — start time, state, the recursion's
-/// velocity and statistics — without the workspace. A study keeps one per sample and advances many
-/// samples in turn with one integrator per thread ([`HhtIntegrator::swap_trajectory`]).
+/// velocity, the predictor's history, statistics, step control and the reusable Newton
+/// factorisation — without the workspace. The integrator owns one (its only per-trajectory state);
+/// a study keeps one per sample and advances many samples in turn with one integrator per thread
+/// ([`HhtIntegrator::swap_trajectory`] exchanges the whole struct).
 #[derive(Debug, Clone)]
 pub struct HhtTrajectory {
     /// Start time, s.
@@ -428,7 +430,7 @@ struct Crossing {
 }
 
 /// The HHT-I3 integrator of one trajectory (docs/method.md §5) over a [`DaeSystem`]: its settings,
-/// the step coefficients, the Newton workspaces and the trajectory's state; [`HhtIntegrator::step`]
+/// the step coefficients, the Newton workspaces and the carried [`HhtTrajectory`]; [`HhtIntegrator::step`]
 /// advances it by one grid step.
 #[derive(Debug, Clone)]
 pub struct HhtIntegrator {
@@ -441,24 +443,12 @@ pub struct HhtIntegrator {
     nv: usize,
     m: usize,
     n_events: usize,
-    control: StepControlState,
-    t0: f64,
-    state: HhtState,
-    /// The Newmark velocity the recursion uses, dim nv (equals `state.v` unless the reported velocity
-    /// was projected).
-    v_newmark: DVector<f64>,
-    /// `q̈_{n−1}` for the predictor (valid when `has_previous`).
-    qdd_previous: DVector<f64>,
-    /// `λ_{n−1}` for the predictor (valid when `has_previous`).
-    lambda_previous: DVector<f64>,
-    /// Whether a step has been taken since the (re)start.
-    has_previous: bool,
+    /// The carried trajectory: everything that goes from step to step of one sample (swapped whole
+    /// by [`HhtIntegrator::swap_trajectory`]).
+    trajectory: HhtTrajectory,
     /// Feed the projected velocity back into the recursion (the textbook post-step projection).
     /// Test-only: it makes q̈ and λ first order (tests.rs pins it).
     projection_feedback: bool,
-    stats: HhtStats,
-    /// The carried trajectory's Newton factorisation (swapped with the trajectory).
-    newton: NewtonMemory,
     ws: Workspace,
 }
 
@@ -488,24 +478,26 @@ impl HhtIntegrator {
             nv,
             m,
             n_events,
-            control: StepControlState::new(coeffs.h),
-            t0,
-            state: HhtState {
-                t: t0,
-                step: 0,
-                q: DVector::zeros(nq),
-                v: DVector::zeros(nv),
-                a: DVector::zeros(nv),
-                qdd: DVector::zeros(nv),
-                lambda: DVector::zeros(m),
+            trajectory: HhtTrajectory {
+                t0,
+                state: HhtState {
+                    t: t0,
+                    step: 0,
+                    q: DVector::zeros(nq),
+                    v: DVector::zeros(nv),
+                    a: DVector::zeros(nv),
+                    qdd: DVector::zeros(nv),
+                    lambda: DVector::zeros(m),
+                },
+                v_newmark: DVector::zeros(nv),
+                qdd_previous: DVector::zeros(nv),
+                lambda_previous: DVector::zeros(m),
+                has_previous: false,
+                stats: HhtStats::default(),
+                control: StepControlState::new(coeffs.h),
+                newton: NewtonMemory::new(nv, m),
             },
-            v_newmark: DVector::zeros(nv),
-            qdd_previous: DVector::zeros(nv),
-            lambda_previous: DVector::zeros(m),
-            has_previous: false,
             projection_feedback: false,
-            stats: HhtStats::default(),
-            newton: NewtonMemory::new(nv, m),
             ws: Workspace::new(nq, nv, m, n_events),
         };
         integrator.restart(system, t0, q0, v0)?;
@@ -525,20 +517,20 @@ impl HhtIntegrator {
     ) -> Result<(), IntegrateError> {
         eval::check_dimensions(system, self.nq, self.nv, self.m)?;
         let start: ConsistentStart = consistent_start(system, t0, q0, v0)?;
-        self.t0 = t0;
-        self.state.t = t0;
-        self.state.step = 0;
-        self.state.q.copy_from(&start.q);
-        self.state.v.copy_from(&start.v);
-        self.v_newmark.copy_from(&start.v);
-        self.has_previous = false;
-        self.newton.reusable = false;
-        self.state.qdd.copy_from(&start.qdd);
-        self.state.a.copy_from(&start.qdd);
-        self.state.lambda.copy_from(&start.lambda);
-        self.control = StepControlState::new(self.grid_coeffs.h);
+        self.trajectory.t0 = t0;
+        self.trajectory.state.t = t0;
+        self.trajectory.state.step = 0;
+        self.trajectory.state.q.copy_from(&start.q);
+        self.trajectory.state.v.copy_from(&start.v);
+        self.trajectory.v_newmark.copy_from(&start.v);
+        self.trajectory.has_previous = false;
+        self.trajectory.newton.reusable = false;
+        self.trajectory.state.qdd.copy_from(&start.qdd);
+        self.trajectory.state.a.copy_from(&start.qdd);
+        self.trajectory.state.lambda.copy_from(&start.lambda);
+        self.trajectory.control = StepControlState::new(self.grid_coeffs.h);
         self.coeffs = self.grid_coeffs;
-        self.stats = HhtStats {
+        self.trajectory.stats = HhtStats {
             start_projection_iterations: start.projection_iterations,
             max_constraint_violation: start.final_violation,
             ..HhtStats::default()
@@ -546,25 +538,15 @@ impl HhtIntegrator {
         if self.m > 0 {
             let at = At { t: t0, step: 0 };
             let violation = self.velocity_violation(system, at)?;
-            self.stats.max_velocity_violation = violation;
-            self.stats.max_velocity_violation_unprojected = violation;
+            self.trajectory.stats.max_velocity_violation = violation;
+            self.trajectory.stats.max_velocity_violation_unprojected = violation;
         }
         Ok(())
     }
 
     /// A copy of the trajectory this integrator carries.
     pub fn trajectory(&self) -> HhtTrajectory {
-        HhtTrajectory {
-            t0: self.t0,
-            state: self.state.clone(),
-            v_newmark: self.v_newmark.clone(),
-            qdd_previous: self.qdd_previous.clone(),
-            lambda_previous: self.lambda_previous.clone(),
-            has_previous: self.has_previous,
-            stats: self.stats,
-            control: self.control,
-            newton: self.newton.clone(),
-        }
+        self.trajectory.clone()
     }
 
     /// Exchanges the carried trajectory with `other` (same dimensions): the integrator continues
@@ -595,15 +577,7 @@ impl HhtIntegrator {
                 });
             }
         }
-        std::mem::swap(&mut self.t0, &mut other.t0);
-        std::mem::swap(&mut self.state, &mut other.state);
-        std::mem::swap(&mut self.v_newmark, &mut other.v_newmark);
-        std::mem::swap(&mut self.qdd_previous, &mut other.qdd_previous);
-        std::mem::swap(&mut self.lambda_previous, &mut other.lambda_previous);
-        std::mem::swap(&mut self.has_previous, &mut other.has_previous);
-        std::mem::swap(&mut self.stats, &mut other.stats);
-        std::mem::swap(&mut self.control, &mut other.control);
-        std::mem::swap(&mut self.newton, &mut other.newton);
+        std::mem::swap(&mut self.trajectory, other);
         self.ws.mass_fresh = false;
         self.ws.phi_q_fresh = false;
         Ok(())
@@ -611,19 +585,19 @@ impl HhtIntegrator {
 
     /// The current state.
     pub fn state(&self) -> &HhtState {
-        &self.state
+        &self.trajectory.state
     }
 
     /// The Newmark velocity the recursion carries, dim `nv`: equal to `state().v` unless the
     /// reported velocity was projected (see [`HhtSettings::velocity_projection`]). Read only; the
     /// forward sensitivities ([`HhtSensitivity`](super::HhtSensitivity)) differentiate this one.
     pub fn newmark_velocity(&self) -> &DVector<f64> {
-        &self.v_newmark
+        &self.trajectory.v_newmark
     }
 
     /// Statistics since the last (re)start.
     pub fn stats(&self) -> &HhtStats {
-        &self.stats
+        &self.trajectory.stats
     }
 
     /// The validated settings.
@@ -639,7 +613,7 @@ impl HhtIntegrator {
     /// The step control's carried state (next and last sub-step, full-matrix hold, whether the last
     /// grid step was plain).
     pub fn control(&self) -> &StepControlState {
-        &self.control
+        &self.trajectory.control
     }
 
     /// Advances to the next grid time `t_{n+1} = t0 + (n+1) h` (computed from the step count, so
@@ -659,9 +633,9 @@ impl HhtIntegrator {
     /// (an impact allocates in the consistent start).
     pub fn step<S: DaeSystem + ?Sized>(&mut self, system: &mut S) -> Result<(), IntegrateError> {
         eval::check_dimensions(system, self.nq, self.nv, self.m)?;
-        let step = self.state.step + 1;
+        let step = self.trajectory.state.step + 1;
         let h_grid = self.grid_coeffs.h;
-        let t_end = self.t0 + step as f64 * h_grid;
+        let t_end = self.trajectory.t0 + step as f64 * h_grid;
         let adaptive = self.settings.step_control == StepControl::Adaptive;
         let h_min = h_grid / f64::from(1u32 << self.settings.max_step_halvings);
         let mut plain = true;
@@ -674,7 +648,7 @@ impl HhtIntegrator {
         let mut near_impact = false;
         let mut attempts: u64 = 0;
         loop {
-            let remaining = t_end - self.state.t;
+            let remaining = t_end - self.trajectory.state.t;
             if remaining <= END_OF_INTERVAL_FRACTION * h_grid {
                 break;
             }
@@ -684,10 +658,10 @@ impl HhtIntegrator {
                     t: t_end,
                     step,
                     attempts: MAX_ATTEMPTS_PER_STEP,
-                    smallest_s: self.stats.smallest_step_s,
+                    smallest_s: self.trajectory.stats.smallest_step_s,
                 });
             }
-            let planned = self.control.h_next.clamp(h_min, h_grid);
+            let planned = self.trajectory.control.h_next.clamp(h_min, h_grid);
             let mut h = planned.min(remaining);
             // Never leave a sliver below the smallest step for later.
             if remaining - h < h_min {
@@ -699,7 +673,11 @@ impl HhtIntegrator {
             if (h - h_grid).abs() <= END_OF_INTERVAL_FRACTION * h_grid {
                 h = h_grid;
             }
-            let t1 = if reaches_end { t_end } else { self.state.t + h };
+            let t1 = if reaches_end {
+                t_end
+            } else {
+                self.trajectory.state.t + h
+            };
             let check_prediction = self.n_events > 0 && !locating;
             let outcome = self.attempt(system, t1, h, step, check_prediction);
             match outcome {
@@ -707,19 +685,19 @@ impl HhtIntegrator {
                     plain = false;
                     locating = true;
                     near_impact = true;
-                    self.control.h_next =
+                    self.trajectory.control.h_next =
                         (theta * h + IMPACT_OVERSHOOT_FRACTION * h_grid).max(h_min);
                     continue;
                 }
                 Ok(Attempt::Converged) => {}
                 Err(error) if retryable(&error) && (adaptive || near_impact) => {
                     plain = false;
-                    self.stats.step_failures += 1;
+                    self.trajectory.stats.step_failures += 1;
                     if 0.5 * h < h_min * (1.0 - 1e-12) {
                         return Err(first_failure.unwrap_or(error));
                     }
                     first_failure.get_or_insert(error);
-                    self.control.h_next = 0.5 * h;
+                    self.trajectory.control.h_next = 0.5 * h;
                     // A failed located step says nothing about the crossing: locate again.
                     locating = false;
                     continue;
@@ -741,7 +719,7 @@ impl HhtIntegrator {
                         locate_attempts += 1;
                         locating = true;
                         near_impact = true;
-                        self.control.h_next =
+                        self.trajectory.control.h_next =
                             crossing.theta * h + IMPACT_OVERSHOOT_FRACTION * h_grid;
                         continue;
                     }
@@ -751,7 +729,7 @@ impl HhtIntegrator {
                     accepted += 1;
                     locate_attempts = 0;
                     // The short located step says nothing about the motion after the impact.
-                    self.control.h_next = h_grid;
+                    self.trajectory.control.h_next = h_grid;
                     continue;
                 }
             }
@@ -765,24 +743,25 @@ impl HhtIntegrator {
                     ADAPTIVE_MAX_GROWTH
                 };
                 let rejection = system
-                    .state_rejection(t1, &self.state.q, &self.ws.q)
+                    .state_rejection(t1, &self.trajectory.state.q, &self.ws.q)
                     .map_err(At { t: t1, step }.system_error("state_rejection"))?;
                 if rejection > 1.0 && h > h_min * (1.0 + 1e-12) {
                     plain = false;
-                    self.stats.state_rejections += 1;
-                    self.control.h_next = 0.5 * h;
+                    self.trajectory.stats.state_rejections += 1;
+                    self.trajectory.control.h_next = 0.5 * h;
                     continue;
                 }
                 if error > 1.0 {
                     if h > h_min * (1.0 + 1e-12) {
                         plain = false;
-                        self.stats.error_rejections += 1;
-                        self.control.h_next = h * factor.max(ADAPTIVE_MAX_SHRINK);
+                        self.trajectory.stats.error_rejections += 1;
+                        self.trajectory.control.h_next = h * factor.max(ADAPTIVE_MAX_SHRINK);
                         continue;
                     }
-                    self.stats.error_limited_steps += 1;
+                    self.trajectory.stats.error_limited_steps += 1;
                 }
-                self.stats.max_error_estimate = self.stats.max_error_estimate.max(error);
+                self.trajectory.stats.max_error_estimate =
+                    self.trajectory.stats.max_error_estimate.max(error);
                 growth = factor.clamp(ADAPTIVE_MAX_SHRINK, ADAPTIVE_MAX_GROWTH);
             }
             self.commit(system, t1, h, step)?;
@@ -792,12 +771,12 @@ impl HhtIntegrator {
                 // A step cut short by the grid says nothing against the planned size.
                 next = next.max(planned);
             }
-            self.control.h_next = next.min(h_grid);
+            self.trajectory.control.h_next = next.min(h_grid);
         }
-        self.state.t = t_end;
-        self.state.step = step;
-        self.stats.steps += 1;
-        self.control.last_step_plain = plain && accepted == 1;
+        self.trajectory.state.t = t_end;
+        self.trajectory.state.step = step;
+        self.trajectory.stats.steps += 1;
+        self.trajectory.control.last_step_plain = plain && accepted == 1;
         self.coeffs = self.grid_coeffs;
         Ok(())
     }
@@ -829,36 +808,36 @@ impl HhtIntegrator {
         // a_n stands for q̈ at t_n + α h_last (a_n = q̈_n + α (q̈_n − q̈_{n−1})); a step of another
         // size needs it at t_n + α h: rescale its offset from q̈_n, or the variable step loses its
         // second order.
-        let ratio = h / self.control.h_last;
+        let ratio = h / self.trajectory.control.h_last;
         if ratio == 1.0 {
-            self.ws.a_start.copy_from(&self.state.a);
+            self.ws.a_start.copy_from(&self.trajectory.state.a);
         } else {
             for ((x, a_n), qdd_n) in self
                 .ws
                 .a_start
                 .iter_mut()
-                .zip(self.state.a.iter())
-                .zip(self.state.qdd.iter())
+                .zip(self.trajectory.state.a.iter())
+                .zip(self.trajectory.state.qdd.iter())
             {
                 *x = qdd_n + ratio * (a_n - qdd_n);
             }
         }
-        if self.has_previous {
+        if self.trajectory.has_previous {
             let ws = &mut self.ws;
             if ratio == 1.0 {
                 for ((x, now), before) in ws
                     .qdd
                     .iter_mut()
-                    .zip(self.state.qdd.iter())
-                    .zip(self.qdd_previous.iter())
+                    .zip(self.trajectory.state.qdd.iter())
+                    .zip(self.trajectory.qdd_previous.iter())
                 {
                     *x = 2.0 * now - before;
                 }
                 for ((x, now), before) in ws
                     .lambda
                     .iter_mut()
-                    .zip(self.state.lambda.iter())
-                    .zip(self.lambda_previous.iter())
+                    .zip(self.trajectory.state.lambda.iter())
+                    .zip(self.trajectory.lambda_previous.iter())
                 {
                     *x = 2.0 * now - before;
                 }
@@ -866,23 +845,23 @@ impl HhtIntegrator {
                 for ((x, now), before) in ws
                     .qdd
                     .iter_mut()
-                    .zip(self.state.qdd.iter())
-                    .zip(self.qdd_previous.iter())
+                    .zip(self.trajectory.state.qdd.iter())
+                    .zip(self.trajectory.qdd_previous.iter())
                 {
                     *x = now + ratio * (now - before);
                 }
                 for ((x, now), before) in ws
                     .lambda
                     .iter_mut()
-                    .zip(self.state.lambda.iter())
-                    .zip(self.lambda_previous.iter())
+                    .zip(self.trajectory.state.lambda.iter())
+                    .zip(self.trajectory.lambda_previous.iter())
                 {
                     *x = now + ratio * (now - before);
                 }
             }
         } else {
-            self.ws.qdd.copy_from(&self.state.qdd);
-            self.ws.lambda.copy_from(&self.state.lambda);
+            self.ws.qdd.copy_from(&self.trajectory.state.qdd);
+            self.ws.lambda.copy_from(&self.trajectory.state.lambda);
         }
         // An unresolved stiff mode (a spring whose period is far below h) makes the extrapolated
         // q̈ meaningless: its position term h²[(½ − β) a_n + β a_{n+1}] can throw the predicted
@@ -893,7 +872,7 @@ impl HhtIntegrator {
             .ws
             .qdd
             .iter()
-            .zip(self.state.qdd.iter())
+            .zip(self.trajectory.state.qdd.iter())
             .zip(self.ws.a_start.iter())
             .map(|((qdd, qdd_n), a_n)| {
                 let a = (1.0 + alpha) * qdd - alpha * qdd_n;
@@ -901,12 +880,12 @@ impl HhtIntegrator {
             })
             .fold(0.0, f64::max);
         if acceleration_displacement > PREDICTOR_MAX_ACCELERATION_DISPLACEMENT {
-            self.stats.stiff_predictions += 1;
+            self.trajectory.stats.stiff_predictions += 1;
             for ((x, qdd_n), a_n) in self
                 .ws
                 .qdd
                 .iter_mut()
-                .zip(self.state.qdd.iter())
+                .zip(self.trajectory.state.qdd.iter())
                 .zip(self.ws.a_start.iter())
             {
                 let a = -(0.5 - beta) / beta * a_n;
@@ -928,7 +907,7 @@ impl HhtIntegrator {
         let full_first = provides_full
             && match self.settings.newton_matrix {
                 NewtonMatrix::Diagonal => false,
-                NewtonMatrix::Auto => self.control.full_newton_hold > 0,
+                NewtonMatrix::Auto => self.trajectory.control.full_newton_hold > 0,
                 NewtonMatrix::Full => true,
             };
         let full_on_refresh =
@@ -941,10 +920,10 @@ impl HhtIntegrator {
             && self.m == 0
             && !full_first
             && !system.provides_newton_coupling()
-            && self.newton.reusable
-            && self.newton.h == h
-            && self.newton.rate <= NEWTON_REUSE_MAX_RATE;
-        self.newton.reusable = false;
+            && self.trajectory.newton.reusable
+            && self.trajectory.newton.h == h
+            && self.trajectory.newton.rate <= NEWTON_REUSE_MAX_RATE;
+        self.trajectory.newton.reusable = false;
         let mut iterations = 0;
         let mut converged = false;
         let mut converged_with_full = false;
@@ -955,7 +934,7 @@ impl HhtIntegrator {
                 0 => false,
                 1 => full_first,
                 _ => {
-                    self.stats.refreshes += 1;
+                    self.trajectory.stats.refreshes += 1;
                     full_on_refresh
                 }
             };
@@ -1000,7 +979,7 @@ impl HhtIntegrator {
                         && prev.wrms_position < 1.0
                         && report.wrms_multiplier > LAMBDA_STAGNATION_RATIO * prev.wrms_multiplier
                     {
-                        self.stats.rounding_limited_steps += 1;
+                        self.trajectory.stats.rounding_limited_steps += 1;
                         converged = true;
                         break;
                     }
@@ -1017,7 +996,7 @@ impl HhtIntegrator {
                 break;
             }
         }
-        self.stats.newton_iterations += iterations as u64;
+        self.trajectory.stats.newton_iterations += iterations as u64;
         if !converged {
             let report =
                 last.expect("at least one Newton iteration runs (max_newton_iterations >= 1)");
@@ -1032,16 +1011,21 @@ impl HhtIntegrator {
         }
         if self.settings.newton_matrix == NewtonMatrix::Auto {
             if converged_with_full && !full_first {
-                self.control.full_newton_hold = FULL_NEWTON_HOLD_STEPS;
+                self.trajectory.control.full_newton_hold = FULL_NEWTON_HOLD_STEPS;
             } else {
-                self.control.full_newton_hold = self.control.full_newton_hold.saturating_sub(1);
+                self.trajectory.control.full_newton_hold =
+                    self.trajectory.control.full_newton_hold.saturating_sub(1);
             }
         }
-        self.stats.max_iterations_in_a_step = self.stats.max_iterations_in_a_step.max(iterations);
+        self.trajectory.stats.max_iterations_in_a_step = self
+            .trajectory
+            .stats
+            .max_iterations_in_a_step
+            .max(iterations);
         // The full matrix lives in its own solver; the diagonal one just used stays for the next step.
-        self.newton.reusable = !converged_with_full;
-        self.newton.h = h;
-        self.newton.rate = converged_rate;
+        self.trajectory.newton.reusable = !converged_with_full;
+        self.trajectory.newton.h = h;
+        self.trajectory.newton.rate = converged_rate;
         Ok(Attempt::Converged)
     }
 
@@ -1054,22 +1038,26 @@ impl HhtIntegrator {
         h: f64,
         step: u64,
     ) -> Result<(), IntegrateError> {
-        self.qdd_previous.copy_from(&self.state.qdd);
-        self.lambda_previous.copy_from(&self.state.lambda);
-        self.has_previous = true;
+        self.trajectory
+            .qdd_previous
+            .copy_from(&self.trajectory.state.qdd);
+        self.trajectory
+            .lambda_previous
+            .copy_from(&self.trajectory.state.lambda);
+        self.trajectory.has_previous = true;
         let ws = &self.ws;
-        let state = &mut self.state;
+        let state = &mut self.trajectory.state;
         state.t = t1;
         state.q.copy_from(&ws.q);
         state.v.copy_from(&ws.v);
-        self.v_newmark.copy_from(&ws.v);
+        self.trajectory.v_newmark.copy_from(&ws.v);
         state.a.copy_from(&ws.a);
         state.qdd.copy_from(&ws.qdd);
         state.lambda.copy_from(&ws.lambda);
-        self.control.h_last = h;
-        self.stats.substeps += 1;
-        self.stats.smallest_step_s = if self.stats.smallest_step_s > 0.0 {
-            self.stats.smallest_step_s.min(h)
+        self.trajectory.control.h_last = h;
+        self.trajectory.stats.substeps += 1;
+        self.trajectory.stats.smallest_step_s = if self.trajectory.stats.smallest_step_s > 0.0 {
+            self.trajectory.stats.smallest_step_s.min(h)
         } else {
             h
         };
@@ -1092,7 +1080,7 @@ impl HhtIntegrator {
             .ws
             .qdd
             .iter()
-            .zip(self.state.qdd.iter())
+            .zip(self.trajectory.state.qdd.iter())
             .map(|(new, old)| {
                 let e = factor * (new - old);
                 e * e
@@ -1112,20 +1100,20 @@ impl HhtIntegrator {
         h: f64,
     ) -> Result<Option<Crossing>, IntegrateError> {
         let at_start = At {
-            t: self.state.t,
-            step: self.state.step,
+            t: self.trajectory.state.t,
+            step: self.trajectory.state.step,
         };
         let at_end = At {
             t: t1,
-            step: self.state.step + 1,
+            step: self.trajectory.state.step + 1,
         };
         {
             let ws = &mut self.ws;
             eval::event_gaps(
                 system,
                 at_start,
-                &self.state.q,
-                &self.state.v,
+                &self.trajectory.state.q,
+                &self.trajectory.state.v,
                 &mut ws.gaps_start,
                 &mut ws.rates_start,
             )?;
@@ -1165,25 +1153,25 @@ impl HhtIntegrator {
         event: usize,
         step: u64,
     ) -> Result<(), IntegrateError> {
-        let t = self.state.t;
+        let t = self.trajectory.state.t;
         let at = At { t, step };
-        self.ws.impact_q.copy_from(&self.state.q);
-        self.ws.impact_v.copy_from(&self.state.v);
+        self.ws.impact_q.copy_from(&self.trajectory.state.q);
+        self.ws.impact_v.copy_from(&self.trajectory.state.v);
         {
             let ws = &mut self.ws;
             eval::apply_impact(system, at, event, &mut ws.impact_q, &mut ws.impact_v)?;
         }
         let start: ConsistentStart =
             consistent_start(system, t, &self.ws.impact_q, &self.ws.impact_v)?;
-        self.state.q.copy_from(&start.q);
-        self.state.v.copy_from(&start.v);
-        self.v_newmark.copy_from(&start.v);
-        self.state.qdd.copy_from(&start.qdd);
-        self.state.a.copy_from(&start.qdd);
-        self.state.lambda.copy_from(&start.lambda);
-        self.has_previous = false;
-        self.newton.reusable = false;
-        self.stats.impacts += 1;
+        self.trajectory.state.q.copy_from(&start.q);
+        self.trajectory.state.v.copy_from(&start.v);
+        self.trajectory.v_newmark.copy_from(&start.v);
+        self.trajectory.state.qdd.copy_from(&start.qdd);
+        self.trajectory.state.a.copy_from(&start.qdd);
+        self.trajectory.state.lambda.copy_from(&start.lambda);
+        self.trajectory.has_previous = false;
+        self.trajectory.newton.reusable = false;
+        self.trajectory.stats.impacts += 1;
         self.ws.mass_fresh = false;
         self.ws.phi_q_fresh = false;
         Ok(())
@@ -1203,8 +1191,8 @@ impl HhtIntegrator {
     ) -> Result<(), IntegrateError> {
         let c = self.coeffs;
         let (h, alpha, beta, gamma) = (c.h, c.alpha, c.beta, c.gamma);
-        let s = &self.state;
-        let v_n = &self.v_newmark;
+        let s = &self.trajectory.state;
+        let v_n = &self.trajectory.v_newmark;
         let ws = &mut self.ws;
         for i in 0..self.nv {
             let a_new = (1.0 + alpha) * ws.qdd[i] - alpha * s.qdd[i];
@@ -1270,7 +1258,8 @@ impl HhtIntegrator {
                 }
             }
         }
-        self.newton
+        self.trajectory
+            .newton
             .solver
             .factor(&ws.matrix)
             .map_err(|b| IntegrateError::SingularMatrix {
@@ -1282,7 +1271,7 @@ impl HhtIntegrator {
             })?;
         ws.mass_fresh = true;
         ws.phi_q_fresh = true;
-        self.stats.factorisations += 1;
+        self.trajectory.stats.factorisations += 1;
         Ok(())
     }
 
@@ -1329,8 +1318,8 @@ impl HhtIntegrator {
             })?;
         ws.mass_fresh = true;
         ws.phi_q_fresh = true;
-        self.stats.factorisations += 1;
-        self.stats.full_factorisations += 1;
+        self.trajectory.stats.factorisations += 1;
+        self.trajectory.stats.full_factorisations += 1;
         Ok(())
     }
 
@@ -1387,7 +1376,7 @@ impl HhtIntegrator {
         if ws.use_full {
             ws.full_solver.solve_in_place(&mut ws.rhs);
         } else {
-            self.newton.solver.solve_in_place(&mut ws.rhs);
+            self.trajectory.newton.solver.solve_in_place(&mut ws.rhs);
         }
         at.check_finite("newton_update", ws.rhs.iter())?;
 
@@ -1469,26 +1458,34 @@ impl HhtIntegrator {
         let (nv, m) = (self.nv, self.m);
         {
             let ws = &mut self.ws;
-            eval::constraints(system, at, &self.state.q, &mut ws.phi)?;
+            eval::constraints(system, at, &self.trajectory.state.q, &mut ws.phi)?;
         }
-        self.stats.max_constraint_violation =
-            self.stats.max_constraint_violation.max(self.ws.phi.amax());
+        self.trajectory.stats.max_constraint_violation = self
+            .trajectory
+            .stats
+            .max_constraint_violation
+            .max(self.ws.phi.amax());
         let before = self.velocity_violation(system, at)?;
-        self.stats.max_velocity_violation_unprojected =
-            self.stats.max_velocity_violation_unprojected.max(before);
+        self.trajectory.stats.max_velocity_violation_unprojected = self
+            .trajectory
+            .stats
+            .max_velocity_violation_unprojected
+            .max(before);
         if !self.settings.velocity_projection {
-            self.stats.max_velocity_violation = self.stats.max_velocity_violation.max(before);
+            self.trajectory.stats.max_velocity_violation =
+                self.trajectory.stats.max_velocity_violation.max(before);
             return Ok(());
         }
         // velocity_violation left Φ_q(q_{n+1}) in ws.phi_q and Φ_q q̇ + Φ_t in ws.phi_dot.
         let ws = &mut self.ws;
-        eval::mass_matrix(system, at, &self.state.q, &mut ws.mass)?;
+        eval::mass_matrix(system, at, &self.trajectory.state.q, &mut ws.mass)?;
         ws.mass_fresh = false;
         assemble_iteration_matrix(&ws.mass, None, &ws.phi_q, 0.0, 0.0, 1.0, &mut ws.matrix);
         // The projection's matrix replaces the stored Newton factorisation (never reused with
         // constraint rows).
-        self.newton.reusable = false;
-        self.newton
+        self.trajectory.newton.reusable = false;
+        self.trajectory
+            .newton
             .solver
             .factor(&ws.matrix)
             .map_err(|b| IntegrateError::SingularMatrix {
@@ -1498,23 +1495,26 @@ impl HhtIntegrator {
                 index: b.index,
                 pivot_relative: b.pivot_relative,
             })?;
-        self.stats.projection_factorisations += 1;
+        self.trajectory.stats.projection_factorisations += 1;
         for i in 0..nv {
             ws.rhs[i] = 0.0;
         }
         for j in 0..m {
             ws.rhs[nv + j] = -ws.phi_dot[j];
         }
-        self.newton.solver.solve_in_place(&mut ws.rhs);
+        self.trajectory.newton.solver.solve_in_place(&mut ws.rhs);
         at.check_finite("velocity_projection", ws.rhs.iter())?;
         for i in 0..nv {
-            self.state.v[i] += ws.rhs[i];
+            self.trajectory.state.v[i] += ws.rhs[i];
         }
         if self.projection_feedback {
-            self.v_newmark.copy_from(&self.state.v);
+            self.trajectory
+                .v_newmark
+                .copy_from(&self.trajectory.state.v);
         }
         let after = self.velocity_violation(system, at)?;
-        self.stats.max_velocity_violation = self.stats.max_velocity_violation.max(after);
+        self.trajectory.stats.max_velocity_violation =
+            self.trajectory.stats.max_velocity_violation.max(after);
         Ok(())
     }
 
@@ -1533,7 +1533,7 @@ impl HhtIntegrator {
         at: At,
     ) -> Result<f64, IntegrateError> {
         let ws = &mut self.ws;
-        let s = &self.state;
+        let s = &self.trajectory.state;
         eval::constraint_jacobian(system, at, &s.q, &mut ws.phi_q)?;
         ws.phi_q_fresh = false;
         eval::constraint_time_derivative(system, at, &s.q, &mut ws.phi_dot)?;

@@ -14,7 +14,7 @@ use super::viewer::{
     SENSITIVITY_COLOURS,
 };
 use crate::analysis::BlockView;
-use crate::dynamics::{forward_kinematics, frame_placements, Data};
+use crate::dynamics::{forward_kinematics, world_from_link, Data};
 use crate::model::Model;
 use crate::scene::Output;
 use crate::Error;
@@ -255,7 +255,7 @@ impl EnvelopeLog {
             parents
         });
         let world_from_links: Vec<crate::spatial::Transform> = (0..links.len())
-            .map(|l| frame_placements(model, data, l))
+            .map(|l| world_from_link(model, data, l))
             .collect();
         let mut frames = Vec::with_capacity(links.len());
         for (l, world_from_link) in world_from_links.iter().enumerate() {

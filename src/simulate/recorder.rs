@@ -1,6 +1,6 @@
 //! Evaluates a scene's outputs at a state: `(q, v, q̈) ⇒ one value per output`.
 
-use crate::dynamics::{forward_kinematics, frame_placements, Data};
+use crate::dynamics::{forward_kinematics, world_from_link, Data};
 use crate::effects::Effects;
 use crate::model::Model;
 use crate::scene::{Output, OutputKind};
@@ -108,7 +108,7 @@ impl Recorder {
                 OutputKind::Velocity { v_index } => v[v_index],
                 OutputKind::Acceleration { v_index } => qdd[v_index],
                 OutputKind::FramePosition { link, axis } => {
-                    frame_placements(model, data, link).translation[axis]
+                    world_from_link(model, data, link).translation[axis]
                 }
                 OutputKind::BasePosition { joint, axis } => q[model.joints[joint].q_index + axis],
                 OutputKind::BaseRotation { joint, axis } => {

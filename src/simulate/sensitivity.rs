@@ -20,7 +20,7 @@ use super::lie::so3_right_jacobian_inverse;
 use super::run::{hht_settings, initial_violation};
 use super::SimulationError;
 use super::{Recorder, RobotSystem};
-use crate::dynamics::{forward_kinematics, frame_placements, link_origin_jacobian};
+use crate::dynamics::{forward_kinematics, link_origin_jacobian, world_from_link};
 use crate::integrate::{
     DaeSystem, HhtIntegrator, HhtSensitivity, HhtSettings, HhtStats, SensitivityError,
     SensitivityStats,
@@ -525,7 +525,7 @@ impl OutputDerivatives {
                 let w = weight / (12.0 * step);
                 for (o, rule) in self.rules.iter().enumerate() {
                     if let Rule::Frame { link, axis } = *rule {
-                        out[o * d + j] += w * frame_placements(&system.model, &system.data, link)
+                        out[o * d + j] += w * world_from_link(&system.model, &system.data, link)
                             .translation[axis];
                     }
                 }
