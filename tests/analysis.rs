@@ -2,6 +2,8 @@
 //! of the true model on the double pendulum, interval arithmetic never inside the reference,
 //! determinism across thread counts, memory flat in the horizon, and input validation.
 
+mod common;
+
 use ribbon::uq::envelope_error;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -19,9 +21,7 @@ const IA_MAX_WIDTH_RATIO: f64 = 2.0;
 /// The closed-form comparison: envelope bounds equal the analytic min/max to 1e-6 (m).
 const CLOSED_FORM_TOLERANCE: f64 = 1e-6;
 
-fn manifest(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
+use common::manifest;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("analysis");

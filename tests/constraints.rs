@@ -9,7 +9,7 @@ use ribbon::integrate::{iteration_matrix, ConstraintRowScaling, HhtIntegrator, H
 use ribbon::model::{parse_description, LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, read_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::{hht_settings, simulate, RobotSystem, Trajectory};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 /// Halving h must divide the error by about 4.
@@ -17,9 +17,7 @@ const MIN_SECOND_ORDER_RATIO: f64 = 3.5;
 /// `|Φ|` and `|Φ_q q̇ + Φ_t|` bounds of the issue.
 const CONSTRAINT_TOLERANCE: f64 = 1e-10;
 
-fn manifest(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
+use common::manifest;
 
 fn load(urdf: &str) -> Model {
     Model::from_urdf_file(&manifest(urdf), LoadOptions::default()).expect("robot loads")

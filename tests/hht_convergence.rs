@@ -33,9 +33,7 @@ fn fixed(values: &[f64]) -> String {
         .join(" ")
 }
 
-fn manifest(path: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
+use common::manifest;
 
 fn load(urdf: &str) -> Model {
     Model::from_urdf_file(&manifest(urdf), LoadOptions::default()).expect("robot loads")

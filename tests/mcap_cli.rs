@@ -16,9 +16,7 @@ fn scratch(name: &str) -> PathBuf {
     dir.join(name)
 }
 
-fn manifest(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
+use common::manifest;
 
 /// Every message of the file through the Rust reader: (topic, log time) pairs, and the metadata.
 fn read_with_rust(path: &Path) -> (Vec<(String, u64)>, Vec<mcap::records::Metadata>) {

@@ -25,6 +25,8 @@
 //! at a 5 ms step, where that noise is 25× lower (the differentiation itself is exact for any
 //! step). Every check prints each output's worst error.
 
+mod common;
+
 use ribbon::model::{LoadOptions, Model};
 use ribbon::scene::{read_sidecar, wants_floating_base, OutputKind, Scene, SceneOverrides};
 use ribbon::simulate::{
@@ -32,7 +34,6 @@ use ribbon::simulate::{
     sensitivity_run_with, SensitivityRun,
 };
 use ribbon::uncertainty::ParameterSpace;
-use std::path::{Path, PathBuf};
 
 /// Agreement asked (the figure).
 const AGREEMENT: f64 = 1e-6;
@@ -63,9 +64,7 @@ const REFERENCE_STEP: f64 = 1e-2;
 const ROUNDING_LIMITED: [(f64, f64, f64, f64); 2] =
     [(1e-3, 2e-4, 1.0, 1e-5), (5e-3, 1e-5, 1.0, 1e-5)];
 
-fn manifest(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
+use common::manifest;
 
 /// A robot with its shipped sidecar, edited by `edit` (parameters, outputs, scene), and the scene
 /// overrides given.

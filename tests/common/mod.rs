@@ -25,6 +25,11 @@ pub fn manifest_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// A path inside the crate root (`robots/ur5/ur5.urdf` → `<crate root>/robots/ur5/ur5.urdf`).
+pub fn manifest(path: &str) -> PathBuf {
+    manifest_dir().join(path)
+}
+
 /// `CARGO_TARGET_DIR` (relative to the crate root when relative) or `<crate root>/target`.
 pub fn target_dir() -> PathBuf {
     match std::env::var_os("CARGO_TARGET_DIR")
