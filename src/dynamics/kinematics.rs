@@ -23,11 +23,7 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
 /// `data.world_from_body`, so `data` must hold a [`forward_kinematics`] (or [`drift_kinematics`])
 /// pass at the `q` of interest; writes nothing.
 pub fn world_from_link(model: &Model, data: &Data, link: usize) -> Transform {
-    let placement = &model.links[link];
-    match placement.body {
-        Some(b) => data.world_from_body[b].compose(&placement.body_from_link),
-        None => placement.body_from_link,
-    }
+    model.links[link].world_from_link(&data.world_from_body)
 }
 
 /// Drift kinematics: body placements, velocities and the accelerations they would have with `q̈ = 0`

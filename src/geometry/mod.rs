@@ -475,11 +475,7 @@ impl GeometryModel {
                 Attachment::Scene(i) => Ok((self.scene[i].shape.clone(), *frame)),
                 Attachment::Link { link, collision } => {
                     let shape = self.link_shape(model, link, collision)?;
-                    let placement = &model.links[link];
-                    let world_from_link = match placement.body {
-                        Some(b) => world_from_body[b].compose(&placement.body_from_link),
-                        None => placement.body_from_link,
-                    };
+                    let world_from_link = model.links[link].world_from_link(world_from_body);
                     Ok((shape, world_from_link.compose(frame)))
                 }
             }
@@ -614,11 +610,7 @@ impl GeometryModel {
             }
             Attachment::Link { link, collision } => {
                 let shape = self.link_shape(model, link, collision)?;
-                let placement = &model.links[link];
-                let world_from_link = match placement.body {
-                    Some(b) => world_from_body[b].compose(&placement.body_from_link),
-                    None => placement.body_from_link,
-                };
+                let world_from_link = model.links[link].world_from_link(world_from_body);
                 Ok((
                     shape,
                     world_from_link.compose(&link_from_collision(model, link, collision)),

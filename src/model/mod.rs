@@ -108,6 +108,18 @@ pub struct LinkPlacement {
     pub body_from_link: Transform,
 }
 
+impl LinkPlacement {
+    /// The link frame in the world: `world_from_body[b] ∘ body_from_link` of the body `b` it is
+    /// fixed to, `body_from_link` itself for a link on the world. `world_from_body` is indexed by
+    /// body (a forward-kinematics pass's placements).
+    pub fn world_from_link(&self, world_from_body: &[Transform]) -> Transform {
+        match self.body {
+            Some(b) => world_from_body[b].compose(&self.body_from_link),
+            None => self.body_from_link,
+        }
+    }
+}
+
 /// A robot as a kinematic tree with its parameters' values.
 #[derive(Clone, Debug)]
 pub struct Model {
