@@ -7,16 +7,11 @@
 //! `stats.peak_memory_bytes`), the stdout table with its wall time masked, and the MCAP log by its
 //! FNV-1a 64 hash. The fixtures live in `tests/fixtures/analyze_reference/` (see its README).
 
+mod common;
+
+use common::{masked_summary, masked_table};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-/// The summary fields that depend on the machine and the moment, not on the study.
-pub const TIMING_FIELDS: [&str; 4] = [
-    "simulate_seconds",
-    "bound_seconds",
-    "threads",
-    "peak_memory_bytes",
-];
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/analyze_reference")
@@ -36,34 +31,6 @@ fn fnv1a64(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, &b| {
         (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
     })
-}
-
-/// The summary with its timing fields set to null, re-serialised (exact: float_roundtrip).
-fn masked_summary(text: &str) -> String {
-    let mut value: serde_json::Value = serde_json::from_str(text).expect("summary is JSON");
-    value["wall_seconds"] = serde_json::Value::Null;
-    if let Some(stats) = value.get_mut("stats").and_then(|s| s.as_object_mut()) {
-        for field in TIMING_FIELDS {
-            if stats.contains_key(field) {
-                stats.insert(field.to_string(), serde_json::Value::Null);
-            }
-        }
-    }
-    serde_json::to_string_pretty(&value).expect("serialise")
-}
-
-/// The stdout table with the `…, 0.045 s wall` figure replaced by `X s wall`.
-fn masked_table(text: &str) -> String {
-    text.lines()
-        .map(|line| match line.find(" s wall") {
-            Some(end) => {
-                let start = line[..end].rfind(' ').map_or(0, |i| i + 1);
-                format!("{}X{}", &line[..start], &line[end..])
-            }
-            None => line.to_string(),
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
 }
 
 fn check_case(name: &str, command: &str, args: &[&str]) {

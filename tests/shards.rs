@@ -8,14 +8,6 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// The summary fields that depend on the machine and the moment, not on the study.
-const TIMING_FIELDS: [&str; 4] = [
-    "simulate_seconds",
-    "bound_seconds",
-    "threads",
-    "peak_memory_bytes",
-];
-
 fn scratch(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("target/test-scratch/shards")
@@ -61,34 +53,6 @@ fn s(path: &Path) -> &str {
     path.to_str().expect("UTF-8 path")
 }
 
-/// The summary with its timing fields set to null, re-serialised (exact: float_roundtrip).
-fn masked_summary(path: &Path) -> String {
-    let text = std::fs::read_to_string(path).expect("read summary");
-    let mut value: serde_json::Value = serde_json::from_str(&text).expect("summary is JSON");
-    value["wall_seconds"] = serde_json::Value::Null;
-    if let Some(stats) = value.get_mut("stats").and_then(|s| s.as_object_mut()) {
-        for field in TIMING_FIELDS {
-            stats.insert(field.to_string(), serde_json::Value::Null);
-        }
-    }
-    serde_json::to_string_pretty(&value).expect("serialise")
-}
-
-/// The stdout table with the wall time masked.
-fn masked_table(text: &[u8]) -> String {
-    String::from_utf8_lossy(text)
-        .lines()
-        .map(|line| match line.find(" s wall") {
-            Some(end) => {
-                let start = line[..end].rfind(' ').map_or(0, |i| i + 1);
-                format!("{}X{}", &line[..start], &line[end..])
-            }
-            None => line.to_string(),
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
-}
-
 /// The outputs of one study: (CSV bytes, MCAP bytes, masked summary, masked table).
 type Outputs = (Vec<u8>, Vec<u8>, String, String);
 
@@ -104,8 +68,8 @@ fn read_outputs(dir: &Path, stdout: &[u8]) -> Outputs {
     (
         std::fs::read(dir.join("out.csv")).expect("CSV"),
         std::fs::read(dir.join("out.mcap")).expect("MCAP"),
-        masked_summary(&dir.join("summary.json")),
-        masked_table(stdout),
+        common::masked_summary_file(&dir.join("summary.json")),
+        common::masked_table(&String::from_utf8_lossy(stdout)),
     )
 }
 

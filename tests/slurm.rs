@@ -7,6 +7,8 @@
 //! When Slurm is absent the test installs Debian's `slurm-wlm` (`apt-get install -y slurm-wlm`,
 //! as root); when it cannot, it fails with the command to run. It never skips.
 
+mod common;
+
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
@@ -16,13 +18,6 @@ use std::time::{Duration, Instant};
 const NODE_UP_TIMEOUT: Duration = Duration::from_secs(60);
 /// Shards of the study (array tasks).
 const SHARDS: usize = 4;
-/// The summary fields that depend on the machine and the moment, not on the study.
-const TIMING_FIELDS: [&str; 4] = [
-    "simulate_seconds",
-    "bound_seconds",
-    "threads",
-    "peak_memory_bytes",
-];
 
 fn manifest() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -176,18 +171,6 @@ fn ribbon(args: &[&str]) -> Output {
     )
 }
 
-fn masked_summary(path: &Path) -> String {
-    let text = std::fs::read_to_string(path).expect("read summary");
-    let mut value: serde_json::Value = serde_json::from_str(&text).expect("summary is JSON");
-    value["wall_seconds"] = serde_json::Value::Null;
-    if let Some(stats) = value.get_mut("stats").and_then(|s| s.as_object_mut()) {
-        for field in TIMING_FIELDS {
-            stats.insert(field.to_string(), serde_json::Value::Null);
-        }
-    }
-    serde_json::to_string_pretty(&value).expect("serialise")
-}
-
 #[test]
 fn a_slurm_array_runs_the_shards_and_the_merge_matches_analyze() {
     ensure_slurm();
@@ -255,8 +238,8 @@ fn a_slurm_array_runs_the_shards_and_the_merge_matches_analyze() {
         assert!(single == merged, "the merged {ext} differs from analyze's");
     }
     assert_eq!(
-        masked_summary(&work.join("single.json")),
-        masked_summary(&work.join("merged.json")),
+        common::masked_summary_file(&work.join("single.json")),
+        common::masked_summary_file(&work.join("merged.json")),
         "the merged summary differs from analyze's (timing fields masked)"
     );
 
@@ -313,8 +296,8 @@ fn a_slurm_array_runs_the_shards_and_the_merge_matches_analyze() {
         assert!(single == merged, "the staged {ext} differs from analyze's");
     }
     assert_eq!(
-        masked_summary(&work.join("staged-single.json")),
-        masked_summary(&work.join("staged-merged.json")),
+        common::masked_summary_file(&work.join("staged-single.json")),
+        common::masked_summary_file(&work.join("staged-merged.json")),
         "the staged summary differs from analyze's (timing fields masked)"
     );
 }

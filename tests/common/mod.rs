@@ -378,3 +378,45 @@ pub fn shipped_setup(urdf: &str, sidecar: &str, duration_s: f64) -> ribbon::setu
     ribbon::setup::Setup::load(&request, &mut |_, _| {})
         .unwrap_or_else(|e| panic!("{urdf} with {sidecar}: {e}"))
 }
+
+/// The summary fields that depend on the machine and the moment, not on the study.
+pub const TIMING_FIELDS: [&str; 4] = [
+    "simulate_seconds",
+    "bound_seconds",
+    "threads",
+    "peak_memory_bytes",
+];
+
+/// A summary's JSON text with `wall_seconds` and the [`TIMING_FIELDS`] present in `stats` set to
+/// null, re-serialised (exact: serde_json's float_roundtrip), for comparing two runs' summaries.
+pub fn masked_summary(text: &str) -> String {
+    let mut value: serde_json::Value = serde_json::from_str(text).expect("summary is JSON");
+    value["wall_seconds"] = serde_json::Value::Null;
+    if let Some(stats) = value.get_mut("stats").and_then(|s| s.as_object_mut()) {
+        for field in TIMING_FIELDS {
+            if stats.contains_key(field) {
+                stats.insert(field.to_string(), serde_json::Value::Null);
+            }
+        }
+    }
+    serde_json::to_string_pretty(&value).expect("serialise")
+}
+
+/// [`masked_summary`] of the summary file at `path`.
+pub fn masked_summary_file(path: &Path) -> String {
+    masked_summary(&std::fs::read_to_string(path).expect("read summary"))
+}
+
+/// A stdout table with the `…, 0.045 s wall` figure replaced by `X s wall`.
+pub fn masked_table(text: &str) -> String {
+    text.lines()
+        .map(|line| match line.find(" s wall") {
+            Some(end) => {
+                let start = line[..end].rfind(' ').map_or(0, |i| i + 1);
+                format!("{}X{}", &line[..start], &line[end..])
+            }
+            None => line.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
