@@ -1,4 +1,16 @@
-//! Small text helpers for error messages: "did you mean …?" suggestions.
+//! Small text helpers: "did you mean …?" suggestions for error messages, and the width of the
+//! output-name column of the stdout tables.
+
+/// Width of the output-name column of a stdout table, in characters: the longest name, and at
+/// least the six of its header `output`.
+pub fn name_column_width<'a>(names: impl IntoIterator<Item = &'a str>) -> usize {
+    names
+        .into_iter()
+        .map(|name| name.chars().count())
+        .max()
+        .unwrap_or(6)
+        .max(6)
+}
 
 /// Edit distance (insertions, deletions, substitutions) between two strings, by characters.
 pub fn edit_distance(a: &str, b: &str) -> usize {

@@ -166,13 +166,8 @@ impl SobolSeries {
         if self.records() == 0 || self.dim == 0 {
             return String::new();
         }
-        let width = envelope
-            .outputs
-            .iter()
-            .map(|o| o.name.chars().count())
-            .max()
-            .unwrap_or(6)
-            .max(6);
+        let width =
+            crate::text::name_column_width(envelope.outputs.iter().map(|o| o.name.as_str()));
         let mut text = format!(
             "Sobol' indices of the surrogate at each output's widest envelope (main/total, top {} of {}):\n",
             count.min(self.dim),

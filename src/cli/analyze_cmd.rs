@@ -805,13 +805,7 @@ fn table(
     wall_seconds: f64,
 ) -> String {
     let e = &report.envelope;
-    let width = e
-        .outputs
-        .iter()
-        .map(|o| o.name.chars().count())
-        .max()
-        .unwrap_or(6)
-        .max(6);
+    let width = crate::text::name_column_width(e.outputs.iter().map(|o| o.name.as_str()));
     let mut text = format!(
         "{:<width$}  {:>8}  {:>13}  {:>9}  {:>13}  {:>13}\n",
         "output", "unit", "max width", "at t (s)", "lower there", "upper there"

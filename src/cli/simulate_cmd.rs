@@ -206,13 +206,7 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
 }
 
 fn table(trajectory: &Trajectory) -> String {
-    let width = trajectory
-        .outputs
-        .iter()
-        .map(|o| o.name.chars().count())
-        .max()
-        .unwrap_or(6)
-        .max(6);
+    let width = crate::text::name_column_width(trajectory.outputs.iter().map(|o| o.name.as_str()));
     let mut text = format!(
         "{:<width$}  {:>8}  {:>13}  {:>13}  {:>13}  {:>13}\n",
         "output", "unit", "initial", "final", "min", "max"
