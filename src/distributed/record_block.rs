@@ -655,3 +655,50 @@ impl RecordBlockReader {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn trailer(contacts: Option<ContactStats>) -> BlockTrailer {
+        BlockTrailer {
+            complete: true,
+            failures: Vec::new(),
+            newton_iterations: 7,
+            steps: 5,
+            contacts,
+        }
+    }
+
+    #[test]
+    fn contact_counters_round_trip_through_the_trailer() {
+        let counters = ContactStats {
+            pair_tests: 956_864,
+            narrow_queries: 606_088,
+            made: 910,
+            broken: 546,
+            max_depth_m: 0.004_642_133_472_520_491,
+        };
+        let map = trailer(Some(counters)).to_metadata();
+        let read = BlockTrailer::from_metadata(&map).unwrap();
+        assert_eq!(read.contacts, Some(counters));
+        // Without contacts the entry is absent, and reads back as none.
+        let map = trailer(None).to_metadata();
+        assert!(!map.contains_key("contacts"));
+        assert_eq!(BlockTrailer::from_metadata(&map).unwrap().contacts, None);
+    }
+
+    #[test]
+    fn a_malformed_contacts_entry_is_named() {
+        let mut map = trailer(None).to_metadata();
+        map.insert("contacts".to_string(), "{not json".to_string());
+        let message = BlockTrailer::from_metadata(&map).unwrap_err();
+        assert!(message.contains("'contacts' is not JSON"), "{message}");
+        map.insert(
+            "contacts".to_string(),
+            r#"{"pair_tests": 1, "narrow_queries": 1, "made": 1, "max_depth_m": 0.0}"#.to_string(),
+        );
+        let message = BlockTrailer::from_metadata(&map).unwrap_err();
+        assert!(message.contains("lacks the count 'broken'"), "{message}");
+    }
+}
