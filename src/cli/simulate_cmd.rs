@@ -154,10 +154,36 @@ fn print_statistics(trajectory: &Trajectory, scene: &Scene, wall_seconds: f64) {
             s.stiff_predictions
         );
     }
+    if s.limited_newton_updates > 0 {
+        eprintln!(
+            "contacts: {} Newton corrections shortened so as not to jump across the stiction band (docs/contacts.md §4)",
+            s.limited_newton_updates
+        );
+    }
 }
 
 fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
     let s = &trajectory.stats;
+    let mut stats = serde_json::json!({
+        "steps": s.steps,
+        "newton_iterations": s.newton_iterations,
+        "factorisations": s.factorisations,
+        "refreshes": s.refreshes,
+        "max_iterations_in_a_step": s.max_iterations_in_a_step,
+        "substeps": s.substeps,
+        "smallest_step_s": s.smallest_step_s,
+        "step_failures": s.step_failures,
+        "error_rejections": s.error_rejections,
+        "impacts": s.impacts,
+        "stiff_predictions": s.stiff_predictions,
+        "partial": trajectory.partial,
+        "state_rejections": s.state_rejections,
+        "contacts": trajectory.contacts,
+    });
+    if trajectory.contacts.is_some() {
+        // Only contacts limit Newton corrections (docs/contacts.md §4).
+        stats["limited_newton_updates"] = s.limited_newton_updates.into();
+    }
     Summary {
         robot: robot.to_string(),
         method: "nominal".to_string(),
@@ -185,22 +211,7 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
                 outer_upper: None,
             })
             .collect(),
-        stats: serde_json::json!({
-            "steps": s.steps,
-            "newton_iterations": s.newton_iterations,
-            "factorisations": s.factorisations,
-            "refreshes": s.refreshes,
-            "max_iterations_in_a_step": s.max_iterations_in_a_step,
-            "substeps": s.substeps,
-            "smallest_step_s": s.smallest_step_s,
-            "step_failures": s.step_failures,
-            "error_rejections": s.error_rejections,
-            "impacts": s.impacts,
-            "stiff_predictions": s.stiff_predictions,
-            "partial": trajectory.partial,
-            "state_rejections": s.state_rejections,
-            "contacts": trajectory.contacts,
-        }),
+        stats,
         sobol_indices: None,
     }
 }

@@ -136,6 +136,21 @@ pub struct Contacts {
     /// Whether any pair passed the bounding-sphere test at the last force evaluation: when none
     /// did, the Newton coupling is zero and is not computed.
     near: bool,
+    /// What [`Contacts::newton_update_fraction`] needs of the last force evaluation.
+    sliding: SlidingContacts,
+}
+
+/// The touching contacts of the last force evaluation, for limiting Newton corrections across the
+/// stiction band (docs/contacts.md §4, "Newton across the stiction band"): at which `(q, v)` they
+/// were evaluated, and per contact the normal, the tangential velocity and the velocity Jacobian.
+#[derive(Clone, Debug, Default)]
+struct SlidingContacts {
+    q: Vec<f64>,
+    v: Vec<f64>,
+    /// Per touching contact: normal (3), tangential relative velocity (3), then the relative point
+    /// velocity Jacobian (3 × nv, row-major).
+    entries: Vec<f64>,
+    count: usize,
 }
 
 impl Contacts {
@@ -150,6 +165,7 @@ impl Contacts {
             touching_now: vec![false; n_pairs],
             normal_forces: vec![0.0; n_pairs],
             near: true,
+            sliding: SlidingContacts::default(),
         }
     }
 
@@ -326,11 +342,14 @@ impl Contacts {
             stats,
             external,
             near,
+            sliding,
             ..
         } = self;
         let narrow_before = stats.narrow_queries;
         external.fill(Force::zero());
         let mut any = false;
+        let with_friction = model.contact.is_some_and(|m| m.friction > 0.0);
+        sliding.begin(q, v);
         Self::for_each_contact(
             geometry,
             stats,
@@ -341,13 +360,20 @@ impl Contacts {
             true,
             |data, k, contact, force| {
                 let pair = geometry.pairs[k];
-                if let Some(a) = GeometryModel::body_of(model, pair.a) {
+                let body_a = GeometryModel::body_of(model, pair.a);
+                let body_b = GeometryModel::body_of(model, pair.b);
+                if let Some(a) = body_a {
                     Self::add_wrench(data, external, a, &contact.point, &force.force);
                     any = true;
                 }
-                if let Some(b) = GeometryModel::body_of(model, pair.b) {
+                if let Some(b) = body_b {
                     Self::add_wrench(data, external, b, &contact.point, &(-force.force));
                     any = true;
+                }
+                if with_friction && force.force != Vec3::zeros() {
+                    let velocity = Self::point_velocity(data, body_a, &contact.point)
+                        - Self::point_velocity(data, body_b, &contact.point);
+                    sliding.push(model, data, body_a, body_b, contact, &velocity);
                 }
             },
         );
@@ -367,15 +393,31 @@ impl Contacts {
         sign: f64,
         jacobian: &mut DMatrix<f64>,
     ) {
+        Self::for_each_point_jacobian_column(model, data, body, point, |index, column| {
+            for r in 0..3 {
+                jacobian[(r, index)] += sign * column[r];
+            }
+        });
+    }
+
+    /// Calls `visit(v_index, column)` with each non-zero column (world frame) of the linear
+    /// velocity Jacobian of the world point `point` riding on `body`, root-ward from `body`.
+    fn for_each_point_jacobian_column(
+        model: &Model,
+        data: &Data,
+        body: usize,
+        point: &Vec3,
+        mut visit: impl FnMut(usize, Vec3),
+    ) {
         let mut current = Some(body);
         while let Some(i) = current {
             let joint = &model.joints[i];
             for k in 0..joint.nv() {
                 let motion = data.world_from_body[i].act_motion(&joint.subspace_column(k));
-                let column = motion.linear + motion.angular.cross(point);
-                for r in 0..3 {
-                    jacobian[(r, joint.v_index + k)] += sign * column[r];
-                }
+                visit(
+                    joint.v_index + k,
+                    motion.linear + motion.angular.cross(point),
+                );
             }
             current = joint.parent;
         }
@@ -444,6 +486,70 @@ impl Contacts {
         );
     }
 
+    /// Whether [`Contacts::newton_update_fraction`] may limit a correction now: a contact with
+    /// friction touched at the last force evaluation.
+    pub(super) fn limits_newton_updates(&self) -> bool {
+        self.sliding.count > 0
+    }
+
+    /// The fraction of a Newton correction to apply at the iterate `(q, v)` whose full correction
+    /// changes the joint velocities by `dv` (docs/contacts.md §4, "Newton across the stiction
+    /// band"): for every contact that slides faster than the stiction velocity `v_s` at the iterate
+    /// and whose tangential velocity the full correction would carry through the band
+    /// `|v_t| ≤ v_s` and out on the other side, the fraction that stops at the point of the
+    /// correction nearest to `v_t = 0`; the smallest over the contacts, 1 when none crosses. 1 when
+    /// the last force evaluation was not at this iterate.
+    pub(super) fn newton_update_fraction(
+        &self,
+        model: &Model,
+        q: &[f64],
+        v: &[f64],
+        dv: &[f64],
+    ) -> f64 {
+        let sliding = &self.sliding;
+        let Some(material) = model.contact else {
+            return 1.0;
+        };
+        if sliding.q != q || sliding.v != v {
+            return 1.0;
+        }
+        let vs = material.stiction_velocity;
+        let nv = dv.len();
+        let stride = 6 + 3 * nv;
+        let mut fraction = 1.0_f64;
+        for entry in sliding.entries.chunks_exact(stride).take(sliding.count) {
+            let n = Vec3::new(entry[0], entry[1], entry[2]);
+            let tangential = Vec3::new(entry[3], entry[4], entry[5]);
+            if tangential.norm() <= vs {
+                continue;
+            }
+            let jacobian = &entry[6..];
+            let mut change = Vec3::zeros();
+            for r in 0..3 {
+                change[r] = jacobian[r * nv..(r + 1) * nv]
+                    .iter()
+                    .zip(dv)
+                    .map(|(j, d)| j * d)
+                    .sum();
+            }
+            let change = change - n.dot(&change) * n;
+            let length_squared = change.norm_squared();
+            if length_squared == 0.0 {
+                continue;
+            }
+            let nearest = -tangential.dot(&change) / length_squared;
+            if !(nearest > 0.0 && nearest < 1.0) {
+                continue;
+            }
+            let passes_through = (tangential + nearest * change).norm() <= vs;
+            let leaves = (tangential + change).norm() > vs;
+            if passes_through && leaves {
+                fraction = fraction.min(nearest);
+            }
+        }
+        fraction
+    }
+
     /// Tests every pair at an accepted state `(q, v)`, counts pairs that started or stopped
     /// touching since the last call, and returns the deepest penetration (m, 0 when none).
     pub(super) fn observe(&mut self, model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> f64 {
@@ -487,6 +593,59 @@ impl Contacts {
             .filter_map(|k| Self::test_pair(geometry, stats, model, data, k))
             .map(|c| c.depth)
             .fold(0.0, f64::max)
+    }
+}
+
+impl SlidingContacts {
+    /// Starts a force evaluation at `(q, v)`: forgets the contacts of the last one.
+    fn begin(&mut self, q: &[f64], v: &[f64]) {
+        self.q.clear();
+        self.q.extend_from_slice(q);
+        self.v.clear();
+        self.v.extend_from_slice(v);
+        self.count = 0;
+    }
+
+    /// Records a touching contact: its normal, the tangential part of `velocity` (`v_a − v_b` at
+    /// the contact point, world) and the Jacobian of that relative velocity.
+    fn push(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        body_a: Option<usize>,
+        body_b: Option<usize>,
+        contact: &ContactPoint,
+        velocity: &Vec3,
+    ) {
+        let nv = model.nv;
+        let stride = 6 + 3 * nv;
+        let start = self.count * stride;
+        if self.entries.len() < start + stride {
+            self.entries.resize(start + stride, 0.0);
+        }
+        let entry = &mut self.entries[start..start + stride];
+        let n = contact.normal;
+        let tangential = velocity - n.dot(velocity) * n;
+        entry[..3].copy_from_slice(n.as_slice());
+        entry[3..6].copy_from_slice(tangential.as_slice());
+        let jacobian = &mut entry[6..];
+        jacobian.fill(0.0);
+        for (body, sign) in [(body_a, 1.0), (body_b, -1.0)] {
+            if let Some(body) = body {
+                Contacts::for_each_point_jacobian_column(
+                    model,
+                    data,
+                    body,
+                    &contact.point,
+                    |index, column| {
+                        for r in 0..3 {
+                            jacobian[r * nv + index] += sign * column[r];
+                        }
+                    },
+                );
+            }
+        }
+        self.count += 1;
     }
 }
 

@@ -110,6 +110,23 @@ impl Effects {
         }
     }
 
+    /// Whether [`Effects::newton_update_fraction`] may limit Newton corrections now: a contact
+    /// with friction touched at the last force evaluation (docs/contacts.md §4).
+    pub fn limits_newton_updates(&self) -> bool {
+        self.contacts
+            .as_ref()
+            .is_some_and(|c| c.limits_newton_updates())
+    }
+
+    /// The fraction in `(0, 1]` of a Newton correction to apply at `(q, v)`, whose full correction
+    /// changes the joint velocities by `dv`: below 1 when it would carry a sliding contact's
+    /// tangential velocity across the stiction band (docs/contacts.md §4). 1 without contacts.
+    pub fn newton_update_fraction(&self, model: &Model, q: &[f64], v: &[f64], dv: &[f64]) -> f64 {
+        self.contacts
+            .as_ref()
+            .map_or(1.0, |c| c.newton_update_fraction(model, q, v, dv))
+    }
+
     /// The contact counters so far (`None` without contacts).
     pub fn contact_stats(&self) -> Option<ContactStats> {
         self.contacts.as_ref().map(|c| c.stats())

@@ -248,3 +248,27 @@ pub(crate) fn apply_impact<S: DaeSystem + ?Sized>(
     at.check_finite("apply_impact.q", q.iter())?;
     at.check_finite("apply_impact.v", v.iter())
 }
+
+/// The fraction of a Newton correction to apply ([`DaeSystem::newton_update_fraction`]), checked to
+/// lie in `(0, 1]`: anything else (NaN included) is an error of the system, not a reason to stall.
+pub(crate) fn newton_update_fraction<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    dv: &DVector<f64>,
+) -> Result<f64, IntegrateError> {
+    let fraction = sys
+        .newton_update_fraction(at.t, q, v, dv)
+        .map_err(at.system_error("newton_update_fraction"))?;
+    if fraction > 0.0 && fraction <= 1.0 {
+        Ok(fraction)
+    } else {
+        Err(IntegrateError::System {
+            t: at.t,
+            step: at.step,
+            call: "newton_update_fraction",
+            source: format!("returned {fraction}, outside (0, 1]").into(),
+        })
+    }
+}

@@ -102,6 +102,10 @@ pub struct HhtStats {
     /// Attempts that used the constant-velocity predictor (an unresolved stiff mode, see
     /// [`PREDICTOR_MAX_ACCELERATION_DISPLACEMENT`]).
     pub stiff_predictions: u64,
+    /// Newton iterations that applied only part of their correction
+    /// ([`DaeSystem::newton_update_fraction`] < 1: an iterate kept from jumping across a
+    /// regularised law's narrow transition).
+    pub limited_newton_updates: u64,
 }
 
 /// Which form of the constraint rows [`iteration_matrix`] returns.
@@ -171,6 +175,8 @@ struct Workspace {
     /// The state an impact law rewrites, dims nq and nv.
     impact_q: DVector<f64>,
     impact_v: DVector<f64>,
+    /// The velocity change of a full Newton correction, `γ'h Δq̈`, dim nv.
+    dv_trial: DVector<f64>,
     /// `mass` holds M at the current iterate.
     mass_fresh: bool,
     /// `phi_q` holds Φ_q at the current iterate.
@@ -209,6 +215,7 @@ impl Workspace {
             rates_end: DVector::zeros(n_events),
             impact_q: DVector::zeros(nq),
             impact_v: DVector::zeros(nv),
+            dv_trial: DVector::zeros(nv),
             mass_fresh: false,
             phi_q_fresh: false,
         }
@@ -1427,6 +1434,20 @@ impl HhtIntegrator {
             0.0
         };
 
+        if system.limits_newton_updates() {
+            // The velocity change of the full correction: Δq̇ = γ'h Δq̈.
+            let gamma_h = self.coeffs.gamma_h();
+            for i in 0..nv {
+                ws.dv_trial[i] = gamma_h * ws.rhs[i];
+            }
+            let fraction = eval::newton_update_fraction(system, at, &ws.q, &ws.v, &ws.dv_trial)?;
+            if fraction < 1.0 {
+                self.trajectory.stats.limited_newton_updates += 1;
+                for x in ws.rhs.iter_mut() {
+                    *x *= fraction;
+                }
+            }
+        }
         for i in 0..nv {
             ws.qdd[i] += ws.rhs[i];
         }

@@ -491,6 +491,32 @@ pub trait DaeSystem {
         Err("set_parameter_offset is not implemented by this system".into())
     }
 
+    /// Whether [`DaeSystem::newton_update_fraction`] may shorten Newton corrections at the current
+    /// state. Default `false`; when `false` the integrator never calls it, so a system without a
+    /// narrow regularised law pays nothing and its iterates are unchanged.
+    fn limits_newton_updates(&self) -> bool {
+        false
+    }
+
+    /// The fraction in `(0, 1]` of a Newton correction to apply at the iterate `(q, v)` whose full
+    /// correction would change the velocity by `dv` (dim `nv`). For laws with a narrow transition,
+    /// such as regularised friction, whose slope changes by orders of magnitude within a small
+    /// velocity band: a full correction computed with a matrix from outside the band jumps across
+    /// it, and the iteration oscillates from one side to the other (docs/contacts.md §4, "Newton
+    /// across the stiction band"). Default 1 (the full correction).
+    ///
+    /// - `t`: time, s; `q`: dim `nq`; `v`: dim `nv`; `dv`: dim `nv`.
+    fn newton_update_fraction(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        dv: &DVector<f64>,
+    ) -> Result<f64, SystemError> {
+        let _ = (t, q, v, dv);
+        Ok(1.0)
+    }
+
     /// The acceleration-level right-hand side `Φ_q q̈ = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt`, used once for
     /// the consistent initial acceleration and multipliers.
     ///

@@ -409,6 +409,27 @@ impl DaeSystem for RobotSystem {
         Ok(())
     }
 
+    /// Contacts with friction, while one touches (docs/contacts.md §4, "Newton across the
+    /// stiction band").
+    fn limits_newton_updates(&self) -> bool {
+        self.effects.limits_newton_updates()
+    }
+
+    fn newton_update_fraction(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        dv: &DVector<f64>,
+    ) -> Result<f64, SystemError> {
+        Ok(self.effects.newton_update_fraction(
+            &self.model,
+            q.as_slice(),
+            v.as_slice(),
+            dv.as_slice(),
+        ))
+    }
+
     /// How much deeper the deepest contact got over the sub-step, over `[scene.contact]
     /// max_penetration` (adaptive step only; 0 otherwise). Growth, not depth: a contact resting
     /// deep under a heavy load is not a reason to shorten steps, a fast touch-down is.
