@@ -27,6 +27,45 @@ pub const CHECK_RUNS_FRACTION: f64 = 0.1;
 /// output's largest envelope width is reported as not trustworthy (stderr and summary).
 pub const TRUST_RELATIVE_MISFIT: f64 = 0.05;
 
+/// A misfit counts against a surrogate only above this multiple of the output's resolution
+/// ([`output_resolution`]): 1, so a misfit smaller than what the integrator may be off by within one
+/// step is not taken as evidence (docs/method.md §7, "The resolution floor").
+pub const TRUST_RESOLUTION_FACTOR: f64 = 1.0;
+
+/// How finely the true model resolves an output, in its unit, or `None` where no floor is known.
+///
+/// For position-like outputs (joint positions, link frame positions, a floating base's position and
+/// rotation vector; m or rad) the integrator's own tolerance on positions: the Newton test's
+/// `abstol_position + reltol · magnitude` (`magnitude` the output's largest `|value|`; an upper
+/// estimate of the per-coordinate weights, which use `|q|` of prismatic and translational
+/// coordinates only), and with the adaptive step also its local error tolerance per step, which
+/// decides where sub-steps fall and so moves trajectories by up to that much between neighbouring
+/// parameter points. Velocities, accelerations, forces and multipliers get no floor: their
+/// resolution depends on the step and on stiffnesses, and a missing floor errs on the loud side.
+pub fn output_resolution(
+    kind: &crate::scene::OutputKind,
+    magnitude: f64,
+    settings: &crate::integrate::HhtSettings,
+) -> Option<f64> {
+    use crate::scene::OutputKind;
+    match kind {
+        OutputKind::Position { .. }
+        | OutputKind::FramePosition { .. }
+        | OutputKind::BasePosition { .. }
+        | OutputKind::BaseRotation { .. } => {
+            let newton = settings.abstol_position + settings.reltol * magnitude.abs();
+            Some(match settings.step_control {
+                crate::integrate::StepControl::Adaptive => newton.max(settings.tolerance),
+                crate::integrate::StepControl::Fixed => newton,
+            })
+        }
+        OutputKind::Velocity { .. }
+        | OutputKind::Acceleration { .. }
+        | OutputKind::ContactNormalForce { .. }
+        | OutputKind::Multiplier { .. } => None,
+    }
+}
+
 /// The automatic number of check runs for a design of `design_runs` runs.
 pub fn automatic_check_runs(design_runs: usize) -> usize {
     MIN_CHECK_RUNS.max((CHECK_RUNS_FRACTION * design_runs as f64).ceil() as usize)
@@ -195,6 +234,33 @@ impl CheckCandidates {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn positions_are_resolved_to_the_integrators_tolerance_and_forces_are_not() {
+        use crate::integrate::{HhtSettings, StepControl};
+        use crate::scene::OutputKind;
+        let fixed = HhtSettings::default();
+        let position = OutputKind::FramePosition { link: 0, axis: 1 };
+        let expected = fixed.abstol_position + fixed.reltol * 2.0;
+        assert_eq!(output_resolution(&position, -2.0, &fixed), Some(expected));
+        let adaptive = HhtSettings {
+            step_control: StepControl::Adaptive,
+            ..HhtSettings::default()
+        };
+        // The adaptive step's per-step tolerance (1e-5) dominates the Newton test's at 2 m.
+        assert_eq!(
+            output_resolution(&position, 2.0, &adaptive),
+            Some(adaptive.tolerance)
+        );
+        for kind in [
+            OutputKind::Velocity { v_index: 0 },
+            OutputKind::Acceleration { v_index: 0 },
+            OutputKind::ContactNormalForce { pair: 0 },
+            OutputKind::Multiplier { row: 0, sign: -1.0 },
+        ] {
+            assert_eq!(output_resolution(&kind, 1.0, &fixed), None, "{kind:?}");
+        }
+    }
 
     #[test]
     fn nearby_points_are_one_candidate_and_far_ones_are_two() {

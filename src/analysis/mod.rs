@@ -37,8 +37,9 @@ pub use auto::{
 };
 pub use bounds::{BoundedBlock, EnvelopePoint, Extremes, DESIGN_STARTS_PER_SIDE};
 pub use check::{
-    automatic_check_runs, CheckCandidates, CheckPlan, Side, CHECK_POINT_TOLERANCE,
-    CHECK_RUNS_FRACTION, MIN_CHECK_RUNS, TRUST_RELATIVE_MISFIT,
+    automatic_check_runs, output_resolution, CheckCandidates, CheckPlan, Side,
+    CHECK_POINT_TOLERANCE, CHECK_RUNS_FRACTION, MIN_CHECK_RUNS, TRUST_RELATIVE_MISFIT,
+    TRUST_RESOLUTION_FACTOR,
 };
 pub use engine::{BlockOutcome, LockStep, RecordSource, SampleFailure};
 pub use lyapunov::{

@@ -18,7 +18,10 @@ use super::auto::{
     ADAPTIVE_VALUE_BUDGET,
 };
 use super::bounds::{Bounder, EnvelopePoint};
-use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side, TRUST_RELATIVE_MISFIT};
+use super::check::{
+    automatic_check_runs, output_resolution, CheckCandidates, CheckPlan, Side,
+    TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
+};
 use super::engine::{BlockOutcome, LockStep, RecordSource, SampleFailure};
 use super::lyapunov::{estimate_lyapunov, LyapunovEstimate};
 use super::plan::{Plan, MAX_RUNS};
@@ -197,9 +200,16 @@ pub struct CheckReport {
     pub max_misfit: Vec<f64>,
     /// Per output: `max_misfit` over the output's largest envelope width (0 where the width is 0).
     pub relative_misfit: Vec<f64>,
-    /// Outputs whose relative misfit exceeds [`TRUST_RELATIVE_MISFIT`]: their surrogate cannot be
-    /// trusted (the envelope still contains every true run).
+    /// Outputs whose relative misfit exceeds [`TRUST_RELATIVE_MISFIT`] and whose misfit exceeds
+    /// [`TRUST_RESOLUTION_FACTOR`] times their resolution: their surrogate cannot be trusted (the
+    /// envelope still contains every true run).
     pub untrusted_outputs: Vec<usize>,
+    /// Per output: how finely the true model resolves it ([`output_resolution`]; `None`: no floor).
+    pub resolution: Vec<Option<f64>>,
+    /// Outputs whose relative misfit exceeds [`TRUST_RELATIVE_MISFIT`] but whose misfit is within
+    /// their resolution: envelopes at the integrator's noise level (a planar robot's out-of-plane
+    /// coordinate), not a failed surrogate.
+    pub below_resolution_outputs: Vec<usize>,
     /// Whether the check ran over the whole horizon (false when interrupted).
     pub complete: bool,
     /// Every checked prediction: `(output, record, true value)` at the record time where the
@@ -1140,21 +1150,33 @@ impl Study<'_> {
         let mut max_misfit = vec![0.0; n_outputs];
         let mut relative_misfit = vec![0.0; n_outputs];
         let mut untrusted_outputs = Vec::new();
+        let mut below_resolution_outputs = Vec::new();
+        let settings = hht_settings(self.scene);
+        let mut resolution = Vec::with_capacity(n_outputs);
         for o in 0..n_outputs {
             max_misfit[o] = misfit[o].iter().copied().fold(0.0, f64::max);
-            let width = (0..n_records)
-                .map(|r| {
-                    let p = accumulator.points[r * n_outputs + o];
-                    p.upper - p.lower
-                })
-                .fold(0.0, f64::max);
+            let (width, magnitude) = (0..n_records)
+                .map(|r| accumulator.points[r * n_outputs + o])
+                .fold((0.0_f64, 0.0_f64), |(width, magnitude), p| {
+                    (
+                        width.max(p.upper - p.lower),
+                        magnitude.max(p.lower.abs()).max(p.upper.abs()),
+                    )
+                });
             relative_misfit[o] = if width > 0.0 {
                 max_misfit[o] / width
             } else {
                 0.0
             };
+            let floor = output_resolution(&self.scene.outputs[o].kind, magnitude, &settings);
+            resolution.push(floor);
             if relative_misfit[o] > TRUST_RELATIVE_MISFIT {
-                untrusted_outputs.push(o);
+                match floor {
+                    Some(floor) if max_misfit[o] <= TRUST_RESOLUTION_FACTOR * floor => {
+                        below_resolution_outputs.push(o)
+                    }
+                    _ => untrusted_outputs.push(o),
+                }
             }
             for (r, &m) in misfit[o].iter().enumerate() {
                 let point = &mut accumulator.points[r * n_outputs + o];
@@ -1170,6 +1192,8 @@ impl Study<'_> {
             max_misfit,
             relative_misfit,
             untrusted_outputs,
+            resolution,
+            below_resolution_outputs,
             complete,
             checked,
         })

@@ -12,7 +12,7 @@ use crate::analysis::{
     has_sobol_indices, sobol_values_per_record, CheckReport, DesignKind, Method, Progress,
     RecordSchedule, SimulateHere, StageRecords, Study, StudyOptions, StudyPlan, StudyReport,
     ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TABLE_SOBOL_CONTRIBUTORS,
-    TRUST_RELATIVE_MISFIT,
+    TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
 use crate::distributed::{PlanFile, ShardError, ShardStages};
 use crate::dynamics::Data;
@@ -744,21 +744,49 @@ fn check_json(report: &StudyReport, check: &CheckReport, dim: usize) -> serde_js
         "trusted": check.untrusted_outputs.is_empty(),
         "untrusted_outputs": check.untrusted_outputs.iter().map(|&o| outputs[o].name.clone()).collect::<Vec<_>>(),
         "trust_relative_misfit": TRUST_RELATIVE_MISFIT,
+        "trust_resolution_factor": TRUST_RESOLUTION_FACTOR,
+        "below_resolution_outputs": check.below_resolution_outputs.iter().map(|&o| outputs[o].name.clone()).collect::<Vec<_>>(),
         "points_xi": check.points.chunks(dim.max(1)).collect::<Vec<_>>(),
         "outputs": outputs.iter().enumerate().map(|(o, output)| serde_json::json!({
             "name": output.name,
             "max_misfit": check.max_misfit[o],
             "relative_misfit": check.relative_misfit[o],
+            "resolution": check.resolution[o],
         })).collect::<Vec<_>>(),
     })
 }
 
-/// Says loudly which outputs' surrogates missed the true model at their predicted extremes.
+/// Says loudly which outputs' surrogates missed the true model at their predicted extremes, and
+/// notes the outputs whose misfit, large against their width, is within the integrator's
+/// resolution.
 fn warn_untrusted(report: &StudyReport, check: &CheckReport) {
+    let outputs = &report.envelope.outputs;
+    if !check.below_resolution_outputs.is_empty() {
+        let listed: Vec<String> = check
+            .below_resolution_outputs
+            .iter()
+            .take(5)
+            .map(|&o| {
+                format!(
+                    "{} ({:.1e} {unit} ≤ {:.1e} {unit})",
+                    outputs[o].name,
+                    check.max_misfit[o],
+                    check.resolution[o].unwrap_or(f64::NAN),
+                    unit = outputs[o].unit
+                )
+            })
+            .collect();
+        eprintln!(
+            "note: {} output(s) miss by more than {:.0} % of their envelope width but by less than the integrator's resolution, so their envelopes are numerical noise, not a failed surrogate (docs/method.md §7): {}{}",
+            check.below_resolution_outputs.len(),
+            100.0 * TRUST_RELATIVE_MISFIT,
+            listed.join(", "),
+            if check.below_resolution_outputs.len() > 5 { ", …" } else { "" },
+        );
+    }
     if check.untrusted_outputs.is_empty() {
         return;
     }
-    let outputs = &report.envelope.outputs;
     let mut worst: Vec<usize> = check.untrusted_outputs.clone();
     worst.sort_by(|&a, &b| check.relative_misfit[b].total_cmp(&check.relative_misfit[a]));
     let listed: Vec<String> = worst
@@ -841,11 +869,26 @@ fn table(
         report.design,
         report.runs,
         report.check.as_ref().map_or(String::new(), |c| {
-            let worst = c.relative_misfit.iter().copied().fold(0.0, f64::max);
+            // Outputs within the integrator's resolution are noise, not the surrogate's misfit.
+            let worst = c
+                .relative_misfit
+                .iter()
+                .enumerate()
+                .filter(|(o, _)| !c.below_resolution_outputs.contains(o))
+                .map(|(_, &m)| m)
+                .fold(0.0, f64::max);
             format!(
-                " ({} of them checking the surrogate's extremes: largest misfit {:.2e} of the width{})",
+                " ({} of them checking the surrogate's extremes: largest misfit {:.2e} of the width{}{})",
                 c.runs,
                 worst,
+                if c.below_resolution_outputs.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        " outside {} output(s) within the integrator's resolution",
+                        c.below_resolution_outputs.len()
+                    )
+                },
                 if c.untrusted_outputs.is_empty() { "" } else { ", NOT TRUSTED" }
             )
         }),
