@@ -401,6 +401,20 @@ fn models_of_different_trees_are_refused_with_the_joint_named() {
         BatchModel::<4>::from_models(&[]).unwrap_err(),
         BatchError::Empty
     );
+    let mut q = BatchVectors::<4>::zeros(ur5.nq, 2);
+    let error = q.set_sample(1, &[0.0; 3]).unwrap_err();
+    assert_eq!(
+        error,
+        BatchError::WrongLength {
+            sample: 1,
+            expected: ur5.nq,
+            got: 3
+        }
+    );
+    assert!(
+        error.to_string().contains("has 3 entries, expected 6"),
+        "{error}"
+    );
 }
 
 /// One random link: parent index (mod its position), joint type, joint origin (xyz rpy), axis,

@@ -22,6 +22,18 @@ pub enum BatchError {
         /// What differs (`"the number of joints"`, `"joint 'j2' (type or parent)"`, …).
         what: String,
     },
+    /// A sample's vector of the wrong length.
+    #[error(
+        "sample {sample}'s vector has {got} entries, expected {expected} (one per coordinate)"
+    )]
+    WrongLength {
+        /// The sample written.
+        sample: usize,
+        /// The batch vectors' length.
+        expected: usize,
+        /// The length given.
+        got: usize,
+    },
     /// A lane index outside the batch.
     #[error("sample {sample} is outside a batch of {size} samples")]
     NoSuchSample {

@@ -26,7 +26,7 @@ impl<const W: usize> BatchVectors<W> {
         }
     }
 
-    /// Writes sample `sample`'s vector (`values: dim self.dim`).
+    /// Writes sample `sample`'s vector (`values: dim self.dim`; another length is an error).
     pub fn set_sample(&mut self, sample: usize, values: &[f64]) -> Result<(), BatchError> {
         if sample >= self.size {
             return Err(BatchError::NoSuchSample {
@@ -34,8 +34,15 @@ impl<const W: usize> BatchVectors<W> {
                 size: self.size,
             });
         }
+        if values.len() != self.dim {
+            return Err(BatchError::WrongLength {
+                sample,
+                expected: self.dim,
+                got: values.len(),
+            });
+        }
         let (chunk, lane) = (sample / W, sample % W);
-        for (k, value) in values.iter().take(self.dim).enumerate() {
+        for (k, value) in values.iter().enumerate() {
             self.chunks[chunk * self.dim + k].0[lane] = *value;
         }
         Ok(())
