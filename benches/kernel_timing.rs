@@ -3,9 +3,20 @@
 //! a_i = −0.4 + 0.15 i, τ_i = 1.0 − 0.3 i), the minimum over RUNS of the mean of CALLS calls, one JSON
 //! line on stdout. `benches/pinocchio_cpp.py` runs the two programs alternately and reports ratios.
 //!
-//! Usage: `cargo bench --bench kernel_timing -- URDF [CALLS] [RUNS] [KERNEL]`; with KERNEL (`crba`,
-//! `rnea`, `forward_dynamics`) only that kernel runs and the others print −1 (for instruction counts).
+//! Also the batched kernels (`ribbon::dynamics::batch`, 4 lanes, the best instruction set the CPU
+//! has): `batch_crba` and `batch_rnea` are **µs per sample** — CALLS / BATCH calls of a batch of BATCH
+//! samples (masses 1 % apart, states shifted by 0.01 per sample: `support/batch_samples.rs`), the
+//! mean time of one call divided by BATCH, minimum over RUNS.
+//!
+//! Usage: `cargo bench --bench kernel_timing -- URDF [CALLS] [RUNS] [KERNEL] [BATCH]` (BATCH
+//! defaults to 32); with KERNEL (`crba`, `rnea`, `forward_dynamics`, `batch_crba`, `batch_rnea`;
+//! `all` for every kernel, so that BATCH can follow) only that kernel runs and the others print −1 (for instruction counts: a batched kernel then
+//! runs `CALLS / BATCH` calls, rounded down, at least one).
 
+#[path = "support/batch_samples.rs"]
+mod batch_samples;
+
+use ribbon::dynamics::batch::{self, BatchData, Isa, LANES};
 use ribbon::dynamics::{crba, forward_dynamics, rnea, Data};
 use ribbon::model::{LoadOptions, Model};
 use std::hint::black_box;
@@ -64,12 +75,15 @@ fn main() {
         .filter(|a| !a.starts_with("--"))
         .collect();
     let Some(urdf) = args.first() else {
-        eprintln!("usage: cargo bench --bench kernel_timing -- URDF [CALLS] [RUNS] [KERNEL]");
+        eprintln!(
+            "usage: cargo bench --bench kernel_timing -- URDF [CALLS] [RUNS] [KERNEL] [BATCH]"
+        );
         std::process::exit(2);
     };
     let calls: u64 = count_argument(args.get(1), "CALLS", 200_000);
     let runs: u32 = count_argument(args.get(2), "RUNS", 7);
-    let only = args.get(3).map(String::as_str);
+    let only = args.get(3).map(String::as_str).filter(|k| *k != "all");
+    let batch_size: usize = count_argument(args.get(4), "BATCH", 32);
     let model = match Model::from_urdf_file(&PathBuf::from(urdf), LoadOptions::default()) {
         Ok(model) => model,
         Err(error) => {
@@ -123,8 +137,40 @@ fn main() {
         calls,
         runs,
     );
+    let (batch_model, bq, bv, ba) = batch_samples::batch::<LANES>(&model, batch_size);
+    let mut batch_data = BatchData::new(&batch_model);
+    let batch_calls = (calls / batch_size as u64).max(1);
+    let per_sample = |us: f64| if us < 0.0 { us } else { us / batch_size as f64 };
+    let batch_crba_us = per_sample(best_mean_us(
+        "batch_crba",
+        only,
+        || {
+            batch::crba(&batch_model, &mut batch_data, black_box(&bq));
+            black_box(&batch_data.mass_matrix);
+        },
+        batch_calls,
+        runs,
+    ));
+    let batch_rnea_us = per_sample(best_mean_us(
+        "batch_rnea",
+        only,
+        || {
+            batch::rnea(
+                &batch_model,
+                &mut batch_data,
+                black_box(&bq),
+                black_box(&bv),
+                black_box(&ba),
+            );
+            black_box(&batch_data.tau);
+        },
+        batch_calls,
+        runs,
+    ));
     println!(
-        "{{\"nq\": {}, \"nv\": {}, \"calls_per_run\": {calls}, \"runs\": {runs}, \"us\": {{\"crba\": {crba_us:.5}, \"rnea\": {rnea_us:.5}, \"forward_dynamics\": {forward_us:.5}}}}}",
-        model.nq, model.nv
+        "{{\"nq\": {}, \"nv\": {}, \"calls_per_run\": {calls}, \"runs\": {runs}, \"batch\": {batch_size}, \"batch_calls_per_run\": {batch_calls}, \"lanes\": {LANES}, \"isa\": \"{}\", \"us\": {{\"crba\": {crba_us:.5}, \"rnea\": {rnea_us:.5}, \"forward_dynamics\": {forward_us:.5}, \"batch_crba\": {batch_crba_us:.5}, \"batch_rnea\": {batch_rnea_us:.5}}}}}",
+        model.nq,
+        model.nv,
+        Isa::best().name()
     );
 }

@@ -3,7 +3,7 @@
 
 Usage (from the crate root, with the reference venv that `cargo test --release` creates):
 
-    target/reference-venv/bin/python benches/pinocchio_cpp.py [--rounds R] [--calls N] [--callgrind]
+    target/reference-venv/bin/python benches/pinocchio_cpp.py [--rounds R] [--calls N] [--batch B] [--callgrind]
 
 What it does:
 1. Builds `benches/pinocchio_cpp/timing.cpp` twice against the C++ headers and shared libraries that
@@ -22,6 +22,13 @@ What it does:
    runs of 3000 and 1000 calls divided by 2000 (setup and URDF parsing cancel). Instruction counts do
    not depend on what else the machine is doing; they are not time (an instruction of a dependent
    chain and one of a vector loop cost differently), so both are reported.
+
+5. Batched kernels (`ribbon::dynamics::batch`, docs/batch.md): `kernel_timing` also times ribbon's
+   CRBA and RNEA over a batch of B samples (default 32; masses 1 % apart, states shifted per
+   sample) and reports **µs per sample**; rows `batch_crba` and `batch_rnea` divide that by
+   Pinocchio's time **per call** (one sample), the issue's "≤ 0.5× Pinocchio C++ per sample in a
+   batch". With `--callgrind` their instructions are per sample: (I(3000 samples) − I(1000
+   samples)) over the samples of the whole batch calls between them.
 
 Prints a JSON document on stdout and a Markdown table on stderr.
 """
@@ -95,15 +102,15 @@ def robots(prefix):
             ("erd-panda", os.path.join(share, "panda_description", "urdf", "panda.urdf"))]
 
 
-def run_json(program, urdf, calls, runs, kernel=None):
-    args = [program, urdf, str(calls), str(runs)] + ([kernel] if kernel else [])
+def run_json(program, urdf, calls, runs, extra=()):
+    args = [program, urdf, str(calls), str(runs)] + list(extra)
     return json.loads(subprocess.run(args, check=True, capture_output=True, text=True).stdout)
 
 
-def instructions(program, urdf, calls, kernel):
+def instructions(program, urdf, calls, kernel, extra=()):
     result = subprocess.run(
         ["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", program, urdf,
-         str(calls), "1", kernel], check=True, capture_output=True, text=True)
+         str(calls), "1", kernel] + list(extra), check=True, capture_output=True, text=True)
     found = re.search(r"Collected\s*:\s*(\d+)", result.stderr)
     if not found:
         sys.exit(f"pinocchio_cpp.py: no instruction count from callgrind for {program}")
@@ -114,23 +121,41 @@ def per_call_instructions(program, urdf, kernel):
     return (instructions(program, urdf, 3000, kernel) - instructions(program, urdf, 1000, kernel)) / 2000
 
 
+def per_sample_instructions(program, urdf, kernel, batch):
+    """A batched kernel's instructions per sample: `kernel_timing` runs CALLS // batch batch calls."""
+    many, few = 3000, 1000
+    samples = (max(many // batch, 1) - max(few // batch, 1)) * batch
+    if samples <= 0:
+        sys.exit(f"pinocchio_cpp.py: --batch {batch} is too large for the callgrind counts "
+                 f"({many} and {few} samples); use at most {few // 2}")
+    return (instructions(program, urdf, many, kernel, [str(batch)]) -
+            instructions(program, urdf, few, kernel, [str(batch)])) / samples
+
+
 # ribbon kernel -> the Pinocchio kernels it is compared with (the fastest one counts).
 PAIRS = {"crba": ["crba_world", "crba_local"], "rnea": ["rnea"],
-         "forward_dynamics": ["aba_world", "aba_local"]}
+         "forward_dynamics": ["aba_world", "aba_local"],
+         # ribbon's per-sample time in a batch against Pinocchio's per call.
+         "batch_crba": ["crba_world", "crba_local"], "batch_rnea": ["rnea"]}
+BATCHED = {"batch_crba", "batch_rnea"}
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--calls", type=int, default=100000)
+    parser.add_argument("--batch", type=int, default=32,
+                        help="samples per call of ribbon's batched kernels (default 32)")
     parser.add_argument("--callgrind", action="store_true")
     options = parser.parse_args()
     prefix = cmeel_prefix()
     programs = {"ribbon": build_ribbon(), **build_pinocchio(prefix)}
     with open("/proc/loadavg") as handle:
         load_before = handle.read().split()[0]
+    if options.batch < 1:
+        sys.exit(f"pinocchio_cpp.py: --batch must be a positive integer, got {options.batch}")
     report = {"load_before": load_before, "rounds": options.rounds, "calls": options.calls,
-              "robots": []}
+              "batch": options.batch, "robots": []}
     for label, urdf in robots(prefix):
         if not os.path.exists(urdf):
             print(f"{label}: {urdf} not found, skipped", file=sys.stderr)
@@ -140,7 +165,12 @@ def main():
         for round_index in range(options.rounds):
             order = names[round_index % len(names):] + names[:round_index % len(names)]
             for name in order:
-                for kernel, us in run_json(programs[name], urdf, options.calls, 3)["us"].items():
+                extra = ["all", str(options.batch)] if name == "ribbon" else []
+                result = run_json(programs[name], urdf, options.calls, 3, extra)
+                if name == "ribbon":
+                    report["batch_isa"] = result.get("isa")
+                    report["batch_lanes"] = result.get("lanes")
+                for kernel, us in result["us"].items():
                     key = (name, kernel)
                     best[key] = min(best.get(key, float("inf")), us)
         entry = {"robot": label, "urdf": urdf, "us": {f"{n}/{k}": v for (n, k), v in best.items()},
@@ -151,12 +181,18 @@ def main():
         if options.callgrind:
             counts = {}
             for kernel, references in PAIRS.items():
-                counts[f"ribbon/{kernel}"] = per_call_instructions(programs["ribbon"], urdf, kernel)
+                if kernel in BATCHED:
+                    counts[f"ribbon/{kernel}"] = per_sample_instructions(
+                        programs["ribbon"], urdf, kernel, options.batch)
+                else:
+                    counts[f"ribbon/{kernel}"] = per_call_instructions(
+                        programs["ribbon"], urdf, kernel)
                 for name in programs:
                     if name != "ribbon":
                         for reference in references:
-                            counts[f"{name}/{reference}"] = per_call_instructions(
-                                programs[name], urdf, reference)
+                            key = f"{name}/{reference}"
+                            if key not in counts:
+                                counts[key] = per_call_instructions(programs[name], urdf, reference)
             entry["instructions_per_call"] = counts
             entry["instruction_ratio"] = {
                 kernel: counts[f"ribbon/{kernel}"] / min(
@@ -166,6 +202,9 @@ def main():
     with open("/proc/loadavg") as handle:
         report["load_after"] = handle.read().split()[0]
     print(json.dumps(report, indent=1))
+    print(f"batch_* rows: ribbon µs **per sample** in a batch of {options.batch} "
+          f"({report.get('batch_lanes')} lanes, {report.get('batch_isa')}), against Pinocchio per call",
+          file=sys.stderr)
     print("| robot | kernel | ribbon µs | Pinocchio C++ µs (fastest variant) | ratio |"
           + (" instr. ratio |" if options.callgrind else ""), file=sys.stderr)
     print("| --- | --- | --- | --- | --- |" + (" --- |" if options.callgrind else ""), file=sys.stderr)

@@ -14,6 +14,7 @@
 //! in a per-thread [`Data`] allocated once; the hot path allocates nothing. Only rigid-body terms
 //! are computed here: damping, friction, springs and drives are scene effects.
 
+pub mod batch;
 mod cholesky;
 mod crba;
 mod data;

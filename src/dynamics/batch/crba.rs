@@ -1,0 +1,120 @@
+//! Composite-rigid-body algorithm over a batch: [`crate::dynamics::crba`] lane by lane
+//! (Featherstone §6.2; the recursion is in `src/dynamics/crba.rs`).
+
+use super::joint::{project_force, subspace_column};
+use super::kinematics::forward_kinematics_chunks;
+use super::lanes::{
+    cross, mat_vec, v3_neg, v3_scale, ForceLanes, InertiaLanes, Lanes, MotionLanes,
+};
+use super::model::BatchModel;
+use super::state::{BatchData, BatchVectors};
+use super::IsaKind;
+use crate::model::JointKind;
+
+/// Joint-space mass matrix of every sample: `data.mass_matrix` (`nv × nv` column-major per sample,
+/// full, symmetric) `= M(q)`.
+///
+/// `q: dim nq` per sample. Overwrites `data.parent_from_body`, `data.world_from_body`,
+/// `data.composite` and `data.mass_matrix`. Each sample's matrix has the bits of
+/// [`crate::dynamics::crba`] on that sample's model.
+pub fn crba<const W: usize>(model: &BatchModel<W>, data: &mut BatchData<W>, q: &BatchVectors<W>) {
+    match model.isa.kind() {
+        #[cfg(target_arch = "x86_64")]
+        IsaKind::Avx2 => {
+            // SAFETY: an `Isa` of kind `Avx2` exists only after the running CPU reported AVX2
+            // (`Isa::avx2`), which is all `crba_chunks_avx2` requires.
+            unsafe { crba_chunks_avx2(model, data, q) }
+        }
+        _ => crba_chunks(model, data, q),
+    }
+}
+
+#[inline(always)]
+pub(super) fn crba_chunks<const W: usize>(
+    model: &BatchModel<W>,
+    data: &mut BatchData<W>,
+    q: &BatchVectors<W>,
+) {
+    forward_kinematics_chunks(model, data, q);
+    let nb = model.joints.len();
+    let n = model.nv;
+    for (c, values) in model.chunks.iter().enumerate() {
+        let parent_from_body = &data.parent_from_body[c * nb..(c + 1) * nb];
+        let composite = &mut data.composite[c * nb..(c + 1) * nb];
+        composite.copy_from_slice(&values.inertia);
+        for (i, joint) in model.joints.iter().enumerate().rev() {
+            if let Some(p) = joint.parent {
+                let in_parent = parent_from_body[i].act_inertia(&composite[i]);
+                composite[p].add_assign(&in_parent);
+            }
+        }
+        // Column-major storage: entry (row, column) at `row + column · n`.
+        let mass = &mut data.mass_matrix.chunks[c * n * n..(c + 1) * n * n];
+        mass.fill(Lanes::zero());
+        let mut projected = [Lanes::zero(); 6];
+        for (i, joint) in model.joints.iter().enumerate() {
+            let axis = &values.axis[i];
+            for k in 0..joint.nv() {
+                let column = joint.v_index + k;
+                let mut force = apply_to_subspace_column(
+                    &composite[i],
+                    joint.kind,
+                    &subspace_column(joint.kind, axis, k),
+                );
+                project_force(joint.kind, axis, &force, &mut projected);
+                for (kk, value) in projected[..joint.nv()].iter().enumerate() {
+                    mass[joint.v_index + kk + column * n] = *value;
+                }
+                let mut child = i;
+                while let Some(ancestor) = model.joints[child].parent {
+                    force = parent_from_body[child].act_force(&force);
+                    let ancestor_joint = &model.joints[ancestor];
+                    project_force(
+                        ancestor_joint.kind,
+                        &values.axis[ancestor],
+                        &force,
+                        &mut projected,
+                    );
+                    for (kk, value) in projected[..ancestor_joint.nv()].iter().enumerate() {
+                        let row = ancestor_joint.v_index + kk;
+                        mass[row + column * n] = *value;
+                        mass[column + row * n] = *value;
+                    }
+                    child = ancestor;
+                }
+            }
+        }
+    }
+}
+
+/// `I S_k` with the products by the column's known zero half left out, exactly as the scalar CRBA
+/// does (so the same products, in the same order, are computed).
+#[inline(always)]
+fn apply_to_subspace_column<const W: usize>(
+    inertia: &InertiaLanes<W>,
+    kind: JointKind,
+    column: &MotionLanes<W>,
+) -> ForceLanes<W> {
+    match kind {
+        JointKind::Revolute => ForceLanes {
+            linear: v3_neg(&cross(&inertia.first_moment, &column.angular)),
+            angular: mat_vec(&inertia.rotational, &column.angular),
+        },
+        JointKind::Prismatic => ForceLanes {
+            linear: v3_scale(&column.linear, inertia.mass),
+            angular: cross(&inertia.first_moment, &column.linear),
+        },
+        JointKind::Floating => inertia.apply(column),
+    }
+}
+
+/// [`crba_chunks`] compiled with AVX2 enabled (4-wide `f64` lanes; no FMA: docs/batch.md §3).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn crba_chunks_avx2<const W: usize>(
+    model: &BatchModel<W>,
+    data: &mut BatchData<W>,
+    q: &BatchVectors<W>,
+) {
+    crba_chunks(model, data, q)
+}
