@@ -10,7 +10,9 @@
 //! queries ran.
 
 use crate::dynamics::{add_external_forces, drift_kinematics, Data};
-use crate::geometry::{contact_between, ContactMaterial, ContactPoint, GeometryModel, PairTest};
+use crate::geometry::{
+    contact_between, ContactMaterial, ContactPoint, ContactPoints, GeometryModel, PairTest,
+};
 use crate::model::Model;
 use crate::spatial::{Force, Mat3, Vec3};
 use nalgebra::DMatrix;
@@ -178,7 +180,7 @@ impl Contacts {
             q,
             v,
             false,
-            |_, k, contact, force| normal_forces[k] = force.force.dot(&contact.normal),
+            |_, k, contact, force| normal_forces[k] += force.force.dot(&contact.normal),
         );
         &self.normal_forces
     }
@@ -224,7 +226,7 @@ impl Contacts {
         model: &Model,
         data: &Data,
         k: usize,
-    ) -> Option<ContactPoint> {
+    ) -> Option<ContactPoints> {
         let pair = &geometry.pairs[k];
         stats.pair_tests += 1;
         if geometry.provably_apart(model, &data.world_from_body, pair) {
@@ -244,7 +246,7 @@ impl Contacts {
             stats.narrow_queries += 1;
         }
         match result {
-            PairTest::Touching(contact) => Some(contact),
+            PairTest::Touching(points) => Some(points),
             _ => None,
         }
     }
@@ -268,7 +270,8 @@ impl Contacts {
         external[body] += Force::new(f, in_body.cross(&f));
     }
 
-    /// The active contacts at `(q, v)`: calls `visit(pair, contact, force)` for each touching pair.
+    /// The active contacts at `(q, v)`: calls `visit(pair, contact, force)` for each contact point
+    /// of each touching pair (a pair may give several points, docs/contacts.md §1).
     /// With `from_rnea`, `data` already holds RNEA's `parent_from_body` and body velocities at
     /// `(q, v)` and only the world placements are composed from them (cheap); otherwise a
     /// kinematics pass computes everything.
@@ -297,16 +300,18 @@ impl Contacts {
             drift_kinematics(model, data, q, v);
         }
         for k in 0..geometry.pairs.len() {
-            let Some(contact) = Self::test_pair(geometry, stats, model, data, k) else {
+            let Some(points) = Self::test_pair(geometry, stats, model, data, k) else {
                 continue;
             };
             let pair = geometry.pairs[k];
             let body_a = GeometryModel::body_of(model, pair.a);
             let body_b = GeometryModel::body_of(model, pair.b);
-            let velocity = Self::point_velocity(data, body_a, &contact.point)
-                - Self::point_velocity(data, body_b, &contact.point);
-            let force = contact_force(&material, &contact, &velocity);
-            visit(data, k, &contact, &force);
+            for contact in points.as_slice() {
+                let velocity = Self::point_velocity(data, body_a, &contact.point)
+                    - Self::point_velocity(data, body_b, &contact.point);
+                let force = contact_force(&material, contact, &velocity);
+                visit(data, k, contact, &force);
+            }
         }
     }
 
@@ -459,9 +464,9 @@ impl Contacts {
         crate::dynamics::forward_kinematics(model, data, q);
         let mut deepest = 0.0f64;
         for (k, now) in touching_now.iter_mut().enumerate() {
-            if let Some(contact) = Self::test_pair(geometry, stats, model, data, k) {
+            if let Some(points) = Self::test_pair(geometry, stats, model, data, k) {
                 *now = true;
-                deepest = deepest.max(contact.depth);
+                deepest = deepest.max(points.deepest());
             }
         }
         for (before, after) in touching.iter_mut().zip(touching_now.iter()) {
@@ -485,7 +490,7 @@ impl Contacts {
         } = self;
         (0..geometry.pairs.len())
             .filter_map(|k| Self::test_pair(geometry, stats, model, data, k))
-            .map(|c| c.depth)
+            .map(|points| points.deepest())
             .fold(0.0, f64::max)
     }
 }

@@ -12,7 +12,10 @@ mod query;
 
 pub use mesh::{resolve_mesh_path, CONCAVITY_NOTE_RELATIVE};
 use query::bounding_radius;
-pub use query::{contact_between, supported, ContactPoint, ConvexHull, PairTest};
+pub use query::{
+    contact_between, supported, ContactPoint, ContactPoints, ConvexHull, PairTest,
+    MAX_CONTACT_POINTS,
+};
 use std::sync::Arc;
 
 use crate::model::{CollisionShape, Model};

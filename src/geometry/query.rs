@@ -1,13 +1,16 @@
 //! The one boundary to `parry3d-f64` (docs/contacts.md §1): ribbon's nalgebra transforms become
-//! parry's glam poses here, a cheap bounding-sphere test runs first, and parry's `contact` query
-//! answers the rest. Cylinders: parry's run along local y, URDF's along z, so a URDF cylinder is
+//! parry's glam poses here, a cheap bounding-sphere test runs first, and parry answers the rest:
+//! its `contact` query (one point) when a sphere is involved, its contact manifolds (up to
+//! [`MAX_CONTACT_POINTS`] points) otherwise. Cylinders: parry's run along local y, URDF's along z, so a URDF cylinder is
 //! given to parry with a quarter turn about x; capsules are built along z directly. Mesh hulls
 //! are built here too (parry's `ConvexPolyhedron`), from vertices `mesh.rs` loaded.
 
 use super::{normalized_or, Shape};
 use crate::spatial::{Transform, Vec3};
 use parry3d_f64::math::{Pose, Rotation, Vector};
-use parry3d_f64::query;
+use parry3d_f64::query::{
+    self, ContactManifold, DefaultQueryDispatcher, PersistentQueryDispatcher,
+};
 use parry3d_f64::shape::{Ball, Capsule, ConvexPolyhedron, Cuboid, Cylinder, HalfSpace};
 
 /// The convex hull of a collision mesh's vertices in its shape frame (docs/contacts.md §1,
@@ -79,15 +82,98 @@ pub struct ContactPoint {
     pub depth: f64,
 }
 
+/// Most contact points one shape pair gives (docs/contacts.md §1, "Several points per pair"): a
+/// face clipped against a face has at most eight corners; when parry reports more (a height field
+/// under a large shape: one manifold per triangle), the deepest are kept.
+pub const MAX_CONTACT_POINTS: usize = 8;
+
+/// The contact points of one touching pair (between 1 and [`MAX_CONTACT_POINTS`]), each with its
+/// own normal and depth; no allocation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactPoints {
+    points: [ContactPoint; MAX_CONTACT_POINTS],
+    len: usize,
+}
+
+impl ContactPoints {
+    const UNUSED: ContactPoint = ContactPoint {
+        point: Vec3::new(0.0, 0.0, 0.0),
+        normal: Vec3::new(0.0, 0.0, 1.0),
+        depth: 0.0,
+    };
+
+    /// No point yet.
+    pub fn new() -> Self {
+        Self {
+            points: [Self::UNUSED; MAX_CONTACT_POINTS],
+            len: 0,
+        }
+    }
+
+    /// One point.
+    pub fn one(point: ContactPoint) -> Self {
+        let mut out = Self::new();
+        out.push(point);
+        out
+    }
+
+    /// Adds `point`; when full, it replaces the shallowest point if it is deeper.
+    pub fn push(&mut self, point: ContactPoint) {
+        if self.len < MAX_CONTACT_POINTS {
+            self.points[self.len] = point;
+            self.len += 1;
+            return;
+        }
+        let (shallowest, _) =
+            self.points
+                .iter()
+                .enumerate()
+                .fold((0, f64::INFINITY), |(best, depth), (i, p)| {
+                    if p.depth < depth {
+                        (i, p.depth)
+                    } else {
+                        (best, depth)
+                    }
+                });
+        if point.depth > self.points[shallowest].depth {
+            self.points[shallowest] = point;
+        }
+    }
+
+    /// The points, in parry's order.
+    pub fn as_slice(&self) -> &[ContactPoint] {
+        &self.points[..self.len]
+    }
+
+    /// Whether there is no point.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The largest penetration of the points, m (0 when there is none).
+    pub fn deepest(&self) -> f64 {
+        self.as_slice().iter().map(|p| p.depth).fold(0.0, f64::max)
+    }
+}
+
+impl Default for ContactPoints {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// The result of one pair test.
+// The points are kept inline (a few hundred bytes, returned once per pair test) rather than boxed:
+// a box would allocate at every evaluation of a touching pair.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PairTest {
     /// The bounding spheres (or the sphere and the half-space) are apart: parry was not called.
     Apart,
     /// parry was called and found no penetration.
     Separated,
-    /// parry found a penetration.
-    Touching(ContactPoint),
+    /// parry found a penetration at one or more points.
+    Touching(ContactPoints),
 }
 
 fn to_vector(v: &Vec3) -> Vector {
@@ -160,53 +246,110 @@ pub fn contact_between(
             }
         }
     }
-    // parry 0.31.1 answers (support map, half-space) with a wrong distance (a ball 1e-5 into the
-    // ground gave −0.19999 for radius 0.1) but (half-space, support map) correctly: ask in that
-    // order and swap the answer (tested below).
-    let b_is_half_space = matches!(b, Shape::HalfSpace);
-    let result = with_parry_shape(a, world_from_a, |shape_a, pose_a| {
-        with_parry_shape(b, world_from_b, |shape_b, pose_b| {
-            if b_is_half_space {
-                query::contact(&pose_b, shape_b, &pose_a, shape_a, 0.0)
-            } else {
-                query::contact(&pose_a, shape_a, &pose_b, shape_b, 0.0)
-            }
-        })
-    });
-    match result {
-        Ok(Some(contact)) if contact.dist < 0.0 => {
-            let point1 = to_vec3(contact.point1);
-            let point2 = to_vec3(contact.point2);
-            // parry's normal1 points from its first shape toward the second; the force on a
-            // pushes a away from b.
-            let normal = if b_is_half_space {
-                normalized_or(to_vec3(contact.normal1), Vec3::z())
-            } else {
-                normalized_or(-to_vec3(contact.normal1), Vec3::z())
-            };
-            PairTest::Touching(ContactPoint {
-                point: 0.5 * (point1 + point2),
-                normal,
-                depth: -contact.dist,
-            })
-        }
+    match narrow_phase(a, world_from_a, b, world_from_b) {
+        Ok(points) if !points.is_empty() => PairTest::Touching(points),
         _ => PairTest::Separated,
     }
+}
+
+/// Whether a pair takes parry's one-point `contact` query: a sphere against anything its query
+/// supports. A sphere touches a convex shape at one point, so a manifold would only cost more; this
+/// keeps every sphere contact exactly what it was before manifolds (docs/contacts.md §1).
+fn single_point_pair(a: &Shape, b: &Shape) -> bool {
+    matches!(a, Shape::Sphere { .. }) || matches!(b, Shape::Sphere { .. })
+}
+
+/// parry's answer for `a` at `world_from_a` against `b` at `world_from_b`: the penetrating points,
+/// or `Err` when parry has no query for the two kinds of shape.
+fn narrow_phase(
+    a: &Shape,
+    world_from_a: &Transform,
+    b: &Shape,
+    world_from_b: &Transform,
+) -> Result<ContactPoints, query::Unsupported> {
+    // parry 0.31.1 answers `contact(support map, half-space)` with a wrong distance (a ball 1e-5
+    // into the ground gave −0.19999 for radius 0.1) but (half-space, support map) correctly: ask
+    // with the half-space first, in both queries, and turn the answer around (tested below).
+    let b_first = matches!(b, Shape::HalfSpace);
+    let single = single_point_pair(a, b);
+    with_parry_shape(a, world_from_a, |shape_a, pose_a| {
+        with_parry_shape(b, world_from_b, |shape_b, pose_b| {
+            let (shape1, pose1, shape2, pose2) = if b_first {
+                (shape_b, pose_b, shape_a, pose_a)
+            } else {
+                (shape_a, pose_a, shape_b, pose_b)
+            };
+            // parry's normals point from its first shape toward the second; the force on `a`
+            // pushes `a` away from `b`.
+            let toward_a = |normal1: Vector| {
+                let n = normalized_or(to_vec3(normal1), Vec3::z());
+                if b_first {
+                    n
+                } else {
+                    -n
+                }
+            };
+            let mut points = ContactPoints::new();
+            if single {
+                if let Some(contact) = query::contact(&pose1, shape1, &pose2, shape2, 0.0)? {
+                    if contact.dist < 0.0 {
+                        points.push(ContactPoint {
+                            point: 0.5 * (to_vec3(contact.point1) + to_vec3(contact.point2)),
+                            normal: toward_a(contact.normal1),
+                            depth: -contact.dist,
+                        });
+                    }
+                }
+                return Ok(points);
+            }
+            // A fresh manifold list and workspace at every query: parry's persistent manifolds
+            // would carry state from one evaluation to the next (and from one sample to another
+            // on a study's thread); fresh ones make the answer a function of the placements only.
+            let pos12 = pose1.inv_mul(&pose2);
+            let mut manifolds: Vec<ContactManifold<(), ()>> = Vec::new();
+            let mut workspace = None;
+            DefaultQueryDispatcher.contact_manifolds(
+                &pos12,
+                shape1,
+                shape2,
+                0.0,
+                &mut manifolds,
+                &mut workspace,
+            )?;
+            for manifold in &manifolds {
+                let sub1 = manifold.subshape_pos1().copied();
+                let sub2 = manifold.subshape_pos2().copied();
+                let frame1 = match sub1 {
+                    Some(sub) => pose1 * sub,
+                    None => pose1,
+                };
+                let frame2 = match sub2 {
+                    Some(sub) => pose2 * sub,
+                    None => pose2,
+                };
+                let normal = toward_a(frame1.rotation * manifold.local_n1);
+                for contact in &manifold.points {
+                    if contact.dist < 0.0 {
+                        let point1 = to_vec3(frame1 * contact.local_p1);
+                        let point2 = to_vec3(frame2 * contact.local_p2);
+                        points.push(ContactPoint {
+                            point: 0.5 * (point1 + point2),
+                            normal,
+                            depth: -contact.dist,
+                        });
+                    }
+                }
+            }
+            Ok(points)
+        })
+    })
 }
 
 /// Whether parry computes contacts between shapes of these two kinds (probed once per pair when a
 /// scene is resolved, so that an unsupported pair is refused instead of never touching).
 pub fn supported(a: &Shape, b: &Shape) -> bool {
     let at = Transform::identity();
-    with_parry_shape(a, &at, |shape_a, pose_a| {
-        with_parry_shape(b, &at, |shape_b, pose_b| {
-            if matches!(b, Shape::HalfSpace) {
-                query::contact(&pose_b, shape_b, &pose_a, shape_a, 1.0).is_ok()
-            } else {
-                query::contact(&pose_a, shape_a, &pose_b, shape_b, 1.0).is_ok()
-            }
-        })
-    })
+    narrow_phase(a, &at, b, &at).is_ok()
 }
 
 /// Calls `f` with parry's shape and pose for `shape` placed at `world_from_shape`.
@@ -261,11 +404,14 @@ mod tests {
             (ground_box, at(0.0, 0.0, -0.5)),
             (Shape::HalfSpace, at(0.0, 0.0, 0.0)),
         ] {
-            let PairTest::Touching(c) =
+            let PairTest::Touching(points) =
                 contact_between(&ball, &at(1.0, 2.0, 0.09), &ground, &placement)
             else {
                 panic!("no contact with {ground:?}");
             };
+            // A sphere touches at one point.
+            assert_eq!(points.as_slice().len(), 1, "{points:?}");
+            let c = points.as_slice()[0];
             assert!((c.depth - 0.01).abs() < 1e-12, "{c:?}");
             assert!((c.normal - Vec3::z()).norm() < 1e-12, "{c:?}");
             assert!(
@@ -304,7 +450,7 @@ mod tests {
             for b in shapes.iter().chain([&Shape::HalfSpace]) {
                 assert!(supported(a, b), "{a:?} against {b:?}");
             }
-            let PairTest::Touching(c) = contact_between(
+            let PairTest::Touching(points) = contact_between(
                 a,
                 &at(0.0, 0.0, 0.05),
                 &Shape::Box {
@@ -314,7 +460,9 @@ mod tests {
             ) else {
                 panic!("{a:?} 5 cm above a ground box's top must touch it");
             };
-            assert!((c.normal - Vec3::z()).norm() < 1e-6, "{a:?}: {c:?}");
+            for c in points.as_slice() {
+                assert!((c.normal - Vec3::z()).norm() < 1e-6, "{a:?}: {c:?}");
+            }
         }
     }
 
@@ -325,7 +473,7 @@ mod tests {
             radius: 0.05,
             half_length: 0.2,
         };
-        let PairTest::Touching(c) = contact_between(
+        let PairTest::Touching(points) = contact_between(
             &cylinder,
             &at(0.0, 0.0, 0.19),
             &Shape::HalfSpace,
@@ -333,12 +481,18 @@ mod tests {
         ) else {
             panic!("a standing cylinder 0.19 above the ground must touch it");
         };
-        assert!((c.depth - 0.01).abs() < 1e-9, "{c:?}");
+        // Its bottom face touches: several points, each 1 cm deep on the rim.
+        assert!(points.as_slice().len() >= 3, "{points:?}");
+        for c in points.as_slice() {
+            assert!((c.depth - 0.01).abs() < 1e-9, "{c:?}");
+            assert!((c.point.z + 0.005).abs() < 1e-9, "{c:?}");
+            assert!(((c.point.x.powi(2) + c.point.y.powi(2)).sqrt() - 0.05).abs() < 1e-9);
+        }
         let capsule = Shape::Capsule {
             radius: 0.05,
             half_length: 0.2,
         };
-        let PairTest::Touching(c) = contact_between(
+        let PairTest::Touching(points) = contact_between(
             &capsule,
             &at(0.0, 0.0, 0.24),
             &Shape::HalfSpace,
@@ -346,6 +500,64 @@ mod tests {
         ) else {
             panic!("a standing capsule 0.24 above the ground must touch it");
         };
-        assert!((c.depth - 0.01).abs() < 1e-9, "{c:?}");
+        assert_eq!(points.as_slice().len(), 1, "{points:?}");
+        assert!((points.deepest() - 0.01).abs() < 1e-9, "{points:?}");
+    }
+
+    /// A box lying flat on a half-space or on a ground box touches at its four bottom corners, each
+    /// as deep as the box sinks; tilted about x it touches along one edge (two corners), deeper on
+    /// the lower side only.
+    #[test]
+    fn a_flat_box_touches_at_its_four_corners() {
+        let small = Shape::Box {
+            half_extents: [0.1, 0.2, 0.05],
+        };
+        let ground_box = Shape::Box {
+            half_extents: [10.0, 10.0, 0.5],
+        };
+        for (ground, placement) in [
+            (Shape::HalfSpace, at(0.0, 0.0, 0.0)),
+            (ground_box, at(0.0, 0.0, -0.5)),
+        ] {
+            let PairTest::Touching(points) =
+                contact_between(&small, &at(1.0, 2.0, 0.049), &ground, &placement)
+            else {
+                panic!("the box must touch {ground:?}");
+            };
+            let mut corners: Vec<(f64, f64)> = points
+                .as_slice()
+                .iter()
+                .map(|c| {
+                    assert!((c.depth - 0.001).abs() < 1e-12, "{ground:?}: {c:?}");
+                    assert!((c.normal - Vec3::z()).norm() < 1e-12, "{ground:?}: {c:?}");
+                    assert!((c.point.z + 0.0005).abs() < 1e-12, "{ground:?}: {c:?}");
+                    (c.point.x, c.point.y)
+                })
+                .collect();
+            corners.sort_by(|p, q| p.partial_cmp(q).expect("finite"));
+            let expected = [(0.9, 1.8), (0.9, 2.2), (1.1, 1.8), (1.1, 2.2)];
+            assert_eq!(corners.len(), 4, "{ground:?}: {points:?}");
+            for (c, e) in corners.iter().zip(expected) {
+                assert!(
+                    (c.0 - e.0).abs() < 1e-12 && (c.1 - e.1).abs() < 1e-12,
+                    "{corners:?}"
+                );
+            }
+        }
+        // Tilted by 0.01 rad about x: the corners at y = −0.2 sink 2 mm more than the centre.
+        let tilted = Transform::new(
+            crate::spatial::rotation_about_axis(&Vec3::x(), 0.01),
+            Vec3::new(0.0, 0.0, 0.05),
+        );
+        let PairTest::Touching(points) =
+            contact_between(&small, &tilted, &Shape::HalfSpace, &at(0.0, 0.0, 0.0))
+        else {
+            panic!("the tilted box must touch");
+        };
+        assert_eq!(points.as_slice().len(), 2, "{points:?}");
+        let expected = 0.2 * 0.01f64.sin() + 0.05 * 0.01f64.cos() - 0.05;
+        for c in points.as_slice() {
+            assert!((c.depth - expected).abs() < 1e-12, "{c:?} vs {expected}");
+        }
     }
 }
