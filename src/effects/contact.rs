@@ -24,11 +24,12 @@ pub struct ContactStats {
     pub pair_tests: u64,
     /// parry contact queries (pair tests whose bounding spheres overlapped).
     pub narrow_queries: u64,
-    /// Pairs that started touching between two accepted steps.
+    /// Pairs that started touching between two steps (a pair touches when any of its points does),
+    /// judged at the last force evaluation of each step (docs/contacts.md §4, "Counters").
     pub made: u64,
-    /// Pairs that stopped touching between two accepted steps.
+    /// Pairs that stopped touching between two steps, judged like `made`.
     pub broken: u64,
-    /// The deepest penetration seen at an accepted step, m.
+    /// The deepest penetration seen at the last force evaluation of a step, m.
     pub max_depth_m: f64,
 }
 
@@ -131,8 +132,14 @@ pub struct Contacts {
     stats: ContactStats,
     /// Whether each pair touched at the last accepted step.
     touching: Vec<bool>,
-    /// Whether each pair touches now, work buffer of [`Contacts::observe`].
+    /// Whether each pair touched at the last force evaluation ([`Contacts::add_forces`]): what
+    /// [`Contacts::observe`] counts.
     touching_now: Vec<bool>,
+    /// The deepest penetration at the last force evaluation, m.
+    deepest_now: f64,
+    /// Whether a force evaluation ran since the last [`Contacts::observe`] (else `observe` tests
+    /// the pairs itself).
+    evaluated: bool,
     /// The normal force of each pair, N, work buffer of [`Contacts::normal_forces`].
     normal_forces: Vec<f64>,
     /// Whether any pair passed the bounding-sphere test at the last force evaluation: when none
@@ -150,6 +157,8 @@ impl Contacts {
             stats: ContactStats::default(),
             touching: vec![false; n_pairs],
             touching_now: vec![false; n_pairs],
+            deepest_now: 0.0,
+            evaluated: false,
             normal_forces: vec![0.0; n_pairs],
             near: true,
         }
@@ -331,10 +340,16 @@ impl Contacts {
             stats,
             external,
             near,
+            touching_now,
+            deepest_now,
+            evaluated,
             ..
         } = self;
         let narrow_before = stats.narrow_queries;
         external.fill(Force::zero());
+        touching_now.fill(false);
+        *deepest_now = 0.0;
+        *evaluated = true;
         let mut any = false;
         Self::for_each_contact(
             geometry,
@@ -345,6 +360,8 @@ impl Contacts {
             v,
             true,
             |data, k, contact, force| {
+                touching_now[k] = true;
+                *deepest_now = deepest_now.max(contact.depth);
                 let pair = geometry.pairs[k];
                 if let Some(a) = GeometryModel::body_of(model, pair.a) {
                     Self::add_wrench(data, external, a, &contact.point, &force.force);
@@ -449,26 +466,35 @@ impl Contacts {
         );
     }
 
-    /// Tests every pair at an accepted state `(q, v)`, counts pairs that started or stopped
-    /// touching since the last call, and returns the deepest penetration (m, 0 when none).
+    /// After an accepted step ending at `(q, v)`: counts pairs that started or stopped touching
+    /// since the last call and returns the deepest penetration (m, 0 when none), as seen by the
+    /// last force evaluation of the step — the residual of its last Newton iteration, which the
+    /// integrator evaluated anyway (docs/contacts.md §4, "Counters"). Only when no force
+    /// evaluation ran since the last call are the pairs tested here, at `q` (a kinematics pass;
+    /// overwrites the kinematic buffers of `data`).
     pub(super) fn observe(&mut self, model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> f64 {
         let Self {
             geometry,
             stats,
             touching,
             touching_now,
+            deepest_now,
+            evaluated,
             ..
         } = self;
-        touching_now.fill(false);
         let _ = v;
-        crate::dynamics::forward_kinematics(model, data, q);
-        let mut deepest = 0.0f64;
-        for (k, now) in touching_now.iter_mut().enumerate() {
-            if let Some(points) = Self::test_pair(geometry, stats, model, data, k) {
-                *now = true;
-                deepest = deepest.max(points.deepest());
+        if !*evaluated {
+            touching_now.fill(false);
+            *deepest_now = 0.0;
+            crate::dynamics::forward_kinematics(model, data, q);
+            for (k, now) in touching_now.iter_mut().enumerate() {
+                if let Some(points) = Self::test_pair(geometry, stats, model, data, k) {
+                    *now = true;
+                    *deepest_now = deepest_now.max(points.deepest());
+                }
             }
         }
+        *evaluated = false;
         for (before, after) in touching.iter_mut().zip(touching_now.iter()) {
             match (*before, *after) {
                 (false, true) => stats.made += 1,
@@ -477,8 +503,8 @@ impl Contacts {
             }
             *before = *after;
         }
-        stats.max_depth_m = stats.max_depth_m.max(deepest);
-        deepest
+        stats.max_depth_m = stats.max_depth_m.max(*deepest_now);
+        *deepest_now
     }
 
     /// The deepest penetration over all pairs at `q` (m; 0 when nothing touches), counted as
