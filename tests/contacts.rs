@@ -885,3 +885,197 @@ fn a_study_sums_the_contact_counters_of_its_runs_whatever_the_thread_count() {
         plain["stats"]
     );
 }
+
+/// A 1 kg sphere of radius 0.1 m on a vertical prismatic joint standing at `(x, y)`.
+fn sphere_post_urdf(x: f64, y: f64) -> String {
+    format!(
+        r#"<robot name="post"><link name="world"/>
+        <joint name="z" type="prismatic"><parent link="world"/><child link="body"/>
+          <origin xyz="{x} {y} 0"/><axis xyz="0 0 1"/>
+          <limit lower="-100" upper="100" effort="1" velocity="1"/></joint>
+        <link name="body"><inertial><mass value="1"/>
+          <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+          <collision><geometry><sphere radius="0.1"/></geometry></collision></link></robot>"#
+    )
+}
+
+/// Relative tolerance of the resting normal force on a height field against `m g / n_z` (the
+/// issue's 1e-6 for the contact force balance).
+const FORCE_BALANCE_RELATIVE: f64 = 1e-6;
+
+/// The sphere's rest on a height field (given by `field`, the lines after `type`) at `(x, y)`
+/// under which the surface is the plane `z = slope[0] · x + slope[1] · y + offset`: the final joint
+/// height and the recorded normal force, against the closed forms.
+fn rest_on_height_field(x: f64, y: f64, slope: [f64; 2], offset: f64, field: &str) -> (f64, f64) {
+    let stiffness = 1e6;
+    // The normal n = (−s_x, −s_y, 1)/√(1 + s_x² + s_y²) carries the weight through the vertical
+    // joint: f_n n_z = m g, the depth follows from f_n = k δ^1.5, and the centre stands R − δ
+    // above the plane along n.
+    let secant = (1.0 + slope[0] * slope[0] + slope[1] * slope[1]).sqrt();
+    let force = G * secant;
+    let depth = (force / stiffness).powf(1.0 / 1.5);
+    let height = slope[0] * x + slope[1] * y + offset + (0.1 - depth) * secant;
+    let sidecar = format!(
+        r#"[scene]
+duration = 2.0
+step = 1e-3
+initial.q = {{ z = {height} }}
+[scene.contact]
+pairs = [["body", "terrain"]]
+stiffness = {stiffness}
+damping = 50.0
+[[scene.geometry]]
+name = "terrain"
+type = "heightfield"
+{field}
+[outputs]
+contact_forces = true
+"#
+    );
+    let trajectory = run(&sphere_post_urdf(x, y), &sidecar);
+    let z = *column(&trajectory, "q.z").last().unwrap();
+    let f = *column(&trajectory, "contact.body.terrain.normal")
+        .last()
+        .unwrap();
+    eprintln!(
+        "height field at ({x}, {y}): rests at {z:.12} m (closed form {height:.12}), normal force \
+         {f:.9} N (m g / n_z = {force:.9} N); {:?}",
+        trajectory.contacts
+    );
+    assert!(
+        ((f - force) / force).abs() < FORCE_BALANCE_RELATIVE,
+        "normal force {f} vs {force}"
+    );
+    assert!((z - height).abs() < 1e-9, "height {z} vs {height}");
+    (z, f)
+}
+
+/// A sphere rests on a sloped height field (the plane z = 0.2 x + 0.05 sampled on a 3 × 3 grid
+/// over 2 m × 2 m) where the closed form of the force balance puts it: inside a triangle, and on an
+/// edge shared by two triangles (each reports the contact; parry's internal-edge fix must keep the
+/// force single). Then the plane z = −0.3 y + 0.05 (heights changing from row to row): rows run
+/// along y, row 0 at y = −1.
+#[test]
+fn sphere_rests_on_a_sloped_height_field_where_the_force_balance_puts_it() {
+    let (slope, offset) = (0.2, 0.05);
+    let grid = |x: f64| slope * x + offset;
+    let row = format!("[{}, {}, {}]", grid(-1.0), grid(0.0), grid(1.0));
+    let field = format!("size = [2.0, 2.0]\nheights = [{row}, {row}, {row}]");
+    rest_on_height_field(0.5, 0.3, [slope, 0.0], offset, &field);
+    rest_on_height_field(0.5, 0.0, [slope, 0.0], offset, &field);
+    let rows: Vec<String> = [-1.0, 0.0, 1.0]
+        .iter()
+        .map(|y| {
+            let z = -0.3 * y + offset;
+            format!("[{z}, {z}, {z}]")
+        })
+        .collect();
+    let field_y = format!("size = [2.0, 2.0]\nheights = [{}]", rows.join(", "));
+    rest_on_height_field(-0.3, 0.6, [0.0, -0.3], offset, &field_y);
+    // The same grid from a CSV file beside the sidecar (run() resolves "test.toml": the working
+    // directory), with a comment line.
+    let dir = std::env::temp_dir().join(format!("ribbon-heightfield-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("slope.csv");
+    let line = format!("{}, {}, {}\n", grid(-1.0), grid(0.0), grid(1.0));
+    std::fs::write(&csv, format!("# z = 0.2 x + 0.05\n{line}{line}{line}")).unwrap();
+    rest_on_height_field(
+        0.5,
+        0.3,
+        [slope, 0.0],
+        offset,
+        &format!("size = [2.0, 2.0]\nfile = \"{}\"", csv.display()),
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A bump: a 5 × 2 grid over 4 m whose middle column is 5 cm high; a sphere on the bump's rising
+/// face (between x = −1 and 0, slope 0.05) rests where the face's plane puts it.
+#[test]
+fn sphere_rests_on_the_face_of_a_height_field_bump() {
+    let row = "[0.0, 0.0, 0.05, 0.0, 0.0]";
+    let field = format!("size = [4.0, 1.0]\nheights = [{row}, {row}]");
+    // The face from (−1, 0) to (0, 0.05): z = 0.05 x + 0.05.
+    rest_on_height_field(-0.4, 0.2, [0.05, 0.0], 0.05, &field);
+}
+
+#[test]
+fn bad_height_fields_are_refused_naming_the_key() {
+    let ball = slider_urdf(r#"<sphere radius="0.1"/>"#, false);
+    let head = "[scene.contact]\npairs = [[\"body\", \"terrain\"]]\n[[scene.geometry]]\nname = \"terrain\"\ntype = \"heightfield\"\n";
+    let dir = std::env::temp_dir().join(format!("ribbon-bad-heightfield-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad_csv = dir.join("bad.csv");
+    std::fs::write(&bad_csv, "0.0, 0.1\n0.0, x\n").unwrap();
+    let ragged_csv = dir.join("ragged.csv");
+    std::fs::write(&ragged_csv, "0.0, 0.1\n\n0.0\n").unwrap();
+    let cases: Vec<(String, &[&str])> = vec![
+        (
+            "heights = [[0.0, 0.0], [0.0, 0.0]]\n".to_string(),
+            &["[[scene.geometry]] 'terrain'", "needs size = [x, y]"],
+        ),
+        (
+            "size = [1.0, -1.0]\nheights = [[0.0, 0.0], [0.0, 0.0]]\n".to_string(),
+            &[
+                "[[scene.geometry]] 'terrain' size",
+                "two finite numbers > 0",
+            ],
+        ),
+        (
+            "size = [1.0, 1.0]\n".to_string(),
+            &["[[scene.geometry]] 'terrain'", "needs heights = [[…], …]"],
+        ),
+        (
+            "size = [1.0, 1.0]\nheights = [[0.0, 0.0]]\n".to_string(),
+            &[
+                "'terrain' heights",
+                "1 row(s): a height field needs at least 2 rows",
+            ],
+        ),
+        (
+            "size = [1.0, 1.0]\nheights = [[0.0], [0.0]]\n".to_string(),
+            &["'terrain' heights", "at least 2 columns"],
+        ),
+        (
+            "size = [1.0, 1.0]\nheights = [[0.0, 0.0], [0.0, 0.0, 0.0]]\n".to_string(),
+            &["'terrain' heights", "row 2 has 3 values, row 1 has 2"],
+        ),
+        (
+            "size = [1.0, 1.0]\nheights = [[0.0, 0.0], [0.0, inf]]\n".to_string(),
+            &[
+                "'terrain' heights",
+                "row 2, value 2: inf is not a finite height",
+            ],
+        ),
+        (
+            format!("size = [1.0, 1.0]\nfile = \"{}\"\n", bad_csv.display()),
+            &[
+                "'terrain' file",
+                "bad.csv",
+                "line 2, value 2: 'x' is not a finite number",
+            ],
+        ),
+        (
+            format!("size = [1.0, 1.0]\nfile = \"{}\"\n", ragged_csv.display()),
+            &["'terrain' file", "line 3 has 1 values, the first row has 2"],
+        ),
+        (
+            "size = [1.0, 1.0]\nfile = \"missing.csv\"\n".to_string(),
+            &["'terrain' file", "cannot read", "missing.csv"],
+        ),
+        (
+            format!(
+                "size = [1.0, 1.0]\nheights = [[0.0, 0.0], [0.0, 0.0]]\nfile = \"{}\"\n",
+                bad_csv.display()
+            ),
+            &["'terrain'", "not both"],
+        ),
+    ];
+    for (lines, expected) in cases {
+        let message = contact_error(&ball, &format!("{head}{lines}"));
+        for part in expected {
+            assert!(message.contains(part), "'{part}' not in: {message}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -11,7 +11,10 @@ use parry3d_f64::math::{Pose, Rotation, Vector};
 use parry3d_f64::query::{
     self, ContactManifold, DefaultQueryDispatcher, PersistentQueryDispatcher,
 };
-use parry3d_f64::shape::{Ball, Capsule, ConvexPolyhedron, Cuboid, Cylinder, HalfSpace};
+use parry3d_f64::shape::{
+    Ball, Capsule, ConvexPolyhedron, Cuboid, Cylinder, HalfSpace, HeightField, HeightFieldFlags,
+};
+use parry3d_f64::utils::Array2;
 
 /// The convex hull of a collision mesh's vertices in its shape frame (docs/contacts.md §1,
 /// "Meshes"): the shape parry queries, with its bounding radius and volume.
@@ -71,6 +74,78 @@ impl PartialEq for ConvexHull {
     }
 }
 
+/// A height field in its shape frame (docs/contacts.md §1, "Height fields"): a regular grid of
+/// heights `z` over the rectangle `[−x/2, x/2] × [−y/2, y/2]`, rows along y (row 0 at `y = −y/2`),
+/// columns along x (column 0 at `x = −x/2`), each cell split into two triangles; the solid lies
+/// below the surface. Queried as parry's `HeightField` (its grid runs in x and z with heights along
+/// y: it reaches parry with the quarter turn about x that cylinders take).
+#[derive(Clone, Debug)]
+pub struct HeightGrid {
+    field: HeightField,
+    heights: Vec<Vec<f64>>,
+    size: [f64; 2],
+    bounding_radius: f64,
+}
+
+impl HeightGrid {
+    /// The grid of `heights` (m; `rows ≥ 2` rows of `columns ≥ 2` finite values each) over a
+    /// rectangle of `size` (m, both > 0 and finite). `None` when any of that does not hold (the
+    /// sidecar checks it first, naming the key).
+    pub fn new(heights: Vec<Vec<f64>>, size: [f64; 2]) -> Option<HeightGrid> {
+        let rows = heights.len();
+        let columns = heights.first().map_or(0, Vec::len);
+        let valid = rows >= 2
+            && columns >= 2
+            && heights
+                .iter()
+                .all(|row| row.len() == columns && row.iter().all(|h| h.is_finite()))
+            && size.iter().all(|s| s.is_finite() && *s > 0.0);
+        if !valid {
+            return None;
+        }
+        // parry's row i runs along its z axis, which the quarter turn sends to −y: its row 0 is
+        // ribbon's last row. Column-major storage.
+        let data: Vec<f64> = (0..columns)
+            .flat_map(|column| heights.iter().rev().map(move |row| row[column]))
+            .collect();
+        let field = HeightField::with_flags(
+            Array2::new(rows, columns, data),
+            Vector::new(size[0], 1.0, size[1]),
+            HeightFieldFlags::FIX_INTERNAL_EDGES,
+        );
+        let highest = heights
+            .iter()
+            .flatten()
+            .map(|h| h.abs())
+            .fold(0.0, f64::max);
+        let bounding_radius =
+            (0.25 * size[0] * size[0] + 0.25 * size[1] * size[1] + highest * highest).sqrt();
+        Some(HeightGrid {
+            field,
+            heights,
+            size,
+            bounding_radius,
+        })
+    }
+
+    /// The heights, m, rows along y.
+    pub fn heights(&self) -> &[Vec<f64>] {
+        &self.heights
+    }
+
+    /// The extent along x and y, m.
+    pub fn size(&self) -> [f64; 2] {
+        self.size
+    }
+}
+
+impl PartialEq for HeightGrid {
+    /// Two grids are equal when their heights and sizes are.
+    fn eq(&self, other: &Self) -> bool {
+        self.heights == other.heights && self.size == other.size
+    }
+}
+
 /// A contact between shape `a` and shape `b`, in the world frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ContactPoint {
@@ -86,6 +161,11 @@ pub struct ContactPoint {
 /// face clipped against a face has at most eight corners; when parry reports more (a height field
 /// under a large shape: one manifold per triangle), the deepest are kept.
 pub const MAX_CONTACT_POINTS: usize = 8;
+
+/// Distance below which two contact points of one pair from different manifolds are one point, m:
+/// the same corner computed from two triangles differs by rounding (~1e-16 m on metre-sized
+/// scenes); a nanometre is far above that and far below any feature of a robot or a terrain.
+pub const DUPLICATE_POINT_M: f64 = 1e-9;
 
 /// The contact points of one touching pair (between 1 and [`MAX_CONTACT_POINTS`]), each with its
 /// own normal and depth; no allocation.
@@ -138,6 +218,23 @@ impl ContactPoints {
         if point.depth > self.points[shallowest].depth {
             self.points[shallowest] = point;
         }
+    }
+
+    /// Adds `point` unless a point within [`DUPLICATE_POINT_M`] of it is already there (then the
+    /// deeper of the two is kept): two triangles of a height field both report the corner or edge
+    /// crossing they share.
+    pub fn push_unique(&mut self, point: ContactPoint) {
+        let len = self.len;
+        if let Some(existing) = self.points[..len]
+            .iter_mut()
+            .find(|p| (p.point - point.point).norm() <= DUPLICATE_POINT_M)
+        {
+            if point.depth > existing.depth {
+                *existing = point;
+            }
+            return;
+        }
+        self.push(point);
     }
 
     /// The points, in parry's order.
@@ -211,6 +308,7 @@ pub(crate) fn bounding_radius(shape: &Shape) -> f64 {
         } => radius + half_length,
         Shape::HalfSpace => f64::INFINITY,
         Shape::ConvexHull(ref hull) => hull.bounding_radius,
+        Shape::HeightField(ref grid) => grid.bounding_radius,
     }
 }
 
@@ -256,7 +354,9 @@ pub fn contact_between(
 /// supports. A sphere touches a convex shape at one point, so a manifold would only cost more; this
 /// keeps every sphere contact exactly what it was before manifolds (docs/contacts.md §1).
 fn single_point_pair(a: &Shape, b: &Shape) -> bool {
-    matches!(a, Shape::Sphere { .. }) || matches!(b, Shape::Sphere { .. })
+    let sphere = |s: &Shape| matches!(s, Shape::Sphere { .. });
+    let field = |s: &Shape| matches!(s, Shape::HeightField(_));
+    (sphere(a) || sphere(b)) && !field(a) && !field(b)
 }
 
 /// parry's answer for `a` at `world_from_a` against `b` at `world_from_b`: the penetrating points,
@@ -332,11 +432,16 @@ fn narrow_phase(
                     if contact.dist < 0.0 {
                         let point1 = to_vec3(frame1 * contact.local_p1);
                         let point2 = to_vec3(frame2 * contact.local_p2);
-                        points.push(ContactPoint {
+                        let point = ContactPoint {
                             point: 0.5 * (point1 + point2),
                             normal,
                             depth: -contact.dist,
-                        });
+                        };
+                        if manifolds.len() > 1 {
+                            points.push_unique(point);
+                        } else {
+                            points.push(point);
+                        }
                     }
                 }
             }
@@ -383,6 +488,9 @@ fn with_parry_shape<R>(
             &HalfSpace::new(Vector::new(0.0, 0.0, 1.0)),
             to_pose(world_from_shape),
         ),
+        Shape::HeightField(ref grid) => {
+            f(&grid.field, to_pose(&world_from_shape.compose(&y_to_z())))
+        }
     }
 }
 
@@ -502,6 +610,57 @@ mod tests {
         };
         assert_eq!(points.as_slice().len(), 1, "{points:?}");
         assert!((points.deepest() - 0.01).abs() < 1e-9, "{points:?}");
+    }
+
+    /// A flat height field under a sphere and a box: the sphere touches it at one point, as on a
+    /// half-space; the box's face is clipped against each triangle it covers, so besides its four
+    /// corners it gets the point where the cell's diagonal (y = x) crosses its edge x = 0.2, all at
+    /// the box's depth with the upward normal.
+    #[test]
+    fn flat_height_field_touches_like_the_ground() {
+        let flat = Shape::HeightField(std::sync::Arc::new(
+            HeightGrid::new(vec![vec![0.0; 5]; 5], [4.0, 4.0]).expect("valid grid"),
+        ));
+        let at_origin = at(0.0, 0.0, 0.0);
+        let PairTest::Touching(points) = contact_between(
+            &Shape::Sphere { radius: 0.1 },
+            &at(0.3, 0.2, 0.09),
+            &flat,
+            &at_origin,
+        ) else {
+            panic!("the sphere must touch the height field");
+        };
+        assert_eq!(points.as_slice().len(), 1, "{points:?}");
+        let c = points.as_slice()[0];
+        assert!((c.depth - 0.01).abs() < 1e-12 && (c.normal - Vec3::z()).norm() < 1e-12);
+        let small = Shape::Box {
+            half_extents: [0.1, 0.2, 0.05],
+        };
+        let PairTest::Touching(points) =
+            contact_between(&small, &at(0.3, 0.2, 0.049), &flat, &at_origin)
+        else {
+            panic!("the box must touch the height field");
+        };
+        // parry reports 8 points, three of them repeats from the neighbouring triangle: kept once.
+        let corners: Vec<(f64, f64)> = points
+            .as_slice()
+            .iter()
+            .map(|c| (c.point.x, c.point.y))
+            .collect();
+        let expected = [(0.2, 0.0), (0.2, 0.2), (0.2, 0.4), (0.4, 0.0), (0.4, 0.4)];
+        assert_eq!(corners.len(), expected.len(), "{corners:?}");
+        for e in expected {
+            assert!(
+                corners
+                    .iter()
+                    .any(|c| (c.0 - e.0).abs() < 1e-12 && (c.1 - e.1).abs() < 1e-12),
+                "{e:?} not in {corners:?}"
+            );
+        }
+        for c in points.as_slice() {
+            assert!((c.depth - 0.001).abs() < 1e-12, "{c:?}");
+            assert!((c.normal - Vec3::z()).norm() < 1e-12, "{c:?}");
+        }
     }
 
     /// A box lying flat on a half-space or on a ground box touches at its four bottom corners, each
