@@ -1079,3 +1079,44 @@ fn bad_height_fields_are_refused_naming_the_key() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The free box sliding to a stop with the fixed step: Newton fails where the box comes to stick
+/// (docs/contacts.md §6), and the error says what to do about it.
+#[test]
+fn a_fixed_step_newton_failure_with_contacts_advises_the_adaptive_step() {
+    let mut model = Model::from_description(
+        parse_description(FREE_BOX, "free_box.urdf").expect("URDF parses"),
+        LoadOptions {
+            floating_base: true,
+        },
+        "free_box.urdf",
+    )
+    .expect("model builds");
+    let sidecar = format!(
+        r#"[scene]
+duration = 1.0
+step = 1e-4
+base = "floating"
+initial.base = {{ xyz = [0.0, 0.0, {}], v = [2.0, 0.0, 0.0] }}
+[scene.contact]
+pairs = [["body", "ground"]]
+friction = 0.5
+[[scene.geometry]]
+name = "ground"
+type = "halfspace"
+"#,
+        0.1 - resting_depth_on(1e6, 1.0, 4)
+    );
+    let scene = scene_of(&model, &sidecar).expect("scene resolves");
+    scene.apply_gravity(&mut model);
+    let message = simulate(model, &scene)
+        .map(|_| ())
+        .expect_err("the fixed step fails where the box sticks")
+        .to_string();
+    assert!(
+        message.contains("Newton did not converge")
+            && message.contains("step_control = \"adaptive\"")
+            && message.contains("stiction_velocity"),
+        "{message}"
+    );
+}
