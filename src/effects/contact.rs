@@ -10,7 +10,9 @@
 //! queries ran.
 
 use crate::dynamics::{add_external_forces, drift_kinematics, Data};
-use crate::geometry::{contact_between, ContactMaterial, ContactPoint, GeometryModel, PairTest};
+use crate::geometry::{
+    contact_between, ContactMaterial, ContactPoint, ContactPoints, GeometryModel, PairTest,
+};
 use crate::model::Model;
 use crate::spatial::{Force, Mat3, Vec3};
 use nalgebra::DMatrix;
@@ -22,11 +24,12 @@ pub struct ContactStats {
     pub pair_tests: u64,
     /// parry contact queries (pair tests whose bounding spheres overlapped).
     pub narrow_queries: u64,
-    /// Pairs that started touching between two accepted steps.
+    /// Pairs that started touching between two steps (a pair touches when any of its points does),
+    /// judged at the last force evaluation of each step (docs/contacts.md §4, "Counters").
     pub made: u64,
-    /// Pairs that stopped touching between two accepted steps.
+    /// Pairs that stopped touching between two steps, judged like `made`.
     pub broken: u64,
-    /// The deepest penetration seen at an accepted step, m.
+    /// The deepest penetration seen at the last force evaluation of a step, m.
     pub max_depth_m: f64,
 }
 
@@ -129,8 +132,14 @@ pub struct Contacts {
     stats: ContactStats,
     /// Whether each pair touched at the last accepted step.
     touching: Vec<bool>,
-    /// Whether each pair touches now, work buffer of [`Contacts::observe`].
+    /// Whether each pair touched at the last force evaluation ([`Contacts::add_forces`]): what
+    /// [`Contacts::observe`] counts.
     touching_now: Vec<bool>,
+    /// The deepest penetration at the last force evaluation, m.
+    deepest_now: f64,
+    /// Whether a force evaluation ran since the last [`Contacts::observe`] (else `observe` tests
+    /// the pairs itself).
+    evaluated: bool,
     /// The normal force of each pair, N, work buffer of [`Contacts::normal_forces`].
     normal_forces: Vec<f64>,
     /// Whether any pair passed the bounding-sphere test at the last force evaluation: when none
@@ -163,6 +172,8 @@ impl Contacts {
             stats: ContactStats::default(),
             touching: vec![false; n_pairs],
             touching_now: vec![false; n_pairs],
+            deepest_now: 0.0,
+            evaluated: false,
             normal_forces: vec![0.0; n_pairs],
             near: true,
             sliding: SlidingContacts::default(),
@@ -194,7 +205,7 @@ impl Contacts {
             q,
             v,
             false,
-            |_, k, contact, force| normal_forces[k] = force.force.dot(&contact.normal),
+            |_, k, contact, force| normal_forces[k] += force.force.dot(&contact.normal),
         );
         &self.normal_forces
     }
@@ -240,7 +251,7 @@ impl Contacts {
         model: &Model,
         data: &Data,
         k: usize,
-    ) -> Option<ContactPoint> {
+    ) -> Option<ContactPoints> {
         let pair = &geometry.pairs[k];
         stats.pair_tests += 1;
         if geometry.provably_apart(model, &data.world_from_body, pair) {
@@ -260,7 +271,7 @@ impl Contacts {
             stats.narrow_queries += 1;
         }
         match result {
-            PairTest::Touching(contact) => Some(contact),
+            PairTest::Touching(points) => Some(points),
             _ => None,
         }
     }
@@ -284,7 +295,8 @@ impl Contacts {
         external[body] += Force::new(f, in_body.cross(&f));
     }
 
-    /// The active contacts at `(q, v)`: calls `visit(pair, contact, force)` for each touching pair.
+    /// The active contacts at `(q, v)`: calls `visit(pair, contact, force)` for each contact point
+    /// of each touching pair (a pair may give several points, docs/contacts.md §1).
     /// With `from_rnea`, `data` already holds RNEA's `parent_from_body` and body velocities at
     /// `(q, v)` and only the world placements are composed from them (cheap); otherwise a
     /// kinematics pass computes everything.
@@ -313,16 +325,18 @@ impl Contacts {
             drift_kinematics(model, data, q, v);
         }
         for k in 0..geometry.pairs.len() {
-            let Some(contact) = Self::test_pair(geometry, stats, model, data, k) else {
+            let Some(points) = Self::test_pair(geometry, stats, model, data, k) else {
                 continue;
             };
             let pair = geometry.pairs[k];
             let body_a = GeometryModel::body_of(model, pair.a);
             let body_b = GeometryModel::body_of(model, pair.b);
-            let velocity = Self::point_velocity(data, body_a, &contact.point)
-                - Self::point_velocity(data, body_b, &contact.point);
-            let force = contact_force(&material, &contact, &velocity);
-            visit(data, k, &contact, &force);
+            for contact in points.as_slice() {
+                let velocity = Self::point_velocity(data, body_a, &contact.point)
+                    - Self::point_velocity(data, body_b, &contact.point);
+                let force = contact_force(&material, contact, &velocity);
+                visit(data, k, contact, &force);
+            }
         }
     }
 
@@ -343,10 +357,16 @@ impl Contacts {
             external,
             near,
             sliding,
+            touching_now,
+            deepest_now,
+            evaluated,
             ..
         } = self;
         let narrow_before = stats.narrow_queries;
         external.fill(Force::zero());
+        touching_now.fill(false);
+        *deepest_now = 0.0;
+        *evaluated = true;
         let mut any = false;
         let with_friction = model.contact.is_some_and(|m| m.friction > 0.0);
         sliding.begin(q, v);
@@ -359,6 +379,8 @@ impl Contacts {
             v,
             true,
             |data, k, contact, force| {
+                touching_now[k] = true;
+                *deepest_now = deepest_now.max(contact.depth);
                 let pair = geometry.pairs[k];
                 let body_a = GeometryModel::body_of(model, pair.a);
                 let body_b = GeometryModel::body_of(model, pair.b);
@@ -550,26 +572,35 @@ impl Contacts {
         fraction
     }
 
-    /// Tests every pair at an accepted state `(q, v)`, counts pairs that started or stopped
-    /// touching since the last call, and returns the deepest penetration (m, 0 when none).
+    /// After an accepted step ending at `(q, v)`: counts pairs that started or stopped touching
+    /// since the last call and returns the deepest penetration (m, 0 when none), as seen by the
+    /// last force evaluation of the step — the residual of its last Newton iteration, which the
+    /// integrator evaluated anyway (docs/contacts.md §4, "Counters"). Only when no force
+    /// evaluation ran since the last call are the pairs tested here, at `q` (a kinematics pass;
+    /// overwrites the kinematic buffers of `data`).
     pub(super) fn observe(&mut self, model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> f64 {
         let Self {
             geometry,
             stats,
             touching,
             touching_now,
+            deepest_now,
+            evaluated,
             ..
         } = self;
-        touching_now.fill(false);
         let _ = v;
-        crate::dynamics::forward_kinematics(model, data, q);
-        let mut deepest = 0.0f64;
-        for (k, now) in touching_now.iter_mut().enumerate() {
-            if let Some(contact) = Self::test_pair(geometry, stats, model, data, k) {
-                *now = true;
-                deepest = deepest.max(contact.depth);
+        if !*evaluated {
+            touching_now.fill(false);
+            *deepest_now = 0.0;
+            crate::dynamics::forward_kinematics(model, data, q);
+            for (k, now) in touching_now.iter_mut().enumerate() {
+                if let Some(points) = Self::test_pair(geometry, stats, model, data, k) {
+                    *now = true;
+                    *deepest_now = deepest_now.max(points.deepest());
+                }
             }
         }
+        *evaluated = false;
         for (before, after) in touching.iter_mut().zip(touching_now.iter()) {
             match (*before, *after) {
                 (false, true) => stats.made += 1,
@@ -578,8 +609,8 @@ impl Contacts {
             }
             *before = *after;
         }
-        stats.max_depth_m = stats.max_depth_m.max(deepest);
-        deepest
+        stats.max_depth_m = stats.max_depth_m.max(*deepest_now);
+        *deepest_now
     }
 
     /// The deepest penetration over all pairs at `q` (m; 0 when nothing touches), counted as
@@ -591,7 +622,7 @@ impl Contacts {
         } = self;
         (0..geometry.pairs.len())
             .filter_map(|k| Self::test_pair(geometry, stats, model, data, k))
-            .map(|c| c.depth)
+            .map(|points| points.deepest())
             .fold(0.0, f64::max)
     }
 }

@@ -12,7 +12,10 @@ mod query;
 
 pub use mesh::{resolve_mesh_path, CONCAVITY_NOTE_RELATIVE};
 use query::bounding_radius;
-pub use query::{contact_between, supported, ContactPoint, ConvexHull, PairTest};
+pub use query::{
+    contact_between, supported, ContactPoint, ContactPoints, ConvexHull, HeightGrid, PairTest,
+    DUPLICATE_POINT_M, MAX_CONTACT_POINTS,
+};
 use std::sync::Arc;
 
 use crate::model::{CollisionShape, Model};
@@ -101,6 +104,9 @@ pub enum Shape {
     /// The convex hull of a collision mesh's scaled vertices (docs/contacts.md §1, "Meshes"),
     /// shared: loaded once per scene.
     ConvexHull(Arc<ConvexHull>),
+    /// A height field (docs/contacts.md §1, "Height fields"): a grid of heights over a rectangle
+    /// of its frame's x–y plane, the solid below; scene geometry only.
+    HeightField(Arc<HeightGrid>),
 }
 
 /// A shape with its placement in the world frame.

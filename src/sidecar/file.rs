@@ -101,11 +101,16 @@ pub struct ContactSection {
 pub struct GeometrySection {
     /// Its name (used in `[scene.contact] pairs`).
     pub name: String,
-    /// `box`, `sphere`, `cylinder`, `capsule` or `halfspace`.
+    /// `box`, `sphere`, `cylinder`, `capsule`, `halfspace` or `heightfield`.
     #[serde(rename = "type")]
     pub shape_type: String,
-    /// Box: full edge lengths, m.
-    pub size: Option<[f64; 3]>,
+    /// Box: full edge lengths `[x, y, z]`, m. Height field: the extent of its grid `[x, y]`, m.
+    pub size: Option<Vec<f64>>,
+    /// Height field: the heights, m, one array per row (rows along y, values along x).
+    pub heights: Option<Vec<Vec<f64>>>,
+    /// Height field: a CSV file of the heights (one row per line, values separated by commas),
+    /// relative to the sidecar's directory; instead of `heights`.
+    pub file: Option<String>,
     /// Sphere, cylinder, capsule: radius, m.
     pub radius: Option<f64>,
     /// Cylinder, capsule: length along the shape's z axis, m.

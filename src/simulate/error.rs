@@ -185,10 +185,19 @@ impl SimulationError {
                 let joint = format!(
                     "{name} (velocity coordinate {index}, weighted correction {weighted_correction:.3e}{details})"
                 );
-                let message = format!(
+                let mut message = format!(
                     "{}. Likely cause: {cause}",
                     source.to_string().replace(&worst.to_string(), &joint)
                 );
+                if scene.contact.is_some()
+                    && scene.step_control == crate::integrate::StepControl::Fixed
+                {
+                    // docs/contacts.md §6: a touch-down, or a sliding contact coming to stick, changes
+                    // the contact's slope by orders of magnitude within one fixed step.
+                    message.push_str(
+                        ". With contacts declared, the fixed step often fails like this at a touch-down or where a sliding contact sticks (docs/contacts.md §6): set [scene] step_control = \"adaptive\", which retries such steps at half size, or a larger [scene.contact] stiction_velocity",
+                    );
+                }
                 SimulationError::Integrate { source, message }
             }
             IntegrateError::NewtonNotConverged {
