@@ -27,19 +27,15 @@ use crate::integrate::{
 };
 use crate::model::{JointKind, Model};
 use crate::scene::{Output, OutputKind, Scene};
+use crate::spatial::quaternion::unit_quaternion_from_xyzw;
 use crate::spatial::Vec3;
 use crate::uncertainty::ParameterSpace;
-use nalgebra::{DMatrix, DVector, Quaternion, UnitQuaternion};
+use nalgebra::{DMatrix, DVector, UnitQuaternion};
 
 /// The orientation of the floating joint whose coordinates start at `q_index` (x y z, then the
 /// quaternion x y z w).
 fn orientation(q: &[f64], q_index: usize) -> UnitQuaternion<f64> {
-    UnitQuaternion::new_normalize(Quaternion::new(
-        q[q_index + 6],
-        q[q_index + 3],
-        q[q_index + 4],
-        q[q_index + 5],
-    ))
+    unit_quaternion_from_xyzw(&q[q_index + 3..q_index + 7])
 }
 
 /// Step in ξ of [`central_difference_run`] (0.1 % of each dimension's half-width). The truncation
