@@ -17,7 +17,7 @@
 //! `J_r(y)⁻¹ δω − J_r(−y)⁻¹ δω_0`.
 
 use super::lie::so3_right_jacobian_inverse;
-use super::run::{hht_settings, initial_violation};
+use super::run::{hht_settings, initial_violation, record_current_state};
 use super::SimulationError;
 use super::{Recorder, RobotSystem};
 use crate::dynamics::{forward_kinematics, link_origin_jacobian, world_from_link};
@@ -291,16 +291,13 @@ pub fn sensitivity_run_with(
         if !scene.records_step(k) {
             continue;
         }
-        let state = integrator.state();
-        recorder.record_state(
-            &system.model,
-            &mut system.data,
-            &mut system.effects,
-            state,
+        times.push(record_current_state(
+            &recorder,
+            &mut system,
+            &integrator,
             &initial,
             &mut row,
-        );
-        times.push(state.t);
+        ));
         values.extend_from_slice(&row);
         derivatives.velocity.copy_from(
             sensitivity
@@ -654,16 +651,13 @@ fn plain_run(
             integrator.step(&mut system).map_err(failed)?;
         }
         if scene.records_step(k) {
-            let state = integrator.state();
-            recorder.record_state(
-                &system.model,
-                &mut system.data,
-                &mut system.effects,
-                state,
+            times.push(record_current_state(
+                &recorder,
+                &mut system,
+                &integrator,
                 &initial,
                 &mut row,
-            );
-            times.push(state.t);
+            ));
             values.extend_from_slice(&row);
         }
     }
