@@ -11,6 +11,7 @@
 //! - [`spatial`] — 6D spatial algebra;
 //! - [`dynamics`] — CRBA, RNEA, forward dynamics and frame placements on a per-thread
 //!   [`dynamics::Data`];
+//! - [`linalg`] — the one in-place Cholesky, shared by dynamics, integrator and bound optimisers;
 //! - [`integrate`] — the second-order HHT-I3 integrator for index-3 DAEs;
 //! - [`uq`] — quadrature, Legendre/Chebyshev surrogates and their bounds (pure mathematics);
 //! - [`setup`] — URDF, sidecar, scene and parameter box loaded and checked in one place;
@@ -35,6 +36,7 @@ mod error;
 pub mod geometry;
 pub mod integrate;
 pub mod interrupt;
+pub mod linalg;
 pub mod model;
 pub mod output;
 pub mod params;

@@ -2,6 +2,8 @@
 //! (0 ok, 1 failure, 2 bad arguments or bad input, 3 `merge` planned another stage; clap's own
 //! usage errors also exit 2).
 
+#![warn(missing_docs)]
+
 use clap::Parser;
 use std::process::ExitCode;
 

@@ -4,10 +4,11 @@
 
 mod common;
 
+use common::{ribbon_output, scratch_file};
+
 use ribbon::uq::envelope_error;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 /// docs/method.md §4: Legendre scan within 1 % of the reference width at every record time.
 const LEGENDRE_SCAN_MAX_ERROR: f64 = 0.01;
@@ -23,23 +24,9 @@ const CLOSED_FORM_TOLERANCE: f64 = 1e-6;
 
 use common::manifest;
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("analysis");
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir.join(name)
-}
-
-fn ribbon(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ribbon"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("ribbon runs")
-}
-
 /// Runs `analyze` with a summary and returns it.
 fn analyze(urdf: &str, sidecar: &Path, extra: &[&str], tag: &str) -> Value {
-    let summary = scratch(&format!("{tag}.summary.json"));
+    let summary = scratch_file("analysis", &format!("{tag}.summary.json"));
     let mut args = vec![
         "analyze",
         urdf,
@@ -49,7 +36,7 @@ fn analyze(urdf: &str, sidecar: &Path, extra: &[&str], tag: &str) -> Value {
         summary.to_str().unwrap(),
     ];
     args.extend_from_slice(extra);
-    let out = ribbon(&args);
+    let out = ribbon_output(&args);
     assert!(
         out.status.success(),
         "analyze {tag} failed ({:?}): {}",
@@ -96,9 +83,9 @@ const BLOCK_URDF: &str = r#"<?xml version="1.0"?>
 #[test]
 fn damped_block_envelopes_equal_the_closed_form_range() {
     // m ẍ = −m g − c ẋ from rest: x(t) = −(m g / c) t + (m² g / c²)(1 − exp(−c t / m)).
-    let urdf = scratch("damped_block.urdf");
+    let urdf = scratch_file("analysis", "damped_block.urdf");
     std::fs::write(&urdf, BLOCK_URDF).unwrap();
-    let sidecar = scratch("damped_block.uncertainty.toml");
+    let sidecar = scratch_file("analysis", "damped_block.uncertainty.toml");
     std::fs::write(
         &sidecar,
         "[parameters]\n\"link.block.mass\" = [1.0, 2.0]\n\"joint.slide.damping\" = [0.5, 1.0]\n\
@@ -166,7 +153,10 @@ fn double_pendulum_sidecar(relative: f64, tag: &str) -> PathBuf {
                 2.0 * (1.0 + relative)
             ),
         );
-    let path = scratch(&format!("double_pendulum_{tag}.uncertainty.toml"));
+    let path = scratch_file(
+        "analysis",
+        &format!("double_pendulum_{tag}.uncertainty.toml"),
+    );
     std::fs::write(&path, text).unwrap();
     path
 }
@@ -275,7 +265,7 @@ const SMOOTH_CHECK_MAX_RELATIVE_MISFIT: f64 = 1e-5;
 /// true runs that `ribbon simulate` makes independently at the check's points.
 #[test]
 fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
-    let dir = scratch("check_wide_box");
+    let dir = scratch_file("analysis", "check_wide_box");
     std::fs::create_dir_all(&dir).unwrap();
     let urdf = dir.join("dp.urdf");
     std::fs::copy(
@@ -290,7 +280,7 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
     )
     .unwrap();
     let summary_path = dir.join("summary.json");
-    let out = ribbon(&[
+    let out = ribbon_output(&[
         "analyze",
         urdf.to_str().unwrap(),
         "--summary",
@@ -316,7 +306,7 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
         let xi = point[0].as_f64().unwrap();
         let mass = 0.5 * ((1.0 - xi) * lower + (1.0 + xi) * upper);
         let csv = dir.join(format!("check_{i}.csv"));
-        let run = ribbon(&[
+        let run = ribbon_output(&[
             "simulate",
             urdf.to_str().unwrap(),
             "--set",
@@ -395,7 +385,7 @@ fn a_chaotic_motion_is_reported_and_a_regular_one_is_not() {
     );
     let lyapunov = &regular["stats"]["lyapunov"];
     assert_eq!(lyapunov["chaotic"], false, "{lyapunov}");
-    let dir = scratch("lyapunov_chaotic");
+    let dir = scratch_file("analysis", "lyapunov_chaotic");
     std::fs::create_dir_all(&dir).unwrap();
     let sidecar = dir.join("upright.toml");
     std::fs::write(
@@ -404,7 +394,7 @@ fn a_chaotic_motion_is_reported_and_a_regular_one_is_not() {
     )
     .unwrap();
     let summary = dir.join("summary.json");
-    let out = ribbon(&[
+    let out = ribbon_output(&[
         "analyze",
         urdf,
         "--uncertainty",
@@ -468,7 +458,7 @@ fn peak_memory_does_not_grow_with_the_horizon() {
     let sidecar = manifest("robots/double_pendulum/double_pendulum.uncertainty.toml");
     let mut peaks = Vec::new();
     for duration in ["2", "20"] {
-        let out = ribbon(&[
+        let out = ribbon_output(&[
             "analyze",
             "robots/double_pendulum/double_pendulum.urdf",
             "--uncertainty",
@@ -480,7 +470,7 @@ fn peak_memory_does_not_grow_with_the_horizon() {
             "--duration",
             duration,
             "--out",
-            scratch(&format!("memory_{duration}.mcap"))
+            scratch_file("analysis", &format!("memory_{duration}.mcap"))
                 .to_str()
                 .unwrap(),
         ]);
@@ -507,7 +497,7 @@ fn peak_memory_does_not_grow_with_the_horizon() {
 fn bad_analysis_input_is_refused_with_exit_2() {
     let urdf = "robots/double_pendulum/double_pendulum.urdf";
     let write = |name: &str, text: &str| {
-        let path = scratch(name);
+        let path = scratch_file("analysis", name);
         std::fs::write(&path, text).unwrap();
         path
     };
@@ -593,7 +583,7 @@ fn bad_analysis_input_is_refused_with_exit_2() {
     for (sidecar, extra, fragments) in cases {
         let mut args = vec!["analyze", urdf, "--uncertainty", sidecar.to_str().unwrap()];
         args.extend(extra);
-        let out = ribbon(&args);
+        let out = ribbon_output(&args);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(
             out.status.code(),
@@ -609,7 +599,7 @@ fn bad_analysis_input_is_refused_with_exit_2() {
             );
         }
     }
-    let out = ribbon(&[
+    let out = ribbon_output(&[
         "analyze",
         "robots/ur5/ur5.urdf",
         "--uncertainty",
@@ -623,7 +613,7 @@ fn bad_analysis_input_is_refused_with_exit_2() {
 fn a_failing_sample_is_named_and_can_be_excluded() {
     // A bar whose joint damping makes some samples diverge is hard to build; instead a spring so
     // stiff at one end of its interval that a 10 ms step cannot converge there.
-    let urdf = scratch("stiff.urdf");
+    let urdf = scratch_file("analysis", "stiff.urdf");
     std::fs::write(
         &urdf,
         r#"<robot name="stiff"><link name="w"/>
@@ -632,13 +622,13 @@ fn a_failing_sample_is_named_and_can_be_excluded() {
         <joint name="hinge" type="continuous"><parent link="w"/><child link="bar"/><axis xyz="0 0 1"/></joint></robot>"#,
     )
     .unwrap();
-    let sidecar = scratch("stiff.uncertainty.toml");
+    let sidecar = scratch_file("analysis", "stiff.uncertainty.toml");
     std::fs::write(
         &sidecar,
         "[parameters]\n\"scene.gravity.y\" = [-1e9, -9.81]\n[scene]\nduration = 0.2\nstep = 0.01\ngravity = [0.0, -9.81, 0.0]\ninitial.q = { hinge = 0.5 }\n",
     )
     .unwrap();
-    let out = ribbon(&[
+    let out = ribbon_output(&[
         "analyze",
         urdf.to_str().unwrap(),
         "--uncertainty",
@@ -660,8 +650,8 @@ fn a_failing_sample_is_named_and_can_be_excluded() {
         stderr.contains("failed at t =") && stderr.contains("parameter values"),
         "{stderr}"
     );
-    let summary = scratch("stiff.summary.json");
-    let out = ribbon(&[
+    let summary = scratch_file("analysis", "stiff.summary.json");
+    let out = ribbon_output(&[
         "analyze",
         urdf.to_str().unwrap(),
         "--uncertainty",
@@ -687,9 +677,9 @@ fn a_failing_sample_is_named_and_can_be_excluded() {
 
 #[test]
 fn compare_reports_what_accuracy_costs() {
-    let report = scratch("compare_report");
+    let report = scratch_file("analysis", "compare_report");
     let _ = std::fs::remove_dir_all(&report);
-    let out = ribbon(&[
+    let out = ribbon_output(&[
         "compare",
         "robots/double_pendulum/double_pendulum.urdf",
         "--duration",

@@ -9,21 +9,14 @@
 
 mod common;
 
+use common::fresh_test_scratch_dir;
+
 use common::{masked_summary, masked_table};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/analyze_reference")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("target/test-scratch/analyze_bitwise")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("create scratch directory");
-    dir
 }
 
 /// FNV-1a, 64 bit: the hash the fixtures' `*.mcap.fnv1a64` files hold.
@@ -34,7 +27,7 @@ fn fnv1a64(bytes: &[u8]) -> u64 {
 }
 
 fn check_case(name: &str, command: &str, args: &[&str]) {
-    let dir = scratch(name);
+    let dir = fresh_test_scratch_dir("analyze_bitwise", name);
     let (summary, csv, mcap) = (
         dir.join("summary.json"),
         dir.join("out.csv"),

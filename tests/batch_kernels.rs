@@ -329,7 +329,13 @@ fn a_singular_lane_reports_the_scalar_pivot_and_the_others_factorise() {
         for (s, m) in matrices.iter().enumerate() {
             batched.set_sample(s, m).unwrap();
         }
-        let mut failures = vec![Some((9, 9.0)); 3];
+        let mut failures = vec![
+            Some(ribbon::linalg::cholesky::NonPositivePivot {
+                index: 9,
+                pivot: 9.0
+            });
+            3
+        ];
         assert!(!batch::cholesky_factor(isa, &mut batched, 2, &mut failures));
         for (s, m) in matrices.iter().enumerate() {
             let mut scalar = nalgebra::DMatrix::from_column_slice(2, 2, m);
@@ -339,7 +345,7 @@ fn a_singular_lane_reports_the_scalar_pivot_and_the_others_factorise() {
                 assert_eq!(batched.sample(s), scalar.as_slice(), "sample {s}");
             }
         }
-        assert_eq!(failures[1].map(|f| f.0), Some(1));
+        assert_eq!(failures[1].map(|f| f.index), Some(1));
     }
 }
 

@@ -1,27 +1,11 @@
 //! End-to-end: bad input gets a clear error naming file, element and value, and exit code 2 — never a
 //! panic. Each case spawns the binary.
 
+mod common;
+
+use common::{ribbon_outcome, Outcome};
+
 use std::path::PathBuf;
-use std::process::Command;
-
-struct Outcome {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-fn ribbon(args: &[&str]) -> Outcome {
-    let output = Command::new(env!("CARGO_BIN_EXE_ribbon"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the ribbon binary runs");
-    Outcome {
-        code: output.status.code(),
-        stdout: String::from_utf8_lossy(&output.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
-    }
-}
 
 /// Writes a URDF into a fresh temporary directory under target/ and returns its path.
 fn temp_urdf(name: &str, text: &str) -> PathBuf {
@@ -73,20 +57,20 @@ fn malformed_xml_names_file_and_line() {
         "malformed.urdf",
         "<robot name=\"x\">\n  <link name=\"a\">\n</robot>\n",
     );
-    let out = ribbon(&["params", path.to_str().unwrap()]);
+    let out = ribbon_outcome(&["params", path.to_str().unwrap()]);
     assert_input_error(&out, &["malformed.urdf:3:", "malformed XML"]);
 }
 
 #[test]
 fn missing_file_is_reported() {
-    let out = ribbon(&["params", "robots/does_not_exist.urdf"]);
+    let out = ribbon_outcome(&["params", "robots/does_not_exist.urdf"]);
     assert_input_error(&out, &["cannot read 'robots/does_not_exist.urdf'"]);
 }
 
 #[test]
 fn joint_naming_missing_link() {
     let path = temp_urdf("missing_link.urdf", &arm("1", "bse"));
-    let out = ribbon(&["dynamics", path.to_str().unwrap()]);
+    let out = ribbon_outcome(&["dynamics", path.to_str().unwrap()]);
     assert_input_error(
         &out,
         &[
@@ -103,14 +87,14 @@ fn cycle_is_refused() {
       <joint name="ab" type="fixed"><parent link="a"/><child link="b"/></joint>
       <joint name="ba" type="fixed"><parent link="b"/><child link="a"/></joint></robot>"#;
     let path = temp_urdf("cycle.urdf", text);
-    let out = ribbon(&["params", path.to_str().unwrap()]);
+    let out = ribbon_outcome(&["params", path.to_str().unwrap()]);
     assert_input_error(&out, &["cycle.urdf", "form a cycle", "[[scene.loop]]"]);
 }
 
 #[test]
 fn negative_mass_is_refused() {
     let path = temp_urdf("negative_mass.urdf", &arm("-2.5", "base"));
-    let out = ribbon(&["params", path.to_str().unwrap()]);
+    let out = ribbon_outcome(&["params", path.to_str().unwrap()]);
     assert_input_error(
         &out,
         &[
@@ -123,13 +107,13 @@ fn negative_mass_is_refused() {
 #[test]
 fn non_finite_value_is_refused() {
     let path = temp_urdf("nan.urdf", &arm("NaN", "base"));
-    let out = ribbon(&["params", path.to_str().unwrap()]);
+    let out = ribbon_outcome(&["params", path.to_str().unwrap()]);
     assert_input_error(
         &out,
         &["nan.urdf:4:", "link 'upper'", "non-finite value NaN"],
     );
     let path = temp_urdf("inf.urdf", &arm("1", "base").replace("0.5 0 0", "inf 0 0"));
-    let out = ribbon(&["params", path.to_str().unwrap()]);
+    let out = ribbon_outcome(&["params", path.to_str().unwrap()]);
     assert_input_error(
         &out,
         &["inf.urdf:4:", "non-finite value inf in <inertial><origin>"],
@@ -138,7 +122,7 @@ fn non_finite_value_is_refused() {
 
 #[test]
 fn unknown_parameter_suggests_closest() {
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "dynamics",
         "robots/ur5/ur5.urdf",
         "--set",
@@ -151,7 +135,7 @@ fn unknown_parameter_suggests_closest() {
             "did you mean 'link.forearm_link.mass'",
         ],
     );
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "dynamics",
         "robots/ur5/ur5.urdf",
         "--set=link.forearm_link.mass=-1",
@@ -164,7 +148,7 @@ fn unknown_parameter_suggests_closest() {
 
 #[test]
 fn vector_of_wrong_length() {
-    let out = ribbon(&["dynamics", "robots/ur5/ur5.urdf", "--q=0.1,0.2"]);
+    let out = ribbon_outcome(&["dynamics", "robots/ur5/ur5.urdf", "--q=0.1,0.2"]);
     assert_input_error(
         &out,
         &[
@@ -173,7 +157,7 @@ fn vector_of_wrong_length() {
             "got 2",
         ],
     );
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "dynamics",
         "robots/double_pendulum/double_pendulum.urdf",
         "--v=1,abc",
@@ -184,7 +168,7 @@ fn vector_of_wrong_length() {
 #[test]
 fn non_unit_quaternion_is_refused_and_near_unit_is_normalised() {
     let base = "--q=0,0,0,0,0,0,0.9,0,0,0,0,0,0";
-    let out = ribbon(&["dynamics", "robots/ur5/ur5.urdf", "--floating", base]);
+    let out = ribbon_outcome(&["dynamics", "robots/ur5/ur5.urdf", "--floating", base]);
     assert_input_error(
         &out,
         &[
@@ -194,7 +178,7 @@ fn non_unit_quaternion_is_refused_and_near_unit_is_normalised() {
         ],
     );
     let near = "--q=0,0,0,0,0,0,1.0000001,0,0,0,0,0,0";
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "dynamics",
         "robots/ur5/ur5.urdf",
         "--floating",
@@ -210,7 +194,7 @@ fn planar_joint_is_not_supported_yet() {
         "planar.urdf",
         &arm("1", "base").replace("type=\"revolute\"", "type=\"planar\""),
     );
-    let out = ribbon(&["params", path.to_str().unwrap()]);
+    let out = ribbon_outcome(&["params", path.to_str().unwrap()]);
     assert_input_error(
         &out,
         &[
@@ -226,7 +210,7 @@ fn singular_mass_matrix_is_a_clear_error() {
     let text = r#"<robot name="s"><link name="a"/><link name="b"/>
       <joint name="massless" type="continuous"><parent link="a"/><child link="b"/></joint></robot>"#;
     let path = temp_urdf("singular.urdf", text);
-    let out = ribbon(&["dynamics", path.to_str().unwrap(), "--tau=1"]);
+    let out = ribbon_outcome(&["dynamics", path.to_str().unwrap(), "--tau=1"]);
     assert_input_error(&out, &["mass matrix is singular", "joint 'massless'"]);
     assert!(
         out.stderr.contains("warning:") && out.stderr.contains("no mass and no inertia"),
@@ -237,9 +221,9 @@ fn singular_mass_matrix_is_a_clear_error() {
 
 #[test]
 fn usage_errors_exit_2() {
-    let out = ribbon(&["dynamics"]);
+    let out = ribbon_outcome(&["dynamics"]);
     assert_eq!(out.code, Some(2), "{}", out.stderr);
-    let out = ribbon(&["frobnicate"]);
+    let out = ribbon_outcome(&["frobnicate"]);
     assert_eq!(out.code, Some(2), "{}", out.stderr);
 }
 
@@ -301,7 +285,7 @@ fn bad_scene_input_is_refused_with_exit_2() {
     ];
     for (name, text, fragments) in cases {
         let path = temp_urdf(name, text);
-        let out = ribbon(&[
+        let out = ribbon_outcome(&[
             "simulate",
             "robots/ur5/ur5.urdf",
             "--uncertainty",
@@ -315,7 +299,7 @@ fn bad_scene_input_is_refused_with_exit_2() {
         );
     }
     // Command-line overrides are checked the same way, and blamed on the flag, not the sidecar.
-    let out = ribbon(&["simulate", "robots/ur5/ur5.urdf", "--step=-0.001"]);
+    let out = ribbon_outcome(&["simulate", "robots/ur5/ur5.urdf", "--step=-0.001"]);
     assert_input_error(&out, &["--step: -0.001 s must be a finite number > 0"]);
     assert!(
         !out.stderr.contains("ur5.uncertainty.toml"),

@@ -17,7 +17,7 @@ const MIN_SECOND_ORDER_RATIO: f64 = 3.5;
 /// `|Φ|` and `|Φ_q q̇ + Φ_t|` bounds of the issue.
 const CONSTRAINT_TOLERANCE: f64 = 1e-10;
 
-use common::manifest;
+use common::{manifest, ribbon_outcome};
 
 fn load(urdf: &str) -> Model {
     Model::from_urdf_file(&manifest(urdf), LoadOptions::default()).expect("robot loads")
@@ -426,18 +426,6 @@ fn scaled_rows_keep_the_newton_matrix_conditioned() {
     }
 }
 
-fn ribbon_cli(args: &[&str]) -> (Option<i32>, String) {
-    let output = Command::new(env!("CARGO_BIN_EXE_ribbon"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("ribbon runs");
-    (
-        output.status.code(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
-
 fn sidecar_file(name: &str, text: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("constraints");
     std::fs::create_dir_all(&dir).unwrap();
@@ -485,8 +473,8 @@ fn bad_constraint_input_is_refused_clearly() {
     ];
     for (urdf, name, text, fragments) in cases {
         let path = sidecar_file(name, &text);
-        let (code, stderr) =
-            ribbon_cli(&["simulate", urdf, "--uncertainty", path.to_str().unwrap()]);
+        let common::Outcome { code, stderr, .. } =
+            ribbon_outcome(&["simulate", urdf, "--uncertainty", path.to_str().unwrap()]);
         assert_eq!(code, Some(2), "{name}: {stderr}");
         for fragment in fragments {
             assert!(

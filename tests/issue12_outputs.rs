@@ -3,6 +3,10 @@
 //! output was replaced by a rename, outputs were checked only after the run, two outputs could name
 //! one file, two runs writing one output shared one temporary file, and CSV headers were not escaped.
 
+mod common;
+
+use common::{fresh_scratch_dir, ribbon_outcome, Outcome};
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -11,32 +15,9 @@ use std::time::{Duration, Instant};
 /// A generous guard against a hang (the test fails instead of waiting forever); never a speed check.
 const HANG_GUARD: Duration = Duration::from_secs(300);
 
-struct Outcome {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-fn ribbon(args: &[&str]) -> Outcome {
-    let output = Command::new(env!("CARGO_BIN_EXE_ribbon"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the ribbon binary runs");
-    Outcome {
-        code: output.status.code(),
-        stdout: String::from_utf8_lossy(&output.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
-    }
-}
-
 /// A fresh scratch directory for one test with a copy of the double pendulum and its sidecar.
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join("issue12_outputs")
-        .join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
+fn scratch_with_double_pendulum(test: &str) -> PathBuf {
+    let dir = fresh_scratch_dir("issue12_outputs", test);
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     for name in ["double_pendulum.urdf", "double_pendulum.uncertainty.toml"] {
         std::fs::copy(
@@ -87,7 +68,7 @@ fn assert_refused_before_running(out: &Outcome, fragments: &[&str]) {
 
 #[test]
 fn an_output_equal_to_an_input_is_refused_and_the_input_kept() {
-    let dir = scratch("input");
+    let dir = scratch_with_double_pendulum("input");
     let urdf = dir.join("double_pendulum.urdf");
     let sidecar = dir.join("double_pendulum.uncertainty.toml");
     let (urdf_before, sidecar_before) = (text(&urdf), text(&sidecar));
@@ -103,9 +84,9 @@ fn an_output_equal_to_an_input_is_refused_and_the_input_kept() {
         ("--summary", &hard_link, "the same file under another name"),
     ];
     for (flag, output, fragment) in cases {
-        let out = ribbon(&["simulate", s(&urdf), flag, s(output)]);
+        let out = ribbon_outcome(&["simulate", s(&urdf), flag, s(output)]);
         assert_refused_before_running(&out, &[&format!("error: {flag}:"), fragment]);
-        let out = ribbon(&["analyze", s(&urdf), flag, s(output)]);
+        let out = ribbon_outcome(&["analyze", s(&urdf), flag, s(output)]);
         assert_refused_before_running(&out, &[&format!("error: {flag}:"), fragment]);
     }
     assert_eq!(text(&urdf), urdf_before, "the URDF is untouched");
@@ -115,14 +96,14 @@ fn an_output_equal_to_an_input_is_refused_and_the_input_kept() {
 
 #[test]
 fn a_symlink_output_is_refused_and_its_target_kept() {
-    let dir = scratch("symlink");
+    let dir = scratch_with_double_pendulum("symlink");
     let precious = dir.join("precious.txt");
     std::fs::write(&precious, "keep me").unwrap();
     let link = dir.join("link.csv");
     std::os::unix::fs::symlink(&precious, &link).unwrap();
     let urdf = dir.join("double_pendulum.urdf");
     for flag in ["--csv", "--summary", "--out"] {
-        let out = ribbon(&["simulate", s(&urdf), flag, s(&link)]);
+        let out = ribbon_outcome(&["simulate", s(&urdf), flag, s(&link)]);
         assert_refused_before_running(&out, &[flag, "is a symbolic link", "precious.txt"]);
     }
     assert_eq!(text(&precious), "keep me");
@@ -134,7 +115,7 @@ fn a_symlink_output_is_refused_and_its_target_kept() {
 
 #[test]
 fn a_fifo_or_directory_output_is_refused() {
-    let dir = scratch("special");
+    let dir = scratch_with_double_pendulum("special");
     let fifo = dir.join("pipe.csv");
     let made = Command::new("mkfifo")
         .arg(&fifo)
@@ -142,24 +123,24 @@ fn a_fifo_or_directory_output_is_refused() {
         .expect("mkfifo runs");
     assert!(made.success());
     let urdf = dir.join("double_pendulum.urdf");
-    let out = ribbon(&["simulate", s(&urdf), "--csv", s(&fifo)]);
+    let out = ribbon_outcome(&["simulate", s(&urdf), "--csv", s(&fifo)]);
     assert_refused_before_running(&out, &["--csv", "is a FIFO (named pipe)"]);
     use std::os::unix::fs::FileTypeExt;
     assert!(std::fs::symlink_metadata(&fifo)
         .unwrap()
         .file_type()
         .is_fifo());
-    let out = ribbon(&["simulate", s(&urdf), "--summary", s(&dir)]);
+    let out = ribbon_outcome(&["simulate", s(&urdf), "--summary", s(&dir)]);
     assert_refused_before_running(&out, &["--summary", "is a directory"]);
 }
 
 #[test]
 fn a_bad_output_directory_is_refused_before_a_long_run() {
-    let dir = scratch("missing");
+    let dir = scratch_with_double_pendulum("missing");
     let urdf = dir.join("double_pendulum.urdf");
     let missing = dir.join("no/such/dir/out.csv");
     // 200 s of simulated time would run before the old check; now nothing runs.
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         s(&urdf),
         "--duration",
@@ -168,7 +149,7 @@ fn a_bad_output_directory_is_refused_before_a_long_run() {
         s(&missing),
     ]);
     assert_refused_before_running(&out, &["--csv", "create it first"]);
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "analyze",
         s(&urdf),
         "--duration",
@@ -178,18 +159,18 @@ fn a_bad_output_directory_is_refused_before_a_long_run() {
     ]);
     assert_refused_before_running(&out, &["--out", "create it first"]);
     let report = dir.join("double_pendulum.urdf");
-    let out = ribbon(&["compare", s(&urdf), "--report", s(&report)]);
+    let out = ribbon_outcome(&["compare", s(&urdf), "--report", s(&report)]);
     assert_refused_before_running(&out, &["--report", "is not a directory"]);
 }
 
 #[test]
 fn two_outputs_naming_one_file_are_refused() {
-    let dir = scratch("twice");
+    let dir = scratch_with_double_pendulum("twice");
     let urdf = dir.join("double_pendulum.urdf");
     let one = dir.join("out.json");
     let same = dir.join("./sub/../out.json");
     std::fs::create_dir_all(dir.join("sub")).unwrap();
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         s(&urdf),
         "--csv",
@@ -206,7 +187,7 @@ fn two_outputs_naming_one_file_are_refused() {
 /// 71 669-byte file became 84 370 bytes of two runs mixed, exit 1).
 #[test]
 fn two_runs_writing_one_output_do_not_share_a_temporary_file() {
-    let dir = scratch("concurrent");
+    let dir = scratch_with_double_pendulum("concurrent");
     let urdf = dir.join("double_pendulum.urdf");
     let out = dir.join("shared.mcap");
     let mut long = Command::new(env!("CARGO_BIN_EXE_ribbon"))
@@ -235,7 +216,7 @@ fn two_runs_writing_one_output_do_not_share_a_temporary_file() {
         }
         assert!(started.elapsed() < HANG_GUARD, "no progress line");
     }
-    let short = ribbon(&["simulate", s(&urdf), "--duration", "0.5", "--out", s(&out)]);
+    let short = ribbon_outcome(&["simulate", s(&urdf), "--duration", "0.5", "--out", s(&out)]);
     assert_eq!(short.code, Some(0), "{}", short.stderr);
     let rest: Vec<String> = lines.map_while(Result::ok).collect();
     let status = long.wait().expect("the long run ends");
@@ -265,7 +246,7 @@ fn two_runs_writing_one_output_do_not_share_a_temporary_file() {
 
 #[test]
 fn csv_headers_are_quoted_as_rfc_4180_asks() {
-    let dir = scratch("csv_header");
+    let dir = scratch_with_double_pendulum("csv_header");
     let urdf = dir.join("odd_names.urdf");
     std::fs::write(
         &urdf,
@@ -283,7 +264,7 @@ fn csv_headers_are_quoted_as_rfc_4180_asks() {
     )
     .unwrap();
     let csv = dir.join("out.csv");
-    let out = ribbon(&["simulate", s(&urdf), "--duration", "0.02", "--csv", s(&csv)]);
+    let out = ribbon_outcome(&["simulate", s(&urdf), "--duration", "0.02", "--csv", s(&csv)]);
     assert_eq!(out.code, Some(0), "{}", out.stderr);
     let written = text(&csv);
     let header = written.lines().next().unwrap();
@@ -304,7 +285,7 @@ fn the_mcap_log_refuses_a_nan() {
     use ribbon::output::mcap::McapMetadata;
     use ribbon::output::EnvelopeLog;
     use ribbon::scene::{Output, OutputKind};
-    let dir = scratch("mcap_nan");
+    let dir = scratch_with_double_pendulum("mcap_nan");
     let path = dir.join("nan.mcap");
     let outputs = vec![Output {
         name: "q.j1".to_string(),

@@ -3,6 +3,10 @@
 //! its temporary file behind; `kill -9` must keep the previous output. Each test spawns the binary
 //! and signals it by process id.
 
+mod common;
+
+use common::fresh_scratch_dir;
+
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -10,15 +14,6 @@ use std::time::{Duration, Instant};
 
 /// A generous guard against a hang (the test fails instead of waiting forever); never a speed check.
 const HANG_GUARD: Duration = Duration::from_secs(300);
-
-fn scratch(test: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join("issue12_signals")
-        .join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
-}
 
 fn urdf() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/double_pendulum/double_pendulum.urdf")
@@ -119,7 +114,7 @@ fn wait_for_temporary(dir: &Path) {
 /// marks it partial and exits 1.
 #[test]
 fn sigterm_stops_a_single_run_after_the_current_step_and_saves_it() {
-    let dir = scratch("simulate_sigterm");
+    let dir = fresh_scratch_dir("issue12_signals", "simulate_sigterm");
     let summary = dir.join("summary.json");
     let csv = dir.join("series.csv");
     let mut child = Command::new(env!("CARGO_BIN_EXE_ribbon"))
@@ -173,7 +168,7 @@ fn sigterm_stops_a_single_run_after_the_current_step_and_saves_it() {
 /// Both are safe; a temporary left behind or a broken output is not.
 #[test]
 fn a_second_sigint_removes_the_temporaries_and_keeps_the_old_output() {
-    let dir = scratch("double_sigint");
+    let dir = fresh_scratch_dir("issue12_signals", "double_sigint");
     let out = dir.join("envelopes.mcap");
     std::fs::write(&out, "previous result").unwrap();
     let (mut child, _) = analyze_until_progress(&out);
@@ -199,7 +194,7 @@ fn a_second_sigint_removes_the_temporaries_and_keeps_the_old_output() {
 /// named after the process, is left, and it is never the output).
 #[test]
 fn kill_9_keeps_the_old_output() {
-    let dir = scratch("kill_9");
+    let dir = fresh_scratch_dir("issue12_signals", "kill_9");
     let out = dir.join("envelopes.mcap");
     std::fs::write(&out, "previous result").unwrap();
     let (mut child, _) = analyze_until_progress(&out);
@@ -220,7 +215,7 @@ fn kill_9_keeps_the_old_output() {
 /// the run stops inside its first block, which the step counter shows without timing anything.
 #[test]
 fn sigterm_stops_a_study_inside_a_block() {
-    let dir = scratch("study_sigterm");
+    let dir = fresh_scratch_dir("issue12_signals", "study_sigterm");
     let out = dir.join("envelopes.mcap");
     let summary = dir.join("summary.json");
     let (mut child, _) =

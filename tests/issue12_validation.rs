@@ -6,27 +6,11 @@
 //! `simulate`, `analyze` and `dynamics` use the same exit codes (2: the input cannot start; 1: a run
 //! that started failed).
 
+mod common;
+
+use common::{ribbon_outcome, Outcome};
+
 use std::path::PathBuf;
-use std::process::Command;
-
-struct Outcome {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-fn ribbon(args: &[&str]) -> Outcome {
-    let output = Command::new(env!("CARGO_BIN_EXE_ribbon"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the ribbon binary runs");
-    Outcome {
-        code: output.status.code(),
-        stdout: String::from_utf8_lossy(&output.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
-    }
-}
 
 fn temp_file(name: &str, text: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("issue12_validation");
@@ -56,13 +40,13 @@ const SLIDER_CRANK: &str = "robots/slider_crank/slider_crank.urdf";
 #[test]
 fn a_subnormal_or_tiny_step_is_refused_with_the_numbers() {
     for command in ["simulate", "analyze"] {
-        let out = ribbon(&[command, DOUBLE_PENDULUM, "--step", "5e-324"]);
+        let out = ribbon_outcome(&[command, DOUBLE_PENDULUM, "--step", "5e-324"]);
         assert_exit(
             &out,
             2,
             &["--step: a step of 5e-324 s is below the smallest step 1e-9 s"],
         );
-        let out = ribbon(&[
+        let out = ribbon_outcome(&[
             command,
             DOUBLE_PENDULUM,
             "--step",
@@ -78,10 +62,10 @@ fn a_subnormal_or_tiny_step_is_refused_with_the_numbers() {
 fn a_huge_duration_is_refused_not_an_allocation_abort() {
     for command in ["simulate", "analyze"] {
         // Before: exit 134, "memory allocation of 800000000016 bytes failed".
-        let out = ribbon(&[command, DOUBLE_PENDULUM, "--duration", "1e9"]);
+        let out = ribbon_outcome(&[command, DOUBLE_PENDULUM, "--duration", "1e9"]);
         assert_exit(&out, 2, &["--duration:", "1.000e12 steps", "MAX_STEPS"]);
         // Within the step limit but not within memory: the bytes are named.
-        let out = ribbon(&[command, DOUBLE_PENDULUM, "--duration", "1e6"]);
+        let out = ribbon_outcome(&[command, DOUBLE_PENDULUM, "--duration", "1e6"]);
         assert_exit(
             &out,
             2,
@@ -97,7 +81,7 @@ fn a_huge_duration_is_refused_not_an_allocation_abort() {
 
 #[test]
 fn absurd_thread_counts_are_refused() {
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "analyze",
         DOUBLE_PENDULUM,
         "--threads",
@@ -110,7 +94,7 @@ fn absurd_thread_counts_are_refused() {
         2,
         &["--threads: 100000 worker threads", "limit of 1024"],
     );
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "compare",
         DOUBLE_PENDULUM,
         "--threads",
@@ -123,22 +107,22 @@ fn absurd_thread_counts_are_refused() {
 
 #[test]
 fn a_flag_error_names_the_flag_not_the_sidecar() {
-    let out = ribbon(&["simulate", "robots/ur5/ur5.urdf", "--step=-0.001"]);
+    let out = ribbon_outcome(&["simulate", "robots/ur5/ur5.urdf", "--step=-0.001"]);
     assert_exit(
         &out,
         2,
         &["error: --step: -0.001 s must be a finite number > 0"],
     );
     assert!(!out.stderr.contains("uncertainty.toml"), "{}", out.stderr);
-    let out = ribbon(&["analyze", DOUBLE_PENDULUM, "--duration=nan"]);
+    let out = ribbon_outcome(&["analyze", DOUBLE_PENDULUM, "--duration=nan"]);
     assert_exit(
         &out,
         2,
         &["error: --duration: NaN s must be a finite number > 0"],
     );
-    let out = ribbon(&["simulate", DOUBLE_PENDULUM, "--alpha=-0.5"]);
+    let out = ribbon_outcome(&["simulate", DOUBLE_PENDULUM, "--alpha=-0.5"]);
     assert_exit(&out, 2, &["error: --alpha: -0.5 is outside the HHT range"]);
-    let out = ribbon(&["simulate", DOUBLE_PENDULUM, "--duration", "0.0015"]);
+    let out = ribbon_outcome(&["simulate", DOUBLE_PENDULUM, "--duration", "0.0015"]);
     assert_exit(
         &out,
         2,
@@ -151,16 +135,16 @@ fn a_flag_error_names_the_flag_not_the_sidecar() {
 #[test]
 fn alpha_near_zero_with_constraint_rows_is_refused() {
     for alpha in ["--alpha=-1e-9", "--alpha=-0.001", "--alpha=-0.04"] {
-        let out = ribbon(&["simulate", SLIDER_CRANK, alpha]);
+        let out = ribbon_outcome(&["simulate", SLIDER_CRANK, alpha]);
         assert_exit(
             &out,
             2,
             &["--alpha:", "refused with constraint rows", "at least 0.05"],
         );
-        let out = ribbon(&["analyze", SLIDER_CRANK, alpha]);
+        let out = ribbon_outcome(&["analyze", SLIDER_CRANK, alpha]);
         assert_exit(&out, 2, &["--alpha:", "at least 0.05"]);
     }
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         SLIDER_CRANK,
         "--alpha=-0.05",
@@ -169,7 +153,7 @@ fn alpha_near_zero_with_constraint_rows_is_refused() {
     ]);
     assert_exit(&out, 0, &[]);
     // Without constraint rows α near 0 stays accurate and allowed.
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         DOUBLE_PENDULUM,
         "--alpha=-1e-9",
@@ -202,7 +186,7 @@ const MASSLESS_ROOT: &str = r#"<robot name="float"><link name="base"/>
 fn a_singular_mass_matrix_names_the_joint_and_cause_with_exit_2_everywhere() {
     let leaf = temp_file("massless_leaf.urdf", MASSLESS_LEAF);
     let leaf = leaf.to_str().unwrap();
-    let out = ribbon(&["simulate", leaf]);
+    let out = ribbon_outcome(&["simulate", leaf]);
     assert_exit(
         &out,
         2,
@@ -212,13 +196,13 @@ fn a_singular_mass_matrix_names_the_joint_and_cause_with_exit_2_everywhere() {
             "link 'hand' moved by revolute joint 'wrist' has no mass and no inertia (a massless leaf)",
         ],
     );
-    let out = ribbon(&["dynamics", leaf, "--tau=0,0"]);
+    let out = ribbon_outcome(&["dynamics", leaf, "--tau=0,0"]);
     assert_exit(&out, 2, &["joint 'wrist'"]);
     let sidecar = temp_file(
         "massless_leaf.uncertainty.toml",
         "[parameters]\n\"link.upper.mass\" = { rel = 0.1 }\n",
     );
-    let out = ribbon(&["analyze", leaf, "--uncertainty", sidecar.to_str().unwrap()]);
+    let out = ribbon_outcome(&["analyze", leaf, "--uncertainty", sidecar.to_str().unwrap()]);
     assert_exit(&out, 2, &["the run cannot start", "(a massless leaf)"]);
 
     // A box whose corner makes M singular (a mass of 1e298 beside one of 1 kg): that sample
@@ -227,7 +211,7 @@ fn a_singular_mass_matrix_names_the_joint_and_cause_with_exit_2_everywhere() {
         "wide_mass.toml",
         "[parameters]\n\"link.bar1.mass\" = [1e-300, 1e300]\n[scene]\nduration = 0.1\n",
     );
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "analyze",
         DOUBLE_PENDULUM,
         "--uncertainty",
@@ -236,7 +220,7 @@ fn a_singular_mass_matrix_names_the_joint_and_cause_with_exit_2_everywhere() {
     assert_exit(&out, 2, &["failed at t = 0 s", "singular"]);
 
     let root = temp_file("massless_root.urdf", MASSLESS_ROOT);
-    let out = ribbon(&["simulate", root.to_str().unwrap(), "--floating"]);
+    let out = ribbon_outcome(&["simulate", root.to_str().unwrap(), "--floating"]);
     assert_exit(
         &out,
         2,
@@ -254,7 +238,7 @@ fn a_newton_failure_names_the_joint_and_exits_1() {
         "fast_elbow.toml",
         "[scene]\nduration = 0.1\ninitial.v = { j2 = 1e3 }\n",
     );
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         DOUBLE_PENDULUM,
         "--uncertainty",
@@ -293,7 +277,7 @@ fn an_initial_velocity_the_loop_forbids_is_reported_with_the_numbers() {
         &text[end..]
     );
     let sidecar = temp_file("four_bar_crank_only.toml", &crank_only);
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         "robots/four_bar/four_bar.urdf",
         "--uncertainty",
@@ -313,7 +297,7 @@ fn an_initial_velocity_the_loop_forbids_is_reported_with_the_numbers() {
         ],
     );
     // The shipped sidecar gives those velocities: no warning.
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         "robots/four_bar/four_bar.urdf",
         "--duration",
@@ -329,7 +313,7 @@ fn two_outputs_with_one_name_are_refused() {
         "twice.toml",
         "[outputs]\njoints = [\"j1\", \"j2\", \"j1\"]\n",
     );
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         DOUBLE_PENDULUM,
         "--uncertainty",
@@ -345,8 +329,8 @@ fn two_outputs_with_one_name_are_refused() {
 /// Before: `dynamics --v=1e200,1e200` printed `bias NaN NaN` (JSON `null`) with exit 0.
 #[test]
 fn nan_is_never_printed_with_exit_0() {
-    let json = ribbon(&["dynamics", DOUBLE_PENDULUM, "--v=1e200,1e200", "--json"]);
-    let table = ribbon(&["dynamics", DOUBLE_PENDULUM, "--v=1e200,1e200"]);
+    let json = ribbon_outcome(&["dynamics", DOUBLE_PENDULUM, "--v=1e200,1e200", "--json"]);
+    let table = ribbon_outcome(&["dynamics", DOUBLE_PENDULUM, "--v=1e200,1e200"]);
     for out in [json, table] {
         assert_exit(
             &out,
@@ -371,7 +355,7 @@ fn drive_errors_name_the_joint() {
         1,
     );
     let sidecar = temp_file("slider_crank_redundant_drive.toml", &redundant);
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         SLIDER_CRANK,
         "--uncertainty",
@@ -389,7 +373,7 @@ fn drive_errors_name_the_joint() {
     let fast = text.replace("rate = 6.283185307179586", "rate = 6283.185307179586");
     assert_ne!(fast, text, "the sidecar's drive rate was found");
     let sidecar = temp_file("slider_crank_fast_drive.toml", &fast);
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "simulate",
         SLIDER_CRANK,
         "--uncertainty",
@@ -416,7 +400,7 @@ fn a_hostile_expression_is_refused_with_a_short_message() {
         "hostile_chain.toml",
         &format!("[parameters]\nl1 = [0.99, 1.01]\n[bind]\n\"joint.j2.origin.x\" = \"{chain}\"\n"),
     );
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "analyze",
         DOUBLE_PENDULUM,
         "--uncertainty",

@@ -4,17 +4,13 @@
 
 mod common;
 
+use common::scratch_file;
+
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("mcap_cli");
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir.join(name)
-}
 
 use common::manifest;
 
@@ -69,8 +65,8 @@ fn sobol_entries(summary: &Value) -> Vec<Value> {
 
 #[test]
 fn analyze_log_matches_its_summary_in_every_reader() {
-    let out = scratch("double_pendulum.mcap");
-    let summary_path = scratch("double_pendulum.summary.json");
+    let out = scratch_file("mcap_cli", "double_pendulum.mcap");
+    let summary_path = scratch_file("mcap_cli", "double_pendulum.summary.json");
     let status = Command::new(common::ribbon_bin())
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
@@ -172,7 +168,7 @@ fn analyze_log_matches_its_summary_in_every_reader() {
             {"name": "double_pendulum.uncertainty.toml", "media_type": "application/toml", "path": manifest("robots/double_pendulum/double_pendulum.uncertainty.toml")},
         ],
     });
-    let expected_path = scratch("double_pendulum.expected.json");
+    let expected_path = scratch_file("mcap_cli", "double_pendulum.expected.json");
     std::fs::write(&expected_path, expected.to_string()).unwrap();
     let python = common::reference_python();
     let result = Command::new(&python)
@@ -180,7 +176,7 @@ fn analyze_log_matches_its_summary_in_every_reader() {
         .arg(&out)
         .arg(&expected_path)
         .arg("--work-dir")
-        .arg(scratch("check_work"))
+        .arg(scratch_file("mcap_cli", "check_work"))
         .output()
         .expect("python runs");
     assert!(
@@ -194,7 +190,7 @@ fn analyze_log_matches_its_summary_in_every_reader() {
 
 #[test]
 fn sigint_finishes_a_valid_partial_log() {
-    let out = scratch("interrupted.mcap");
+    let out = scratch_file("mcap_cli", "interrupted.mcap");
     let _ = std::fs::remove_file(&out);
     // Long enough not to finish first: 21² true-model runs of a 200 s double pendulum.
     let mut child = Command::new(common::ribbon_bin())
@@ -267,7 +263,7 @@ fn sigint_finishes_a_valid_partial_log() {
         *envelope_times.iter().max().unwrap() < 200_000_000_000,
         "the run did not finish: the log stops before t = 200 s"
     );
-    let leftovers: Vec<String> = std::fs::read_dir(scratch(""))
+    let leftovers: Vec<String> = std::fs::read_dir(scratch_file("mcap_cli", ""))
         .expect("scratch directory")
         .filter_map(Result::ok)
         .map(|e| e.file_name().to_string_lossy().into_owned())

@@ -11,8 +11,12 @@
 //! design of the same budget is 38 % off here (measured when this test was written), which is why
 //! `auto` no longer uses it when memory allows.
 
+mod common;
+
+use common::scratch_dir;
+
 use serde_json::Value;
-use std::path::{Path, PathBuf};
+
 use std::process::Command;
 
 /// Pendulums (two dimensions each).
@@ -23,12 +27,6 @@ const AUTO_MAX_ERROR: f64 = 0.01;
 const COM: (f64, f64) = (0.15, 0.25);
 /// Inertia about the COM interval, kg·m² (nominal 0.04).
 const IZZ: (f64, f64) = (0.036, 0.044);
-
-fn scratch() -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("planted_separable");
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn urdf() -> String {
     let mut text = String::from("<robot name=\"pendulums\">\n  <link name=\"base\"/>\n");
@@ -54,7 +52,7 @@ fn scene() -> String {
 }
 
 fn run(args: &[&str]) -> Value {
-    let dir = scratch();
+    let dir = scratch_dir("planted_separable");
     let summary = dir.join(format!("{}.json", args.join("_").replace(['/', '.'], "")));
     let out = Command::new(env!("CARGO_BIN_EXE_ribbon"))
         .args(args)
@@ -86,7 +84,7 @@ fn series(summary: &Value, output: &str, key: &str) -> Vec<f64> {
 
 #[test]
 fn auto_finds_the_exact_range_of_a_planted_separable_model_at_d_24() {
-    let dir = scratch();
+    let dir = scratch_dir("planted_separable");
     let urdf_path = dir.join("pendulums.urdf");
     std::fs::write(&urdf_path, urdf()).unwrap();
     let urdf_path = urdf_path.to_str().unwrap().to_string();

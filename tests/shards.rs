@@ -5,30 +5,13 @@
 
 mod common;
 
+use common::{fresh_test_scratch_dir, ribbon_output_outside_scheduler};
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("target/test-scratch/shards")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("create scratch directory");
-    dir
-}
-
-fn ribbon(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ribbon"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("JOB_COMPLETION_INDEX")
-        .output()
-        .expect("run ribbon")
-}
-
 fn ok(args: &[&str]) -> Output {
-    let out = ribbon(args);
+    let out = ribbon_output_outside_scheduler(args);
     assert!(
         out.status.success(),
         "ribbon {args:?} failed ({:?}): {}",
@@ -39,7 +22,7 @@ fn ok(args: &[&str]) -> Output {
 }
 
 fn refused(args: &[&str]) -> String {
-    let out = ribbon(args);
+    let out = ribbon_output_outside_scheduler(args);
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();
     assert_eq!(
         out.status.code(),
@@ -129,7 +112,7 @@ fn assert_same(name: &str, expected: &Outputs, found: &Outputs) {
 
 /// `analyze` once, then plan and merge 1, 2, 4 and 7 shards with different thread counts.
 fn check_study(name: &str, study: &[&str]) {
-    let dir = scratch(name);
+    let dir = fresh_test_scratch_dir("shards", name);
     let single = dir.join("single");
     std::fs::create_dir_all(&single).expect("mkdir");
     let expected = analyze(&single, study);
@@ -170,7 +153,7 @@ fn quadruped_contact_shards_merge_to_the_single_machine_bytes() {
         "2",
     ];
     check_study("quadruped", &study);
-    // check_study's single-machine summary (scratch("quadruped")/single).
+    // check_study's single-machine summary (fresh_test_scratch_dir("shards", "quadruped")/single).
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("target/test-scratch/shards/quadruped/single/summary.json");
     let summary: serde_json::Value =
@@ -206,7 +189,7 @@ fn ur5_all_values_d72_sparse_shards_merge_to_the_single_machine_bytes() {
 /// A box where some samples diverge: `--keep-going` leaves them out, sharded or not.
 #[test]
 fn failing_samples_are_carried_by_their_shards() {
-    let dir = scratch("keep_going");
+    let dir = fresh_test_scratch_dir("shards", "keep_going");
     let urdf = dir.join("stiff.urdf");
     std::fs::write(
         &urdf,
@@ -260,7 +243,7 @@ fn failing_samples_are_carried_by_their_shards() {
     let shards = dir.join("strict-shards");
     let mut failed = 0;
     for k in 0..2 {
-        let out = ribbon(&[
+        let out = ribbon_output_outside_scheduler(&[
             "run",
             s(&strict_plan),
             "--shard",
@@ -280,7 +263,7 @@ fn failing_samples_are_carried_by_their_shards() {
 
 #[test]
 fn bad_shard_sets_are_named_and_refused() {
-    let dir = scratch("refusals");
+    let dir = fresh_test_scratch_dir("shards", "refusals");
     let study = [
         "robots/double_pendulum/double_pendulum.urdf",
         "--duration",
@@ -420,7 +403,7 @@ fn plan_with(dir: &Path, study: &[&str]) -> PathBuf {
 
 #[test]
 fn shard_indices_come_from_the_scheduler_and_count_from_zero() {
-    let dir = scratch("environment");
+    let dir = fresh_test_scratch_dir("shards", "environment");
     let plan = plan(
         &dir,
         &[
@@ -560,7 +543,7 @@ fn staged_loop(
 /// threads: the same bytes every time. Returns the stage count and the directory of the 2-shard
 /// run.
 fn check_staged_study(name: &str, study: &[&str]) -> (usize, PathBuf, PathBuf) {
-    let dir = scratch(name);
+    let dir = fresh_test_scratch_dir("shards", name);
     let single = dir.join("single");
     std::fs::create_dir_all(&single).expect("mkdir");
     let expected = analyze(&single, study);
@@ -588,7 +571,7 @@ fn check_staged_study(name: &str, study: &[&str]) -> (usize, PathBuf, PathBuf) {
 /// directory, an edited stage plan and a stage that was not planned are refused, named.
 #[test]
 fn adaptive_d19_stages_merge_to_the_single_machine_bytes() {
-    let dir = scratch("adaptive_sidecar");
+    let dir = fresh_test_scratch_dir("shards", "adaptive_sidecar");
     let sidecar = ur5_d19_sidecar(&dir);
     let study = [
         "robots/ur5/ur5.urdf",
@@ -657,13 +640,16 @@ fn adaptive_d19_stages_merge_to_the_single_machine_bytes() {
     let fresh = dir.join("fresh");
     run_stage_shards(&plan, &fresh, 1, 1);
     let merge_fresh = ["merge", s(&plan), s(&fresh)];
-    assert_eq!(ribbon(&merge_fresh).status.code(), Some(3));
+    assert_eq!(
+        ribbon_output_outside_scheduler(&merge_fresh).status.code(),
+        Some(3)
+    );
     let stage_plan = fresh.join("stage-2/stage.plan");
     let written = std::fs::read(&stage_plan).expect("stage 2 planned");
     let modified = std::fs::metadata(&stage_plan)
         .and_then(|m| m.modified())
         .ok();
-    let again = ribbon(&merge_fresh);
+    let again = ribbon_output_outside_scheduler(&merge_fresh);
     assert_eq!(again.status.code(), Some(3));
     assert!(String::from_utf8_lossy(&again.stdout).contains("(already)"));
     assert!(written == std::fs::read(&stage_plan).expect("stage plan"));
@@ -678,7 +664,7 @@ fn adaptive_d19_stages_merge_to_the_single_machine_bytes() {
 /// A screened design: the screening is stage 1, the design built on its ranking stage 2.
 #[test]
 fn screened_stages_merge_to_the_single_machine_bytes() {
-    let dir = scratch("screened_sidecar");
+    let dir = fresh_test_scratch_dir("shards", "screened_sidecar");
     let sidecar = ur5_d19_sidecar(&dir);
     let (stages, _, _) = check_staged_study(
         "screened",
@@ -703,7 +689,7 @@ fn screened_stages_merge_to_the_single_machine_bytes() {
 /// `/records` message per record time with samples × outputs doubles.
 #[test]
 fn record_blocks_are_readable_elsewhere() {
-    let dir = scratch("python");
+    let dir = fresh_test_scratch_dir("shards", "python");
     let plan = plan(
         &dir,
         &[

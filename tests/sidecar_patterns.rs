@@ -2,28 +2,12 @@
 //! `ribbon params --uncertainty` (the expanded box), `dynamics --set …scale`, the summary JSON of
 //! `analyze`, and bad input (clear errors or notes naming the key, exit 2 for errors).
 
+mod common;
+
+use common::{ribbon_outcome, Outcome};
+
 use serde_json::Value;
 use std::path::PathBuf;
-use std::process::Command;
-
-struct Outcome {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-fn ribbon(args: &[&str]) -> Outcome {
-    let output = Command::new(env!("CARGO_BIN_EXE_ribbon"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the ribbon binary runs");
-    Outcome {
-        code: output.status.code(),
-        stdout: String::from_utf8_lossy(&output.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
-    }
-}
 
 fn json(outcome: &Outcome) -> Value {
     assert_eq!(outcome.code, Some(0), "stderr: {}", outcome.stderr);
@@ -61,7 +45,7 @@ const ALL_VALUES: &str = "robots/ur5/ur5.all-values.uncertainty.toml";
 
 #[test]
 fn the_shipped_all_values_sidecar_expands_to_72_dimensions() {
-    let box_json = json(&ribbon(&[
+    let box_json = json(&ribbon_outcome(&[
         "params",
         UR5,
         "--uncertainty",
@@ -126,7 +110,7 @@ fn the_shipped_all_values_sidecar_expands_to_72_dimensions() {
         "[parameters] \"link.wrist_3_link.mass\" overrides the match of [parameters] \"link.*.mass\""
     )));
     // The readable form says d first and lists the notes after the dimensions.
-    let table = ribbon(&["params", UR5, "--uncertainty", ALL_VALUES]);
+    let table = ribbon_outcome(&["params", UR5, "--uncertainty", ALL_VALUES]);
     assert_eq!(table.code, Some(0), "{}", table.stderr);
     assert!(
         table.stdout.starts_with(&format!(
@@ -140,7 +124,7 @@ fn the_shipped_all_values_sidecar_expands_to_72_dimensions() {
 
 #[test]
 fn params_without_uncertainty_lists_scale_like_any_value() {
-    let listed = json(&ribbon(&["params", UR5, "--json"]));
+    let listed = json(&ribbon_outcome(&["params", UR5, "--json"]));
     let rows = listed.as_array().unwrap();
     let scale = rows
         .iter()
@@ -196,7 +180,7 @@ fn scale_on_dynamics_equals_the_same_change_through_mass_and_inertia() {
         }
     }
     let run = |args: &[String]| {
-        json(&ribbon(
+        json(&ribbon_outcome(
             &args.iter().map(String::as_str).collect::<Vec<_>>(),
         ))
     };
@@ -216,7 +200,7 @@ fn scale_on_dynamics_equals_the_same_change_through_mass_and_inertia() {
     .map(String::from));
     assert_ne!(a["mass_matrix"], nominal["mass_matrix"]);
     // A scale ≤ 0 is refused naming the flag's path.
-    let out = ribbon(&["dynamics", UR5, "--set=link.forearm_link.scale=0"]);
+    let out = ribbon_outcome(&["dynamics", UR5, "--set=link.forearm_link.scale=0"]);
     assert_input_error(&out, &["link.forearm_link.scale", "a scale must be > 0"]);
 }
 
@@ -234,7 +218,7 @@ frames = ["tip"]
     let summary = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
         .join("sidecar_patterns")
         .join("dp_summary.json");
-    let out = ribbon(&[
+    let out = ribbon_outcome(&[
         "analyze",
         "robots/double_pendulum/double_pendulum.urdf",
         "--uncertainty",
@@ -249,7 +233,7 @@ frames = ["tip"]
     assert_eq!(out.code, Some(0), "{}", out.stderr);
     let summary: Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
     let parameters = summary["parameters"].as_array().unwrap();
-    let box_json = json(&ribbon(&[
+    let box_json = json(&ribbon_outcome(&[
         "params",
         "robots/double_pendulum/double_pendulum.urdf",
         "--uncertainty",
@@ -308,7 +292,7 @@ fn bad_patterns_are_named_errors() {
     for (name, text, fragments) in cases {
         let path = temp_file(name, text);
         for command in ["params", "analyze"] {
-            let out = ribbon(&[command, UR5, "--uncertainty", &path]);
+            let out = ribbon_outcome(&[command, UR5, "--uncertainty", &path]);
             assert_input_error(&out, fragments);
         }
     }
@@ -325,7 +309,13 @@ l = [0.42, 0.43]
 "joint.elbow_joint.origin.x" = "-l"
 "#,
     );
-    let box_json = json(&ribbon(&["params", UR5, "--uncertainty", &path, "--json"]));
+    let box_json = json(&ribbon_outcome(&[
+        "params",
+        UR5,
+        "--uncertainty",
+        &path,
+        "--json",
+    ]));
     assert_eq!(box_json["d"], 7, "6 of the 7 origins, and the symbol");
     let notes = box_json["notes"].to_string();
     assert!(
@@ -354,7 +344,7 @@ fn a_rel_pattern_on_a_robot_with_massless_links_gives_a_counted_note() {
         "massless.toml",
         "[parameters]\n\"link.*.mass\" = { rel = 0.05 }\n",
     );
-    let out = ribbon(&["params", &urdf, "--uncertainty", &sidecar]);
+    let out = ribbon_outcome(&["params", &urdf, "--uncertainty", &sidecar]);
     assert_eq!(out.code, Some(0), "{}", out.stderr);
     assert!(
         out.stdout.contains("link.a.mass") && out.stdout.contains("link.c.mass"),

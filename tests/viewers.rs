@@ -7,18 +7,13 @@
 
 mod common;
 
-use std::path::PathBuf;
-use std::process::Command;
+use common::scratch_file;
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = common::target_dir().join("tmp").join("viewers");
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
+use std::process::Command;
 
 #[test]
 fn rerun_blueprint_plots_only_live_entities_of_a_fresh_log() {
-    let out = scratch("slider_crank.mcap");
+    let out = scratch_file("viewers", "slider_crank.mcap");
     let status = Command::new(common::ribbon_bin())
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
@@ -36,7 +31,7 @@ fn rerun_blueprint_plots_only_live_entities_of_a_fresh_log() {
     let result = Command::new(&python)
         .arg(common::manifest_dir().join("tests/reference/check_blueprint.py"))
         .arg(&out)
-        .arg(scratch("blueprint_work"))
+        .arg(scratch_file("viewers", "blueprint_work"))
         .output()
         .expect("python runs");
     assert!(
@@ -50,9 +45,9 @@ fn rerun_blueprint_plots_only_live_entities_of_a_fresh_log() {
 
 #[test]
 fn analyze_report_holds_a_band_plot_per_output_and_the_logs_layout() {
-    let dir = scratch("report_dp");
+    let dir = scratch_file("viewers", "report_dp");
     let _ = std::fs::remove_dir_all(&dir);
-    let out = scratch("report_dp.mcap");
+    let out = scratch_file("viewers", "report_dp.mcap");
     let result = Command::new(common::ribbon_bin())
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
@@ -122,7 +117,7 @@ fn analyze_report_holds_a_band_plot_per_output_and_the_logs_layout() {
 
 #[test]
 fn a_report_file_that_is_another_output_is_refused_before_running() {
-    let dir = scratch("report_clash");
+    let dir = scratch_file("viewers", "report_clash");
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let result = Command::new(common::ribbon_bin())

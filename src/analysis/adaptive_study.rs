@@ -18,10 +18,9 @@ use super::adaptive::{
     AdaptiveSet, ADAPTIVE_BATCH_FRACTION, ADAPTIVE_MIN_BATCH, ADAPTIVE_TOLERANCE,
 };
 use super::stages::StageCursor;
-use super::study::{n_records, record_time, Accumulator, Progress, Study, StudyError, StudyReport};
+use super::study::{n_records, record_time, Accumulator, PhaseContext, Study, StudyError};
 use crate::uq::{Factor, SparseGrid, UqError};
 use rayon::prelude::*;
-use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -73,17 +72,12 @@ impl Study<'_> {
     /// runs the nominal parameters into `accumulator`. Returns the interpolation grid on the terms
     /// of the complete rounds and the runs' values; `None` when interrupted during the first round
     /// (nothing to fit).
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn adapt(
         &self,
         stages: &mut StageCursor,
         budget: usize,
         nominal_xi: &[f64],
-        threads: &rayon::ThreadPool,
-        interrupt: &AtomicBool,
-        started: Instant,
-        report: &mut StudyReport,
-        progress: &mut dyn FnMut(Progress),
+        context: &mut PhaseContext<'_>,
         accumulator: &mut Accumulator,
     ) -> Result<Option<(SparseGrid, AdaptiveOutcome)>, StudyError> {
         let d = self.space.len();
@@ -104,18 +98,14 @@ impl Study<'_> {
             let first_row = values.len();
             values.resize_with(first_row + new_terms.len(), || vec![0.0; stride]);
             let with_nominal = rounds == 0;
-            report.runs += new_terms.len() + usize::from(with_nominal);
+            context.report.runs += new_terms.len() + usize::from(with_nominal);
             let round_complete = self.run_stage(
+                context,
                 stages,
                 "adaptive",
                 &points,
                 with_nominal.then_some(nominal_xi),
                 policy,
-                threads,
-                interrupt,
-                started,
-                report,
-                progress,
                 &mut |block, _| {
                     let lockstep = block.lockstep;
                     for r in 0..block.count {
@@ -150,7 +140,8 @@ impl Study<'_> {
             let t_fit = Instant::now();
             let round_grid = SparseGrid::new(Arc::new(set.multi_index_set()?))?;
             let rows = rows_of_points(&round_grid, &set)?;
-            let coefficients = fit_all_records(&round_grid, &rows, &values, n_outputs, threads)?;
+            let coefficients =
+                fit_all_records(&round_grid, &rows, &values, n_outputs, context.threads)?;
             let spread = output_spreads(&values, n_outputs);
             let mi = round_grid.set().clone();
             set.measure(|term| {
@@ -168,7 +159,7 @@ impl Study<'_> {
                     .fold(0.0, f64::max)
             });
             grid = Some((round_grid, rows));
-            report.bound_seconds += t_fit.elapsed().as_secs_f64();
+            context.report.bound_seconds += t_fit.elapsed().as_secs_f64();
             if set.len() >= budget {
                 break ("budget", true);
             }

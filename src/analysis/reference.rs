@@ -18,7 +18,9 @@
 use super::bounds::EnvelopePoint;
 use super::check::{CheckCandidates, Side};
 use super::plan::TAYLOR_STEP;
-use super::study::{n_records, record_time, PhaseBlock, Study, StudyError, StudyReport};
+use super::study::{
+    n_records, record_time, PhaseBlock, PhaseContext, Study, StudyError, StudyReport,
+};
 use super::Progress;
 use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
@@ -138,15 +140,11 @@ impl Study<'_> {
         let mut gradient = vec![0.0; d];
         let mut vertex = vec![0.0; d];
         let complete = self.run_phase(
+            &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
             "gradients",
             &stencil,
             Some(&nominal_xi),
             policy,
-            &threads,
-            interrupt,
-            started,
-            &mut report,
-            progress,
             &mut |block: &PhaseBlock, _| {
                 let lockstep = block.lockstep;
                 let nominal_index = lockstep.nominal_index().unwrap_or(2 * d + 1);
@@ -186,15 +184,11 @@ impl Study<'_> {
             let first = register_points(&mut hull, &plan.points, d);
             let policy = self.exclusion_policy("vertex run");
             self.run_phase(
+                &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
                 "vertices",
                 &plan.points,
                 None,
                 policy,
-                &threads,
-                interrupt,
-                started,
-                &mut report,
-                progress,
                 &mut |block: &PhaseBlock, _| {
                     for r in 0..block.count {
                         for i in 0..block.lockstep.len() {
@@ -214,11 +208,7 @@ impl Study<'_> {
             self.greedy_flips(
                 &mut hull,
                 options.max_flip_rounds,
-                &threads,
-                interrupt,
-                started,
-                &mut report,
-                progress,
+                &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
             )?;
         }
 
@@ -240,16 +230,11 @@ impl Study<'_> {
         Ok(report)
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn greedy_flips(
         &self,
         hull: &mut Hull,
         max_rounds: usize,
-        threads: &rayon::ThreadPool,
-        interrupt: &AtomicBool,
-        started: Instant,
-        report: &mut StudyReport,
-        progress: &mut dyn FnMut(Progress),
+        context: &mut PhaseContext<'_>,
     ) -> Result<(), StudyError> {
         let d = self.space.len();
         let n_outputs = hull.n_outputs;
@@ -332,15 +317,11 @@ impl Study<'_> {
             let mut at_record: Vec<Vec<f64>> = vec![Vec::new(); owners.len()];
             let policy = self.exclusion_policy("flip run");
             let complete = self.run_phase(
+                context,
                 "flips",
                 &points,
                 None,
                 policy,
-                threads,
-                interrupt,
-                started,
-                report,
-                progress,
                 &mut |block: &PhaseBlock, _| {
                     for r in 0..block.count {
                         let record = block.first + r;
@@ -360,7 +341,7 @@ impl Study<'_> {
                     Ok(())
                 },
             )?;
-            report.runs += owners.len();
+            context.report.runs += owners.len();
             if !complete {
                 return Ok(());
             }

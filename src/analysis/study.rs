@@ -332,6 +332,63 @@ pub struct Study<'a> {
     pub options: StudyOptions,
 }
 
+impl<'a> Study<'a> {
+    /// The study of `space` on `scene` with a copy of the nominal `model` (scene gravity applied):
+    /// the one way every command (`plan`, `run`, `merge`, `analyze`, `compare`) builds it.
+    pub fn new(
+        model: &Model,
+        scene: &'a Scene,
+        space: &'a ParameterSpace,
+        options: StudyOptions,
+    ) -> Self {
+        Study {
+            model: model.clone(),
+            scene,
+            space,
+            options,
+        }
+    }
+}
+
+/// What every phase of one study run shares, lent to [`Study::run_stage`], [`Study::run_phase`]
+/// and [`Study::run_source`] (and the phases built on them) instead of five loose arguments.
+pub(super) struct PhaseContext<'a> {
+    /// The study's worker threads.
+    pub threads: &'a rayon::ThreadPool,
+    /// Set on SIGINT/SIGTERM: a phase stops before its next block (and the lock-step engine before
+    /// its next step).
+    pub interrupt: &'a AtomicBool,
+    /// When the study started (progress reports the elapsed seconds).
+    pub started: Instant,
+    /// The report the phases add to (runs' counters, timings, exclusions, `partial`).
+    pub report: &'a mut StudyReport,
+    /// Called after every block with how far the phase is.
+    pub progress: &'a mut dyn FnMut(Progress),
+}
+
+impl<'a> PhaseContext<'a> {
+    /// The context of a run from its parts (the fields, in order).
+    pub fn new(
+        threads: &'a rayon::ThreadPool,
+        interrupt: &'a AtomicBool,
+        started: Instant,
+        report: &'a mut StudyReport,
+        progress: &'a mut dyn FnMut(Progress),
+    ) -> Self {
+        PhaseContext {
+            threads,
+            interrupt,
+            started,
+            report,
+            progress,
+        }
+    }
+}
+
+/// What a phase does with each block of records: `(block, report)`.
+pub(super) type OnBlock<'a> =
+    dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError> + 'a;
+
 /// Which runs of a phase may be left out when they fail, and what to tell the user.
 #[derive(Clone, Copy)]
 pub(super) struct FailurePolicy {
@@ -634,14 +691,10 @@ impl Study<'_> {
         };
         let nominal = lockstep.nominal_index();
         let result = self.run_source(
+            &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
             "design",
             &mut lockstep,
             self.design_failure_policy(study_plan.method),
-            &threads,
-            interrupt,
-            started,
-            &mut report,
-            progress,
             &mut |block, _| {
                 on_block(block.first, block.count, block.lockstep)
                     .map_err(|e| StudyError::Sink(Box::new(e)))
@@ -855,11 +908,7 @@ impl Study<'_> {
                         &mut stages,
                         budget,
                         &nominal_xi,
-                        &threads,
-                        interrupt,
-                        started,
-                        &mut report,
-                        progress,
+                        &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
                         &mut accumulator,
                     )?
                     else {
@@ -872,11 +921,7 @@ impl Study<'_> {
                 } else {
                     let (screening, complete) = self.screen(
                         &mut stages,
-                        &threads,
-                        interrupt,
-                        started,
-                        &mut report,
-                        progress,
+                        &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
                         &mut screen_hull,
                     )?;
                     let ranking = screening.ranking();
@@ -948,14 +993,10 @@ impl Study<'_> {
                 let plan_samples: Vec<usize> =
                     (0..source.len()).filter(|&i| i != nominal_index).collect();
                 self.run_source(
+                    &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
                     "design",
                     source,
                     self.design_failure_policy(method),
-                    &threads,
-                    interrupt,
-                    started,
-                    &mut report,
-                    progress,
                     &mut |block, report| {
                         let t_bound = Instant::now();
                         let lockstep = block.lockstep;
@@ -1007,12 +1048,8 @@ impl Study<'_> {
             let check_plan = candidates.select(check_budget);
             report.check = Some(self.check(
                 &check_plan,
-                &threads,
-                interrupt,
-                started,
-                &mut report,
+                &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
                 &mut accumulator,
-                progress,
             )?);
         }
         // Is the nominal motion chaotic? Two runs, after the design so that an interruption
@@ -1030,15 +1067,10 @@ impl Study<'_> {
     /// The screening phase: the star design (`±e_j` and the centre, 2d + 1 runs). Returns the
     /// screening and whether it ran to the end; `hull` receives the runs' min/max per record and
     /// output (record-major), since they are true responses the envelopes must contain.
-    #[allow(clippy::too_many_arguments)]
     fn screen(
         &self,
         stages: &mut StageCursor,
-        threads: &rayon::ThreadPool,
-        interrupt: &AtomicBool,
-        started: Instant,
-        report: &mut StudyReport,
-        progress: &mut dyn FnMut(Progress),
+        context: &mut PhaseContext<'_>,
         hull: &mut Vec<EnvelopePoint>,
     ) -> Result<(Screening, bool), StudyError> {
         let d = self.space.len();
@@ -1051,18 +1083,14 @@ impl Study<'_> {
             hint: "Screening runs the centres of the box's faces; a failure there means the box contains points the model cannot simulate: narrow the box",
             noun: "screening run",
         };
-        report.runs += 2 * d + 1;
+        context.report.runs += 2 * d + 1;
         let complete = self.run_stage(
+            context,
             stages,
             "screening",
             &points,
             None,
             policy,
-            threads,
-            interrupt,
-            started,
-            report,
-            progress,
             &mut |block, _| {
                 for r in 0..block.count {
                     screening.add_record(block.record(2 * d, r), |i| block.record(i, r));
@@ -1090,16 +1118,11 @@ impl Study<'_> {
     }
 
     /// Runs the check plan's points, widens the envelopes with them and measures the misfits.
-    #[allow(clippy::too_many_arguments)]
     fn check(
         &self,
         check_plan: &CheckPlan,
-        threads: &rayon::ThreadPool,
-        interrupt: &AtomicBool,
-        started: Instant,
-        report: &mut StudyReport,
+        context: &mut PhaseContext<'_>,
         accumulator: &mut Accumulator,
-        progress: &mut dyn FnMut(Progress),
     ) -> Result<CheckReport, StudyError> {
         let n_outputs = accumulator.n_outputs;
         let runs = check_plan.checks.len();
@@ -1114,17 +1137,13 @@ impl Study<'_> {
         let mut checked: Vec<(usize, usize, f64)> = Vec::new();
         let mut misfit = vec![vec![0.0_f64; n_records]; n_outputs];
         let policy = self.exclusion_policy("check run");
-        report.runs += runs;
+        context.report.runs += runs;
         let complete = self.run_phase(
+            context,
             "check",
             &check_plan.points,
             None,
             policy,
-            threads,
-            interrupt,
-            started,
-            report,
-            progress,
             &mut |block, _report| {
                 for r in 0..block.count {
                     let record = block.first + r;
@@ -1200,70 +1219,38 @@ impl Study<'_> {
     }
 
     /// [`Study::run_phase`] of the next stage: its records read from where `stages` says, or
-    /// simulated here.
+    /// simulated here. (Eight arguments: the five shared ones already travel in `context`.)
     #[allow(clippy::too_many_arguments)]
     pub(super) fn run_stage(
         &self,
+        context: &mut PhaseContext<'_>,
         stages: &mut StageCursor,
         phase: &'static str,
         points: &[f64],
         nominal_xi: Option<&[f64]>,
         policy: FailurePolicy,
-        threads: &rayon::ThreadPool,
-        interrupt: &AtomicBool,
-        started: Instant,
-        report: &mut StudyReport,
-        progress: &mut dyn FnMut(Progress),
-        on_block: &mut dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError>,
+        on_block: &mut OnBlock<'_>,
     ) -> Result<bool, StudyError> {
         match stages.source(phase, points, nominal_xi.is_some())? {
-            Some(mut source) => self.run_source(
-                phase,
-                &mut *source,
-                policy,
-                threads,
-                interrupt,
-                started,
-                report,
-                progress,
-                on_block,
-            ),
-            None => self.run_phase(
-                phase, points, nominal_xi, policy, threads, interrupt, started, report, progress,
-                on_block,
-            ),
+            Some(mut source) => self.run_source(context, phase, &mut *source, policy, on_block),
+            None => self.run_phase(context, phase, points, nominal_xi, policy, on_block),
         }
     }
 
     /// Simulates `points` (and the nominal run when given) in lock-step over the whole horizon,
     /// calling `on_block` after each block. Returns whether the phase ran to the end (false when
-    /// interrupted: `report.partial` is then set).
-    #[allow(clippy::too_many_arguments)]
+    /// interrupted: `context.report.partial` is then set).
     pub(super) fn run_phase(
         &self,
+        context: &mut PhaseContext<'_>,
         phase: &'static str,
         points: &[f64],
         nominal_xi: Option<&[f64]>,
         policy: FailurePolicy,
-        threads: &rayon::ThreadPool,
-        interrupt: &AtomicBool,
-        started: Instant,
-        report: &mut StudyReport,
-        progress: &mut dyn FnMut(Progress),
-        on_block: &mut dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError>,
+        on_block: &mut OnBlock<'_>,
     ) -> Result<bool, StudyError> {
         let mut lockstep = self.lockstep(points, nominal_xi);
-        self.run_source(
-            phase,
-            &mut lockstep,
-            policy,
-            threads,
-            interrupt,
-            started,
-            report,
-            progress,
-            on_block,
-        )
+        self.run_source(context, phase, &mut lockstep, policy, on_block)
     }
 
     /// The lock-step simulation of `points` (row-major `n × d`) and, when given, the nominal run
@@ -1283,19 +1270,22 @@ impl Study<'_> {
 
     /// [`Study::run_phase`] over any source of recorded values: block by block over the horizon,
     /// the failure policy applied after each block, then `on_block`.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn run_source(
         &self,
+        context: &mut PhaseContext<'_>,
         phase: &'static str,
         lockstep: &mut dyn RecordSource,
         policy: FailurePolicy,
-        threads: &rayon::ThreadPool,
-        interrupt: &AtomicBool,
-        started: Instant,
-        report: &mut StudyReport,
-        progress: &mut dyn FnMut(Progress),
-        on_block: &mut dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError>,
+        on_block: &mut OnBlock<'_>,
     ) -> Result<bool, StudyError> {
+        let PhaseContext {
+            threads,
+            interrupt,
+            started,
+            report,
+            progress,
+        } = context;
+        let (threads, interrupt, started) = (*threads, *interrupt, *started);
         let scene = self.scene;
         let runs = lockstep.len();
         let n_outputs = scene.outputs.len();

@@ -96,12 +96,7 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         (crate::analysis::BLOCK_VALUE_BUDGET * 8) as u64,
     )?;
     let robot = model.name().to_string();
-    let study = Study {
-        model: model.clone(),
-        scene: &scene,
-        space: &space,
-        options: options.clone(),
-    };
+    let study = Study::new(&model, &scene, &space, options.clone());
     let plan = study.plan()?;
     // Where the records of each stage come from: simulated here, or the shards' record blocks.
     let mut simulate_here = SimulateHere;

@@ -280,12 +280,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
     };
     let interrupt = crate::interrupt::flag();
     let run_study = |options: StudyOptions| -> Result<(StudyReport, f64), Error> {
-        let study = Study {
-            model: model.clone(),
-            scene: &scene,
-            space: &space,
-            options,
-        };
+        let study = Study::new(&model, &scene, &space, options);
         let started = Instant::now();
         let report = study.run(interrupt, &mut |_| {}, &mut |_| Ok(()))?;
         if report.partial {
@@ -307,12 +302,7 @@ pub fn run(args: &CompareArgs) -> Result<(), Error> {
             ..base.clone()
         })?,
         ReferenceKind::Vertex => {
-            let study = Study {
-                model: model.clone(),
-                scene: &scene,
-                space: &space,
-                options: base.clone(),
-            };
+            let study = Study::new(&model, &scene, &space, base.clone());
             let started = Instant::now();
             let report = study.vertex_reference(
                 VertexReferenceOptions::default(),

@@ -7,6 +7,7 @@ use crate::dynamics::{
     crba, forward_dynamics, forward_kinematics, nonlinear_effects, rnea, world_from_link, Data,
 };
 use crate::model::{JointKind, LoadOptions, Model};
+use crate::spatial::quaternion::xyzw_norm;
 use crate::Error;
 use serde_json::{json, Map, Value};
 
@@ -172,7 +173,7 @@ fn normalise_quaternions(model: &Model, q: &mut [f64]) -> Result<(), Error> {
         .filter(|j| j.kind == JointKind::Floating)
     {
         let quaternion = &mut q[joint.q_index + 3..joint.q_index + 7];
-        let norm = quaternion.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let norm = xyzw_norm(quaternion);
         if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
             return Err(Error::BadArgument {
                 flag: "--q".to_string(),

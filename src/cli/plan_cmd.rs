@@ -50,12 +50,7 @@ pub fn run(args: &PlanArgs) -> Result<(), Error> {
     )?;
     let setup = prepare(&a.scene)?;
     let options = study_options(a, &setup.sidecar.analysis)?;
-    let study = Study {
-        model: setup.model.clone(),
-        scene: &setup.scene,
-        space: &setup.space,
-        options,
-    };
+    let study = Study::new(&setup.model, &setup.scene, &setup.space, options);
     let study_plan = study.plan()?;
     // A design that chooses runs from earlier runs (screened, adaptive) runs in stages: the plan
     // holds stage 1, as far as the study gets without any record (docs/distributed.md §7).

@@ -75,12 +75,7 @@ pub fn run(args: &RunArgs) -> Result<(), Error> {
     install_interrupt();
     let setup = prepare(&analyze_args.scene)?;
     let options = study_options(&analyze_args, &setup.sidecar.analysis)?;
-    let study = Study {
-        model: setup.model.clone(),
-        scene: &setup.scene,
-        space: &setup.space,
-        options,
-    };
+    let study = Study::new(&setup.model, &setup.scene, &setup.space, options);
     let study_plan = study.plan()?;
     check_plan_matches(&plan, &args.plan, &study, &study_plan)?;
     let points = &stage.points;

@@ -318,6 +318,7 @@ mod tests {
     use super::*;
     use crate::dynamics::{forward_kinematics, rnea};
     use crate::model::{link_inertia, parse_description, LoadOptions};
+    use crate::spatial::quaternion::{unit_quaternion_from_xyzw, write_xyzw};
 
     /// Central differences below are exact to ~1e-10 relative (step 1e-6, smooth functions).
     const FD_AGREEMENT: f64 = 1e-8;
@@ -520,12 +521,7 @@ mod tests {
                 out[qi] += tangent[vi];
                 continue;
             }
-            let rotation = nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(
-                q[qi + 6],
-                q[qi + 3],
-                q[qi + 4],
-                q[qi + 5],
-            ));
+            let rotation = unit_quaternion_from_xyzw(&q.as_slice()[qi + 3..qi + 7]);
             let linear = Vec3::new(tangent[vi], tangent[vi + 1], tangent[vi + 2]);
             let angular = Vec3::new(tangent[vi + 3], tangent[vi + 4], tangent[vi + 5]);
             // First order in the step suffices for a central difference: Exp(δ) ≈ (1 + ω×, v).
@@ -535,10 +531,7 @@ mod tests {
             out[qi] = position.x;
             out[qi + 1] = position.y;
             out[qi + 2] = position.z;
-            out[qi + 3] = quaternion.i;
-            out[qi + 4] = quaternion.j;
-            out[qi + 5] = quaternion.k;
-            out[qi + 6] = quaternion.w;
+            write_xyzw(&quaternion, &mut out.as_mut_slice()[qi + 3..qi + 7]);
         }
         out
     }

@@ -15,14 +15,13 @@
 //! are computed here: damping, friction, springs and drives are scene effects.
 
 pub mod batch;
-mod cholesky;
 mod crba;
 mod data;
 mod derivatives;
 mod kinematics;
 mod rnea;
 
-pub use cholesky::{cholesky_factor_in_place, cholesky_solve_in_place};
+pub use crate::linalg::cholesky::{cholesky_factor_in_place, cholesky_solve_in_place};
 pub use crba::crba;
 pub use data::Data;
 pub use derivatives::{
@@ -122,7 +121,11 @@ pub fn forward_dynamics<'a>(
     for ((qdd, tau), bias) in data.qdd.iter_mut().zip(tau).zip(data.bias.iter()) {
         *qdd = tau - bias;
     }
-    if let Err((coordinate, pivot)) = cholesky_factor_in_place(&mut data.mass_matrix) {
+    if let Err(crate::linalg::cholesky::NonPositivePivot {
+        index: coordinate,
+        pivot,
+    }) = cholesky_factor_in_place(&mut data.mass_matrix)
+    {
         return Err(DynamicsError::SingularMassMatrix {
             coordinate,
             joint: joint_of_velocity(model, coordinate).to_string(),

@@ -2,9 +2,12 @@
 //! nothing (nalgebra's `LU::new` / `Cholesky::new` take their matrix by value).
 //!
 //! Sizes here are `nv + m ≤ ~50`: a plain right-looking LU with partial pivoting and a plain
-//! Cholesky are as fast as anything for these sizes and keep the workspace explicit.
+//! Cholesky (the crate's one, [`crate::linalg::cholesky`]) are as fast as anything for these sizes
+//! and keep the workspace explicit.
 
 use nalgebra::{DMatrix, DVector};
+
+use crate::linalg::cholesky;
 
 /// A pivot smaller than this fraction of the matrix's largest entry means "singular to working
 /// precision". A matrix that close to singular (condition ≳ 1e13) leaves no correct digits at the
@@ -111,30 +114,16 @@ impl DenseSolver {
     }
 
     fn factor_cholesky(&mut self, scale: f64) -> Result<(), Breakdown> {
-        let a = &mut self.factors;
-        let n = a.nrows();
-        for j in 0..n {
-            let mut d = a[(j, j)];
-            for k in 0..j {
-                d -= a[(j, k)] * a[(j, k)];
-            }
-            if d.is_nan() || d <= SINGULAR_PIVOT_RELATIVE * scale {
-                return Err(Breakdown {
-                    index: j,
-                    pivot_relative: d / scale,
-                });
-            }
-            let ljj = d.sqrt();
-            a[(j, j)] = ljj;
-            for i in (j + 1)..n {
-                let mut s = a[(i, j)];
-                for k in 0..j {
-                    s -= a[(i, k)] * a[(j, k)];
-                }
-                a[(i, j)] = s / ljj;
-            }
-        }
-        Ok(())
+        let n = self.factors.nrows();
+        cholesky::factor_in_place(
+            self.factors.as_mut_slice(),
+            n,
+            SINGULAR_PIVOT_RELATIVE * scale,
+        )
+        .map_err(|failure| Breakdown {
+            index: failure.index,
+            pivot_relative: failure.pivot / scale,
+        })
     }
 
     /// Solves `A x = b` in place (`b` of dimension `n`, overwritten with `x`) with the last successful
@@ -170,24 +159,7 @@ impl DenseSolver {
                     }
                 }
             }
-            FactorKind::Cholesky => {
-                // L y = b
-                for j in 0..n {
-                    b[j] /= a[(j, j)];
-                    let bj = b[j];
-                    for i in (j + 1)..n {
-                        b[i] -= a[(i, j)] * bj;
-                    }
-                }
-                // Lᵀ x = y
-                for i in (0..n).rev() {
-                    let mut s = b[i];
-                    for k in (i + 1)..n {
-                        s -= a[(k, i)] * b[k];
-                    }
-                    b[i] = s / a[(i, i)];
-                }
-            }
+            FactorKind::Cholesky => cholesky::solve_in_place(a.as_slice(), n, b.as_mut_slice()),
         }
     }
 }

@@ -59,7 +59,7 @@ pub use sensitivity::{
     PROJECTION_FD_STEP,
 };
 pub use settings::{
-    HhtCoefficients, HhtSettings, NewtonMatrix, StepControl, ALPHA_MIN,
+    check_alpha, AlphaRefusal, HhtCoefficients, HhtSettings, NewtonMatrix, StepControl, ALPHA_MIN,
     ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS, DEFAULT_STEP_HALVINGS, DEFAULT_STEP_TOLERANCE,
     FULL_NEWTON_HOLD_STEPS, MAX_STEP_HALVINGS, NEWTON_REUSE_MAX_RATE,
 };

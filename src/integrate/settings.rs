@@ -196,6 +196,34 @@ pub const ALPHA_MIN: f64 = -1.0 / 3.0;
 /// accurate.
 pub const ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS: f64 = 0.05;
 
+/// Why an HHT `α` is refused by [`check_alpha`]; each caller words the message for its input (the
+/// integrator's [`IntegrateError`], the scene's flag or sidecar key).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AlphaRefusal {
+    /// NaN, infinite, or outside `[ALPHA_MIN, 0]` = `[−1/3, 0]`.
+    OutsideRange,
+    /// `α = 0` with constraint rows: the trapezoidal member does not converge in `q̈` and `λ`.
+    ZeroWithConstraints,
+    /// `α` in `(−ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS, 0)` with constraint rows.
+    TooCloseToZeroWithConstraints,
+}
+
+/// The one check of the HHT `α` for a system with `n_constraints` constraint rows: in `[−1/3, 0]`
+/// (docs/method.md §5), and with constraint rows at most `−`[`ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS`].
+/// With `n_constraints = 0` only the range is checked.
+pub fn check_alpha(alpha: f64, n_constraints: usize) -> Result<(), AlphaRefusal> {
+    if !alpha.is_finite() || !(ALPHA_MIN..=0.0).contains(&alpha) {
+        return Err(AlphaRefusal::OutsideRange);
+    }
+    if alpha == 0.0 && n_constraints > 0 {
+        return Err(AlphaRefusal::ZeroWithConstraints);
+    }
+    if alpha > -ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS && n_constraints > 0 {
+        return Err(AlphaRefusal::TooCloseToZeroWithConstraints);
+    }
+    Ok(())
+}
+
 /// Coefficients derived from `α` and `h` (docs/method.md §5, Arnold–Brüls generalized-α with
 /// `α_m = 0`, `α_f = −α`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -251,19 +279,17 @@ impl HhtSettings {
     /// [`IntegrateError::InvalidSetting`].
     pub fn validate(&self, n_constraints: usize) -> Result<HhtCoefficients, IntegrateError> {
         let alpha = self.alpha;
-        if !alpha.is_finite() || !(ALPHA_MIN..=0.0).contains(&alpha) {
-            return Err(IntegrateError::InvalidAlpha { alpha });
-        }
-        if alpha == 0.0 && n_constraints > 0 {
-            return Err(IntegrateError::AlphaZeroWithConstraints { n_constraints });
-        }
-        if alpha > -ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS && n_constraints > 0 {
-            return Err(IntegrateError::AlphaTooCloseToZero {
+        check_alpha(alpha, n_constraints).map_err(|refusal| match refusal {
+            AlphaRefusal::OutsideRange => IntegrateError::InvalidAlpha { alpha },
+            AlphaRefusal::ZeroWithConstraints => {
+                IntegrateError::AlphaZeroWithConstraints { n_constraints }
+            }
+            AlphaRefusal::TooCloseToZeroWithConstraints => IntegrateError::AlphaTooCloseToZero {
                 alpha,
                 limit: -ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS,
                 n_constraints,
-            });
-        }
+            },
+        })?;
         if !self.step_s.is_finite() || self.step_s <= 0.0 {
             return Err(IntegrateError::InvalidStep {
                 step_s: self.step_s,
@@ -298,5 +324,31 @@ impl HhtSettings {
             });
         }
         Ok(HhtCoefficients::new(alpha, self.step_s))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn alpha_range_and_the_constraint_rows_limit() {
+        for alpha in [ALPHA_MIN, -0.1, -ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS] {
+            assert_eq!(check_alpha(alpha, 3), Ok(()), "{alpha}");
+        }
+        for alpha in [-0.34, 0.2, f64::NAN, f64::NEG_INFINITY] {
+            assert_eq!(
+                check_alpha(alpha, 0),
+                Err(AlphaRefusal::OutsideRange),
+                "{alpha}"
+            );
+        }
+        assert_eq!(check_alpha(0.0, 0), Ok(()));
+        assert_eq!(check_alpha(-1e-9, 0), Ok(()));
+        assert_eq!(check_alpha(0.0, 1), Err(AlphaRefusal::ZeroWithConstraints));
+        assert_eq!(
+            check_alpha(-0.049, 1),
+            Err(AlphaRefusal::TooCloseToZeroWithConstraints)
+        );
     }
 }

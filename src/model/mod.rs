@@ -183,7 +183,7 @@ impl Joint {
             }
             JointKind::Prismatic => Transform::new(Mat3::identity(), self.axis * q[0]),
             JointKind::Floating => {
-                let quaternion = nalgebra::Quaternion::new(q[6], q[3], q[4], q[5]);
+                let quaternion = crate::spatial::quaternion::quaternion_from_xyzw(&q[3..7]);
                 let rotation = nalgebra::UnitQuaternion::new_unchecked(quaternion);
                 Transform::new(
                     *rotation.to_rotation_matrix().matrix(),

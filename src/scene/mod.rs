@@ -23,8 +23,9 @@ pub use outputs::{Output, OutputKind};
 use crate::sidecar;
 pub use crate::sidecar::{parse_sidecar, AnalysisSection, JointSelection, SidecarFile};
 
-use crate::integrate::ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS;
+use crate::integrate::{check_alpha, ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS};
 use crate::model::{JointKind, Model};
+use crate::spatial::quaternion::write_xyzw;
 use crate::spatial::rotation_from_rpy;
 use crate::text::closest_suggestion;
 use std::path::{Path, PathBuf};
@@ -300,7 +301,8 @@ impl Scene {
                 .step
                 .error(path, format!("{step_s} s must be a finite number > 0")));
         }
-        if !(-1.0 / 3.0..=0.0).contains(&alpha) {
+        // The range alone here (no rows yet); the rows' stricter limit is checked once they are known.
+        if check_alpha(alpha, 0).is_err() {
             return Err(origins.alpha.error(
                 path,
                 format!("{alpha} is outside the HHT range [-1/3, 0] (default -0.1)"),
@@ -378,7 +380,8 @@ impl Scene {
             }
         }
         let constraints = constraints::resolve(&s.drive, &s.loops, model, path)?;
-        if !constraints.is_empty() && alpha > -ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS {
+        // In range by now, so a refusal is α too close to 0 (or 0) for constraint rows.
+        if check_alpha(alpha, constraints.len()).is_err() {
             return Err(origins.alpha.error(
                 path,
                 format!(
@@ -466,12 +469,7 @@ impl Scene {
             let quaternion = nalgebra::UnitQuaternion::from_rotation_matrix(&rotation);
             let (qi, vi) = (root.q_index, root.v_index);
             initial_q[qi..qi + 3].copy_from_slice(&base.xyz);
-            initial_q[qi + 3..qi + 7].copy_from_slice(&[
-                quaternion.i,
-                quaternion.j,
-                quaternion.k,
-                quaternion.w,
-            ]);
+            write_xyzw(quaternion.quaternion(), &mut initial_q[qi + 3..qi + 7]);
             initial_v[vi..vi + 3].copy_from_slice(&base.v);
             initial_v[vi + 3..vi + 6].copy_from_slice(&base.w);
             initial_v_given.extend(vi..vi + 6);

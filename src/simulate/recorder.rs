@@ -4,7 +4,8 @@ use crate::dynamics::{forward_kinematics, world_from_link, Data};
 use crate::effects::Effects;
 use crate::model::Model;
 use crate::scene::{Output, OutputKind};
-use nalgebra::{Quaternion, UnitQuaternion};
+use crate::spatial::quaternion::unit_quaternion_from_xyzw;
+use nalgebra::UnitQuaternion;
 
 /// Evaluates outputs. The rotation-vector outputs of a floating base are relative to its initial
 /// orientation, which each trajectory keeps ([`Recorder::initial_orientations`]).
@@ -19,12 +20,7 @@ pub struct Recorder {
 pub type InitialOrientations = Vec<Option<UnitQuaternion<f64>>>;
 
 fn orientation(q: &[f64], q_index: usize) -> UnitQuaternion<f64> {
-    UnitQuaternion::new_normalize(Quaternion::new(
-        q[q_index + 6],
-        q[q_index + 3],
-        q[q_index + 4],
-        q[q_index + 5],
-    ))
+    unit_quaternion_from_xyzw(&q[q_index + 3..q_index + 7])
 }
 
 impl Recorder {

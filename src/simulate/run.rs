@@ -6,7 +6,7 @@ use super::{Recorder, RobotSystem, SimulationError};
 use crate::integrate::{HhtIntegrator, HhtSettings, HhtStats, IntegrateError};
 use crate::model::Model;
 use crate::scene::{Output, Scene};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, UnitQuaternion};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Recorded series of one run.
@@ -27,6 +27,29 @@ pub struct Trajectory {
     /// Whether the run stopped early (interrupted): the series end at the last record before the
     /// stop.
     pub partial: bool,
+}
+
+/// Records the outputs of `integrator`'s current state into `row` (`dim recorder.outputs()`,
+/// overwritten) and returns that state's time, s: the record step of the nominal run and of the
+/// sensitivity runs, written once. `initial`: the floating joints' start orientations
+/// ([`Recorder::initial_orientations`]). Called on record steps only, never inside the step loop.
+pub(super) fn record_current_state(
+    recorder: &Recorder,
+    system: &mut RobotSystem,
+    integrator: &HhtIntegrator,
+    initial: &[Option<UnitQuaternion<f64>>],
+    row: &mut [f64],
+) -> f64 {
+    let state = integrator.state();
+    recorder.record_state(
+        &system.model,
+        &mut system.data,
+        &mut system.effects,
+        state,
+        initial,
+        row,
+    );
+    state.t
 }
 
 /// The integrator settings a scene asks for (tolerances at their documented defaults).
@@ -238,17 +261,14 @@ fn simulate_system(
             }
         }
         if scene.records_step(k) {
-            let state = integrator.state();
-            recorder.record_state(
-                &system.model,
-                &mut system.data,
-                &mut system.effects,
-                state,
+            times.push(record_current_state(
+                &recorder,
+                system,
+                &integrator,
                 &initial,
                 &mut row,
-            );
-            times.push(state.t);
-            positions.push(state.q.as_slice().to_vec());
+            ));
+            positions.push(integrator.state().q.as_slice().to_vec());
             for (series, value) in values.iter_mut().zip(&row) {
                 series.push(*value);
             }

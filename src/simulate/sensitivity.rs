@@ -17,7 +17,7 @@
 //! `J_r(y)⁻¹ δω − J_r(−y)⁻¹ δω_0`.
 
 use super::lie::so3_right_jacobian_inverse;
-use super::run::{hht_settings, initial_violation};
+use super::run::{hht_settings, initial_violation, record_current_state};
 use super::SimulationError;
 use super::{Recorder, RobotSystem};
 use crate::dynamics::{forward_kinematics, link_origin_jacobian, world_from_link};
@@ -27,19 +27,15 @@ use crate::integrate::{
 };
 use crate::model::{JointKind, Model};
 use crate::scene::{Output, OutputKind, Scene};
+use crate::spatial::quaternion::unit_quaternion_from_xyzw;
 use crate::spatial::Vec3;
 use crate::uncertainty::ParameterSpace;
-use nalgebra::{DMatrix, DVector, Quaternion, UnitQuaternion};
+use nalgebra::{DMatrix, DVector, UnitQuaternion};
 
 /// The orientation of the floating joint whose coordinates start at `q_index` (x y z, then the
 /// quaternion x y z w).
 fn orientation(q: &[f64], q_index: usize) -> UnitQuaternion<f64> {
-    UnitQuaternion::new_normalize(Quaternion::new(
-        q[q_index + 6],
-        q[q_index + 3],
-        q[q_index + 4],
-        q[q_index + 5],
-    ))
+    unit_quaternion_from_xyzw(&q[q_index + 3..q_index + 7])
 }
 
 /// Step in ξ of [`central_difference_run`] (0.1 % of each dimension's half-width). The truncation
@@ -295,16 +291,13 @@ pub fn sensitivity_run_with(
         if !scene.records_step(k) {
             continue;
         }
-        let state = integrator.state();
-        recorder.record_state(
-            &system.model,
-            &mut system.data,
-            &mut system.effects,
-            state,
+        times.push(record_current_state(
+            &recorder,
+            &mut system,
+            &integrator,
             &initial,
             &mut row,
-        );
-        times.push(state.t);
+        ));
         values.extend_from_slice(&row);
         derivatives.velocity.copy_from(
             sensitivity
@@ -658,16 +651,13 @@ fn plain_run(
             integrator.step(&mut system).map_err(failed)?;
         }
         if scene.records_step(k) {
-            let state = integrator.state();
-            recorder.record_state(
-                &system.model,
-                &mut system.data,
-                &mut system.effects,
-                state,
+            times.push(record_current_state(
+                &recorder,
+                &mut system,
+                &integrator,
                 &initial,
                 &mut row,
-            );
-            times.push(state.t);
+            ));
             values.extend_from_slice(&row);
         }
     }

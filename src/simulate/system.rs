@@ -10,6 +10,7 @@ use crate::integrate::{DaeSystem, SystemError};
 use crate::model::{JointKind, Model};
 use crate::params::ParamTarget;
 use crate::scene::Scene;
+use crate::spatial::quaternion::{unit_quaternion_from_xyzw, write_xyzw};
 use crate::spatial::{Mat3, Vec3};
 use nalgebra::{DMatrix, DVector};
 
@@ -249,12 +250,7 @@ impl DaeSystem for RobotSystem {
             }
             // q ⊕ δ = q · exp(δ): the twist δ = (v, ω) is in the body frame.
             let position = Vec3::new(q[qi], q[qi + 1], q[qi + 2]);
-            let orientation = nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(
-                q[qi + 6],
-                q[qi + 3],
-                q[qi + 4],
-                q[qi + 5],
-            ));
+            let orientation = unit_quaternion_from_xyzw(&q.as_slice()[qi + 3..qi + 7]);
             let linear = Vec3::new(dq[vi], dq[vi + 1], dq[vi + 2]);
             let angular = Vec3::new(dq[vi + 3], dq[vi + 4], dq[vi + 5]);
             let (translation, rotation) = se3_exp(&linear, &angular);
@@ -267,10 +263,7 @@ impl DaeSystem for RobotSystem {
             out[qi] = new_position.x;
             out[qi + 1] = new_position.y;
             out[qi + 2] = new_position.z;
-            out[qi + 3] = quaternion.i;
-            out[qi + 4] = quaternion.j;
-            out[qi + 5] = quaternion.k;
-            out[qi + 6] = quaternion.w;
+            write_xyzw(&quaternion, &mut out.as_mut_slice()[qi + 3..qi + 7]);
         }
         Ok(())
     }
@@ -647,12 +640,7 @@ impl DaeSystem for RobotSystem {
             let pose = |q: &DVector<f64>| {
                 (
                     Vec3::new(q[qi], q[qi + 1], q[qi + 2]),
-                    nalgebra::UnitQuaternion::new_normalize(nalgebra::Quaternion::new(
-                        q[qi + 6],
-                        q[qi + 3],
-                        q[qi + 4],
-                        q[qi + 5],
-                    )),
+                    unit_quaternion_from_xyzw(&q.as_slice()[qi + 3..qi + 7]),
                 )
             };
             let ((p0, r0), (p1, r1)) = (pose(q0), pose(q1));

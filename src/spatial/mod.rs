@@ -1,5 +1,5 @@
 //! Spatial algebra on nalgebra fixed-size types: 6D motion and force vectors, rigid transforms and
-//! rigid-body inertia.
+//! rigid-body inertia, and the `(x, y, z, w)` storage of a floating joint's quaternion ([`quaternion`]).
 //!
 //! Conventions (the same as Pinocchio's, so that results compare directly):
 //! - a 6D vector is stored as its linear part then its angular part;
@@ -11,6 +11,7 @@
 
 mod inertia;
 mod motion;
+pub mod quaternion;
 mod transform;
 
 pub use inertia::Inertia;

@@ -27,6 +27,7 @@
 
 use nalgebra::DMatrix;
 
+use crate::linalg::cholesky;
 use crate::uq::basis::{Family, MAX_ORDER};
 use crate::uq::error::UqError;
 use crate::uq::legendre_range::legendre_series_range;
@@ -390,11 +391,17 @@ impl BoxOptimizer {
         loop {
             for (a, &r) in self.free.iter().enumerate() {
                 for (b, &q) in self.free.iter().enumerate() {
-                    self.reduced[a * nf + b] =
+                    self.reduced[b * nf + a] =
                         self.hess[r * d + q] + if a == b { shift } else { 0.0 };
                 }
             }
-            if cholesky(&mut self.reduced[..nf * nf], nf) {
+            if cholesky::factor_in_place(
+                &mut self.reduced[..nf * nf],
+                nf,
+                cholesky::ANY_POSITIVE_PIVOT,
+            )
+            .is_ok()
+            {
                 break;
             }
             if !definite {
@@ -421,7 +428,7 @@ impl BoxOptimizer {
         for (a, &r) in self.free.iter().enumerate() {
             self.step[a] = -self.grad[r];
         }
-        cholesky_solve(&self.reduced[..nf * nf], nf, &mut self.step[..nf]);
+        cholesky::solve_in_place(&self.reduced[..nf * nf], nf, &mut self.step[..nf]);
         definite
     }
 
@@ -567,47 +574,6 @@ impl BoxOptimizer {
             self.trial[r] = (self.x[r] + step * u[a]).clamp(-1.0, 1.0);
         }
         Some(f_best)
-    }
-}
-
-/// In-place Cholesky of the n × n row-major `a` (lower triangle); false if not positive definite.
-fn cholesky(a: &mut [f64], n: usize) -> bool {
-    for j in 0..n {
-        let mut diag = a[j * n + j];
-        for k in 0..j {
-            diag -= a[j * n + k] * a[j * n + k];
-        }
-        if diag.is_nan() || diag <= 0.0 {
-            return false;
-        }
-        let diag = diag.sqrt();
-        a[j * n + j] = diag;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for k in 0..j {
-                s -= a[i * n + k] * a[j * n + k];
-            }
-            a[i * n + j] = s / diag;
-        }
-    }
-    true
-}
-
-/// Solves `L Lᵀ x = b` in place with the factor from [`cholesky`].
-fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[i * n + k] * b[k];
-        }
-        b[i] = s / l[i * n + i];
-    }
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= l[k * n + i] * b[k];
-        }
-        b[i] = s / l[i * n + i];
     }
 }
 

@@ -13,6 +13,7 @@
 //!
 //! Does not: choose start points (see [`crate::uq::scan`]).
 
+use crate::linalg::cholesky;
 use crate::uq::tensor_contraction::PointEvaluator;
 
 /// Newton stops once the accepted step is this small in every coordinate: the extremum is then
@@ -53,47 +54,6 @@ impl RefineWorkspace {
     }
 }
 
-/// In-place Cholesky of the n × n row-major `a` (lower triangle); false if not positive definite.
-fn cholesky(a: &mut [f64], n: usize) -> bool {
-    for j in 0..n {
-        let mut d = a[j * n + j];
-        for k in 0..j {
-            d -= a[j * n + k] * a[j * n + k];
-        }
-        if d.is_nan() || d <= 0.0 {
-            return false;
-        }
-        let d = d.sqrt();
-        a[j * n + j] = d;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for k in 0..j {
-                s -= a[i * n + k] * a[j * n + k];
-            }
-            a[i * n + j] = s / d;
-        }
-    }
-    true
-}
-
-/// Solves `L Lᵀ x = b` in place (`b` → x) with the factor from [`cholesky`].
-fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[i * n + k] * b[k];
-        }
-        b[i] = s / l[i * n + i];
-    }
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= l[k * n + i] * b[k];
-        }
-        b[i] = s / l[i * n + i];
-    }
-}
-
 /// Refines a local minimum of `sign · y(ξ)` from `x` (in [-1, 1]^d, overwritten with the best
 /// point found); returns `y` there (unsigned). `coef` is the dense coefficient tensor.
 pub(crate) fn refine(
@@ -131,10 +91,16 @@ pub(crate) fn refine(
         loop {
             for (a, &r) in ws.free.iter().enumerate() {
                 for (b, &s) in ws.free.iter().enumerate() {
-                    ws.reduced[a * nf + b] = ws.hess[r * d + s] + if a == b { shift } else { 0.0 };
+                    ws.reduced[b * nf + a] = ws.hess[r * d + s] + if a == b { shift } else { 0.0 };
                 }
             }
-            if cholesky(&mut ws.reduced[..nf * nf], nf) {
+            if cholesky::factor_in_place(
+                &mut ws.reduced[..nf * nf],
+                nf,
+                cholesky::ANY_POSITIVE_PIVOT,
+            )
+            .is_ok()
+            {
                 break;
             }
             shift = if shift == 0.0 {
@@ -149,7 +115,7 @@ pub(crate) fn refine(
         for (a, &r) in ws.free.iter().enumerate() {
             ws.step[a] = -ws.grad[r];
         }
-        cholesky_solve(&ws.reduced[..nf * nf], nf, &mut ws.step[..nf]);
+        cholesky::solve_in_place(&ws.reduced[..nf * nf], nf, &mut ws.step[..nf]);
 
         // Converged: the full projected step is negligible, or its predicted decrease is below the
         // rounding of φ (a line search could then only chase noise).

@@ -420,3 +420,82 @@ pub fn masked_table(text: &str) -> String {
         .collect::<Vec<_>>()
         .join("\n")
 }
+
+/// What one run of the `ribbon` binary ended with: its exit code (`None` when killed by a signal)
+/// and its stdout and stderr as text (invalid UTF-8 replaced).
+#[derive(Debug)]
+pub struct Outcome {
+    /// The exit code, `None` when a signal ended the process.
+    pub code: Option<i32>,
+    /// Standard output, lossily decoded.
+    pub stdout: String,
+    /// Standard error, lossily decoded.
+    pub stderr: String,
+}
+
+/// Runs the `ribbon` binary with `args` in the crate root and returns its raw [`Output`].
+pub fn ribbon_output(args: &[&str]) -> Output {
+    Command::new(ribbon_bin())
+        .args(args)
+        .current_dir(manifest_dir())
+        .output()
+        .expect("the ribbon binary runs")
+}
+
+/// [`ribbon_output`] with the scheduler's shard-index variables (`SLURM_ARRAY_TASK_ID`,
+/// `JOB_COMPLETION_INDEX`) removed from its environment, so that a test run inside a Slurm or
+/// Kubernetes job does not pick a shard by accident.
+pub fn ribbon_output_outside_scheduler(args: &[&str]) -> Output {
+    Command::new(ribbon_bin())
+        .current_dir(manifest_dir())
+        .args(args)
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .output()
+        .expect("the ribbon binary runs")
+}
+
+/// [`ribbon_output`] as an [`Outcome`] (exit code and text), for tests that compare messages.
+pub fn ribbon_outcome(args: &[&str]) -> Outcome {
+    let output = ribbon_output(args);
+    Outcome {
+        code: output.status.code(),
+        stdout: String::from_utf8_lossy(&output.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
+    }
+}
+
+/// The scratch directory of one test file, `CARGO_TARGET_TMPDIR/SUITE`, created if missing and
+/// kept between runs (its files are overwritten by the next run).
+pub fn scratch_dir(suite: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(suite);
+    fs::create_dir_all(&dir).expect("create the scratch directory");
+    dir
+}
+
+/// The path `NAME` in [`scratch_dir`]`(SUITE)` (the directory is created; the file is not).
+pub fn scratch_file(suite: &str, name: &str) -> PathBuf {
+    scratch_dir(suite).join(name)
+}
+
+/// An empty directory for one test, `CARGO_TARGET_TMPDIR/SUITE/TEST`: whatever an earlier run left
+/// there is removed first.
+pub fn fresh_scratch_dir(suite: &str, test: &str) -> PathBuf {
+    emptied(
+        PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+            .join(suite)
+            .join(test),
+    )
+}
+
+/// An empty directory `<crate root>/target/test-scratch/SUITE/NAME` (the path the bitwise and
+/// shard tests print for inspection), emptied first like [`fresh_scratch_dir`].
+pub fn fresh_test_scratch_dir(suite: &str, name: &str) -> PathBuf {
+    emptied(manifest("target/test-scratch").join(suite).join(name))
+}
+
+fn emptied(dir: PathBuf) -> PathBuf {
+    let _ = fs::remove_dir_all(&dir);
+    fs::create_dir_all(&dir).expect("create the scratch directory");
+    dir
+}

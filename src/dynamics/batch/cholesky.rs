@@ -1,18 +1,18 @@
 //! In-place Cholesky factorisation `M = L Lᵀ` and solve per sample: the scalar
 //! [`crate::dynamics::cholesky_factor_in_place`] and [`crate::dynamics::cholesky_solve_in_place`]
-//! lane by lane, with the same pivot test (`RELATIVE_PIVOT_TOLERANCE` of `src/dynamics/cholesky.rs` times the
+//! lane by lane, with the same pivot test (`RELATIVE_PIVOT_TOLERANCE` of `src/linalg/cholesky.rs` times the
 //! largest diagonal entry) per lane.
 
 use super::lanes::Lanes;
 use super::state::BatchVectors;
 use super::{Isa, IsaKind};
-use crate::dynamics::cholesky::RELATIVE_PIVOT_TOLERANCE;
+use crate::linalg::cholesky::{NonPositivePivot, RELATIVE_PIVOT_TOLERANCE};
 
 /// Factorises every sample's `n × n` symmetric matrix in `matrices` (column-major, `dim n²`) in
 /// place: the lower triangle becomes `L` (the strict upper triangle is kept).
 ///
 /// `failures` (length ≥ `matrices.size`) is overwritten: `None` for a sample whose matrix was
-/// factorised, `Some((j, pivot))` for one whose pivot `j` was NaN or not above the threshold —
+/// factorised, `Some(NonPositivePivot { index: j, pivot })` for one whose pivot `j` was NaN or not above the threshold —
 /// exactly the scalar function's `Err`. A failed sample's matrix is left unspecified (the scalar
 /// function stops there; its lane goes on computing with the bad pivot). Returns whether every
 /// sample succeeded. Allocates nothing.
@@ -20,7 +20,7 @@ pub fn cholesky_factor<const W: usize>(
     isa: Isa,
     matrices: &mut BatchVectors<W>,
     n: usize,
-    failures: &mut [Option<(usize, f64)>],
+    failures: &mut [Option<NonPositivePivot>],
 ) -> bool {
     match isa.kind() {
         #[cfg(target_arch = "x86_64")]
@@ -54,7 +54,7 @@ pub fn cholesky_solve<const W: usize>(
 fn factor<const W: usize>(
     matrices: &mut BatchVectors<W>,
     n: usize,
-    failures: &mut [Option<(usize, f64)>],
+    failures: &mut [Option<NonPositivePivot>],
 ) -> bool {
     failures.iter_mut().for_each(|f| *f = None);
     let size = matrices.size;
@@ -83,7 +83,7 @@ fn factor<const W: usize>(
                     && sample < size
                     && failures[sample].is_none()
                 {
-                    failures[sample] = Some((j, p));
+                    failures[sample] = Some(NonPositivePivot { index: j, pivot: p });
                 }
                 *d = p.sqrt();
             }
@@ -144,7 +144,7 @@ fn divide<const W: usize>(numerator: Lanes<W>, denominator: Lanes<W>) -> Lanes<W
 fn factor_avx2<const W: usize>(
     matrices: &mut BatchVectors<W>,
     n: usize,
-    failures: &mut [Option<(usize, f64)>],
+    failures: &mut [Option<NonPositivePivot>],
 ) -> bool {
     factor(matrices, n, failures)
 }

@@ -15,6 +15,7 @@
 use super::version::UrdfVersion;
 use super::xml::Reader;
 use crate::model::error::ModelError;
+use crate::spatial::quaternion::normalized_xyzw;
 use roxmltree::Node;
 
 /// Below this `cos pitch` a quaternion is treated as gimbal-locked (roll set to 0). Away from the
@@ -89,11 +90,7 @@ pub(super) fn read_origin<'input>(
 /// normalised here), by the formulas of the module documentation; `None` for a quaternion of zero
 /// or non-finite length.
 pub(super) fn rpy_from_quaternion(quaternion: [f64; 4]) -> Option<[f64; 3]> {
-    let norm = quaternion.iter().map(|c| c * c).sum::<f64>().sqrt();
-    if !(norm > 0.0 && norm.is_finite()) {
-        return None;
-    }
-    let [x, y, z, w] = quaternion.map(|c| c / norm);
+    let [x, y, z, w] = normalized_xyzw(quaternion)?;
     let r00 = 1.0 - 2.0 * (y * y + z * z);
     let r10 = 2.0 * (x * y + w * z);
     let minus_r20 = 2.0 * (w * y - x * z);

@@ -1,0 +1,187 @@
+//! In-place Cholesky factorisation `A = L Lᵀ` of small dense symmetric positive-definite matrices,
+//! without allocation (nalgebra's `Cholesky` takes its matrix by value and allocates).
+//!
+//! The one implementation: [`factor_in_place`] and [`solve_in_place`] work on an `n × n` slice in
+//! column-major order (nalgebra's storage, so `DMatrix::as_mut_slice` passes straight in) and read
+//! only the lower triangle, entry `(i, k)` at `a[k·n + i]`, `i ≥ k`. The caller chooses the smallest
+//! pivot it accepts; [`cholesky_factor_in_place`] is the `DMatrix` entry point with the dynamics'
+//! rule (relative to the largest diagonal entry).
+//!
+//! Order of operations (fixed, so results are bitwise reproducible across callers): for column
+//! `j`, `d = a_jj − Σ_{k<j} l_jk²` summed in increasing `k`, `l_jj = √d`, then for each `i > j`,
+//! `l_ij = (a_ij − Σ_{k<j} l_ik l_jk) / l_jj`; the solve is forward then backward substitution with
+//! the same increasing-index sums.
+
+use nalgebra::{DMatrix, DVector};
+use thiserror::Error;
+
+/// Smallest pivot accepted by [`cholesky_factor_in_place`], relative to the largest diagonal entry:
+/// below it the matrix is treated as singular (a coordinate that moves no inertia), not factorised
+/// into garbage.
+pub const RELATIVE_PIVOT_TOLERANCE: f64 = 1e-13;
+
+/// `min_pivot` for callers that accept every positive pivot because they react to a failure
+/// themselves (the bound optimisers shift their Hessian until it factorises).
+pub const ANY_POSITIVE_PIVOT: f64 = 0.0;
+
+/// A factorisation stopped at a pivot that was NaN or not above the caller's threshold: the matrix is
+/// not positive definite to the precision asked for.
+#[derive(Debug, Clone, Copy, PartialEq, Error)]
+#[error("Cholesky pivot {index} is {pivot:e}, not above the accepted minimum (matrix not positive definite)")]
+pub struct NonPositivePivot {
+    /// Row/column (0-based) whose pivot failed.
+    pub index: usize,
+    /// The pivot `a_jj − Σ_{k<j} l_jk²` before its square root (may be NaN).
+    pub pivot: f64,
+}
+
+/// Factorises the symmetric `n × n` matrix `a` (column-major, `a.len() ≥ n²`; only the lower
+/// triangle is read) in place: on success its lower triangle holds `L` with `A = L Lᵀ`; the strict
+/// upper triangle is left as it was. A pivot that is NaN or `≤ min_pivot` stops the factorisation
+/// (`a` then holds the columns finished so far) and is returned.
+pub fn factor_in_place(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), NonPositivePivot> {
+    for j in 0..n {
+        let mut pivot = a[j * n + j];
+        for k in 0..j {
+            pivot -= a[k * n + j] * a[k * n + j];
+        }
+        if pivot.is_nan() || pivot <= min_pivot {
+            return Err(NonPositivePivot { index: j, pivot });
+        }
+        let diagonal = pivot.sqrt();
+        a[j * n + j] = diagonal;
+        for i in j + 1..n {
+            let mut value = a[j * n + i];
+            for k in 0..j {
+                value -= a[k * n + i] * a[k * n + j];
+            }
+            a[j * n + i] = value / diagonal;
+        }
+    }
+    Ok(())
+}
+
+/// Solves `L Lᵀ x = b` in place (`b` of dimension `n` becomes `x`), with `L` in the lower triangle
+/// of the column-major `n × n` `factor` from [`factor_in_place`].
+pub fn solve_in_place(factor: &[f64], n: usize, b: &mut [f64]) {
+    for i in 0..n {
+        let mut value = b[i];
+        for k in 0..i {
+            value -= factor[k * n + i] * b[k];
+        }
+        b[i] = value / factor[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut value = b[i];
+        for k in i + 1..n {
+            value -= factor[i * n + k] * b[k];
+        }
+        b[i] = value / factor[i * n + i];
+    }
+}
+
+/// Factorises the square symmetric matrix `a` in place ([`factor_in_place`]), refusing pivots at or
+/// below [`RELATIVE_PIVOT_TOLERANCE`] × the largest diagonal entry: on success its lower triangle
+/// holds `L` (the strict upper triangle is left as it was).
+pub fn cholesky_factor_in_place(a: &mut DMatrix<f64>) -> Result<(), NonPositivePivot> {
+    let n = a.nrows();
+    let scale = (0..n).map(|i| a[(i, i)].abs()).fold(0.0, f64::max);
+    let threshold = RELATIVE_PIVOT_TOLERANCE * scale.max(f64::MIN_POSITIVE);
+    factor_in_place(a.as_mut_slice(), n, threshold)
+}
+
+/// Solves `L Lᵀ x = b` in place (`b` becomes `x`), with `L` in the lower triangle of `factor`
+/// ([`solve_in_place`]).
+pub fn cholesky_solve_in_place(factor: &DMatrix<f64>, b: &mut DVector<f64>) {
+    solve_in_place(factor.as_slice(), factor.nrows(), b.as_mut_slice());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rounding of a 3 × 3 factor/solve with entries of order one (a few ulps of 1).
+    const SOLVE_TOL: f64 = 1e-14;
+
+    /// A = L Lᵀ with L = [[2, 0, 0], [1, 2, 0], [0.3, 0.35, √(3 − 0.09 − 0.1225)]], column-major.
+    fn known_spd() -> [f64; 9] {
+        [4.0, 2.0, 0.6, 2.0, 5.0, 1.0, 0.6, 1.0, 3.0]
+    }
+
+    #[test]
+    fn slice_factor_matches_the_known_factor_and_leaves_the_upper_triangle() {
+        let mut a = known_spd();
+        a[3] = 99.0; // strict upper triangle (0, 1): never read, never written
+        factor_in_place(&mut a, 3, 0.0).unwrap();
+        let l33 = (3.0_f64 - 0.09 - 0.1225).sqrt();
+        let expected_lower = [
+            (0, 0, 2.0),
+            (1, 0, 1.0),
+            (2, 0, 0.3),
+            (1, 1, 2.0),
+            (2, 1, 0.35),
+        ];
+        for (i, k, value) in expected_lower {
+            assert!(
+                (a[k * 3 + i] - value).abs() < SOLVE_TOL,
+                "l_{i}{k} = {}",
+                a[k * 3 + i]
+            );
+        }
+        assert!((a[8] - l33).abs() < SOLVE_TOL);
+        assert_eq!(a[3], 99.0);
+        assert_eq!(a[6], 0.6);
+    }
+
+    #[test]
+    fn slice_solve_recovers_x_and_matches_the_dmatrix_entry_point_bit_for_bit() {
+        let a = DMatrix::from_column_slice(3, 3, &known_spd());
+        let x = DVector::from_row_slice(&[1.0, -2.0, 0.5]);
+        let b = &a * &x;
+        let mut factor = a.clone();
+        cholesky_factor_in_place(&mut factor).unwrap();
+        let mut solved = b.clone();
+        cholesky_solve_in_place(&factor, &mut solved);
+        assert!((&solved - &x).amax() < SOLVE_TOL);
+
+        let mut slice = known_spd();
+        factor_in_place(&mut slice, 3, 0.0).unwrap();
+        let mut slice_b: Vec<f64> = b.iter().copied().collect();
+        solve_in_place(&slice, 3, &mut slice_b);
+        assert_eq!(slice.as_slice(), factor.as_slice());
+        assert_eq!(slice_b.as_slice(), solved.as_slice());
+    }
+
+    #[test]
+    fn non_positive_and_nan_pivots_are_named() {
+        let mut singular = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+        let failure = cholesky_factor_in_place(&mut singular).unwrap_err();
+        assert_eq!(failure.index, 1);
+        assert!(failure.pivot <= RELATIVE_PIVOT_TOLERANCE);
+        assert!(failure.to_string().contains("pivot 1"), "{failure}");
+
+        let mut indefinite = [1.0, 2.0, 2.0, 1.0];
+        let failure = factor_in_place(&mut indefinite, 2, 0.0).unwrap_err();
+        assert_eq!(
+            failure,
+            NonPositivePivot {
+                index: 1,
+                pivot: -3.0
+            }
+        );
+
+        let mut with_nan = [f64::NAN, 0.0, 0.0, 1.0];
+        let failure = factor_in_place(&mut with_nan, 2, 0.0).unwrap_err();
+        assert_eq!(failure.index, 0);
+        assert!(failure.pivot.is_nan());
+    }
+
+    #[test]
+    fn a_pivot_at_the_threshold_is_refused_and_just_above_accepted() {
+        let mut at = [2.0];
+        assert_eq!(factor_in_place(&mut at, 1, 2.0).unwrap_err().index, 0);
+        let mut above = [2.0];
+        factor_in_place(&mut above, 1, 1.999).unwrap();
+        assert_eq!(above[0], 2.0_f64.sqrt());
+    }
+}
