@@ -40,25 +40,7 @@ const REVOLUTE_Q0: [f64; 7] = [0.3, -0.8, 0.5, -1.2, 0.4, 1.0, 0.7];
 const PRISMATIC_Q0: f64 = 0.02;
 
 fn robots() -> Vec<(String, PathBuf)> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let mut list = vec![("ribbon-ur5".to_string(), root.join("robots/ur5/ur5.urdf"))];
-    let share = reference_venv::example_robot_data_robots(&root)
-        .unwrap_or_else(|| root.join("target/reference-venv (not created yet)"));
-    for (name, relative) in [
-        ("erd-ur5", "ur_description/urdf/ur5_robot.urdf"),
-        ("erd-panda", "panda_description/urdf/panda.urdf"),
-    ] {
-        let path = share.join(relative);
-        if path.exists() {
-            list.push((name.to_string(), path));
-        } else {
-            eprintln!(
-                "{name}: skipped, {} not found (run `cargo test --release` once to create the venv)",
-                path.display()
-            );
-        }
-    }
-    list
+    reference_venv::benchmark_robots(&PathBuf::from(env!("CARGO_MANIFEST_DIR")))
 }
 
 /// One robot ready to step: the system, the integrator and the start state.

@@ -22,3 +22,27 @@ pub fn example_robot_data_robots(root: &Path) -> Option<PathBuf> {
     candidates.sort();
     candidates.pop()
 }
+
+/// The robots the kernel and step benches time, as `(name, URDF path)`: our ur5, then
+/// example-robot-data's ur5 and panda when the reference venv exists (each one missing is named on
+/// stderr with the command that creates the venv, and left out).
+pub fn benchmark_robots(root: &Path) -> Vec<(String, PathBuf)> {
+    let mut list = vec![("ribbon-ur5".to_string(), root.join("robots/ur5/ur5.urdf"))];
+    let share = example_robot_data_robots(root)
+        .unwrap_or_else(|| root.join("target/reference-venv (not created yet)"));
+    for (name, relative) in [
+        ("erd-ur5", "ur_description/urdf/ur5_robot.urdf"),
+        ("erd-panda", "panda_description/urdf/panda.urdf"),
+    ] {
+        let path = share.join(relative);
+        if path.exists() {
+            list.push((name.to_string(), path));
+        } else {
+            eprintln!(
+                "{name}: skipped, {} not found (run `cargo test --release` once to create the venv)",
+                path.display()
+            );
+        }
+    }
+    list
+}
