@@ -4,8 +4,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::dense_solver::first_non_finite;
 use super::error::IntegrateError;
-use super::linalg::first_non_finite;
 use super::system::DaeSystem;
 
 /// Where an evaluation happens: time and step number (0 = consistent start).

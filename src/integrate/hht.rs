@@ -18,9 +18,9 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::dense_solver::{DenseSolver, FactorKind};
 use super::error::{IntegrateError, WorstEntry};
 use super::eval::{self, At};
-use super::linalg::{DenseSolver, FactorKind};
 use super::settings::{
     HhtCoefficients, HhtSettings, NewtonMatrix, StepControl, FULL_NEWTON_HOLD_STEPS,
     NEWTON_REUSE_MAX_RATE,

@@ -24,10 +24,10 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::dense_solver::{DenseSolver, FactorKind};
 use super::error::IntegrateError;
 use super::eval::{self, At};
 use super::hht::{assemble_iteration_matrix, HhtIntegrator};
-use super::linalg::{DenseSolver, FactorKind};
 use super::settings::HhtCoefficients;
 use super::start::consistent_start;
 use super::system::DaeSystem;

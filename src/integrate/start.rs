@@ -11,10 +11,10 @@
 
 use nalgebra::{DMatrix, DVector, SVD};
 
+use super::dense_solver::{DenseSolver, FactorKind};
 use super::error::IntegrateError;
 use super::eval::{self, At};
 use super::hht::assemble_iteration_matrix;
-use super::linalg::{DenseSolver, FactorKind};
 use super::system::DaeSystem;
 
 /// `Φ_q` rows count as dependent when its smallest singular value is below this fraction of its
