@@ -205,7 +205,7 @@ impl Contacts {
             q,
             v,
             false,
-            |_, k, contact, force| normal_forces[k] += force.force.dot(&contact.normal),
+            |_, k, contact, _, force| normal_forces[k] += force.force.dot(&contact.normal),
         );
         &self.normal_forces
     }
@@ -295,8 +295,9 @@ impl Contacts {
         external[body] += Force::new(f, in_body.cross(&f));
     }
 
-    /// The active contacts at `(q, v)`: calls `visit(pair, contact, force)` for each contact point
-    /// of each touching pair (a pair may give several points, docs/contacts.md §1).
+    /// The active contacts at `(q, v)`: calls `visit(data, pair, contact, velocity, force)` for each
+    /// contact point of each touching pair (a pair may give several points, docs/contacts.md §1);
+    /// `velocity` is the point's relative velocity `v_a − v_b` (world frame, m/s).
     /// With `from_rnea`, `data` already holds RNEA's `parent_from_body` and body velocities at
     /// `(q, v)` and only the world placements are composed from them (cheap); otherwise a
     /// kinematics pass computes everything.
@@ -309,7 +310,7 @@ impl Contacts {
         q: &[f64],
         v: &[f64],
         from_rnea: bool,
-        mut visit: impl FnMut(&Data, usize, &ContactPoint, &ContactForce),
+        mut visit: impl FnMut(&Data, usize, &ContactPoint, &Vec3, &ContactForce),
     ) {
         let Some(material) = model.contact else {
             return;
@@ -335,7 +336,7 @@ impl Contacts {
                 let velocity = Self::point_velocity(data, body_a, &contact.point)
                     - Self::point_velocity(data, body_b, &contact.point);
                 let force = contact_force(&material, contact, &velocity);
-                visit(data, k, contact, &force);
+                visit(data, k, contact, &velocity, &force);
             }
         }
     }
@@ -378,7 +379,7 @@ impl Contacts {
             q,
             v,
             true,
-            |data, k, contact, force| {
+            |data, k, contact, velocity, force| {
                 touching_now[k] = true;
                 *deepest_now = deepest_now.max(contact.depth);
                 let pair = geometry.pairs[k];
@@ -393,9 +394,7 @@ impl Contacts {
                     any = true;
                 }
                 if with_friction && force.force != Vec3::zeros() {
-                    let velocity = Self::point_velocity(data, body_a, &contact.point)
-                        - Self::point_velocity(data, body_b, &contact.point);
-                    sliding.push(model, data, body_a, body_b, contact, &velocity);
+                    sliding.push(model, data, body_a, body_b, contact, velocity);
                 }
             },
         );
@@ -476,7 +475,7 @@ impl Contacts {
             q,
             v,
             false,
-            |data, k, contact, force| {
+            |data, k, contact, _, force| {
                 let pair = geometry.pairs[k];
                 jacobian.fill(0.0);
                 if let Some(a) = GeometryModel::body_of(model, pair.a) {
