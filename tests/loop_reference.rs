@@ -54,38 +54,22 @@ fn ribbon_run(step: f64) -> Trajectory {
     simulate(model, &scene).expect("simulation runs")
 }
 
-/// The initial state and gravity the shipped scene declares, as the reference's arguments.
+/// The reference run from the initial state and gravity of the shipped scene, as ribbon resolves
+/// them (`initial.q`, `initial.v` of the crank, `gravity`).
 fn reference() -> Reference {
-    let text = std::fs::read_to_string(common::manifest(
+    let setup = common::shipped_setup(
+        "robots/four_bar/four_bar.urdf",
         "robots/four_bar/four_bar.uncertainty.toml",
-    ))
-    .expect("sidecar");
-    let value = |key: &str, line_start: &str| -> String {
-        let line = text
-            .lines()
-            .find(|l| l.starts_with(line_start))
-            .unwrap_or_else(|| panic!("the sidecar has no {line_start} line"));
-        let after = line
-            .split(&format!("{key} = "))
-            .nth(1)
-            .unwrap_or_else(|| panic!("{line_start} has no {key}"));
-        after
-            .split([',', ' ', '}'])
-            .next()
-            .expect("a number")
-            .to_string()
+        DURATION_S,
+    );
+    let joint = |name: &str| {
+        let index = setup
+            .model
+            .joint_index(name)
+            .unwrap_or_else(|| panic!("the four-bar has no joint {name}"));
+        &setup.model.joints[index]
     };
-    let q0: Vec<String> = JOINTS.iter().map(|j| value(j, "initial.q")).collect();
-    let crank_rate = value("crank_joint", "initial.v");
-    let gravity = text
-        .lines()
-        .find(|l| l.starts_with("gravity"))
-        .and_then(|l| l.split('[').nth(1))
-        .and_then(|l| l.split(']').next())
-        .expect("gravity = [..]")
-        .split(',')
-        .map(|g| g.trim().to_string())
-        .collect::<Vec<_>>();
+    let scene = &setup.scene;
     let mut args = vec![
         common::manifest("tests/reference/four_bar_reference.py")
             .display()
@@ -95,10 +79,18 @@ fn reference() -> Reference {
             .to_string(),
         "--q0".to_string(),
     ];
-    args.extend(q0);
-    args.extend(["--crank-rate".to_string(), crank_rate]);
-    args.extend(["--gravity".to_string()]);
-    args.extend(gravity);
+    // Rust prints the shortest decimal that reads back to the same f64: the values pass exactly.
+    args.extend(
+        JOINTS
+            .iter()
+            .map(|name| scene.initial_q[joint(name).q_index].to_string()),
+    );
+    args.extend([
+        "--crank-rate".to_string(),
+        scene.initial_v[joint("crank_joint").v_index].to_string(),
+        "--gravity".to_string(),
+    ]);
+    args.extend(scene.gravity.iter().map(f64::to_string));
     args.extend([
         "--duration".to_string(),
         DURATION_S.to_string(),
