@@ -17,8 +17,12 @@
 //! First of all, the adaptive step's cost against the fixed step on the shipped robots with their own
 //! scenes, as a ratio (`step_control/NAME`, docs/step-control.md §5).
 
+#[path = "support/fall.rs"]
+mod fall;
 #[path = "support/reference_venv.rs"]
 mod reference_venv;
+
+use fall::STEPS_PER_FALL;
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -26,18 +30,9 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, Criterion};
 use nalgebra::{DMatrix, DVector};
 use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, StepControl, SystemError};
-use ribbon::model::{JointKind, LoadOptions, Model};
+use ribbon::model::{LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::{hht_settings, RobotSystem};
-
-/// Steps per trajectory: 1 s at h = 1 ms.
-const STEPS_PER_FALL: u64 = 1000;
-
-/// Initial revolute angles (rad), cycled over the revolute joints in coordinate order; prismatic joints
-/// start at `PRISMATIC_Q0` (m). Within the joint limits of all three robots. Keep in sync with
-/// `REVOLUTE_Q0` in benches/mujoco_timing.py.
-const REVOLUTE_Q0: [f64; 7] = [0.3, -0.8, 0.5, -1.2, 0.4, 1.0, 0.7];
-const PRISMATIC_Q0: f64 = 0.02;
 
 fn robots() -> Vec<(String, PathBuf)> {
     reference_venv::benchmark_robots(&PathBuf::from(env!("CARGO_MANIFEST_DIR")))
@@ -62,35 +57,7 @@ impl Fall {
     /// The robot at `path`; with `reuse_newton_matrix` the opt-in reuse of the Newton matrix
     /// across steps ([`HhtSettings::reuse_newton_matrix`]).
     fn with_reuse(path: &Path, reuse_newton_matrix: bool) -> Self {
-        let model = Model::from_urdf_file(path, LoadOptions::default()).expect("robot loads");
-        let file = parse_sidecar("[scene]\ngravity = [0.0, 0.0, -9.81]\n").expect("sidecar parses");
-        let scene = Scene::resolve(
-            &file,
-            &model,
-            "bench",
-            SceneOverrides {
-                step_s: Some(1e-3),
-                alpha: Some(-0.1),
-                ..Default::default()
-            },
-        )
-        .expect("scene resolves");
-        let mut model = model;
-        scene.apply_gravity(&mut model);
-        let mut q0 = DVector::from_column_slice(&scene.initial_q);
-        let mut revolute = 0;
-        for joint in &model.joints {
-            match joint.kind {
-                JointKind::Revolute => {
-                    q0[joint.q_index] = REVOLUTE_Q0[revolute % REVOLUTE_Q0.len()];
-                    revolute += 1;
-                }
-                JointKind::Prismatic => q0[joint.q_index] = PRISMATIC_Q0,
-                JointKind::Floating => {}
-            }
-        }
-        let v0 = DVector::from_column_slice(&scene.initial_v);
-        let mut system = RobotSystem::new(model, &scene);
+        let (mut system, scene, q0, v0) = fall::fall_problem(path);
         let settings = HhtSettings {
             reuse_newton_matrix,
             ..hht_settings(&scene)

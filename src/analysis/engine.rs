@@ -8,16 +8,25 @@
 //! a sample does not depend on which thread ran it, so studies are deterministic for any thread
 //! count.
 //!
+//! Scenes the batched step suits ([`BatchStepper::suits`]: a fixed step without constraint rows,
+//! limits or contacts) go in groups of four samples instead, each group through the block with one
+//! [`BatchStepper`] per thread (the batched CRBA and RNEA, docs/batch.md §5; `engine/batched.rs`).
+//! Every sample's steps are bitwise the per-sample path's, so nothing downstream can tell the two
+//! apart ([`LockStep::disable_batching`] forces the per-sample path).
+//!
 //! Interruption: every sample checks the study's interrupt flag before each step, so a signal takes
 //! effect after at most one step per worker thread, also inside a long block or a single long run.
 
+mod batched;
+
 use super::schedule::RecordSchedule;
 use super::study::StudyError;
+use crate::dynamics::batch::LANES;
 use crate::effects::{ContactState, ContactStats};
 use crate::integrate::{HhtIntegrator, HhtSettings, HhtTrajectory, IntegrateError};
 use crate::scene::Scene;
 use crate::simulate::{
-    FailureContext, InitialOrientations, Recorder, RobotSystem, SimulationError,
+    BatchStepper, FailureContext, InitialOrientations, Recorder, RobotSystem, SimulationError,
 };
 use crate::uncertainty::ParameterSpace;
 use nalgebra::DVector;
@@ -127,6 +136,8 @@ pub struct LockStep<'a> {
     steps_taken: u64,
     /// Index of the nominal run among the samples, when there is one.
     nominal: Option<usize>,
+    /// Step the samples in groups with the batched kernels ([`BatchStepper`]).
+    batched: bool,
 }
 
 impl<'a> LockStep<'a> {
@@ -166,7 +177,9 @@ impl<'a> LockStep<'a> {
             });
             samples.len() - 1
         });
+        let batched = BatchStepper::suits(&template, &settings);
         LockStep {
+            batched,
             template,
             space,
             scene,
@@ -178,6 +191,19 @@ impl<'a> LockStep<'a> {
             steps_taken: 0,
             nominal,
         }
+    }
+
+    /// Whether the samples are stepped in groups with the batched kernels (docs/batch.md §5): on
+    /// when the scene suits it ([`BatchStepper::suits`]), off otherwise.
+    pub fn batched(&self) -> bool {
+        self.batched
+    }
+
+    /// Steps every sample alone with the scalar integrator, even where the batched kernels would
+    /// apply. The results are bitwise the same either way (`tests/batch_step.rs` compares them);
+    /// this is the reference the batched path is tested against.
+    pub fn disable_batching(&mut self) {
+        self.batched = false;
     }
 
     /// Number of samples (the nominal run included).
@@ -245,6 +271,40 @@ impl<'a> LockStep<'a> {
         let start_step = self.step;
         let schedule = RecordSchedule::of(scene);
         let record_step = |r: usize| schedule.step_of(r);
+        if self.batched {
+            let context = batched::GroupContext {
+                space,
+                settings,
+                scene,
+                recorder,
+            };
+            let block = SampleBlock {
+                start_step,
+                first_record,
+                count,
+                record_step: &record_step,
+                interrupt,
+            };
+            let counters: Vec<(u64, u64)> = threads.install(|| {
+                self.samples
+                    .par_chunks_mut(LANES)
+                    .enumerate()
+                    .map_init(
+                        || batched::new_stepper(template),
+                        |stepper, (group_index, group)| {
+                            batched::advance_group(
+                                stepper,
+                                group,
+                                group_index * LANES,
+                                &context,
+                                &block,
+                            )
+                        },
+                    )
+                    .collect()
+            });
+            return self.finish_block(counters, first_record, count, interrupt, &record_step);
+        }
         let counters: Vec<(u64, u64)> = threads.install(|| {
             self.samples
                 .par_iter_mut()
@@ -309,6 +369,19 @@ impl<'a> LockStep<'a> {
                 )
                 .collect()
         });
+        self.finish_block(counters, first_record, count, interrupt, &record_step)
+    }
+
+    /// Adds a block's per-sample (or per-group) counters and moves the lock-step to the block's
+    /// last record, unless the block was interrupted.
+    fn finish_block(
+        &mut self,
+        counters: Vec<(u64, u64)>,
+        first_record: usize,
+        count: usize,
+        interrupt: &AtomicBool,
+        record_step: &dyn Fn(usize) -> usize,
+    ) -> BlockOutcome {
         for (iterations, steps) in counters {
             self.newton_iterations += iterations;
             self.steps_taken += steps;

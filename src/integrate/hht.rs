@@ -28,6 +28,9 @@ use super::settings::{
 use super::start::{consistent_start, ConsistentStart};
 use super::system::DaeSystem;
 
+mod plain;
+pub(crate) use plain::{PlainProgress, PlainStep};
+
 /// The integrator's state at time `t` (all vectors in the system's coordinates).
 #[derive(Debug, Clone, PartialEq)]
 pub struct HhtState {
@@ -276,6 +279,81 @@ impl IterationReport {
     }
 }
 
+/// What a Newton pass does after an iteration ([`NewtonPass::judge`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum PassVerdict {
+    /// The iterate is accepted.
+    Converged,
+    /// Iterate again with the same matrix (if the iteration limit allows).
+    Continue,
+    /// Stop this pass: the matrix has aged (pass 0) or the iteration diverges.
+    GiveUp,
+}
+
+/// The tests after each iteration of one Newton pass (one matrix): convergence, the rate-based
+/// acceptance, an aged reused matrix, multipliers at their rounding floor, divergence. Pass 0
+/// iterates with the trajectory's stored factorisation, pass 1 with a fresh one at the predictor,
+/// pass 2 with the refresh.
+#[derive(Debug, Clone, Copy)]
+struct NewtonPass {
+    pass: u8,
+    previous: Option<IterationReport>,
+    /// Slowest contraction `ρ` seen in this pass (0 before the second iteration).
+    slowest: f64,
+}
+
+impl NewtonPass {
+    fn new(pass: u8) -> Self {
+        Self {
+            pass,
+            previous: None,
+            slowest: 0.0,
+        }
+    }
+
+    /// Judges the iteration that produced `report` (counting a rounding-limited acceptance in
+    /// `stats`).
+    fn judge(&mut self, report: IterationReport, stats: &mut HhtStats) -> PassVerdict {
+        let rate = self.previous.map(|prev| report.wrms() / prev.wrms());
+        if let Some(rate) = rate {
+            self.slowest = self.slowest.max(rate);
+        }
+        if report.wrms() < 1.0 {
+            return PassVerdict::Converged;
+        }
+        if let (Some(prev), Some(rate)) = (self.previous, rate) {
+            // Rate-based test (Hairer & Wanner, Radau5): modified Newton contracts linearly with
+            // ρ = ‖Δ_k‖/‖Δ_{k−1}‖, so the iterate's remaining error is about ρ/(1−ρ)·‖Δ_k‖; accept
+            // when that estimate is within tolerance instead of spending one more iteration to see
+            // a correction below it.
+            if rate < RATE_TEST_MAX_CONTRACTION && rate / (1.0 - rate) * report.wrms() < 1.0 {
+                return PassVerdict::Converged;
+            }
+            if self.pass == 0 && rate > NEWTON_REUSE_MAX_RATE {
+                // The stored matrix has aged (a stagnating Δλ included: that test is for a fresh
+                // matrix): factorise a fresh one now rather than spend the iterations a slow
+                // contraction needs.
+                return PassVerdict::GiveUp;
+            }
+            // Multipliers at the rounding floor of Φ/(β'h²): positions converged twice in a row
+            // and Δλ stopped shrinking. Accept and count it.
+            if report.wrms_position < 1.0
+                && prev.wrms_position < 1.0
+                && report.wrms_multiplier > LAMBDA_STAGNATION_RATIO * prev.wrms_multiplier
+            {
+                stats.rounding_limited_steps += 1;
+                return PassVerdict::Converged;
+            }
+            if report.wrms() > prev.wrms() {
+                // Diverging: refresh now rather than after the remaining iterations.
+                return PassVerdict::GiveUp;
+            }
+        }
+        self.previous = Some(report);
+        PassVerdict::Continue
+    }
+}
+
 /// When the position-level correction has passed the test in two consecutive iterations but the
 /// multiplier correction shrank by less than this factor, `Δλ` is rounding noise: `Φ` is evaluated to
 /// ~1e-16 (relative to the mechanism's size), and the scaled row turns that into a `Δλ` of
@@ -427,6 +505,19 @@ enum Attempt {
     Converged,
     /// The predictor already crosses a limit at `θ` of the step: shorten before solving.
     PredictedCrossing { theta: f64 },
+}
+
+/// The size of an attempt ([`HhtIntegrator::plan_attempt`]).
+#[derive(Debug, Clone, Copy)]
+struct PlannedAttempt {
+    /// The step control's planned size, s.
+    planned: f64,
+    /// The attempt's size, s.
+    h: f64,
+    /// The attempt ends the grid interval.
+    reaches_end: bool,
+    /// The time it ends at, s.
+    t1: f64,
 }
 
 /// An impact found in a step: limit `event` crossed at `θ ∈ [0, 1]` of the step.
@@ -668,23 +759,12 @@ impl HhtIntegrator {
                     smallest_s: self.trajectory.stats.smallest_step_s,
                 });
             }
-            let planned = self.trajectory.control.h_next.clamp(h_min, h_grid);
-            let mut h = planned.min(remaining);
-            // Never leave a sliver below the smallest step for later.
-            if remaining - h < h_min {
-                h = remaining;
-            }
-            let reaches_end = h == remaining;
-            // A whole grid interval is a step of exactly h (remaining differs from it by rounding),
-            // so the plain path uses the grid's coefficients and predictor unchanged.
-            if (h - h_grid).abs() <= END_OF_INTERVAL_FRACTION * h_grid {
-                h = h_grid;
-            }
-            let t1 = if reaches_end {
-                t_end
-            } else {
-                self.trajectory.state.t + h
-            };
+            let PlannedAttempt {
+                planned,
+                h,
+                reaches_end,
+                t1,
+            } = self.plan_attempt(t_end, h_min, remaining);
             let check_prediction = self.n_events > 0 && !locating;
             let outcome = self.attempt(system, t1, h, step, check_prediction);
             match outcome {
@@ -771,37 +851,80 @@ impl HhtIntegrator {
                     self.trajectory.stats.max_error_estimate.max(error);
                 growth = factor.clamp(ADAPTIVE_MAX_SHRINK, ADAPTIVE_MAX_GROWTH);
             }
-            self.commit(system, t1, h, step)?;
+            self.accept(system, t1, h, step, growth, planned, reaches_end)?;
             accepted += 1;
-            let mut next = h * growth;
-            if reaches_end && growth >= 1.0 {
-                // A step cut short by the grid says nothing against the planned size.
-                next = next.max(planned);
-            }
-            self.trajectory.control.h_next = next.min(h_grid);
         }
-        self.trajectory.state.t = t_end;
-        self.trajectory.state.step = step;
-        self.trajectory.stats.steps += 1;
-        self.trajectory.control.last_step_plain = plain && accepted == 1;
-        self.coeffs = self.grid_coeffs;
+        self.end_grid_step(t_end, step, plain && accepted == 1);
         Ok(())
     }
 
-    /// One attempt of a (sub-)step of size `h` from the current state to `t1`: predictor, then
-    /// Newton (diagonal matrix first; the full matrix on refresh or while held, see
-    /// [`NewtonMatrix`]). The state is not touched; the candidate end state is left in the workspace.
-    /// With `check_prediction`, a predictor that crosses a limit returns
-    /// [`Attempt::PredictedCrossing`] before Newton runs.
-    fn attempt<S: DaeSystem + ?Sized>(
+    /// The size of the next attempt towards the grid time `t_end` when `remaining` (s) is left,
+    /// from the step control's plan, never below `h_min` nor leaving a sliver below it.
+    fn plan_attempt(&self, t_end: f64, h_min: f64, remaining: f64) -> PlannedAttempt {
+        let h_grid = self.grid_coeffs.h;
+        let planned = self.trajectory.control.h_next.clamp(h_min, h_grid);
+        let mut h = planned.min(remaining);
+        // Never leave a sliver below the smallest step for later.
+        if remaining - h < h_min {
+            h = remaining;
+        }
+        let reaches_end = h == remaining;
+        // A whole grid interval is a step of exactly h (remaining differs from it by rounding),
+        // so the plain path uses the grid's coefficients and predictor unchanged.
+        if (h - h_grid).abs() <= END_OF_INTERVAL_FRACTION * h_grid {
+            h = h_grid;
+        }
+        let t1 = if reaches_end {
+            t_end
+        } else {
+            self.trajectory.state.t + h
+        };
+        PlannedAttempt {
+            planned,
+            h,
+            reaches_end,
+            t1,
+        }
+    }
+
+    /// Accepts the converged attempt of size `h` to `t1` ([`Self::commit`]) and plans the next
+    /// one: `growth` times this one (the adaptive controller's factor; 2 with the fixed step), at
+    /// most the grid step.
+    #[allow(clippy::too_many_arguments)]
+    fn accept<S: DaeSystem + ?Sized>(
         &mut self,
         system: &mut S,
         t1: f64,
         h: f64,
         step: u64,
-        check_prediction: bool,
-    ) -> Result<Attempt, IntegrateError> {
-        let at = At { t: t1, step };
+        growth: f64,
+        planned: f64,
+        reaches_end: bool,
+    ) -> Result<(), IntegrateError> {
+        self.commit(system, t1, h, step)?;
+        let mut next = h * growth;
+        if reaches_end && growth >= 1.0 {
+            // A step cut short by the grid says nothing against the planned size.
+            next = next.max(planned);
+        }
+        self.trajectory.control.h_next = next.min(self.grid_coeffs.h);
+        Ok(())
+    }
+
+    /// Ends grid step number `step` at `t_end` (set from the step count, so time does not drift);
+    /// `plain`: it was one attempt of the grid step's size.
+    fn end_grid_step(&mut self, t_end: f64, step: u64, plain: bool) {
+        self.trajectory.state.t = t_end;
+        self.trajectory.state.step = step;
+        self.trajectory.stats.steps += 1;
+        self.trajectory.control.last_step_plain = plain;
+        self.coeffs = self.grid_coeffs;
+    }
+
+    /// Sets the coefficients of a step of size `h` and the predictor: `a_n` as this step sees it
+    /// (`ws.a_start`) and the first iterate `ws.qdd`, `ws.lambda` (counted in
+    /// `stats.stiff_predictions` when the constant-velocity predictor replaces the extrapolation).
+    fn predict(&mut self, h: f64) {
         self.coeffs = if h == self.grid_coeffs.h {
             self.grid_coeffs
         } else {
@@ -899,6 +1022,23 @@ impl HhtIntegrator {
                 *x = (a + alpha * qdd_n) / (1.0 + alpha);
             }
         }
+    }
+
+    /// One attempt of a (sub-)step of size `h` from the current state to `t1`: predictor, then
+    /// Newton (diagonal matrix first; the full matrix on refresh or while held, see
+    /// [`NewtonMatrix`]). The state is not touched; the candidate end state is left in the workspace.
+    /// With `check_prediction`, a predictor that crosses a limit returns
+    /// [`Attempt::PredictedCrossing`] before Newton runs.
+    fn attempt<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        t1: f64,
+        h: f64,
+        step: u64,
+        check_prediction: bool,
+    ) -> Result<Attempt, IntegrateError> {
+        let at = At { t: t1, step };
+        self.predict(h);
         self.update_iterate(system, at)?;
         if check_prediction {
             if let Some(crossing) = self.find_crossing(system, t1, h)? {
@@ -950,61 +1090,28 @@ impl HhtIntegrator {
             } else {
                 self.factorise_at_iterate(system, at, full)?;
             }
-            let mut previous: Option<IterationReport> = None;
-            let mut slowest = 0.0_f64;
+            let mut judge = NewtonPass::new(pass);
             for _ in 0..max_iterations {
                 iterations += 1;
                 let report = self.newton_iteration(system, at)?;
                 last = Some(report);
-                let rate = previous.map(|prev| report.wrms() / prev.wrms());
-                if let Some(rate) = rate {
-                    slowest = slowest.max(rate);
-                }
-                if report.wrms() < 1.0 {
-                    converged = true;
-                    break;
-                }
-                if let (Some(prev), Some(rate)) = (previous, rate) {
-                    // Rate-based test (Hairer & Wanner, Radau5): modified Newton contracts
-                    // linearly with ρ = ‖Δ_k‖/‖Δ_{k−1}‖, so the iterate's remaining error is about
-                    // ρ/(1−ρ)·‖Δ_k‖; accept when that estimate is within tolerance instead of
-                    // spending one more iteration to see a correction below it.
-                    if rate < RATE_TEST_MAX_CONTRACTION && rate / (1.0 - rate) * report.wrms() < 1.0
-                    {
+                match judge.judge(report, &mut self.trajectory.stats) {
+                    PassVerdict::Converged => {
                         converged = true;
                         break;
                     }
-                    if pass == 0 && rate > NEWTON_REUSE_MAX_RATE {
-                        // The stored matrix has aged (a stagnating Δλ included: that test is for
-                        // a fresh matrix): factorise a fresh one now rather than spend the
-                        // iterations a slow contraction needs.
-                        break;
-                    }
-                    // Multipliers at the rounding floor of Φ/(β'h²): positions converged twice in a
-                    // row and Δλ stopped shrinking. Accept and count it.
-                    if report.wrms_position < 1.0
-                        && prev.wrms_position < 1.0
-                        && report.wrms_multiplier > LAMBDA_STAGNATION_RATIO * prev.wrms_multiplier
-                    {
-                        self.trajectory.stats.rounding_limited_steps += 1;
-                        converged = true;
-                        break;
-                    }
-                    if report.wrms() > prev.wrms() {
-                        // Diverging: refresh now rather than after the remaining iterations.
-                        break;
-                    }
+                    PassVerdict::GiveUp => break,
+                    PassVerdict::Continue => {}
                 }
-                previous = Some(report);
             }
             if converged {
                 converged_with_full = full;
-                converged_rate = slowest;
+                converged_rate = judge.slowest;
                 break;
             }
         }
-        self.trajectory.stats.newton_iterations += iterations as u64;
         if !converged {
+            self.trajectory.stats.newton_iterations += iterations as u64;
             let report =
                 last.expect("at least one Newton iteration runs (max_newton_iterations >= 1)");
             return Err(IntegrateError::NewtonNotConverged {
@@ -1016,6 +1123,29 @@ impl HhtIntegrator {
                 worst: report.worst,
             });
         }
+        self.conclude_attempt(
+            h,
+            iterations,
+            full_first,
+            converged_with_full,
+            converged_rate,
+        );
+        Ok(Attempt::Converged)
+    }
+
+    /// The bookkeeping of an attempt whose Newton iteration converged after `iterations`
+    /// iterations (with the full matrix when `converged_with_full`; `full_first`: the attempt
+    /// started with it; `converged_rate`: the slowest contraction of the converging pass): counters,
+    /// the full-matrix hold of [`NewtonMatrix::Auto`], and the factorisation the next step may reuse.
+    fn conclude_attempt(
+        &mut self,
+        h: f64,
+        iterations: usize,
+        full_first: bool,
+        converged_with_full: bool,
+        converged_rate: f64,
+    ) {
+        self.trajectory.stats.newton_iterations += iterations as u64;
         if self.settings.newton_matrix == NewtonMatrix::Auto {
             if converged_with_full && !full_first {
                 self.trajectory.control.full_newton_hold = FULL_NEWTON_HOLD_STEPS;
@@ -1033,7 +1163,6 @@ impl HhtIntegrator {
         self.trajectory.newton.reusable = !converged_with_full;
         self.trajectory.newton.h = h;
         self.trajectory.newton.rate = converged_rate;
-        Ok(Attempt::Converged)
     }
 
     /// Accepts the candidate end state of the last attempt (step `h` to `t1`), keeping `q̈_n` and
@@ -1225,9 +1354,20 @@ impl HhtIntegrator {
         if full {
             return self.factorise_full_at_iterate(system, at);
         }
+        eval::mass_matrix(system, at, &self.ws.q, &mut self.ws.mass)?;
+        self.factorise_diagonal(system, at)
+    }
+
+    /// Factorises the diagonal Newton matrix `[M + β'h² K + γ'h C, Φ_qᵀ; Φ_q, 0]` (plus the
+    /// contacts' coupling) at the current iterate, with `M` already in `ws.mass`: evaluates the
+    /// diagonal spring/damper terms and `Φ_q` there (see [`assemble_iteration_matrix`]).
+    fn factorise_diagonal<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<(), IntegrateError> {
         let ws = &mut self.ws;
         ws.use_full = false;
-        eval::mass_matrix(system, at, &ws.q, &mut ws.mass)?;
         let diagonal = if self.settings.newton_diagonal_terms {
             eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)?;
             Some((&ws.stiffness, &ws.damping))
@@ -1343,8 +1483,7 @@ impl HhtIntegrator {
         system: &mut S,
         at: At,
     ) -> Result<IterationReport, IntegrateError> {
-        let (nv, m) = (self.nv, self.m);
-        let beta_h2 = self.coeffs.beta_h2();
+        let m = self.m;
         {
             let ws = &mut self.ws;
             // Dynamics rows: M q̈ − Q (+ Φ_qᵀ λ below).
@@ -1368,6 +1507,20 @@ impl HhtIntegrator {
                 ws.dyn_residual.gemv_tr(1.0, &ws.phi_q, &ws.lambda, 1.0);
             }
         }
+        self.correct_iterate(system, at)
+    }
+
+    /// The rest of a modified-Newton iteration once the dynamics rows of the residual are in
+    /// `ws.dyn_residual` (and, with constraint rows, `Φ` in `ws.phi`): solve with the stored
+    /// factorisation, the convergence measure, the correction (limited where the system asks) and
+    /// the new iterate.
+    fn correct_iterate<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<IterationReport, IntegrateError> {
+        let (nv, m) = (self.nv, self.m);
+        let beta_h2 = self.coeffs.beta_h2();
         let ws = &mut self.ws;
         let mut residual_inf: f64 = 0.0;
         for i in 0..nv {

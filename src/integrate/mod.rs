@@ -54,6 +54,7 @@ pub use hht::{
     StepControlState, IMPACT_LOCATE_FRACTION, IMPACT_MIN_SPEED, MAX_ATTEMPTS_PER_STEP,
     PREDICTOR_MAX_ACCELERATION_DISPLACEMENT,
 };
+pub(crate) use hht::{PlainProgress, PlainStep};
 pub use sensitivity::{
     HhtSensitivity, SensitivityError, SensitivityStats, JACOBIAN_FD_STEP, PARAMETER_FD_STEP,
     PROJECTION_FD_STEP,

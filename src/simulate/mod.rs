@@ -8,6 +8,7 @@
 //! ([`sensitivity_run`], by direct differentiation of the step; [`central_difference_run`], the
 //! checked fallback): docs/sensitivities.md.
 
+mod batch_step;
 mod error;
 mod lie;
 mod parameters;
@@ -16,6 +17,7 @@ mod run;
 mod sensitivity;
 mod system;
 
+pub use batch_step::{BatchStepCounts, BatchStepper};
 pub use error::{integrate_exit_code, FailureContext, SimulationError};
 pub use lie::SERIES_MAX_ANGLE;
 pub use parameters::{

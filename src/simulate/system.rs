@@ -111,6 +111,18 @@ impl RobotSystem {
         &self.parameters
     }
 
+    /// Completes the dynamics residual `M q̈ + C q̇ + g − Q_effects` from the negated inverse
+    /// dynamics: `out` holds `−τ_rnea(q, q̇, q̈)` on entry (dim nv) and the residual on return,
+    /// computed as `−(−τ_rnea + Q_effects)`. [`DaeSystem::dynamics_residual`] and the batched step
+    /// (which computes `τ_rnea` for many samples at once, bitwise the same) share it.
+    pub(crate) fn finish_dynamics_residual(&mut self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        self.effects
+            .add_forces(&self.model, &mut self.data, q, v, out);
+        for o in out.iter_mut() {
+            *o = -*o;
+        }
+    }
+
     /// Adds `∂(Φ_qᵀ λ)/∂q` (central differences along each tangent coordinate) to `stiffness`.
     fn add_loop_stiffness(
         &mut self,
@@ -331,7 +343,6 @@ impl DaeSystem for RobotSystem {
         qdd: &DVector<f64>,
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
-        // out = M q̈ + C q̇ + g − Q_effects, computed as −(−τ_rnea + Q_effects).
         let tau = rnea(
             &self.model,
             &mut self.data,
@@ -342,14 +353,7 @@ impl DaeSystem for RobotSystem {
         for (o, t) in out.iter_mut().zip(tau) {
             *o = -t;
         }
-        self.effects.add_forces(
-            &self.model,
-            &mut self.data,
-            q.as_slice(),
-            v.as_slice(),
-            out.as_mut_slice(),
-        );
-        out.neg_mut();
+        self.finish_dynamics_residual(q.as_slice(), v.as_slice(), out.as_mut_slice());
         Ok(())
     }
 

@@ -1,0 +1,247 @@
+//! The lock-step engine's batched path: samples in groups of [`LANES`], each group stepped through
+//! a block by one [`BatchStepper`] (the batched kernels, docs/batch.md §5). Every sample takes
+//! exactly the steps, records, counters and failures of the per-sample path ([`super::run_sample`]):
+//! the stepper's lanes are bitwise the scalar integrator, and everything around the steps here
+//! (starts, records, failure messages) is the per-sample path's, lane by lane.
+
+use super::{describe_failure, start_state, Sample, SampleBlock, SampleFailure};
+use crate::dynamics::batch::LANES;
+use crate::integrate::{HhtSettings, IntegrateError};
+use crate::scene::Scene;
+use crate::simulate::{BatchStepper, Recorder, RobotSystem};
+use crate::uncertainty::ParameterSpace;
+use std::sync::atomic::Ordering;
+
+/// What a group shares with every other group of a block.
+pub(super) struct GroupContext<'a> {
+    pub space: &'a ParameterSpace,
+    pub settings: HhtSettings,
+    pub scene: &'a Scene,
+    pub recorder: &'a Recorder,
+}
+
+/// A thread's stepper, made on the thread's first group from the study's template.
+pub(super) fn new_stepper(template: &RobotSystem) -> Option<BatchStepper> {
+    BatchStepper::new(template, LANES).ok()
+}
+
+/// Advances the live samples of `group` (at most [`LANES`]; sample `first_index + lane` of the
+/// study) through `block` together; returns the Newton iterations and steps they took.
+pub(super) fn advance_group(
+    stepper: &mut Option<BatchStepper>,
+    group: &mut [Sample],
+    first_index: usize,
+    context: &GroupContext<'_>,
+    block: &SampleBlock<'_>,
+) -> (u64, u64) {
+    let GroupContext {
+        space,
+        settings,
+        scene,
+        recorder,
+    } = *context;
+    let first_record = block.first_record;
+    let Some(stepper) = stepper.as_mut() else {
+        for (lane, sample) in group.iter_mut().enumerate() {
+            if sample.failure.is_none() {
+                fail(
+                    sample,
+                    first_index + lane,
+                    space,
+                    0.0,
+                    first_record,
+                    "internal: the batched stepper could not be made".to_string(),
+                );
+            }
+        }
+        return (0, 0);
+    };
+    let n_outputs = recorder.outputs().len();
+    let nq = stepper.system_mut(0).model.nq;
+    let (q0, v0) = start_state(scene);
+    let mut active = [false; LANES];
+    let mut before = [(0_u64, 0_u64); LANES];
+    for (lane, sample) in group.iter_mut().enumerate() {
+        if sample.failure.is_some() {
+            continue;
+        }
+        sample.block.clear();
+        sample.block.resize(block.count * n_outputs, 0.0);
+        if let Some(positions) = &mut sample.positions {
+            positions.clear();
+            positions.resize(block.count * nq, 0.0);
+        }
+        space.apply(&mut stepper.system_mut(lane).model, &sample.xi);
+        if let Err(error) = stepper.sync_lane(lane) {
+            fail(
+                sample,
+                first_index + lane,
+                space,
+                0.0,
+                first_record,
+                format!("internal: {error}"),
+            );
+            continue;
+        }
+        if let Err(error) = stepper.start_lane(lane, settings, &q0, &v0) {
+            let message = describe_start(error, stepper.system_mut(lane), scene);
+            fail(
+                sample,
+                first_index + lane,
+                space,
+                0.0,
+                first_record,
+                message,
+            );
+            continue;
+        }
+        let (system, integrator) = stepper.lane_mut(lane);
+        let Some(hht) = integrator else {
+            continue;
+        };
+        // A sample's first block starts its trajectory with the sample's parameters.
+        if sample.trajectory.is_none() {
+            if let Err(error) = hht.restart(system, 0.0, &q0, &v0) {
+                let message = describe_start(error, system, scene);
+                fail(
+                    sample,
+                    first_index + lane,
+                    space,
+                    0.0,
+                    first_record,
+                    message,
+                );
+                continue;
+            }
+            sample.initial =
+                Recorder::initial_orientations(&system.model, hht.state().q.as_slice());
+            sample.trajectory = Some(hht.trajectory());
+        }
+        let Some(trajectory) = sample.trajectory.as_mut() else {
+            continue;
+        };
+        before[lane] = (trajectory.stats.newton_iterations, trajectory.stats.steps);
+        if let Err(error) = hht.swap_trajectory(trajectory) {
+            fail(
+                sample,
+                first_index + lane,
+                space,
+                0.0,
+                first_record,
+                error.to_string(),
+            );
+            continue;
+        }
+        active[lane] = true;
+    }
+    let swapped = active;
+
+    let mut step = block.start_step;
+    'records: for r in 0..block.count {
+        let target = (block.record_step)(first_record + r);
+        while step < target {
+            if block.interrupt.load(Ordering::Relaxed) {
+                break 'records;
+            }
+            let mut failures: [Option<IntegrateError>; LANES] = Default::default();
+            for (lane, error) in stepper.step(&active).iter_mut().enumerate() {
+                failures[lane] = error.take();
+            }
+            for (lane, error) in failures.into_iter().enumerate() {
+                let Some(error) = error else {
+                    continue;
+                };
+                active[lane] = false;
+                let (system, integrator) = stepper.lane_mut(lane);
+                let Some(hht) = integrator else {
+                    continue;
+                };
+                // The step that failed was heading for t_n + h.
+                let time = hht.state().t + settings.step_s;
+                let q = hht.state().q.as_slice().to_vec();
+                let message = describe_failure(error, system, scene, &q);
+                fail(
+                    &mut group[lane],
+                    first_index + lane,
+                    space,
+                    time,
+                    first_record + r,
+                    message,
+                );
+            }
+            step += 1;
+        }
+        for (lane, sample) in group.iter_mut().enumerate() {
+            if !active[lane] {
+                continue;
+            }
+            let (system, integrator) = stepper.lane_mut(lane);
+            let Some(hht) = integrator else {
+                continue;
+            };
+            let state = hht.state();
+            recorder.record_state(
+                &system.model,
+                &mut system.data,
+                &mut system.effects,
+                state,
+                &sample.initial,
+                &mut sample.block[r * n_outputs..(r + 1) * n_outputs],
+            );
+            if let Some(positions) = &mut sample.positions {
+                positions[r * nq..(r + 1) * nq].copy_from_slice(state.q.as_slice());
+            }
+        }
+    }
+
+    let mut counters = (0, 0);
+    for (lane, sample) in group.iter_mut().enumerate() {
+        if !swapped[lane] {
+            continue;
+        }
+        let (_, integrator) = stepper.lane_mut(lane);
+        let (Some(hht), Some(trajectory)) = (integrator, sample.trajectory.as_mut()) else {
+            continue;
+        };
+        if let Err(error) = hht.swap_trajectory(trajectory) {
+            if sample.failure.is_none() {
+                fail(
+                    sample,
+                    first_index + lane,
+                    space,
+                    0.0,
+                    first_record,
+                    error.to_string(),
+                );
+            }
+            continue;
+        }
+        counters.0 += trajectory.stats.newton_iterations - before[lane].0;
+        counters.1 += trajectory.stats.steps - before[lane].1;
+    }
+    counters
+}
+
+/// The message of a start that failed (at the scene's initial configuration).
+fn describe_start(error: IntegrateError, system: &mut RobotSystem, scene: &Scene) -> String {
+    describe_failure(error, system, scene, &scene.initial_q)
+}
+
+/// Marks `sample` (index `index` of the study) failed at `time_s`, heading for `record`.
+fn fail(
+    sample: &mut Sample,
+    index: usize,
+    space: &ParameterSpace,
+    time_s: f64,
+    record: usize,
+    message: String,
+) {
+    sample.failure = Some(SampleFailure {
+        index,
+        xi: sample.xi.clone(),
+        values: space.values_at(&sample.xi),
+        time_s,
+        record,
+        message,
+    });
+}

@@ -1,0 +1,190 @@
+//! A grid step driven from outside, one evaluation at a time: the caller evaluates the mass matrix
+//! and the inverse dynamics of the iterate (for many samples at once, docs/batch.md §5) and hands
+//! them in; the integrator does everything else with the same functions, in the same order, as
+//! [`HhtIntegrator::step`]. So a step driven this way has the bits of `step` whenever the caller's
+//! evaluations have the bits of the system's own.
+//!
+//! Only the plain case is driven: a fixed step of the grid's size, no constraint rows, no limit
+//! events, no contact coupling, a fresh diagonal Newton matrix at the predictor (the scalar
+//! attempt's pass 1), no reuse of the last step's factorisation. Anything else — a system or a
+//! setting outside that case, a pass that gives up (the scalar attempt would refresh), the
+//! iteration limit, any error — *abandons* the step: the trajectory is put back exactly as it was
+//! (the attempt only ever wrote the workspace, the counters and the reuse flag, which are restored)
+//! and the caller runs [`HhtIntegrator::step`], which repeats the same pass bit for bit and goes on
+//! from there.
+
+use super::{
+    eval, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonMatrix, NewtonPass,
+    PassVerdict, StepControl, ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION,
+};
+use nalgebra::DVector;
+
+/// A plain grid step in progress ([`HhtIntegrator::begin_plain_step`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PlainStep {
+    at: At,
+    t_end: f64,
+    /// The step control's planned size, s (for the next plan, as `step` keeps it).
+    planned: f64,
+    /// Newton iterations so far.
+    iterations: usize,
+    judge: NewtonPass,
+    /// What the attempt may change before it is accepted, to put back when it is abandoned.
+    stats_before: HhtStats,
+    reusable_before: bool,
+}
+
+/// Where a plain step stands after a Newton iteration ([`HhtIntegrator::plain_correct`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PlainProgress {
+    /// Not converged yet: evaluate the residual at the new iterate and correct again.
+    Iterate,
+    /// Converged and accepted: the grid step is done.
+    Done,
+    /// Abandoned, the trajectory as it was: run [`HhtIntegrator::step`].
+    Abandoned,
+}
+
+impl HhtIntegrator {
+    /// Whether `system` and the settings allow the next grid step to be driven as a plain step.
+    fn plain_step_allowed<S: DaeSystem + ?Sized>(&self, system: &S) -> bool {
+        let full_first = system.provides_residual_jacobians()
+            && match self.settings.newton_matrix {
+                NewtonMatrix::Diagonal => false,
+                NewtonMatrix::Auto => self.trajectory.control.full_newton_hold > 0,
+                NewtonMatrix::Full => true,
+            };
+        self.settings.step_control == StepControl::Fixed
+            && self.m == 0
+            && self.n_events == 0
+            && !self.settings.reuse_newton_matrix
+            && !full_first
+            && system.provides_dynamics_residual()
+            && !system.provides_newton_coupling()
+            && !system.limits_newton_updates()
+    }
+
+    /// Starts the next grid step as a plain step: the predictor and the first iterate, whose
+    /// configuration ([`HhtIntegrator::plain_iterate`]) the caller evaluates `M` at next. `None`
+    /// when the step is not plain (then nothing was changed: run [`HhtIntegrator::step`]).
+    pub(crate) fn begin_plain_step<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+    ) -> Option<PlainStep> {
+        if !self.plain_step_allowed(system)
+            || eval::check_dimensions(system, self.nq, self.nv, self.m).is_err()
+        {
+            return None;
+        }
+        let step = self.trajectory.state.step + 1;
+        let h_grid = self.grid_coeffs.h;
+        let t_end = self.trajectory.t0 + step as f64 * h_grid;
+        let h_min = h_grid / f64::from(1u32 << self.settings.max_step_halvings);
+        let remaining = t_end - self.trajectory.state.t;
+        if remaining <= END_OF_INTERVAL_FRACTION * h_grid {
+            return None;
+        }
+        let plan = self.plan_attempt(t_end, h_min, remaining);
+        if plan.h != h_grid || !plan.reaches_end {
+            return None;
+        }
+        let mut plain = PlainStep {
+            at: At { t: plan.t1, step },
+            t_end,
+            planned: plan.planned,
+            iterations: 0,
+            judge: NewtonPass::new(1),
+            stats_before: self.trajectory.stats,
+            reusable_before: self.trajectory.newton.reusable,
+        };
+        self.predict(plan.h);
+        if self.update_iterate(system, plain.at).is_err() {
+            self.abandon_plain_step(&mut plain);
+            return None;
+        }
+        self.trajectory.newton.reusable = false;
+        Some(plain)
+    }
+
+    /// The current iterate `(q, q̇, q̈)` (dims nq, nv, nv) of a plain step.
+    pub(crate) fn plain_iterate(&self) -> (&DVector<f64>, &DVector<f64>, &DVector<f64>) {
+        (&self.ws.q, &self.ws.v, &self.ws.qdd)
+    }
+
+    /// Factorises the Newton matrix of a plain step with `mass` = `M` at the first iterate
+    /// (`nv × nv`, column-major, as the system's `mass_matrix` would give it). `false` when the
+    /// step was abandoned (a singular matrix, an error of the system).
+    pub(crate) fn plain_factorise<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        plain: &mut PlainStep,
+        mass: &[f64],
+    ) -> bool {
+        self.ws.mass.as_mut_slice().copy_from_slice(mass);
+        if self.factorise_diagonal(system, plain.at).is_err() {
+            self.abandon_plain_step(plain);
+            return false;
+        }
+        true
+    }
+
+    /// The iterate `(q, q̇)` and the buffer the caller writes the dynamics rows of the residual
+    /// into (dim nv, as the system's `dynamics_residual` would give them) before
+    /// [`HhtIntegrator::plain_correct`].
+    pub(crate) fn plain_residual_buffers(
+        &mut self,
+    ) -> (&DVector<f64>, &DVector<f64>, &mut DVector<f64>) {
+        let ws = &mut self.ws;
+        (&ws.q, &ws.v, &mut ws.dyn_residual)
+    }
+
+    /// One Newton correction of a plain step with the residual the caller wrote, then the pass's
+    /// tests. On convergence the step is accepted and the grid step ended, as
+    /// [`HhtIntegrator::step`] does. Errors only where `step` would have failed after changing the
+    /// state (accepting the step); every other failure abandons the step.
+    pub(crate) fn plain_correct<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        plain: &mut PlainStep,
+    ) -> Result<PlainProgress, IntegrateError> {
+        plain.iterations += 1;
+        let report = match self.correct_iterate(system, plain.at) {
+            Ok(report) => report,
+            Err(_) => {
+                self.abandon_plain_step(plain);
+                return Ok(PlainProgress::Abandoned);
+            }
+        };
+        match plain.judge.judge(report, &mut self.trajectory.stats) {
+            PassVerdict::Converged => {
+                let h = self.grid_coeffs.h;
+                self.conclude_attempt(h, plain.iterations, false, false, plain.judge.slowest);
+                let At { t: t1, step } = plain.at;
+                self.accept(
+                    system,
+                    t1,
+                    h,
+                    step,
+                    ADAPTIVE_MAX_GROWTH,
+                    plain.planned,
+                    true,
+                )?;
+                self.end_grid_step(plain.t_end, step, true);
+                Ok(PlainProgress::Done)
+            }
+            PassVerdict::Continue if plain.iterations < self.settings.max_newton_iterations => {
+                Ok(PlainProgress::Iterate)
+            }
+            _ => {
+                self.abandon_plain_step(plain);
+                Ok(PlainProgress::Abandoned)
+            }
+        }
+    }
+
+    /// Puts back what a plain attempt changed outside the workspace.
+    fn abandon_plain_step(&mut self, plain: &mut PlainStep) {
+        self.trajectory.stats = plain.stats_before;
+        self.trajectory.newton.reusable = plain.reusable_before;
+    }
+}

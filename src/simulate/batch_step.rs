@@ -1,0 +1,285 @@
+//! [`BatchStepper`]: up to [`LANES`] samples of one robot advanced by one HHT-I3 grid step together,
+//! their mass matrices and inverse dynamics evaluated by the batched kernels
+//! ([`crate::dynamics::batch`]) in one walk of the tree per chunk (docs/batch.md §5).
+//!
+//! Every lane keeps its own [`RobotSystem`] (its sample's model and effects) and its own
+//! [`HhtIntegrator`]; the integrator does all of a step's arithmetic except the two kernels, which
+//! it takes from the batch (`HhtIntegrator::begin_plain_step` and what follows). Since a batched
+//! kernel gives each lane the bits of the scalar kernel, and the residual is completed by the same
+//! function as the scalar path's ([`RobotSystem::finish_dynamics_residual`]), every lane's step has
+//! the bits of [`HhtIntegrator::step`] on its own system. A lane whose step is not plain (see
+//! `src/integrate/hht/plain.rs`) or gives up on its first Newton matrix is stepped by
+//! [`HhtIntegrator::step`] itself, from the same state.
+//!
+//! A lane that converges waits, masked, for the others of its chunk: its arithmetic is part of the
+//! same vector instructions, so it costs nothing extra (docs/batch.md §5).
+
+use super::RobotSystem;
+use crate::dynamics::batch::{self, BatchData, BatchError, BatchModel, BatchVectors, LANES};
+use crate::integrate::{
+    DaeSystem, HhtIntegrator, HhtSettings, IntegrateError, PlainProgress, PlainStep, StepControl,
+};
+use nalgebra::DVector;
+
+/// How the lanes' grid steps were taken since the stepper was made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BatchStepCounts {
+    /// Lane steps driven with the batched kernels.
+    pub batched: u64,
+    /// Lane steps run by the scalar integrator (not plain, or abandoned by the batched attempt).
+    pub scalar: u64,
+}
+
+/// Where one lane stands within a grid step. (A few hundred bytes per lane, kept inline: a step
+/// allocates nothing.)
+#[derive(Clone, Copy, Debug)]
+#[allow(clippy::large_enum_variant)]
+enum LaneState {
+    /// Not stepped (inactive, finished, or failed).
+    Idle,
+    /// In a plain step driven with the batched kernels.
+    Plain(PlainStep),
+    /// To be stepped by the scalar integrator.
+    Scalar,
+}
+
+/// Up to [`LANES`] samples of one robot, each with its own system and integrator, stepped together
+/// with the batched kernels.
+pub struct BatchStepper {
+    systems: Vec<RobotSystem>,
+    integrators: Vec<Option<HhtIntegrator>>,
+    batch_model: BatchModel<LANES>,
+    batch_data: BatchData<LANES>,
+    q: BatchVectors<LANES>,
+    v: BatchVectors<LANES>,
+    qdd: BatchVectors<LANES>,
+    states: Vec<LaneState>,
+    errors: Vec<Option<IntegrateError>>,
+    /// One lane's `M` (nv²) or `τ` (nv).
+    scratch: Vec<f64>,
+    counts: BatchStepCounts,
+}
+
+impl BatchStepper {
+    /// Whether a study of `system` with `settings` gains from the batched step: a fixed step
+    /// without constraint rows, limit events, contacts or the reuse of the Newton matrix. (Any
+    /// system steps correctly through a [`BatchStepper`], falling back to the scalar step where it
+    /// must; this says whether it would ever take the batched path.)
+    pub fn suits(system: &RobotSystem, settings: &HhtSettings) -> bool {
+        settings.step_control == StepControl::Fixed
+            && !settings.reuse_newton_matrix
+            && system.n_constraints() == 0
+            && system.n_events() == 0
+            && !system.effects.has_contacts()
+    }
+
+    /// `lanes` (1 to [`LANES`]) copies of `template`, without integrators yet
+    /// ([`BatchStepper::start_lane`]).
+    ///
+    /// Errors: [`BatchError::Empty`] for 0 lanes, [`BatchError::NoSuchSample`] for more than
+    /// [`LANES`].
+    pub fn new(template: &RobotSystem, lanes: usize) -> Result<Self, BatchError> {
+        if lanes > LANES {
+            return Err(BatchError::NoSuchSample {
+                sample: lanes - 1,
+                size: LANES,
+            });
+        }
+        let models: Vec<&crate::model::Model> = (0..lanes).map(|_| &template.model).collect();
+        let batch_model = BatchModel::from_models(&models)?;
+        let batch_data = BatchData::new(&batch_model);
+        let (nq, nv) = (template.model.nq, template.model.nv);
+        Ok(Self {
+            systems: vec![template.clone(); lanes],
+            integrators: (0..lanes).map(|_| None).collect(),
+            batch_model,
+            batch_data,
+            q: BatchVectors::zeros(nq, lanes),
+            v: BatchVectors::zeros(nv, lanes),
+            qdd: BatchVectors::zeros(nv, lanes),
+            states: vec![LaneState::Idle; lanes],
+            errors: (0..lanes).map(|_| None).collect(),
+            scratch: vec![0.0; nv * nv],
+            counts: BatchStepCounts::default(),
+        })
+    }
+
+    /// Number of lanes.
+    pub fn lanes(&self) -> usize {
+        self.systems.len()
+    }
+
+    /// Lane `lane`'s system, to write a sample's parameter values into its model; call
+    /// [`BatchStepper::sync_lane`] afterwards.
+    pub fn system_mut(&mut self, lane: usize) -> &mut RobotSystem {
+        &mut self.systems[lane]
+    }
+
+    /// Lane `lane`'s system and integrator (`None` before [`BatchStepper::start_lane`]).
+    pub fn lane_mut(&mut self, lane: usize) -> (&mut RobotSystem, Option<&mut HhtIntegrator>) {
+        (&mut self.systems[lane], self.integrators[lane].as_mut())
+    }
+
+    /// Copies lane `lane`'s model values into the batch (after its model changed).
+    pub fn sync_lane(&mut self, lane: usize) -> Result<(), BatchError> {
+        self.batch_model.set_sample(lane, &self.systems[lane].model)
+    }
+
+    /// Makes lane `lane`'s integrator, if it has none, with a consistent start of its system from
+    /// `(0, q0, v0)` (a workspace for the trajectories swapped in later).
+    pub fn start_lane(
+        &mut self,
+        lane: usize,
+        settings: HhtSettings,
+        q0: &DVector<f64>,
+        v0: &DVector<f64>,
+    ) -> Result<&mut HhtIntegrator, IntegrateError> {
+        let integrator = &mut self.integrators[lane];
+        if integrator.is_none() {
+            *integrator = Some(HhtIntegrator::new(
+                &mut self.systems[lane],
+                settings,
+                0.0,
+                q0,
+                v0,
+            )?);
+        }
+        Ok(integrator.as_mut().expect("made just above"))
+    }
+
+    /// How the lanes' steps were taken so far.
+    pub fn counts(&self) -> BatchStepCounts {
+        self.counts
+    }
+
+    /// Advances every lane with `active[lane]` (and an integrator) by one grid step, bitwise as
+    /// [`HhtIntegrator::step`] on the lane's system would. Returns each lane's error (`None`: the
+    /// step succeeded or the lane was not active); a failed lane's state is where `step` leaves it.
+    pub fn step(&mut self, active: &[bool]) -> &mut [Option<IntegrateError>] {
+        let lanes = self.lanes();
+        let nv = self.batch_model.nv;
+        let mut any_plain = false;
+        for lane in 0..lanes {
+            self.errors[lane] = None;
+            self.states[lane] = LaneState::Idle;
+            let Some(integrator) = self.integrators[lane].as_mut() else {
+                continue;
+            };
+            if !active.get(lane).copied().unwrap_or(false) {
+                continue;
+            }
+            self.states[lane] = match integrator.begin_plain_step(&mut self.systems[lane]) {
+                Some(plain) => {
+                    write_lane(&mut self.q, lane, integrator.plain_iterate().0);
+                    any_plain = true;
+                    LaneState::Plain(plain)
+                }
+                None => LaneState::Scalar,
+            };
+        }
+        if any_plain {
+            batch::crba(&self.batch_model, &mut self.batch_data, &self.q);
+            for lane in 0..lanes {
+                let LaneState::Plain(plain) = &mut self.states[lane] else {
+                    continue;
+                };
+                let Some(integrator) = self.integrators[lane].as_mut() else {
+                    continue;
+                };
+                let mass = &mut self.scratch[..nv * nv];
+                self.batch_data.mass_matrix.copy_sample(lane, mass);
+                if !integrator.plain_factorise(&mut self.systems[lane], plain, mass) {
+                    self.states[lane] = LaneState::Scalar;
+                }
+            }
+        }
+        self.iterate_plain_lanes();
+        for lane in 0..lanes {
+            if !matches!(self.states[lane], LaneState::Scalar) {
+                continue;
+            }
+            self.states[lane] = LaneState::Idle;
+            let Some(integrator) = self.integrators[lane].as_mut() else {
+                continue;
+            };
+            self.counts.scalar += 1;
+            if let Err(error) = integrator.step(&mut self.systems[lane]) {
+                self.errors[lane] = Some(error);
+            }
+        }
+        &mut self.errors
+    }
+
+    /// Newton iterations of the plain lanes, one batched inverse dynamics per round, until every
+    /// lane has converged, been abandoned (to the scalar step) or failed.
+    fn iterate_plain_lanes(&mut self) {
+        let nv = self.batch_model.nv;
+        loop {
+            let mut pending = false;
+            for lane in 0..self.lanes() {
+                if !matches!(self.states[lane], LaneState::Plain(_)) {
+                    continue;
+                }
+                let Some(integrator) = self.integrators[lane].as_ref() else {
+                    continue;
+                };
+                let (q, v, qdd) = integrator.plain_iterate();
+                write_lane(&mut self.q, lane, q);
+                write_lane(&mut self.v, lane, v);
+                write_lane(&mut self.qdd, lane, qdd);
+                pending = true;
+            }
+            if !pending {
+                return;
+            }
+            batch::rnea(
+                &self.batch_model,
+                &mut self.batch_data,
+                &self.q,
+                &self.v,
+                &self.qdd,
+            );
+            for lane in 0..self.lanes() {
+                let LaneState::Plain(plain) = &mut self.states[lane] else {
+                    continue;
+                };
+                let Some(integrator) = self.integrators[lane].as_mut() else {
+                    continue;
+                };
+                let system = &mut self.systems[lane];
+                let tau = &mut self.scratch[..nv];
+                self.batch_data.tau.copy_sample(lane, tau);
+                let (q, v, residual) = integrator.plain_residual_buffers();
+                for (r, t) in residual.iter_mut().zip(tau.iter()) {
+                    *r = -t;
+                }
+                system.finish_dynamics_residual(
+                    q.as_slice(),
+                    v.as_slice(),
+                    residual.as_mut_slice(),
+                );
+                match integrator.plain_correct(system, plain) {
+                    Ok(PlainProgress::Iterate) => {}
+                    Ok(PlainProgress::Done) => {
+                        self.counts.batched += 1;
+                        self.states[lane] = LaneState::Idle;
+                    }
+                    Ok(PlainProgress::Abandoned) => self.states[lane] = LaneState::Scalar,
+                    Err(error) => {
+                        self.errors[lane] = Some(error);
+                        self.states[lane] = LaneState::Idle;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Writes one lane's vector into a batch (dimensions fixed at construction).
+fn write_lane(batch: &mut BatchVectors<LANES>, lane: usize, values: &DVector<f64>) {
+    let dim = batch.dim;
+    let (chunk, l) = (lane / LANES, lane % LANES);
+    for (k, value) in values.iter().enumerate().take(dim) {
+        batch.chunks[chunk * dim + k].0[l] = *value;
+    }
+}

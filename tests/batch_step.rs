@@ -1,0 +1,324 @@
+//! The batched HHT-I3 step (`BatchStepper`, docs/batch.md §5) against the scalar integrator: every
+//! lane, at its own parameter point, must take exactly the steps `HhtIntegrator::step` takes on the
+//! lane's own system — state, counters and errors compared bit for bit at every step — whether the
+//! lane's step ran with the batched kernels, fell back to the scalar step, or failed.
+
+mod common;
+
+use nalgebra::DVector;
+use ribbon::analysis::{BlockOutcome, LockStep};
+use ribbon::integrate::{HhtIntegrator, HhtSettings, HhtState};
+use ribbon::setup::Setup;
+use ribbon::simulate::{hht_settings, BatchStepper, RobotSystem};
+use std::sync::atomic::AtomicBool;
+
+/// Bits of a state, for exact comparison (signed zeros included).
+fn state_bits(state: &HhtState) -> Vec<u64> {
+    let mut bits = vec![state.t.to_bits(), state.step];
+    for vector in [&state.q, &state.v, &state.a, &state.qdd, &state.lambda] {
+        bits.extend(vector.iter().map(|x| x.to_bits()));
+    }
+    bits
+}
+
+/// Parameter points in standard coordinates, one per lane, spread over the box (corners and
+/// interior, different for every lane).
+fn lane_points(d: usize, lanes: usize) -> Vec<Vec<f64>> {
+    (0..lanes)
+        .map(|lane| {
+            (0..d)
+                .map(|k| {
+                    let phase = (lane * 7 + k * 3) % 5;
+                    [-1.0, -0.37, 0.0, 0.61, 1.0][phase]
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// What one run produced: per step, the state's bits and the counters, and the error if any.
+#[derive(Debug, PartialEq)]
+struct Run {
+    states: Vec<Vec<u64>>,
+    stats: Vec<String>,
+    error: Option<String>,
+}
+
+/// Steps `settings.len()` samples of `setup` (lane `i` with `settings[i]`) for `steps` steps with
+/// the batched stepper and, separately, each sample with its own scalar integrator; returns both,
+/// and the stepper's counts.
+fn run_both(
+    setup: &Setup,
+    settings: &[HhtSettings],
+    steps: usize,
+) -> (Vec<Run>, Vec<Run>, ribbon::simulate::BatchStepCounts) {
+    let scene = &setup.scene;
+    let template = RobotSystem::new(setup.model.clone(), scene);
+    let q0 = DVector::from_column_slice(&scene.initial_q);
+    let v0 = DVector::from_column_slice(&scene.initial_v);
+    let lanes = settings.len();
+    let points = lane_points(setup.space.len(), lanes);
+
+    let mut scalar_runs = Vec::new();
+    for (xi, lane_settings) in points.iter().zip(settings) {
+        let mut system = template.clone();
+        setup.space.apply(&mut system.model, xi);
+        let mut hht = HhtIntegrator::new(&mut system, *lane_settings, 0.0, &q0, &v0)
+            .expect("the scalar start succeeds");
+        let mut run = Run {
+            states: Vec::new(),
+            stats: Vec::new(),
+            error: None,
+        };
+        for _ in 0..steps {
+            if let Err(error) = hht.step(&mut system) {
+                run.error = Some(error.to_string());
+                run.states.push(state_bits(hht.state()));
+                run.stats.push(format!("{:?}", hht.stats()));
+                break;
+            }
+            run.states.push(state_bits(hht.state()));
+            run.stats.push(format!("{:?}", hht.stats()));
+        }
+        scalar_runs.push(run);
+    }
+
+    let mut stepper = BatchStepper::new(&template, lanes).expect("a stepper of 1–4 lanes");
+    for (lane, xi) in points.iter().enumerate() {
+        setup.space.apply(&mut stepper.system_mut(lane).model, xi);
+        stepper.sync_lane(lane).expect("same tree");
+        stepper
+            .start_lane(lane, settings[lane], &q0, &v0)
+            .expect("the batched lane's start succeeds");
+    }
+    let mut batched_runs: Vec<Run> = (0..lanes)
+        .map(|_| Run {
+            states: Vec::new(),
+            stats: Vec::new(),
+            error: None,
+        })
+        .collect();
+    let mut active = vec![true; lanes];
+    for _ in 0..steps {
+        let errors: Vec<Option<String>> = stepper
+            .step(&active)
+            .iter()
+            .map(|e| e.as_ref().map(|e| e.to_string()))
+            .collect();
+        for lane in 0..lanes {
+            if !active[lane] {
+                continue;
+            }
+            let (_, integrator) = stepper.lane_mut(lane);
+            let integrator = integrator.expect("started");
+            let run = &mut batched_runs[lane];
+            run.states.push(state_bits(integrator.state()));
+            run.stats.push(format!("{:?}", integrator.stats()));
+            if let Some(error) = &errors[lane] {
+                run.error = Some(error.clone());
+                active[lane] = false;
+            }
+        }
+    }
+    (scalar_runs, batched_runs, stepper.counts())
+}
+
+fn assert_lanes_match(what: &str, scalar: &[Run], batched: &[Run]) {
+    for (lane, (s, b)) in scalar.iter().zip(batched).enumerate() {
+        assert_eq!(s.error, b.error, "{what}, lane {lane}: errors differ");
+        assert_eq!(
+            s.states.len(),
+            b.states.len(),
+            "{what}, lane {lane}: steps differ"
+        );
+        for (k, (x, y)) in s.states.iter().zip(&b.states).enumerate() {
+            assert_eq!(
+                x,
+                y,
+                "{what}, lane {lane}: state bits differ after step {}",
+                k + 1
+            );
+        }
+        assert_eq!(s.stats, b.stats, "{what}, lane {lane}: counters differ");
+    }
+}
+
+#[test]
+fn every_lane_steps_bit_for_bit_as_the_scalar_integrator_on_the_shipped_trees() {
+    let cases = [
+        (
+            "robots/ur5/ur5.urdf",
+            "robots/ur5/ur5.uncertainty.toml",
+            600,
+        ),
+        (
+            "robots/ur5/ur5.urdf",
+            "robots/ur5/ur5.all-values.uncertainty.toml",
+            300,
+        ),
+        (
+            "robots/double_pendulum/double_pendulum.urdf",
+            "robots/double_pendulum/double_pendulum.uncertainty.toml",
+            600,
+        ),
+    ];
+    for (urdf, sidecar, steps) in cases {
+        let setup = common::shipped_setup(urdf, sidecar, steps as f64 * 1e-3);
+        let settings = hht_settings(&setup.scene);
+        for lanes in [1, 3, 4] {
+            let what = format!("{sidecar}, {lanes} lanes");
+            let (scalar, batched, counts) = run_both(&setup, &vec![settings; lanes], steps);
+            assert!(
+                scalar.iter().all(|r| r.error.is_none()),
+                "{what}: the scalar runs are expected to succeed"
+            );
+            assert_lanes_match(&what, &scalar, &batched);
+            let total = (lanes * steps) as u64;
+            assert_eq!(counts.batched + counts.scalar, total, "{what}: {counts:?}");
+            // The batched path must actually carry these plain scenes, not the fallback.
+            assert!(
+                counts.batched * 100 >= total * 95,
+                "{what}: only {} of {total} lane steps were batched",
+                counts.batched
+            );
+        }
+    }
+}
+
+/// With one Newton iteration allowed per pass, many first passes give up: those lanes fall back to
+/// the scalar step (which refreshes the matrix) and the others go on batched. One lane has a
+/// position tolerance no iterate can meet and fails in its first step while the others go on.
+/// Every lane must still be the scalar integrator's, errors included.
+#[test]
+fn lanes_that_fall_back_or_fail_stay_the_scalar_integrators() {
+    let setup = common::shipped_setup(
+        "robots/ur5/ur5.urdf",
+        "robots/ur5/ur5.uncertainty.toml",
+        0.4,
+    );
+    let one_iteration = HhtSettings {
+        max_newton_iterations: 1,
+        ..hht_settings(&setup.scene)
+    };
+    let unreachable = HhtSettings {
+        abstol_position: 1e-13,
+        ..one_iteration
+    };
+    let settings = [one_iteration, one_iteration, unreachable, one_iteration];
+    let (scalar, batched, counts) = run_both(&setup, &settings, 400);
+    assert_lanes_match("ur5, one iteration per pass", &scalar, &batched);
+    let failed: Vec<bool> = scalar.iter().map(|r| r.error.is_some()).collect();
+    assert_eq!(failed, [false, false, true, false], "{scalar:?}");
+    assert!(
+        counts.scalar > 0 && counts.batched > 0,
+        "both paths must be exercised: {counts:?}"
+    );
+}
+
+/// Everything a study reads from its lock-step engine, block by block: every sample's records (as
+/// bits), the nominal run's configurations, the failures and the counters.
+fn study_records(
+    setup: &Setup,
+    settings: HhtSettings,
+    points: &[f64],
+    batched: bool,
+    threads: usize,
+) -> (Vec<u64>, String, (u64, u64)) {
+    let template = RobotSystem::new(setup.model.clone(), &setup.scene);
+    let nominal = vec![0.0; setup.space.len()];
+    let mut lockstep = LockStep::new(
+        template,
+        &setup.space,
+        &setup.scene,
+        settings,
+        points,
+        Some(&nominal),
+    );
+    assert!(
+        lockstep.batched(),
+        "the shipped ur5 scene suits the batched path"
+    );
+    if !batched {
+        lockstep.disable_batching();
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool");
+    let interrupt = AtomicBool::new(false);
+    let records = setup.scene.record_count() as usize;
+    let mut bits = Vec::new();
+    let block = 7;
+    let mut first = 0;
+    while first < records {
+        let count = block.min(records - first);
+        let outcome = lockstep.advance(first, count, &pool, &interrupt);
+        assert_eq!(outcome, BlockOutcome::Complete);
+        for i in 0..lockstep.len() {
+            for r in 0..count {
+                if !lockstep.failed(i) {
+                    bits.extend(lockstep.record(i, r).iter().map(|x| x.to_bits()));
+                }
+            }
+        }
+        for r in 0..count {
+            bits.extend(lockstep.nominal_positions(r).iter().map(|x| x.to_bits()));
+        }
+        first += count;
+    }
+    (
+        bits,
+        format!("{:?}", lockstep.failures()),
+        lockstep.counters(),
+    )
+}
+
+/// A study's lock-step engine gives the same records, failures and counters with the batched path
+/// as with every sample stepped alone, for 1 and 2 threads: 13 samples (three groups of four and a
+/// group of one, plus the nominal run) of the shipped ur5, one of them outside the box with a
+/// negative payload mass, whose start fails; and with one Newton iteration per pass, so that
+/// lanes fall back to the scalar step within groups.
+#[test]
+fn a_study_records_the_same_bits_batched_and_unbatched() {
+    let setup = common::shipped_setup(
+        "robots/ur5/ur5.urdf",
+        "robots/ur5/ur5.uncertainty.toml",
+        0.3,
+    );
+    let d = setup.space.len();
+    let mut points: Vec<f64> = lane_points(d, 13).concat();
+    // Sample 5: the payload mass (dimension 1, [0.15, 1.2] kg) at ξ = −30, i.e. −15 kg.
+    points[5 * d + 1] = -30.0;
+    let default = hht_settings(&setup.scene);
+    let one_iteration = HhtSettings {
+        max_newton_iterations: 1,
+        ..default
+    };
+    for (what, settings) in [("default", default), ("one iteration", one_iteration)] {
+        let reference = study_records(&setup, settings, &points, false, 1);
+        assert!(
+            reference.1.contains("index: 5,"),
+            "{what}: the out-of-box sample is expected to fail: {}",
+            reference.1
+        );
+        assert!(
+            !reference.1.contains("index: 4,"),
+            "{what}: only sample 5 is expected to fail"
+        );
+        for threads in [1, 2] {
+            let batched = study_records(&setup, settings, &points, true, threads);
+            assert_eq!(
+                reference.1, batched.1,
+                "{what}, {threads} threads: failures differ"
+            );
+            assert_eq!(
+                reference.2, batched.2,
+                "{what}, {threads} threads: counters differ"
+            );
+            assert!(
+                reference.0 == batched.0,
+                "{what}, {threads} threads: records differ"
+            );
+        }
+    }
+}
