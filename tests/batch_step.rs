@@ -144,7 +144,7 @@ fn assert_lanes_match(what: &str, scalar: &[Run], batched: &[Run]) {
 }
 
 #[test]
-fn every_lane_steps_bit_for_bit_as_the_scalar_integrator_on_the_shipped_trees() {
+fn every_lane_steps_bit_for_bit_as_the_scalar_integrator_on_the_shipped_robots() {
     let cases = [
         (
             "robots/ur5/ur5.urdf",
@@ -160,6 +160,17 @@ fn every_lane_steps_bit_for_bit_as_the_scalar_integrator_on_the_shipped_trees() 
             "robots/double_pendulum/double_pendulum.urdf",
             "robots/double_pendulum/double_pendulum.uncertainty.toml",
             600,
+        ),
+        // Closed loops: constraint rows, evaluated per lane, and the velocity projection.
+        (
+            "robots/four_bar/four_bar.urdf",
+            "robots/four_bar/four_bar.uncertainty.toml",
+            400,
+        ),
+        (
+            "robots/slider_crank/slider_crank.urdf",
+            "robots/slider_crank/slider_crank.uncertainty.toml",
+            400,
         ),
     ];
     for (urdf, sidecar, steps) in cases {

@@ -1483,7 +1483,6 @@ impl HhtIntegrator {
         system: &mut S,
         at: At,
     ) -> Result<IterationReport, IntegrateError> {
-        let m = self.m;
         {
             let ws = &mut self.ws;
             // Dynamics rows: M q̈ − Q (+ Φ_qᵀ λ below).
@@ -1498,16 +1497,29 @@ impl HhtIntegrator {
                 ws.dyn_residual.copy_from(&ws.forces);
                 ws.dyn_residual.gemv(1.0, &ws.mass, &ws.qdd, -1.0);
             }
-            if m > 0 {
-                eval::constraints(system, at, &ws.q, &mut ws.phi)?;
-                if !ws.phi_q_fresh {
-                    eval::constraint_jacobian(system, at, &ws.q, &mut ws.phi_q)?;
-                    ws.phi_q_fresh = true;
-                }
-                ws.dyn_residual.gemv_tr(1.0, &ws.phi_q, &ws.lambda, 1.0);
-            }
         }
+        self.add_constraint_rows(system, at)?;
         self.correct_iterate(system, at)
+    }
+
+    /// With constraint rows: `Φ` at the iterate into `ws.phi`, and `Φ_qᵀ λ` added to the dynamics
+    /// rows in `ws.dyn_residual` (`Φ_q` evaluated unless fresh). Nothing without rows.
+    fn add_constraint_rows<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<(), IntegrateError> {
+        if self.m == 0 {
+            return Ok(());
+        }
+        let ws = &mut self.ws;
+        eval::constraints(system, at, &ws.q, &mut ws.phi)?;
+        if !ws.phi_q_fresh {
+            eval::constraint_jacobian(system, at, &ws.q, &mut ws.phi_q)?;
+            ws.phi_q_fresh = true;
+        }
+        ws.dyn_residual.gemv_tr(1.0, &ws.phi_q, &ws.lambda, 1.0);
+        Ok(())
     }
 
     /// The rest of a modified-Newton iteration once the dynamics rows of the residual are in

@@ -62,13 +62,12 @@ pub struct BatchStepper {
 
 impl BatchStepper {
     /// Whether a study of `system` with `settings` gains from the batched step: a fixed step
-    /// without constraint rows, limit events, contacts or the reuse of the Newton matrix. (Any
+    /// without limit events, contacts or the reuse of the Newton matrix. (Any
     /// system steps correctly through a [`BatchStepper`], falling back to the scalar step where it
     /// must; this says whether it would ever take the batched path.)
     pub fn suits(system: &RobotSystem, settings: &HhtSettings) -> bool {
         settings.step_control == StepControl::Fixed
             && !settings.reuse_newton_matrix
-            && system.n_constraints() == 0
             && system.n_events() == 0
             && !system.effects.has_contacts()
     }

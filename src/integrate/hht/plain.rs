@@ -4,8 +4,8 @@
 //! [`HhtIntegrator::step`]. So a step driven this way has the bits of `step` whenever the caller's
 //! evaluations have the bits of the system's own.
 //!
-//! Only the plain case is driven: a fixed step of the grid's size, no constraint rows, no limit
-//! events, no contact coupling, a fresh diagonal Newton matrix at the predictor (the scalar
+//! Only the plain case is driven: a fixed step of the grid's size, no limit events, no contact
+//! coupling, a fresh diagonal Newton matrix at the predictor (the scalar
 //! attempt's pass 1), no reuse of the last step's factorisation. Anything else — a system or a
 //! setting outside that case, a pass that gives up (the scalar attempt would refresh), the
 //! iteration limit, any error — *abandons* the step: the trajectory is put back exactly as it was
@@ -55,7 +55,6 @@ impl HhtIntegrator {
                 NewtonMatrix::Full => true,
             };
         self.settings.step_control == StepControl::Fixed
-            && self.m == 0
             && self.n_events == 0
             && !self.settings.reuse_newton_matrix
             && !full_first
@@ -139,7 +138,8 @@ impl HhtIntegrator {
     }
 
     /// One Newton correction of a plain step with the residual the caller wrote, then the pass's
-    /// tests. On convergence the step is accepted and the grid step ended, as
+    /// tests (the constraint rows, if any, are evaluated here, per lane). On convergence the step
+    /// is accepted (with rows: the velocity projection) and the grid step ended, as
     /// [`HhtIntegrator::step`] does. Errors only where `step` would have failed after changing the
     /// state (accepting the step); every other failure abandons the step.
     pub(crate) fn plain_correct<S: DaeSystem + ?Sized>(
@@ -148,6 +148,10 @@ impl HhtIntegrator {
         plain: &mut PlainStep,
     ) -> Result<PlainProgress, IntegrateError> {
         plain.iterations += 1;
+        if self.add_constraint_rows(system, plain.at).is_err() {
+            self.abandon_plain_step(plain);
+            return Ok(PlainProgress::Abandoned);
+        }
         let report = match self.correct_iterate(system, plain.at) {
             Ok(report) => report,
             Err(_) => {
