@@ -7,7 +7,7 @@ mod common;
 
 use nalgebra::DVector;
 use ribbon::analysis::{BlockOutcome, LockStep};
-use ribbon::integrate::{HhtIntegrator, HhtSettings, HhtState};
+use ribbon::integrate::{HhtIntegrator, HhtSettings, HhtState, StepControl};
 use ribbon::setup::Setup;
 use ribbon::simulate::{hht_settings, BatchStepper, RobotSystem};
 use std::sync::atomic::AtomicBool;
@@ -224,6 +224,36 @@ fn lanes_that_fall_back_or_fail_stay_the_scalar_integrators() {
         counts.scalar > 0 && counts.batched > 0,
         "both paths must be exercised: {counts:?}"
     );
+}
+
+/// Adaptive step control: a grid step whose one attempt the controller accepts is driven batched;
+/// one it rejects (then sub-stepped) falls back to the scalar step. With a tight tolerance both
+/// happen; every lane must still be the scalar integrator's.
+#[test]
+fn adaptive_lanes_stay_the_scalar_integrators() {
+    let setup = common::shipped_setup(
+        "robots/ur5/ur5.urdf",
+        "robots/ur5/ur5.uncertainty.toml",
+        0.4,
+    );
+    for tolerance in [1e-5, 1e-8] {
+        let settings = HhtSettings {
+            step_control: StepControl::Adaptive,
+            tolerance,
+            ..hht_settings(&setup.scene)
+        };
+        let (scalar, batched, counts) = run_both(&setup, &[settings; 4], 400);
+        let what = format!("ur5, adaptive, tolerance {tolerance:e}");
+        assert!(scalar.iter().all(|r| r.error.is_none()), "{what}");
+        assert_lanes_match(&what, &scalar, &batched);
+        assert!(counts.batched > 0, "{what}: {counts:?}");
+        if tolerance < 1e-6 {
+            assert!(
+                counts.scalar > 0,
+                "{what}: expected rejected steps: {counts:?}"
+            );
+        }
+    }
 }
 
 /// Everything a study reads from its lock-step engine, block by block: every sample's records (as

@@ -520,6 +520,16 @@ struct PlannedAttempt {
     t1: f64,
 }
 
+/// What the adaptive controller does with a converged attempt
+/// ([`HhtIntegrator::adaptive_verdict`]).
+#[derive(Debug, Clone, Copy)]
+enum AdaptiveVerdict {
+    /// Rejected: attempt again with the size the controller planned.
+    Retry,
+    /// Accepted; the next attempt may be `growth` times this one.
+    Accept { growth: f64 },
+}
+
 /// An impact found in a step: limit `event` crossed at `θ ∈ [0, 1]` of the step.
 #[derive(Debug, Clone, Copy)]
 struct Crossing {
@@ -823,39 +833,59 @@ impl HhtIntegrator {
 
             let mut growth = ADAPTIVE_MAX_GROWTH;
             if adaptive {
-                let error = self.error_estimate();
-                let factor = if error > 0.0 {
-                    ADAPTIVE_SAFETY * error.powf(-1.0 / 3.0)
-                } else {
-                    ADAPTIVE_MAX_GROWTH
-                };
-                let rejection = system
-                    .state_rejection(t1, &self.trajectory.state.q, &self.ws.q)
-                    .map_err(At { t: t1, step }.system_error("state_rejection"))?;
-                if rejection > 1.0 && h > h_min * (1.0 + 1e-12) {
-                    plain = false;
-                    self.trajectory.stats.state_rejections += 1;
-                    self.trajectory.control.h_next = 0.5 * h;
-                    continue;
-                }
-                if error > 1.0 {
-                    if h > h_min * (1.0 + 1e-12) {
+                match self.adaptive_verdict(system, At { t: t1, step }, h, h_min)? {
+                    AdaptiveVerdict::Retry => {
                         plain = false;
-                        self.trajectory.stats.error_rejections += 1;
-                        self.trajectory.control.h_next = h * factor.max(ADAPTIVE_MAX_SHRINK);
                         continue;
                     }
-                    self.trajectory.stats.error_limited_steps += 1;
+                    AdaptiveVerdict::Accept { growth: factor } => growth = factor,
                 }
-                self.trajectory.stats.max_error_estimate =
-                    self.trajectory.stats.max_error_estimate.max(error);
-                growth = factor.clamp(ADAPTIVE_MAX_SHRINK, ADAPTIVE_MAX_GROWTH);
             }
             self.accept(system, t1, h, step, growth, planned, reaches_end)?;
             accepted += 1;
         }
         self.end_grid_step(t_end, step, plain && accepted == 1);
         Ok(())
+    }
+
+    /// The adaptive controller's verdict on the converged attempt of size `h` to `at.t` (the
+    /// candidate in the workspace): retry smaller (the next size planned, the rejection counted)
+    /// when the system rejects the state or the error estimate exceeds 1 above `h_min`; else
+    /// accept, with the growth factor of the next step (docs/step-control.md §3).
+    fn adaptive_verdict<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+        h: f64,
+        h_min: f64,
+    ) -> Result<AdaptiveVerdict, IntegrateError> {
+        let error = self.error_estimate();
+        let factor = if error > 0.0 {
+            ADAPTIVE_SAFETY * error.powf(-1.0 / 3.0)
+        } else {
+            ADAPTIVE_MAX_GROWTH
+        };
+        let rejection = system
+            .state_rejection(at.t, &self.trajectory.state.q, &self.ws.q)
+            .map_err(at.system_error("state_rejection"))?;
+        if rejection > 1.0 && h > h_min * (1.0 + 1e-12) {
+            self.trajectory.stats.state_rejections += 1;
+            self.trajectory.control.h_next = 0.5 * h;
+            return Ok(AdaptiveVerdict::Retry);
+        }
+        if error > 1.0 {
+            if h > h_min * (1.0 + 1e-12) {
+                self.trajectory.stats.error_rejections += 1;
+                self.trajectory.control.h_next = h * factor.max(ADAPTIVE_MAX_SHRINK);
+                return Ok(AdaptiveVerdict::Retry);
+            }
+            self.trajectory.stats.error_limited_steps += 1;
+        }
+        self.trajectory.stats.max_error_estimate =
+            self.trajectory.stats.max_error_estimate.max(error);
+        Ok(AdaptiveVerdict::Accept {
+            growth: factor.clamp(ADAPTIVE_MAX_SHRINK, ADAPTIVE_MAX_GROWTH),
+        })
     }
 
     /// The size of the next attempt towards the grid time `t_end` when `remaining` (s) is left,

@@ -17,7 +17,7 @@
 use super::RobotSystem;
 use crate::dynamics::batch::{self, BatchData, BatchError, BatchModel, BatchVectors, LANES};
 use crate::integrate::{
-    DaeSystem, HhtIntegrator, HhtSettings, IntegrateError, PlainProgress, PlainStep, StepControl,
+    DaeSystem, HhtIntegrator, HhtSettings, IntegrateError, PlainProgress, PlainStep,
 };
 use nalgebra::DVector;
 
@@ -61,15 +61,12 @@ pub struct BatchStepper {
 }
 
 impl BatchStepper {
-    /// Whether a study of `system` with `settings` gains from the batched step: a fixed step
-    /// without limit events, contacts or the reuse of the Newton matrix. (Any
+    /// Whether a study of `system` with `settings` gains from the batched step: no limit events,
+    /// contacts or reuse of the Newton matrix (fixed or adaptive step control). (Any
     /// system steps correctly through a [`BatchStepper`], falling back to the scalar step where it
     /// must; this says whether it would ever take the batched path.)
     pub fn suits(system: &RobotSystem, settings: &HhtSettings) -> bool {
-        settings.step_control == StepControl::Fixed
-            && !settings.reuse_newton_matrix
-            && system.n_events() == 0
-            && !system.effects.has_contacts()
+        !settings.reuse_newton_matrix && system.n_events() == 0 && !system.effects.has_contacts()
     }
 
     /// `lanes` (1 to [`LANES`]) copies of `template`, without integrators yet

@@ -4,18 +4,20 @@
 //! [`HhtIntegrator::step`]. So a step driven this way has the bits of `step` whenever the caller's
 //! evaluations have the bits of the system's own.
 //!
-//! Only the plain case is driven: a fixed step of the grid's size, no limit events, no contact
-//! coupling, a fresh diagonal Newton matrix at the predictor (the scalar
-//! attempt's pass 1), no reuse of the last step's factorisation. Anything else — a system or a
-//! setting outside that case, a pass that gives up (the scalar attempt would refresh), the
-//! iteration limit, any error — *abandons* the step: the trajectory is put back exactly as it was
-//! (the attempt only ever wrote the workspace, the counters and the reuse flag, which are restored)
-//! and the caller runs [`HhtIntegrator::step`], which repeats the same pass bit for bit and goes on
-//! from there.
+//! Only the plain case is driven: one attempt of the grid step's size (fixed step control, or
+//! adaptive when the controller plans the whole grid step and accepts it), no limit events, no
+//! contact coupling, a fresh diagonal Newton matrix at the predictor (the scalar attempt's pass
+//! 1), no reuse of the last step's factorisation. Anything else — a system or a setting outside
+//! that case, a pass that gives up (the scalar attempt would refresh), the iteration limit, a step
+//! the adaptive controller rejects, any error — *abandons* the step: the trajectory is put back
+//! exactly as it was (until acceptance an attempt writes only the workspace, the counters, the
+//! step control's state and the Newton memory's flags, which are restored) and the caller runs
+//! [`HhtIntegrator::step`], which repeats the same attempt bit for bit and goes on from there.
 
 use super::{
-    eval, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonMatrix, NewtonPass,
-    PassVerdict, StepControl, ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION,
+    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonMatrix,
+    NewtonPass, PassVerdict, StepControl, StepControlState, ADAPTIVE_MAX_GROWTH,
+    END_OF_INTERVAL_FRACTION,
 };
 use nalgebra::DVector;
 
@@ -26,12 +28,15 @@ pub(crate) struct PlainStep {
     t_end: f64,
     /// The step control's planned size, s (for the next plan, as `step` keeps it).
     planned: f64,
+    /// The smallest sub-step, s (the adaptive controller's floor).
+    h_min: f64,
     /// Newton iterations so far.
     iterations: usize,
     judge: NewtonPass,
     /// What the attempt may change before it is accepted, to put back when it is abandoned.
     stats_before: HhtStats,
-    reusable_before: bool,
+    control_before: StepControlState,
+    newton_before: (bool, f64, f64),
 }
 
 /// Where a plain step stands after a Newton iteration ([`HhtIntegrator::plain_correct`]).
@@ -54,8 +59,7 @@ impl HhtIntegrator {
                 NewtonMatrix::Auto => self.trajectory.control.full_newton_hold > 0,
                 NewtonMatrix::Full => true,
             };
-        self.settings.step_control == StepControl::Fixed
-            && self.n_events == 0
+        self.n_events == 0
             && !self.settings.reuse_newton_matrix
             && !full_first
             && system.provides_dynamics_residual()
@@ -91,10 +95,16 @@ impl HhtIntegrator {
             at: At { t: plan.t1, step },
             t_end,
             planned: plan.planned,
+            h_min,
             iterations: 0,
             judge: NewtonPass::new(1),
             stats_before: self.trajectory.stats,
-            reusable_before: self.trajectory.newton.reusable,
+            control_before: self.trajectory.control,
+            newton_before: (
+                self.trajectory.newton.reusable,
+                self.trajectory.newton.h,
+                self.trajectory.newton.rate,
+            ),
         };
         self.predict(plan.h);
         if self.update_iterate(system, plain.at).is_err() {
@@ -163,16 +173,20 @@ impl HhtIntegrator {
             PassVerdict::Converged => {
                 let h = self.grid_coeffs.h;
                 self.conclude_attempt(h, plain.iterations, false, false, plain.judge.slowest);
+                let mut growth = ADAPTIVE_MAX_GROWTH;
+                if self.settings.step_control == StepControl::Adaptive {
+                    match self.adaptive_verdict(system, plain.at, h, plain.h_min) {
+                        Ok(AdaptiveVerdict::Accept { growth: factor }) => growth = factor,
+                        // A rejected step (the scalar step then sub-steps) or a failing state
+                        // check: the scalar step repeats this attempt and goes on from there.
+                        Ok(AdaptiveVerdict::Retry) | Err(_) => {
+                            self.abandon_plain_step(plain);
+                            return Ok(PlainProgress::Abandoned);
+                        }
+                    }
+                }
                 let At { t: t1, step } = plain.at;
-                self.accept(
-                    system,
-                    t1,
-                    h,
-                    step,
-                    ADAPTIVE_MAX_GROWTH,
-                    plain.planned,
-                    true,
-                )?;
+                self.accept(system, t1, h, step, growth, plain.planned, true)?;
                 self.end_grid_step(plain.t_end, step, true);
                 Ok(PlainProgress::Done)
             }
@@ -189,6 +203,8 @@ impl HhtIntegrator {
     /// Puts back what a plain attempt changed outside the workspace.
     fn abandon_plain_step(&mut self, plain: &mut PlainStep) {
         self.trajectory.stats = plain.stats_before;
-        self.trajectory.newton.reusable = plain.reusable_before;
+        self.trajectory.control = plain.control_before;
+        let newton = &mut self.trajectory.newton;
+        (newton.reusable, newton.h, newton.rate) = plain.newton_before;
     }
 }
