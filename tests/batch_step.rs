@@ -42,6 +42,8 @@ struct Run {
     states: Vec<Vec<u64>>,
     stats: Vec<String>,
     error: Option<String>,
+    /// Limit impacts over the run.
+    impacts: u64,
 }
 
 /// Steps `settings.len()` samples of `setup` (lane `i` with `settings[i]`) for `steps` steps with
@@ -69,6 +71,7 @@ fn run_both(
             states: Vec::new(),
             stats: Vec::new(),
             error: None,
+            impacts: 0,
         };
         for _ in 0..steps {
             if let Err(error) = hht.step(&mut system) {
@@ -80,6 +83,7 @@ fn run_both(
             run.states.push(state_bits(hht.state()));
             run.stats.push(format!("{:?}", hht.stats()));
         }
+        run.impacts = hht.stats().impacts;
         scalar_runs.push(run);
     }
 
@@ -96,6 +100,7 @@ fn run_both(
             states: Vec::new(),
             stats: Vec::new(),
             error: None,
+            impacts: 0,
         })
         .collect();
     let mut active = vec![true; lanes];
@@ -114,6 +119,7 @@ fn run_both(
             let run = &mut batched_runs[lane];
             run.states.push(state_bits(integrator.state()));
             run.stats.push(format!("{:?}", integrator.stats()));
+            run.impacts = integrator.stats().impacts;
             if let Some(error) = &errors[lane] {
                 run.error = Some(error.clone());
                 active[lane] = false;
@@ -254,6 +260,57 @@ fn adaptive_lanes_stay_the_scalar_integrators() {
             );
         }
     }
+}
+
+/// Joint limits: the shipped double pendulum with its elbow limited to ±0.4 rad (restitution 0.5)
+/// folds onto the limits under gravity. A step that crosses a limit is located and resolved by the
+/// scalar step; the others go batched; every lane must be the scalar integrator's.
+#[test]
+fn lanes_hitting_joint_limits_stay_the_scalar_integrators() {
+    let urdf = std::fs::read_to_string(common::manifest(
+        "robots/double_pendulum/double_pendulum.urdf",
+    ))
+    .expect("shipped URDF");
+    let limited = urdf.replacen(
+        "<joint name=\"j2\" type=\"continuous\">",
+        "<joint name=\"j2\" type=\"revolute\">\n    <limit lower=\"-0.4\" upper=\"0.4\" effort=\"1\" velocity=\"10\"/>",
+        1,
+    );
+    assert_ne!(limited, urdf, "the elbow joint is found");
+    let sidecar = std::fs::read_to_string(common::manifest(
+        "robots/double_pendulum/double_pendulum.uncertainty.toml",
+    ))
+    .expect("shipped sidecar")
+    .replacen(
+        "[scene]\n",
+        "[scene]\neffects = [\"gravity\", \"joint_limits\"]\nlimit_restitution = 0.5\n",
+        1,
+    );
+    let dir = common::fresh_test_scratch_dir("batch_step", "limits");
+    let (urdf_path, sidecar_path) = (
+        dir.join("limited.urdf"),
+        dir.join("limited.uncertainty.toml"),
+    );
+    std::fs::write(&urdf_path, limited).expect("scratch URDF");
+    std::fs::write(&sidecar_path, sidecar).expect("scratch sidecar");
+    let setup = common::shipped_setup(
+        urdf_path.to_str().expect("UTF-8 path"),
+        sidecar_path.to_str().expect("UTF-8 path"),
+        1.5,
+    );
+    let settings = hht_settings(&setup.scene);
+    let (scalar, batched, counts) = run_both(&setup, &[settings; 4], 1500);
+    assert!(scalar.iter().all(|r| r.error.is_none()));
+    assert!(
+        scalar.iter().all(|r| r.impacts >= 2),
+        "every lane is expected to hit the limits: {:?}",
+        scalar.iter().map(|r| r.impacts).collect::<Vec<_>>()
+    );
+    assert_lanes_match("double pendulum with elbow limits", &scalar, &batched);
+    assert!(
+        counts.batched > 0 && counts.scalar > 0,
+        "both paths must be exercised: {counts:?}"
+    );
 }
 
 /// Everything a study reads from its lock-step engine, block by block: every sample's records (as

@@ -8,8 +8,8 @@
 //! a sample does not depend on which thread ran it, so studies are deterministic for any thread
 //! count.
 //!
-//! Scenes the batched step suits ([`BatchStepper::suits`]: no limits, no contacts, no reuse of the
-//! Newton matrix) go in groups of four samples instead, each group through the block with one
+//! Scenes the batched step suits ([`BatchStepper::suits`]: no contacts, no reuse of the Newton
+//! matrix) go in groups of four samples instead, each group through the block with one
 //! [`BatchStepper`] per thread (the batched CRBA and RNEA, docs/batch.md §5; `engine/batched.rs`).
 //! Every sample's steps are bitwise the per-sample path's, so nothing downstream can tell the two
 //! apart ([`LockStep::disable_batching`] forces the per-sample path).

@@ -16,9 +16,7 @@
 
 use super::RobotSystem;
 use crate::dynamics::batch::{self, BatchData, BatchError, BatchModel, BatchVectors, LANES};
-use crate::integrate::{
-    DaeSystem, HhtIntegrator, HhtSettings, IntegrateError, PlainProgress, PlainStep,
-};
+use crate::integrate::{HhtIntegrator, HhtSettings, IntegrateError, PlainProgress, PlainStep};
 use nalgebra::DVector;
 
 /// How the lanes' grid steps were taken since the stepper was made.
@@ -61,12 +59,13 @@ pub struct BatchStepper {
 }
 
 impl BatchStepper {
-    /// Whether a study of `system` with `settings` gains from the batched step: no limit events,
-    /// contacts or reuse of the Newton matrix (fixed or adaptive step control). (Any
+    /// Whether a study of `system` with `settings` gains from the batched step: no contacts and no
+    /// reuse of the Newton matrix (fixed or adaptive step control, joint limits allowed: a step
+    /// that crosses one is the scalar step's). (Any
     /// system steps correctly through a [`BatchStepper`], falling back to the scalar step where it
     /// must; this says whether it would ever take the batched path.)
     pub fn suits(system: &RobotSystem, settings: &HhtSettings) -> bool {
-        !settings.reuse_newton_matrix && system.n_events() == 0 && !system.effects.has_contacts()
+        !settings.reuse_newton_matrix && !system.effects.has_contacts()
     }
 
     /// `lanes` (1 to [`LANES`]) copies of `template`, without integrators yet

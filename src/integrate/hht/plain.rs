@@ -5,11 +5,11 @@
 //! evaluations have the bits of the system's own.
 //!
 //! Only the plain case is driven: one attempt of the grid step's size (fixed step control, or
-//! adaptive when the controller plans the whole grid step and accepts it), no limit events, no
+//! adaptive when the controller plans the whole grid step and accepts it) that crosses no limit, no
 //! contact coupling, a fresh diagonal Newton matrix at the predictor (the scalar attempt's pass
 //! 1), no reuse of the last step's factorisation. Anything else — a system or a setting outside
-//! that case, a pass that gives up (the scalar attempt would refresh), the iteration limit, a step
-//! the adaptive controller rejects, any error — *abandons* the step: the trajectory is put back
+//! that case, a limit crossed (the scalar step locates the impact), a pass that gives up (the scalar
+//! attempt would refresh), the iteration limit, a step the adaptive controller rejects, any error — *abandons* the step: the trajectory is put back
 //! exactly as it was (until acceptance an attempt writes only the workspace, the counters, the
 //! step control's state and the Newton memory's flags, which are restored) and the caller runs
 //! [`HhtIntegrator::step`], which repeats the same attempt bit for bit and goes on from there.
@@ -17,7 +17,7 @@
 use super::{
     eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonMatrix,
     NewtonPass, PassVerdict, StepControl, StepControlState, ADAPTIVE_MAX_GROWTH,
-    END_OF_INTERVAL_FRACTION,
+    END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
 };
 use nalgebra::DVector;
 
@@ -59,8 +59,7 @@ impl HhtIntegrator {
                 NewtonMatrix::Auto => self.trajectory.control.full_newton_hold > 0,
                 NewtonMatrix::Full => true,
             };
-        self.n_events == 0
-            && !self.settings.reuse_newton_matrix
+        !self.settings.reuse_newton_matrix
             && !full_first
             && system.provides_dynamics_residual()
             && !system.provides_newton_coupling()
@@ -110,6 +109,17 @@ impl HhtIntegrator {
         if self.update_iterate(system, plain.at).is_err() {
             self.abandon_plain_step(&mut plain);
             return None;
+        }
+        // A limit the predictor already crosses: the scalar step shortens the step to it.
+        if self.n_events > 0 {
+            match self.find_crossing(system, plain.at.t, plan.h) {
+                Ok(None) => {}
+                Ok(Some(crossing)) if crossing.theta >= 1.0 - IMPACT_LOCATE_FRACTION => {}
+                _ => {
+                    self.abandon_plain_step(&mut plain);
+                    return None;
+                }
+            }
         }
         self.trajectory.newton.reusable = false;
         Some(plain)
@@ -173,6 +183,13 @@ impl HhtIntegrator {
             PassVerdict::Converged => {
                 let h = self.grid_coeffs.h;
                 self.conclude_attempt(h, plain.iterations, false, false, plain.judge.slowest);
+                // An impact inside the converged step: the scalar step locates it.
+                if self.n_events > 0
+                    && !matches!(self.find_crossing(system, plain.at.t, h), Ok(None))
+                {
+                    self.abandon_plain_step(plain);
+                    return Ok(PlainProgress::Abandoned);
+                }
                 let mut growth = ADAPTIVE_MAX_GROWTH;
                 if self.settings.step_control == StepControl::Adaptive {
                     match self.adaptive_verdict(system, plain.at, h, plain.h_min) {
