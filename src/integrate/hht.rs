@@ -182,6 +182,9 @@ struct Workspace {
     dv_trial: DVector<f64>,
     /// `mass` holds M at the current iterate.
     mass_fresh: bool,
+    /// `mass` holds M at the accepted `q_{n+1}`, handed in for the velocity projection (a plain
+    /// step driven from outside, `hht/plain.rs`).
+    projection_mass_given: bool,
     /// `phi_q` holds Φ_q at the current iterate.
     phi_q_fresh: bool,
 }
@@ -220,6 +223,7 @@ impl Workspace {
             impact_v: DVector::zeros(nv),
             dv_trial: DVector::zeros(nv),
             mass_fresh: false,
+            projection_mass_given: false,
             phi_q_fresh: false,
         }
     }
@@ -1694,7 +1698,9 @@ impl HhtIntegrator {
         }
         // velocity_violation left Φ_q(q_{n+1}) in ws.phi_q and Φ_q q̇ + Φ_t in ws.phi_dot.
         let ws = &mut self.ws;
-        eval::mass_matrix(system, at, &self.trajectory.state.q, &mut ws.mass)?;
+        if !ws.projection_mass_given {
+            eval::mass_matrix(system, at, &self.trajectory.state.q, &mut ws.mass)?;
+        }
         ws.mass_fresh = false;
         assemble_iteration_matrix(&ws.mass, None, &ws.phi_q, 0.0, 0.0, 1.0, &mut ws.matrix);
         // The projection's matrix replaces the stored Newton factorisation (never reused with

@@ -37,6 +37,8 @@ enum LaneState {
     Idle,
     /// In a plain step driven with the batched kernels.
     Plain(PlainStep),
+    /// Converged; its velocity projection waits for `M` at the converged iterate.
+    Projecting(PlainStep),
     /// To be stepped by the scalar integrator.
     Scalar,
 }
@@ -189,6 +191,7 @@ impl BatchStepper {
             }
         }
         self.iterate_plain_lanes();
+        self.project_lanes();
         for lane in 0..lanes {
             if !matches!(self.states[lane], LaneState::Scalar) {
                 continue;
@@ -259,6 +262,9 @@ impl BatchStepper {
                         self.counts.batched += 1;
                         self.states[lane] = LaneState::Idle;
                     }
+                    Ok(PlainProgress::NeedsProjectionMass) => {
+                        self.states[lane] = LaneState::Projecting(*plain);
+                    }
                     Ok(PlainProgress::Abandoned) => self.states[lane] = LaneState::Scalar,
                     Err(error) => {
                         self.errors[lane] = Some(error);
@@ -266,6 +272,43 @@ impl BatchStepper {
                     }
                 }
             }
+        }
+    }
+}
+
+impl BatchStepper {
+    /// The velocity projections of the lanes that converged with constraint rows: one batched CRBA
+    /// at their `q_{n+1}`, then each lane accepts its step.
+    fn project_lanes(&mut self) {
+        let nv = self.batch_model.nv;
+        let mut any = false;
+        for lane in 0..self.lanes() {
+            if let (LaneState::Projecting(_), Some(integrator)) =
+                (&self.states[lane], self.integrators[lane].as_ref())
+            {
+                write_lane(&mut self.q, lane, integrator.plain_iterate().0);
+                any = true;
+            }
+        }
+        if !any {
+            return;
+        }
+        batch::crba(&self.batch_model, &mut self.batch_data, &self.q);
+        for lane in 0..self.lanes() {
+            let LaneState::Projecting(plain) = &mut self.states[lane] else {
+                continue;
+            };
+            let Some(integrator) = self.integrators[lane].as_mut() else {
+                continue;
+            };
+            let mass = &mut self.scratch[..nv * nv];
+            self.batch_data.mass_matrix.copy_sample(lane, mass);
+            match integrator.plain_accept_with_projection_mass(&mut self.systems[lane], plain, mass)
+            {
+                Ok(()) => self.counts.batched += 1,
+                Err(error) => self.errors[lane] = Some(error),
+            }
+            self.states[lane] = LaneState::Idle;
         }
     }
 }

@@ -32,6 +32,8 @@ pub(crate) struct PlainStep {
     h_min: f64,
     /// Newton iterations so far.
     iterations: usize,
+    /// The step control's growth factor once converged and judged.
+    growth: f64,
     judge: NewtonPass,
     /// What the attempt may change before it is accepted, to put back when it is abandoned.
     stats_before: HhtStats,
@@ -46,6 +48,10 @@ pub(crate) enum PlainProgress {
     Iterate,
     /// Converged and accepted: the grid step is done.
     Done,
+    /// Converged, with constraint rows and the velocity projection on: evaluate `M` at the
+    /// converged iterate ([`HhtIntegrator::plain_iterate`]) and call
+    /// [`HhtIntegrator::plain_accept_with_projection_mass`].
+    NeedsProjectionMass,
     /// Abandoned, the trajectory as it was: run [`HhtIntegrator::step`].
     Abandoned,
 }
@@ -96,6 +102,7 @@ impl HhtIntegrator {
             planned: plan.planned,
             h_min,
             iterations: 0,
+            growth: ADAPTIVE_MAX_GROWTH,
             judge: NewtonPass::new(1),
             stats_before: self.trajectory.stats,
             control_before: self.trajectory.control,
@@ -202,9 +209,12 @@ impl HhtIntegrator {
                         }
                     }
                 }
-                let At { t: t1, step } = plain.at;
-                self.accept(system, t1, h, step, growth, plain.planned, true)?;
-                self.end_grid_step(plain.t_end, step, true);
+                plain.growth = growth;
+                if self.m > 0 && self.settings.velocity_projection {
+                    // The projection needs M at q_{n+1}, the converged iterate: the caller's.
+                    return Ok(PlainProgress::NeedsProjectionMass);
+                }
+                self.finish_plain_step(system, plain)?;
                 Ok(PlainProgress::Done)
             }
             PassVerdict::Continue if plain.iterations < self.settings.max_newton_iterations => {
@@ -215,6 +225,36 @@ impl HhtIntegrator {
                 Ok(PlainProgress::Abandoned)
             }
         }
+    }
+
+    /// Accepts a converged plain step whose velocity projection waits for `M` at the converged
+    /// iterate ([`PlainProgress::NeedsProjectionMass`]): `mass` (`nv × nv`, column-major, as the
+    /// system's `mass_matrix` at [`HhtIntegrator::plain_iterate`]'s `q` would give it) is used in
+    /// its place. Errors where [`HhtIntegrator::step`] would fail after changing the state.
+    pub(crate) fn plain_accept_with_projection_mass<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        plain: &mut PlainStep,
+        mass: &[f64],
+    ) -> Result<(), IntegrateError> {
+        self.ws.mass.as_mut_slice().copy_from_slice(mass);
+        self.ws.projection_mass_given = true;
+        let result = self.finish_plain_step(system, plain);
+        self.ws.projection_mass_given = false;
+        result
+    }
+
+    /// Accepts the converged plain step and ends the grid step, as [`HhtIntegrator::step`] does.
+    fn finish_plain_step<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        plain: &mut PlainStep,
+    ) -> Result<(), IntegrateError> {
+        let At { t: t1, step } = plain.at;
+        let h = self.grid_coeffs.h;
+        self.accept(system, t1, h, step, plain.growth, plain.planned, true)?;
+        self.end_grid_step(plain.t_end, step, true);
+        Ok(())
     }
 
     /// Puts back what a plain attempt changed outside the workspace.
