@@ -23,7 +23,7 @@ use super::schedule::RecordSchedule;
 use super::study::StudyError;
 use crate::dynamics::batch::LANES;
 use crate::effects::{ContactState, ContactStats};
-use crate::integrate::{HhtIntegrator, HhtSettings, HhtTrajectory, IntegrateError};
+use crate::integrate::{HhtIntegrator, HhtSettings, HhtState, HhtTrajectory, IntegrateError};
 use crate::scene::Scene;
 use crate::simulate::{
     BatchStepper, FailureContext, InitialOrientations, Recorder, RobotSystem, SimulationError,
@@ -601,8 +601,6 @@ fn step_sample(
     };
     hht.swap_trajectory(trajectory)
         .map_err(|e| failed(0.0, first_record, e.to_string()))?;
-    let n_outputs = recorder.outputs().len();
-    let nq = system.model.nq;
     let mut step = start_step;
     let mut outcome = Ok(());
     'records: for r in 0..count {
@@ -631,18 +629,7 @@ fn step_sample(
                 );
             }
         }
-        let state = hht.state();
-        recorder.record_state(
-            &system.model,
-            &mut system.data,
-            &mut system.effects,
-            state,
-            &sample.initial,
-            &mut sample.block[r * n_outputs..(r + 1) * n_outputs],
-        );
-        if let Some(positions) = &mut sample.positions {
-            positions[r * nq..(r + 1) * nq].copy_from_slice(state.q.as_slice());
-        }
+        record_sample(recorder, system, hht.state(), sample, r);
     }
     let Some(trajectory) = sample.trajectory.as_mut() else {
         return Err(failed(
@@ -654,4 +641,27 @@ fn step_sample(
     hht.swap_trajectory(trajectory)
         .map_err(|e| failed(0.0, first_record, e.to_string()))?;
     outcome
+}
+
+/// Writes record `r` of the current block of `sample` from its `state`: the outputs, and the
+/// configuration when the sample keeps its positions (the nominal run).
+fn record_sample(
+    recorder: &Recorder,
+    system: &mut RobotSystem,
+    state: &HhtState,
+    sample: &mut Sample,
+    r: usize,
+) {
+    let (n_outputs, nq) = (recorder.outputs().len(), system.model.nq);
+    recorder.record_state(
+        &system.model,
+        &mut system.data,
+        &mut system.effects,
+        state,
+        &sample.initial,
+        &mut sample.block[r * n_outputs..(r + 1) * n_outputs],
+    );
+    if let Some(positions) = &mut sample.positions {
+        positions[r * nq..(r + 1) * nq].copy_from_slice(state.q.as_slice());
+    }
 }

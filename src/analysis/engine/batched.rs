@@ -4,12 +4,13 @@
 //! the stepper's lanes are bitwise the scalar integrator, and everything around the steps here
 //! (starts, records, failure messages) is the per-sample path's, lane by lane.
 
-use super::{describe_failure, start_state, Sample, SampleBlock, SampleFailure};
+use super::{describe_failure, record_sample, start_state, Sample, SampleBlock, SampleFailure};
 use crate::dynamics::batch::LANES;
 use crate::integrate::{HhtSettings, IntegrateError};
 use crate::scene::Scene;
 use crate::simulate::{BatchStepper, Recorder, RobotSystem};
 use crate::uncertainty::ParameterSpace;
+use nalgebra::DVector;
 use std::sync::atomic::Ordering;
 
 /// What a group shares with every other group of a block.
@@ -71,38 +72,9 @@ pub(super) fn advance_group(
             positions.clear();
             positions.resize(block.count * nq, 0.0);
         }
-        space.apply(&mut stepper.system_mut(lane).model, &sample.xi);
-        if let Err(error) = stepper.sync_lane(lane) {
-            fail(
-                sample,
-                first_index + lane,
-                space,
-                0.0,
-                first_record,
-                format!("internal: {error}"),
-            );
-            continue;
-        }
-        if let Err(error) = stepper.start_lane(lane, settings, &q0, &v0) {
-            let message = describe_start(error, stepper.system_mut(lane), scene);
-            fail(
-                sample,
-                first_index + lane,
-                space,
-                0.0,
-                first_record,
-                message,
-            );
-            continue;
-        }
-        let (system, integrator) = stepper.lane_mut(lane);
-        let Some(hht) = integrator else {
-            continue;
-        };
-        // A sample's first block starts its trajectory with the sample's parameters.
-        if sample.trajectory.is_none() {
-            if let Err(error) = hht.restart(system, 0.0, &q0, &v0) {
-                let message = describe_start(error, system, scene);
+        match load_lane(stepper, lane, sample, context, (&q0, &v0)) {
+            Ok(counters) => before[lane] = counters,
+            Err(message) => {
                 fail(
                     sample,
                     first_index + lane,
@@ -113,24 +85,6 @@ pub(super) fn advance_group(
                 );
                 continue;
             }
-            sample.initial =
-                Recorder::initial_orientations(&system.model, hht.state().q.as_slice());
-            sample.trajectory = Some(hht.trajectory());
-        }
-        let Some(trajectory) = sample.trajectory.as_mut() else {
-            continue;
-        };
-        before[lane] = (trajectory.stats.newton_iterations, trajectory.stats.steps);
-        if let Err(error) = hht.swap_trajectory(trajectory) {
-            fail(
-                sample,
-                first_index + lane,
-                space,
-                0.0,
-                first_record,
-                error.to_string(),
-            );
-            continue;
         }
         active[lane] = true;
     }
@@ -179,18 +133,7 @@ pub(super) fn advance_group(
             let Some(hht) = integrator else {
                 continue;
             };
-            let state = hht.state();
-            recorder.record_state(
-                &system.model,
-                &mut system.data,
-                &mut system.effects,
-                state,
-                &sample.initial,
-                &mut sample.block[r * n_outputs..(r + 1) * n_outputs],
-            );
-            if let Some(positions) = &mut sample.positions {
-                positions[r * nq..(r + 1) * nq].copy_from_slice(state.q.as_slice());
-            }
+            record_sample(recorder, system, hht.state(), sample, r);
         }
     }
 
@@ -220,6 +163,47 @@ pub(super) fn advance_group(
         counters.1 += trajectory.stats.steps - before[lane].1;
     }
     counters
+}
+
+/// Puts `sample` into lane `lane`: its parameter values into the lane's model, the lane's
+/// integrator made if it has none, the sample's trajectory started (its first block) and swapped
+/// in. Returns the trajectory's Newton iterations and steps so far; `Err`: why the sample cannot
+/// step (its message as the per-sample path words it).
+fn load_lane(
+    stepper: &mut BatchStepper,
+    lane: usize,
+    sample: &mut Sample,
+    context: &GroupContext<'_>,
+    (q0, v0): (&DVector<f64>, &DVector<f64>),
+) -> Result<(u64, u64), String> {
+    let scene = context.scene;
+    context
+        .space
+        .apply(&mut stepper.system_mut(lane).model, &sample.xi);
+    stepper
+        .sync_lane(lane)
+        .map_err(|error| format!("internal: {error}"))?;
+    if let Err(error) = stepper.start_lane(lane, context.settings, q0, v0) {
+        return Err(describe_start(error, stepper.system_mut(lane), scene));
+    }
+    let (system, integrator) = stepper.lane_mut(lane);
+    let hht = integrator.ok_or("internal: the lane has no integrator")?;
+    // A sample's first block starts its trajectory with the sample's parameters.
+    if sample.trajectory.is_none() {
+        if let Err(error) = hht.restart(system, 0.0, q0, v0) {
+            return Err(describe_start(error, system, scene));
+        }
+        sample.initial = Recorder::initial_orientations(&system.model, hht.state().q.as_slice());
+        sample.trajectory = Some(hht.trajectory());
+    }
+    let trajectory = sample
+        .trajectory
+        .as_mut()
+        .ok_or("internal: sample has no trajectory")?;
+    let counters = (trajectory.stats.newton_iterations, trajectory.stats.steps);
+    hht.swap_trajectory(trajectory)
+        .map_err(|error| error.to_string())?;
+    Ok(counters)
 }
 
 /// The message of a start that failed (at the scene's initial configuration).
