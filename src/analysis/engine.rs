@@ -113,6 +113,27 @@ struct Sample {
     contacts: Option<ContactState>,
 }
 
+impl Sample {
+    /// Marks the sample (index `index` of the study) failed at `time_s`, heading for `record`.
+    fn fail(
+        &mut self,
+        index: usize,
+        space: &ParameterSpace,
+        time_s: f64,
+        record: usize,
+        message: String,
+    ) {
+        self.failure = Some(SampleFailure {
+            index,
+            xi: self.xi.clone(),
+            values: space.values_at(&self.xi),
+            time_s,
+            record,
+            message,
+        });
+    }
+}
+
 /// How a call to [`LockStep::advance`] ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BlockOutcome {
@@ -347,14 +368,7 @@ impl<'a> LockStep<'a> {
                             message,
                         }) = result
                         {
-                            sample.failure = Some(SampleFailure {
-                                index,
-                                xi: sample.xi.clone(),
-                                values: space.values_at(&sample.xi),
-                                time_s,
-                                record,
-                                message,
-                            });
+                            sample.fail(index, space, time_s, record, message);
                         }
                         let after = sample
                             .trajectory

@@ -4,7 +4,7 @@
 //! the stepper's lanes are bitwise the scalar integrator, and everything around the steps here
 //! (starts, records, failure messages) is the per-sample path's, lane by lane.
 
-use super::{describe_failure, record_sample, start_state, Sample, SampleBlock, SampleFailure};
+use super::{describe_failure, record_sample, start_state, Sample, SampleBlock};
 use crate::dynamics::batch::LANES;
 use crate::integrate::{HhtSettings, IntegrateError};
 use crate::scene::Scene;
@@ -42,17 +42,15 @@ pub(super) fn advance_group(
         recorder,
     } = *context;
     let first_record = block.first_record;
+    // A failure before the first step of the block: at t = 0 (the per-sample path's convention).
+    let fail_at_start = |sample: &mut Sample, lane: usize, message: String| {
+        sample.fail(first_index + lane, space, 0.0, first_record, message)
+    };
     let Some(stepper) = stepper.as_mut() else {
         for (lane, sample) in group.iter_mut().enumerate() {
             if sample.failure.is_none() {
-                fail(
-                    sample,
-                    first_index + lane,
-                    space,
-                    0.0,
-                    first_record,
-                    "internal: the batched stepper could not be made".to_string(),
-                );
+                let message = "internal: the batched stepper could not be made".to_string();
+                fail_at_start(sample, lane, message);
             }
         }
         return (0, 0);
@@ -75,14 +73,7 @@ pub(super) fn advance_group(
         match load_lane(stepper, lane, sample, context, (&q0, &v0)) {
             Ok(counters) => before[lane] = counters,
             Err(message) => {
-                fail(
-                    sample,
-                    first_index + lane,
-                    space,
-                    0.0,
-                    first_record,
-                    message,
-                );
+                fail_at_start(sample, lane, message);
                 continue;
             }
         }
@@ -114,14 +105,7 @@ pub(super) fn advance_group(
                 let time = hht.state().t + settings.step_s;
                 let q = hht.state().q.as_slice().to_vec();
                 let message = describe_failure(error, system, scene, &q);
-                fail(
-                    &mut group[lane],
-                    first_index + lane,
-                    space,
-                    time,
-                    first_record + r,
-                    message,
-                );
+                group[lane].fail(first_index + lane, space, time, first_record + r, message);
             }
             step += 1;
         }
@@ -148,14 +132,7 @@ pub(super) fn advance_group(
         };
         if let Err(error) = hht.swap_trajectory(trajectory) {
             if sample.failure.is_none() {
-                fail(
-                    sample,
-                    first_index + lane,
-                    space,
-                    0.0,
-                    first_record,
-                    error.to_string(),
-                );
+                fail_at_start(sample, lane, error.to_string());
             }
             continue;
         }
@@ -209,23 +186,4 @@ fn load_lane(
 /// The message of a start that failed (at the scene's initial configuration).
 fn describe_start(error: IntegrateError, system: &mut RobotSystem, scene: &Scene) -> String {
     describe_failure(error, system, scene, &scene.initial_q)
-}
-
-/// Marks `sample` (index `index` of the study) failed at `time_s`, heading for `record`.
-fn fail(
-    sample: &mut Sample,
-    index: usize,
-    space: &ParameterSpace,
-    time_s: f64,
-    record: usize,
-    message: String,
-) {
-    sample.failure = Some(SampleFailure {
-        index,
-        xi: sample.xi.clone(),
-        values: space.values_at(&sample.xi),
-        time_s,
-        record,
-        message,
-    });
 }
