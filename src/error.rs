@@ -50,7 +50,7 @@ pub enum Error {
     #[error(transparent)]
     Mcap(#[from] crate::output::mcap::McapError),
     /// A result holds a NaN or an infinity: it is never written or printed (exit 1).
-    #[error("{what}: output '{output}' is {value} at t = {time_s} s; a non-finite number is never reported as a result, so nothing was written (the run overflowed: check the scene's values, or use a smaller step)")]
+    #[error("{what}: output '{output}' is {value} at t = {} s; a non-finite number is never reported as a result, so nothing was written (the run overflowed: check the scene's values, or use a smaller step)", crate::text::message_time(*.time_s))]
     NonFiniteResult {
         /// Where it would have gone (`CSV 'out.csv'`, `summary 'x.json'`, `the table`).
         what: String,

@@ -1,5 +1,5 @@
-//! Small text helpers: "did you mean …?" suggestions for error messages, and the width of the
-//! output-name column of the stdout tables.
+//! Small text helpers: "did you mean …?" suggestions for error messages, the width of the
+//! output-name column of the stdout tables, and times as messages print them.
 
 /// Width of the output-name column of a stdout table, in characters: the longest name, and at
 /// least the six of its header `output`.
@@ -81,5 +81,39 @@ mod tests {
             closest("elbow", ["shoulder_joint", "elbow_joint"]),
             Some("elbow_joint")
         );
+    }
+}
+
+/// Significant digits a time keeps in a message: enough for any step size ribbon accepts, few
+/// enough to drop the grid's rounding (`0.35000000000000003` for `350 · 1e-3`).
+pub const MESSAGE_TIME_DIGITS: usize = 12;
+
+/// `t` (s) rounded to [`MESSAGE_TIME_DIGITS`] significant digits, for messages: `0.35` where the
+/// step count times the step gave `0.35000000000000003`. Non-finite values pass unchanged.
+pub fn message_time(t: f64) -> f64 {
+    if !t.is_finite() {
+        return t;
+    }
+    format!("{:.*e}", MESSAGE_TIME_DIGITS - 1, t)
+        .parse()
+        .unwrap_or(t)
+}
+
+#[cfg(test)]
+mod message_time_tests {
+    use super::message_time;
+
+    #[test]
+    fn message_times_drop_the_grids_rounding_and_keep_real_digits() {
+        assert_eq!(format!("{}", message_time(350.0 * 1e-3)), "0.35");
+        assert_eq!(350.0 * 1e-3, 0.35000000000000003, "the product this is for");
+        assert_eq!(format!("{}", message_time(0.262)), "0.262");
+        assert_eq!(
+            format!("{}", message_time(0.1234567890123)),
+            "0.123456789012"
+        );
+        assert_eq!(format!("{}", message_time(3.25e-7)), "0.000000325");
+        assert!(message_time(f64::NAN).is_nan());
+        assert_eq!(message_time(f64::INFINITY), f64::INFINITY);
     }
 }

@@ -102,7 +102,7 @@ pub enum StudyError {
     Uq(#[from] UqError),
     /// A sample failed and the study cannot go on.
     #[error("{} failed at t = {} s, at parameter values {:?} (ξ = {:?}): {}. {hint}",
-        .run, .failure.time_s, .failure.values, .failure.xi, .failure.message)]
+        .run, crate::text::message_time(.failure.time_s), .failure.values, .failure.xi, .failure.message)]
     SampleFailed {
         /// Which run: "the nominal run", "sample 3 of 25", "check run 2 of 8".
         run: String,

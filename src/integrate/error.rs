@@ -116,9 +116,10 @@ pub enum IntegrateError {
     /// (adaptive sub-steps, retries, impacts): the motion is far faster than the step, or a Zeno
     /// sequence of impacts. Also the bound on the work between two interruption checks.
     #[error(
-        "the step to t = {t} s (step {step}) needed more than {attempts} sub-step attempts \
+        "the step to t = {} s (step {step}) needed more than {attempts} sub-step attempts \
          (smallest sub-step {smallest_s:.3e} s): the motion is far faster than the step of the \
-         scene; use a smaller step or a looser tolerance, or check the stiffness and the limits"
+         scene; use a smaller step or a looser tolerance, or check the stiffness and the limits",
+        crate::text::message_time(*.t)
     )]
     TooManySubsteps {
         /// Time of the grid step, s.
@@ -141,7 +142,7 @@ pub enum IntegrateError {
         got: usize,
     },
     /// The system reported an error from one of its methods.
-    #[error("system error in `{call}` at t = {t} s (step {step}): {source}")]
+    #[error("system error in `{call}` at t = {} s (step {step}): {source}", crate::text::message_time(*.t))]
     System {
         /// Time at which the system was evaluated, s.
         t: f64,
@@ -153,7 +154,7 @@ pub enum IntegrateError {
         source: SystemError,
     },
     /// A NaN or infinity appeared in a quantity (system output, initial state or Newton update).
-    #[error("non-finite value in {quantity}[{index}] at t = {t} s (step {step})")]
+    #[error("non-finite value in {quantity}[{index}] at t = {} s (step {step})", crate::text::message_time(*.t))]
     NonFinite {
         /// Time, s.
         t: f64,
@@ -167,8 +168,9 @@ pub enum IntegrateError {
     /// A linear system was singular to working precision (a pivot below
     /// `SINGULAR_PIVOT_RELATIVE` times the matrix's largest entry).
     #[error(
-        "singular {matrix} at t = {t} s (step {step}): pivot {index} is {pivot_relative:.3e} of the \
-         largest entry (M not positive definite, or constraint rows dependent?)"
+        "singular {matrix} at t = {} s (step {step}): pivot {index} is {pivot_relative:.3e} of the \
+         largest entry (M not positive definite, or constraint rows dependent?)",
+        crate::text::message_time(*.t)
     )]
     SingularMatrix {
         /// Time, s.
@@ -185,9 +187,10 @@ pub enum IntegrateError {
     /// The constraint Jacobian `Φ_q` is rank deficient: some rows are redundant (a loop declared with
     /// more rows than it really constrains, or a singular configuration).
     #[error(
-        "redundant constraint rows at t = {t} s: smallest singular value of Φ_q is {smallest:.3e} vs \
+        "redundant constraint rows at t = {} s: smallest singular value of Φ_q is {smallest:.3e} vs \
          largest {largest:.3e} (relative tolerance {tolerance:.1e}); row {row} contributes most to the \
-         dependent combination"
+         dependent combination",
+        crate::text::message_time(*.t)
     )]
     RedundantConstraints {
         /// Time, s.
@@ -203,8 +206,9 @@ pub enum IntegrateError {
     },
     /// The initial positions cannot be projected onto `Φ(q, t0) = 0` ("the loop cannot close").
     #[error(
-        "cannot close the constraints at t = {t} s: |Φ| = {violation:.3e} after {iterations} \
-         Gauss–Newton iterations (worst row {worst_row}; tolerance {tolerance:.1e})"
+        "cannot close the constraints at t = {} s: |Φ| = {violation:.3e} after {iterations} \
+         Gauss–Newton iterations (worst row {worst_row}; tolerance {tolerance:.1e})",
+        crate::text::message_time(*.t)
     )]
     CannotClose {
         /// Initial time, s.
@@ -221,9 +225,10 @@ pub enum IntegrateError {
     /// Newton did not converge within `max_newton_iterations`, even after refreshing the iteration
     /// matrix at the current iterate.
     #[error(
-        "Newton did not converge at t = {t} s (step {step}) after {iterations} iterations and one \
+        "Newton did not converge at t = {} s (step {step}) after {iterations} iterations and one \
          matrix refresh: correction WRMS {correction_wrms:.3e} (needs < 1), residual max-norm \
-         {residual_inf:.3e}; worst: {worst}"
+         {residual_inf:.3e}; worst: {worst}",
+        crate::text::message_time(*.t)
     )]
     NewtonNotConverged {
         /// The time the step was advancing to, s.
