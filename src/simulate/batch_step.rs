@@ -190,7 +190,8 @@ impl BatchStepper {
                 }
             }
         }
-        self.iterate_plain_lanes();
+        // The first round's iterates are the CRBA's configurations: its placements stand.
+        self.iterate_plain_lanes(any_plain);
         self.project_lanes();
         for lane in 0..lanes {
             if !matches!(self.states[lane], LaneState::Scalar) {
@@ -209,8 +210,10 @@ impl BatchStepper {
     }
 
     /// Newton iterations of the plain lanes, one batched inverse dynamics per round, until every
-    /// lane has converged, been abandoned (to the scalar step) or failed.
-    fn iterate_plain_lanes(&mut self) {
+    /// lane has converged, been abandoned (to the scalar step) or failed. `placements_current`:
+    /// the batch's joint placements are those of the lanes' current iterates (the CRBA just ran
+    /// there), so the first round need not compute them again.
+    fn iterate_plain_lanes(&mut self, mut placements_current: bool) {
         let nv = self.batch_model.nv;
         loop {
             let mut pending = false;
@@ -230,13 +233,23 @@ impl BatchStepper {
             if !pending {
                 return;
             }
-            batch::rnea(
-                &self.batch_model,
-                &mut self.batch_data,
-                &self.q,
-                &self.v,
-                &self.qdd,
-            );
+            if placements_current {
+                batch::rnea_at_placements(
+                    &self.batch_model,
+                    &mut self.batch_data,
+                    &self.v,
+                    &self.qdd,
+                );
+                placements_current = false;
+            } else {
+                batch::rnea(
+                    &self.batch_model,
+                    &mut self.batch_data,
+                    &self.q,
+                    &self.v,
+                    &self.qdd,
+                );
+            }
             for lane in 0..self.lanes() {
                 let LaneState::Plain(plain) = &mut self.states[lane] else {
                     continue;

@@ -32,7 +32,7 @@ pub use cholesky::{cholesky_factor, cholesky_solve};
 pub use crba::crba;
 pub use kinematics::forward_kinematics;
 pub use model::{lane_transform, BatchError, BatchJoint, BatchModel, ChunkValues};
-pub use rnea::{nonlinear_effects, rnea};
+pub use rnea::{nonlinear_effects, rnea, rnea_at_placements};
 pub use state::{BatchData, BatchVectors};
 
 /// The default chunk width: 4 `f64` lanes, one AVX2 register (docs/batch.md §3).

@@ -20,7 +20,21 @@ pub fn rnea<const W: usize>(
     v: &BatchVectors<W>,
     qdd: &BatchVectors<W>,
 ) {
-    rnea_dispatch(model, data, q, v, Some(qdd));
+    rnea_dispatch(model, data, Some(q), v, Some(qdd));
+}
+
+/// [`rnea`] at the configurations whose placements `data.parent_from_body` already holds (as
+/// [`super::crba`] or [`super::forward_kinematics`] left them, or the last [`rnea`]): the joint
+/// transforms are not computed again. Each sample's torques have the bits of [`rnea`] at that
+/// configuration, since the placements are the same values computed the same way. Overwrites
+/// `data.velocity`, `data.acceleration`, `data.force` and `data.tau`.
+pub fn rnea_at_placements<const W: usize>(
+    model: &BatchModel<W>,
+    data: &mut BatchData<W>,
+    v: &BatchVectors<W>,
+    qdd: &BatchVectors<W>,
+) {
+    rnea_dispatch(model, data, None, v, Some(qdd));
 }
 
 /// Bias forces of every sample: `data.bias = C(q, v) v + g(q)`; overwrites the same kinematic
@@ -31,14 +45,15 @@ pub fn nonlinear_effects<const W: usize>(
     q: &BatchVectors<W>,
     v: &BatchVectors<W>,
 ) {
-    rnea_dispatch(model, data, q, v, None);
+    rnea_dispatch(model, data, Some(q), v, None);
 }
 
-/// Runs [`rnea_chunks`] with the model's instruction set.
+/// Runs [`rnea_chunks`] with the model's instruction set; `q: None` reuses the placements in
+/// `data.parent_from_body`.
 fn rnea_dispatch<const W: usize>(
     model: &BatchModel<W>,
     data: &mut BatchData<W>,
-    q: &BatchVectors<W>,
+    q: Option<&BatchVectors<W>>,
     v: &BatchVectors<W>,
     qdd: Option<&BatchVectors<W>>,
 ) {
@@ -57,7 +72,7 @@ fn rnea_dispatch<const W: usize>(
 fn rnea_chunks<const W: usize>(
     model: &BatchModel<W>,
     data: &mut BatchData<W>,
-    q: &BatchVectors<W>,
+    q: Option<&BatchVectors<W>>,
     v: &BatchVectors<W>,
     qdd: Option<&BatchVectors<W>>,
 ) {
@@ -79,7 +94,7 @@ fn rnea_chunks<const W: usize>(
             model,
             values,
             buffers,
-            q.chunk(c),
+            q.map(|q| q.chunk(c)),
             v.chunk(c),
             qdd.map(|a| a.chunk(c)),
             out,
@@ -100,7 +115,7 @@ fn chunk<const W: usize>(
     model: &BatchModel<W>,
     values: &ChunkValues<W>,
     b: Buffers<'_, W>,
-    q: &[Lanes<W>],
+    q: Option<&[Lanes<W>]>,
     v: &[Lanes<W>],
     qdd: Option<&[Lanes<W>]>,
     out: &mut [Lanes<W>],
@@ -112,8 +127,14 @@ fn chunk<const W: usize>(
     for (i, joint) in model.joints.iter().enumerate() {
         let (qi, vi) = (joint.q_index, joint.v_index);
         let axis = &values.axis[i];
-        let motion = joint_transform(joint.kind, axis, &q[qi..qi + joint.nq()]);
-        let parent_from_body = values.parent_from_joint[i].compose(&motion);
+        let parent_from_body = match q {
+            Some(q) => {
+                let motion = joint_transform(joint.kind, axis, &q[qi..qi + joint.nq()]);
+                values.parent_from_joint[i].compose(&motion)
+            }
+            // The placement this configuration already has (`rnea_at_placements`).
+            None => b.parent_from_body[i],
+        };
         let joint_velocity = joint_motion(joint.kind, axis, &v[vi..vi + joint.nv()]);
         let (parent_velocity, parent_acceleration) = match joint.parent {
             Some(p) => (b.velocity[p], b.acceleration[p]),
@@ -157,7 +178,7 @@ fn chunk<const W: usize>(
 fn rnea_chunks_avx2<const W: usize>(
     model: &BatchModel<W>,
     data: &mut BatchData<W>,
-    q: &BatchVectors<W>,
+    q: Option<&BatchVectors<W>>,
     v: &BatchVectors<W>,
     qdd: Option<&BatchVectors<W>>,
 ) {
