@@ -14,7 +14,9 @@
 //!   => with constraint rows: record |Φ| and |Φ_q q̇ + Φ_t|; project q̇ if enabled
 //! ```
 //!
-//! Every buffer lives in a workspace sized at construction: a step allocates nothing.
+//! Every buffer lives in a workspace sized at construction: a step allocates nothing. `plain.rs`
+//! drives the same step from outside, one mass matrix and one residual at a time, for the batched
+//! step of many samples (docs/batch.md §5); both go through the functions below.
 
 use nalgebra::{DMatrix, DVector};
 
