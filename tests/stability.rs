@@ -10,6 +10,9 @@
 //! | impacts | bar at 5/50/500 rad/s onto ±0.5 rad limits | stays inside; `e = 1` returns the speed, `e = 0` stops; energy never grows |
 //! | step halving | pendulum, fixed and adaptive | error ratio ≈ 4 per halving (second order) |
 //! | near-singular | UR5 falling from full stretch; slider-crank driven through top dead centre | energy never grows; slider at `r cos θ + √(l² − r² sin² θ)` |
+//! | a public robot onto its limits | example-robot-data's SO-101 falling limp, joint limits | the fixed step's failure names the joint at its limit and the adaptive step; the adaptive step runs, the shoulder ends within 1 mrad past its limit |
+
+mod common;
 
 use nalgebra::DVector;
 use ribbon::dynamics::crba;
@@ -618,4 +621,75 @@ fn impacts_in_a_run_keep_the_joint_inside_and_the_energy_down() {
             assert!(end > 0.999 * e0, "{end} vs {e0}");
         }
     }
+}
+
+/// A public robot nobody here wrote: example-robot-data's SO-101 arm (light links, effective
+/// inertias ~1e-3 kg·m²) falling limp under gravity onto its joint limits. At the fixed 1 ms step
+/// the run fails just after `shoulder_lift` reaches its upper limit (a smaller step fails too); the
+/// message must say so and name the adaptive step, and the adaptive step must run through, with
+/// every joint inside its limits to the penalty's penetration.
+#[test]
+fn the_so101_falling_onto_its_limits_fails_loudly_at_the_fixed_step_and_runs_adaptively() {
+    let urdf = common::example_robot_data_dir().join("so_arm_description/urdf/so101.urdf");
+    let urdf = urdf.to_str().expect("UTF-8 path");
+    let dir = common::fresh_test_scratch_dir("stability", "so101");
+    let scene = "[scene]\nduration = 1.0\nstep = 0.001\ngravity = [0.0, 0.0, -9.81]\n\
+                 effects = [\"gravity\", \"joint_limits\"]\n";
+    let fixed = dir.join("fixed.uncertainty.toml");
+    let adaptive = dir.join("adaptive.uncertainty.toml");
+    std::fs::write(&fixed, scene).expect("scratch sidecar");
+    std::fs::write(&adaptive, format!("{scene}step_control = \"adaptive\"\n"))
+        .expect("scratch sidecar");
+
+    let failed = common::ribbon_outcome(&[
+        "simulate",
+        urdf,
+        "--uncertainty",
+        fixed.to_str().expect("UTF-8 path"),
+    ]);
+    assert_ne!(failed.code, Some(0), "{}", failed.stderr);
+    assert!(
+        failed.stderr.contains("Newton did not converge")
+            && failed
+                .stderr
+                .contains("Joint 'shoulder_lift' is at its limit")
+            && failed.stderr.contains("step_control = \"adaptive\""),
+        "{}",
+        failed.stderr
+    );
+
+    let csv = dir.join("adaptive.csv");
+    let ran = common::ribbon_outcome(&[
+        "simulate",
+        urdf,
+        "--uncertainty",
+        adaptive.to_str().expect("UTF-8 path"),
+        "--csv",
+        csv.to_str().expect("UTF-8 path"),
+    ]);
+    assert_eq!(ran.code, Some(0), "{}", ran.stderr);
+    let text = std::fs::read_to_string(&csv).expect("the CSV is written");
+    let header: Vec<&str> = text.lines().next().expect("a header").split(',').collect();
+    let column = header
+        .iter()
+        .position(|name| *name == "q.shoulder_lift")
+        .expect("a shoulder_lift column");
+    let upper = 1.74533; // its URDF <limit upper>
+    let highest = text
+        .lines()
+        .skip(1)
+        .map(|line| {
+            line.split(',')
+                .nth(column)
+                .expect("a value")
+                .parse::<f64>()
+                .expect("a number")
+        })
+        .fold(f64::NEG_INFINITY, f64::max);
+    // Pressed into its limit by the falling arm: at most the penalty's static penetration of a few
+    // N·m over 1e4 N·m/rad.
+    assert!(
+        highest > upper - 1e-2 && highest < upper + 1e-3,
+        "shoulder_lift reached {highest} rad against its limit {upper}"
+    );
 }

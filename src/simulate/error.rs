@@ -197,6 +197,16 @@ impl SimulationError {
                     message.push_str(
                         ". With contacts declared, the fixed step often fails like this at a touch-down or where a sliding contact sticks (docs/contacts.md §6): set [scene] step_control = \"adaptive\", which retries such steps at half size, or a larger [scene.contact] stiction_velocity",
                     );
+                } else if scene.effects.joint_limits
+                    && scene.step_control == crate::integrate::StepControl::Fixed
+                {
+                    if let Some(at_limit) = joint_at_limit(model, q) {
+                        // The limit's penalty spring switches on within one step; on light links
+                        // it is far stiffer than the step resolves (found on the SO-101 arm).
+                        message.push_str(&format!(
+                            ". Joint '{at_limit}' is at its limit: with joint limits the fixed step can fail like this just after an impact, where the limit's penalty spring switches on within a step (a smaller step need not help); set [scene] step_control = \"adaptive\", which retries such steps at smaller sizes"
+                        ));
+                    }
                 }
                 SimulationError::Integrate { source, message }
             }
@@ -255,6 +265,30 @@ pub fn integrate_exit_code(source: &IntegrateError) -> u8 {
 }
 
 /// `" on joint 'J'"` when `row` is a drive's row, else empty.
+/// A joint counts as "at its limit" for the fixed-step advice within this distance of it (rad or
+/// m): a limit reached in the last step or pressed into, not one a joint merely approaches.
+const AT_LIMIT_DISTANCE: f64 = 1e-2;
+
+/// The first 1-dof joint with a URDF limit within [`AT_LIMIT_DISTANCE`] of (or past) it at `q`.
+fn joint_at_limit<'a>(model: &'a Model, q: &[f64]) -> Option<&'a str> {
+    model
+        .joints
+        .iter()
+        .filter(|joint| joint.kind != JointKind::Floating)
+        .find(|joint| {
+            let Some(source) = joint.source else {
+                return false;
+            };
+            let [lower, upper] = model.description.joints[source].limits;
+            let Some(&x) = q.get(joint.q_index) else {
+                return false;
+            };
+            (lower.is_finite() && x - lower < AT_LIMIT_DISTANCE)
+                || (upper.is_finite() && upper - x < AT_LIMIT_DISTANCE)
+        })
+        .map(|joint| joint.name.as_str())
+}
+
 fn drive_joint(model: &Model, constraints: &ConstraintSet, row: usize) -> String {
     let first_drive = constraints.len() - constraints.drives.len();
     match row
