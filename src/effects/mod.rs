@@ -7,7 +7,9 @@
 //! Gravity is not here: it enters the rigid-body bias as a base acceleration in RNEA through the
 //! model's gravity ([`crate::scene::Scene::apply_gravity`]; zero when the scene does not declare it).
 //! Values that parameters can change (URDF damping, friction, limits) are read from the model at each
-//! evaluation, so a sample's parameter values take effect without re-assembly.
+//! evaluation, so a sample's parameter values take effect without re-assembly. The joint limits'
+//! penalty constants are the exception: they are tuned once, at assembly, to the joints' inertias
+//! of the model assembled with (a study's nominal model), and every sample shares them.
 
 mod contact;
 mod damping;
@@ -18,13 +20,24 @@ mod springs;
 pub use contact::{contact_force, ContactForce, ContactState, ContactStats};
 pub use friction::FRICTION_SMOOTHING_VELOCITY;
 pub use limits::{
-    LimitEvent, LimitSide, JOINT_LIMIT_DAMPING, JOINT_LIMIT_DAMPING_DEPTH, JOINT_LIMIT_STIFFNESS,
+    limit_penalty, LimitEvent, LimitSide, JOINT_LIMIT_DAMPING_DEPTH, JOINT_LIMIT_DAMPING_RATIO,
+    JOINT_LIMIT_FREQUENCY,
 };
 
 use crate::dynamics::Data;
 use crate::model::{JointKind, Model};
 use crate::scene::Scene;
 use nalgebra::DMatrix;
+
+/// The diagonal `M_jj` of the mass matrix of `model` at `q` (dim nv): the inertia each coordinate
+/// moves with every other one held, kg·m² or kg.
+fn inertia_diagonal(model: &Model, q: &[f64]) -> Vec<f64> {
+    let mut data = Data::new(model);
+    crate::dynamics::crba(model, &mut data, q)
+        .diagonal()
+        .as_slice()
+        .to_vec()
+}
 
 /// A 1-dof joint an effect acts on: its coordinates and its URDF joint.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -73,9 +86,14 @@ impl Effects {
             springs: e
                 .joint_springs
                 .then(|| springs::JointSprings::new(model, &scene.springs)),
-            limits: e
-                .joint_limits
-                .then(|| limits::JointLimits::new(model, &joints, scene.limit_restitution)),
+            limits: e.joint_limits.then(|| {
+                limits::JointLimits::new(
+                    model,
+                    &joints,
+                    &inertia_diagonal(model, &scene.initial_q),
+                    scene.limit_restitution,
+                )
+            }),
             contacts: scene
                 .contact
                 .as_ref()
@@ -253,6 +271,13 @@ impl Effects {
         if let Some(e) = &mut self.contacts {
             e.add_forces(model, data, q, v, out);
         }
+    }
+
+    /// Which joints are beyond a limit at `q` (a bit per limited joint; 0 without the
+    /// `joint_limits` effect): the regime of the piecewise penalty law, whose Newton diagonal
+    /// switches with it (see [`crate::integrate::DaeSystem::newton_regime`]).
+    pub fn newton_regime(&self, model: &Model, q: &[f64]) -> u64 {
+        self.limits.as_ref().map_or(0, |l| l.regime(model, q))
     }
 
     /// Adds the effects' diagonal stiffness `k_j = −∂Q_j/∂q_j` and damping `c_j = −∂Q_j/∂q̇_j` to

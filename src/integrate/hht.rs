@@ -367,6 +367,13 @@ impl NewtonPass {
 /// pass. A genuinely converging modified Newton shrinks `Δλ` by far more than 2× per iteration.
 const LAMBDA_STAGNATION_RATIO: f64 = 0.5;
 
+/// How often one Newton pass may refactorise because its iterate left the regime of piecewise
+/// forces its matrix was formed in ([`DaeSystem::newton_regime`]; a joint-limit penalty switching
+/// on or off). A converging iteration settles in one regime after one or two such switches; the
+/// cap keeps an iterate that keeps crossing from refactorising at every iteration (it then goes on
+/// with the last matrix, as before).
+const MAX_REGIME_REFACTORISATIONS: usize = 4;
+
 /// The HHT-I3 integrator for one trajectory of one [`DaeSystem`].
 ///
 /// ```text
@@ -1127,6 +1134,9 @@ impl HhtIntegrator {
                 self.factorise_at_iterate(system, at, full)?;
             }
             let mut judge = NewtonPass::new(pass);
+            // The regime of piecewise forces (joints beyond a limit) the matrix was formed in.
+            let mut matrix_regime = (pass > 0).then(|| system.newton_regime(&self.ws.q));
+            let mut regime_refactorisations = 0;
             for _ in 0..max_iterations {
                 iterations += 1;
                 let report = self.newton_iteration(system, at)?;
@@ -1137,7 +1147,22 @@ impl HhtIntegrator {
                         break;
                     }
                     PassVerdict::GiveUp => break,
-                    PassVerdict::Continue => {}
+                    PassVerdict::Continue => {
+                        let Some(formed_in) = matrix_regime else {
+                            continue;
+                        };
+                        let now = system.newton_regime(&self.ws.q);
+                        if now != formed_in && regime_refactorisations < MAX_REGIME_REFACTORISATIONS
+                        {
+                            // The iterate left the matrix's regime (a penalty switched on or
+                            // off): its slope there is the other side's; refactorise at the
+                            // iterate (docs/step-control.md §4).
+                            regime_refactorisations += 1;
+                            self.factorise_at_iterate(system, at, full)?;
+                            matrix_regime = Some(now);
+                            judge = NewtonPass::new(pass);
+                        }
+                    }
                 }
             }
             if converged {

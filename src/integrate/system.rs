@@ -180,6 +180,17 @@ pub trait DaeSystem {
         Ok(())
     }
 
+    /// Which regime of its piecewise forces the system is in at `q` (`q`: dim `nq`), as a
+    /// fingerprint: for joint limits, one bit per joint beyond its limit. A piecewise force's
+    /// Newton terms jump between regimes (a penalty spring's stiffness is `k` on one side, 0 on the
+    /// other), so when a Newton iterate's regime differs from the one its matrix was formed in,
+    /// the integrator refactorises at the iterate (docs/step-control.md §4). Default 0 (one
+    /// regime).
+    fn newton_regime(&self, q: &DVector<f64>) -> u64 {
+        let _ = q;
+        0
+    }
+
     /// Whether [`newton_coupling`](Self::newton_coupling) adds anything. Default `false`.
     fn provides_newton_coupling(&self) -> bool {
         false

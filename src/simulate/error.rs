@@ -201,10 +201,10 @@ impl SimulationError {
                     && scene.step_control == crate::integrate::StepControl::Fixed
                 {
                     if let Some(at_limit) = joint_at_limit(model, q) {
-                        // The limit's penalty spring switches on within one step; on light links
-                        // it is far stiffer than the step resolves (found on the SO-101 arm).
+                        // Just after a plastic impact the rest of the arm whips on (found on the
+                        // SO-101 arm: fixed 2 ms fails, 1 ms and adaptive 2 ms run).
                         message.push_str(&format!(
-                            ". Joint '{at_limit}' is at its limit: with joint limits the fixed step can fail like this just after an impact, where the limit's penalty spring switches on within a step (a smaller step need not help); set [scene] step_control = \"adaptive\", which retries such steps at smaller sizes"
+                            ". Joint '{at_limit}' is at its limit: just after a joint stops at its limit the rest of the mechanism can move faster than one fixed step resolves; set [scene] step_control = \"adaptive\", which retries such steps at smaller sizes (or take a smaller --step)"
                         ));
                     }
                 }

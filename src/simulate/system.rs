@@ -377,6 +377,10 @@ impl DaeSystem for RobotSystem {
         Ok(())
     }
 
+    fn newton_regime(&self, q: &DVector<f64>) -> u64 {
+        self.effects.newton_regime(&self.model, q.as_slice())
+    }
+
     /// Contacts, and only while some pair is near (passed its bounding-sphere test at the last force
     /// evaluation): otherwise the coupling is zero, and not adding it keeps the Newton matrix
     /// bitwise that of the same scene without contacts (docs/contacts.md §4).

@@ -7,7 +7,8 @@
 //! Only the plain case is driven: one attempt of the grid step's size (fixed step control, or
 //! adaptive when the controller plans the whole grid step and accepts it) that crosses no limit, no
 //! contact coupling, a fresh diagonal Newton matrix at the predictor (the scalar attempt's pass
-//! 1), no reuse of the last step's factorisation. Anything else — a system or a setting outside
+//! 1), no reuse of the last step's factorisation, no iterate leaving the regime of piecewise forces
+//! its matrix was formed in (a joint-limit penalty switching on or off). Anything else — a system or a setting outside
 //! that case, a limit crossed (the scalar step locates the impact), a pass that gives up (the scalar
 //! attempt would refresh), the iteration limit, a step the adaptive controller rejects, any error — *abandons* the step: the trajectory is put back
 //! exactly as it was (until acceptance an attempt writes only the workspace, the counters, the
@@ -35,6 +36,8 @@ pub(crate) struct PlainStep {
     /// The step control's growth factor once converged and judged.
     growth: f64,
     judge: NewtonPass,
+    /// The regime of piecewise forces the Newton matrix was formed in ([`DaeSystem::newton_regime`]).
+    regime: u64,
     /// What the attempt may change before it is accepted, to put back when it is abandoned.
     stats_before: HhtStats,
     control_before: StepControlState,
@@ -104,6 +107,7 @@ impl HhtIntegrator {
             iterations: 0,
             growth: ADAPTIVE_MAX_GROWTH,
             judge: NewtonPass::new(1),
+            regime: 0,
             stats_before: self.trajectory.stats,
             control_before: self.trajectory.control,
             newton_before: (
@@ -151,6 +155,7 @@ impl HhtIntegrator {
             self.abandon_plain_step(plain);
             return false;
         }
+        plain.regime = system.newton_regime(&self.ws.q);
         true
     }
 
@@ -217,7 +222,11 @@ impl HhtIntegrator {
                 self.finish_plain_step(system, plain)?;
                 Ok(PlainProgress::Done)
             }
-            PassVerdict::Continue if plain.iterations < self.settings.max_newton_iterations => {
+            // An iterate that left the matrix's regime: the scalar attempt refactorises there.
+            PassVerdict::Continue
+                if plain.iterations < self.settings.max_newton_iterations
+                    && system.newton_regime(&self.ws.q) == plain.regime =>
+            {
                 Ok(PlainProgress::Iterate)
             }
             _ => {
