@@ -1,5 +1,6 @@
 //! The crate-level error: every module's error, plus bad command-line values, each mapped to the
-//! documented exit code (0 ok, 1 failure, 2 bad arguments or bad input, 3 another stage to run).
+//! documented exit code (0 ok, 1 failure, 2 bad arguments or bad input, 3 another stage to run,
+//! 4 results written but not trusted).
 
 use crate::dynamics::DynamicsError;
 use crate::integrate::IntegrateError;
@@ -7,6 +8,10 @@ use crate::model::ModelError;
 use crate::params::ParamError;
 use crate::scene::SceneError;
 use thiserror::Error;
+
+/// Exit status of a study whose results were written but whose surrogate the a-posteriori check
+/// did not trust for some outputs ([`Error::Untrusted`]).
+pub const UNTRUSTED_EXIT_CODE: u8 = 4;
 
 /// Any error ribbon reports.
 #[derive(Debug, Error)]
@@ -64,6 +69,18 @@ pub enum Error {
     /// A plan, a shard's record block or the set of shards was refused (`plan`, `run`, `merge`).
     #[error(transparent)]
     Shard(#[from] crate::distributed::ShardError),
+    /// A study finished and wrote its results, but the a-posteriori check found the surrogate
+    /// untrustworthy for some outputs (exit 4): its envelopes were widened to every true run made,
+    /// yet may still be too narrow.
+    #[error("the results were written, but the surrogate cannot be trusted for {untrusted} of {total} outputs (worst: {worst}): their envelopes may be too narrow, so this run exits with status {UNTRUSTED_EXIT_CODE}; raise --order, narrow the box, or use --method scan or monte-carlo")]
+    Untrusted {
+        /// Outputs the check did not trust.
+        untrusted: usize,
+        /// Outputs of the study.
+        total: usize,
+        /// The worst output and its misfit, e.g. `q.elbow (53.6 % of the width)`.
+        worst: String,
+    },
     /// Writing a result failed.
     #[error("cannot write {what}: {source}")]
     Output {
@@ -83,7 +100,9 @@ impl Error {
     /// - 1 — a run that started failed later (Newton divergence, a NaN after t = 0, a failing
     ///   sample of a study), was interrupted, or its results could not be written;
     /// - 3 — not a failure: `merge` planned the next stage of a staged study and wrote no output
-    ///   ([`crate::distributed::NEXT_STAGE_EXIT_CODE`]).
+    ///   ([`crate::distributed::NEXT_STAGE_EXIT_CODE`]);
+    /// - 4 — a study wrote its results but its surrogate is not trusted for some outputs
+    ///   ([`UNTRUSTED_EXIT_CODE`]): a bound that may be wrong never exits 0.
     pub fn exit_code(&self) -> u8 {
         match self {
             Error::Model(_)
@@ -98,6 +117,7 @@ impl Error {
             | Error::NonFiniteResult { .. }
             | Error::Mcap(_)
             | Error::Interrupted(_) => 1,
+            Error::Untrusted { .. } => UNTRUSTED_EXIT_CODE,
             Error::Study(
                 crate::analysis::StudyError::BadOptions(_) | crate::analysis::StudyError::Uq(_),
             ) => 2,

@@ -49,4 +49,4 @@ pub mod text;
 pub mod uncertainty;
 pub mod uq;
 
-pub use error::Error;
+pub use error::{Error, UNTRUSTED_EXIT_CODE};

@@ -1,6 +1,6 @@
 //! The `ribbon` command: parses the command line, runs the subcommand, maps errors to exit codes
-//! (0 ok, 1 failure, 2 bad arguments or bad input, 3 `merge` planned another stage; clap's own
-//! usage errors also exit 2).
+//! (0 ok, 1 failure, 2 bad arguments or bad input, 3 `merge` planned another stage, 4 a study's
+//! results written but its surrogate not trusted; clap's own usage errors also exit 2).
 
 #![warn(missing_docs)]
 

@@ -649,6 +649,7 @@ fn the_so101_falling_onto_its_limits_runs_and_a_failure_names_the_adaptive_step(
         let sidecar = dir.join(format!("{control}.uncertainty.toml"));
         std::fs::write(&sidecar, scene(step, control)).expect("scratch sidecar");
         let csv = dir.join(format!("{control}.csv"));
+        let summary = dir.join(format!("{control}.json"));
         let ran = common::ribbon_outcome(&[
             "simulate",
             urdf,
@@ -656,8 +657,24 @@ fn the_so101_falling_onto_its_limits_runs_and_a_failure_names_the_adaptive_step(
             sidecar.to_str().expect("UTF-8 path"),
             "--csv",
             csv.to_str().expect("UTF-8 path"),
+            "--summary",
+            summary.to_str().expect("UTF-8 path"),
         ]);
         assert_eq!(ran.code, Some(0), "{control} {step}: {}", ran.stderr);
+        let stats: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary).expect("the summary"))
+                .expect("JSON");
+        let stats = &stats["stats"];
+        println!("SO-101 {control} at {step} s: {stats}");
+        // Iterates cross into and out of the penalties: Newton refactorises there.
+        assert!(stats["impacts"].as_u64().expect("impacts") >= 5, "{stats}");
+        assert!(
+            stats["regime_refactorisations"]
+                .as_u64()
+                .expect("regime_refactorisations")
+                >= 1,
+            "{stats}"
+        );
         let text = std::fs::read_to_string(&csv).expect("the CSV is written");
         let header: Vec<&str> = text.lines().next().expect("a header").split(',').collect();
         let mut deepest: f64 = 0.0;

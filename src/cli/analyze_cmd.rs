@@ -226,7 +226,32 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
             scene.duration_s
         )));
     }
-    Ok(())
+    match &report.check {
+        Some(check) if !check.untrusted_outputs.is_empty() => Err(untrusted(&report, check)),
+        _ => Ok(()),
+    }
+}
+
+/// The exit-4 error of a study whose check did not trust some outputs.
+fn untrusted(report: &StudyReport, check: &CheckReport) -> Error {
+    let outputs = &report.envelope.outputs;
+    let worst = check
+        .untrusted_outputs
+        .iter()
+        .copied()
+        .max_by(|&a, &b| check.relative_misfit[a].total_cmp(&check.relative_misfit[b]))
+        .map_or_else(String::new, |o| {
+            format!(
+                "{}, {:.1} % of its width",
+                outputs[o].name,
+                100.0 * check.relative_misfit[o]
+            )
+        });
+    Error::Untrusted {
+        untrusted: check.untrusted_outputs.len(),
+        total: outputs.len(),
+        worst,
+    }
 }
 
 /// Refuses a plan that this ribbon, with these inputs, would not make: the same method, design,

@@ -144,13 +144,14 @@ fn print_statistics(trajectory: &Trajectory, scene: &Scene, wall_seconds: f64) {
     );
     if s.substeps > s.steps || s.impacts > 0 || s.stiff_predictions > 0 {
         eprintln!(
-            "step control: {} sub-steps for {} grid steps (smallest {:.3e} s; {} Newton failures and {} error rejections retried), {} joint-limit impacts, {} steps with the stiff-mode predictor",
+            "step control: {} sub-steps for {} grid steps (smallest {:.3e} s; {} Newton failures and {} error rejections retried), {} joint-limit impacts, {} Newton matrices refactorised as an iterate crossed a limit, {} steps with the stiff-mode predictor",
             s.substeps,
             s.steps,
             s.smallest_step_s,
             s.step_failures,
             s.error_rejections,
             s.impacts,
+            s.regime_refactorisations,
             s.stiff_predictions
         );
     }
@@ -180,6 +181,10 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
         "state_rejections": s.state_rejections,
         "contacts": trajectory.contacts,
     });
+    if s.regime_refactorisations > 0 {
+        // Only with joint limits (docs/step-control.md §4); absent otherwise, as before.
+        stats["regime_refactorisations"] = s.regime_refactorisations.into();
+    }
     if trajectory.contacts.is_some() {
         // Only contacts limit Newton corrections (docs/contacts.md §4).
         stats["limited_newton_updates"] = s.limited_newton_updates.into();

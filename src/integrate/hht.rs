@@ -111,6 +111,10 @@ pub struct HhtStats {
     /// ([`DaeSystem::newton_update_fraction`] < 1: an iterate kept from jumping across a
     /// regularised law's narrow transition).
     pub limited_newton_updates: u64,
+    /// Factorisations made because a Newton iterate left the regime of piecewise forces its
+    /// matrix was formed in ([`DaeSystem::newton_regime`]: a joint-limit penalty switching on or
+    /// off; also counted in `factorisations`).
+    pub regime_refactorisations: u64,
 }
 
 /// Which form of the constraint rows [`iteration_matrix`] returns.
@@ -1158,6 +1162,7 @@ impl HhtIntegrator {
                             // off): its slope there is the other side's; refactorise at the
                             // iterate (docs/step-control.md §4).
                             regime_refactorisations += 1;
+                            self.trajectory.stats.regime_refactorisations += 1;
                             self.factorise_at_iterate(system, at, full)?;
                             matrix_regime = Some(now);
                             judge = NewtonPass::new(pass);
