@@ -10,7 +10,7 @@
 //! | impacts | bar at 5/50/500 rad/s onto ±0.5 rad limits | stays inside; `e = 1` returns the speed, `e = 0` stops; energy never grows |
 //! | step halving | pendulum, fixed and adaptive | error ratio ≈ 4 per halving (second order) |
 //! | near-singular | UR5 falling from full stretch; slider-crank driven through top dead centre | energy never grows; slider at `r cos θ + √(l² − r² sin² θ)` |
-//! | a public robot onto its limits | example-robot-data's SO-101 falling limp, joint limits | the fixed 1 ms step and the adaptive 2 ms step run, every joint inside its limits to the penalty's settling depth; the fixed 2 ms step's failure names the joint at its limit and the adaptive step |
+//! | a public robot onto its limits | example-robot-data's SO-101 falling limp, joint limits | the fixed 1 and 2 ms steps and the adaptive 4 ms step run, every joint inside its limits to the penalty's settling depth; the fixed 4 ms step's failure names the joint at its limit and the adaptive step |
 
 mod common;
 
@@ -541,6 +541,59 @@ fn limited_double() -> String {
     urdf
 }
 
+/// Both joints of the double pendulum limited to ±0.5 rad.
+fn doubly_limited_double() -> String {
+    let urdf = limited_double().replace(
+        r#"<joint name="j1" type="continuous"><parent link="w"/><child link="b1"/><axis xyz="0 0 1"/></joint>"#,
+        r#"<joint name="j1" type="revolute"><parent link="w"/><child link="b1"/><axis xyz="0 0 1"/><limit lower="-0.5" upper="0.5" effort="1" velocity="1"/></joint>"#,
+    );
+    assert_ne!(urdf, limited_double());
+    urdf
+}
+
+#[test]
+fn a_resting_limit_driven_in_by_an_impact_joins_it() {
+    // The elbow rests on its upper limit (q̇₂ = 0) when the shoulder hits its own upper limit at
+    // 3 rad/s: stopping the shoulder alone would swing the distal bar on, driving the elbow into
+    // its limit at −(1 + e) q̇₁⁻ (M⁻¹)₂₁/(M⁻¹)₁₁ (7 to 14 rad/s here), which the penalty cannot
+    // stop within its depth. The elbow joins
+    // the impact as a plastic row, so the closed form is q̇⁺ = (−e q̇₁⁻, 0): the shoulder's approach
+    // speed reversed and scaled, the elbow at rest; kinetic energy ½ M₁₁ (e q̇₁⁻)², never more.
+    use ribbon::integrate::DaeSystem;
+    for restitution in [1.0_f64, 0.5, 0.0] {
+        let sidecar =
+            format!("[scene]\neffects = [\"joint_limits\"]\nlimit_restitution = {restitution}\n");
+        let (mut system, _, _, _) = setup(model_from(&doubly_limited_double()), &sidecar);
+        // Events: 0/1 = j1 lower/upper, 2/3 = j2 lower/upper.
+        assert_eq!(system.n_events(), 4);
+        let mut q = DVector::from_column_slice(&[0.5, 0.5]);
+        let v_before = DVector::from_column_slice(&[3.0, 0.0]);
+        let mass = crba(&system.model, &mut system.data, q.as_slice()).clone();
+        // Alone, the shoulder's impulse would drive the elbow into its limit at this rate.
+        let inverse = mass.clone().try_inverse().unwrap();
+        let elbow_alone = -(1.0 + restitution) * 3.0 * inverse[(1, 0)] / inverse[(0, 0)];
+        let mut v = v_before.clone();
+        system.apply_impact(0.0, 1, &mut q, &mut v).unwrap();
+        let kinetic = |v: &DVector<f64>| 0.5 * v.dot(&(&mass * v));
+        println!(
+            "joined impact, e = {restitution}: q̇ {:?} → {:?} (the elbow alone would have gone {elbow_alone:.3} rad/s into its limit), kinetic energy {:.9} → {:.9} J",
+            v_before.as_slice(),
+            v.as_slice(),
+            kinetic(&v_before),
+            kinetic(&v)
+        );
+        assert!(
+            elbow_alone > 0.1,
+            "the case drives the elbow in: {elbow_alone}"
+        );
+        assert!((v[0] + restitution * 3.0).abs() < 1e-12, "{}", v[0]);
+        assert!(v[1].abs() < 1e-12, "the elbow stays at rest: {}", v[1]);
+        let expected = 0.5 * mass[(0, 0)] * (restitution * 3.0).powi(2);
+        assert!((kinetic(&v) - expected).abs() < 1e-12 * kinetic(&v_before));
+        assert!(kinetic(&v) <= kinetic(&v_before) * (1.0 + 1e-12));
+    }
+}
+
 #[test]
 fn the_impact_law_acts_through_the_mass_matrix_and_never_adds_energy() {
     // The impulse law itself, at the elbow's upper limit with both joints moving: closed forms
@@ -628,8 +681,8 @@ fn impacts_in_a_run_keep_the_joint_inside_and_the_energy_down() {
 /// A public robot nobody here wrote: example-robot-data's SO-101 arm (light links, inertias
 /// 1e-5 to 1e-2 kg·m²) falling limp under gravity onto its joint limits: 12 impacts in 1 s, the
 /// shoulder stopping while the wrist and gripper whip on at 35 rad/s. With the penalty tuned to
-/// each joint's inertia the fixed 1 ms step runs (with the absolute penalty of 1e4 N·m/rad it
-/// failed at t = 0.262 s, at any step down to 0.2 ms); at 2 ms the fixed step fails after an
+/// each joint's inertia the fixed 1 and 2 ms steps run (with the absolute penalty of 1e4 N·m/rad
+/// it failed at t = 0.262 s, at any step down to 0.2 ms); at 4 ms the fixed step fails after an
 /// impact, and the message must say which joint is at its limit and name the adaptive step, which
 /// runs.
 #[test]
@@ -642,14 +695,14 @@ fn the_so101_falling_onto_its_limits_runs_and_a_failure_names_the_adaptive_step(
         format!(
             "[scene]\nduration = 1.0\nstep = {step}\nstep_control = \"{control}\"\n\
              gravity = [0.0, 0.0, -9.81]\neffects = [\"gravity\", \"joint_limits\"]\n\
-             [outputs]\njoints = \"all\"\nrate = 500\n"
+             [outputs]\njoints = \"all\"\nrate = 250\n"
         )
     };
-    for (step, control) in [(0.001, "fixed"), (0.002, "adaptive")] {
-        let sidecar = dir.join(format!("{control}.uncertainty.toml"));
+    for (step, control) in [(0.001, "fixed"), (0.002, "fixed"), (0.004, "adaptive")] {
+        let sidecar = dir.join(format!("{control}{step}.uncertainty.toml"));
         std::fs::write(&sidecar, scene(step, control)).expect("scratch sidecar");
-        let csv = dir.join(format!("{control}.csv"));
-        let summary = dir.join(format!("{control}.json"));
+        let csv = dir.join(format!("{control}{step}.csv"));
+        let summary = dir.join(format!("{control}{step}.json"));
         let ran = common::ribbon_outcome(&[
             "simulate",
             urdf,
@@ -711,8 +764,8 @@ fn the_so101_falling_onto_its_limits_runs_and_a_failure_names_the_adaptive_step(
         );
     }
 
-    let sidecar = dir.join("fixed2.uncertainty.toml");
-    std::fs::write(&sidecar, scene(0.002, "fixed")).expect("scratch sidecar");
+    let sidecar = dir.join("fixed4.uncertainty.toml");
+    std::fs::write(&sidecar, scene(0.004, "fixed")).expect("scratch sidecar");
     let failed = common::ribbon_outcome(&[
         "simulate",
         urdf,

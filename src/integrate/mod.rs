@@ -48,6 +48,7 @@ mod system;
 pub(crate) mod tests;
 
 pub use dense_solver::SINGULAR_PIVOT_RELATIVE;
+pub(crate) use dense_solver::{DenseSolver, FactorKind};
 pub use error::{IntegrateError, SystemError, WorstEntry};
 pub use hht::{
     iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtState, HhtStats, HhtTrajectory,

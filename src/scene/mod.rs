@@ -480,6 +480,9 @@ impl Scene {
                 "every value must be finite".to_string(),
             ));
         }
+        if effects.joint_limits {
+            check_initial_q_inside_limits(model, &initial_q, &s.initial.q, &invalid)?;
+        }
         let step_values = step_control::resolve(s, effects.joint_limits, step_s, path)?;
         let mut outputs = outputs::resolve(&file.outputs, model, &constraints, path)?;
         let contact = contacts::resolve(s.contact.as_ref(), &s.geometry, model, path)?;
@@ -526,6 +529,68 @@ impl Scene {
     }
 }
 
+/// With `joint_limits`, every limited 1-dof joint (not a mimic follower, whose start the
+/// constraint sets) must start inside its URDF range: a start outside it puts the penalty spring
+/// radians deep at t = 0 and throws the joint back at tens of rad/s (example-robot-data's Kinova
+/// arm, whose neutral configuration is 0.8 rad outside two of its ranges, failed 0.13 s in; the
+/// Panda's, outside `panda_joint4`'s, was flung back silently). Every joint outside is named at
+/// once, with an `initial.q` that starts each on its nearest limit. `given` are the `initial.q`
+/// entries, to name the key a value came from.
+fn check_initial_q_inside_limits(
+    model: &Model,
+    initial_q: &[f64],
+    given: &std::collections::BTreeMap<String, f64>,
+    invalid: &dyn Fn(&str, String) -> SceneError,
+) -> Result<(), SceneError> {
+    let mut outside = Vec::new();
+    let mut suggestion = Vec::new();
+    let mut any_given = false;
+    for joint in &model.joints {
+        let Some(source) = joint.source else {
+            continue;
+        };
+        if joint.kind == JointKind::Floating || joint.mimic.is_some() {
+            continue;
+        }
+        let [lower, upper] = model.description.joints[source].limits;
+        if !(lower.is_finite() && upper.is_finite() && lower < upper) {
+            continue;
+        }
+        let x = initial_q[joint.q_index];
+        if (lower..=upper).contains(&x) {
+            continue;
+        }
+        let name = &joint.name;
+        let from = if given.contains_key(name) {
+            any_given = true;
+            "initial.q"
+        } else {
+            "the neutral configuration"
+        };
+        outside.push(format!(
+            "'{name}' at {x} ({from}) outside [{lower}, {upper}]"
+        ));
+        suggestion.push(format!("\"{name}\" = {}", x.clamp(lower, upper)));
+    }
+    if outside.is_empty() {
+        return Ok(());
+    }
+    let key = if any_given {
+        "[scene] initial.q"
+    } else {
+        "[scene] effects"
+    };
+    Err(invalid(
+        key,
+        format!(
+            "'joint_limits' is declared, but {} joint(s) start outside their URDF limits, where the limit would throw them back at t = 0: {}; start them inside, e.g. [scene] initial.q = {{ {} }} (each on its nearest limit)",
+            outside.len(),
+            outside.join(", "),
+            suggestion.join(", ")
+        ),
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -551,6 +616,92 @@ mod tests {
             message,
         })?;
         Scene::resolve(&file, &pendulum(), "s.toml", SceneOverrides::default())
+    }
+
+    /// Two limited joints whose neutral configuration (0) is outside both ranges, one free, and a
+    /// mimic follower outside its range (its start is the constraint's).
+    fn arm_outside_its_limits() -> Model {
+        let link = |name: &str| {
+            format!(
+                r#"<link name="{name}"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+                <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.08" iyz="0" izz="0.08"/></inertial></link>"#
+            )
+        };
+        let joint = |name: &str, parent: &str, child: &str, extra: &str| {
+            format!(
+                r#"<joint name="{name}" type="revolute"><parent link="{parent}"/><child link="{child}"/>
+                <origin xyz="1 0 0"/><axis xyz="0 0 1"/>{extra}</joint>"#
+            )
+        };
+        let text = format!(
+            r#"<robot name="a"><link name="w"/>{}{}{}{}{}{}{}{}</robot>"#,
+            link("l1"),
+            link("l2"),
+            link("l3"),
+            link("l4"),
+            joint(
+                "shoulder",
+                "w",
+                "l1",
+                r#"<limit lower="0.5" upper="2" effort="1" velocity="1"/>"#
+            ),
+            joint(
+                "elbow",
+                "l1",
+                "l2",
+                r#"<limit lower="-2" upper="-0.1" effort="1" velocity="1"/>"#
+            ),
+            joint("wrist", "l2", "l3", ""),
+            joint(
+                "finger",
+                "l3",
+                "l4",
+                r#"<limit lower="0.2" upper="1" effort="1" velocity="1"/><mimic joint="wrist"/>"#
+            ),
+        );
+        Model::from_description(
+            parse_description(&text, "a.urdf").unwrap(),
+            LoadOptions::default(),
+            "a.urdf",
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn joint_limits_refuse_a_start_outside_them_naming_every_joint() {
+        let model = arm_outside_its_limits();
+        let resolve_on = |text: &str| {
+            let file = parse_sidecar(text).unwrap();
+            Scene::resolve(&file, &model, "s.toml", SceneOverrides::default())
+        };
+        let limits = "[scene]\neffects = [\"joint_limits\"]\n";
+        let message = resolve_on(limits).unwrap_err().to_string();
+        assert!(
+            message.contains("s.toml: [scene] effects")
+                && message.contains("2 joint(s)")
+                && message.contains("'shoulder' at 0 (the neutral configuration) outside [0.5, 2]")
+                && message.contains("'elbow' at 0 (the neutral configuration) outside [-2, -0.1]")
+                && message.contains(r#"initial.q = { "shoulder" = 0.5, "elbow" = -0.1 }"#)
+                && !message.contains("finger")
+                && !message.contains("wrist"),
+            "{message}"
+        );
+        // A value given outside its range names initial.q; the suggestion, applied, resolves.
+        let message = resolve_on(&format!(
+            "{limits}initial.q = {{ shoulder = 3.0, elbow = -1.0 }}\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            message.contains("[scene] initial.q")
+                && message.contains("'shoulder' at 3 (initial.q) outside [0.5, 2]")
+                && !message.contains("elbow"),
+            "{message}"
+        );
+        let suggested = format!("{limits}initial.q = {{ \"shoulder\" = 0.5, \"elbow\" = -0.1 }}\n");
+        assert!(resolve_on(&suggested).is_ok());
+        // Without the effect the start is the user's business.
+        assert!(resolve_on("[scene]\neffects = [\"gravity\"]\n").is_ok());
     }
 
     #[test]

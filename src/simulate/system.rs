@@ -159,6 +159,61 @@ impl RobotSystem {
 }
 
 /// `exp` of a body twist `(v, ω)` as `(translation, rotation)` (SE(3) exponential map).
+/// The velocity jump `Δq̇` of the impact whose limit rows are `rows` (each: the limit and the
+/// jump of its rate `w Δq̇` it imposes), keeping every constraint row's velocity (`Φ_q Δq̇ = 0`).
+fn impact_velocity_jump(
+    model: &crate::model::Model,
+    mass: &DMatrix<f64>,
+    phi_q: &DMatrix<f64>,
+    rows: &[(crate::effects::LimitEvent, f64)],
+) -> Result<DVector<f64>, SystemError> {
+    let (nv, m, r) = (mass.nrows(), phi_q.nrows(), rows.len());
+    let n = nv + r + m;
+    let mut kkt = DMatrix::zeros(n, n);
+    kkt.view_mut((0, 0), (nv, nv)).copy_from(mass);
+    let mut rhs = DVector::zeros(n);
+    for (i, (row, jump)) in rows.iter().enumerate() {
+        let sign = limit_sign(row.side);
+        kkt[(row.v_index, nv + i)] = sign;
+        kkt[(nv + i, row.v_index)] = sign;
+        rhs[nv + i] = *jump;
+    }
+    for c in 0..m {
+        for j in 0..nv {
+            kkt[(j, nv + r + c)] = phi_q[(c, j)];
+            kkt[(nv + r + c, j)] = phi_q[(c, j)];
+        }
+    }
+    let mut solver = crate::integrate::DenseSolver::new(n, crate::integrate::FactorKind::Lu);
+    solver.factor(&kkt).map_err(|_| {
+        let names: Vec<String> = rows
+            .iter()
+            .map(|(row, _)| {
+                format!(
+                    "'{}' at {}",
+                    model.description.joints[row.source].name, row.limit
+                )
+            })
+            .collect();
+        format!(
+            "the impact at the limit of joint {} cannot be resolved (the limits' directions \
+             are blocked by the constraint rows or the mass matrix is singular)",
+            names.join(" with ")
+        )
+    })?;
+    let mut solution = rhs;
+    solver.solve_in_place(&mut solution);
+    Ok(solution.rows(0, nv).into_owned())
+}
+
+/// `w` of a limit event: `g = q − lower` (+1) or `g = upper − q` (−1).
+fn limit_sign(side: crate::effects::LimitSide) -> f64 {
+    match side {
+        crate::effects::LimitSide::Lower => 1.0,
+        crate::effects::LimitSide::Upper => -1.0,
+    }
+}
+
 fn se3_exp(linear: &Vec3, angular: &Vec3) -> (Vec3, Mat3) {
     let theta = angular.norm();
     let skew = angular.cross_matrix();
@@ -480,13 +535,18 @@ impl DaeSystem for RobotSystem {
     /// speed `e·(−ġ⁻)` while keeping every constraint row's velocity:
     ///
     /// ```text
-    /// [ M    wᵀ  Φ_qᵀ ] [Δq̇]   [ 0            ]
-    /// [ w    0   0    ] [ν  ] = [ −(1 + e) ġ⁻  ]      w = ∂g/∂q (±1 at the joint)
+    /// [ M    Wᵀ  Φ_qᵀ ] [Δq̇]   [ 0            ]
+    /// [ W    0   0    ] [ν  ] = [ −(1 + e) ġ⁻  ]      W = ∂g/∂q (a row ±1 at each joint)
     /// [ Φ_q  0   0    ] [μ  ]   [ 0            ]
     /// ```
     ///
-    /// Kinetic energy changes by `−½ (1 − e²) (ġ⁻)² / (w M_c⁻¹ wᵀ) ≤ 0` (`M_c`: `M` restricted to
-    /// the constraint-consistent velocities). Allocates (impacts are rare).
+    /// The impulse acts through `M` on the whole mechanism, and can drive another joint that rests
+    /// on (or a penalty depth past) its own limit into it, faster than the penalty can stop; such a
+    /// limit joins the impact as a plastic row (`ġ⁺ = 0`), and the system is solved again, until no
+    /// resting joint is driven in faster than [`crate::integrate::IMPACT_MIN_SPEED`] (at most one
+    /// round per limit). Kinetic energy never grows: each row removes the approach speed it
+    /// constrains (`−½ (1 − e²) (ġ⁻)² / (w M_c⁻¹ wᵀ) ≤ 0` with one row; `M_c`: `M` restricted to the
+    /// constraint-consistent velocities). Allocates (impacts are rare).
     fn apply_impact(
         &mut self,
         _t: f64,
@@ -498,47 +558,69 @@ impl DaeSystem for RobotSystem {
             .effects
             .limit_event(&self.model, event)
             .ok_or_else(|| format!("joint-limit event {event} does not exist"))?;
-        let sign = match limit.side {
-            crate::effects::LimitSide::Lower => 1.0,
-            crate::effects::LimitSide::Upper => -1.0,
-        };
-        let approach_rate = sign * v[limit.v_index];
+        let approach_rate = limit_sign(limit.side) * v[limit.v_index];
         if approach_rate >= 0.0 {
             // Already separating: nothing to do but keep the joint inside.
             q[limit.q_index] = limit.limit;
             return Ok(());
         }
+        let n_events = self.effects.n_limit_events();
+        let (mut gaps, mut rates) = (vec![0.0; n_events], vec![0.0; n_events]);
+        self.effects.limit_gaps(
+            &self.model,
+            q.as_slice(),
+            v.as_slice(),
+            &mut gaps,
+            &mut rates,
+        );
+        let mass = crba(&self.model, &mut self.data, q.as_slice()).clone();
         let (nv, m) = (self.model.nv, self.constraints.len());
-        let n = nv + 1 + m;
-        let mut kkt = DMatrix::zeros(n, n);
-        kkt.view_mut((0, 0), (nv, nv))
-            .copy_from(crba(&self.model, &mut self.data, q.as_slice()));
-        kkt[(limit.v_index, nv)] = sign;
-        kkt[(nv, limit.v_index)] = sign;
+        let mut phi_q = DMatrix::zeros(m, nv);
         if m > 0 {
-            let mut phi_q = DMatrix::zeros(m, nv);
             self.constraints
                 .jacobian(&self.model, &mut self.data, q.as_slice(), &mut phi_q);
-            for r in 0..m {
-                for j in 0..nv {
-                    kkt[(j, nv + 1 + r)] = phi_q[(r, j)];
-                    kkt[(nv + 1 + r, j)] = phi_q[(r, j)];
+        }
+        // Rows: (the limit, the jump of its rate it imposes). The impacting limit's row must
+        // solve; a resting limit whose row would make the system singular (a mimic follower's, a
+        // loop's: its motion is already fixed by the others) is left out.
+        let mut rows = vec![(limit, -(1.0 + limit.restitution) * approach_rate)];
+        let mut jump = impact_velocity_jump(&self.model, &mass, &phi_q, &rows)?;
+        let mut excluded = vec![false; n_events];
+        for _ in 0..n_events {
+            // The resting limit driven in fastest by the current jump, if faster than an impact.
+            let mut fastest: Option<(usize, f64)> = None;
+            for k in 0..n_events {
+                let Some(other) = self.effects.limit_event(&self.model, k) else {
+                    continue;
+                };
+                let already = rows.iter().any(|(row, _)| row.v_index == other.v_index);
+                let rate_after = rates[k] + limit_sign(other.side) * jump[other.v_index];
+                if gaps[k] <= 0.0
+                    && !already
+                    && !excluded[k]
+                    && rate_after < -crate::integrate::IMPACT_MIN_SPEED
+                    && fastest.is_none_or(|(_, r)| rate_after < r)
+                {
+                    fastest = Some((k, rate_after));
+                }
+            }
+            let Some((k, _)) = fastest else {
+                break;
+            };
+            let Some(other) = self.effects.limit_event(&self.model, k) else {
+                break;
+            };
+            // Plastic: the jump cancels the rate it had before the impact.
+            rows.push((other, -rates[k]));
+            match impact_velocity_jump(&self.model, &mass, &phi_q, &rows) {
+                Ok(with_it) => jump = with_it,
+                Err(_) => {
+                    rows.pop();
+                    excluded[k] = true;
                 }
             }
         }
-        let mut rhs = DVector::zeros(n);
-        rhs[nv] = -(1.0 + limit.restitution) * approach_rate;
-        let solution = kkt.lu().solve(&rhs).ok_or_else(|| {
-            let name = &self.model.description.joints[limit.source].name;
-            format!(
-                "joint '{name}': the impact at its limit {} cannot be resolved (the limit's direction \
-                 is blocked by the constraint rows or the mass matrix is singular)",
-                limit.limit
-            )
-        })?;
-        for j in 0..nv {
-            v[j] += solution[j];
-        }
+        *v += &jump;
         q[limit.q_index] = limit.limit;
         Ok(())
     }
