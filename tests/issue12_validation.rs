@@ -180,6 +180,45 @@ const MASSLESS_ROOT: &str = r#"<robot name="float"><link name="base"/>
     <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="10" velocity="1"/></joint>
 </robot>"#;
 
+/// A negative mass reaches the dynamics only through the library (the URDF reader, `--set` and a
+/// study's box check refuse one); its start failure must name the link and its negative value,
+/// not blame a missing `<inertial>`.
+#[test]
+fn a_negative_mass_at_the_start_is_named_as_such() {
+    use ribbon::model::{parse_description, LoadOptions, Model};
+    use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
+    let mut model = Model::from_description(
+        parse_description(MASSLESS_ROOT, "float.urdf").expect("parses"),
+        LoadOptions::default(),
+        "float.urdf",
+    )
+    .expect("loads");
+    let upper = model
+        .description
+        .links
+        .iter()
+        .position(|l| l.name == "upper")
+        .expect("link 'upper'");
+    model.inertial_scales[upper] = -15.0;
+    model.refresh();
+    let scene = Scene::resolve(
+        &parse_sidecar("").expect("empty sidecar"),
+        &model,
+        "s.toml",
+        SceneOverrides::default(),
+    )
+    .expect("scene");
+    let message = ribbon::simulate::check_start(&model, &scene)
+        .expect_err("a negative mass cannot start")
+        .to_string();
+    assert!(
+        message.contains("not positive definite at the initial state")
+            && message.contains("link 'upper' has mass -15 kg")
+            && !message.contains("give the links it moves an <inertial>"),
+        "{message}"
+    );
+}
+
 /// Before: `simulate` exited 1 with "singular mass matrix … pivot 1" where `dynamics` exited 2
 /// naming the joint; a massless floating root blamed 'shoulder'.
 #[test]

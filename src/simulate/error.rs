@@ -152,15 +152,24 @@ impl SimulationError {
             }
             if let Some((motion, causes)) = singular_mass_motion(model, q) {
                 let at_start = *step == 0;
-                let message = format!(
-                    "the mass matrix is singular{}: {motion} moves no mass or inertia{}{causes} ({source})",
-                    if at_start { " at the initial state" } else { "" },
-                    if causes.is_empty() {
-                        "; give the links it moves an <inertial>"
-                    } else {
-                        ": "
-                    },
-                );
+                let negative = negative_inertia_causes(model);
+                let message = if negative.is_empty() {
+                    format!(
+                        "the mass matrix is singular{}: {motion} moves no mass or inertia{}{causes} ({source})",
+                        if at_start { " at the initial state" } else { "" },
+                        if causes.is_empty() {
+                            "; give the links it moves an <inertial>"
+                        } else {
+                            ": "
+                        },
+                    )
+                } else {
+                    format!(
+                        "the mass matrix is not positive definite{}: {motion} moves a negative mass or inertia: {} (from the URDF or the parameter values of this run; a mass or an inertia must be positive: narrow the box or fix the value) ({source})",
+                        if at_start { " at the initial state" } else { "" },
+                        negative.join("; ")
+                    )
+                };
                 return if at_start {
                     SimulationError::Start { message }
                 } else {
@@ -366,6 +375,25 @@ fn singular_mass_motion(model: &Model, q: &[f64]) -> Option<(String, String)> {
         many => format!("the combined motion of joints {}", many.join(", ")),
     };
     Some((motion, massless_causes(model)))
+}
+
+/// Links whose mass or principal inertia is negative with this model's values (the URDF's, or a
+/// parameter point's: a mass interval reaching below zero), named with the value.
+fn negative_inertia_causes(model: &Model) -> Vec<String> {
+    let mut causes = Vec::new();
+    for (l, link) in model.description.links.iter().enumerate() {
+        let spec = model.effective_inertial(l);
+        let [ixx, _, _, iyy, _, izz] = spec.inertia;
+        if spec.mass < 0.0 {
+            causes.push(format!("link '{}' has mass {} kg", link.name, spec.mass));
+        } else if ixx < 0.0 || iyy < 0.0 || izz < 0.0 {
+            causes.push(format!(
+                "link '{}' has inertia ixx = {ixx}, iyy = {iyy}, izz = {izz} kg·m²",
+                link.name
+            ));
+        }
+    }
+    causes
 }
 
 /// Whether body `b` carries no mass and no rotational inertia.
