@@ -131,6 +131,7 @@ fn energy(system: &mut RobotSystem, q: &DVector<f64>, v: &DVector<f64>) -> f64 {
     let model = &system.model;
     let mass_matrix = crba(model, &mut system.data, q.as_slice()).clone();
     let kinetic = 0.5 * v.dot(&(&mass_matrix * v));
+    ribbon::dynamics::forward_kinematics(model, &mut system.data, q.as_slice());
     let potential: f64 = model
         .bodies
         .iter()

@@ -3,17 +3,18 @@
 //! `I^c_i = I_i + Σ_children X I^c_child`;  for each column `S_i[:, k]`: `F = I^c_i S_i[:, k]`,
 //! `M[i, i] = S_iᵀ F`, then walking up the ancestors `F ← X F`, `M[j, i] = M[i, j]ᵀ = S_jᵀ F`.
 
-use super::{forward_kinematics, Data};
+use super::{joint_placements, Data};
 use crate::model::{JointKind, Model};
 use crate::spatial::{Force, Inertia, Motion};
 
 /// Joint-space mass matrix: `data.mass_matrix = M(q)` (full, symmetric).
 ///
-/// `q: dim nq`. Overwrites `data.parent_from_body`, `data.world_from_body` (the algorithm itself
-/// needs only the former; callers read the latter, e.g. for a potential energy beside `M`),
-/// `data.composite` and `data.mass_matrix`; returns `data.mass_matrix`.
+/// `q: dim nq`. Overwrites `data.parent_from_body`, `data.composite` and `data.mass_matrix` (not
+/// `data.world_from_body`, which the algorithm does not need: call
+/// [`forward_kinematics`](super::forward_kinematics) for placements, as after [`rnea`](super::rnea));
+/// returns `data.mass_matrix`.
 pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::DMatrix<f64> {
-    forward_kinematics(model, data, q);
+    joint_placements(model, data, q);
     for (composite, body) in data.composite.iter_mut().zip(&model.bodies) {
         *composite = body.inertia;
     }

@@ -17,6 +17,17 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
     }
 }
 
+/// Computes `data.parent_from_body` only (each joint's placement in its parent body, `q: dim
+/// nq`): what the composite-rigid-body algorithm needs, without composing the world placements
+/// (`data.world_from_body` is left as it was; [`forward_kinematics`] computes both, with the same
+/// `parent_from_body` bits).
+pub fn joint_placements(model: &Model, data: &mut Data, q: &[f64]) {
+    for (i, joint) in model.joints.iter().enumerate() {
+        data.parent_from_body[i] =
+            joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()]);
+    }
+}
+
 /// The placement of URDF link `link` (an index into `model.links`, same order as
 /// `model.description.links`) in the world frame: `world_from_body[b] ∘ body_from_link` of the body
 /// `b` it is fixed to (`body_from_link` itself for a link on the world). Reads only

@@ -28,7 +28,7 @@ pub use derivatives::{
     link_inertia_derivative, link_origin_jacobian, rnea_derivatives, rnea_inertia_derivative,
     InertialField, RneaDerivatives,
 };
-pub use kinematics::{drift_kinematics, forward_kinematics, world_from_link};
+pub use kinematics::{drift_kinematics, forward_kinematics, joint_placements, world_from_link};
 pub use rnea::{add_external_forces, nonlinear_effects, rnea, rnea_with_external};
 
 use crate::model::Model;

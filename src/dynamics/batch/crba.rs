@@ -2,7 +2,7 @@
 //! (Featherstone §6.2; the recursion is in `src/dynamics/crba.rs`).
 
 use super::joint::{project_force, subspace_column};
-use super::kinematics::forward_kinematics_chunks;
+use super::kinematics::joint_placements_chunks;
 use super::lanes::{
     cross, mat_vec, v3_neg, v3_scale, ForceLanes, InertiaLanes, Lanes, MotionLanes,
 };
@@ -14,8 +14,8 @@ use crate::model::JointKind;
 /// Joint-space mass matrix of every sample: `data.mass_matrix` (`nv × nv` column-major per sample,
 /// full, symmetric) `= M(q)`.
 ///
-/// `q: dim nq` per sample. Overwrites `data.parent_from_body`, `data.world_from_body`,
-/// `data.composite` and `data.mass_matrix`. Each sample's matrix has the bits of
+/// `q: dim nq` per sample. Overwrites `data.parent_from_body`, `data.composite` and
+/// `data.mass_matrix` (not `data.world_from_body`, as the scalar kernel). Each sample's matrix has the bits of
 /// [`crate::dynamics::crba`] on that sample's model.
 pub fn crba<const W: usize>(model: &BatchModel<W>, data: &mut BatchData<W>, q: &BatchVectors<W>) {
     match model.isa.kind() {
@@ -35,7 +35,7 @@ pub(super) fn crba_chunks<const W: usize>(
     data: &mut BatchData<W>,
     q: &BatchVectors<W>,
 ) {
-    forward_kinematics_chunks(model, data, q);
+    joint_placements_chunks(model, data, q);
     let nb = model.joints.len();
     let n = model.nv;
     for (c, values) in model.chunks.iter().enumerate() {

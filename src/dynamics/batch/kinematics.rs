@@ -40,6 +40,29 @@ pub(super) fn forward_kinematics_chunks<const W: usize>(
     }
 }
 
+/// Computes `data.parent_from_body` only, of every sample (the batched
+/// [`crate::dynamics::joint_placements`]: what CRBA needs, `world_from_body` left as it was).
+#[inline(always)]
+pub(super) fn joint_placements_chunks<const W: usize>(
+    model: &BatchModel<W>,
+    data: &mut BatchData<W>,
+    q: &BatchVectors<W>,
+) {
+    let nb = model.joints.len();
+    for (c, values) in model.chunks.iter().enumerate() {
+        let q = q.chunk(c);
+        let parent_from_body = &mut data.parent_from_body[c * nb..(c + 1) * nb];
+        for (i, joint) in model.joints.iter().enumerate() {
+            let motion = joint_transform(
+                joint.kind,
+                &values.axis[i],
+                &q[joint.q_index..joint.q_index + joint.nq()],
+            );
+            parent_from_body[i] = values.parent_from_joint[i].compose(&motion);
+        }
+    }
+}
+
 #[inline(always)]
 fn chunk<const W: usize>(
     model: &BatchModel<W>,
