@@ -3,7 +3,8 @@
 # earlier runs — `--method auto` at large d picks the dimension-adaptive design, `--design
 # screened` screens first — run in stages. Each stage is one job array (`sbatch --array --wait`),
 # then `ribbon merge`: it exits 3 after planning the next stage (its plan in SHARDS/stage-K/), and
-# 0 once it has written the outputs. A fixed design is the same loop with one stage.
+# 0 once it has written the outputs (4 when it wrote them but its check did not trust the
+# surrogate for some outputs). A fixed design is the same loop with one stage.
 #
 # Run from the repository root:  examples/slurm/stages.sh [SHARDS]   (default 4)
 #
@@ -31,6 +32,7 @@ while :; do
     case $status in
         0) echo "stages.sh: done after $stage stages" >&2; exit 0 ;;
         3) stage=$((stage + 1)) ;;   # the next stage is planned: run its shards
+        4) echo "stages.sh: outputs written after $stage stages, but the surrogate is not trusted for some outputs (the warning above names them)" >&2; exit 4 ;;
         *) exit "$status" ;;         # 1: a failure, 2: refused input (named on stderr)
     esac
 done
