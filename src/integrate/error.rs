@@ -245,3 +245,45 @@ pub enum IntegrateError {
         worst: WorstEntry,
     },
 }
+
+impl IntegrateError {
+    /// The same error, with the step it names set to `step` where it names one: a consistent start
+    /// made in the middle of a run (the restart after a joint-limit impact) reports its failures
+    /// at step 0, as a run's start does; the run's own step tells a failure that happens later
+    /// (exit 1, "the run failed at t") from an initial state that cannot start (exit 2).
+    pub fn at_step(mut self, step: u64) -> Self {
+        match &mut self {
+            IntegrateError::TooManySubsteps { step: s, .. }
+            | IntegrateError::System { step: s, .. }
+            | IntegrateError::NonFinite { step: s, .. }
+            | IntegrateError::SingularMatrix { step: s, .. }
+            | IntegrateError::NewtonNotConverged { step: s, .. } => *s = step,
+            _ => {}
+        }
+        self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn at_step_relabels_only_errors_that_name_a_step() {
+        let singular = IntegrateError::SingularMatrix {
+            t: 0.45,
+            step: 0,
+            matrix: "mass matrix (initial acceleration)",
+            index: 2,
+            pivot_relative: 1e-14,
+        }
+        .at_step(458);
+        assert!(matches!(
+            singular,
+            IntegrateError::SingularMatrix { step: 458, .. }
+        ));
+        assert!(singular.to_string().contains("(step 458)"), "{singular}");
+        let step = IntegrateError::InvalidStep { step_s: -1.0 }.at_step(3);
+        assert!(matches!(step, IntegrateError::InvalidStep { .. }));
+    }
+}

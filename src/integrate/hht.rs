@@ -1363,8 +1363,10 @@ impl HhtIntegrator {
             let ws = &mut self.ws;
             eval::apply_impact(system, at, event, &mut ws.impact_q, &mut ws.impact_v)?;
         }
+        // A restart that fails is a failure of the run at this step, not of its initial state.
         let start: ConsistentStart =
-            consistent_start(system, t, &self.ws.impact_q, &self.ws.impact_v)?;
+            consistent_start(system, t, &self.ws.impact_q, &self.ws.impact_v)
+                .map_err(|e| e.at_step(step.max(1)))?;
         self.trajectory.state.q.copy_from(&start.q);
         self.trajectory.state.v.copy_from(&start.v);
         self.trajectory.v_newmark.copy_from(&start.v);

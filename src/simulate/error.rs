@@ -153,9 +153,9 @@ impl SimulationError {
             if let Some((motion, causes)) = singular_mass_motion(model, q) {
                 let at_start = *step == 0;
                 let negative = negative_inertia_causes(model);
-                let message = if negative.is_empty() {
+                let body = if negative.is_empty() {
                     format!(
-                        "the mass matrix is singular{}: {motion} moves no mass or inertia{}{causes} ({source})",
+                        "the mass matrix is singular{}: {motion} moves no mass or inertia{}{causes}",
                         if at_start { " at the initial state" } else { "" },
                         if causes.is_empty() {
                             "; give the links it moves an <inertial>"
@@ -165,16 +165,18 @@ impl SimulationError {
                     )
                 } else {
                     format!(
-                        "the mass matrix is not positive definite{}: {motion} moves a negative mass or inertia: {} (from the URDF or the parameter values of this run; a mass or an inertia must be positive: narrow the box or fix the value) ({source})",
+                        "the mass matrix is not positive definite{}: {motion} moves a negative mass or inertia: {} (from the URDF or the parameter values of this run; a mass or an inertia must be positive: narrow the box or fix the value)",
                         if at_start { " at the initial state" } else { "" },
                         negative.join("; ")
                     )
                 };
                 return if at_start {
-                    SimulationError::Start { message }
+                    SimulationError::Start {
+                        message: format!("{body} ({source})"),
+                    }
                 } else {
                     SimulationError::Integrate {
-                        message: format!("{source}; {message}"),
+                        message: format!("{source}; {body}"),
                         source,
                     }
                 };
