@@ -180,6 +180,60 @@ const MASSLESS_ROOT: &str = r#"<robot name="float"><link name="base"/>
     <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="10" velocity="1"/></joint>
 </robot>"#;
 
+/// The spring advice of a Newton failure names the spring only when the step does not resolve
+/// its period: the double pendulum's elbow on a 1e10 N·m/rad spring released 1 rad away (period
+/// 7.3e-5 s at h = 1 ms) is told to take a step below 3.6e-6 s; the quadruped's knees (300 N·m/rad,
+/// period 28 ms, resolved by 1 ms) failing at touch-down under the fixed step are not blamed on
+/// their springs (the message used to ask for a step "below 1.4e-3 s" at 1e-3 s) but on the
+/// contact, with the adaptive step.
+#[test]
+fn the_spring_advice_names_the_spring_only_when_the_step_does_not_resolve_it() {
+    let stiff = temp_file(
+        "stiff_elbow.toml",
+        "[scene]\nduration = 0.1\neffects = [\"gravity\", \"joint_springs\"]\n\
+         [[scene.spring]]\njoint = \"j2\"\nstiffness = 1e10\nrest = 1.0\n",
+    );
+    let out = ribbon_outcome(&[
+        "simulate",
+        "robots/double_pendulum/double_pendulum.urdf",
+        "--uncertainty",
+        stiff.to_str().unwrap(),
+    ]);
+    assert_exit(
+        &out,
+        1,
+        &[
+            "joint 'j2'",
+            "spring stiffness 1.000e10: period 7.255e-5 s",
+            "the spring is too stiff for the step of 0.001 s",
+            "use a step below 3.6e-6 s",
+        ],
+    );
+    let quadruped = std::fs::read_to_string("robots/quadruped/quadruped.uncertainty.toml")
+        .expect("the shipped quadruped sidecar");
+    assert!(quadruped.contains("step_control = \"adaptive\""));
+    let fixed = temp_file(
+        "quadruped_fixed.toml",
+        &quadruped.replace("step_control = \"adaptive\"", "step_control = \"fixed\""),
+    );
+    let out = ribbon_outcome(&[
+        "simulate",
+        "robots/quadruped/quadruped.urdf",
+        "--uncertainty",
+        fixed.to_str().unwrap(),
+    ]);
+    assert_exit(
+        &out,
+        1,
+        &["Newton did not converge", "step_control = \"adaptive\""],
+    );
+    assert!(
+        !out.stderr.contains("spring is too stiff"),
+        "{}",
+        out.stderr
+    );
+}
+
 /// A negative mass reaches the dynamics only through the library (the URDF reader, `--set` and a
 /// study's box check refuse one); its start failure must name the link and its negative value,
 /// not blame a missing `<inertial>`.

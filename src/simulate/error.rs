@@ -457,6 +457,10 @@ fn is_descendant(model: &Model, c: usize, ancestor: usize) -> bool {
 /// A Newton failure's worst coordinate in the robot's words: `(name, details, likely cause)` —
 /// the joint, its effective inertia `M_jj` at `q` (and its spring's period against the step when it
 /// has one), and what to change.
+/// Steps per period of a joint spring below which the step does not resolve it (the advice asks
+/// for a step of at most a twentieth of the period).
+const STEPS_PER_SPRING_PERIOD: f64 = 20.0;
+
 fn describe_coordinate(
     model: &Model,
     scene: &Scene,
@@ -486,6 +490,11 @@ fn describe_coordinate(
         .springs
         .iter()
         .find(|s| model.joints[s.joint].name == owner && s.stiffness > 0.0);
+    // The spring is the likely cause only when the step does not resolve its period; a step
+    // already below a twentieth of it (the quadruped's knees at touch-down) points elsewhere.
+    let spring = spring.filter(|s| {
+        STEPS_PER_SPRING_PERIOD * h > std::f64::consts::TAU * (inertia / s.stiffness).sqrt()
+    });
     if let Some(spring) = spring {
         let period = std::f64::consts::TAU * (inertia / spring.stiffness).sqrt();
         return (
@@ -496,7 +505,7 @@ fn describe_coordinate(
             ),
             format!(
                 "the spring is too stiff for the step of {h} s or the inertia too small: use a step below {:.1e} s (a twentieth of the period), or check the inertia",
-                period / 20.0
+                period / STEPS_PER_SPRING_PERIOD
             ),
         );
     }
