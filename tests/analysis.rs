@@ -344,6 +344,26 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
     }
 }
 
+/// With the check turned off, a scanned surrogate's envelopes are unverified, and stderr says so;
+/// with the check on (or a method that has none to turn off) it does not.
+#[test]
+fn an_unchecked_surrogate_is_named_as_such() {
+    let urdf = "robots/double_pendulum/double_pendulum.urdf";
+    let note = "the surrogate was not checked against the true model (--check-runs 0)";
+    for (args, expected) in [
+        (vec!["--check-runs", "0"], true),
+        (vec![], false),
+        (vec!["--method", "legendre-ia"], false),
+    ] {
+        let mut all = vec!["analyze", urdf];
+        all.extend(&args);
+        let out = ribbon_output(&all);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{args:?}: {stderr}");
+        assert_eq!(stderr.contains(note), expected, "{args:?}: {stderr}");
+    }
+}
+
 #[test]
 fn the_check_finds_nothing_on_a_smooth_response_and_can_be_turned_off() {
     let sidecar = manifest("robots/double_pendulum/double_pendulum.uncertainty.toml");

@@ -163,6 +163,7 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     let kinematic_model = model;
     let mut data = Data::new(&kinematic_model);
     let mut reporter = ProgressReporter::new();
+    let scans_a_surrogate = plan.method.locates_extremes();
     let report = study.run_stages(
         plan,
         stages,
@@ -178,6 +179,11 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     check_envelope_finite(&report)?;
     if let Some(check) = &report.check {
         warn_untrusted(&report, check);
+    } else if scans_a_surrogate {
+        // Only `--check-runs 0` leaves a scanned surrogate unchecked.
+        eprintln!(
+            "note: the surrogate was not checked against the true model (--check-runs 0), so nothing here says whether its envelopes can be trusted; leave --check-runs at its default to check them"
+        );
     }
     if let Some(lyapunov) = report.lyapunov.filter(|l| l.is_chaotic()) {
         eprintln!(
