@@ -258,7 +258,7 @@ fn main() {
                     Some(name) => only.push(name.clone()),
                     None => {
                         eprintln!(
-                            "hht_batch: --robot needs a name (ribbon-ur5, erd-ur5, erd-panda)"
+                            "hht_batch: --robot needs a name (ribbon-ur5, erd-ur5, erd-panda, ribbon-quadruped, ribbon-four-bar)"
                         );
                         std::process::exit(2)
                     }
@@ -273,7 +273,7 @@ fn main() {
         }
         i += 1;
     }
-    let mut robots = reference_venv::benchmark_robots(&root);
+    let mut robots = fall::step_robots(&root, reference_venv::benchmark_robots(&root));
     if !only.is_empty() {
         robots.retain(|(name, _)| only.contains(name));
     }

@@ -35,7 +35,8 @@ use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::{hht_settings, RobotSystem};
 
 fn robots() -> Vec<(String, PathBuf)> {
-    reference_venv::benchmark_robots(&PathBuf::from(env!("CARGO_MANIFEST_DIR")))
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    fall::step_robots(&root, reference_venv::benchmark_robots(&root))
 }
 
 /// One robot ready to step: the system, the integrator and the start state.

@@ -8,9 +8,10 @@ Usage (from the crate root, in a venv made from benches/requirements.txt):
     /work/target-bench/mujoco-venv/bin/python benches/mujoco_timing.py [--nstep N] [--number K]
         [--repeat R] [--reference-venv DIR] [URDF ...]
 
-Without URDFs it times robots/ur5/ur5.urdf and example-robot-data's ur5 and panda, found in the
+Without URDFs it times robots/ur5/ur5.urdf, example-robot-data's ur5 and panda, found in the
 reference venv's cmeel.prefix (default target/reference-venv, the venv `cargo test --release` makes;
-a robot whose URDF is missing is skipped with a line on stderr). Prints JSON on stdout.
+a robot whose URDF is missing is skipped with a line on stderr), robots/quadruped (floating base) and
+robots/four_bar (a loop). Prints JSON on stdout.
 
 What is simulated (the same problem as benches/hht_step.rs):
 - The URDF with every <visual> and <collision> element removed (MuJoCo cannot resolve `package://`
@@ -29,6 +30,15 @@ What is simulated (the same problem as benches/hht_step.rs):
   URDF declares damping 0.003 and 0.3; nonzero damping also adds work to MuJoCo's Euler step).
 - Start: q0 = REVOLUTE_Q0 cycled over the hinge joints in order, prismatic joints at 0.02 m, v0 = 0
   (the same state as benches/hht_step.rs), a 1 s passive fall of `nstep` = 1000 steps.
+- quadruped.urdf (benches/support/fall.rs): its root body gets a free joint (MuJoCo's URDF import
+  fixes the root; ribbon's `base = "floating"`), starting at QUADRUPED_BASE_XYZ, identity
+  orientation, angular velocity QUADRUPED_BASE_W (body frame, MuJoCo's convention for a free joint's
+  angular velocity as for ribbon's; linear velocity 0), hinges at REVOLUTE_Q0; no ground.
+- four_bar.urdf: the scene of its shipped sidecar (four_bar.uncertainty.toml, read here): its
+  gravity, initial.q and initial.v by joint name, and its loop as a `connect` equality between two
+  sites at the origins of the frames the sidecar's planar pin joins (3 rows in MuJoCo, whose third
+  is identically satisfied in the plane; 2 rows in ribbon). MuJoCo refuses its bars' zero inertia
+  about their own axis: compiler.boundinertia = 1e-9 kg m^2 (no joint turns about that axis).
 
 Method: `mujoco.rollout.Rollout(nthread=0).rollout(..., skip_checks=True)` with preallocated
 outputs, which runs the whole trajectory in C (mj_step per step, plus copying the state out).
@@ -46,6 +56,7 @@ import os
 import re
 import sys
 import time
+import tomllib
 
 import mujoco
 import numpy as np
@@ -54,6 +65,9 @@ from mujoco import rollout as mj_rollout
 REVOLUTE_Q0 = [0.3, -0.8, 0.5, -1.2, 0.4, 1.0, 0.7]  # keep in sync with benches/hht_step.rs
 PRISMATIC_Q0 = 0.02
 TIMESTEP = 1e-3
+QUADRUPED_BASE_XYZ = [0.0, 0.0, 0.461]  # keep in sync with benches/support/fall.rs
+QUADRUPED_BASE_W = [0.4, -0.3, 0.2]
+FOUR_BAR_INERTIA_FLOOR = 1e-9  # kg m^2
 
 # Inside the reference venv, under whichever Python 3 made it.
 ERD_GLOB = "lib/python3*/site-packages/cmeel.prefix/share/example-robot-data/robots"
@@ -71,9 +85,39 @@ def strip_geometry(urdf_text):
     return urdf_text
 
 
+def robot_kind(path):
+    """'quadruped', 'four_bar' or 'arm' (the problem benches/support/fall.rs gives ribbon)."""
+    return {"quadruped.urdf": "quadruped", "four_bar.urdf": "four_bar"}.get(
+        os.path.basename(path), "arm")
+
+
+def four_bar_scene(path):
+    """The shipped four-bar sidecar's [scene] and its single [[scene.loop]]."""
+    with open(os.path.join(os.path.dirname(path), "four_bar.uncertainty.toml"), "rb") as f:
+        scene = tomllib.load(f)["scene"]
+    (pin,) = scene["loop"]
+    if pin["type"] != "planar_pin" or any(pin["point_in_parent"]) or any(pin["point_in_child"]):
+        sys.exit("mujoco_timing.py: the four-bar's loop is no longer a planar pin at two frame "
+                 "origins; update four_bar_scene")
+    return scene, pin
+
+
 def load(path, integrator, equality):
     with open(path) as f:
         spec = mujoco.MjSpec.from_string(strip_geometry(f.read()))
+    gravity = (0.0, 0.0, -9.81)
+    if robot_kind(path) == "quadruped":
+        spec.worldbody.first_body().add_freejoint()
+    elif robot_kind(path) == "four_bar":
+        scene, pin = four_bar_scene(path)
+        gravity = tuple(scene["gravity"])
+        # Its slender bars have no inertia about their own axis (x), which MuJoCo refuses; no joint
+        # turns about x, so a floor of 1e-9 kg m^2 changes nothing of the planar motion.
+        spec.compiler.boundinertia = FOUR_BAR_INERTIA_FLOOR
+        for frame in (pin["parent"], pin["child"]):
+            spec.body(frame).add_site(name=frame, pos=[0.0, 0.0, 0.0])
+        spec.add_equality(type=mujoco.mjtEq.mjEQ_CONNECT, objtype=mujoco.mjtObj.mjOBJ_SITE,
+                          name1=pin["parent"], name2=pin["child"])
     compiler = {
         "discardvisual": bool(spec.compiler.discardvisual),
         "fusestatic": bool(spec.compiler.fusestatic),
@@ -92,7 +136,7 @@ def load(path, integrator, equality):
     model.dof_armature[:] = 0.0
     model.dof_frictionloss[:] = 0.0
     model.opt.timestep = TIMESTEP
-    model.opt.gravity[:] = (0.0, 0.0, -9.81)
+    model.opt.gravity[:] = gravity
     model.opt.integrator = integrator
     flags = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_LIMIT
     if not equality:
@@ -101,8 +145,17 @@ def load(path, integrator, equality):
     return model, compiler, loaded
 
 
-def initial_qpos(model):
+def initial_state(model, path):
+    """(qpos, qvel) at the start of the bench problem (module docstring)."""
     q = np.zeros(model.nq)
+    v = np.zeros(model.nv)
+    if robot_kind(path) == "four_bar":
+        scene, _ = four_bar_scene(path)
+        for key, values in (("q", q), ("v", v)):
+            for name, value in scene["initial"][key].items():
+                joint = model.joint(name)
+                values[joint.qposadr[0] if key == "q" else joint.dofadr[0]] = value
+        return q, v
     hinge = 0
     for j in range(model.njnt):
         adr = model.jnt_qposadr[j]
@@ -111,15 +164,19 @@ def initial_qpos(model):
             hinge += 1
         elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
             q[adr] = PRISMATIC_Q0
+        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            q[adr:adr + 3] = QUADRUPED_BASE_XYZ
+            q[adr + 3:adr + 7] = (1.0, 0.0, 0.0, 0.0)
+            dof = model.jnt_dofadr[j]
+            v[dof + 3:dof + 6] = QUADRUPED_BASE_W
         else:
             sys.exit(f"mujoco_timing.py: joint type {model.jnt_type[j]} not handled")
-    return q
+    return q, v
 
 
-def time_rollout(model, nstep, number, repeat):
+def time_rollout(model, path, nstep, number, repeat):
     data = mujoco.MjData(model)
-    data.qpos[:] = initial_qpos(model)
-    data.qvel[:] = 0.0
+    data.qpos[:], data.qvel[:] = initial_state(model, path)
     mujoco.mj_forward(model, data)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     nstate = mujoco.mj_stateSize(model, spec)
@@ -172,14 +229,14 @@ def time_robot(label, path, nstep, number, repeat):
             base = model
         if name == "euler_no_equality" and model.neq == 0:
             continue
-        variants[name] = time_rollout(model, nstep, number, repeat)
+        variants[name] = time_rollout(model, path, nstep, number, repeat)
     names = [mujoco.mj_id2name(base, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(base.njnt)]
     # Accuracy context (not timed): the same fall with RK4 at a 10x smaller step, as a reference
     # for the end positions of every variant above and of ribbon's HHT (printed by hht_step.rs).
     model, _, _ = load(path, mujoco.mjtIntegrator.mjINT_RK4, True)
     model.opt.timestep = TIMESTEP / 10
     data = mujoco.MjData(model)
-    data.qpos[:] = initial_qpos(model)
+    data.qpos[:], data.qvel[:] = initial_state(model, path)
     for _ in range(10 * nstep):
         mujoco.mj_step(model, data)
     reference = data.qpos.copy()
@@ -194,7 +251,8 @@ def time_robot(label, path, nstep, number, repeat):
         "nbody": base.nbody,
         "neq": base.neq,
         "joints": names,
-        "q0": initial_qpos(base).tolist(),
+        "q0": initial_state(base, path)[0].tolist(),
+        "v0": initial_state(base, path)[1].tolist(),
         "compiler": compiler,
         "loaded_joint_terms": loaded,
         "set_joint_terms": "damping, armature and frictionloss set to 0",
@@ -239,6 +297,8 @@ def main(argv):
             else:
                 print(f"{label}: skipped, {path} not found (run `cargo test --release` once to "
                       "create the reference venv)", file=sys.stderr)
+        urdfs.append(("ribbon-quadruped", "robots/quadruped/quadruped.urdf"))
+        urdfs.append(("ribbon-four-bar", "robots/four_bar/four_bar.urdf"))
     results = [time_robot(label, path, nstep, number, repeat) for label, path in urdfs]
     print(json.dumps({
         "mujoco_version": mujoco.__version__,

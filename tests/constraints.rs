@@ -484,3 +484,58 @@ fn bad_constraint_input_is_refused_clearly() {
         }
     }
 }
+
+/// The one-pass `Φ, Φ_q` the integrator asks for gives the same bits as the two separate calls,
+/// on the shipped loops (four-bar: planar pin; slider-crank: its loop and slider rows) at
+/// configurations off the constraint manifold, and after the kinematics were left at another q.
+#[test]
+fn constraints_and_jacobian_in_one_call_equal_the_separate_calls_bitwise() {
+    use nalgebra::DMatrix;
+    use ribbon::integrate::DaeSystem;
+    for (urdf, sidecar) in [
+        (
+            "robots/four_bar/four_bar.urdf",
+            "robots/four_bar/four_bar.uncertainty.toml",
+        ),
+        (
+            "robots/slider_crank/slider_crank.urdf",
+            "robots/slider_crank/slider_crank.uncertainty.toml",
+        ),
+    ] {
+        let model = load(urdf);
+        let (file, _) = read_sidecar(&manifest(sidecar)).expect("sidecar");
+        let scene = Scene::resolve(&file, &model, "test", SceneOverrides::default())
+            .expect("scene resolves");
+        let mut system = RobotSystem::new(model.clone(), &scene);
+        let (nv, m) = (system.nv(), system.n_constraints());
+        assert!(m >= 2, "{urdf}: the scene has loop rows");
+        for k in 0..5 {
+            let q = DVector::from_fn(system.nq(), |i, _| {
+                scene.initial_q[i] + 0.1 * (k as f64 + 1.0) * (i as f64 - 1.0)
+            });
+            let other = DVector::from_fn(system.nq(), |i, _| 0.3 * i as f64 - 0.2);
+            let (mut phi, mut phi_q) = (DVector::zeros(m), DMatrix::zeros(m, nv));
+            system.constraints(0.1, &q, &mut phi).unwrap();
+            system.constraint_jacobian(0.1, &q, &mut phi_q).unwrap();
+            // Leave the system's kinematics at another configuration first.
+            let mut scratch = DVector::zeros(m);
+            system.constraints(0.1, &other, &mut scratch).unwrap();
+            let (mut phi_one, mut phi_q_one) = (DVector::zeros(m), DMatrix::zeros(m, nv));
+            system
+                .constraints_and_jacobian(0.1, &q, &mut phi_one, &mut phi_q_one)
+                .unwrap();
+            let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(phi.as_slice()), bits(phi_one.as_slice()), "{urdf}: Φ");
+            assert_eq!(
+                bits(phi_q.as_slice()),
+                bits(phi_q_one.as_slice()),
+                "{urdf}: Φ_q"
+            );
+            assert!(
+                phi.amax() > 1e-6,
+                "{urdf}: q is off the manifold (|Φ| = {})",
+                phi.amax()
+            );
+        }
+    }
+}

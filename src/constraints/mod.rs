@@ -142,10 +142,19 @@ impl ConstraintSet {
 
     /// `out = Φ_q` (`m × nv`). Runs forward kinematics into `data` when there are loops.
     pub fn jacobian(&self, model: &Model, data: &mut Data, q: &[f64], out: &mut DMatrix<f64>) {
+        if !self.loops.is_empty() {
+            forward_kinematics(model, data, q);
+        }
+        self.jacobian_at_kinematics(model, data, out);
+    }
+
+    /// `out = Φ_q` with the loops' chains read from the placements already in `data` (a
+    /// [`forward_kinematics`] pass at the configuration of interest; the other rows do not
+    /// depend on it).
+    fn jacobian_at_kinematics(&self, model: &Model, data: &Data, out: &mut DMatrix<f64>) {
         out.fill(0.0);
         let (mimic_start, drive_start) = self.offsets();
         if !self.loops.is_empty() {
-            forward_kinematics(model, data, q);
             let mut row = 0;
             for l in &self.loops {
                 l.jacobian(model, data, row, out);
@@ -159,6 +168,22 @@ impl ConstraintSet {
         for (i, d) in self.drives.iter().enumerate() {
             out[(drive_start + i, d.v_index)] = 1.0;
         }
+    }
+
+    /// `phi = Φ(q, t)` and `phi_q = Φ_q` with one forward-kinematics pass: the same bits as
+    /// [`evaluate`](Self::evaluate) then [`jacobian`](Self::jacobian) (both read the placements
+    /// of that pass).
+    pub fn evaluate_with_jacobian(
+        &self,
+        model: &Model,
+        data: &mut Data,
+        t: f64,
+        q: &[f64],
+        phi: &mut DVector<f64>,
+        phi_q: &mut DMatrix<f64>,
+    ) {
+        self.evaluate(model, data, t, q, phi);
+        self.jacobian_at_kinematics(model, data, phi_q);
     }
 
     /// `out = Φ_t` (`dim m`): only drives depend on time explicitly.

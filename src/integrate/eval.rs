@@ -141,6 +141,21 @@ pub(crate) fn constraint_jacobian<S: DaeSystem + ?Sized>(
     at.check_finite("constraint_jacobian", out.iter())
 }
 
+/// `phi (m) = Φ(q, t)` and `phi_q (m × nv) = Φ_q(q, t)` in one call (the same bits as
+/// [`constraints`] then [`constraint_jacobian`]).
+pub(crate) fn constraints_and_jacobian<S: DaeSystem + ?Sized>(
+    sys: &mut S,
+    at: At,
+    q: &DVector<f64>,
+    phi: &mut DVector<f64>,
+    phi_q: &mut DMatrix<f64>,
+) -> Result<(), IntegrateError> {
+    sys.constraints_and_jacobian(at.t, q, phi, phi_q)
+        .map_err(at.system_error("constraints_and_jacobian"))?;
+    at.check_finite("constraints", phi.iter())?;
+    at.check_finite("constraint_jacobian", phi_q.iter())
+}
+
 /// `out (m) = Φ_t(q, t)`.
 pub(crate) fn constraint_time_derivative<S: DaeSystem + ?Sized>(
     sys: &mut S,

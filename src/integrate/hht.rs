@@ -1581,9 +1581,10 @@ impl HhtIntegrator {
             return Ok(());
         }
         let ws = &mut self.ws;
-        eval::constraints(system, at, &ws.q, &mut ws.phi)?;
-        if !ws.phi_q_fresh {
-            eval::constraint_jacobian(system, at, &ws.q, &mut ws.phi_q)?;
+        if ws.phi_q_fresh {
+            eval::constraints(system, at, &ws.q, &mut ws.phi)?;
+        } else {
+            eval::constraints_and_jacobian(system, at, &ws.q, &mut ws.phi, &mut ws.phi_q)?;
             ws.phi_q_fresh = true;
         }
         ws.dyn_residual.gemv_tr(1.0, &ws.phi_q, &ws.lambda, 1.0);
@@ -1712,14 +1713,21 @@ impl HhtIntegrator {
         let (nv, m) = (self.nv, self.m);
         {
             let ws = &mut self.ws;
-            eval::constraints(system, at, &self.trajectory.state.q, &mut ws.phi)?;
+            eval::constraints_and_jacobian(
+                system,
+                at,
+                &self.trajectory.state.q,
+                &mut ws.phi,
+                &mut ws.phi_q,
+            )?;
+            ws.phi_q_fresh = false;
         }
         self.trajectory.stats.max_constraint_violation = self
             .trajectory
             .stats
             .max_constraint_violation
             .max(self.ws.phi.amax());
-        let before = self.velocity_violation(system, at)?;
+        let before = self.velocity_violation_at_jacobian(system, at)?;
         self.trajectory.stats.max_velocity_violation_unprojected = self
             .trajectory
             .stats
@@ -1730,7 +1738,7 @@ impl HhtIntegrator {
                 self.trajectory.stats.max_velocity_violation.max(before);
             return Ok(());
         }
-        // velocity_violation left Φ_q(q_{n+1}) in ws.phi_q and Φ_q q̇ + Φ_t in ws.phi_dot.
+        // ws.phi_q holds Φ_q(q_{n+1}), ws.phi_dot Φ_q q̇ + Φ_t.
         let ws = &mut self.ws;
         if !ws.projection_mass_given {
             eval::mass_matrix(system, at, &self.trajectory.state.q, &mut ws.mass)?;
@@ -1768,7 +1776,8 @@ impl HhtIntegrator {
                 .v_newmark
                 .copy_from(&self.trajectory.state.v);
         }
-        let after = self.velocity_violation(system, at)?;
+        // The projection changed q̇ only: Φ_q(q_{n+1}) is still in ws.phi_q.
+        let after = self.velocity_violation_at_jacobian(system, at)?;
         self.trajectory.stats.max_velocity_violation =
             self.trajectory.stats.max_velocity_violation.max(after);
         Ok(())
@@ -1789,9 +1798,20 @@ impl HhtIntegrator {
         at: At,
     ) -> Result<f64, IntegrateError> {
         let ws = &mut self.ws;
-        let s = &self.trajectory.state;
-        eval::constraint_jacobian(system, at, &s.q, &mut ws.phi_q)?;
+        eval::constraint_jacobian(system, at, &self.trajectory.state.q, &mut ws.phi_q)?;
         ws.phi_q_fresh = false;
+        self.velocity_violation_at_jacobian(system, at)
+    }
+
+    /// [`velocity_violation`](Self::velocity_violation) with `Φ_q` at the current state already
+    /// in `ws.phi_q`; leaves the vector in `ws.phi_dot`.
+    fn velocity_violation_at_jacobian<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<f64, IntegrateError> {
+        let ws = &mut self.ws;
+        let s = &self.trajectory.state;
         eval::constraint_time_derivative(system, at, &s.q, &mut ws.phi_dot)?;
         ws.phi_dot.gemv(1.0, &ws.phi_q, &s.v, 1.0);
         Ok(ws.phi_dot.amax())

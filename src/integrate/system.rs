@@ -273,6 +273,22 @@ pub trait DaeSystem {
         }
     }
 
+    /// `Φ(q, t)` and `Φ_q(q)` at one configuration, as [`constraints`](Self::constraints) and
+    /// [`constraint_jacobian`](Self::constraint_jacobian) would give them (same bits); a system
+    /// overrides it to share the work both need (the kinematics of a loop's chains).
+    ///
+    /// - `t`: time, s; `q`: dim `nq`; `phi`: dim `m`; `phi_q`: `m × nv`; both overwritten.
+    fn constraints_and_jacobian(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        phi: &mut DVector<f64>,
+        phi_q: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints(t, q, phi)?;
+        self.constraint_jacobian(t, q, phi_q)
+    }
+
     /// The explicit time derivative `Φ_t(q, t)` (rheonomic rows such as drives; velocity level:
     /// `Φ̇ = Φ_q q̇ + Φ_t`).
     ///

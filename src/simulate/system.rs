@@ -270,6 +270,24 @@ impl DaeSystem for RobotSystem {
         Ok(())
     }
 
+    fn constraints_and_jacobian(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        phi: &mut DVector<f64>,
+        phi_q: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints.evaluate_with_jacobian(
+            &self.model,
+            &mut self.data,
+            t,
+            q.as_slice(),
+            phi,
+            phi_q,
+        );
+        Ok(())
+    }
+
     fn constraint_time_derivative(
         &mut self,
         t: f64,
