@@ -31,11 +31,7 @@ impl At {
     }
 
     /// `Err(NonFinite)` naming `quantity` if any entry of `x` is NaN or infinite.
-    pub fn check_finite<'a>(
-        self,
-        quantity: &'static str,
-        x: impl IntoIterator<Item = &'a f64>,
-    ) -> Result<(), IntegrateError> {
+    pub fn check_finite(self, quantity: &'static str, x: &[f64]) -> Result<(), IntegrateError> {
         match first_non_finite(x) {
             None => Ok(()),
             Some(index) => Err(IntegrateError::NonFinite {
@@ -57,7 +53,7 @@ pub(crate) fn mass_matrix<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.mass_matrix(at.t, q, out)
         .map_err(at.system_error("mass_matrix"))?;
-    at.check_finite("mass_matrix", out.iter())
+    at.check_finite("mass_matrix", out.as_slice())
 }
 
 /// `out (nv) = Q(t, q, v)`.
@@ -70,7 +66,7 @@ pub(crate) fn forces<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.forces(at.t, q, v, out)
         .map_err(at.system_error("forces"))?;
-    at.check_finite("forces", out.iter())
+    at.check_finite("forces", out.as_slice())
 }
 
 /// `out (nv) = M q̈ − Q` through the system's inverse dynamics.
@@ -84,7 +80,7 @@ pub(crate) fn dynamics_residual<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.dynamics_residual(at.t, q, v, qdd, out)
         .map_err(at.system_error("dynamics_residual"))?;
-    at.check_finite("dynamics_residual", out.iter())
+    at.check_finite("dynamics_residual", out.as_slice())
 }
 
 /// `stiffness (nv), damping (nv)` = diagonal spring and damper terms.
@@ -98,8 +94,8 @@ pub(crate) fn newton_diagonal<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.newton_diagonal(at.t, q, v, stiffness, damping)
         .map_err(at.system_error("newton_diagonal"))?;
-    at.check_finite("newton_diagonal.stiffness", stiffness.iter())?;
-    at.check_finite("newton_diagonal.damping", damping.iter())
+    at.check_finite("newton_diagonal.stiffness", stiffness.as_slice())?;
+    at.check_finite("newton_diagonal.damping", damping.as_slice())
 }
 
 /// The coupling terms of [`DaeSystem::newton_coupling`], checked finite.
@@ -113,8 +109,8 @@ pub(crate) fn newton_coupling<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.newton_coupling(at.t, q, v, stiffness, damping)
         .map_err(at.system_error("newton_coupling"))?;
-    at.check_finite("newton_coupling.stiffness", stiffness.iter())?;
-    at.check_finite("newton_coupling.damping", damping.iter())
+    at.check_finite("newton_coupling.stiffness", stiffness.as_slice())?;
+    at.check_finite("newton_coupling.damping", damping.as_slice())
 }
 
 /// `out (m) = Φ(q, t)`.
@@ -126,7 +122,7 @@ pub(crate) fn constraints<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.constraints(at.t, q, out)
         .map_err(at.system_error("constraints"))?;
-    at.check_finite("constraints", out.iter())
+    at.check_finite("constraints", out.as_slice())
 }
 
 /// `out (m × nv) = Φ_q(q, t)`.
@@ -138,7 +134,7 @@ pub(crate) fn constraint_jacobian<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.constraint_jacobian(at.t, q, out)
         .map_err(at.system_error("constraint_jacobian"))?;
-    at.check_finite("constraint_jacobian", out.iter())
+    at.check_finite("constraint_jacobian", out.as_slice())
 }
 
 /// `phi (m) = Φ(q, t)` and `phi_q (m × nv) = Φ_q(q, t)` in one call (the same bits as
@@ -152,8 +148,8 @@ pub(crate) fn constraints_and_jacobian<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.constraints_and_jacobian(at.t, q, phi, phi_q)
         .map_err(at.system_error("constraints_and_jacobian"))?;
-    at.check_finite("constraints", phi.iter())?;
-    at.check_finite("constraint_jacobian", phi_q.iter())
+    at.check_finite("constraints", phi.as_slice())?;
+    at.check_finite("constraint_jacobian", phi_q.as_slice())
 }
 
 /// `out (m) = Φ_t(q, t)`.
@@ -165,7 +161,7 @@ pub(crate) fn constraint_time_derivative<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.constraint_time_derivative(at.t, q, out)
         .map_err(at.system_error("constraint_time_derivative"))?;
-    at.check_finite("constraint_time_derivative", out.iter())
+    at.check_finite("constraint_time_derivative", out.as_slice())
 }
 
 /// `out (m) = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt`.
@@ -178,7 +174,7 @@ pub(crate) fn constraint_acceleration_bias<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.constraint_acceleration_bias(at.t, q, v, out)
         .map_err(at.system_error("constraint_acceleration_bias"))?;
-    at.check_finite("constraint_acceleration_bias", out.iter())
+    at.check_finite("constraint_acceleration_bias", out.as_slice())
 }
 
 /// `out (nq) = q ⊕ dq`.
@@ -191,7 +187,7 @@ pub(crate) fn integrate_position<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.integrate_position(q, dq, out)
         .map_err(at.system_error("integrate_position"))?;
-    at.check_finite("integrate_position", out.iter())
+    at.check_finite("integrate_position", out.as_slice())
 }
 
 /// Checks the system's declared dimensions against the sizes the caller holds.
@@ -231,8 +227,8 @@ pub(crate) fn residual_jacobians<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.residual_jacobians(at.t, q, v, qdd, lambda, stiffness, damping)
         .map_err(at.system_error("residual_jacobians"))?;
-    at.check_finite("residual_jacobians.stiffness", stiffness.iter())?;
-    at.check_finite("residual_jacobians.damping", damping.iter())
+    at.check_finite("residual_jacobians.stiffness", stiffness.as_slice())?;
+    at.check_finite("residual_jacobians.damping", damping.as_slice())
 }
 
 /// `gaps (n_events) = g(q)`, `rates (n_events) = ġ(q, v)` of the unilateral limits.
@@ -246,8 +242,8 @@ pub(crate) fn event_gaps<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.event_gaps(at.t, q, v, gaps, rates)
         .map_err(at.system_error("event_gaps"))?;
-    at.check_finite("event_gaps", gaps.iter())?;
-    at.check_finite("event_gaps.rates", rates.iter())
+    at.check_finite("event_gaps", gaps.as_slice())?;
+    at.check_finite("event_gaps.rates", rates.as_slice())
 }
 
 /// The impact law of limit `event` at `(q, v)` (both overwritten).
@@ -260,8 +256,8 @@ pub(crate) fn apply_impact<S: DaeSystem + ?Sized>(
 ) -> Result<(), IntegrateError> {
     sys.apply_impact(at.t, event, q, v)
         .map_err(at.system_error("apply_impact"))?;
-    at.check_finite("apply_impact.q", q.iter())?;
-    at.check_finite("apply_impact.v", v.iter())
+    at.check_finite("apply_impact.q", q.as_slice())?;
+    at.check_finite("apply_impact.v", v.as_slice())
 }
 
 /// The fraction of a Newton correction to apply ([`DaeSystem::newton_update_fraction`]), checked to

@@ -1619,7 +1619,7 @@ impl HhtIntegrator {
         } else {
             self.trajectory.newton.solver.solve_in_place(&mut ws.rhs);
         }
-        at.check_finite("newton_update", ws.rhs.iter())?;
+        at.check_finite("newton_update", ws.rhs.as_slice())?;
 
         // Weighted RMS of the position-level correction β'h² Δq̈ and of Δλ, at the iterate before
         // the correction; the worst weighted entry is kept for the failure report.
@@ -1767,7 +1767,7 @@ impl HhtIntegrator {
             ws.rhs[nv + j] = -ws.phi_dot[j];
         }
         self.trajectory.newton.solver.solve_in_place(&mut ws.rhs);
-        at.check_finite("velocity_projection", ws.rhs.iter())?;
+        at.check_finite("velocity_projection", ws.rhs.as_slice())?;
         for i in 0..nv {
             self.trajectory.state.v[i] += ws.rhs[i];
         }
@@ -1852,18 +1852,29 @@ pub(crate) fn assemble_iteration_matrix(
 ) {
     let nv = mass.nrows();
     let m = phi_q.nrows();
-    out.fill(0.0);
-    out.view_mut((0, 0), (nv, nv)).copy_from(mass);
-    if let Some((k, c)) = diagonal {
-        for j in 0..nv {
-            out[(j, j)] += beta_h2 * k[j] + gamma_h * c[j];
+    let n = nv + m;
+    debug_assert_eq!((out.nrows(), out.ncols()), (n, n));
+    // Column by column in the column-major storage: M's columns over the first nv rows, the
+    // (scaled) constraint rows below them; Φ_qᵀ in the last m columns over a zero block.
+    let mass = mass.as_slice();
+    let out = out.as_mut_slice();
+    for j in 0..nv {
+        let column = &mut out[j * n..(j + 1) * n];
+        column[..nv].copy_from_slice(&mass[j * nv..(j + 1) * nv]);
+        for r in 0..m {
+            column[nv + r] = constraint_row_factor * phi_q[(r, j)];
         }
     }
     for r in 0..m {
+        let column = &mut out[(nv + r) * n..(nv + r + 1) * n];
+        for (i, entry) in column[..nv].iter_mut().enumerate() {
+            *entry = phi_q[(r, i)];
+        }
+        column[nv..].fill(0.0);
+    }
+    if let Some((k, c)) = diagonal {
         for j in 0..nv {
-            let g = phi_q[(r, j)];
-            out[(j, nv + r)] = g;
-            out[(nv + r, j)] = constraint_row_factor * g;
+            out[j * n + j] += beta_h2 * k[j] + gamma_h * c[j];
         }
     }
 }

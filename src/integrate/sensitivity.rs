@@ -370,7 +370,7 @@ impl HhtSensitivity {
                 &mut ws.constraints_p,
             )
             .map_err(at.system_error("parameter_jacobians"))?;
-        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.iter())?;
+        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.as_slice())?;
         ws.matrix.copy_from(&ws.mass);
         ws.solver
             .factor(&ws.matrix)
@@ -386,7 +386,7 @@ impl HhtSensitivity {
                 ws.rhs[i] = -ws.dynamics_p[(i, k)];
             }
             ws.solver.solve_in_place(&mut ws.rhs);
-            at.check_finite("start sensitivity", ws.rhs.iter())?;
+            at.check_finite("start sensitivity", ws.rhs.as_slice())?;
             for i in 0..self.nv {
                 self.s_qdd[(i, k)] = ws.rhs[i];
             }
@@ -441,11 +441,11 @@ impl HhtSensitivity {
                 }
             }
         }
-        at.check_finite("start sensitivity", self.s_q.iter())?;
+        at.check_finite("start sensitivity", self.s_q.as_slice())?;
         self.close_start_position(system, integrator)?;
-        at.check_finite("start sensitivity", self.s_v.iter())?;
-        at.check_finite("start sensitivity", self.s_qdd.iter())?;
-        at.check_finite("start sensitivity", self.s_lambda.iter())?;
+        at.check_finite("start sensitivity", self.s_v.as_slice())?;
+        at.check_finite("start sensitivity", self.s_qdd.as_slice())?;
+        at.check_finite("start sensitivity", self.s_lambda.as_slice())?;
         Ok(())
     }
 
@@ -477,7 +477,10 @@ impl HhtSensitivity {
                 &mut ws.constraints_p,
             )
             .map_err(at.system_error("parameter_jacobians"))?;
-        at.check_finite("parameter_jacobians.constraints", ws.constraints_p.iter())?;
+        at.check_finite(
+            "parameter_jacobians.constraints",
+            ws.constraints_p.as_slice(),
+        )?;
         let mut residual = ws.constraints_p.clone();
         residual.gemm(1.0, &ws.phi_q, &self.s_q, 1.0);
         let gram = &ws.phi_q * ws.phi_q.transpose();
@@ -647,8 +650,8 @@ impl HhtSensitivity {
                     &mut ws.damping,
                 )
                 .map_err(at.system_error("residual_jacobians"))?;
-            at.check_finite("residual_jacobians.stiffness", ws.stiffness.iter())?;
-            at.check_finite("residual_jacobians.damping", ws.damping.iter())?;
+            at.check_finite("residual_jacobians.stiffness", ws.stiffness.as_slice())?;
+            at.check_finite("residual_jacobians.damping", ws.damping.as_slice())?;
         } else {
             self.residual_jacobians_by_differences(
                 system,
@@ -669,8 +672,8 @@ impl HhtSensitivity {
             system
                 .integrate_position_jacobians(&self.q_before, &ws.dq, &mut ws.wrt_q, &mut ws.wrt_dq)
                 .map_err(at.system_error("integrate_position_jacobians"))?;
-            at.check_finite("integrate_position_jacobians", ws.wrt_q.iter())?;
-            at.check_finite("integrate_position_jacobians", ws.wrt_dq.iter())?;
+            at.check_finite("integrate_position_jacobians", ws.wrt_q.as_slice())?;
+            at.check_finite("integrate_position_jacobians", ws.wrt_dq.as_slice())?;
         }
         system
             .parameter_jacobians(
@@ -683,8 +686,11 @@ impl HhtSensitivity {
                 &mut ws.constraints_p,
             )
             .map_err(at.system_error("parameter_jacobians"))?;
-        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.iter())?;
-        at.check_finite("parameter_jacobians.constraints", ws.constraints_p.iter())?;
+        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.as_slice())?;
+        at.check_finite(
+            "parameter_jacobians.constraints",
+            ws.constraints_p.as_slice(),
+        )?;
 
         // Predictions from the sensitivities at t_n.
         ws.increment.copy_from(&self.s_v);
@@ -772,7 +778,7 @@ impl HhtSensitivity {
                 ws.rhs[nv + j] = ws.rhs_constraints[(j, k)];
             }
             ws.solver.solve_in_place(&mut ws.rhs);
-            at.check_finite("sensitivity solve", ws.rhs.iter())?;
+            at.check_finite("sensitivity solve", ws.rhs.as_slice())?;
             for i in 0..nv {
                 ws.new_qdd[(i, k)] = ws.rhs[i];
             }
@@ -978,7 +984,7 @@ impl HhtSensitivity {
             ws.rhs[nv + j] = -ws.phi_t[j];
         }
         ws.solver.solve_in_place(&mut ws.rhs);
-        at.check_finite("velocity projection (sensitivities)", ws.rhs.iter())
+        at.check_finite("velocity projection (sensitivities)", ws.rhs.as_slice())
     }
 }
 

@@ -84,8 +84,8 @@ pub fn consistent_start<S: DaeSystem + ?Sized>(
         });
     }
     let at = At { t: t0, step: 0 };
-    at.check_finite("q0", q0.iter())?;
-    at.check_finite("v0", v0.iter())?;
+    at.check_finite("q0", q0.as_slice())?;
+    at.check_finite("v0", v0.as_slice())?;
     if !t0.is_finite() {
         return Err(IntegrateError::NonFinite {
             t: t0,
@@ -185,7 +185,7 @@ pub fn consistent_start<S: DaeSystem + ?Sized>(
             pivot_relative: b.pivot_relative,
         })?;
     solver.solve_in_place(&mut rhs);
-    at.check_finite("initial acceleration", rhs.iter())?;
+    at.check_finite("initial acceleration", rhs.as_slice())?;
     Ok(ConsistentStart {
         q,
         v,
