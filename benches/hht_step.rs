@@ -461,7 +461,7 @@ fn count_steps(args: &[String]) {
         }
     };
     let Some((_, path)) = robots().into_iter().find(|(name, _)| name == robot) else {
-        eprintln!("hht_step: no robot '{robot}' (ribbon-ur5, erd-ur5, erd-panda; the last two need the reference venv)");
+        eprintln!("hht_step: no robot '{robot}' (ribbon-ur5, erd-ur5, erd-panda, ribbon-quadruped, ribbon-four-bar; the erd robots need the reference venv)");
         std::process::exit(2);
     };
     let mut fall = Fall::with_reuse(&path, reuse);

@@ -1398,12 +1398,25 @@ impl HhtIntegrator {
         let s = &self.trajectory.state;
         let v_n = &self.trajectory.v_newmark;
         let ws = &mut self.ws;
-        for i in 0..self.nv {
-            let a_new = (1.0 + alpha) * ws.qdd[i] - alpha * s.qdd[i];
-            let a_n = ws.a_start[i];
-            ws.a[i] = a_new;
-            ws.dq[i] = h * v_n[i] + h * h * ((0.5 - beta) * a_n + beta * a_new);
-            ws.v[i] = v_n[i] + h * ((1.0 - gamma) * a_n + gamma * a_new);
+        // Over slices of one length (no per-entry bounds checks); the same operations per entry.
+        let nv = self.nv;
+        let (qdd, qdd_n, a_start) = (
+            &ws.qdd.as_slice()[..nv],
+            &s.qdd.as_slice()[..nv],
+            &ws.a_start.as_slice()[..nv],
+        );
+        let v_n = &v_n.as_slice()[..nv];
+        let (a, dq, v) = (
+            &mut ws.a.as_mut_slice()[..nv],
+            &mut ws.dq.as_mut_slice()[..nv],
+            &mut ws.v.as_mut_slice()[..nv],
+        );
+        for i in 0..nv {
+            let a_new = (1.0 + alpha) * qdd[i] - alpha * qdd_n[i];
+            let a_n = a_start[i];
+            a[i] = a_new;
+            dq[i] = h * v_n[i] + h * h * ((0.5 - beta) * a_n + beta * a_new);
+            v[i] = v_n[i] + h * ((1.0 - gamma) * a_n + gamma * a_new);
         }
         eval::integrate_position(system, at, &s.q, &ws.dq, &mut ws.q)?;
         ws.mass_fresh = false;
