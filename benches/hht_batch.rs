@@ -18,6 +18,9 @@
 //! ```text
 //! cargo bench --bench hht_batch [-- --rounds R] [--no-mujoco] [--robot NAME]...
 //! ```
+//!
+//! `-- --count-steps ROBOT SIZE` runs one fall of a batch of SIZE samples and nothing else, for
+//! instruction counts under callgrind (`benches/step_instructions.py`).
 
 #[path = "support/batch_samples.rs"]
 mod batch_samples;
@@ -231,9 +234,42 @@ fn mujoco_euler(root: &Path, robots: &[(String, PathBuf)]) -> Result<Vec<(String
         .collect())
 }
 
+/// `--count-steps ROBOT SIZE`: one whole fall of a batch of SIZE samples of ROBOT and nothing else
+/// (no MuJoCo, no timing, no scalar runs), for instruction counts under callgrind with
+/// `--toggle-collect` on `BatchStepper::step` (`benches/step_instructions.py --batch`).
+fn count_steps(root: &Path, args: &[String]) {
+    let usage = "usage: hht_batch --count-steps ROBOT SIZE";
+    let (Some(robot), Some(Ok(size))) = (args.first(), args.get(1).map(|s| s.parse::<usize>()))
+    else {
+        eprintln!("{usage}");
+        std::process::exit(2);
+    };
+    let robots = fall::step_robots(root, reference_venv::benchmark_robots(root));
+    let Some((_, path)) = robots.iter().find(|(name, _)| name == robot) else {
+        eprintln!("hht_batch: no robot '{robot}'; {usage}");
+        std::process::exit(2);
+    };
+    if size == 0 {
+        eprintln!("hht_batch: SIZE must be at least 1; {usage}");
+        std::process::exit(2);
+    }
+    let (template, scene, q0, v0) = fall::fall_problem(path);
+    let mut batch = Batch::new(&template, &scene, hht_settings(&scene), (&q0, &v0), size);
+    batch.fall();
+    let counts = batch.counts();
+    println!(
+        "{{\"robot\": \"{robot}\", \"samples\": {size}, \"steps\": {STEPS_PER_FALL}, \"batched\": {}, \"scalar\": {}}}",
+        counts.batched, counts.scalar
+    );
+}
+
 fn main() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let args: Vec<String> = std::env::args().skip(1).collect();
+    if let Some(at) = args.iter().position(|a| a == "--count-steps") {
+        count_steps(&root, &args[at + 1..]);
+        return;
+    }
     let mut rounds = 7usize;
     let mut with_mujoco = true;
     let mut only: Vec<String> = Vec::new();

@@ -238,6 +238,18 @@ impl DaeSystem for Profiled<'_> {
     ) -> Result<(), SystemError> {
         self.timed(2, |s| s.dynamics_residual(t, q, v, qdd, out))
     }
+    fn dynamics_residual_after_mass_matrix(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(2, |s| {
+            s.dynamics_residual_after_mass_matrix(t, q, v, qdd, out)
+        })
+    }
     fn newton_diagonal(
         &mut self,
         t: f64,

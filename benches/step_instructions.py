@@ -6,6 +6,10 @@ Python with `mujoco` 4.0 and numpy; valgrind from Debian's `valgrind` package):
 
     target/mujoco-venv/bin/python benches/step_instructions.py [--steps N] [ROBOT ...]
 
+Besides the scalar step it counts the lock-step step per sample: `BatchStepper::step` in
+`hht_batch --count-steps ROBOT 4` (one 1 s fall of a batch of 4 samples, masses 1 % apart; issue 16
+item 2), divided by 4 x 1000 sample-steps.
+
 Why: MuJoCo's µs per step moved by up to 1.8x between sessions on this shared machine (the same
 script, the same wheel), so a time ratio from one run says as much about the machine's state as
 about the two codes. Instruction counts do not depend on load. They are not time either (a dependent
@@ -34,6 +38,8 @@ sys.path.insert(0, os.path.join(ROOT, "benches"))
 import mujoco_timing  # noqa: E402  (the problem definitions, shared with the time bench)
 
 RIBBON_STEP = "ribbon::integrate::hht::HhtIntegrator::step"
+BATCH_STEP = "ribbon::simulate::batch_step::BatchStepper::step"
+BATCH_SIZE = 4
 MUJOCO_STEP = "mj_step"
 
 # Run under valgrind in a child Python: the MuJoCo side of one robot.
@@ -62,15 +68,15 @@ def collected(command, function):
     return int(found.group(1)), result.stdout
 
 
-def hht_step_binary():
+def bench_binary(name):
     output = subprocess.run(
-        ["cargo", "bench", "--bench", "hht_step", "--no-run", "--message-format=json"],
+        ["cargo", "bench", "--bench", name, "--no-run", "--message-format=json"],
         cwd=ROOT, check=True, capture_output=True, text=True).stdout
     for line in output.splitlines():
         message = json.loads(line)
-        if message.get("target", {}).get("name") == "hht_step" and message.get("executable"):
+        if message.get("target", {}).get("name") == name and message.get("executable"):
             return message["executable"]
-    sys.exit("step_instructions.py: cargo did not report the hht_step executable")
+    sys.exit(f"step_instructions.py: cargo did not report the {name} executable")
 
 
 def robot_paths():
@@ -105,19 +111,26 @@ def main(argv):
         i += 1
     if not 1 <= steps <= 1000:
         sys.exit("step_instructions.py: --steps must be 1 to 1000 (one 1 s fall)")
-    binary = hht_step_binary()
+    binary = bench_binary("hht_step")
+    batch_binary = bench_binary("hht_batch")
     benches = os.path.join(ROOT, "benches")
-    print("| robot | ribbon HHT step (Newton it./step) | MuJoCo Euler step | ratio |")
-    print("|---|---|---|---|")
+    print("| robot | ribbon HHT step (Newton it./step) | batch of 4, per sample | MuJoCo Euler step "
+          "| ratio: step, batch per sample |")
+    print("|---|---|---|---|---|")
     for label, path in robot_paths():
         if only and label not in only:
             continue
         ribbon, stdout = collected([binary, "--count-steps", label, str(steps)], RIBBON_STEP)
         stats = json.loads(stdout.strip().splitlines()[-1])
+        batch, stdout = collected([batch_binary, "--count-steps", label, str(BATCH_SIZE)],
+                                  BATCH_STEP)
+        batch_stats = json.loads(stdout.strip().splitlines()[-1])
+        per_sample = batch / (BATCH_SIZE * batch_stats["steps"])
         child = MUJOCO_CHILD.format(benches=benches, path=path, steps=steps)
         mujoco, _ = collected([sys.executable, "-c", child], MUJOCO_STEP)
         print(f"| {label} | {ribbon / steps:,.0f} ({stats['newton_iterations'] / steps:.2f}) "
-              f"| {mujoco / steps:,.0f} | {ribbon / mujoco:.2f} |", flush=True)
+              f"| {per_sample:,.0f} | {mujoco / steps:,.0f} | {ribbon / mujoco:.2f}, "
+              f"{per_sample * steps / mujoco:.2f} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,9 @@ pub use derivatives::{
     InertialField, RneaDerivatives,
 };
 pub use kinematics::{drift_kinematics, forward_kinematics, joint_placements, world_from_link};
-pub use rnea::{add_external_forces, nonlinear_effects, rnea, rnea_with_external};
+pub use rnea::{
+    add_external_forces, nonlinear_effects, rnea, rnea_at_placements, rnea_with_external,
+};
 
 use crate::model::Model;
 use thiserror::Error;

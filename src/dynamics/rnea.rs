@@ -16,7 +16,30 @@ use crate::spatial::{Motion, Vec3};
 /// `data.acceleration`, `data.force` and `data.tau` (not `data.world_from_body`: call
 /// [`forward_kinematics`](super::forward_kinematics) for placements); returns `data.tau`.
 pub fn rnea<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64], qdd: &[f64]) -> &'a [f64] {
-    run(model, data, q, v, Some(qdd));
+    run(model, data, Placements::From(q), v, Some(qdd));
+    let Data {
+        parent_from_body,
+        force,
+        tau,
+        ..
+    } = data;
+    backward(model, parent_from_body, force, tau.as_mut_slice());
+    data.tau.as_slice()
+}
+
+/// [`rnea`] with the joint placements already in `data.parent_from_body` (a [`crba`] or
+/// [`joint_placements`] pass at the configuration of interest, and nothing since at another one):
+/// the same bits as [`rnea`] at that configuration, without recomputing the placements.
+///
+/// [`crba`]: super::crba
+/// [`joint_placements`]: super::joint_placements
+pub fn rnea_at_placements<'a>(
+    model: &Model,
+    data: &'a mut Data,
+    v: &[f64],
+    qdd: &[f64],
+) -> &'a [f64] {
+    run(model, data, Placements::Given, v, Some(qdd));
     let Data {
         parent_from_body,
         force,
@@ -31,7 +54,7 @@ pub fn rnea<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64], qdd: &[
 ///
 /// `q: dim nq`, `v: dim nv`. Overwrites the same kinematic buffers as [`rnea`] and `data.bias`.
 pub fn nonlinear_effects<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64]) -> &'a [f64] {
-    run(model, data, q, v, None);
+    run(model, data, Placements::From(q), v, None);
     let Data {
         parent_from_body,
         force,
@@ -42,11 +65,25 @@ pub fn nonlinear_effects<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[
     data.bias.as_slice()
 }
 
-fn run(model: &Model, data: &mut Data, q: &[f64], v: &[f64], qdd: Option<&[f64]>) {
+/// Where the forward pass takes each joint's placement from.
+#[derive(Clone, Copy)]
+enum Placements<'q> {
+    /// Computed from the coordinates `q` (dim nq), and written to `data.parent_from_body`.
+    From(&'q [f64]),
+    /// Read from `data.parent_from_body`.
+    Given,
+}
+
+fn run(model: &Model, data: &mut Data, placements: Placements, v: &[f64], qdd: Option<&[f64]>) {
     let base_acceleration = Motion::new(-model.gravity, Vec3::zeros());
     for (i, joint) in model.joints.iter().enumerate() {
-        let (qi, vi) = (joint.q_index, joint.v_index);
-        let parent_from_body = joint.parent_from_child(&q[qi..qi + joint.nq()]);
+        let vi = joint.v_index;
+        let parent_from_body = match placements {
+            Placements::From(q) => {
+                joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()])
+            }
+            Placements::Given => data.parent_from_body[i],
+        };
         let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
         let (parent_velocity, parent_acceleration) = match joint.parent {
             Some(p) => (data.velocity[p], data.acceleration[p]),
@@ -99,7 +136,7 @@ pub fn rnea_with_external<'a>(
     qdd: &[f64],
     external: &[crate::spatial::Force],
 ) -> &'a [f64] {
-    run(model, data, q, v, Some(qdd));
+    run(model, data, Placements::From(q), v, Some(qdd));
     for (f, e) in data.force.iter_mut().zip(external) {
         *f = *f - *e;
     }

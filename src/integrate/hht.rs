@@ -1568,7 +1568,26 @@ impl HhtIntegrator {
             let ws = &mut self.ws;
             // Dynamics rows: M q̈ − Q (+ Φ_qᵀ λ below).
             if system.provides_dynamics_residual() {
-                eval::dynamics_residual(system, at, &ws.q, &ws.v, &ws.qdd, &mut ws.dyn_residual)?;
+                if ws.mass_fresh {
+                    // The factorisation just evaluated M at this iterate (its last mass_matrix call).
+                    eval::dynamics_residual_after_mass_matrix(
+                        system,
+                        at,
+                        &ws.q,
+                        &ws.v,
+                        &ws.qdd,
+                        &mut ws.dyn_residual,
+                    )?;
+                } else {
+                    eval::dynamics_residual(
+                        system,
+                        at,
+                        &ws.q,
+                        &ws.v,
+                        &ws.qdd,
+                        &mut ws.dyn_residual,
+                    )?;
+                }
             } else {
                 if !ws.mass_fresh {
                     eval::mass_matrix(system, at, &ws.q, &mut ws.mass)?;

@@ -156,6 +156,21 @@ pub trait DaeSystem {
         Err("dynamics_residual is not implemented by this system".into())
     }
 
+    /// [`dynamics_residual`](Self::dynamics_residual) at the configuration `q` of the last
+    /// [`mass_matrix`](Self::mass_matrix) call: the integrator calls it for the first residual
+    /// after it factorised at that iterate, so that a system may reuse the mass matrix's
+    /// kinematics. It must give the same bits as `dynamics_residual`. Default: that call.
+    fn dynamics_residual_after_mass_matrix(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.dynamics_residual(t, q, v, qdd, out)
+    }
+
     /// The cheap diagonal parts of `−∂Q/∂q` and `−∂Q/∂q̇`: per velocity coordinate, the stiffness
     /// `k_j ≥ 0` of springs (and penalty limits) and the damping `c_j ≥ 0` of dampers acting on that
     /// coordinate alone. The modified Newton matrix adds `β'h² k_j + γ'h c_j` to `M_jj`; without them a
