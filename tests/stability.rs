@@ -798,3 +798,47 @@ fn so101_limits(urdf: &str) -> Vec<(String, f64, f64)> {
     assert_eq!(limits.len(), 6, "the SO-101's six limited joints");
     limits
 }
+
+/// A public robot whose shoulders and hips are three revolute joints with massless links between
+/// them (example-robot-data's human): falling limp at the fixed 1 ms step, the right shoulder's z
+/// and y joints line up at t ≈ 0.32 s and the mass matrix turns nearly singular. No step size
+/// resolves that, so the failure must say so — the joints, the massless links, "gimbal lock" —
+/// instead of advising a smaller step (which it did: at 0.2 ms it fails the same way).
+#[test]
+fn the_human_in_gimbal_lock_fails_naming_the_joints_and_massless_links() {
+    let urdf = common::example_robot_data_dir().join("human_description/robots/human.urdf");
+    let urdf = urdf.to_str().expect("UTF-8 path");
+    let dir = common::fresh_test_scratch_dir("stability", "human");
+    let sidecar = dir.join("human.uncertainty.toml");
+    std::fs::write(
+        &sidecar,
+        "[scene]\nduration = 1.0\nstep = 0.001\ngravity = [0.0, 0.0, -9.81]\n",
+    )
+    .expect("scratch sidecar");
+    let failed = common::ribbon_outcome(&[
+        "simulate",
+        urdf,
+        "--uncertainty",
+        sidecar.to_str().expect("UTF-8 path"),
+    ]);
+    assert_eq!(failed.code, Some(1), "{}", failed.stderr);
+    let message = failed
+        .stderr
+        .lines()
+        .find(|l| l.starts_with("error:"))
+        .unwrap_or_else(|| panic!("an error line in {}", failed.stderr));
+    for needle in [
+        "Newton did not converge",
+        "the mass matrix is nearly singular",
+        "'right_shoulder_Z'",
+        "'right_shoulder_Y'",
+        "'right_upperarm_virtual'",
+        "gimbal lock",
+    ] {
+        assert!(message.contains(needle), "{needle} missing: {message}");
+    }
+    assert!(
+        !message.contains("try a smaller --step"),
+        "a smaller step does not help here: {message}"
+    );
+}

@@ -63,6 +63,14 @@ const MASSLESS_RELATIVE: f64 = 1e-10;
 /// this fraction of the largest component.
 const NULL_MOTION_SHARE: f64 = 0.1;
 
+/// A combined motion of two or more joints is "nearly dependent" (their motions nearly the same,
+/// as in a gimbal lock) when the inertia it moves — the smallest eigenvalue of `M` — is below this
+/// fraction of the smallest effective inertia `M_jj` of the joints taking part: a light link moved
+/// by one joint alone has a small eigenvalue too, but close to its own `M_jj`. 1e-2 is two joint
+/// motions within ~8° of each other (measured: example-robot-data's human, whose shoulders and
+/// hips are three revolute joints with massless links between, fails at 5e-3 and 4e-7).
+const NEARLY_DEPENDENT_MOTION: f64 = 1e-2;
+
 impl SimulationError {
     /// The exit code: 2 when the input is at fault — the constraints cannot hold, or the run fails
     /// at its start (step 0: the initial state, its projection, the initial acceleration) — and 1
@@ -193,6 +201,9 @@ impl SimulationError {
             } => {
                 // "velocity coordinate N (…)" becomes the joint's name, with the likely cause.
                 let (name, details, cause) = describe_coordinate(model, scene, q, *index);
+                // Joints whose motions line up (a gimbal lock) explain the failure better than the
+                // step size does.
+                let cause = nearly_dependent_motion(model, q).unwrap_or(cause);
                 let joint = format!(
                     "{name} (velocity coordinate {index}, weighted correction {weighted_correction:.3e}{details})"
                 );
@@ -357,26 +368,117 @@ fn singular_mass_motion(model: &Model, q: &[f64]) -> Option<(String, String)> {
                 .to_string(),
         ));
     }
+    let mode = smallest_mass_mode(mass)?;
+    if mode.inertia > MASSLESS_RELATIVE * scale {
+        return None;
+    }
+    Some((
+        motion_name(model, &mode.coordinates),
+        massless_causes(model),
+    ))
+}
+
+/// The motion of `M`'s smallest eigenvalue: that inertia and the velocity coordinates taking part
+/// (component at least [`NULL_MOTION_SHARE`] of the largest).
+struct SmallestMassMode {
+    inertia: f64,
+    coordinates: Vec<usize>,
+}
+
+fn smallest_mass_mode(mass: nalgebra::DMatrix<f64>) -> Option<SmallestMassMode> {
     let eigen = nalgebra::SymmetricEigen::new(mass);
     let (smallest, value) = eigen
         .eigenvalues
         .iter()
         .enumerate()
         .min_by(|a, b| a.1.total_cmp(b.1))?;
-    if *value > MASSLESS_RELATIVE * scale {
-        return None;
-    }
     let null = eigen.eigenvectors.column(smallest);
     let largest = null.amax();
-    let joints: Vec<String> = (0..null.len())
-        .filter(|i| null[*i].abs() >= NULL_MOTION_SHARE * largest)
-        .map(|i| coordinate_name(model, i))
+    Some(SmallestMassMode {
+        inertia: *value,
+        coordinates: (0..null.len())
+            .filter(|i| null[*i].abs() >= NULL_MOTION_SHARE * largest)
+            .collect(),
+    })
+}
+
+/// "joint 'a'" or "the combined motion of joints 'a', 'b'".
+fn motion_name(model: &Model, coordinates: &[usize]) -> String {
+    let joints: Vec<String> = coordinates
+        .iter()
+        .map(|&i| coordinate_name(model, i))
         .collect();
-    let motion = match joints.as_slice() {
+    match joints.as_slice() {
         [one] => format!("joint {one}"),
         many => format!("the combined motion of joints {}", many.join(", ")),
+    }
+}
+
+/// When `M(q)` is nearly singular because two or more joints' motions are nearly the same (a
+/// gimbal lock of joints with massless links between them): the likely cause of a Newton failure
+/// there, in words — the joints, how little the combined motion moves, the massless links on the
+/// chain between them, and what to change. `None` when no such motion exists at `q`.
+fn nearly_dependent_motion(model: &Model, q: &[f64]) -> Option<String> {
+    let mass = mass_matrix(model, q)?;
+    let diagonal: Vec<f64> = mass.diagonal().iter().copied().collect();
+    let mode = smallest_mass_mode(mass)?;
+    if mode.coordinates.len() < 2 {
+        return None;
+    }
+    let alone = mode
+        .coordinates
+        .iter()
+        .map(|&i| diagonal[i])
+        .fold(f64::INFINITY, f64::min);
+    if !(alone > 0.0 && mode.inertia < NEARLY_DEPENDENT_MOTION * alone) {
+        return None;
+    }
+    // The bodies of the joints taking part, and the massless ones on the chain between them.
+    let bodies: Vec<usize> = mode
+        .coordinates
+        .iter()
+        .filter_map(|&i| {
+            model
+                .joints
+                .iter()
+                .position(|j| (j.v_index..j.v_index + j.nv()).contains(&i))
+        })
+        .collect();
+    let mut massless = Vec::new();
+    for &b in &bodies {
+        let mut current = Some(b);
+        while let Some(c) = current {
+            // Up to the topmost joint taking part, not past it.
+            if c != b
+                && !bodies
+                    .iter()
+                    .any(|&other| other == c || is_descendant(model, c, other))
+            {
+                break;
+            }
+            if body_is_massless(model, c) && !massless.contains(&c) {
+                massless.push(c);
+            }
+            current = model.joints[c].parent;
+        }
+    }
+    massless.sort_unstable();
+    let links: Vec<String> = massless
+        .iter()
+        .map(|&b| format!("'{}'", model.description.links[model.bodies[b].link].name))
+        .collect();
+    let between = if links.is_empty() {
+        String::new()
+    } else {
+        format!(" across links that carry no inertia ({})", links.join(", "))
     };
-    Some((motion, massless_causes(model)))
+    Some(format!(
+        "the mass matrix is nearly singular at the last accepted state: {} moves almost no inertia ({:.3e}, {:.1e} of the least any of these joints moves alone) — their motions are lining up{between}, a gimbal lock. Give {} inertia — the lighter they are, the faster this motion and the smaller the step it needs (step_control = \"adaptive\" finds it) — or keep the joints away from the alignment (joint limits, another start)",
+        motion_name(model, &mode.coordinates),
+        mode.inertia,
+        mode.inertia / alone,
+        if links.is_empty() { "the links these joints move" } else { "those links" },
+    ))
 }
 
 /// Links whose mass or principal inertia is negative with this model's values (the URDF's, or a
@@ -516,4 +618,87 @@ fn describe_coordinate(
             "the motion of this joint is too fast or too stiff for the step of {h} s: try a smaller --step, or check its links' inertia and the forces on it"
         ),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{parse_description, LoadOptions};
+
+    /// A shoulder built like example-robot-data's human: three revolute joints about z, x and y
+    /// with massless links between them, carrying an arm. With the x joint at ±90° the z and y
+    /// axes coincide (a gimbal lock).
+    const SHOULDER: &str = r#"<robot name="shoulder">
+  <link name="torso"/>
+  <link name="upperarm_virtual"/>
+  <link name="upperarm_virtual_2"/>
+  <link name="upperarm"><inertial><origin xyz="0 0 -0.15"/><mass value="2"/>
+    <inertia ixx="0.02" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.004"/></inertial></link>
+  <joint name="shoulder_Z" type="revolute"><parent link="torso"/><child link="upperarm_virtual"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="shoulder_X" type="revolute"><parent link="upperarm_virtual"/>
+    <child link="upperarm_virtual_2"/><axis xyz="1 0 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="shoulder_Y" type="revolute"><parent link="upperarm_virtual_2"/>
+    <child link="upperarm"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>"#;
+
+    fn shoulder() -> Model {
+        let description = parse_description(SHOULDER, "shoulder.urdf").unwrap();
+        Model::from_description(description, LoadOptions::default(), "shoulder.urdf").unwrap()
+    }
+
+    #[test]
+    fn a_gimbal_lock_is_named_with_its_joints_and_massless_links() {
+        let model = shoulder();
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        // 0.5° from the alignment: the z and y joints move nearly the same way.
+        let near = [0.3, half_pi - 0.5_f64.to_radians(), -0.2];
+        let message = nearly_dependent_motion(&model, &near).expect("nearly dependent");
+        for needle in [
+            "'shoulder_Z'",
+            "'shoulder_Y'",
+            "'upperarm_virtual'",
+            "'upperarm_virtual_2'",
+            "gimbal lock",
+        ] {
+            assert!(message.contains(needle), "{needle} missing: {message}");
+        }
+        assert!(
+            !message.contains("'upperarm'"),
+            "the arm carries inertia: {message}"
+        );
+        // Far from the alignment the shoulder is regular: no such diagnosis.
+        assert_eq!(nearly_dependent_motion(&model, &[0.3, 0.4, -0.2]), None);
+    }
+
+    /// Small inertia alone is not a gimbal lock: a heavy link carrying two light ones (1e-6 and
+    /// 1e-6 kg·m² about parallel axes) has a smallest eigenvalue 1e-5 of the largest, moved by
+    /// both light joints together, but at 0.38 of the least either moves alone.
+    #[test]
+    fn light_links_are_not_a_gimbal_lock() {
+        let text = r#"<robot name="light">
+  <link name="base"/>
+  <link name="heavy"><inertial><origin xyz="0.15 0 0"/><mass value="3"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.03"/></inertial></link>
+  <link name="light"><inertial><mass value="1e-9"/>
+    <inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/></inertial></link>
+  <link name="lighter"><inertial><mass value="1e-9"/>
+    <inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/></inertial></link>
+  <joint name="a" type="continuous"><parent link="base"/><child link="heavy"/><axis xyz="0 0 1"/></joint>
+  <joint name="b" type="continuous"><parent link="heavy"/><child link="light"/>
+    <origin xyz="0.3 0 0"/><axis xyz="0 0 1"/></joint>
+  <joint name="c" type="continuous"><parent link="light"/><child link="lighter"/>
+    <origin xyz="0.01 0 0"/><axis xyz="0 0 1"/></joint>
+</robot>"#;
+        let description = parse_description(text, "t.urdf").unwrap();
+        let model = Model::from_description(description, LoadOptions::default(), "t.urdf").unwrap();
+        let q = [0.2, 0.7, -0.4];
+        let mass = mass_matrix(&model, &q).unwrap();
+        assert!(mass.clone().symmetric_eigenvalues().min() < 1e-4 * mass.diagonal().max());
+        let mode = smallest_mass_mode(mass).unwrap();
+        assert_eq!(mode.coordinates, vec![1, 2], "both light joints take part");
+        assert_eq!(nearly_dependent_motion(&model, &q), None);
+    }
 }
