@@ -307,3 +307,54 @@ fn bad_scene_input_is_refused_with_exit_2() {
         out.stderr
     );
 }
+
+/// A robot whose joints are all fixed, on a fixed base (example-robot-data's `iris_simple`, a
+/// drone, is one): with the default outputs (every joint) there is nothing to report. Both
+/// commands refuse before running, saying why and what to declare — `analyze` used to run its
+/// 26 runs and fail with an internal "fit: outputs is empty".
+#[test]
+fn a_robot_with_nothing_to_output_is_refused_before_running() {
+    let text = r#"<robot name="rigid">
+  <link name="body"><inertial><mass value="1.5"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.02"/></inertial></link>
+  <link name="rotor"><inertial><mass value="0.1"/>
+    <inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial></link>
+  <joint name="rotor_mount" type="fixed"><parent link="body"/><child link="rotor"/>
+    <origin xyz="0.2 0 0"/></joint>
+</robot>"#;
+    let urdf = temp_urdf("rigid.urdf", text);
+    let sidecar = temp_urdf(
+        "rigid.uncertainty.toml",
+        "[parameters]\n\"link.rotor.mass\" = { rel = 0.05 }\n[scene]\nduration = 0.1\n",
+    );
+    for command in ["simulate", "analyze"] {
+        let out = ribbon_outcome(&[
+            command,
+            urdf.to_str().unwrap(),
+            "--uncertainty",
+            sidecar.to_str().unwrap(),
+        ]);
+        assert_input_error(
+            &out,
+            &[
+                "rigid.uncertainty.toml: [outputs]: nothing to output",
+                "no moving joint (1 joint in the URDF, all fixed, and a fixed base)",
+                "frames = [",
+                "base = \"floating\"",
+            ],
+        );
+    }
+    // With a frame declared there is something to report: the run goes through.
+    let framed = temp_urdf(
+        "rigid_framed.uncertainty.toml",
+        "[parameters]\n\"link.rotor.mass\" = { rel = 0.05 }\n[scene]\nduration = 0.1\n\
+         [outputs]\nframes = [\"rotor\"]\n",
+    );
+    let out = ribbon_outcome(&[
+        "simulate",
+        urdf.to_str().unwrap(),
+        "--uncertainty",
+        framed.to_str().unwrap(),
+    ]);
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+}
