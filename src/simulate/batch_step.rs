@@ -330,7 +330,10 @@ impl BatchStepper {
 fn write_lane(batch: &mut BatchVectors<LANES>, lane: usize, values: &DVector<f64>) {
     let dim = batch.dim;
     let (chunk, l) = (lane / LANES, lane % LANES);
-    for (k, value) in values.iter().enumerate().take(dim) {
-        batch.chunks[chunk * dim + k].0[l] = *value;
+    for (entry, value) in batch.chunks[chunk * dim..(chunk + 1) * dim]
+        .iter_mut()
+        .zip(values.as_slice())
+    {
+        entry.0[l] = *value;
     }
 }

@@ -51,8 +51,12 @@ impl<const W: usize> BatchVectors<W> {
     /// Copies sample `sample`'s vector into `out` (`out: dim self.dim`); `sample < self.size`.
     pub fn copy_sample(&self, sample: usize, out: &mut [f64]) {
         let (chunk, lane) = (sample / W, sample % W);
-        for (k, value) in out.iter_mut().take(self.dim).enumerate() {
-            *value = self.chunks[chunk * self.dim + k].0[lane];
+        let dim = self.dim;
+        for (value, entry) in out
+            .iter_mut()
+            .zip(&self.chunks[chunk * dim..(chunk + 1) * dim])
+        {
+            *value = entry.0[lane];
         }
     }
 
