@@ -27,6 +27,7 @@ venv that `cargo test --release` makes; skipped with a line on stderr if missing
 ribbon-quadruped, ribbon-four-bar. Prints a Markdown table on stdout.
 """
 
+import glob
 import json
 import os
 import re
@@ -82,7 +83,6 @@ def bench_binary(name):
 def robot_paths():
     venv = os.path.join(ROOT, "target", "reference-venv")
     robots = [("ribbon-ur5", os.path.join(ROOT, "robots/ur5/ur5.urdf"))]
-    import glob
     found = sorted(glob.glob(os.path.join(venv, mujoco_timing.ERD_GLOB)))
     for label, relative in mujoco_timing.ERD_ROBOTS:
         path = os.path.join(found[-1], relative) if found else ""

@@ -16,15 +16,7 @@ use crate::spatial::{Motion, Vec3};
 /// `data.acceleration`, `data.force` and `data.tau` (not `data.world_from_body`: call
 /// [`forward_kinematics`](super::forward_kinematics) for placements); returns `data.tau`.
 pub fn rnea<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64], qdd: &[f64]) -> &'a [f64] {
-    run(model, data, Placements::From(q), v, Some(qdd));
-    let Data {
-        parent_from_body,
-        force,
-        tau,
-        ..
-    } = data;
-    backward(model, parent_from_body, force, tau.as_mut_slice());
-    data.tau.as_slice()
+    inverse_dynamics(model, data, Placements::From(q), v, qdd)
 }
 
 /// [`rnea`] with the joint placements already in `data.parent_from_body` (a [`crba`] or
@@ -39,7 +31,18 @@ pub fn rnea_at_placements<'a>(
     v: &[f64],
     qdd: &[f64],
 ) -> &'a [f64] {
-    run(model, data, Placements::Given, v, Some(qdd));
+    inverse_dynamics(model, data, Placements::Given, v, qdd)
+}
+
+/// [`rnea`]'s two passes with the placements taken from `placements`.
+fn inverse_dynamics<'a>(
+    model: &Model,
+    data: &'a mut Data,
+    placements: Placements,
+    v: &[f64],
+    qdd: &[f64],
+) -> &'a [f64] {
+    run(model, data, placements, v, Some(qdd));
     let Data {
         parent_from_body,
         force,

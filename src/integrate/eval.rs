@@ -69,32 +69,25 @@ pub(crate) fn forces<S: DaeSystem + ?Sized>(
     at.check_finite("forces", out.as_slice())
 }
 
-/// [`dynamics_residual`] at the configuration of the system's last `mass_matrix` call (the first
-/// residual after a factorisation at the same iterate; the system may reuse its kinematics).
-pub(crate) fn dynamics_residual_after_mass_matrix<S: DaeSystem + ?Sized>(
-    sys: &mut S,
-    at: At,
-    q: &DVector<f64>,
-    v: &DVector<f64>,
-    qdd: &DVector<f64>,
-    out: &mut DVector<f64>,
-) -> Result<(), IntegrateError> {
-    sys.dynamics_residual_after_mass_matrix(at.t, q, v, qdd, out)
-        .map_err(at.system_error("dynamics_residual"))?;
-    at.check_finite("dynamics_residual", out.as_slice())
-}
-
-/// `out (nv) = M q̈ − Q` through the system's inverse dynamics.
+/// `out (nv) = M q̈ − Q` through the system's inverse dynamics. `after_mass_matrix`: `q` is the
+/// configuration of the system's last `mass_matrix` call (the first residual after a
+/// factorisation at the same iterate), whose kinematics the system may reuse
+/// ([`DaeSystem::dynamics_residual_after_mass_matrix`]).
 pub(crate) fn dynamics_residual<S: DaeSystem + ?Sized>(
     sys: &mut S,
     at: At,
     q: &DVector<f64>,
     v: &DVector<f64>,
     qdd: &DVector<f64>,
+    after_mass_matrix: bool,
     out: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.dynamics_residual(at.t, q, v, qdd, out)
-        .map_err(at.system_error("dynamics_residual"))?;
+    if after_mass_matrix {
+        sys.dynamics_residual_after_mass_matrix(at.t, q, v, qdd, out)
+    } else {
+        sys.dynamics_residual(at.t, q, v, qdd, out)
+    }
+    .map_err(at.system_error("dynamics_residual"))?;
     at.check_finite("dynamics_residual", out.as_slice())
 }
 

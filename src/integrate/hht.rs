@@ -1568,26 +1568,18 @@ impl HhtIntegrator {
             let ws = &mut self.ws;
             // Dynamics rows: M q̈ − Q (+ Φ_qᵀ λ below).
             if system.provides_dynamics_residual() {
-                if ws.mass_fresh {
-                    // The factorisation just evaluated M at this iterate (its last mass_matrix call).
-                    eval::dynamics_residual_after_mass_matrix(
-                        system,
-                        at,
-                        &ws.q,
-                        &ws.v,
-                        &ws.qdd,
-                        &mut ws.dyn_residual,
-                    )?;
-                } else {
-                    eval::dynamics_residual(
-                        system,
-                        at,
-                        &ws.q,
-                        &ws.v,
-                        &ws.qdd,
-                        &mut ws.dyn_residual,
-                    )?;
-                }
+                // With M fresh, the factorisation just evaluated it at this iterate (the
+                // system's last mass_matrix call): its kinematics may be reused.
+                let after_mass_matrix = ws.mass_fresh;
+                eval::dynamics_residual(
+                    system,
+                    at,
+                    &ws.q,
+                    &ws.v,
+                    &ws.qdd,
+                    after_mass_matrix,
+                    &mut ws.dyn_residual,
+                )?;
             } else {
                 if !ws.mass_fresh {
                     eval::mass_matrix(system, at, &ws.q, &mut ws.mass)?;

@@ -821,7 +821,7 @@ impl HhtSensitivity {
         out: &mut DVector<f64>,
     ) -> Result<(), IntegrateError> {
         if system.provides_dynamics_residual() {
-            eval::dynamics_residual(system, at, q, v, qdd, out)?;
+            eval::dynamics_residual(system, at, q, v, qdd, false, out)?;
         } else {
             eval::mass_matrix(system, at, q, mass)?;
             eval::forces(system, at, q, v, forces)?;

@@ -38,10 +38,37 @@ pub struct RobotSystem {
     /// Work buffers of [`DaeSystem::residual_jacobians`], made on first use (taken out while in
     /// use).
     jacobians: Option<Box<JacobianBuffers>>,
-    /// The configuration of the last [`DaeSystem::mass_matrix`] call and the joint placements
-    /// its CRBA computed there (a private copy: other calls reuse `data`), for
-    /// [`DaeSystem::dynamics_residual_after_mass_matrix`]. Empty before the first call.
-    mass_matrix_kinematics: (Vec<f64>, Vec<Transform>),
+    /// What the last [`DaeSystem::mass_matrix`] call computed that the next residual may reuse.
+    mass_matrix_kinematics: MassMatrixKinematics,
+}
+
+/// The configuration of the last [`DaeSystem::mass_matrix`] call and the joint placements its
+/// CRBA computed there (a private copy: other calls reuse `data`), for
+/// [`DaeSystem::dynamics_residual_after_mass_matrix`]. Empty before the first call.
+#[derive(Clone, Debug, Default)]
+struct MassMatrixKinematics {
+    q: Vec<f64>,
+    placements: Vec<Transform>,
+}
+
+impl MassMatrixKinematics {
+    fn record(&mut self, q: &[f64], placements: &[Transform]) {
+        self.q.clear();
+        self.q.extend_from_slice(q);
+        self.placements.clear();
+        self.placements.extend_from_slice(placements);
+    }
+
+    /// The placements, when `q` is bit for bit the recorded configuration.
+    fn at(&self, q: &[f64]) -> Option<&[Transform]> {
+        let same = self.q.len() == q.len()
+            && self
+                .q
+                .iter()
+                .zip(q)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+        same.then_some(self.placements.as_slice())
+    }
 }
 
 /// Work buffers of the robot's full residual Jacobians.
@@ -98,7 +125,7 @@ impl RobotSystem {
             },
             parameters: ParameterDirections::default(),
             jacobians: None,
-            mass_matrix_kinematics: (Vec::new(), Vec::new()),
+            mass_matrix_kinematics: MassMatrixKinematics::default(),
         }
     }
 
@@ -128,6 +155,33 @@ impl RobotSystem {
         for o in out.iter_mut() {
             *o = -*o;
         }
+    }
+
+    /// `out = M q̈ − Q` from RNEA: with `placements_given`, RNEA reads the joint placements
+    /// already in `data.parent_from_body` (which must be those at `q`) instead of computing them.
+    fn inverse_dynamics_residual(
+        &mut self,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        placements_given: bool,
+        out: &mut DVector<f64>,
+    ) {
+        let tau = if placements_given {
+            rnea_at_placements(&self.model, &mut self.data, v.as_slice(), qdd.as_slice())
+        } else {
+            rnea(
+                &self.model,
+                &mut self.data,
+                q.as_slice(),
+                v.as_slice(),
+                qdd.as_slice(),
+            )
+        };
+        for (o, t) in out.iter_mut().zip(tau) {
+            *o = -t;
+        }
+        self.finish_dynamics_residual(q.as_slice(), v.as_slice(), out.as_mut_slice());
     }
 
     /// Adds `∂(Φ_qᵀ λ)/∂q` (central differences along each tangent coordinate) to `stiffness`.
@@ -387,11 +441,8 @@ impl DaeSystem for RobotSystem {
         out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError> {
         out.copy_from(crba(&self.model, &mut self.data, q.as_slice()));
-        let (at_q, placements) = &mut self.mass_matrix_kinematics;
-        at_q.clear();
-        at_q.extend_from_slice(q.as_slice());
-        placements.clear();
-        placements.extend_from_slice(&self.data.parent_from_body);
+        self.mass_matrix_kinematics
+            .record(q.as_slice(), &self.data.parent_from_body);
         Ok(())
     }
 
@@ -428,17 +479,7 @@ impl DaeSystem for RobotSystem {
         qdd: &DVector<f64>,
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
-        let tau = rnea(
-            &self.model,
-            &mut self.data,
-            q.as_slice(),
-            v.as_slice(),
-            qdd.as_slice(),
-        );
-        for (o, t) in out.iter_mut().zip(tau) {
-            *o = -t;
-        }
-        self.finish_dynamics_residual(q.as_slice(), v.as_slice(), out.as_mut_slice());
+        self.inverse_dynamics_residual(q, v, qdd, false, out);
         Ok(())
     }
 
@@ -447,27 +488,20 @@ impl DaeSystem for RobotSystem {
     /// placement pass (a `sin_cos` and a 3 × 3 product per revolute joint) fewer.
     fn dynamics_residual_after_mass_matrix(
         &mut self,
-        t: f64,
+        _t: f64,
         q: &DVector<f64>,
         v: &DVector<f64>,
         qdd: &DVector<f64>,
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
-        let (at_q, placements) = &self.mass_matrix_kinematics;
-        let same_q = at_q.len() == q.len()
-            && at_q
-                .iter()
-                .zip(q.iter())
-                .all(|(a, b)| a.to_bits() == b.to_bits());
-        if !same_q {
-            return self.dynamics_residual(t, q, v, qdd, out);
-        }
-        self.data.parent_from_body.copy_from_slice(placements);
-        let tau = rnea_at_placements(&self.model, &mut self.data, v.as_slice(), qdd.as_slice());
-        for (o, t) in out.iter_mut().zip(tau) {
-            *o = -t;
-        }
-        self.finish_dynamics_residual(q.as_slice(), v.as_slice(), out.as_mut_slice());
+        let reuse = match self.mass_matrix_kinematics.at(q.as_slice()) {
+            Some(placements) => {
+                self.data.parent_from_body.copy_from_slice(placements);
+                true
+            }
+            None => false,
+        };
+        self.inverse_dynamics_residual(q, v, qdd, reuse, out);
         Ok(())
     }
 
