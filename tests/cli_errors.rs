@@ -344,6 +344,25 @@ fn a_robot_with_nothing_to_output_is_refused_before_running() {
             ],
         );
     }
+    // A robot that moves, with [outputs] selecting nothing: the same refusal, its own advice.
+    let arm_urdf = temp_urdf("nothing_arm.urdf", &arm("1", "base"));
+    let empty = temp_urdf(
+        "nothing_arm.uncertainty.toml",
+        "[scene]\nduration = 0.1\n[outputs]\njoints = []\n",
+    );
+    let out = ribbon_outcome(&[
+        "simulate",
+        arm_urdf.to_str().unwrap(),
+        "--uncertainty",
+        empty.to_str().unwrap(),
+    ]);
+    assert_input_error(
+        &out,
+        &[
+            "[outputs]: nothing to output: [outputs] selects no joints",
+            "or joints = \"all\"",
+        ],
+    );
     // With a frame declared there is something to report: the run goes through.
     let framed = temp_urdf(
         "rigid_framed.uncertainty.toml",

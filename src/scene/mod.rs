@@ -489,24 +489,25 @@ impl Scene {
         outputs::add_contact_outputs(&file.outputs, contact.as_ref(), model, path, &mut outputs)?;
         if outputs.is_empty() {
             // A run with nothing to report would spend its time and print an empty table.
-            let why = if model.nv == 0 {
-                format!(
-                    "the robot has no moving joint ({} joint{} in the URDF, all fixed, and a fixed base) and [outputs] declares no frames",
-                    model.description.joints.len(),
-                    if model.description.joints.len() == 1 { "" } else { "s" }
+            let (why, or) = if model.nv == 0 {
+                let joints = model.description.joints.len();
+                (
+                    format!(
+                        "the robot has no moving joint ({joints} joint{} in the URDF, all fixed, and a fixed base) and [outputs] declares no frames",
+                        if joints == 1 { "" } else { "s" }
+                    ),
+                    "set [scene] base = \"floating\" for a robot that flies or floats",
                 )
             } else {
-                "[outputs] selects no joints and declares no frames, constraint forces or contact outputs".to_string()
+                (
+                    "[outputs] selects no joints and declares no frames, constraint forces or contact outputs".to_string(),
+                    "joints = \"all\"",
+                )
             };
             return Err(invalid(
                 "[outputs]",
                 format!(
-                    "nothing to output: {why}; declare frames = [\"LINK\", …] in [outputs]{}",
-                    if model.nv == 0 {
-                        ", or set [scene] base = \"floating\" for a robot that flies or floats"
-                    } else {
-                        ", or joints = \"all\""
-                    }
+                    "nothing to output: {why}; declare frames = [\"LINK\", …] in [outputs], or {or}"
                 ),
             ));
         }
