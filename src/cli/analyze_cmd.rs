@@ -21,7 +21,9 @@ use crate::output::{
     write_csv, EnvelopeLog, EnvelopeSeries, ParameterSummary, SensitivitySummary, SobolSummary,
     Summary,
 };
-use crate::scene::{check_threads, Scene};
+use crate::scene::{
+    check_threads, describe_limit_excursions, limit_excursions, LimitExcursion, Scene,
+};
 use crate::setup::{print_message, Setup};
 use crate::text::closest_suggestion;
 use crate::uncertainty::ParameterSpace;
@@ -177,6 +179,24 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     reporter.finish();
     let wall_seconds = started.elapsed().as_secs_f64();
     check_envelope_finite(&report)?;
+    let excursions = limit_excursions(
+        &kinematic_model,
+        &scene,
+        &report.envelope.outputs,
+        &report.envelope.times,
+        &report.envelope.lower,
+        &report.envelope.upper,
+    );
+    if !excursions.is_empty() {
+        eprintln!(
+            "warning: {}",
+            describe_limit_excursions(
+                &excursions,
+                true,
+                report.envelope.times.first().copied().unwrap_or(0.0)
+            )
+        );
+    }
     if let Some(check) = &report.check {
         warn_untrusted(&report, check);
     } else if scans_a_surrogate {
@@ -196,7 +216,7 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     }
 
     if let Some(path) = &args.summary {
-        summary(&robot, &options, &space, &report, wall_seconds).write(path)?;
+        summary(&robot, &options, &space, &report, excursions, wall_seconds).write(path)?;
     }
     if let Some(path) = &args.csv {
         write_envelope_csv(path, &report)?;
@@ -581,6 +601,7 @@ fn summary(
     options: &StudyOptions,
     space: &ParameterSpace,
     report: &StudyReport,
+    limit_excursions: Vec<LimitExcursion>,
     wall_seconds: f64,
 ) -> Summary {
     let e = &report.envelope;
@@ -656,6 +677,7 @@ fn summary(
             .sobol
             .as_ref()
             .map(|series| SobolSummary::from_study(series, e, space)),
+        limit_excursions,
     };
     // Only when the scene declares contacts: a summary without them keeps its keys.
     if let (Some(contacts), Some(stats)) = (&report.contacts, summary.stats.as_object_mut()) {

@@ -12,7 +12,7 @@ use crate::dynamics::{forward_kinematics, Data};
 use crate::model::Model;
 use crate::output::mcap::McapMetadata;
 use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, Summary};
-use crate::scene::Scene;
+use crate::scene::{describe_limit_excursions, limit_excursions, LimitExcursion, Scene};
 use crate::setup::{print_message, SceneSetup};
 use crate::simulate::{simulate_interruptible, Trajectory};
 use crate::Error;
@@ -58,11 +58,29 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
     let names: Vec<&str> = trajectory.outputs.iter().map(|o| o.name.as_str()).collect();
     let columns: Vec<&[f64]> = trajectory.values.iter().map(Vec::as_slice).collect();
     check_finite("simulate", &names, &trajectory.times, &columns)?;
+    let excursions = limit_excursions(
+        &kinematic_model,
+        &scene,
+        &trajectory.outputs,
+        &trajectory.times,
+        &trajectory.values,
+        &trajectory.values,
+    );
+    if !excursions.is_empty() {
+        eprintln!(
+            "warning: {}",
+            describe_limit_excursions(
+                &excursions,
+                false,
+                trajectory.times.first().copied().unwrap_or(0.0)
+            )
+        );
+    }
     if let Some(path) = &args.csv {
         write_csv(path, &trajectory.times, &names, &columns)?;
     }
     if let Some(path) = &args.summary {
-        summary(&robot, &trajectory, wall_seconds).write(path)?;
+        summary(&robot, &trajectory, excursions, wall_seconds).write(path)?;
     }
     if let Some(path) = &args.out {
         write_log(
@@ -163,7 +181,12 @@ fn print_statistics(trajectory: &Trajectory, scene: &Scene, wall_seconds: f64) {
     }
 }
 
-fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
+fn summary(
+    robot: &str,
+    trajectory: &Trajectory,
+    limit_excursions: Vec<LimitExcursion>,
+    wall_seconds: f64,
+) -> Summary {
     let s = &trajectory.stats;
     let mut stats = serde_json::json!({
         "steps": s.steps,
@@ -218,6 +241,7 @@ fn summary(robot: &str, trajectory: &Trajectory, wall_seconds: f64) -> Summary {
             .collect(),
         stats,
         sobol_indices: None,
+        limit_excursions,
     }
 }
 

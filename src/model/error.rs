@@ -133,7 +133,7 @@ pub enum ModelError {
         name: String,
     },
     /// A joint names a link the file does not define.
-    #[error("{path}:{line}: joint '{joint}' names {role} link '{link}', which the file does not define{suggestion}")]
+    #[error("{path}:{line}: joint '{joint}' names {role} link '{link}', which the file does not define{advice}")]
     MissingLink {
         /// The file.
         path: String,
@@ -145,8 +145,8 @@ pub enum ModelError {
         role: &'static str,
         /// The missing link's name.
         link: String,
-        /// "; did you mean '…'?" or empty.
-        suggestion: String,
+        /// What to do: "; did you mean '…'?", or how to define the link.
+        advice: String,
     },
     /// A link is the child of two joints.
     #[error("{path}:{line}: link '{link}' is the child of two joints, '{first}' and '{second}'; a URDF is a tree — declare closed loops as [[scene.loop]] in the sidecar instead")]

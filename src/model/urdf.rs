@@ -11,7 +11,8 @@
 //!   name, extra elements in a `<geometry>`, whitespace before the `<?xml?>` declaration, NUL
 //!   bytes after the document, bytes that are not UTF-8. `<texture>`,
 //!   `<calibration>`, `<safety_controller>`, transmissions, Gazebo tags and prefixed elements
-//!   (`<xacro:…>`) are ignored.
+//!   (`<xacro:…>`) are ignored; a prefix used without its `xmlns:` declaration (`<sensor:camera>`
+//!   in older ROS files) loads with a note, as tinyxml2 does not check namespaces.
 //! - **An element repeated identically** (two equal `<axis>`) loads with a note; **repeated with
 //!   different contents** it is an error naming both lines (Pinocchio silently reads the first).
 //! - **Values that dynamics depend on are never guessed**: a missing `<mass>` or `<inertia>`
@@ -68,6 +69,7 @@ pub fn parse_description(text: &str, path: &str) -> Result<Description, ModelErr
 fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description, ModelError> {
     let text = xml::cut_trailing_nul(text, path, &mut notes);
     let text = xml::blank_late_declaration(text, path, &mut notes);
+    let text = xml::declare_undeclared_prefixes(text, path, &mut notes);
     let doc = xml::parse(&text, path)?;
     let root = doc.root_element();
     let mut reader = xml::Reader::new(&doc, root, path);
@@ -151,7 +153,7 @@ fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description
                     joint: raw.name.clone(),
                     role,
                     link: name.to_string(),
-                    suggestion: closest_suggestion(name, links.iter().map(|l| l.name.as_str())),
+                    advice: missing_link_advice(name, role, &links),
                 })
         };
         let parent = find(&raw.parent, "parent")?;
@@ -178,6 +180,27 @@ fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description
         joints,
         notes: reader.notes,
     })
+}
+
+/// What to do about a joint's `role` ("parent" or "child") link `name` that the file does not
+/// define: the closest defined name if one is close, else how to define it. `world` gets its own
+/// advice: Drake and Gazebo read it as the fixed world, but URDF (and Pinocchio) need it defined.
+fn missing_link_advice(name: &str, role: &str, links: &[LinkSpec]) -> String {
+    let close = closest_suggestion(name, links.iter().map(|l| l.name.as_str()));
+    if !close.is_empty() {
+        close
+    } else if name == "world" {
+        "; Drake and Gazebo read 'world' as the fixed world, but a URDF must define every link \
+         it names (Pinocchio refuses it too): add <link name=\"world\"/> to the file to fix the \
+         robot to the world there"
+            .to_string()
+    } else {
+        format!(
+            "; add <link name=\"{name}\"/> if the link belongs to this robot, or correct the \
+             joint's <{role} link=\"…\"/> (a file cut out of a larger description often names \
+             a link of the part left out)"
+        )
+    }
 }
 
 #[cfg(test)]

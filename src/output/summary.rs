@@ -208,6 +208,10 @@ pub struct Summary {
     /// otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sobol_indices: Option<SobolSummary>,
+    /// Joints whose positions went past their URDF limits in a scene that does not enforce them
+    /// ([`crate::scene::limit_excursions`]), deepest first; absent when there are none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub limit_excursions: Vec<crate::scene::LimitExcursion>,
 }
 
 impl Summary {
@@ -302,6 +306,7 @@ mod tests {
             outputs: vec![series(f64::INFINITY)],
             stats: serde_json::Value::Null,
             sobol_indices: None,
+            limit_excursions: Vec::new(),
         };
         let m = summary.write(&path).unwrap_err().to_string();
         assert!(

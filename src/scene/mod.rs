@@ -8,6 +8,7 @@
 mod budget;
 mod constraints;
 mod contacts;
+mod limit_excursions;
 mod outputs;
 mod step_control;
 
@@ -16,6 +17,9 @@ pub use budget::{
     MIN_STEP_S,
 };
 pub use contacts::{SceneContacts, DEFAULT_MAX_PENETRATION_M};
+pub use limit_excursions::{
+    describe_limit_excursions, limit_excursions, LimitExcursion, LIMIT_EXCURSION_TOLERANCE,
+};
 pub use outputs::{Output, OutputKind};
 // The file format lives in `crate::sidecar`; these re-exports keep `crate::scene::SidecarFile` and
 // friends working for the study commands, benches and examples. `constraints` and `outputs` read

@@ -301,6 +301,94 @@ fn prefixed_elements_are_other_vocabularies() {
 }
 
 #[test]
+fn undeclared_prefixes_load_as_foreign_markup_with_a_note_and_lines_stay_true() {
+    // Gazebo blocks of older ROS descriptions (fetch, PR2) use `sensor:` and `controller:`
+    // without declaring them; tinyxml2, and so Pinocchio, loads such files.
+    let plain = arm(
+        "",
+        "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>",
+    );
+    let gazebo = "<gazebo reference=\"b\">\n<sensor:camera name=\"rgb\">\
+         <sensor:imageSize>192 128</sensor:imageSize></sensor:camera>\n\
+         <controller:plugin controller:name=\"p\"/><sensor:link name=\"ghost\"/></gazebo>";
+    let text = plain.replace("</robot>", &format!("{gazebo}\n</robot>"));
+    let d = parse_description(&text, "t.urdf").unwrap_or_else(|e| panic!("should load: {e}"));
+    let reference = parse_description(&plain, "t.urdf").unwrap();
+    assert_eq!(
+        d.links.len(),
+        reference.links.len(),
+        "a prefixed <link> is not a link"
+    );
+    assert_eq!(d.joints.len(), reference.joints.len());
+    assert_eq!(format!("{:?}", d.links), format!("{:?}", reference.links));
+    assert_eq!(format!("{:?}", d.joints), format!("{:?}", reference.joints));
+    let prefix_notes: Vec<_> = d
+        .notes
+        .iter()
+        .filter(|n| n.contains("namespace prefix"))
+        .collect();
+    assert_eq!(
+        prefix_notes.len(),
+        2,
+        "one note per prefix: {prefix_notes:?}"
+    );
+    assert!(
+        prefix_notes[0].starts_with("t.urdf:9: namespace prefix 'sensor'"),
+        "{prefix_notes:?}"
+    );
+    assert!(
+        prefix_notes[1].starts_with("t.urdf:10: namespace prefix 'controller'"),
+        "{prefix_notes:?}"
+    );
+
+    // The declarations go on the root's line: an error after them still names its own line.
+    let broken = text.replace(
+        "</robot>",
+        "<joint name=\"k\" type=\"fixed\"><parent link=\"a\"/><child link=\"zz\"/></joint>\n</robot>",
+    );
+    let msg = error(&broken);
+    assert!(msg.starts_with("t.urdf:11: joint 'k'"), "{msg}");
+    // A root start tag behind comments, a processing instruction and a DOCTYPE is found.
+    let preamble = "<?xml version=\"1.0\"?>\n<!-- <robot> in a comment -->\n<?pi x?>\n\
+         <!DOCTYPE robot [<!ENTITY e \"v\">]>\n";
+    let text = text.replacen("<?xml version=\"1.0\"?>\n", preamble, 1);
+    let d = parse_description(&text, "t.urdf").unwrap_or_else(|e| panic!("should load: {e}"));
+    assert_eq!(d.links.len(), 2);
+    // Declared prefixes are not touched and give no note.
+    let declared = plain.replace(
+        "<robot name=\"t\">",
+        "<robot name=\"t\" xmlns:sensor=\"http://example.org/sensor\">",
+    );
+    let declared = declared.replace("</robot>", "<sensor:camera/>\n</robot>");
+    assert!(notes(&declared)
+        .iter()
+        .all(|n| !n.contains("namespace prefix")));
+}
+
+#[test]
+fn a_missing_link_gets_advice_and_world_is_explained() {
+    let world = urdf(
+        "<link name=\"base\"/>\n<joint name=\"fix\" type=\"fixed\"><parent link=\"world\"/>\
+         <child link=\"base\"/></joint>",
+    );
+    let msg = error(&world);
+    assert!(
+        msg.contains("t.urdf:4: joint 'fix' names parent link 'world'"),
+        "{msg}"
+    );
+    assert!(msg.contains("add <link name=\"world\"/>"), "{msg}");
+    let cut = urdf(
+        "<link name=\"arm\"/>\n<joint name=\"mount\" type=\"fixed\"><parent link=\"body\"/>\
+         <child link=\"arm\"/></joint>",
+    );
+    let msg = error(&cut);
+    assert!(
+        msg.contains("add <link name=\"body\"/> if the link belongs to this robot"),
+        "{msg}"
+    );
+}
+
+#[test]
 fn nesting_beyond_the_limit_is_refused_without_overflowing_the_stack() {
     // 100 000 nested elements: roxmltree builds its tree iteratively, and the depth walk is
     // iterative, so this returns an error instead of aborting on a stack overflow.

@@ -82,15 +82,93 @@ pub(super) fn cut_trailing_nul(mut text: String, path: &str, notes: &mut Vec<Str
     text
 }
 
+/// Most distinct undeclared namespace prefixes [`declare_undeclared_prefixes`] declares; a file
+/// with more is left for the XML parser to refuse. (Real files use one or two: `sensor:`,
+/// `controller:`, `interface:` in the Gazebo blocks of older ROS descriptions.)
+const MAX_UNDECLARED_PREFIXES: usize = 32;
+
+/// The namespace given to a prefix the file uses without declaring it: not the URDF's, so the
+/// reader treats its elements as foreign markup and skips them, as it skips `<xacro:…>`.
+const UNDECLARED_NAMESPACE: &str = "urn:ribbon:undeclared-prefix:";
+
+/// Declares, on the root element, every namespace prefix the text uses without an `xmlns:`
+/// declaration (`<sensor:camera>` inside the `<gazebo>` blocks of older ROS descriptions). XML
+/// namespaces make such a file an error, but tinyxml2 does not process namespaces, so Pinocchio
+/// and ROS load it. Each prefix is bound to a placeholder namespace, which makes its elements and
+/// attributes foreign markup that the reader ignores; one note per prefix names where it is first
+/// used. The declarations are inserted inside the root's start tag, on its line, so every line
+/// number stays valid. Text that is fine, or broken in another way, is returned unchanged (the
+/// parser then reports its error with its position); so is text nested beyond [`MAX_XML_DEPTH`],
+/// which must not reach the parser.
+pub(super) fn declare_undeclared_prefixes(
+    mut text: String,
+    path: &str,
+    notes: &mut Vec<String>,
+) -> String {
+    if check_depth(&text, path).is_err() {
+        return text;
+    }
+    for _ in 0..MAX_UNDECLARED_PREFIXES {
+        let (prefix, pos) = match Document::parse_with_options(&text, parsing_options()) {
+            Err(roxmltree::Error::UnknownNamespace(prefix, pos)) => (prefix, pos),
+            _ => return text,
+        };
+        let Some(at) = root_name_end(text.as_bytes()) else {
+            return text;
+        };
+        notes.push(format!(
+            "{path}:{}: namespace prefix '{prefix}' is used without an xmlns:{prefix} declaration (first here, column {}); its elements and attributes are read as foreign markup and ignored, as Pinocchio (tinyxml2, which does not check namespaces) ignores them",
+            pos.row, pos.col
+        ));
+        text.insert_str(
+            at,
+            &format!(" xmlns:{prefix}=\"{UNDECLARED_NAMESPACE}{prefix}\""),
+        );
+    }
+    text
+}
+
+/// The byte offset just after the root element's name in its start tag, skipping the XML
+/// declaration, processing instructions, comments and a DOCTYPE; `None` if the text has no root
+/// start tag this scan can find.
+fn root_name_end(bytes: &[u8]) -> Option<usize> {
+    let find = |from: usize, pattern: &[u8]| {
+        bytes
+            .get(from..)?
+            .windows(pattern.len())
+            .position(|w| w == pattern)
+            .map(|p| from + p + pattern.len())
+    };
+    let mut at = 0;
+    loop {
+        let open = at + bytes.get(at..)?.iter().position(|&b| b == b'<')?;
+        at = match *bytes.get(open + 1)? {
+            b'?' => find(open + 2, b"?>")?,
+            b'!' if bytes[open..].starts_with(b"<!--") => find(open + 4, b"-->")?,
+            b'!' => declaration_end(bytes, open).0?,
+            _ => {
+                let name = bytes[open + 1..]
+                    .iter()
+                    .position(|b| b.is_ascii_whitespace() || *b == b'/' || *b == b'>')?;
+                return Some(open + 1 + name);
+            }
+        };
+    }
+}
+
+/// The parser's options: a DTD is allowed (roxmltree bounds entity expansion).
+fn parsing_options() -> roxmltree::ParsingOptions {
+    roxmltree::ParsingOptions {
+        allow_dtd: true,
+        ..roxmltree::ParsingOptions::default()
+    }
+}
+
 /// Parses the text (a DTD is allowed: roxmltree bounds entity expansion) after checking the
 /// nesting depth with [`check_depth`].
 pub(super) fn parse<'input>(text: &'input str, path: &str) -> Result<Document<'input>, ModelError> {
     check_depth(text, path)?;
-    let options = roxmltree::ParsingOptions {
-        allow_dtd: true,
-        ..roxmltree::ParsingOptions::default()
-    };
-    Document::parse_with_options(text, options).map_err(|e| {
+    Document::parse_with_options(text, parsing_options()).map_err(|e| {
         let pos = e.pos();
         ModelError::Xml {
             path: path.to_string(),

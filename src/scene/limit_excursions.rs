@@ -1,0 +1,282 @@
+//! After a run: joints that went past their URDF position limits in a scene that does not enforce
+//! them.
+//!
+//! Without the `joint_limits` effect a joint moves freely past the range its URDF `<limit>` gives,
+//! and a light finger or an unsupported link can swing radians beyond where the real robot's stop
+//! would hold it (a Kinova gripper finger from a public description reached −3.4 rad against its
+//! [0, 1.51] rad in 0.2 s of falling). The numbers are right for the scene as declared, but not
+//! for the robot, and nothing else in the output says so. [`limit_excursions`] finds each such
+//! joint's deepest excursion, so that the commands can warn and the summary can record it.
+
+use super::{Output, OutputKind, Scene};
+use crate::model::{JointKind, Model};
+use serde::Serialize;
+
+/// How far past a limit (rad or m) a recorded position must be to count: above the rounding of a
+/// joint that rests on its limit, far below any excursion that changes a motion.
+pub const LIMIT_EXCURSION_TOLERANCE: f64 = 1e-9;
+
+/// How many joints the warning names before it says "and N more" (the summary lists all).
+const NAMED_IN_WARNING: usize = 5;
+
+/// One joint's deepest excursion past its URDF position limits.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LimitExcursion {
+    /// The joint.
+    pub joint: String,
+    /// Its URDF `<limit lower>`.
+    pub lower: f64,
+    /// Its URDF `<limit upper>`.
+    pub upper: f64,
+    /// The recorded position (or envelope bound) farthest past the limits.
+    pub reached: f64,
+    /// When it was recorded, s.
+    pub time_s: f64,
+    /// `rad` or `m`.
+    pub unit: &'static str,
+}
+
+impl LimitExcursion {
+    /// How far past the nearer limit `reached` is (> 0).
+    pub fn depth(&self) -> f64 {
+        (self.lower - self.reached).max(self.reached - self.upper)
+    }
+}
+
+/// The joints whose recorded position goes past their URDF limits by more than
+/// [`LIMIT_EXCURSION_TOLERANCE`], deepest first; empty when `scene` declares `joint_limits` (the
+/// effect holds them). `lowest[i][k]` and `highest[i][k]` are output `i`'s smallest and largest
+/// value at `times[k]`: the same series for one run, the envelope's lower and upper bounds for a
+/// study. Only joint-position outputs of joints with finite limits `lower < upper` count (URDF
+/// `lower > upper` loads with a warning and is skipped by the effect too).
+pub fn limit_excursions(
+    model: &Model,
+    scene: &Scene,
+    outputs: &[Output],
+    times: &[f64],
+    lowest: &[Vec<f64>],
+    highest: &[Vec<f64>],
+) -> Vec<LimitExcursion> {
+    if scene.effects.joint_limits {
+        return Vec::new();
+    }
+    let mut found = Vec::new();
+    for (i, output) in outputs.iter().enumerate() {
+        let OutputKind::Position { q_index } = output.kind else {
+            continue;
+        };
+        let Some(joint) = model
+            .joints
+            .iter()
+            .find(|j| j.q_index == q_index && j.kind != JointKind::Floating)
+        else {
+            continue;
+        };
+        let Some(source) = joint.source else {
+            continue;
+        };
+        let [lower, upper] = model.description.joints[source].limits;
+        if !(lower.is_finite() && upper.is_finite() && lower < upper) {
+            continue;
+        }
+        let mut deepest: Option<LimitExcursion> = None;
+        for (k, &time_s) in times.iter().enumerate() {
+            for reached in [lowest[i][k], highest[i][k]] {
+                let excursion = LimitExcursion {
+                    joint: joint.name.clone(),
+                    lower,
+                    upper,
+                    reached,
+                    time_s,
+                    unit: output.unit,
+                };
+                let depth = excursion.depth();
+                if depth > LIMIT_EXCURSION_TOLERANCE
+                    && deepest.as_ref().is_none_or(|d| depth > d.depth())
+                {
+                    deepest = Some(excursion);
+                }
+            }
+        }
+        found.extend(deepest);
+    }
+    found.sort_by(|a, b| b.depth().total_cmp(&a.depth()));
+    found
+}
+
+/// The warning for `excursions` (not empty): each joint (the deepest [`NAMED_IN_WARNING`]), how
+/// far it went, and what to do. `envelope`: the values are a study's bounds, not one run's;
+/// `start_s`: the first record time (an excursion there is a start outside the limits).
+pub fn describe_limit_excursions(
+    excursions: &[LimitExcursion],
+    envelope: bool,
+    start_s: f64,
+) -> String {
+    let subject = if envelope { "the envelope of" } else { "joint" };
+    let named: Vec<String> = excursions
+        .iter()
+        .take(NAMED_IN_WARNING)
+        .map(|e| {
+            let when = if e.time_s == start_s {
+                "at the start".to_string()
+            } else {
+                format!("at t = {} s", e.time_s)
+            };
+            format!(
+                "{subject} '{}' reaches {:.4} {} {when}, {} {} past its limits [{}, {}]",
+                e.joint,
+                e.reached,
+                e.unit,
+                significant(e.depth()),
+                e.unit,
+                e.lower,
+                e.upper
+            )
+        })
+        .collect();
+    let more = excursions.len().saturating_sub(NAMED_IN_WARNING);
+    let more = if more > 0 {
+        format!(" (and {more} more joints; the summary's limit_excursions lists all)")
+    } else {
+        String::new()
+    };
+    let starts_outside = excursions.iter().filter(|e| e.time_s == start_s).count();
+    let start_advice = if starts_outside > 0 {
+        format!(
+            " ({starts_outside} of them start outside their limits: with \"joint_limits\", set [scene] initial.q inside them too)"
+        )
+    } else {
+        String::new()
+    };
+    format!(
+        "{} joint(s) went past their URDF position limits, which this scene does not enforce (its effects do not include \"joint_limits\"): {}{more}. A real robot stops at its limits, so from those times on these results describe the robot without its stops; add \"joint_limits\" to [scene] effects to simulate them{start_advice}, or correct the URDF <limit> if the range is wrong",
+        excursions.len(),
+        named.join("; ")
+    )
+}
+
+/// `x` (> 0) to three significant digits, without an exponent between 1e-3 and 1e4.
+fn significant(x: f64) -> String {
+    if (1e-3..1e4).contains(&x) {
+        let decimals = (2 - x.log10().floor() as i32).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{parse_description, LoadOptions};
+    use crate::scene::{parse_sidecar, SceneOverrides};
+
+    /// A bar along +x hinged about z, limited to [−0.5, 0.5] rad, and a second bar on a
+    /// continuous joint (no limits); gravity along −y swings the first one down past −0.5.
+    fn hinged_bars() -> Model {
+        let text = r#"<robot name="p"><link name="w"/>
+          <link name="bar"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+          <inertia ixx="0" ixy="0" ixz="0" iyy="0.08" iyz="0" izz="0.08"/></inertial></link>
+          <link name="tip"><inertial><origin xyz="0.1 0 0"/><mass value="0.1"/>
+          <inertia ixx="0" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial></link>
+          <joint name="hinge" type="revolute"><parent link="w"/><child link="bar"/><axis xyz="0 0 1"/>
+          <limit lower="-0.5" upper="0.5" effort="1" velocity="1"/></joint>
+          <joint name="spin" type="continuous"><parent link="bar"/><child link="tip"/>
+          <origin xyz="1 0 0"/><axis xyz="0 0 1"/></joint></robot>"#;
+        Model::from_description(
+            parse_description(text, "p.urdf").unwrap(),
+            LoadOptions::default(),
+            "p.urdf",
+        )
+        .unwrap()
+    }
+
+    fn scene(model: &Model, extra: &str) -> Scene {
+        let text = format!("[scene]\nduration = 0.6\ngravity = [0.0, -9.81, 0.0]\n{extra}");
+        let file = parse_sidecar(&text).unwrap();
+        Scene::resolve(&file, model, "s.toml", SceneOverrides::default()).unwrap()
+    }
+
+    #[test]
+    fn a_swing_past_an_unenforced_limit_is_found_at_its_deepest_and_described() {
+        let model = hinged_bars();
+        let free = scene(&model, "");
+        let mut moving = model.clone();
+        free.apply_gravity(&mut moving);
+        let run = crate::simulate::simulate(moving, &free).unwrap();
+        let found = limit_excursions(
+            &model,
+            &free,
+            &run.outputs,
+            &run.times,
+            &run.values,
+            &run.values,
+        );
+        assert_eq!(found.len(), 1, "only the limited joint: {found:?}");
+        let hinge = &found[0];
+        let series = &run.values[run
+            .outputs
+            .iter()
+            .position(|o| o.name == "q.hinge")
+            .unwrap()];
+        let lowest = series.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(lowest < -0.6, "the bar swings well past −0.5: {lowest}");
+        assert_eq!((hinge.joint.as_str(), hinge.reached), ("hinge", lowest));
+        assert_eq!((hinge.lower, hinge.upper, hinge.unit), (-0.5, 0.5, "rad"));
+        assert!(hinge.time_s > 0.0);
+        assert_eq!(hinge.depth(), -0.5 - lowest);
+        let text = describe_limit_excursions(&found, false, 0.0);
+        assert!(text.starts_with("1 joint(s) went past"), "{text}");
+        assert!(text.contains("joint 'hinge' reaches"), "{text}");
+        assert!(
+            text.contains("add \"joint_limits\" to [scene] effects"),
+            "{text}"
+        );
+        assert!(!text.contains("start outside"), "{text}");
+
+        // With the effect the limits are the scene's: nothing to report.
+        let held = scene(&model, "effects = [\"gravity\", \"joint_limits\"]\n");
+        assert!(limit_excursions(
+            &model,
+            &held,
+            &run.outputs,
+            &run.times,
+            &run.values,
+            &run.values
+        )
+        .is_empty());
+    }
+
+    #[test]
+    fn an_envelope_bound_and_a_start_outside_count_and_the_tolerance_is_kept() {
+        let model = hinged_bars();
+        let free = scene(&model, "");
+        let outputs: Vec<Output> = free
+            .outputs
+            .iter()
+            .filter(|o| o.name == "q.hinge")
+            .cloned()
+            .collect();
+        let times = [0.0, 0.1, 0.2];
+        // The upper bound starts outside; the lower one stays inside.
+        let lower = vec![vec![0.4, 0.3, 0.2]];
+        let upper = vec![vec![0.7, 0.5 + 0.5 * LIMIT_EXCURSION_TOLERANCE, 0.45]];
+        let found = limit_excursions(&model, &free, &outputs, &times, &lower, &upper);
+        assert_eq!(found.len(), 1);
+        assert_eq!((found[0].reached, found[0].time_s), (0.7, 0.0));
+        let text = describe_limit_excursions(&found, true, 0.0);
+        assert!(
+            text.contains(
+                "the envelope of 'hinge' reaches 0.7000 rad at the start, 0.200 rad past"
+            ),
+            "{text}"
+        );
+        assert!(
+            text.contains("1 of them start outside their limits"),
+            "{text}"
+        );
+        // Within the tolerance of a limit is on it.
+        let upper = vec![vec![0.45, 0.5 + 0.5 * LIMIT_EXCURSION_TOLERANCE, 0.45]];
+        assert!(limit_excursions(&model, &free, &outputs, &times, &lower, &upper).is_empty());
+    }
+}
