@@ -72,7 +72,7 @@ pub enum Error {
     /// A study finished and wrote its results, but the a-posteriori check found the surrogate
     /// untrustworthy for some outputs (exit 4): its envelopes were widened to every true run made,
     /// yet may still be too narrow.
-    #[error("the results were written, but the surrogate cannot be trusted for {untrusted} of {total} outputs (worst: {worst}): their envelopes may be too narrow, so this run exits with status {UNTRUSTED_EXIT_CODE}; raise --order, narrow the box, or use --method scan or monte-carlo")]
+    #[error("the results were written, but the surrogate cannot be trusted for {untrusted} of {total} outputs (worst: {worst}): their envelopes may be too narrow, so this run exits with status {UNTRUSTED_EXIT_CODE}; {advice}")]
     Untrusted {
         /// Outputs the check did not trust.
         untrusted: usize,
@@ -80,6 +80,8 @@ pub enum Error {
         total: usize,
         /// The worst output and its misfit, e.g. `q.elbow (53.6 % of the width)`.
         worst: String,
+        /// What to do ([`crate::analysis::untrusted_advice`]).
+        advice: String,
     },
     /// Writing a result failed.
     #[error("cannot write {what}: {source}")]

@@ -302,6 +302,17 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
         serde_json::from_str(&std::fs::read_to_string(&summary_path).unwrap()).unwrap();
     let check = &summary["stats"]["check"];
     assert_eq!(check["trusted"], false, "{check}");
+    // When the surrogate first missed, in the summary and in the advice on stderr.
+    let first_miss = check["first_miss_time_s"].as_f64().unwrap();
+    assert!(first_miss > 0.0 && first_miss <= 2.0, "{check}");
+    assert!(
+        check["checks_before_first_miss"].as_u64().is_some(),
+        "{check}"
+    );
+    assert!(
+        stderr.contains(&format!("the first miss is at t = {first_miss} s")),
+        "{stderr}"
+    );
     let (lower, upper) = (
         summary["parameters"][0]["lower"].as_f64().unwrap(),
         summary["parameters"][0]["upper"].as_f64().unwrap(),
@@ -438,6 +449,16 @@ fn a_chaotic_motion_is_reported_and_a_regular_one_is_not() {
     );
     assert!(stderr.contains("the nominal motion is chaotic"), "{stderr}");
     assert!(stderr.contains("cannot be trusted"), "{stderr}");
+    // The exit-4 advice names the separation as the cause instead of a higher order.
+    let error = stderr
+        .lines()
+        .find(|l| l.starts_with("error:"))
+        .unwrap_or_default();
+    assert!(
+        error.contains("the nominal motion separates nearby trajectories at")
+            && !error.contains("raise --order"),
+        "{error}"
+    );
     let summary: Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
     let lyapunov = &summary["stats"]["lyapunov"];
     assert_eq!(lyapunov["chaotic"], true, "{lyapunov}");

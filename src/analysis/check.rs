@@ -10,6 +10,8 @@
 //! ξ) are one run. The check never narrows anything: the study widens its envelopes to contain the
 //! check runs and reports the misfit `|true − predicted|` where a candidate was run.
 
+use super::lyapunov::LyapunovEstimate;
+use super::study::CheckReport;
 use std::collections::HashMap;
 
 /// Two predicted extremisers closer than this in every coordinate of ξ are checked by one run: a
@@ -31,6 +33,70 @@ pub const TRUST_RELATIVE_MISFIT: f64 = 0.05;
 /// ([`output_resolution`]): 1, so a misfit smaller than what the integrator may be off by within one
 /// step is not taken as evidence (docs/method.md §7, "The resolution floor").
 pub const TRUST_RESOLUTION_FACTOR: f64 = 1.0;
+
+/// Above this amplification `exp(λ T)` of nearby trajectories over the horizon, the advice for an
+/// untrusted surrogate names the separation as the likely cause: a 1 % box then spreads to the
+/// order of the motion itself, which a low-order polynomial in the parameters cannot follow. (The
+/// chaos warning's threshold, [`super::lyapunov::CHAOS_AMPLIFICATION`], is for any box.)
+pub const SEPARATION_ADVICE_AMPLIFICATION: f64 = 1e2;
+
+/// What to do about a surrogate the check did not trust, for the warning and the exit-4 error: when
+/// the first miss happened (from then on the surrogate failed; the checks before it agreed, so a
+/// shorter `--duration` may be trusted), whether the nominal motion separates nearby trajectories
+/// fast (`lyapunov`), and which method can replace it at `dimensions` parameters (a scan only up
+/// to [`super::auto::AUTO_TENSOR_MAX_DIM`]).
+pub fn untrusted_advice(
+    check: &CheckReport,
+    times: &[f64],
+    dimensions: usize,
+    lyapunov: Option<&LyapunovEstimate>,
+) -> String {
+    let mut parts = Vec::new();
+    let first_miss_s = check.first_miss_record.and_then(|r| times.get(r).copied());
+    let shorter = match first_miss_s {
+        Some(t) if check.checks_before_first_miss > 0 => {
+            parts.push(format!(
+                "the first miss is at t = {t} s (the {} checks at earlier times agreed, judged against this run's widths)",
+                check.checks_before_first_miss
+            ));
+            Some(format!("shorten --duration below {t} s and check again"))
+        }
+        Some(t) => {
+            parts.push(format!("the first miss is at t = {t} s"));
+            None
+        }
+        None => None,
+    };
+    let separating = lyapunov
+        .filter(|l| l.exponent_per_s > 0.0 && l.amplification >= SEPARATION_ADVICE_AMPLIFICATION);
+    if let Some(l) = separating {
+        parts.push(format!(
+            "the nominal motion separates nearby trajectories at {:.2} /s ({:.1e}-fold over {:.3} s), faster than a polynomial in the parameters can follow for long",
+            l.exponent_per_s, l.amplification, l.horizon_s
+        ));
+    }
+    let method = if dimensions <= super::auto::AUTO_TENSOR_MAX_DIM {
+        "use --method scan or monte-carlo".to_string()
+    } else {
+        format!("use --method monte-carlo (a scan is out of reach at d = {dimensions})")
+    };
+    let mut actions: Vec<String> = shorter.into_iter().collect();
+    if separating.is_none() {
+        actions.push("raise --order".to_string());
+    }
+    actions.push("narrow the box".to_string());
+    actions.push(method);
+    let actions = match actions.split_last() {
+        Some((last, [])) => last.clone(),
+        Some((last, rest)) => format!("{}, or {last}", rest.join(", ")),
+        None => String::new(),
+    };
+    if parts.is_empty() {
+        actions
+    } else {
+        format!("{}; {actions}", parts.join("; "))
+    }
+}
 
 /// How finely the true model resolves an output, in its unit, or `None` where no floor is known.
 ///
@@ -234,6 +300,59 @@ impl CheckCandidates {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn untrusted_check(first_miss_record: Option<usize>, checks_before: usize) -> CheckReport {
+        CheckReport {
+            runs: 8,
+            unique_candidates: 8,
+            points: Vec::new(),
+            max_misfit: vec![0.5],
+            relative_misfit: vec![0.5],
+            untrusted_outputs: vec![0],
+            resolution: vec![None],
+            below_resolution_outputs: Vec::new(),
+            complete: true,
+            checked: Vec::new(),
+            first_miss_record,
+            checks_before_first_miss: checks_before,
+        }
+    }
+
+    #[test]
+    fn untrusted_advice_names_the_first_miss_the_separation_and_a_method_that_fits_d() {
+        let times = [0.0, 0.1, 0.2, 0.3];
+        let separating = LyapunovEstimate {
+            exponent_per_s: 9.0,
+            amplification: 8.1e3,
+            horizon_s: 1.0,
+        };
+        let advice = untrusted_advice(&untrusted_check(Some(2), 5), &times, 38, Some(&separating));
+        assert_eq!(
+            advice,
+            "the first miss is at t = 0.2 s (the 5 checks at earlier times agreed, judged against \
+             this run's widths); the nominal motion separates nearby trajectories at 9.00 /s \
+             (8.1e3-fold over 1.000 s), faster than a polynomial in the parameters can follow for \
+             long; shorten --duration below 0.2 s and check again, narrow the box, or use --method \
+             monte-carlo (a scan is out of reach at d = 38)"
+        );
+        // A miss at the first checked time gives no shorter horizon; slow separation is not named
+        // and a higher order is worth a try; at d ≤ 4 a scan is.
+        let calm = LyapunovEstimate {
+            amplification: SEPARATION_ADVICE_AMPLIFICATION / 2.0,
+            ..separating
+        };
+        let advice = untrusted_advice(&untrusted_check(Some(1), 0), &times, 2, Some(&calm));
+        assert_eq!(
+            advice,
+            "the first miss is at t = 0.1 s; raise --order, narrow the box, or use --method scan \
+             or monte-carlo"
+        );
+        let advice = untrusted_advice(&untrusted_check(None, 9), &times, 4, None);
+        assert_eq!(
+            advice,
+            "raise --order, narrow the box, or use --method scan or monte-carlo"
+        );
+    }
 
     #[test]
     fn positions_are_resolved_to_the_integrators_tolerance_and_forces_are_not() {

@@ -215,6 +215,12 @@ pub struct CheckReport {
     /// Every checked prediction: `(output, record, true value)` at the record time where the
     /// surrogate put an extreme (for plots: true runs on the envelope's edge).
     pub checked: Vec<(usize, usize, f64)>,
+    /// The first record at which a check of an untrusted output missed by more than
+    /// [`TRUST_RELATIVE_MISFIT`] of the output's width (`None` when every output is trusted).
+    pub first_miss_record: Option<usize>,
+    /// Checks made at records before [`CheckReport::first_miss_record`] (all of them when it is
+    /// `None`): each agreed within the tolerance or the output's resolution.
+    pub checks_before_first_miss: usize,
 }
 
 /// What a study did.
@@ -1172,6 +1178,7 @@ impl Study<'_> {
         let mut below_resolution_outputs = Vec::new();
         let settings = hht_settings(self.scene);
         let mut resolution = Vec::with_capacity(n_outputs);
+        let mut widths = Vec::with_capacity(n_outputs);
         for o in 0..n_outputs {
             max_misfit[o] = misfit[o].iter().copied().fold(0.0, f64::max);
             let (width, magnitude) = (0..n_records)
@@ -1182,6 +1189,7 @@ impl Study<'_> {
                         magnitude.max(p.lower.abs()).max(p.upper.abs()),
                     )
                 });
+            widths.push(width);
             relative_misfit[o] = if width > 0.0 {
                 max_misfit[o] / width
             } else {
@@ -1204,6 +1212,18 @@ impl Study<'_> {
                 }
             }
         }
+        let first_miss_record = untrusted_outputs
+            .iter()
+            .filter_map(|&o| {
+                misfit[o]
+                    .iter()
+                    .position(|&m| m > TRUST_RELATIVE_MISFIT * widths[o])
+            })
+            .min();
+        let checks_before_first_miss = checked
+            .iter()
+            .filter(|&&(_, record, _)| first_miss_record.is_none_or(|first| record < first))
+            .count();
         Ok(CheckReport {
             runs,
             unique_candidates: check_plan.unique_candidates,
@@ -1215,6 +1235,8 @@ impl Study<'_> {
             below_resolution_outputs,
             complete,
             checked,
+            first_miss_record,
+            checks_before_first_miss,
         })
     }
 

@@ -9,10 +9,10 @@ use super::{
     check_finite, check_output_paths, install_interrupt, write_stdout, AnalyzeArgs, SceneArgs,
 };
 use crate::analysis::{
-    has_sobol_indices, sobol_values_per_record, CheckReport, DesignKind, Method, Progress,
-    RecordSchedule, SimulateHere, StageRecords, Study, StudyOptions, StudyPlan, StudyReport,
-    ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS, TABLE_SOBOL_CONTRIBUTORS,
-    TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
+    has_sobol_indices, sobol_values_per_record, untrusted_advice, CheckReport, DesignKind, Method,
+    Progress, RecordSchedule, SimulateHere, StageRecords, Study, StudyOptions, StudyPlan,
+    StudyReport, ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS,
+    TABLE_SOBOL_CONTRIBUTORS, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
 use crate::distributed::{PlanFile, ShardError, ShardStages};
 use crate::dynamics::Data;
@@ -198,7 +198,7 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         );
     }
     if let Some(check) = &report.check {
-        warn_untrusted(&report, check);
+        warn_untrusted(&report, check, space.len());
     } else if scans_a_surrogate {
         // Only `--check-runs 0` leaves a scanned surrogate unchecked.
         eprintln!(
@@ -253,13 +253,25 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         )));
     }
     match &report.check {
-        Some(check) if !check.untrusted_outputs.is_empty() => Err(untrusted(&report, check)),
+        Some(check) if !check.untrusted_outputs.is_empty() => {
+            Err(untrusted(&report, check, space.len()))
+        }
         _ => Ok(()),
     }
 }
 
+/// What to do about the untrusted outputs of `report` ([`untrusted_advice`]).
+fn advice(report: &StudyReport, check: &CheckReport, dimensions: usize) -> String {
+    untrusted_advice(
+        check,
+        &report.envelope.times,
+        dimensions,
+        report.lyapunov.as_ref(),
+    )
+}
+
 /// The exit-4 error of a study whose check did not trust some outputs.
-fn untrusted(report: &StudyReport, check: &CheckReport) -> Error {
+fn untrusted(report: &StudyReport, check: &CheckReport, dimensions: usize) -> Error {
     let outputs = &report.envelope.outputs;
     let worst = check
         .untrusted_outputs
@@ -277,6 +289,7 @@ fn untrusted(report: &StudyReport, check: &CheckReport) -> Error {
         untrusted: check.untrusted_outputs.len(),
         total: outputs.len(),
         worst,
+        advice: advice(report, check, dimensions),
     }
 }
 
@@ -785,11 +798,14 @@ fn gap_json(report: &StudyReport) -> Option<serde_json::Value> {
 /// The check's statistics for the summary: runs, candidates, and per output its misfit.
 fn check_json(report: &StudyReport, check: &CheckReport, dim: usize) -> serde_json::Value {
     let outputs = &report.envelope.outputs;
+    let e_times = &report.envelope.times;
     serde_json::json!({
         "runs": check.runs,
         "unique_candidates": check.unique_candidates,
         "complete": check.complete,
         "trusted": check.untrusted_outputs.is_empty(),
+        "first_miss_time_s": check.first_miss_record.map(|r| e_times[r]),
+        "checks_before_first_miss": check.checks_before_first_miss,
         "untrusted_outputs": check.untrusted_outputs.iter().map(|&o| outputs[o].name.clone()).collect::<Vec<_>>(),
         "trust_relative_misfit": TRUST_RELATIVE_MISFIT,
         "trust_resolution_factor": TRUST_RESOLUTION_FACTOR,
@@ -807,7 +823,7 @@ fn check_json(report: &StudyReport, check: &CheckReport, dim: usize) -> serde_js
 /// Says loudly which outputs' surrogates missed the true model at their predicted extremes, and
 /// notes the outputs whose misfit, large against their width, is within the integrator's
 /// resolution.
-fn warn_untrusted(report: &StudyReport, check: &CheckReport) {
+fn warn_untrusted(report: &StudyReport, check: &CheckReport, dimensions: usize) {
     let outputs = &report.envelope.outputs;
     if !check.below_resolution_outputs.is_empty() {
         let listed: Vec<String> = check
@@ -849,12 +865,13 @@ fn warn_untrusted(report: &StudyReport, check: &CheckReport) {
         })
         .collect();
     eprintln!(
-        "warning: the surrogate cannot be trusted for {} of {} outputs: true-model runs at its predicted extremes differ from it by more than {:.0} % of the envelope width: {}{}. The envelopes were widened to contain every true run, but they may still be too narrow; raise --order, narrow the box, or use --method scan",
+        "warning: the surrogate cannot be trusted for {} of {} outputs: true-model runs at its predicted extremes differ from it by more than {:.0} % of the envelope width: {}{}. The envelopes were widened to contain every true run, but they may still be too narrow; {}",
         worst.len(),
         outputs.len(),
         100.0 * TRUST_RELATIVE_MISFIT,
         listed.join(", "),
         if worst.len() > 5 { ", …" } else { "" },
+        advice(report, check, dimensions),
     );
 }
 

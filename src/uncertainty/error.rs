@@ -128,7 +128,7 @@ pub enum UncertaintyError {
         reason: &'static str,
     },
     /// The box contains inertia values that no rigid body has, while the URDF values are physical.
-    #[error("{file}: [parameters]: at the {point} of the box, the inertia of link '{link}' {violation}, while its URDF inertia is physical; narrow the intervals of these parameters")]
+    #[error("{file}: [parameters]: at the {point} of the box, the inertia of link '{link}' {violation}, while its URDF inertia is physical; narrow the intervals of these parameters, or vary the link's mass and inertia together with \"link.{link}.scale\" (a scale keeps them physical)")]
     InconsistentInertia {
         /// The sidecar file.
         file: String,
