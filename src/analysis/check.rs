@@ -42,22 +42,29 @@ pub const SEPARATION_ADVICE_AMPLIFICATION: f64 = 1e2;
 
 /// What to do about a surrogate the check did not trust, for the warning and the exit-4 error: when
 /// the first miss happened (from then on the surrogate failed; the checks before it agreed, so a
-/// shorter `--duration` may be trusted), whether the nominal motion separates nearby trajectories
-/// fast (`lyapunov`), and which method can replace it at `dimensions` parameters (a scan only up
-/// to [`super::auto::AUTO_TENSOR_MAX_DIM`]).
+/// shorter `--duration` may be trusted), which untrusted outputs reach an enforced joint limit
+/// (`at_stops`, their names: a stop makes the response kink in the parameters), whether the
+/// nominal motion separates nearby trajectories fast (`lyapunov`), and which method can replace
+/// the surrogate at `dimensions` parameters (a scan only up to
+/// [`super::auto::AUTO_TENSOR_MAX_DIM`]). A higher order is offered only when neither a stop nor
+/// the separation explains the miss.
 pub fn untrusted_advice(
     check: &CheckReport,
     times: &[f64],
     dimensions: usize,
     lyapunov: Option<&LyapunovEstimate>,
+    at_stops: &[&str],
 ) -> String {
     let mut parts = Vec::new();
     let first_miss_s = check.first_miss_record.and_then(|r| times.get(r).copied());
     let shorter = match first_miss_s {
         Some(t) if check.checks_before_first_miss > 0 => {
+            let checks = match check.checks_before_first_miss {
+                1 => "the one check".to_string(),
+                n => format!("the {n} checks"),
+            };
             parts.push(format!(
-                "the first miss is at t = {t} s (the {} checks at earlier times agreed, judged against this run's widths)",
-                check.checks_before_first_miss
+                "the first miss is at t = {t} s ({checks} at earlier times agreed, judged against this run's widths)"
             ));
             Some(format!("shorten --duration below {t} s and check again"))
         }
@@ -67,6 +74,13 @@ pub fn untrusted_advice(
         }
         None => None,
     };
+    if !at_stops.is_empty() {
+        parts.push(format!(
+            "{} reach{} a joint limit, where the joint stops: whether and when it hits moves with the parameters, which puts a kink in the response that no polynomial follows",
+            at_stops.join(", "),
+            if at_stops.len() == 1 { "es" } else { "" }
+        ));
+    }
     let separating = lyapunov
         .filter(|l| l.exponent_per_s > 0.0 && l.amplification >= SEPARATION_ADVICE_AMPLIFICATION);
     if let Some(l) = separating {
@@ -81,7 +95,7 @@ pub fn untrusted_advice(
         format!("use --method monte-carlo (a scan is out of reach at d = {dimensions})")
     };
     let mut actions: Vec<String> = shorter.into_iter().collect();
-    if separating.is_none() {
+    if separating.is_none() && at_stops.is_empty() {
         actions.push("raise --order".to_string());
     }
     actions.push("narrow the box".to_string());
@@ -326,7 +340,13 @@ mod tests {
             amplification: 8.1e3,
             horizon_s: 1.0,
         };
-        let advice = untrusted_advice(&untrusted_check(Some(2), 5), &times, 38, Some(&separating));
+        let advice = untrusted_advice(
+            &untrusted_check(Some(2), 5),
+            &times,
+            38,
+            Some(&separating),
+            &[],
+        );
         assert_eq!(
             advice,
             "the first miss is at t = 0.2 s (the 5 checks at earlier times agreed, judged against \
@@ -341,16 +361,27 @@ mod tests {
             amplification: SEPARATION_ADVICE_AMPLIFICATION / 2.0,
             ..separating
         };
-        let advice = untrusted_advice(&untrusted_check(Some(1), 0), &times, 2, Some(&calm));
+        let advice = untrusted_advice(&untrusted_check(Some(1), 0), &times, 2, Some(&calm), &[]);
         assert_eq!(
             advice,
             "the first miss is at t = 0.1 s; raise --order, narrow the box, or use --method scan \
              or monte-carlo"
         );
-        let advice = untrusted_advice(&untrusted_check(None, 9), &times, 4, None);
+        let advice = untrusted_advice(&untrusted_check(None, 9), &times, 4, None, &[]);
         assert_eq!(
             advice,
             "raise --order, narrow the box, or use --method scan or monte-carlo"
+        );
+        // Outputs at a stop are named as the cause, with no higher order offered; one earlier
+        // check is "the one check".
+        let advice = untrusted_advice(&untrusted_check(Some(3), 1), &times, 9, None, &["q.finger"]);
+        assert_eq!(
+            advice,
+            "the first miss is at t = 0.3 s (the one check at earlier times agreed, judged against \
+             this run's widths); q.finger reaches a joint limit, where the joint stops: whether and \
+             when it hits moves with the parameters, which puts a kink in the response that no \
+             polynomial follows; shorten --duration below 0.3 s and check again, narrow the box, or \
+             use --method monte-carlo (a scan is out of reach at d = 9)"
         );
     }
 

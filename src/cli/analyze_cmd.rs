@@ -22,7 +22,8 @@ use crate::output::{
     Summary,
 };
 use crate::scene::{
-    check_threads, describe_limit_excursions, limit_excursions, LimitExcursion, Scene,
+    check_threads, describe_limit_excursions, limit_excursions, outputs_at_enforced_limits,
+    LimitExcursion, Scene,
 };
 use crate::setup::{print_message, Setup};
 use crate::text::closest_suggestion;
@@ -179,6 +180,11 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     reporter.finish();
     let wall_seconds = started.elapsed().as_secs_f64();
     check_envelope_finite(&report)?;
+    let advice_context = AdviceContext {
+        model: &kinematic_model,
+        scene: &scene,
+        dimensions: space.len(),
+    };
     let excursions = limit_excursions(
         &kinematic_model,
         &scene,
@@ -198,7 +204,7 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         );
     }
     if let Some(check) = &report.check {
-        warn_untrusted(&report, check, space.len());
+        warn_untrusted(&report, check, &advice_context);
     } else if scans_a_surrogate {
         // Only `--check-runs 0` leaves a scanned surrogate unchecked.
         eprintln!(
@@ -254,24 +260,47 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     }
     match &report.check {
         Some(check) if !check.untrusted_outputs.is_empty() => {
-            Err(untrusted(&report, check, space.len()))
+            Err(untrusted(&report, check, &advice_context))
         }
         _ => Ok(()),
     }
 }
 
-/// What to do about the untrusted outputs of `report` ([`untrusted_advice`]).
-fn advice(report: &StudyReport, check: &CheckReport, dimensions: usize) -> String {
+/// What to do about the untrusted outputs of `report` ([`untrusted_advice`]); `model` and `scene`
+/// tell which of them reach an enforced joint limit.
+fn advice(report: &StudyReport, check: &CheckReport, context: &AdviceContext<'_>) -> String {
+    let e = &report.envelope;
+    let at_stops = outputs_at_enforced_limits(
+        context.model,
+        context.scene,
+        &e.outputs,
+        &check.untrusted_outputs,
+        &e.lower,
+        &e.upper,
+    );
+    let names: Vec<&str> = at_stops
+        .iter()
+        .map(|&o| e.outputs[o].name.as_str())
+        .collect();
     untrusted_advice(
         check,
-        &report.envelope.times,
-        dimensions,
+        &e.times,
+        context.dimensions,
         report.lyapunov.as_ref(),
+        &names,
     )
 }
 
+/// What [`advice`] needs besides the report: the model and scene (for joint limits) and the
+/// number of parameters.
+struct AdviceContext<'a> {
+    model: &'a crate::model::Model,
+    scene: &'a Scene,
+    dimensions: usize,
+}
+
 /// The exit-4 error of a study whose check did not trust some outputs.
-fn untrusted(report: &StudyReport, check: &CheckReport, dimensions: usize) -> Error {
+fn untrusted(report: &StudyReport, check: &CheckReport, context: &AdviceContext<'_>) -> Error {
     let outputs = &report.envelope.outputs;
     let worst = check
         .untrusted_outputs
@@ -289,7 +318,7 @@ fn untrusted(report: &StudyReport, check: &CheckReport, dimensions: usize) -> Er
         untrusted: check.untrusted_outputs.len(),
         total: outputs.len(),
         worst,
-        advice: advice(report, check, dimensions),
+        advice: advice(report, check, context),
     }
 }
 
@@ -823,7 +852,7 @@ fn check_json(report: &StudyReport, check: &CheckReport, dim: usize) -> serde_js
 /// Says loudly which outputs' surrogates missed the true model at their predicted extremes, and
 /// notes the outputs whose misfit, large against their width, is within the integrator's
 /// resolution.
-fn warn_untrusted(report: &StudyReport, check: &CheckReport, dimensions: usize) {
+fn warn_untrusted(report: &StudyReport, check: &CheckReport, context: &AdviceContext<'_>) {
     let outputs = &report.envelope.outputs;
     if !check.below_resolution_outputs.is_empty() {
         let listed: Vec<String> = check
@@ -871,7 +900,7 @@ fn warn_untrusted(report: &StudyReport, check: &CheckReport, dimensions: usize) 
         100.0 * TRUST_RELATIVE_MISFIT,
         listed.join(", "),
         if worst.len() > 5 { ", …" } else { "" },
-        advice(report, check, dimensions),
+        advice(report, check, context),
     );
 }
 

@@ -9,12 +9,17 @@
 //! joint's deepest excursion, so that the commands can warn and the summary can record it.
 
 use super::{Output, OutputKind, Scene};
-use crate::model::{JointKind, Model};
+use crate::model::{Joint, JointKind, Model};
 use serde::Serialize;
 
 /// How far past a limit (rad or m) a recorded position must be to count: above the rounding of a
 /// joint that rests on its limit, far below any excursion that changes a motion.
 pub const LIMIT_EXCURSION_TOLERANCE: f64 = 1e-9;
+
+/// How close to a limit (rad or m) an envelope bound must come, or how far past it, for the joint
+/// to count as reaching an enforced stop ([`outputs_at_enforced_limits`]): a joint resting on a
+/// limit sits a little inside the penalty, a joint that only approaches it stays well away.
+pub const LIMIT_CONTACT_TOLERANCE: f64 = 1e-6;
 
 /// How many joints the warning names before it says "and N more" (the summary lists all).
 const NAMED_IN_WARNING: usize = 5;
@@ -62,23 +67,9 @@ pub fn limit_excursions(
     }
     let mut found = Vec::new();
     for (i, output) in outputs.iter().enumerate() {
-        let OutputKind::Position { q_index } = output.kind else {
+        let Some((joint, [lower, upper])) = limited_joint(model, output) else {
             continue;
         };
-        let Some(joint) = model
-            .joints
-            .iter()
-            .find(|j| j.q_index == q_index && j.kind != JointKind::Floating)
-        else {
-            continue;
-        };
-        let Some(source) = joint.source else {
-            continue;
-        };
-        let [lower, upper] = model.description.joints[source].limits;
-        if !(lower.is_finite() && upper.is_finite() && lower < upper) {
-            continue;
-        }
         let mut deepest: Option<LimitExcursion> = None;
         for (k, &time_s) in times.iter().enumerate() {
             for reached in [lowest[i][k], highest[i][k]] {
@@ -102,6 +93,50 @@ pub fn limit_excursions(
     }
     found.sort_by(|a, b| b.depth().total_cmp(&a.depth()));
     found
+}
+
+/// The outputs among `candidates` (indices into `outputs`) that are positions of joints whose
+/// envelope reaches an enforced URDF limit (within [`LIMIT_CONTACT_TOLERANCE`] or past it) when
+/// `scene` declares `joint_limits`; empty otherwise. A stop makes the response kink in the
+/// parameters — whether and when the joint hits moves with them — which is why a surrogate of
+/// such an output fails its check. `lowest`/`highest` as in [`limit_excursions`].
+pub fn outputs_at_enforced_limits(
+    model: &Model,
+    scene: &Scene,
+    outputs: &[Output],
+    candidates: &[usize],
+    lowest: &[Vec<f64>],
+    highest: &[Vec<f64>],
+) -> Vec<usize> {
+    if !scene.effects.joint_limits {
+        return Vec::new();
+    }
+    candidates
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let Some((_, [lower, upper])) = limited_joint(model, &outputs[i]) else {
+                return false;
+            };
+            let low = lowest[i].iter().copied().fold(f64::INFINITY, f64::min);
+            let high = highest[i].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            low <= lower + LIMIT_CONTACT_TOLERANCE || high >= upper - LIMIT_CONTACT_TOLERANCE
+        })
+        .collect()
+}
+
+/// The 1-dof joint whose position `output` is, with its finite URDF limits `[lower, upper]`
+/// (`lower < upper`), if it is one and has them.
+fn limited_joint<'m>(model: &'m Model, output: &Output) -> Option<(&'m Joint, [f64; 2])> {
+    let OutputKind::Position { q_index } = output.kind else {
+        return None;
+    };
+    let joint = model
+        .joints
+        .iter()
+        .find(|j| j.q_index == q_index && j.kind != JointKind::Floating)?;
+    let [lower, upper] = model.description.joints[joint.source?].limits;
+    (lower.is_finite() && upper.is_finite() && lower < upper).then_some((joint, [lower, upper]))
 }
 
 /// The warning for `excursions` (not empty): each joint (the deepest [`NAMED_IN_WARNING`]), how
@@ -278,5 +313,45 @@ mod tests {
         // Within the tolerance of a limit is on it.
         let upper = vec![vec![0.45, 0.5 + 0.5 * LIMIT_EXCURSION_TOLERANCE, 0.45]];
         assert!(limit_excursions(&model, &free, &outputs, &times, &lower, &upper).is_empty());
+    }
+
+    #[test]
+    fn outputs_reaching_an_enforced_stop_are_found_only_with_the_effect() {
+        let model = hinged_bars();
+        let held = scene(&model, "effects = [\"gravity\", \"joint_limits\"]\n");
+        let outputs = held.outputs.clone();
+        let hinge = outputs.iter().position(|o| o.name == "q.hinge").unwrap();
+        let spin = outputs.iter().position(|o| o.name == "q.spin").unwrap();
+        let series = |hinge_values: [f64; 2]| {
+            let mut s = vec![vec![0.0, 0.0]; outputs.len()];
+            s[hinge] = hinge_values.to_vec();
+            s[spin] = vec![-40.0, 40.0]; // no limits: never at a stop
+            s
+        };
+        let both = [hinge, spin];
+        // Resting a little inside the penalty, past the lower limit: at the stop.
+        let (lower, upper) = (series([-0.1, -0.5000003]), series([0.2, 0.1]));
+        assert_eq!(
+            outputs_at_enforced_limits(&model, &held, &outputs, &both, &lower, &upper),
+            vec![hinge]
+        );
+        // Within the tolerance of the upper limit counts; 1e-3 away does not.
+        let upper_on = series([0.2, 0.5 - 0.5 * LIMIT_CONTACT_TOLERANCE]);
+        let inside = series([-0.499, 0.1]);
+        assert_eq!(
+            outputs_at_enforced_limits(&model, &held, &outputs, &both, &inside, &upper_on),
+            vec![hinge]
+        );
+        assert!(
+            outputs_at_enforced_limits(&model, &held, &outputs, &both, &inside, &upper).is_empty()
+        );
+        // Only the candidates asked about, and nothing without the effect.
+        assert!(
+            outputs_at_enforced_limits(&model, &held, &outputs, &[spin], &lower, &upper).is_empty()
+        );
+        let free = scene(&model, "");
+        assert!(
+            outputs_at_enforced_limits(&model, &free, &outputs, &both, &lower, &upper).is_empty()
+        );
     }
 }

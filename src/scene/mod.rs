@@ -18,7 +18,8 @@ pub use budget::{
 };
 pub use contacts::{SceneContacts, DEFAULT_MAX_PENETRATION_M};
 pub use limit_excursions::{
-    describe_limit_excursions, limit_excursions, LimitExcursion, LIMIT_EXCURSION_TOLERANCE,
+    describe_limit_excursions, limit_excursions, outputs_at_enforced_limits, LimitExcursion,
+    LIMIT_CONTACT_TOLERANCE, LIMIT_EXCURSION_TOLERANCE,
 };
 pub use outputs::{Output, OutputKind};
 // The file format lives in `crate::sidecar`; these re-exports keep `crate::scene::SidecarFile` and
