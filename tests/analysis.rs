@@ -280,11 +280,15 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
     )
     .unwrap();
     let summary_path = dir.join("summary.json");
+    let report_dir = dir.join("report");
+    let _ = std::fs::remove_dir_all(&report_dir);
     let out = ribbon_output(&[
         "analyze",
         urdf.to_str().unwrap(),
         "--summary",
         summary_path.to_str().unwrap(),
+        "--report",
+        report_dir.to_str().unwrap(),
     ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     // Results written, but a bound that may be too narrow never exits 0.
@@ -305,6 +309,13 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
     // When the surrogate first missed, in the summary and in the advice on stderr.
     let first_miss = check["first_miss_time_s"].as_f64().unwrap();
     assert!(first_miss > 0.0 && first_miss <= 2.0, "{check}");
+    // An untrusted run does not pass the check up to its end.
+    assert!(
+        check["passes_until_time_s"]
+            .as_f64()
+            .is_none_or(|t| t < 2.0),
+        "{check}"
+    );
     assert!(
         check["checks_before_first_miss"].as_u64().is_some(),
         "{check}"
@@ -312,6 +323,16 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
     assert!(
         stderr.contains(&format!("the first miss is at t = {first_miss} s")),
         "{stderr}"
+    );
+    // A person reading the report sees the same warning, above the table.
+    let page = std::fs::read_to_string(report_dir.join("report.md")).unwrap();
+    let warning = page
+        .find("> **Warning:** the surrogate cannot be trusted")
+        .unwrap_or_else(|| panic!("no warning in report.md:\n{page}"));
+    assert!(warning < page.find("```text").unwrap(), "{page}");
+    assert!(
+        page.contains(&format!("the first miss is at t = {first_miss} s")),
+        "{page}"
     );
     let (lower, upper) = (
         summary["parameters"][0]["lower"].as_f64().unwrap(),
@@ -382,6 +403,15 @@ fn the_check_finds_nothing_on_a_smooth_response_and_can_be_turned_off() {
     let checked = analyze(urdf, &sidecar, &[], "check_on");
     let check = &checked["stats"]["check"];
     assert_eq!(check["trusted"], true);
+    // A trusted run passes the check up to its end, and nothing missed.
+    let last_time = checked["outputs"][0]["time"]
+        .as_array()
+        .unwrap()
+        .last()
+        .unwrap()
+        .clone();
+    assert_eq!(check["passes_until_time_s"], last_time, "{check}");
+    assert_eq!(check["first_miss_time_s"], Value::Null, "{check}");
     for output in check["outputs"].as_array().unwrap() {
         let misfit = output["relative_misfit"].as_f64().unwrap();
         assert!(

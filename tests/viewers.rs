@@ -68,6 +68,10 @@ fn analyze_report_holds_a_band_plot_per_output_and_the_logs_layout() {
         String::from_utf8_lossy(&result.stderr)
     );
     let page = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(
+        !page.contains("**Warning:**"),
+        "a trusted study has no warning: {page}"
+    );
     for (name, unit) in [
         ("q.j1", "rad"),
         ("q.j2", "rad"),

@@ -56,23 +56,26 @@ pub fn untrusted_advice(
     at_stops: &[&str],
 ) -> String {
     let mut parts = Vec::new();
-    let first_miss_s = check.first_miss_record.and_then(|r| times.get(r).copied());
-    let shorter = match first_miss_s {
-        Some(t) if check.checks_before_first_miss > 0 => {
-            let checks = match check.checks_before_first_miss {
-                1 => "the one check".to_string(),
-                n => format!("the {n} checks"),
-            };
+    if let Some(t) = check.first_miss_record.and_then(|r| times.get(r).copied()) {
+        let earlier = match check.checks_before_first_miss {
+            0 => String::new(),
+            1 => " (the one check at earlier times agreed)".to_string(),
+            n => format!(" (the {n} checks at earlier times agreed)"),
+        };
+        parts.push(format!("the first miss is at t = {t} s{earlier}"));
+    }
+    // The check restricted to the records up to some time passes when a shorter run would be
+    // judged by the same checks: worth naming only if it is not the start.
+    let last = times.len().saturating_sub(1);
+    let shorter = match check.passes_until_record {
+        Some(r) if r > 0 && r < last => {
+            let t = times[r];
             parts.push(format!(
-                "the first miss is at t = {t} s ({checks} at earlier times agreed, judged against this run's widths)"
+                "judged against the envelope widths up to then, the checks pass up to t = {t} s"
             ));
-            Some(format!("shorten --duration below {t} s and check again"))
+            Some(format!("shorten --duration to {t} s and check again"))
         }
-        Some(t) => {
-            parts.push(format!("the first miss is at t = {t} s"));
-            None
-        }
-        None => None,
+        _ => None,
     };
     if !at_stops.is_empty() {
         parts.push(format!(
@@ -315,7 +318,11 @@ impl CheckCandidates {
 mod tests {
     use super::*;
 
-    fn untrusted_check(first_miss_record: Option<usize>, checks_before: usize) -> CheckReport {
+    fn untrusted_check(
+        first_miss_record: Option<usize>,
+        checks_before: usize,
+        passes_until_record: Option<usize>,
+    ) -> CheckReport {
         CheckReport {
             runs: 8,
             unique_candidates: 8,
@@ -329,6 +336,7 @@ mod tests {
             checked: Vec::new(),
             first_miss_record,
             checks_before_first_miss: checks_before,
+            passes_until_record,
         }
     }
 
@@ -341,7 +349,7 @@ mod tests {
             horizon_s: 1.0,
         };
         let advice = untrusted_advice(
-            &untrusted_check(Some(2), 5),
+            &untrusted_check(Some(2), 5, Some(1)),
             &times,
             38,
             Some(&separating),
@@ -349,39 +357,51 @@ mod tests {
         );
         assert_eq!(
             advice,
-            "the first miss is at t = 0.2 s (the 5 checks at earlier times agreed, judged against \
-             this run's widths); the nominal motion separates nearby trajectories at 9.00 /s \
-             (8.1e3-fold over 1.000 s), faster than a polynomial in the parameters can follow for \
-             long; shorten --duration below 0.2 s and check again, narrow the box, or use --method \
-             monte-carlo (a scan is out of reach at d = 38)"
+            "the first miss is at t = 0.2 s (the 5 checks at earlier times agreed); judged against \
+             the envelope widths up to then, the checks pass up to t = 0.1 s; the nominal motion \
+             separates nearby trajectories at 9.00 /s (8.1e3-fold over 1.000 s), faster than a \
+             polynomial in the parameters can follow for long; shorten --duration to 0.1 s and \
+             check again, narrow the box, or use --method monte-carlo (a scan is out of reach at \
+             d = 38)"
         );
-        // A miss at the first checked time gives no shorter horizon; slow separation is not named
-        // and a higher order is worth a try; at d ≤ 4 a scan is.
+        // A check that passes only at the start gives no shorter horizon; slow separation is not
+        // named and a higher order is worth a try; at d ≤ 4 a scan is.
         let calm = LyapunovEstimate {
             amplification: SEPARATION_ADVICE_AMPLIFICATION / 2.0,
             ..separating
         };
-        let advice = untrusted_advice(&untrusted_check(Some(1), 0), &times, 2, Some(&calm), &[]);
+        let advice = untrusted_advice(
+            &untrusted_check(Some(1), 0, Some(0)),
+            &times,
+            2,
+            Some(&calm),
+            &[],
+        );
         assert_eq!(
             advice,
             "the first miss is at t = 0.1 s; raise --order, narrow the box, or use --method scan \
              or monte-carlo"
         );
-        let advice = untrusted_advice(&untrusted_check(None, 9), &times, 4, None, &[]);
+        let advice = untrusted_advice(&untrusted_check(None, 9, Some(3)), &times, 4, None, &[]);
         assert_eq!(
             advice,
             "raise --order, narrow the box, or use --method scan or monte-carlo"
         );
         // Outputs at a stop are named as the cause, with no higher order offered; one earlier
-        // check is "the one check".
-        let advice = untrusted_advice(&untrusted_check(Some(3), 1), &times, 9, None, &["q.finger"]);
+        // check is "the one check"; no passing prefix, no shorter duration.
+        let advice = untrusted_advice(
+            &untrusted_check(Some(3), 1, None),
+            &times,
+            9,
+            None,
+            &["q.finger"],
+        );
         assert_eq!(
             advice,
-            "the first miss is at t = 0.3 s (the one check at earlier times agreed, judged against \
-             this run's widths); q.finger reaches a joint limit, where the joint stops: whether and \
-             when it hits moves with the parameters, which puts a kink in the response that no \
-             polynomial follows; shorten --duration below 0.3 s and check again, narrow the box, or \
-             use --method monte-carlo (a scan is out of reach at d = 9)"
+            "the first miss is at t = 0.3 s (the one check at earlier times agreed); q.finger \
+             reaches a joint limit, where the joint stops: whether and when it hits moves with the \
+             parameters, which puts a kink in the response that no polynomial follows; narrow the \
+             box, or use --method monte-carlo (a scan is out of reach at d = 9)"
         );
     }
 

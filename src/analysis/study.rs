@@ -221,6 +221,10 @@ pub struct CheckReport {
     /// Checks made at records before [`CheckReport::first_miss_record`] (all of them when it is
     /// `None`): each agreed within the tolerance or the output's resolution.
     pub checks_before_first_miss: usize,
+    /// The last record `R` at which the check, comparing only the misfits and widths of records
+    /// `0..=R`, trusts every output — what the check would say of a run that ended there (the last
+    /// record exactly when every output is trusted; `None` when no prefix passes).
+    pub passes_until_record: Option<usize>,
 }
 
 /// What a study did.
@@ -1220,6 +1224,34 @@ impl Study<'_> {
                     .position(|&m| m > TRUST_RELATIVE_MISFIT * widths[o])
             })
             .min();
+        // The trust test of every prefix of the records, with running widths and misfits: the
+        // last prefix it passes is what the check would say of a run that ended there.
+        let mut passes_until_record = None;
+        let mut prefix_width = vec![0.0_f64; n_outputs];
+        let mut prefix_misfit = vec![0.0_f64; n_outputs];
+        for (r, points) in accumulator
+            .points
+            .chunks_exact(n_outputs.max(1))
+            .enumerate()
+        {
+            let mut passes = true;
+            for (o, point) in points.iter().enumerate() {
+                prefix_width[o] = prefix_width[o].max(point.upper - point.lower);
+                prefix_misfit[o] = prefix_misfit[o].max(misfit[o][r]);
+                // The same test as the whole run's above, on the prefix.
+                let relative = if prefix_width[o] > 0.0 {
+                    prefix_misfit[o] / prefix_width[o]
+                } else {
+                    0.0
+                };
+                let excused = matches!(resolution[o], Some(floor) if prefix_misfit[o] <= TRUST_RESOLUTION_FACTOR * floor);
+                let too_far = relative > TRUST_RELATIVE_MISFIT;
+                passes &= !too_far || excused;
+            }
+            if passes {
+                passes_until_record = Some(r);
+            }
+        }
         let checks_before_first_miss = checked
             .iter()
             .filter(|&&(_, record, _)| first_miss_record.is_none_or(|first| record < first))
@@ -1237,6 +1269,7 @@ impl Study<'_> {
             checked,
             first_miss_record,
             checks_before_first_miss,
+            passes_until_record,
         })
     }
 

@@ -185,6 +185,8 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         scene: &scene,
         dimensions: space.len(),
     };
+    // Every warning goes to stderr now and into the report's page (`--report`).
+    let mut warnings: Vec<String> = Vec::new();
     let excursions = limit_excursions(
         &kinematic_model,
         &scene,
@@ -194,17 +196,15 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         &report.envelope.upper,
     );
     if !excursions.is_empty() {
-        eprintln!(
-            "warning: {}",
-            describe_limit_excursions(
-                &excursions,
-                true,
-                report.envelope.times.first().copied().unwrap_or(0.0)
-            )
-        );
+        warnings.push(describe_limit_excursions(
+            &excursions,
+            true,
+            report.envelope.times.first().copied().unwrap_or(0.0),
+        ));
     }
     if let Some(check) = &report.check {
-        warn_untrusted(&report, check, &advice_context);
+        note_below_resolution(&report, check);
+        warnings.extend(untrusted_warning(&report, check, &advice_context));
     } else if scans_a_surrogate {
         // Only `--check-runs 0` leaves a scanned surrogate unchecked.
         eprintln!(
@@ -212,13 +212,16 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         );
     }
     if let Some(lyapunov) = report.lyapunov.filter(|l| l.is_chaotic()) {
-        eprintln!(
-            "warning: the nominal motion is chaotic: nearby trajectories separate at about {:.2} /s (largest Lyapunov exponent), so a small difference grows {:.1e}-fold over the {:.3} s horizon and a 1 % parameter change reaches order one after about {:.2} s. Past that time the envelopes describe chaos more than your parameters, and no surrogate in the parameters can follow them; shorten --duration, or check them with --method monte-carlo",
+        warnings.push(format!(
+            "the nominal motion is chaotic: nearby trajectories separate at about {:.2} /s (largest Lyapunov exponent), so a small difference grows {:.1e}-fold over the {:.3} s horizon and a 1 % parameter change reaches order one after about {:.2} s. Past that time the envelopes describe chaos more than your parameters, and no surrogate in the parameters can follow them; shorten --duration, or check them with --method monte-carlo",
             lyapunov.exponent_per_s,
             lyapunov.amplification,
             lyapunov.horizon_s,
             lyapunov.predictability_horizon_s(0.01),
-        );
+        ));
+    }
+    for warning in &warnings {
+        eprintln!("warning: {warning}");
     }
 
     if let Some(path) = &args.summary {
@@ -234,7 +237,17 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     }
     let table_text = table(&options, &space, &report, wall_seconds);
     if let (Some(dir), Some(stems)) = (&args.report, &report_stems) {
-        write_report(dir, &robot, &report, &table_text, stems, foxglove_layout)?;
+        write_report(
+            dir,
+            &robot,
+            &report,
+            &ReportText {
+                table: &table_text,
+                warnings: &warnings,
+            },
+            stems,
+            foxglove_layout,
+        )?;
     }
     eprintln!(
         "{} runs, {} steps, {} Newton iterations ({:.2} per step); simulate {:.3} s, fit + bound {:.3} s ({:.1} % of the total), {} threads, {} records per block; wall {:.3} s{}",
@@ -426,11 +439,19 @@ fn prepare_report(
 const REPORT_TRUE_RUN_DOTS: usize = 40;
 
 /// Writes `--report DIR` (docs/mcap.md §7): the table, a band plot per output, the log's layout.
+/// The text a study printed, for its report page.
+struct ReportText<'a> {
+    /// The stdout table.
+    table: &'a str,
+    /// The warnings printed on stderr (without the `warning: ` prefix).
+    warnings: &'a [String],
+}
+
 fn write_report(
     dir: &Path,
     robot: &str,
     report: &StudyReport,
-    table_text: &str,
+    text: &ReportText<'_>,
     stems: &[String],
     foxglove_layout: Option<serde_json::Value>,
 ) -> Result<(), Error> {
@@ -483,7 +504,8 @@ fn write_report(
                     ""
                 }
             ),
-            table: table_text,
+            table: text.table,
+            warnings: text.warnings,
             times: &e.times,
             outputs,
             stems,
@@ -835,6 +857,7 @@ fn check_json(report: &StudyReport, check: &CheckReport, dim: usize) -> serde_js
         "trusted": check.untrusted_outputs.is_empty(),
         "first_miss_time_s": check.first_miss_record.map(|r| e_times[r]),
         "checks_before_first_miss": check.checks_before_first_miss,
+        "passes_until_time_s": check.passes_until_record.map(|r| e_times[r]),
         "untrusted_outputs": check.untrusted_outputs.iter().map(|&o| outputs[o].name.clone()).collect::<Vec<_>>(),
         "trust_relative_misfit": TRUST_RELATIVE_MISFIT,
         "trust_resolution_factor": TRUST_RESOLUTION_FACTOR,
@@ -849,36 +872,46 @@ fn check_json(report: &StudyReport, check: &CheckReport, dim: usize) -> serde_js
     })
 }
 
-/// Says loudly which outputs' surrogates missed the true model at their predicted extremes, and
-/// notes the outputs whose misfit, large against their width, is within the integrator's
-/// resolution.
-fn warn_untrusted(report: &StudyReport, check: &CheckReport, context: &AdviceContext<'_>) {
+/// Notes the outputs whose misfit, large against their width, is within the integrator's
+/// resolution: numerical noise, not a failed surrogate.
+fn note_below_resolution(report: &StudyReport, check: &CheckReport) {
     let outputs = &report.envelope.outputs;
-    if !check.below_resolution_outputs.is_empty() {
-        let listed: Vec<String> = check
-            .below_resolution_outputs
-            .iter()
-            .take(5)
-            .map(|&o| {
-                format!(
-                    "{} ({:.1e} {unit} ≤ {:.1e} {unit})",
-                    outputs[o].name,
-                    check.max_misfit[o],
-                    check.resolution[o].unwrap_or(f64::NAN),
-                    unit = outputs[o].unit
-                )
-            })
-            .collect();
-        eprintln!(
-            "note: {} output(s) miss by more than {:.0} % of their envelope width but by less than the integrator's resolution, so their envelopes are numerical noise, not a failed surrogate (docs/method.md §7): {}{}",
-            check.below_resolution_outputs.len(),
-            100.0 * TRUST_RELATIVE_MISFIT,
-            listed.join(", "),
-            if check.below_resolution_outputs.len() > 5 { ", …" } else { "" },
-        );
-    }
-    if check.untrusted_outputs.is_empty() {
+    if check.below_resolution_outputs.is_empty() {
         return;
+    }
+    let listed: Vec<String> = check
+        .below_resolution_outputs
+        .iter()
+        .take(5)
+        .map(|&o| {
+            format!(
+                "{} ({:.1e} {unit} ≤ {:.1e} {unit})",
+                outputs[o].name,
+                check.max_misfit[o],
+                check.resolution[o].unwrap_or(f64::NAN),
+                unit = outputs[o].unit
+            )
+        })
+        .collect();
+    eprintln!(
+        "note: {} output(s) miss by more than {:.0} % of their envelope width but by less than the integrator's resolution, so their envelopes are numerical noise, not a failed surrogate (docs/method.md §7): {}{}",
+        check.below_resolution_outputs.len(),
+        100.0 * TRUST_RELATIVE_MISFIT,
+        listed.join(", "),
+        if check.below_resolution_outputs.len() > 5 { ", …" } else { "" },
+    );
+}
+
+/// The warning naming the outputs whose surrogates missed the true model at their predicted
+/// extremes, with what to do ([`advice`]); `None` when every output is trusted.
+fn untrusted_warning(
+    report: &StudyReport,
+    check: &CheckReport,
+    context: &AdviceContext<'_>,
+) -> Option<String> {
+    let outputs = &report.envelope.outputs;
+    if check.untrusted_outputs.is_empty() {
+        return None;
     }
     let mut worst: Vec<usize> = check.untrusted_outputs.clone();
     worst.sort_by(|&a, &b| check.relative_misfit[b].total_cmp(&check.relative_misfit[a]));
@@ -893,15 +926,15 @@ fn warn_untrusted(report: &StudyReport, check: &CheckReport, context: &AdviceCon
             )
         })
         .collect();
-    eprintln!(
-        "warning: the surrogate cannot be trusted for {} of {} outputs: true-model runs at its predicted extremes differ from it by more than {:.0} % of the envelope width: {}{}. The envelopes were widened to contain every true run, but they may still be too narrow; {}",
+    Some(format!(
+        "the surrogate cannot be trusted for {} of {} outputs: true-model runs at its predicted extremes differ from it by more than {:.0} % of the envelope width: {}{}. The envelopes were widened to contain every true run, but they may still be too narrow; {}",
         worst.len(),
         outputs.len(),
         100.0 * TRUST_RELATIVE_MISFIT,
         listed.join(", "),
         if worst.len() > 5 { ", …" } else { "" },
         advice(report, check, context),
-    );
+    ))
 }
 
 fn write_envelope_csv(path: &Path, report: &StudyReport) -> Result<(), Error> {

@@ -183,6 +183,9 @@ pub struct AnalyzeReport<'a> {
     pub title: String,
     /// The study's text table (as printed on stdout).
     pub table: &'a str,
+    /// The warnings the study printed on stderr (untrusted surrogates with what to do, chaos,
+    /// joints past unenforced limits), shown above the table; empty when there were none.
+    pub warnings: &'a [String],
     /// Record times, s.
     pub times: &'a [f64],
     /// The outputs, in order.
@@ -198,8 +201,17 @@ pub struct AnalyzeReport<'a> {
 /// Writes the report into `dir` (which [`crate::output::prepare_output_directory`] has checked
 /// for [`report_files`]): the plots, the layout, then `report.md`.
 pub fn write_analyze_report(dir: &Path, report: &AnalyzeReport<'_>) -> Result<(), Error> {
+    let warnings: String = report
+        .warnings
+        .iter()
+        .map(|w| format!("> **Warning:** {}\n>\n", w.replace('\n', " ")))
+        .collect();
+    let warnings = match warnings.strip_suffix(">\n") {
+        Some(block) => format!("{block}\n"),
+        None => warnings,
+    };
     let mut page = format!(
-        "# {}\n\n```text\n{}```\n\n",
+        "# {}\n\n{warnings}```text\n{}```\n\n",
         report.title,
         if report.table.ends_with('\n') {
             report.table.to_string()
