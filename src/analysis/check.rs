@@ -40,14 +40,14 @@ pub const TRUST_RESOLUTION_FACTOR: f64 = 1.0;
 /// chaos warning's threshold, [`super::lyapunov::CHAOS_AMPLIFICATION`], is for any box.)
 pub const SEPARATION_ADVICE_AMPLIFICATION: f64 = 1e2;
 
-/// What to do about a surrogate the check did not trust, for the warning and the exit-4 error: when
-/// the first miss happened (from then on the surrogate failed; the checks before it agreed, so a
-/// shorter `--duration` may be trusted), which untrusted outputs reach an enforced joint limit
-/// (`at_stops`, their names: a stop makes the response kink in the parameters), whether the
-/// nominal motion separates nearby trajectories fast (`lyapunov`), and which method can replace
-/// the surrogate at `dimensions` parameters (a scan only up to
-/// [`super::auto::AUTO_TENSOR_MAX_DIM`]). A higher order is offered only when neither a stop nor
-/// the separation explains the miss.
+/// What to do about a surrogate the check did not trust, for the warning and the exit-4 error:
+/// when the first miss happened, up to when the same checks would pass
+/// ([`CheckReport::passes_until_record`]: a run shortened to then may be trusted; check again),
+/// which untrusted outputs reach an enforced joint limit (`at_stops`, their names: a stop makes
+/// the response kink in the parameters), whether the nominal motion separates nearby trajectories
+/// fast (`lyapunov`), and which method can replace the surrogate at `dimensions` parameters (a
+/// scan only up to [`super::auto::AUTO_TENSOR_MAX_DIM`]). A higher order is offered only when
+/// neither a stop nor the separation explains the miss.
 pub fn untrusted_advice(
     check: &CheckReport,
     times: &[f64],

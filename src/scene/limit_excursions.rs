@@ -139,7 +139,7 @@ fn limited_joint<'m>(model: &'m Model, output: &Output) -> Option<(&'m Joint, [f
     (lower.is_finite() && upper.is_finite() && lower < upper).then_some((joint, [lower, upper]))
 }
 
-/// The warning for `excursions` (not empty): each joint (the deepest [`NAMED_IN_WARNING`]), how
+/// The warning for `excursions` (not empty): each joint (the deepest five), how
 /// far it went, and what to do. `envelope`: the values are a study's bounds, not one run's;
 /// `start_s`: the first record time (an excursion there is a start outside the limits).
 pub fn describe_limit_excursions(
