@@ -842,3 +842,67 @@ fn the_human_in_gimbal_lock_fails_naming_the_joints_and_massless_links() {
         "a smaller step does not help here: {message}"
     );
 }
+
+/// Without `joint_limits` a joint swings past its URDF limits, and `simulate` and `analyze` say so
+/// (stderr and the summary's `limit_excursions`); with the effect nothing is said.
+#[test]
+fn joints_past_unenforced_limits_are_reported_and_enforced_ones_are_not() {
+    let dir = common::fresh_test_scratch_dir("stability", "unenforced_limits");
+    let urdf = dir.join("limited.urdf");
+    std::fs::write(&urdf, doubly_limited_double()).unwrap();
+    let urdf = urdf.to_str().unwrap();
+    let summary = dir.join("summary.json");
+    let run = |command: &str, effects: &str| {
+        let sidecar = dir.join(format!("{command}{}.toml", effects.len()));
+        std::fs::write(
+            &sidecar,
+            format!(
+                "[parameters]\n\"link.b2.mass\" = {{ rel = 0.05 }}\n[scene]\nduration = 0.6\n\
+                 gravity = [0.0, -9.81, 0.0]\nstep_control = \"adaptive\"\neffects = [{effects}]\n"
+            ),
+        )
+        .unwrap();
+        let _ = std::fs::remove_file(&summary);
+        let out = common::ribbon_output(&[
+            command,
+            urdf,
+            "--uncertainty",
+            sidecar.to_str().unwrap(),
+            "--summary",
+            summary.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(
+            out.status.code() == Some(0) || out.status.code() == Some(4),
+            "{command}: {stderr}"
+        );
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        (stderr, json)
+    };
+    for (command, subject) in [
+        ("simulate", "joint 'j1'"),
+        ("analyze", "the envelope of 'j1'"),
+    ] {
+        let (stderr, json) = run(command, "\"gravity\"");
+        assert!(
+            stderr.contains("went past their URDF position limits")
+                && stderr.contains(&format!("{subject} reaches")),
+            "{command}: {stderr}"
+        );
+        let excursions = json["limit_excursions"].as_array().expect("listed");
+        let j1 = excursions
+            .iter()
+            .find(|e| e["joint"] == "j1")
+            .unwrap_or_else(|| panic!("{excursions:?}"));
+        assert_eq!(
+            (j1["lower"].as_f64(), j1["upper"].as_f64()),
+            (Some(-0.5), Some(0.5))
+        );
+        assert!(j1["reached"].as_f64().unwrap() < -0.6, "{j1}");
+
+        let (stderr, json) = run(command, "\"gravity\", \"joint_limits\"");
+        assert!(!stderr.contains("went past"), "{command}: {stderr}");
+        assert!(json.get("limit_excursions").is_none(), "{command}: {json}");
+    }
+}
