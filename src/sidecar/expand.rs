@@ -291,6 +291,15 @@ pub fn expand_parameters(
                     "{} on links without dynamics",
                     count(found.no_dynamics.len(), "is", "are")
                 ));
+                if kinematic_only(model) {
+                    reasons.push(
+                        "no moving link of this robot has an <inertial> (a kinematic-only \
+                         description, as ROS-Industrial's support packages are): its motion needs \
+                         each moving link's mass and inertia, so add <inertial> elements (from CAD \
+                         or the manufacturer's data) before declaring them uncertain"
+                            .to_string(),
+                    );
+                }
             }
             if overridden > 0 {
                 reasons.push(format!("{overridden} taken by explicit or [bind] keys"));
@@ -417,6 +426,15 @@ fn classify<'k>(
         _ => {}
     }
     Ok((class, interval))
+}
+
+/// Whether no moving link of `model` has an `<inertial>` (a kinematic-only description).
+fn kinematic_only(model: &Model) -> bool {
+    model
+        .links
+        .iter()
+        .zip(&model.description.links)
+        .all(|(link, spec)| link.body.is_none() || !spec.has_inertial)
 }
 
 /// Why a link cannot be a match of a `link.*` pattern, if it cannot.

@@ -236,6 +236,36 @@ fn a_pattern_left_with_nothing_is_an_error() {
     // A literal NAME is not skipped for lack of mass: that is how a payload is declared.
     let e = expand(&m, "[parameters]\n\"link.tool0.com.*\" = { abs = 0.01 }\n").unwrap();
     assert_eq!(e.entries.len(), 3);
+    // The ur5 has inertials: no kinematic-only advice there.
+    let message = expand(&m, "[parameters]\n\"link.tool0.com.*\" = { rel = 0.1 }\n")
+        .unwrap_err()
+        .to_string();
+    assert!(!message.contains("kinematic-only"), "{message}");
+}
+
+#[test]
+fn a_kinematic_only_robot_is_told_to_add_inertials() {
+    // Two moving links without <inertial>, as ROS-Industrial support packages ship them.
+    let text = r#"<robot name="k"><link name="base"/><link name="a"/><link name="b"/>
+      <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>
+      <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+      <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 1 0"/>
+      <limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"#;
+    let m = Model::from_description(
+        parse_description(text, "k.urdf").unwrap(),
+        LoadOptions::default(),
+        "k.urdf",
+    )
+    .unwrap();
+    let message = expand(&m, "[parameters]\n\"link.*.mass\" = { rel = 0.05 }\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("gives no dimension: 3 are on links without dynamics")
+            && message.contains("no moving link of this robot has an <inertial>")
+            && message.contains("add <inertial> elements"),
+        "{message}"
+    );
 }
 
 #[test]
