@@ -34,6 +34,36 @@ pub const TRUST_RELATIVE_MISFIT: f64 = 0.05;
 /// step is not taken as evidence (docs/method.md §7, "The resolution floor").
 pub const TRUST_RESOLUTION_FACTOR: f64 = 1.0;
 
+/// What the trust test says of one output ([`trust_verdict`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TrustVerdict {
+    /// Its misfit is within [`TRUST_RELATIVE_MISFIT`] of its width.
+    Trusted,
+    /// Its misfit is beyond that but within the output's resolution: numerical noise.
+    BelowResolution,
+    /// Its surrogate cannot be trusted.
+    Untrusted,
+}
+
+/// The trust test of an output whose checks missed by at most `misfit` and whose envelope is at
+/// most `width` wide (over the records judged), with the output's `resolution`
+/// ([`output_resolution`]): the relative misfit `misfit / width` (0 for a zero width) and the
+/// verdict. The one rule for the whole run and for its prefixes
+/// ([`super::study::CheckReport::passes_until_record`]).
+pub fn trust_verdict(misfit: f64, width: f64, resolution: Option<f64>) -> (f64, TrustVerdict) {
+    let relative = if width > 0.0 { misfit / width } else { 0.0 };
+    let verdict = if relative > TRUST_RELATIVE_MISFIT {
+        if resolution.is_some_and(|floor| misfit <= TRUST_RESOLUTION_FACTOR * floor) {
+            TrustVerdict::BelowResolution
+        } else {
+            TrustVerdict::Untrusted
+        }
+    } else {
+        TrustVerdict::Trusted
+    };
+    (relative, verdict)
+}
+
 /// Above this amplification `exp(λ T)` of nearby trajectories over the horizon, the advice for an
 /// untrusted surrogate names the separation as the likely cause: a 1 % box then spreads to the
 /// order of the motion itself, which a low-order polynomial in the parameters cannot follow. (The
@@ -338,6 +368,17 @@ mod tests {
             checks_before_first_miss: checks_before,
             passes_until_record,
         }
+    }
+
+    #[test]
+    fn the_trust_verdict_is_the_relative_misfit_against_the_tolerance_then_the_resolution() {
+        let at = |misfit, width, resolution| trust_verdict(misfit, width, resolution);
+        assert_eq!(at(0.05, 1.0, None), (0.05, TrustVerdict::Trusted));
+        assert_eq!(at(0.06, 1.0, None).1, TrustVerdict::Untrusted);
+        assert_eq!(at(0.06, 1.0, Some(0.06)).1, TrustVerdict::BelowResolution);
+        assert_eq!(at(0.06, 1.0, Some(0.05)).1, TrustVerdict::Untrusted);
+        // A zero width has nothing to miss.
+        assert_eq!(at(1.0, 0.0, None), (0.0, TrustVerdict::Trusted));
     }
 
     #[test]

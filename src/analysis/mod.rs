@@ -37,9 +37,9 @@ pub use auto::{
 };
 pub use bounds::{BoundedBlock, EnvelopePoint, Extremes, DESIGN_STARTS_PER_SIDE};
 pub use check::{
-    automatic_check_runs, output_resolution, untrusted_advice, CheckCandidates, CheckPlan, Side,
-    CHECK_POINT_TOLERANCE, CHECK_RUNS_FRACTION, MIN_CHECK_RUNS, SEPARATION_ADVICE_AMPLIFICATION,
-    TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
+    automatic_check_runs, output_resolution, trust_verdict, untrusted_advice, CheckCandidates,
+    CheckPlan, Side, TrustVerdict, CHECK_POINT_TOLERANCE, CHECK_RUNS_FRACTION, MIN_CHECK_RUNS,
+    SEPARATION_ADVICE_AMPLIFICATION, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
 pub use engine::{BlockOutcome, LockStep, RecordSource, SampleFailure};
 pub use lyapunov::{

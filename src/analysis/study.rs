@@ -19,8 +19,8 @@ use super::auto::{
 };
 use super::bounds::{Bounder, EnvelopePoint};
 use super::check::{
-    automatic_check_runs, output_resolution, CheckCandidates, CheckPlan, Side,
-    TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
+    automatic_check_runs, output_resolution, trust_verdict, CheckCandidates, CheckPlan, Side,
+    TrustVerdict, TRUST_RELATIVE_MISFIT,
 };
 use super::engine::{BlockOutcome, LockStep, RecordSource, SampleFailure};
 use super::lyapunov::{estimate_lyapunov, LyapunovEstimate};
@@ -201,7 +201,7 @@ pub struct CheckReport {
     /// Per output: `max_misfit` over the output's largest envelope width (0 where the width is 0).
     pub relative_misfit: Vec<f64>,
     /// Outputs whose relative misfit exceeds [`TRUST_RELATIVE_MISFIT`] and whose misfit exceeds
-    /// [`TRUST_RESOLUTION_FACTOR`] times their resolution: their surrogate cannot be trusted (the
+    /// [`super::check::TRUST_RESOLUTION_FACTOR`] times their resolution: their surrogate cannot be trusted (the
     /// envelope still contains every true run).
     pub untrusted_outputs: Vec<usize>,
     /// Per output: how finely the true model resolves it ([`output_resolution`]; `None`: no floor).
@@ -1194,20 +1194,14 @@ impl Study<'_> {
                     )
                 });
             widths.push(width);
-            relative_misfit[o] = if width > 0.0 {
-                max_misfit[o] / width
-            } else {
-                0.0
-            };
             let floor = output_resolution(&self.scene.outputs[o].kind, magnitude, &settings);
             resolution.push(floor);
-            if relative_misfit[o] > TRUST_RELATIVE_MISFIT {
-                match floor {
-                    Some(floor) if max_misfit[o] <= TRUST_RESOLUTION_FACTOR * floor => {
-                        below_resolution_outputs.push(o)
-                    }
-                    _ => untrusted_outputs.push(o),
-                }
+            let (relative, verdict) = trust_verdict(max_misfit[o], width, floor);
+            relative_misfit[o] = relative;
+            match verdict {
+                TrustVerdict::Trusted => {}
+                TrustVerdict::BelowResolution => below_resolution_outputs.push(o),
+                TrustVerdict::Untrusted => untrusted_outputs.push(o),
             }
             for (r, &m) in misfit[o].iter().enumerate() {
                 let point = &mut accumulator.points[r * n_outputs + o];
@@ -1238,15 +1232,8 @@ impl Study<'_> {
             for (o, point) in points.iter().enumerate() {
                 prefix_width[o] = prefix_width[o].max(point.upper - point.lower);
                 prefix_misfit[o] = prefix_misfit[o].max(misfit[o][r]);
-                // The same test as the whole run's above, on the prefix.
-                let relative = if prefix_width[o] > 0.0 {
-                    prefix_misfit[o] / prefix_width[o]
-                } else {
-                    0.0
-                };
-                let excused = matches!(resolution[o], Some(floor) if prefix_misfit[o] <= TRUST_RESOLUTION_FACTOR * floor);
-                let too_far = relative > TRUST_RELATIVE_MISFIT;
-                passes &= !too_far || excused;
+                let (_, verdict) = trust_verdict(prefix_misfit[o], prefix_width[o], resolution[o]);
+                passes &= verdict != TrustVerdict::Untrusted;
             }
             if passes {
                 passes_until_record = Some(r);

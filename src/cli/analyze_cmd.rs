@@ -180,11 +180,12 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     reporter.finish();
     let wall_seconds = started.elapsed().as_secs_f64();
     check_envelope_finite(&report)?;
-    let advice_context = AdviceContext {
-        model: &kinematic_model,
-        scene: &scene,
-        dimensions: space.len(),
-    };
+    // What to do about untrusted outputs: said once, in the warning and in the exit-4 error.
+    let advice = report
+        .check
+        .as_ref()
+        .filter(|check| !check.untrusted_outputs.is_empty())
+        .map(|check| advice(&report, check, &kinematic_model, &scene, space.len()));
     // Every warning goes to stderr now and into the report's page (`--report`).
     let mut warnings: Vec<String> = Vec::new();
     let excursions = limit_excursions(
@@ -196,15 +197,13 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         &report.envelope.upper,
     );
     if !excursions.is_empty() {
-        warnings.push(describe_limit_excursions(
-            &excursions,
-            true,
-            report.envelope.times.first().copied().unwrap_or(0.0),
-        ));
+        warnings.push(describe_limit_excursions(&excursions, true));
     }
     if let Some(check) = &report.check {
         note_below_resolution(&report, check);
-        warnings.extend(untrusted_warning(&report, check, &advice_context));
+        if let Some(advice) = &advice {
+            warnings.push(untrusted_warning(&report, check, advice));
+        }
     } else if scans_a_surrogate {
         // Only `--check-runs 0` leaves a scanned surrogate unchecked.
         eprintln!(
@@ -271,21 +270,25 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
             scene.duration_s
         )));
     }
-    match &report.check {
-        Some(check) if !check.untrusted_outputs.is_empty() => {
-            Err(untrusted(&report, check, &advice_context))
-        }
+    match (&report.check, advice) {
+        (Some(check), Some(advice)) => Err(untrusted(&report, check, advice)),
         _ => Ok(()),
     }
 }
 
 /// What to do about the untrusted outputs of `report` ([`untrusted_advice`]); `model` and `scene`
-/// tell which of them reach an enforced joint limit.
-fn advice(report: &StudyReport, check: &CheckReport, context: &AdviceContext<'_>) -> String {
+/// tell which of them reach an enforced joint limit, `dimensions` is the number of parameters.
+fn advice(
+    report: &StudyReport,
+    check: &CheckReport,
+    model: &crate::model::Model,
+    scene: &Scene,
+    dimensions: usize,
+) -> String {
     let e = &report.envelope;
     let at_stops = outputs_at_enforced_limits(
-        context.model,
-        context.scene,
+        model,
+        scene,
         &e.outputs,
         &check.untrusted_outputs,
         &e.lower,
@@ -298,22 +301,14 @@ fn advice(report: &StudyReport, check: &CheckReport, context: &AdviceContext<'_>
     untrusted_advice(
         check,
         &e.times,
-        context.dimensions,
+        dimensions,
         report.lyapunov.as_ref(),
         &names,
     )
 }
 
-/// What [`advice`] needs besides the report: the model and scene (for joint limits) and the
-/// number of parameters.
-struct AdviceContext<'a> {
-    model: &'a crate::model::Model,
-    scene: &'a Scene,
-    dimensions: usize,
-}
-
 /// The exit-4 error of a study whose check did not trust some outputs.
-fn untrusted(report: &StudyReport, check: &CheckReport, context: &AdviceContext<'_>) -> Error {
+fn untrusted(report: &StudyReport, check: &CheckReport, advice: String) -> Error {
     let outputs = &report.envelope.outputs;
     let worst = check
         .untrusted_outputs
@@ -331,7 +326,7 @@ fn untrusted(report: &StudyReport, check: &CheckReport, context: &AdviceContext<
         untrusted: check.untrusted_outputs.len(),
         total: outputs.len(),
         worst,
-        advice: advice(report, check, context),
+        advice,
     }
 }
 
@@ -903,16 +898,9 @@ fn note_below_resolution(report: &StudyReport, check: &CheckReport) {
 }
 
 /// The warning naming the outputs whose surrogates missed the true model at their predicted
-/// extremes, with what to do ([`advice`]); `None` when every output is trusted.
-fn untrusted_warning(
-    report: &StudyReport,
-    check: &CheckReport,
-    context: &AdviceContext<'_>,
-) -> Option<String> {
+/// extremes (some did), with what to do ([`advice`]).
+fn untrusted_warning(report: &StudyReport, check: &CheckReport, advice: &str) -> String {
     let outputs = &report.envelope.outputs;
-    if check.untrusted_outputs.is_empty() {
-        return None;
-    }
     let mut worst: Vec<usize> = check.untrusted_outputs.clone();
     worst.sort_by(|&a, &b| check.relative_misfit[b].total_cmp(&check.relative_misfit[a]));
     let listed: Vec<String> = worst
@@ -926,15 +914,15 @@ fn untrusted_warning(
             )
         })
         .collect();
-    Some(format!(
+    format!(
         "the surrogate cannot be trusted for {} of {} outputs: true-model runs at its predicted extremes differ from it by more than {:.0} % of the envelope width: {}{}. The envelopes were widened to contain every true run, but they may still be too narrow; {}",
         worst.len(),
         outputs.len(),
         100.0 * TRUST_RELATIVE_MISFIT,
         listed.join(", "),
         if worst.len() > 5 { ", …" } else { "" },
-        advice(report, check, context),
-    ))
+        advice,
+    )
 }
 
 fn write_envelope_csv(path: &Path, report: &StudyReport) -> Result<(), Error> {

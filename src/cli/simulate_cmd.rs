@@ -67,14 +67,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
         &trajectory.values,
     );
     if !excursions.is_empty() {
-        eprintln!(
-            "warning: {}",
-            describe_limit_excursions(
-                &excursions,
-                false,
-                trajectory.times.first().copied().unwrap_or(0.0)
-            )
-        );
+        eprintln!("warning: {}", describe_limit_excursions(&excursions, false));
     }
     if let Some(path) = &args.csv {
         write_csv(path, &trajectory.times, &names, &columns)?;

@@ -69,8 +69,17 @@ pub fn parse_description(text: &str, path: &str) -> Result<Description, ModelErr
 fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description, ModelError> {
     let text = xml::cut_trailing_nul(text, path, &mut notes);
     let text = xml::blank_late_declaration(text, path, &mut notes);
-    let text = xml::declare_undeclared_prefixes(text, path, &mut notes);
-    let doc = xml::parse(&text, path)?;
+    let declared: String;
+    let doc = match xml::parse(&text, path) {
+        Ok(doc) => doc,
+        Err(error) => match xml::declare_undeclared_prefixes(&text, path, &mut notes) {
+            Some(text) => {
+                declared = text;
+                xml::parse(&declared, path)?
+            }
+            None => return Err(error),
+        },
+    };
     let root = doc.root_element();
     let mut reader = xml::Reader::new(&doc, root, path);
     reader.notes = notes;

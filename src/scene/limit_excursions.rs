@@ -37,6 +37,10 @@ pub struct LimitExcursion {
     pub reached: f64,
     /// When it was recorded, s.
     pub time_s: f64,
+    /// Whether that is the first record: the joint starts outside its limits. (Said in the
+    /// warning; the summary's `time_s` shows it.)
+    #[serde(skip)]
+    pub at_start: bool,
     /// `rad` or `m`.
     pub unit: &'static str,
 }
@@ -44,8 +48,13 @@ pub struct LimitExcursion {
 impl LimitExcursion {
     /// How far past the nearer limit `reached` is (> 0).
     pub fn depth(&self) -> f64 {
-        (self.lower - self.reached).max(self.reached - self.upper)
+        depth_past([self.lower, self.upper], self.reached)
     }
+}
+
+/// How far `reached` is past the nearer of `[lower, upper]` (≤ 0 inside).
+fn depth_past([lower, upper]: [f64; 2], reached: f64) -> f64 {
+    (lower - reached).max(reached - upper)
 }
 
 /// The joints whose recorded position goes past their URDF limits by more than
@@ -70,26 +79,25 @@ pub fn limit_excursions(
         let Some((joint, [lower, upper])) = limited_joint(model, output) else {
             continue;
         };
-        let mut deepest: Option<LimitExcursion> = None;
-        for (k, &time_s) in times.iter().enumerate() {
+        // The deepest point: (depth, record, value), the first of equals.
+        let mut deepest: Option<(f64, usize, f64)> = None;
+        for k in 0..times.len() {
             for reached in [lowest[i][k], highest[i][k]] {
-                let excursion = LimitExcursion {
-                    joint: joint.name.clone(),
-                    lower,
-                    upper,
-                    reached,
-                    time_s,
-                    unit: output.unit,
-                };
-                let depth = excursion.depth();
-                if depth > LIMIT_EXCURSION_TOLERANCE
-                    && deepest.as_ref().is_none_or(|d| depth > d.depth())
-                {
-                    deepest = Some(excursion);
+                let depth = depth_past([lower, upper], reached);
+                if depth > LIMIT_EXCURSION_TOLERANCE && deepest.is_none_or(|(d, _, _)| depth > d) {
+                    deepest = Some((depth, k, reached));
                 }
             }
         }
-        found.extend(deepest);
+        found.extend(deepest.map(|(_, k, reached)| LimitExcursion {
+            joint: joint.name.clone(),
+            lower,
+            upper,
+            reached,
+            time_s: times[k],
+            at_start: k == 0,
+            unit: output.unit,
+        }));
     }
     found.sort_by(|a, b| b.depth().total_cmp(&a.depth()));
     found
@@ -140,19 +148,14 @@ fn limited_joint<'m>(model: &'m Model, output: &Output) -> Option<(&'m Joint, [f
 }
 
 /// The warning for `excursions` (not empty): each joint (the deepest five), how
-/// far it went, and what to do. `envelope`: the values are a study's bounds, not one run's;
-/// `start_s`: the first record time (an excursion there is a start outside the limits).
-pub fn describe_limit_excursions(
-    excursions: &[LimitExcursion],
-    envelope: bool,
-    start_s: f64,
-) -> String {
+/// far it went, and what to do. `envelope`: the values are a study's bounds, not one run's.
+pub fn describe_limit_excursions(excursions: &[LimitExcursion], envelope: bool) -> String {
     let subject = if envelope { "the envelope of" } else { "joint" };
     let named: Vec<String> = excursions
         .iter()
         .take(NAMED_IN_WARNING)
         .map(|e| {
-            let when = if e.time_s == start_s {
+            let when = if e.at_start {
                 "at the start".to_string()
             } else {
                 format!("at t = {} s", e.time_s)
@@ -175,7 +178,7 @@ pub fn describe_limit_excursions(
     } else {
         String::new()
     };
-    let starts_outside = excursions.iter().filter(|e| e.time_s == start_s).count();
+    let starts_outside = excursions.iter().filter(|e| e.at_start).count();
     let start_advice = if starts_outside > 0 {
         format!(
             " ({starts_outside} of them start outside their limits: with \"joint_limits\", set [scene] initial.q inside them too)"
@@ -260,7 +263,7 @@ mod tests {
         assert_eq!((hinge.lower, hinge.upper, hinge.unit), (-0.5, 0.5, "rad"));
         assert!(hinge.time_s > 0.0);
         assert_eq!(hinge.depth(), -0.5 - lowest);
-        let text = describe_limit_excursions(&found, false, 0.0);
+        let text = describe_limit_excursions(&found, false);
         assert!(text.starts_with("1 joint(s) went past"), "{text}");
         assert!(text.contains("joint 'hinge' reaches"), "{text}");
         assert!(
@@ -299,7 +302,7 @@ mod tests {
         let found = limit_excursions(&model, &free, &outputs, &times, &lower, &upper);
         assert_eq!(found.len(), 1);
         assert_eq!((found[0].reached, found[0].time_s), (0.7, 0.0));
-        let text = describe_limit_excursions(&found, true, 0.0);
+        let text = describe_limit_excursions(&found, true);
         assert!(
             text.contains(
                 "the envelope of 'hinge' reaches 0.7000 rad at the start, 0.200 rad past"

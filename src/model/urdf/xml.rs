@@ -97,35 +97,35 @@ const UNDECLARED_NAMESPACE: &str = "urn:ribbon:undeclared-prefix:";
 /// and ROS load it. Each prefix is bound to a placeholder namespace, which makes its elements and
 /// attributes foreign markup that the reader ignores; one note per prefix names where it is first
 /// used. The declarations are inserted inside the root's start tag, on its line, so every line
-/// number stays valid. Text that is fine, or broken in another way, is returned unchanged (the
-/// parser then reports its error with its position); so is text nested beyond [`MAX_XML_DEPTH`],
-/// which must not reach the parser.
+/// number stays valid. Called only after [`parse`] refused the text, so a well-formed file is
+/// parsed once. `None` when no prefix was declared (the text is broken in another way, or nested
+/// beyond [`MAX_XML_DEPTH`], which must not reach the parser): the first error stands.
 pub(super) fn declare_undeclared_prefixes(
-    mut text: String,
+    text: &str,
     path: &str,
     notes: &mut Vec<String>,
-) -> String {
-    if check_depth(&text, path).is_err() {
-        return text;
-    }
+) -> Option<String> {
+    check_depth(text, path).ok()?;
+    let mut declared: Option<String> = None;
     for _ in 0..MAX_UNDECLARED_PREFIXES {
-        let (prefix, pos) = match Document::parse_with_options(&text, parsing_options()) {
+        let current = declared.as_deref().unwrap_or(text);
+        let (prefix, pos) = match Document::parse_with_options(current, parsing_options()) {
             Err(roxmltree::Error::UnknownNamespace(prefix, pos)) => (prefix, pos),
-            _ => return text,
+            _ => break,
         };
-        let Some(at) = root_name_end(text.as_bytes()) else {
-            return text;
-        };
+        let at = root_name_end(current.as_bytes())?;
         notes.push(format!(
             "{path}:{}: namespace prefix '{prefix}' is used without an xmlns:{prefix} declaration (first here, column {}); its elements and attributes are read as foreign markup and ignored, as Pinocchio (tinyxml2, which does not check namespaces) ignores them",
             pos.row, pos.col
         ));
-        text.insert_str(
+        let mut next = current.to_string();
+        next.insert_str(
             at,
             &format!(" xmlns:{prefix}=\"{UNDECLARED_NAMESPACE}{prefix}\""),
         );
+        declared = Some(next);
     }
-    text
+    declared
 }
 
 /// The byte offset just after the root element's name in its start tag, skipping the XML
