@@ -519,20 +519,6 @@ impl CurvatureWeights {
             h_before_last,
         })
     }
-
-    /// The quadratic term of one entry from its last two differences `Δ₁` (`rise`) and `Δ₀`
-    /// (`rise_before`).
-    #[inline]
-    fn bend(self, rise: f64, rise_before: f64) -> f64 {
-        match self {
-            Self::Equal => rise - rise_before,
-            Self::Variable {
-                scale,
-                h_last,
-                h_before_last,
-            } => scale * (rise / h_last - rise_before / h_before_last),
-        }
-    }
 }
 
 /// The predicted `q̈_{n+1}` of every coordinate into `out` from `[q̈_n, q̈_{n−1}, q̈_{n−2}]`
@@ -549,20 +535,13 @@ fn predict_accelerations(
     curvature: Option<CurvatureWeights>,
 ) {
     let [now, before, before_that] = history;
-    let entries = out.iter_mut().zip(now).zip(before);
+    let Some(curvature) = curvature else {
+        return extrapolate_linearly(out, now, before, ratio);
+    };
+    let entries = out.iter_mut().zip(now).zip(before).zip(before_that);
     match curvature {
-        None if ratio == 1.0 => {
-            for ((x, now), before) in entries {
-                *x = 2.0 * now - before;
-            }
-        }
-        None => {
-            for ((x, now), before) in entries {
-                *x = now + ratio * (now - before);
-            }
-        }
-        Some(CurvatureWeights::Equal) => {
-            for (((x, now), before), before_that) in entries.zip(before_that) {
+        CurvatureWeights::Equal => {
+            for (((x, now), before), before_that) in entries {
                 let rise = now - before;
                 let rise_before = before - before_that;
                 let bend = rise - rise_before;
@@ -571,8 +550,12 @@ fn predict_accelerations(
                 *x = if smooth { linear + bend } else { linear };
             }
         }
-        Some(weights) => {
-            for (((x, now), before), before_that) in entries.zip(before_that) {
+        CurvatureWeights::Variable {
+            scale,
+            h_last,
+            h_before_last,
+        } => {
+            for (((x, now), before), before_that) in entries {
                 let rise = now - before;
                 let (linear, increment) = if ratio == 1.0 {
                     (2.0 * now - before, rise)
@@ -581,10 +564,25 @@ fn predict_accelerations(
                     (now + increment, increment)
                 };
                 let rise_before = before - before_that;
-                let bend = weights.bend(rise, rise_before);
+                let bend = scale * (rise / h_last - rise_before / h_before_last);
                 let smooth = bend.abs() <= increment.abs().max(rise_before.abs());
                 *x = if smooth { linear + bend } else { linear };
             }
+        }
+    }
+}
+
+/// The linear extrapolation `now + ratio · (now − before)` of every entry into `out`
+/// (`2 now − before` for equal steps): the predictor's `λ`, and its `q̈` without a curvature term.
+fn extrapolate_linearly(out: &mut [f64], now: &[f64], before: &[f64], ratio: f64) {
+    let entries = out.iter_mut().zip(now).zip(before);
+    if ratio == 1.0 {
+        for ((x, now), before) in entries {
+            *x = 2.0 * now - before;
+        }
+    } else {
+        for ((x, now), before) in entries {
+            *x = now + ratio * (now - before);
         }
     }
 }
@@ -1135,18 +1133,12 @@ impl HhtIntegrator {
                 ratio,
                 curvature,
             );
-            for ((x, now), before) in ws
-                .lambda
-                .iter_mut()
-                .zip(trajectory.state.lambda.iter())
-                .zip(trajectory.lambda_previous.iter())
-            {
-                *x = if ratio == 1.0 {
-                    2.0 * now - before
-                } else {
-                    now + ratio * (now - before)
-                };
-            }
+            extrapolate_linearly(
+                ws.lambda.as_mut_slice(),
+                trajectory.state.lambda.as_slice(),
+                trajectory.lambda_previous.as_slice(),
+                ratio,
+            );
         } else {
             self.ws.qdd.copy_from(&self.trajectory.state.qdd);
             self.ws.lambda.copy_from(&self.trajectory.state.lambda);
@@ -1361,7 +1353,6 @@ impl HhtIntegrator {
             .lambda_previous
             .copy_from(&trajectory.state.lambda);
         trajectory.previous_steps = (trajectory.previous_steps + 1).min(2);
-        trajectory.control.h_before_last = trajectory.control.h_last;
         let ws = &self.ws;
         let state = &mut self.trajectory.state;
         state.t = t1;
@@ -1371,6 +1362,7 @@ impl HhtIntegrator {
         state.a.copy_from(&ws.a);
         state.qdd.copy_from(&ws.qdd);
         state.lambda.copy_from(&ws.lambda);
+        self.trajectory.control.h_before_last = self.trajectory.control.h_last;
         self.trajectory.control.h_last = h;
         self.trajectory.stats.substeps += 1;
         self.trajectory.stats.smallest_step_s = if self.trajectory.stats.smallest_step_s > 0.0 {
