@@ -4,11 +4,14 @@
 //! One step, as data flow:
 //!
 //! ```text
-//! (t_n, q_n, q̇_n, a_n, q̈_n, λ_n) => predictor q̈ = 2q̈_n − q̈_{n−1}, λ = 2λ_n − λ_{n−1}
+//! (t_n, q_n, q̇_n, a_n, q̈_n, λ_n) => predictor: q̈ extrapolated through q̈_{n−1} (and q̈_{n−2}
+//!      where smooth), λ = 2λ_n − λ_{n−1}                               (docs/step-control.md §2)
 //!   => without constraint rows: iterate with the trajectory's stored factorisation if the last
 //!      step contracted fast (ρ ≤ NEWTON_REUSE_MAX_RATE) at the same h; slower drops it at once
 //!   => else factorise the iteration matrix at the predicted (q, q̇)     (modified Newton)
-//!   => iterate: residual at (q(q̈), q̇(q̈)), solve, correct, WRMS test   (≤ max_newton_iterations)
+//!   => iterate: residual at (q(q̈), q̇(q̈)), solve, correct, the pass's tests (newton_pass.rs:
+//!      WRMS < 1, the contraction estimate, the first correction by the last step's ρ)
+//!                                                                       (≤ max_newton_iterations)
 //!   => not converged: refactorise at the current iterate, iterate again; then fail loudly
 //!   => (q_{n+1}, q̇_{n+1}, a_{n+1}, q̈_{n+1}, λ_{n+1})
 //!   => with constraint rows: record |Φ| and |Φ_q q̇ + Φ_t|; project q̇ if enabled
@@ -30,7 +33,12 @@ use super::settings::{
 use super::start::{consistent_start, ConsistentStart};
 use super::system::DaeSystem;
 
+mod newton_pass;
 mod plain;
+use newton_pass::{
+    CarriedContraction, IterationReport, MeasuredContraction, NewtonPass, PassVerdict,
+};
+pub use newton_pass::{CARRIED_RATE_FLOOR, CARRIED_RATE_SAFETY, RATE_TEST_MAX_CONTRACTION};
 pub(crate) use plain::{PlainProgress, PlainStep};
 
 /// The integrator's state at time `t` (all vectors in the system's coordinates).
@@ -115,6 +123,10 @@ pub struct HhtStats {
     /// matrix was formed in ([`DaeSystem::newton_regime`]: a joint-limit penalty switching on or
     /// off; also counted in `factorisations`).
     pub regime_refactorisations: u64,
+    /// Steps accepted after their first Newton correction by the contraction the previous step
+    /// measured ([`HhtSettings::accept_by_carried_contraction`]; docs/step-control.md §2,
+    /// "Accepting the first correction").
+    pub carried_rate_acceptances: u64,
 }
 
 /// Which form of the constraint rows [`iteration_matrix`] returns.
@@ -251,6 +263,10 @@ struct NewtonMemory {
     h: f64,
     /// Slowest contraction `ρ` the last step's converging pass saw (0 when one iteration sufficed).
     rate: f64,
+    /// The contraction the last pass with a matrix factorised at the predictor measured, for the
+    /// next step's first correction; `None` at a (re)start, after an impact, and after a step
+    /// that needed a refresh.
+    contraction: Option<MeasuredContraction>,
 }
 
 impl NewtonMemory {
@@ -265,111 +281,21 @@ impl NewtonMemory {
             reusable: false,
             h: 0.0,
             rate: 0.0,
-        }
-    }
-}
-
-/// Result of the last Newton iteration, for the convergence test and the failure report.
-#[derive(Debug, Clone, Copy)]
-struct IterationReport {
-    /// ‖β'h² Δq̈‖_WRMS.
-    wrms_position: f64,
-    /// ‖Δλ‖_WRMS (0 without constraints).
-    wrms_multiplier: f64,
-    /// max-norm of the residual the correction was computed from.
-    residual_inf: f64,
-    /// Largest weighted entry of the correction.
-    worst: WorstEntry,
-}
-
-impl IterationReport {
-    /// The convergence measure: converged when < 1.
-    fn wrms(&self) -> f64 {
-        self.wrms_position.max(self.wrms_multiplier)
-    }
-}
-
-/// What a Newton pass does after an iteration ([`NewtonPass::judge`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum PassVerdict {
-    /// The iterate is accepted.
-    Converged,
-    /// Iterate again with the same matrix (if the iteration limit allows).
-    Continue,
-    /// Stop this pass: the matrix has aged (pass 0) or the iteration diverges.
-    GiveUp,
-}
-
-/// The tests after each iteration of one Newton pass (one matrix): convergence, the rate-based
-/// acceptance, an aged reused matrix, multipliers at their rounding floor, divergence. Pass 0
-/// iterates with the trajectory's stored factorisation, pass 1 with a fresh one at the predictor,
-/// pass 2 with the refresh.
-#[derive(Debug, Clone, Copy)]
-struct NewtonPass {
-    pass: u8,
-    previous: Option<IterationReport>,
-    /// Slowest contraction `ρ` seen in this pass (0 before the second iteration).
-    slowest: f64,
-}
-
-impl NewtonPass {
-    fn new(pass: u8) -> Self {
-        Self {
-            pass,
-            previous: None,
-            slowest: 0.0,
+            contraction: None,
         }
     }
 
-    /// Judges the iteration that produced `report` (counting a rounding-limited acceptance in
-    /// `stats`).
-    fn judge(&mut self, report: IterationReport, stats: &mut HhtStats) -> PassVerdict {
-        let rate = self.previous.map(|prev| report.wrms() / prev.wrms());
-        if let Some(rate) = rate {
-            self.slowest = self.slowest.max(rate);
-        }
-        if report.wrms() < 1.0 {
-            return PassVerdict::Converged;
-        }
-        if let (Some(prev), Some(rate)) = (self.previous, rate) {
-            // Rate-based test (Hairer & Wanner, Radau5): modified Newton contracts linearly with
-            // ρ = ‖Δ_k‖/‖Δ_{k−1}‖, so the iterate's remaining error is about ρ/(1−ρ)·‖Δ_k‖; accept
-            // when that estimate is within tolerance instead of spending one more iteration to see
-            // a correction below it.
-            if rate < RATE_TEST_MAX_CONTRACTION && rate / (1.0 - rate) * report.wrms() < 1.0 {
-                return PassVerdict::Converged;
-            }
-            if self.pass == 0 && rate > NEWTON_REUSE_MAX_RATE {
-                // The stored matrix has aged (a stagnating Δλ included: that test is for a fresh
-                // matrix): factorise a fresh one now rather than spend the iterations a slow
-                // contraction needs.
-                return PassVerdict::GiveUp;
-            }
-            // Multipliers at the rounding floor of Φ/(β'h²): positions converged twice in a row
-            // and Δλ stopped shrinking. Accept and count it.
-            if report.wrms_position < 1.0
-                && prev.wrms_position < 1.0
-                && report.wrms_multiplier > LAMBDA_STAGNATION_RATIO * prev.wrms_multiplier
-            {
-                stats.rounding_limited_steps += 1;
-                return PassVerdict::Converged;
-            }
-            if report.wrms() > prev.wrms() {
-                // Diverging: refresh now rather than after the remaining iterations.
-                return PassVerdict::GiveUp;
-            }
-        }
-        self.previous = Some(report);
-        PassVerdict::Continue
+    /// The contraction the next step's first correction may be judged by: the one measured at the
+    /// same step size with the same kind of matrix.
+    fn carried_contraction(&self, h: f64, full: bool) -> Option<CarriedContraction> {
+        self.contraction
+            .filter(|measured| measured.h == h && measured.full == full)
+            .map(|measured| CarriedContraction {
+                rate: measured.rate,
+                first_correction: measured.first_correction,
+            })
     }
 }
-
-/// When the position-level correction has passed the test in two consecutive iterations but the
-/// multiplier correction shrank by less than this factor, `Δλ` is rounding noise: `Φ` is evaluated to
-/// ~1e-16 (relative to the mechanism's size), and the scaled row turns that into a `Δλ` of
-/// ~1e-16 · m_eff / (β'h²) — 1e-9 N at h = 5e-4, 1e-5 N at h = 1e-5 — which no tolerance below it can
-/// pass. A genuinely converging modified Newton shrinks `Δλ` by far more than 2× per iteration.
-const LAMBDA_STAGNATION_RATIO: f64 = 0.5;
 
 /// How often one Newton pass may refactorise because its iterate left the regime of piecewise
 /// forces its matrix was formed in ([`DaeSystem::newton_regime`]; a joint-limit penalty switching
@@ -377,47 +303,6 @@ const LAMBDA_STAGNATION_RATIO: f64 = 0.5;
 /// cap keeps an iterate that keeps crossing from refactorising at every iteration (it then goes on
 /// with the last matrix, as before).
 const MAX_REGIME_REFACTORISATIONS: usize = 4;
-
-/// The HHT-I3 integrator for one trajectory of one [`DaeSystem`].
-///
-/// ```text
-/// M(q_{n+1}) q̈_{n+1} + Φ_q(q_{n+1})ᵀ λ_{n+1} = Q(q_{n+1}, q̇_{n+1}, t_{n+1}),  Φ(q_{n+1}, t_{n+1}) = 0
-/// a_{n+1} = (1+α) q̈_{n+1} − α q̈_n                                            (a_0 = q̈_0)
-/// q_{n+1} = q_n ⊕ (h q̇_n + h² [(½ − β) a_n + β a_{n+1}])
-/// q̇_{n+1} = q̇_n + h [(1 − γ) a_n + γ a_{n+1}]
-/// ```
-///
-/// The system is passed to each call rather than owned, so that a study can keep its per-sample
-/// models where it likes; it must be the same system (same dimensions, checked) on every call.
-///
-/// ```
-/// use nalgebra::{DMatrix, DVector};
-/// use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, SystemError};
-///
-/// /// A unit mass on a spring of stiffness 4 N/m: q̈ = −4 q.
-/// struct Spring;
-/// impl DaeSystem for Spring {
-///     fn nq(&self) -> usize { 1 }
-///     fn nv(&self) -> usize { 1 }
-///     fn mass_matrix(&mut self, _t: f64, _q: &DVector<f64>, out: &mut DMatrix<f64>)
-///         -> Result<(), SystemError> { out[(0, 0)] = 1.0; Ok(()) }
-///     fn forces(&mut self, _t: f64, q: &DVector<f64>, _v: &DVector<f64>, out: &mut DVector<f64>)
-///         -> Result<(), SystemError> { out[0] = -4.0 * q[0]; Ok(()) }
-/// }
-///
-/// let mut sys = Spring;
-/// let q0 = DVector::from_element(1, 1.0);
-/// let v0 = DVector::zeros(1);
-/// let mut hht = HhtIntegrator::new(&mut sys, HhtSettings::default(), 0.0, &q0, &v0).unwrap();
-/// for _ in 0..1000 {
-///     hht.step(&mut sys).unwrap();
-/// }
-/// let exact = (2.0_f64 * 1.0).cos();
-/// assert!((hht.state().q[0] - exact).abs() < 1e-5);
-/// ```
-/// The rate-based convergence test trusts a contraction estimate only below this: a slowly
-/// contracting iteration (ρ near 1) says little about the remaining error.
-pub const RATE_TEST_MAX_CONTRACTION: f64 = 0.5;
 
 /// Everything that carries one trajectory from step to step — start time, state, the recursion's
 /// velocity, the predictor's history, statistics, step control and the reusable Newton
@@ -672,6 +557,42 @@ struct Crossing {
 /// The HHT-I3 integrator of one trajectory (docs/method.md §5) over a [`DaeSystem`]: its settings,
 /// the step coefficients, the Newton workspaces and the carried [`HhtTrajectory`]; [`HhtIntegrator::step`]
 /// advances it by one grid step.
+///
+/// ```text
+/// M(q_{n+1}) q̈_{n+1} + Φ_q(q_{n+1})ᵀ λ_{n+1} = Q(q_{n+1}, q̇_{n+1}, t_{n+1}),  Φ(q_{n+1}, t_{n+1}) = 0
+/// a_{n+1} = (1+α) q̈_{n+1} − α q̈_n                                            (a_0 = q̈_0)
+/// q_{n+1} = q_n ⊕ (h q̇_n + h² [(½ − β) a_n + β a_{n+1}])
+/// q̇_{n+1} = q̇_n + h [(1 − γ) a_n + γ a_{n+1}]
+/// ```
+///
+/// The system is passed to each call rather than owned, so that a study can keep its per-sample
+/// models where it likes; it must be the same system (same dimensions, checked) on every call.
+///
+/// ```
+/// use nalgebra::{DMatrix, DVector};
+/// use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, SystemError};
+///
+/// /// A unit mass on a spring of stiffness 4 N/m: q̈ = −4 q.
+/// struct Spring;
+/// impl DaeSystem for Spring {
+///     fn nq(&self) -> usize { 1 }
+///     fn nv(&self) -> usize { 1 }
+///     fn mass_matrix(&mut self, _t: f64, _q: &DVector<f64>, out: &mut DMatrix<f64>)
+///         -> Result<(), SystemError> { out[(0, 0)] = 1.0; Ok(()) }
+///     fn forces(&mut self, _t: f64, q: &DVector<f64>, _v: &DVector<f64>, out: &mut DVector<f64>)
+///         -> Result<(), SystemError> { out[0] = -4.0 * q[0]; Ok(()) }
+/// }
+///
+/// let mut sys = Spring;
+/// let q0 = DVector::from_element(1, 1.0);
+/// let v0 = DVector::zeros(1);
+/// let mut hht = HhtIntegrator::new(&mut sys, HhtSettings::default(), 0.0, &q0, &v0).unwrap();
+/// for _ in 0..1000 {
+///     hht.step(&mut sys).unwrap();
+/// }
+/// let exact = (2.0_f64 * 1.0).cos();
+/// assert!((hht.state().q[0] - exact).abs() < 1e-5);
+/// ```
 #[derive(Debug, Clone)]
 pub struct HhtIntegrator {
     settings: HhtSettings,
@@ -766,6 +687,7 @@ impl HhtIntegrator {
         self.trajectory.v_newmark.copy_from(&start.v);
         self.trajectory.previous_steps = 0;
         self.trajectory.newton.reusable = false;
+        self.trajectory.newton.contraction = None;
         self.trajectory.state.qdd.copy_from(&start.qdd);
         self.trajectory.state.a.copy_from(&start.qdd);
         self.trajectory.state.lambda.copy_from(&start.lambda);
@@ -1224,7 +1146,7 @@ impl HhtIntegrator {
         let mut iterations = 0;
         let mut converged = false;
         let mut converged_with_full = false;
-        let mut converged_rate = 0.0_f64;
+        let mut converged_pass = NewtonPass::new(1);
         let mut last: Option<IterationReport> = None;
         for pass in if reuse { 0..3 } else { 1..3 } {
             let full = match pass {
@@ -1240,7 +1162,11 @@ impl HhtIntegrator {
             } else {
                 self.factorise_at_iterate(system, at, full)?;
             }
-            let mut judge = NewtonPass::new(pass);
+            let mut judge = if pass == 1 {
+                NewtonPass::at_predictor(self.carried_contraction(h, full))
+            } else {
+                NewtonPass::new(pass)
+            };
             // The regime of piecewise forces (joints beyond a limit) the matrix was formed in.
             let mut matrix_regime = (pass > 0).then(|| system.newton_regime(&self.ws.q));
             let mut regime_refactorisations = 0;
@@ -1275,7 +1201,7 @@ impl HhtIntegrator {
             }
             if converged {
                 converged_with_full = full;
-                converged_rate = judge.slowest;
+                converged_pass = judge;
                 break;
             }
         }
@@ -1297,22 +1223,33 @@ impl HhtIntegrator {
             iterations,
             full_first,
             converged_with_full,
-            converged_rate,
+            &converged_pass,
         );
         Ok(Attempt::Converged)
     }
 
+    /// The contraction a matrix factorised at the predictor for a step of `h` (`full`: the full
+    /// matrix) may accept its first correction by: `None` when the settings turn that off.
+    fn carried_contraction(&self, h: f64, full: bool) -> Option<CarriedContraction> {
+        if self.settings.accept_by_carried_contraction {
+            self.trajectory.newton.carried_contraction(h, full)
+        } else {
+            None
+        }
+    }
+
     /// The bookkeeping of an attempt whose Newton iteration converged after `iterations`
     /// iterations (with the full matrix when `converged_with_full`; `full_first`: the attempt
-    /// started with it; `converged_rate`: the slowest contraction of the converging pass): counters,
-    /// the full-matrix hold of [`NewtonMatrix::Auto`], and the factorisation the next step may reuse.
+    /// started with it; `converged_pass`: the pass that converged): counters, the full-matrix hold of
+    /// [`NewtonMatrix::Auto`], the factorisation the next step may reuse, and the contraction the
+    /// next step's first correction may be judged by.
     fn conclude_attempt(
         &mut self,
         h: f64,
         iterations: usize,
         full_first: bool,
         converged_with_full: bool,
-        converged_rate: f64,
+        converged_pass: &NewtonPass,
     ) {
         self.trajectory.stats.newton_iterations += iterations as u64;
         if self.settings.newton_matrix == NewtonMatrix::Auto {
@@ -1331,7 +1268,17 @@ impl HhtIntegrator {
         // The full matrix lives in its own solver; the diagonal one just used stays for the next step.
         self.trajectory.newton.reusable = !converged_with_full;
         self.trajectory.newton.h = h;
-        self.trajectory.newton.rate = converged_rate;
+        self.trajectory.newton.rate = converged_pass.slowest;
+        // A pass at the predictor that measured a contraction replaces the carried one; one that
+        // converged at its first correction keeps it; any other pass (a reused matrix, a refresh,
+        // a refactorisation in another regime) drops it.
+        if converged_pass.at_predictor {
+            if let Some(measured) = converged_pass.measured(h, converged_with_full) {
+                self.trajectory.newton.contraction = Some(measured);
+            }
+        } else {
+            self.trajectory.newton.contraction = None;
+        }
     }
 
     /// Accepts the candidate end state of the last attempt (step `h` to `t1`), keeping `q̈_n` and
@@ -1482,6 +1429,7 @@ impl HhtIntegrator {
         self.trajectory.state.lambda.copy_from(&start.lambda);
         self.trajectory.previous_steps = 0;
         self.trajectory.newton.reusable = false;
+        self.trajectory.newton.contraction = None;
         self.trajectory.stats.impacts += 1;
         self.ws.mass_fresh = false;
         self.ws.phi_q_fresh = false;

@@ -1560,24 +1560,7 @@ const REUSE_MAX_POSITION_DIFFERENCE: f64 = 1e-7;
 
 /// The ur5 of the shipped robots with its scene (springs and dampers on the joints, no rows).
 fn shipped_ur5() -> (crate::simulate::RobotSystem, crate::scene::Scene) {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5");
-    let model = crate::model::Model::from_urdf_file(
-        &root.join("ur5.urdf"),
-        crate::model::LoadOptions::default(),
-    )
-    .expect("ur5 loads");
-    let (file, _) =
-        crate::scene::read_sidecar(&root.join("ur5.uncertainty.toml")).expect("sidecar reads");
-    let scene = crate::scene::Scene::resolve(
-        &file,
-        &model,
-        "ur5",
-        crate::scene::SceneOverrides::default(),
-    )
-    .expect("scene resolves");
-    let mut model = model;
-    scene.apply_gravity(&mut model);
-    (crate::simulate::RobotSystem::new(model, &scene), scene)
+    shipped_scene("ur5")
 }
 
 #[test]
@@ -1645,4 +1628,74 @@ fn reused_newton_matrix_travels_with_the_trajectory() {
     assert!(alone.stats().factorisations < 200);
     assert_eq!(shared.state(), alone.state());
     assert_eq!(shared.stats().factorisations, alone.stats().factorisations);
+}
+
+/// A shipped robot with its own scene (gravity applied), for runs of the integrator alone.
+fn shipped_scene(dir: &str) -> (crate::simulate::RobotSystem, crate::scene::Scene) {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("robots")
+        .join(dir);
+    let model = crate::model::Model::from_urdf_file(
+        &root.join(format!("{dir}.urdf")),
+        crate::model::LoadOptions::default(),
+    )
+    .expect("robot loads");
+    let (file, _) = crate::scene::read_sidecar(&root.join(format!("{dir}.uncertainty.toml")))
+        .expect("sidecar reads");
+    let scene =
+        crate::scene::Scene::resolve(&file, &model, dir, crate::scene::SceneOverrides::default())
+            .expect("scene resolves");
+    let mut model = model;
+    scene.apply_gravity(&mut model);
+    (crate::simulate::RobotSystem::new(model, &scene), scene)
+}
+
+/// How much tighter the reference runs of the first-correction test converge.
+const TIGHT_NEWTON_FACTOR: f64 = 1e-3;
+
+/// A step accepted after its first correction by the last step's contraction (docs/step-control.md
+/// §2, "Accepting the first correction") is within the Newton tolerance: over 1 s of the shipped
+/// ur5, double pendulum and four-bar scenes, the positions stay within one step's position
+/// tolerance (`reltol · max|q| + abstol_position`) of a run converged 1000× tighter, while the
+/// acceptance saves iterations.
+#[test]
+fn first_corrections_accepted_by_the_carried_contraction_stay_within_the_tolerance() {
+    for dir in ["ur5", "double_pendulum", "four_bar"] {
+        let (mut system, scene) = shipped_scene(dir);
+        let (q0, v0) = (dvec(&scene.initial_q), dvec(&scene.initial_v));
+        let settings = crate::simulate::hht_settings(&scene);
+        let tight = HhtSettings {
+            reltol: settings.reltol * TIGHT_NEWTON_FACTOR,
+            abstol_position: settings.abstol_position * TIGHT_NEWTON_FACTOR,
+            abstol_multiplier: settings.abstol_multiplier * TIGHT_NEWTON_FACTOR,
+            accept_by_carried_contraction: false,
+            ..settings
+        };
+        let mut run = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).expect("start");
+        let mut reference = HhtIntegrator::new(&mut system, tight, 0.0, &q0, &v0).expect("start");
+        let (mut max_difference, mut max_q): (f64, f64) = (0.0, 0.0);
+        for _ in 0..1000 {
+            run.step(&mut system).expect("step");
+            reference.step(&mut system).expect("step");
+            max_difference = max_difference.max((&run.state().q - &reference.state().q).amax());
+            max_q = max_q.max(reference.state().q.amax());
+        }
+        let one_step_tolerance = settings.reltol * max_q + settings.abstol_position;
+        let stats = run.stats();
+        println!(
+            "{dir}: {} Newton iterations in 1000 steps, {} accepted by the carried contraction; max |Δq| {max_difference:.2e} against one step's tolerance {one_step_tolerance:.2e}",
+            stats.newton_iterations, stats.carried_rate_acceptances
+        );
+        assert!(stats.carried_rate_acceptances > 0, "{dir}: never used");
+        // The reference must not depend on the rule under test.
+        assert_eq!(
+            reference.stats().carried_rate_acceptances,
+            0,
+            "{dir}: the tight reference accepted a first correction by the carried contraction"
+        );
+        assert!(
+            max_difference <= one_step_tolerance,
+            "{dir}: {max_difference:e} > {one_step_tolerance:e}"
+        );
+    }
 }

@@ -70,6 +70,8 @@ pub fn central_difference_settings(scene: &Scene) -> HhtSettings {
         // Newton converged to rounding at every step: a reused matrix accepts iterates anywhere
         // below the tolerance, which the difference quotient divides by its step.
         reuse_newton_matrix: false,
+        // Likewise the first correction accepted by the last step's contraction.
+        accept_by_carried_contraction: false,
         ..hht_settings(scene)
     }
 }

@@ -16,9 +16,9 @@
 //! [`HhtIntegrator::step`], which repeats the same attempt bit for bit and goes on from there.
 
 use super::{
-    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonMatrix,
-    NewtonPass, PassVerdict, StepControl, StepControlState, ADAPTIVE_MAX_GROWTH,
-    END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
+    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError,
+    MeasuredContraction, NewtonMatrix, NewtonPass, PassVerdict, StepControl, StepControlState,
+    ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
 };
 use nalgebra::DVector;
 
@@ -41,8 +41,11 @@ pub(crate) struct PlainStep {
     /// What the attempt may change before it is accepted, to put back when it is abandoned.
     stats_before: HhtStats,
     control_before: StepControlState,
-    newton_before: (bool, f64, f64),
+    newton_before: NewtonFlags,
 }
+
+/// The Newton memory's flags an abandoned plain step puts back.
+type NewtonFlags = (bool, f64, f64, Option<MeasuredContraction>);
 
 /// Where a plain step stands after a Newton iteration ([`HhtIntegrator::plain_correct`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,7 +109,7 @@ impl HhtIntegrator {
             h_min,
             iterations: 0,
             growth: ADAPTIVE_MAX_GROWTH,
-            judge: NewtonPass::new(1),
+            judge: NewtonPass::at_predictor(self.carried_contraction(self.grid_coeffs.h, false)),
             regime: 0,
             stats_before: self.trajectory.stats,
             control_before: self.trajectory.control,
@@ -114,6 +117,7 @@ impl HhtIntegrator {
                 self.trajectory.newton.reusable,
                 self.trajectory.newton.h,
                 self.trajectory.newton.rate,
+                self.trajectory.newton.contraction,
             ),
         };
         self.predict(plan.h);
@@ -194,7 +198,8 @@ impl HhtIntegrator {
         match plain.judge.judge(report, &mut self.trajectory.stats) {
             PassVerdict::Converged => {
                 let h = self.grid_coeffs.h;
-                self.conclude_attempt(h, plain.iterations, false, false, plain.judge.slowest);
+                let judge = plain.judge;
+                self.conclude_attempt(h, plain.iterations, false, false, &judge);
                 // An impact inside the converged step: the scalar step locates it.
                 if self.n_events > 0
                     && !matches!(self.find_crossing(system, plain.at.t, h), Ok(None))
@@ -271,6 +276,6 @@ impl HhtIntegrator {
         self.trajectory.stats = plain.stats_before;
         self.trajectory.control = plain.control_before;
         let newton = &mut self.trajectory.newton;
-        (newton.reusable, newton.h, newton.rate) = plain.newton_before;
+        (newton.reusable, newton.h, newton.rate, newton.contraction) = plain.newton_before;
     }
 }

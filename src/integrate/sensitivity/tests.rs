@@ -358,10 +358,11 @@ fn reference<S: DaeSystem + Clone>(
 ) -> Vec<Vec<Vec<f64>>> {
     let p = system.n_parameters();
     // Every run's Newton converged to rounding, not just to the tolerance: a reused matrix, or the
-    // rate-based acceptance, stops at iterates anywhere below it (at an iteration count that can
+    // rate-based acceptances, stop at iterates anywhere below it (at an iteration count that can
     // change from one run to the next), and the difference quotient divides that by ε.
     let settings = HhtSettings {
         reuse_newton_matrix: false,
+        accept_by_carried_contraction: false,
         reltol: settings.reltol * REFERENCE_TOLERANCE_FACTOR,
         abstol_multiplier: settings.abstol_multiplier * REFERENCE_TOLERANCE_FACTOR,
         ..settings
