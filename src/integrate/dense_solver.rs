@@ -59,7 +59,12 @@ impl DenseSolver {
     /// Factorises `a` (dimension `n × n`; only the lower triangle is read for Cholesky), overwriting
     /// the stored factors. Allocation-free.
     pub fn factor(&mut self, a: &DMatrix<f64>) -> Result<(), Breakdown> {
-        self.factors.copy_from(a);
+        assert_eq!(
+            self.factors.shape(),
+            a.shape(),
+            "DenseSolver::factor: the matrix has the solver's dimension"
+        );
+        self.factors.as_mut_slice().copy_from_slice(a.as_slice());
         let scale = max_abs(a.as_slice());
         if scale == 0.0 && !a.is_empty() {
             return Err(Breakdown {

@@ -1032,9 +1032,10 @@ impl HhtIntegrator {
             for ((x, a_n), qdd_n) in self
                 .ws
                 .a_start
+                .as_mut_slice()
                 .iter_mut()
-                .zip(self.trajectory.state.a.iter())
-                .zip(self.trajectory.state.qdd.iter())
+                .zip(self.trajectory.state.a.as_slice())
+                .zip(self.trajectory.state.qdd.as_slice())
             {
                 *x = qdd_n + ratio * (a_n - qdd_n);
             }
@@ -1073,9 +1074,10 @@ impl HhtIntegrator {
         let acceleration_displacement = self
             .ws
             .qdd
+            .as_slice()
             .iter()
-            .zip(self.trajectory.state.qdd.iter())
-            .zip(self.ws.a_start.iter())
+            .zip(self.trajectory.state.qdd.as_slice())
+            .zip(self.ws.a_start.as_slice())
             .map(|((qdd, qdd_n), a_n)| {
                 let a = (1.0 + alpha) * qdd - alpha * qdd_n;
                 (h * h * ((0.5 - beta) * a_n + beta * a)).abs()
@@ -1086,9 +1088,10 @@ impl HhtIntegrator {
             for ((x, qdd_n), a_n) in self
                 .ws
                 .qdd
+                .as_mut_slice()
                 .iter_mut()
-                .zip(self.trajectory.state.qdd.iter())
-                .zip(self.ws.a_start.iter())
+                .zip(self.trajectory.state.qdd.as_slice())
+                .zip(self.ws.a_start.as_slice())
             {
                 let a = -(0.5 - beta) / beta * a_n;
                 *x = (a + alpha * qdd_n) / (1.0 + alpha);
@@ -1290,25 +1293,32 @@ impl HhtIntegrator {
         h: f64,
         step: u64,
     ) -> Result<(), IntegrateError> {
+        // The history moves back one step by swapping buffers: q̈_n and λ_n become the previous
+        // ones, and the buffers they leave are overwritten with the new state just below.
         let trajectory = &mut self.trajectory;
         std::mem::swap(
             &mut trajectory.qdd_before_previous,
             &mut trajectory.qdd_previous,
         );
-        trajectory.qdd_previous.copy_from(&trajectory.state.qdd);
-        trajectory
-            .lambda_previous
-            .copy_from(&trajectory.state.lambda);
+        std::mem::swap(&mut trajectory.qdd_previous, &mut trajectory.state.qdd);
+        std::mem::swap(
+            &mut trajectory.lambda_previous,
+            &mut trajectory.state.lambda,
+        );
         trajectory.previous_steps = (trajectory.previous_steps + 1).min(2);
         let ws = &self.ws;
         let state = &mut self.trajectory.state;
         state.t = t1;
-        state.q.copy_from(&ws.q);
-        state.v.copy_from(&ws.v);
-        self.trajectory.v_newmark.copy_from(&ws.v);
-        state.a.copy_from(&ws.a);
-        state.qdd.copy_from(&ws.qdd);
-        state.lambda.copy_from(&ws.lambda);
+        for (to, from) in [
+            (&mut state.q, &ws.q),
+            (&mut state.v, &ws.v),
+            (&mut self.trajectory.v_newmark, &ws.v),
+            (&mut state.a, &ws.a),
+            (&mut state.qdd, &ws.qdd),
+            (&mut state.lambda, &ws.lambda),
+        ] {
+            to.as_mut_slice().copy_from_slice(from.as_slice());
+        }
         self.trajectory.control.h_before_last = self.trajectory.control.h_last;
         self.trajectory.control.h_last = h;
         self.trajectory.stats.substeps += 1;
@@ -1683,15 +1693,17 @@ impl HhtIntegrator {
         let beta_h2 = self.coeffs.beta_h2();
         let ws = &mut self.ws;
         let mut residual_inf: f64 = 0.0;
-        for i in 0..nv {
-            let r = ws.dyn_residual[i];
-            residual_inf = residual_inf.max(r.abs());
-            ws.rhs[i] = -r;
-        }
-        for j in 0..m {
-            let r = ws.phi[j] / beta_h2;
-            residual_inf = residual_inf.max(r.abs());
-            ws.rhs[nv + j] = -r;
+        {
+            let rhs = &mut ws.rhs.as_mut_slice()[..nv + m];
+            for (x, r) in rhs[..nv].iter_mut().zip(&ws.dyn_residual.as_slice()[..nv]) {
+                residual_inf = residual_inf.max(r.abs());
+                *x = -r;
+            }
+            for (x, phi) in rhs[nv..].iter_mut().zip(&ws.phi.as_slice()[..m]) {
+                let r = phi / beta_h2;
+                residual_inf = residual_inf.max(r.abs());
+                *x = -r;
+            }
         }
         if ws.use_full {
             ws.full_solver.solve_in_place(&mut ws.rhs);
@@ -1710,9 +1722,10 @@ impl HhtIntegrator {
         };
         let mut worst_value = -1.0;
         let mut sum_q = 0.0;
+        let (rhs, scale) = (&ws.rhs.as_slice()[..nv + m], &ws.scale.as_slice()[..nv]);
         for i in 0..nv {
-            let ewt = 1.0 / (reltol * ws.scale[i] + self.settings.abstol_position);
-            let x = (beta_h2 * ws.rhs[i] * ewt).abs();
+            let ewt = 1.0 / (reltol * scale[i] + self.settings.abstol_position);
+            let x = (beta_h2 * rhs[i] * ewt).abs();
             sum_q += x * x;
             if x > worst_value {
                 worst_value = x;
@@ -1725,7 +1738,7 @@ impl HhtIntegrator {
         let mut sum_l = 0.0;
         for j in 0..m {
             let ewt = 1.0 / (reltol * ws.lambda[j].abs() + self.settings.abstol_multiplier);
-            let x = (ws.rhs[nv + j] * ewt).abs();
+            let x = (rhs[nv + j] * ewt).abs();
             sum_l += x * x;
             if x > worst_value {
                 worst_value = x;
@@ -1761,11 +1774,12 @@ impl HhtIntegrator {
                 }
             }
         }
-        for i in 0..nv {
-            ws.qdd[i] += ws.rhs[i];
+        let rhs = ws.rhs.as_slice();
+        for (x, dx) in ws.qdd.as_mut_slice().iter_mut().zip(&rhs[..nv]) {
+            *x += dx;
         }
-        for j in 0..m {
-            ws.lambda[j] += ws.rhs[nv + j];
+        for (x, dx) in ws.lambda.as_mut_slice().iter_mut().zip(&rhs[nv..nv + m]) {
+            *x += dx;
         }
         self.update_iterate(system, at)?;
         Ok(IterationReport {

@@ -261,7 +261,7 @@ impl BatchStepper {
                 let tau = &mut self.scratch[..nv];
                 self.batch_data.tau.copy_sample(lane, tau);
                 let (q, v, residual) = integrator.plain_residual_buffers();
-                for (r, t) in residual.iter_mut().zip(tau.iter()) {
+                for (r, t) in residual.as_mut_slice().iter_mut().zip(tau.iter()) {
                     *r = -t;
                 }
                 system.finish_dynamics_residual(

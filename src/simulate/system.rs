@@ -384,8 +384,14 @@ impl DaeSystem for RobotSystem {
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
         if !self.has_floating_joint {
-            out.copy_from(q);
-            *out += dq;
+            for ((x, q), dq) in out
+                .as_mut_slice()
+                .iter_mut()
+                .zip(q.as_slice())
+                .zip(dq.as_slice())
+            {
+                *x = q + dq;
+            }
             return Ok(());
         }
         for joint in &self.model.joints {
@@ -440,7 +446,8 @@ impl DaeSystem for RobotSystem {
         q: &DVector<f64>,
         out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError> {
-        out.copy_from(crba(&self.model, &mut self.data, q.as_slice()));
+        out.as_mut_slice()
+            .copy_from_slice(crba(&self.model, &mut self.data, q.as_slice()).as_slice());
         self.mass_matrix_kinematics
             .record(q.as_slice(), &self.data.parent_from_body);
         Ok(())
@@ -513,8 +520,8 @@ impl DaeSystem for RobotSystem {
         stiffness_out: &mut DVector<f64>,
         damping_out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
-        stiffness_out.fill(0.0);
-        damping_out.fill(0.0);
+        stiffness_out.as_mut_slice().fill(0.0);
+        damping_out.as_mut_slice().fill(0.0);
         self.effects.add_newton_diagonal(
             &self.model,
             q.as_slice(),
