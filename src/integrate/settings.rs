@@ -76,8 +76,9 @@ pub struct HhtSettings {
     /// the iterate is within tolerance (default `true`; docs/step-control.md §2, "Accepting the
     /// first correction"; [`CARRIED_RATE_FLOOR`](super::CARRIED_RATE_FLOOR),
     /// [`CARRIED_RATE_SAFETY`](super::CARRIED_RATE_SAFETY)). Saves 10–45 % of the Newton
-    /// iterations of the shipped studies at the cost of iterates nearer the tolerance; off for
-    /// runs that must converge to rounding (references, difference quotients).
+    /// iterations of the shipped studies at the cost of iterates nearer the tolerance (the double
+    /// pendulum study's a-posteriori check misfit 1.0e-8 → 4.4e-7 of the envelope width at 1 s);
+    /// off for runs that must converge to rounding (references, difference quotients).
     pub accept_by_carried_contraction: bool,
 }
 
