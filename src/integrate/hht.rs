@@ -295,6 +295,41 @@ impl NewtonMemory {
                 first_correction: measured.first_correction,
             })
     }
+
+    /// Drops what the next step could carry over from the last (a restart, an impact): the stored
+    /// matrix is no longer reusable and the measured contraction no longer applies.
+    fn forget(&mut self) {
+        self.reusable = false;
+        self.contraction = None;
+    }
+
+    /// Everything but the factorisation, for an attempt that may be put back
+    /// ([`HhtIntegrator::begin_plain_step`]).
+    fn flags(&self) -> NewtonFlags {
+        NewtonFlags {
+            reusable: self.reusable,
+            h: self.h,
+            rate: self.rate,
+            contraction: self.contraction,
+        }
+    }
+
+    /// Puts back what [`NewtonMemory::flags`] saved.
+    fn restore_flags(&mut self, flags: NewtonFlags) {
+        self.reusable = flags.reusable;
+        self.h = flags.h;
+        self.rate = flags.rate;
+        self.contraction = flags.contraction;
+    }
+}
+
+/// The [`NewtonMemory`] without its factorisation.
+#[derive(Debug, Clone, Copy)]
+struct NewtonFlags {
+    reusable: bool,
+    h: f64,
+    rate: f64,
+    contraction: Option<MeasuredContraction>,
 }
 
 /// How often one Newton pass may refactorise because its iterate left the regime of piecewise
@@ -686,8 +721,7 @@ impl HhtIntegrator {
         self.trajectory.state.v.copy_from(&start.v);
         self.trajectory.v_newmark.copy_from(&start.v);
         self.trajectory.previous_steps = 0;
-        self.trajectory.newton.reusable = false;
-        self.trajectory.newton.contraction = None;
+        self.trajectory.newton.forget();
         self.trajectory.state.qdd.copy_from(&start.qdd);
         self.trajectory.state.a.copy_from(&start.qdd);
         self.trajectory.state.lambda.copy_from(&start.lambda);
@@ -1438,8 +1472,7 @@ impl HhtIntegrator {
         self.trajectory.state.a.copy_from(&start.qdd);
         self.trajectory.state.lambda.copy_from(&start.lambda);
         self.trajectory.previous_steps = 0;
-        self.trajectory.newton.reusable = false;
-        self.trajectory.newton.contraction = None;
+        self.trajectory.newton.forget();
         self.trajectory.stats.impacts += 1;
         self.ws.mass_fresh = false;
         self.ws.phi_q_fresh = false;

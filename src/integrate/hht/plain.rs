@@ -16,9 +16,9 @@
 //! [`HhtIntegrator::step`], which repeats the same attempt bit for bit and goes on from there.
 
 use super::{
-    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError,
-    MeasuredContraction, NewtonMatrix, NewtonPass, PassVerdict, StepControl, StepControlState,
-    ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
+    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonFlags,
+    NewtonMatrix, NewtonPass, PassVerdict, StepControl, StepControlState, ADAPTIVE_MAX_GROWTH,
+    END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
 };
 use nalgebra::DVector;
 
@@ -43,9 +43,6 @@ pub(crate) struct PlainStep {
     control_before: StepControlState,
     newton_before: NewtonFlags,
 }
-
-/// The Newton memory's flags an abandoned plain step puts back.
-type NewtonFlags = (bool, f64, f64, Option<MeasuredContraction>);
 
 /// Where a plain step stands after a Newton iteration ([`HhtIntegrator::plain_correct`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -113,12 +110,7 @@ impl HhtIntegrator {
             regime: 0,
             stats_before: self.trajectory.stats,
             control_before: self.trajectory.control,
-            newton_before: (
-                self.trajectory.newton.reusable,
-                self.trajectory.newton.h,
-                self.trajectory.newton.rate,
-                self.trajectory.newton.contraction,
-            ),
+            newton_before: self.trajectory.newton.flags(),
         };
         self.predict(plan.h);
         if self.update_iterate(system, plain.at).is_err() {
@@ -198,8 +190,7 @@ impl HhtIntegrator {
         match plain.judge.judge(report, &mut self.trajectory.stats) {
             PassVerdict::Converged => {
                 let h = self.grid_coeffs.h;
-                let judge = plain.judge;
-                self.conclude_attempt(h, plain.iterations, false, false, &judge);
+                self.conclude_attempt(h, plain.iterations, false, false, &plain.judge);
                 // An impact inside the converged step: the scalar step locates it.
                 if self.n_events > 0
                     && !matches!(self.find_crossing(system, plain.at.t, h), Ok(None))
@@ -275,7 +266,6 @@ impl HhtIntegrator {
     fn abandon_plain_step(&mut self, plain: &mut PlainStep) {
         self.trajectory.stats = plain.stats_before;
         self.trajectory.control = plain.control_before;
-        let newton = &mut self.trajectory.newton;
-        (newton.reusable, newton.h, newton.rate, newton.contraction) = plain.newton_before;
+        self.trajectory.newton.restore_flags(plain.newton_before);
     }
 }
