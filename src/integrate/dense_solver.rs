@@ -2,12 +2,12 @@
 //! nothing (nalgebra's `LU::new` / `Cholesky::new` take their matrix by value).
 //!
 //! Sizes here are `nv + m ≤ ~50`: a plain right-looking LU with partial pivoting and a plain
-//! Cholesky (the crate's one, [`crate::linalg::cholesky`]) are as fast as anything for these sizes
-//! and keep the workspace explicit.
+//! Cholesky (the crate's ones, [`crate::linalg::lu`] and [`crate::linalg::cholesky`]) are as fast
+//! as anything for these sizes and keep the workspace explicit.
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::linalg::cholesky;
+use crate::linalg::{cholesky, lu};
 
 /// A pivot smaller than this fraction of the matrix's largest entry means "singular to working
 /// precision". A matrix that close to singular (condition ≳ 1e13) leaves no correct digits at the
@@ -79,43 +79,17 @@ impl DenseSolver {
     }
 
     fn factor_lu(&mut self, scale: f64) -> Result<(), Breakdown> {
-        let a = &mut self.factors;
-        let n = a.nrows();
-        for k in 0..n {
-            let mut p = k;
-            let mut best = a[(k, k)].abs();
-            for i in (k + 1)..n {
-                let v = a[(i, k)].abs();
-                if v > best {
-                    best = v;
-                    p = i;
-                }
-            }
-            if best.is_nan() || best <= SINGULAR_PIVOT_RELATIVE * scale {
-                return Err(Breakdown {
-                    index: k,
-                    pivot_relative: best / scale,
-                });
-            }
-            self.pivots[k] = p;
-            if p != k {
-                a.swap_rows(k, p);
-            }
-            let inv = 1.0 / a[(k, k)];
-            for i in (k + 1)..n {
-                a[(i, k)] *= inv;
-            }
-            for j in (k + 1)..n {
-                let akj = a[(k, j)];
-                if akj != 0.0 {
-                    for i in (k + 1)..n {
-                        let lik = a[(i, k)];
-                        a[(i, j)] -= lik * akj;
-                    }
-                }
-            }
-        }
-        Ok(())
+        let n = self.factors.nrows();
+        lu::factor_in_place(
+            self.factors.as_mut_slice(),
+            n,
+            &mut self.pivots,
+            SINGULAR_PIVOT_RELATIVE * scale,
+        )
+        .map_err(|failure| Breakdown {
+            index: failure.index,
+            pivot_relative: failure.magnitude / scale,
+        })
     }
 
     fn factor_cholesky(&mut self, scale: f64) -> Result<(), Breakdown> {
@@ -137,33 +111,7 @@ impl DenseSolver {
         let a = &self.factors;
         let n = a.nrows();
         match self.kind {
-            FactorKind::Lu => {
-                for k in 0..n {
-                    let p = self.pivots[k];
-                    if p != k {
-                        b.swap_rows(k, p);
-                    }
-                }
-                // L y = P b (unit lower triangle)
-                for j in 0..n {
-                    let bj = b[j];
-                    if bj != 0.0 {
-                        for i in (j + 1)..n {
-                            b[i] -= a[(i, j)] * bj;
-                        }
-                    }
-                }
-                // U x = y
-                for j in (0..n).rev() {
-                    b[j] /= a[(j, j)];
-                    let bj = b[j];
-                    if bj != 0.0 {
-                        for i in 0..j {
-                            b[i] -= a[(i, j)] * bj;
-                        }
-                    }
-                }
-            }
+            FactorKind::Lu => lu::solve_in_place(a.as_slice(), n, &self.pivots, b.as_mut_slice()),
             FactorKind::Cholesky => cholesky::solve_in_place(a.as_slice(), n, b.as_mut_slice()),
         }
     }

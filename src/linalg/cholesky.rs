@@ -12,6 +12,7 @@
 //! `l_ij = (a_ij − Σ_{k<j} l_ik l_jk) / l_jj`; the solve is forward then backward substitution with
 //! the same increasing-index sums.
 
+use super::return_for_fixed_size;
 use nalgebra::{DMatrix, DVector};
 use thiserror::Error;
 
@@ -48,29 +49,41 @@ pub const COLUMN_WISE_FROM: usize = 24;
 /// upper triangle is left as it was. A pivot that is NaN or `≤ min_pivot` stops the factorisation
 /// (`a` then holds the columns finished so far) and is returned.
 pub fn factor_in_place(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), NonPositivePivot> {
+    return_for_fixed_size!(n, factor_fixed(a, min_pivot));
+    if n < COLUMN_WISE_FROM {
+        factor_by_dot_products(&mut a[..n * n], n, min_pivot)
+    } else {
+        factor_column_wise(a, n, min_pivot)
+    }
+}
+
+/// [`factor_by_dot_products`] compiled for `n = N` (see [`super::FIXED_SIZE_UP_TO`]).
+fn factor_fixed<const N: usize>(a: &mut [f64], min_pivot: f64) -> Result<(), NonPositivePivot> {
+    factor_by_dot_products(&mut a[..N * N], N, min_pivot)
+}
+
+/// The factorisation with a dot product per entry (`a.len() == n²`).
+#[inline(always)]
+fn factor_by_dot_products(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), NonPositivePivot> {
     for j in 0..n {
-        let mut pivot = a[j * n + j];
-        for k in 0..j {
-            pivot -= a[k * n + j] * a[k * n + j];
-        }
-        if pivot.is_nan() || pivot <= min_pivot {
-            return Err(NonPositivePivot { index: j, pivot });
-        }
-        let diagonal = pivot.sqrt();
-        a[j * n + j] = diagonal;
-        // Column j below the diagonal: `l_ij = (a_ij − Σ_{k<j} l_ik l_jk) / l_jj`, each entry's
-        // terms subtracted one by one in the order k = 0, 1, …, so both loop orders below give the
-        // same bits.
-        if n < COLUMN_WISE_FROM {
-            for i in j + 1..n {
-                let mut value = a[j * n + i];
-                for k in 0..j {
-                    value -= a[k * n + i] * a[k * n + j];
-                }
-                a[j * n + i] = value / diagonal;
+        let diagonal = diagonal_entry(a, n, j, min_pivot)?;
+        for i in j + 1..n {
+            let mut value = a[j * n + i];
+            for k in 0..j {
+                value -= a[k * n + i] * a[k * n + j];
             }
-            continue;
+            a[j * n + i] = value / diagonal;
         }
+    }
+    Ok(())
+}
+
+/// The factorisation column by column (every access contiguous), for large `n`.
+fn factor_column_wise(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), NonPositivePivot> {
+    for j in 0..n {
+        let diagonal = diagonal_entry(a, n, j, min_pivot)?;
+        // Column j below the diagonal: `l_ij = (a_ij − Σ_{k<j} l_ik l_jk) / l_jj`, each entry's
+        // terms subtracted one by one in the order k = 0, 1, …, as the dot products do.
         let (finished, rest) = a.split_at_mut(j * n);
         let column = &mut rest[j + 1..n];
         for k in 0..j {
@@ -86,9 +99,41 @@ pub fn factor_in_place(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), No
     Ok(())
 }
 
+/// `l_jj = √(a_jj − Σ_{k<j} l_jk²)`, stored in place and returned, or the failing pivot.
+#[inline(always)]
+fn diagonal_entry(
+    a: &mut [f64],
+    n: usize,
+    j: usize,
+    min_pivot: f64,
+) -> Result<f64, NonPositivePivot> {
+    let mut pivot = a[j * n + j];
+    for k in 0..j {
+        pivot -= a[k * n + j] * a[k * n + j];
+    }
+    if pivot.is_nan() || pivot <= min_pivot {
+        return Err(NonPositivePivot { index: j, pivot });
+    }
+    let diagonal = pivot.sqrt();
+    a[j * n + j] = diagonal;
+    Ok(diagonal)
+}
+
 /// Solves `L Lᵀ x = b` in place (`b` of dimension `n` becomes `x`), with `L` in the lower triangle
 /// of the column-major `n × n` `factor` from [`factor_in_place`].
 pub fn solve_in_place(factor: &[f64], n: usize, b: &mut [f64]) {
+    return_for_fixed_size!(n, solve_fixed(factor, b));
+    substitute(&factor[..n * n], n, &mut b[..n]);
+}
+
+/// [`substitute`] compiled for `n = N` (see [`super::FIXED_SIZE_UP_TO`]).
+fn solve_fixed<const N: usize>(factor: &[f64], b: &mut [f64]) {
+    substitute(&factor[..N * N], N, &mut b[..N]);
+}
+
+/// Forward then backward substitution with `L` and `Lᵀ`.
+#[inline(always)]
+fn substitute(factor: &[f64], n: usize, b: &mut [f64]) {
     for i in 0..n {
         let mut value = b[i];
         for k in 0..i {
@@ -124,10 +169,12 @@ pub fn cholesky_solve_in_place(factor: &DMatrix<f64>, b: &mut DVector<f64>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::linalg::FIXED_SIZE_UP_TO;
 
-    /// The factorisation as a dot product per entry (the textbook loop order): the column-wise
-    /// loop of [`factor_in_place`] must give these bits exactly.
-    fn factor_by_dot_products(a: &mut [f64], n: usize) -> Result<(), usize> {
+    /// The factorisation as a dot product per entry (the textbook loop order), for every `n`:
+    /// [`factor_in_place`] must give these bits exactly, with its kernels of fixed size and its
+    /// column-wise loop.
+    fn reference_factor(a: &mut [f64], n: usize) -> Result<(), usize> {
         for j in 0..n {
             let mut pivot = a[j * n + j];
             for k in 0..j {
@@ -150,7 +197,7 @@ mod tests {
     }
 
     #[test]
-    fn the_column_wise_loop_gives_the_dot_product_bits() {
+    fn every_size_gives_the_textbook_bits() {
         let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
         let mut next = || {
             seed ^= seed << 13;
@@ -165,6 +212,8 @@ mod tests {
             6,
             9,
             14,
+            FIXED_SIZE_UP_TO,
+            FIXED_SIZE_UP_TO + 1,
             COLUMN_WISE_FROM - 1,
             COLUMN_WISE_FROM,
             37,
@@ -182,18 +231,36 @@ mod tests {
                 }
             }
             let mut expected = a.clone();
-            factor_by_dot_products(&mut expected, n).unwrap();
+            reference_factor(&mut expected, n).unwrap();
             let mut got = a.clone();
             factor_in_place(&mut got, n, 0.0).unwrap();
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&got), bits(&expected), "n = {n}");
+            // The solve: forward then backward substitution, sums in increasing index.
+            let rhs: Vec<f64> = (0..n).map(|_| next()).collect();
+            let mut expected_x = rhs.clone();
+            for i in 0..n {
+                for k in 0..i {
+                    expected_x[i] -= expected[k * n + i] * expected_x[k];
+                }
+                expected_x[i] /= expected[i * n + i];
+            }
+            for i in (0..n).rev() {
+                for k in i + 1..n {
+                    expected_x[i] -= expected[i * n + k] * expected_x[k];
+                }
+                expected_x[i] /= expected[i * n + i];
+            }
+            let mut x = rhs;
+            solve_in_place(&got, n, &mut x);
+            assert_eq!(bits(&x), bits(&expected_x), "n = {n}, solve");
             // A failing pivot stops both at the same column with the same columns finished.
             if n > 2 {
                 let mut broken = a.clone();
                 broken[(n - 1) * n + (n - 1)] = -1.0;
                 let mut expected = broken.clone();
                 let mut got = broken;
-                assert_eq!(factor_by_dot_products(&mut expected, n), Err(n - 1));
+                assert_eq!(reference_factor(&mut expected, n), Err(n - 1));
                 assert_eq!(factor_in_place(&mut got, n, 0.0).unwrap_err().index, n - 1);
                 assert_eq!(bits(&got), bits(&expected), "n = {n}, failed");
             }
