@@ -16,7 +16,7 @@ use crate::linalg::{cholesky, lu};
 pub const SINGULAR_PIVOT_RELATIVE: f64 = 1e-13;
 
 /// Where a factorisation broke down.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Breakdown {
     /// Elimination step (row) at which the pivot was too small.
     pub index: usize,
@@ -27,10 +27,19 @@ pub(crate) struct Breakdown {
 /// Which factorisation a [`DenseSolver`] uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum FactorKind {
-    /// LU with partial pivoting: general square matrices (saddle-point systems with constraints).
+    /// LU with partial pivoting: general square matrices (the full Newton matrix, impacts).
     Lu,
     /// Cholesky `L Lᵀ`: symmetric positive definite matrices (the Newton matrix of a tree).
     Cholesky,
+    /// A symmetric saddle-point matrix `[A Bᵀ; B 0]` whose last `constraint_rows` rows are `B`
+    /// (the Newton matrix, the velocity projection and the consistent start with constraint rows):
+    /// factorised through `A`'s Cholesky factor and the Schur complement `B A⁻¹ Bᵀ`
+    /// (docs/method.md §5, "Solving the saddle-point system"); by LU when `A` is not positive
+    /// definite.
+    SaddlePoint {
+        /// `m`, the rows of `B`.
+        constraint_rows: usize,
+    },
 }
 
 /// An `n × n` factorisation held in preallocated storage.
@@ -39,15 +48,34 @@ pub(crate) struct DenseSolver {
     factors: DMatrix<f64>,
     pivots: Vec<usize>,
     kind: FactorKind,
+    /// [`FactorKind::SaddlePoint`]: `A`'s Cholesky factor `L` (`nv²`, column-major), `Y = L⁻¹ Bᵀ`
+    /// (`nv · m`, column `r` for row `r` of `B`) and the Schur complement's factor `L_S` (`m²`);
+    /// empty for the other kinds.
+    blocks: Vec<f64>,
+    /// [`FactorKind::SaddlePoint`]: the last factorisation is an LU of the whole matrix in
+    /// `factors` (`A` was not positive definite).
+    whole_by_lu: bool,
 }
 
 impl DenseSolver {
     /// Storage for `n × n` systems (the only allocation).
     pub fn new(n: usize, kind: FactorKind) -> Self {
+        let blocks = match kind {
+            FactorKind::SaddlePoint { constraint_rows: m } => {
+                assert!(
+                    m <= n,
+                    "DenseSolver: {m} constraint rows in a {n} × {n} matrix"
+                );
+                vec![0.0; (n - m) * (n - m) + (n - m) * m + m * m]
+            }
+            FactorKind::Lu | FactorKind::Cholesky => Vec::new(),
+        };
         Self {
             factors: DMatrix::zeros(n, n),
             pivots: vec![0; n],
             kind,
+            blocks,
+            whole_by_lu: false,
         }
     }
 
@@ -64,17 +92,162 @@ impl DenseSolver {
             a.shape(),
             "DenseSolver::factor: the matrix has the solver's dimension"
         );
-        self.factors.as_mut_slice().copy_from_slice(a.as_slice());
-        let scale = max_abs(a.as_slice());
-        if scale == 0.0 && !a.is_empty() {
+        let whole = a.as_slice();
+        let scale = max_abs(whole);
+        match self.kind {
+            FactorKind::SaddlePoint { constraint_rows: m } => {
+                let n = a.nrows();
+                let nv = n - m;
+                for (column, source) in self.blocks[..nv * nv]
+                    .chunks_exact_mut(nv)
+                    .zip(whole.chunks_exact(n))
+                {
+                    column.copy_from_slice(&source[..nv]);
+                }
+                // Row r of B is row nv + r of the matrix.
+                let regular = self.factor_saddle_point(scale, m, |r, j| whole[j * n + nv + r]);
+                if regular == SaddlePointFactor::ByLu {
+                    self.factors.as_mut_slice().copy_from_slice(whole);
+                }
+                self.finish_saddle_point(regular, scale)
+            }
+            FactorKind::Lu | FactorKind::Cholesky => {
+                self.factors.as_mut_slice().copy_from_slice(whole);
+                self.factor_whole(scale)
+            }
+        }
+    }
+
+    /// [`DenseSolver::factor`] of the saddle-point matrix `[A Bᵀ; B 0]` with
+    /// `A = mass + diag(diagonal)` (`nv × nv`; `diagonal` of dim `nv` or none) and `B` (`m × nv`,
+    /// `m` = the constraint rows of a [`FactorKind::SaddlePoint`] solver, 0 for the others), given
+    /// by its blocks: the same bits as assembling the matrix and calling `factor`, without the
+    /// assembly (a [`FactorKind::SaddlePoint`] solver never needs the whole matrix unless `A` is
+    /// not positive definite). Allocation-free.
+    pub fn factor_blocks(
+        &mut self,
+        mass: &DMatrix<f64>,
+        diagonal: Option<&[f64]>,
+        b: &DMatrix<f64>,
+    ) -> Result<(), Breakdown> {
+        let (nv, m) = (mass.nrows(), b.nrows());
+        assert!(
+            mass.is_square() && nv + m == self.dimension() && (m == 0 || b.ncols() == nv),
+            "DenseSolver::factor_blocks: the blocks fit the solver's dimension"
+        );
+        let write_a = |out: &mut [f64], stride: usize| {
+            if stride == nv {
+                out[..nv * nv].copy_from_slice(mass.as_slice());
+            } else {
+                for (column, source) in out.chunks_mut(stride).zip(mass.as_slice().chunks_exact(nv))
+                {
+                    column[..nv].copy_from_slice(source);
+                }
+            }
+            if let Some(diagonal) = diagonal {
+                for (j, d) in diagonal.iter().enumerate() {
+                    out[j * stride + j] += d;
+                }
+            }
+        };
+        match self.kind {
+            FactorKind::SaddlePoint { constraint_rows } if constraint_rows == m => {
+                write_a(&mut self.blocks[..nv * nv], nv);
+                let scale = max_abs(&self.blocks[..nv * nv]).max(max_abs(b.as_slice()));
+                let regular = self.factor_saddle_point(scale, m, |r, j| b[(r, j)]);
+                if regular == SaddlePointFactor::ByLu {
+                    let n = nv + m;
+                    let whole = self.factors.as_mut_slice();
+                    write_a(whole, n);
+                    assemble_constraint_blocks(whole, n, b);
+                }
+                self.finish_saddle_point(regular, scale)
+            }
+            _ => {
+                let n = nv + m;
+                let whole = self.factors.as_mut_slice();
+                write_a(whole, n);
+                assemble_constraint_blocks(whole, n, b);
+                let scale = max_abs(whole);
+                self.factor_whole(scale)
+            }
+        }
+    }
+
+    /// LU or Cholesky of the whole matrix in `factors` (per the kind; LU for a saddle-point
+    /// solver), `scale` its largest entry.
+    fn factor_whole(&mut self, scale: f64) -> Result<(), Breakdown> {
+        if scale == 0.0 && self.dimension() > 0 {
             return Err(Breakdown {
                 index: 0,
                 pivot_relative: 0.0,
             });
         }
         match self.kind {
-            FactorKind::Lu => self.factor_lu(scale),
             FactorKind::Cholesky => self.factor_cholesky(scale),
+            FactorKind::Lu | FactorKind::SaddlePoint { .. } => self.factor_lu(scale),
+        }
+    }
+
+    /// With `A` (`nv × nv`) in the first block of `blocks`: `A = L Lᵀ` (pivots refused below
+    /// [`SINGULAR_PIVOT_RELATIVE`] × `scale`, the largest entry of the whole matrix, as for the
+    /// other kinds), `Y = L⁻¹ Bᵀ` (`b_entry(r, j)` = `B_rj`), `S = Yᵀ Y = L_S L_Sᵀ` (pivots
+    /// refused below [`SINGULAR_PIVOT_RELATIVE`] × S's largest diagonal entry: dependent rows of
+    /// `B`). An `A` that is not positive definite (a coordinate that moves no inertia but is held
+    /// by a constraint row) can leave the saddle-point matrix regular: then the caller puts the
+    /// whole matrix in `factors` for [`DenseSolver::finish_saddle_point`] to factorise by LU.
+    fn factor_saddle_point(
+        &mut self,
+        scale: f64,
+        m: usize,
+        b_entry: impl Fn(usize, usize) -> f64,
+    ) -> SaddlePointFactor {
+        let nv = self.dimension() - m;
+        let (l, rest) = self.blocks.split_at_mut(nv * nv);
+        let (y, s) = rest.split_at_mut(nv * m);
+        if scale == 0.0
+            || cholesky::factor_in_place(l, nv, SINGULAR_PIVOT_RELATIVE * scale).is_err()
+        {
+            return SaddlePointFactor::ByLu;
+        }
+        for (r, column) in y.chunks_exact_mut(nv.max(1)).take(m).enumerate() {
+            for (j, entry) in column.iter_mut().enumerate() {
+                *entry = b_entry(r, j);
+            }
+            cholesky::forward_substitute(l, nv, column);
+        }
+        let mut largest_diagonal = 0.0_f64;
+        for c in 0..m {
+            for r in c..m {
+                s[c * m + r] = dot(&y[r * nv..(r + 1) * nv], &y[c * nv..(c + 1) * nv]);
+            }
+            largest_diagonal = largest_diagonal.max(s[c * m + c]);
+        }
+        match cholesky::factor_in_place(s, m, SINGULAR_PIVOT_RELATIVE * largest_diagonal) {
+            Ok(()) => SaddlePointFactor::BySchurComplement,
+            Err(failure) => SaddlePointFactor::DependentRows(Breakdown {
+                index: nv + failure.index,
+                pivot_relative: if largest_diagonal > 0.0 {
+                    failure.pivot / largest_diagonal
+                } else {
+                    0.0
+                },
+            }),
+        }
+    }
+
+    /// Ends a saddle-point factorisation: the LU of the whole matrix (then in `factors`) when
+    /// `A` was not positive definite.
+    fn finish_saddle_point(
+        &mut self,
+        factor: SaddlePointFactor,
+        scale: f64,
+    ) -> Result<(), Breakdown> {
+        self.whole_by_lu = factor == SaddlePointFactor::ByLu;
+        match factor {
+            SaddlePointFactor::BySchurComplement => Ok(()),
+            SaddlePointFactor::ByLu => self.factor_whole(scale),
+            SaddlePointFactor::DependentRows(breakdown) => Err(breakdown),
         }
     }
 
@@ -113,8 +286,67 @@ impl DenseSolver {
         match self.kind {
             FactorKind::Lu => lu::solve_in_place(a.as_slice(), n, &self.pivots, b.as_mut_slice()),
             FactorKind::Cholesky => cholesky::solve_in_place(a.as_slice(), n, b.as_mut_slice()),
+            FactorKind::SaddlePoint { .. } if self.whole_by_lu => {
+                lu::solve_in_place(a.as_slice(), n, &self.pivots, b.as_mut_slice())
+            }
+            FactorKind::SaddlePoint { constraint_rows: m } => {
+                self.solve_saddle_point(m, b.as_mut_slice())
+            }
         }
     }
+
+    /// `[A Bᵀ; B 0] [x; λ] = [f; g]`: `z = L⁻¹ f`, `S λ = Yᵀ z − g`, `x = L⁻ᵀ (z − Y λ)`, in place.
+    fn solve_saddle_point(&self, m: usize, b: &mut [f64]) {
+        let nv = b.len() - m;
+        let (l, rest) = self.blocks.split_at(nv * nv);
+        let (y, s) = rest.split_at(nv * m);
+        let (f, g) = b.split_at_mut(nv);
+        cholesky::forward_substitute(l, nv, f);
+        for (r, g_r) in g.iter_mut().enumerate() {
+            *g_r = dot(&y[r * nv..(r + 1) * nv], f) - *g_r;
+        }
+        cholesky::solve_in_place(s, m, g);
+        for (r, &lambda_r) in g.iter().enumerate() {
+            for (f_i, &y_ir) in f.iter_mut().zip(&y[r * nv..(r + 1) * nv]) {
+                *f_i -= y_ir * lambda_r;
+            }
+        }
+        cholesky::backward_substitute(l, nv, f);
+    }
+}
+
+/// How a saddle-point factorisation went.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum SaddlePointFactor {
+    /// `A`'s Cholesky factor and the Schur complement's are stored.
+    BySchurComplement,
+    /// `A` is not positive definite: the whole matrix is to be factorised by LU.
+    ByLu,
+    /// The Schur complement is singular: `B`'s rows are dependent.
+    DependentRows(Breakdown),
+}
+
+/// Writes `B` (`m × nv`) and `Bᵀ` into the last `m` rows and columns of the column-major `n × n`
+/// `whole` and zeros its last `m × m` block, as [`crate::integrate::hht`]'s assembly does.
+fn assemble_constraint_blocks(whole: &mut [f64], n: usize, b: &DMatrix<f64>) {
+    let (m, nv) = (b.nrows(), n - b.nrows());
+    for j in 0..nv {
+        for r in 0..m {
+            whole[j * n + nv + r] = b[(r, j)];
+        }
+    }
+    for r in 0..m {
+        let column = &mut whole[(nv + r) * n..(nv + r + 1) * n];
+        for (i, entry) in column[..nv].iter_mut().enumerate() {
+            *entry = b[(r, i)];
+        }
+        column[nv..].fill(0.0);
+    }
+}
+
+/// `Σ aᵢ bᵢ`, summed in increasing `i`.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).fold(0.0, |sum, (x, y)| sum + x * y)
 }
 
 /// Index of the first non-finite entry (column-major for matrices), if any. The common case, every
@@ -220,6 +452,130 @@ mod tests {
         let mut x = b.clone();
         s.solve_in_place(&mut x);
         assert!((&k * x - &b).amax() < SOLVE_TOL);
+    }
+
+    /// A deterministic stream in `[-0.5, 0.5)`.
+    fn stream(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
+    /// `(M, d, B)`: `M` symmetric positive definite (`nv × nv`), a positive diagonal `d`, and `B`
+    /// (`m × nv`) of full row rank.
+    fn blocks(nv: usize, m: usize, seed: u64) -> (DMatrix<f64>, DVector<f64>, DMatrix<f64>) {
+        let mut next = stream(seed);
+        let r = DMatrix::from_fn(nv, nv, |_, _| next());
+        let mass = &r * r.transpose() + DMatrix::identity(nv, nv) * 0.5;
+        let diagonal = DVector::from_fn(nv, |_, _| next() + 0.5);
+        let b = DMatrix::from_fn(m, nv, |_, _| next());
+        (mass, diagonal, b)
+    }
+
+    /// `[M + diag(d), Bᵀ; B, 0]`, as the integrator assembles it.
+    fn assembled(
+        mass: &DMatrix<f64>,
+        diagonal: Option<&DVector<f64>>,
+        b: &DMatrix<f64>,
+    ) -> DMatrix<f64> {
+        let (nv, m) = (mass.nrows(), b.nrows());
+        let mut k = DMatrix::zeros(nv + m, nv + m);
+        k.view_mut((0, 0), (nv, nv)).copy_from(mass);
+        if let Some(d) = diagonal {
+            for j in 0..nv {
+                k[(j, j)] += d[j];
+            }
+        }
+        k.view_mut((nv, 0), (m, nv)).copy_from(b);
+        k.view_mut((0, nv), (nv, m)).copy_from(&b.transpose());
+        k
+    }
+
+    /// The Schur-complement solve agrees with LU of the whole matrix to rounding, and the
+    /// unassembled entry point gives the assembled one's bits, for every kind.
+    #[test]
+    fn saddle_point_solves_agree_with_lu_and_the_blocks_with_the_assembled_matrix() {
+        for (nv, m) in [(1, 1), (3, 2), (6, 1), (9, 1), (14, 5), (20, 3)] {
+            let (mass, diagonal, b) = blocks(nv, m, 0x51_7cc1_b727_220a + nv as u64);
+            let k = assembled(&mass, Some(&diagonal), &b);
+            let rhs = DVector::from_fn(nv + m, |i, _| (i as f64 * 0.7).sin());
+            let mut by_lu = DenseSolver::new(nv + m, FactorKind::Lu);
+            by_lu.factor(&k).expect("regular");
+            let mut expected = rhs.clone();
+            by_lu.solve_in_place(&mut expected);
+
+            let kind = FactorKind::SaddlePoint { constraint_rows: m };
+            let mut whole = DenseSolver::new(nv + m, kind);
+            whole.factor(&k).expect("regular");
+            assert!(!whole.whole_by_lu);
+            let mut x = rhs.clone();
+            whole.solve_in_place(&mut x);
+            assert!((&x - &expected).amax() < SOLVE_TOL, "nv {nv}, m {m}");
+            assert!((&k * &x - &rhs).amax() < SOLVE_TOL, "nv {nv}, m {m}");
+
+            for kind in [kind, FactorKind::Lu] {
+                let mut from_blocks = DenseSolver::new(nv + m, kind);
+                from_blocks
+                    .factor_blocks(&mass, Some(diagonal.as_slice()), &b)
+                    .expect("regular");
+                let mut y = rhs.clone();
+                from_blocks.solve_in_place(&mut y);
+                let mut reference = DenseSolver::new(nv + m, kind);
+                reference.factor(&k).expect("regular");
+                let mut z = rhs.clone();
+                reference.solve_in_place(&mut z);
+                assert_eq!(y.as_slice(), z.as_slice(), "{kind:?}, nv {nv}");
+            }
+        }
+        // A tree (no rows): the Cholesky kind from its blocks, with and without the diagonal.
+        let (mass, diagonal, b) = blocks(6, 0, 7);
+        for d in [Some(&diagonal), None] {
+            let mut from_blocks = DenseSolver::new(6, FactorKind::Cholesky);
+            from_blocks
+                .factor_blocks(&mass, d.map(|d| d.as_slice()), &b)
+                .expect("positive definite");
+            let mut reference = DenseSolver::new(6, FactorKind::Cholesky);
+            reference
+                .factor(&assembled(&mass, d, &b))
+                .expect("positive definite");
+            assert_eq!(from_blocks.factors.as_slice(), reference.factors.as_slice());
+        }
+    }
+
+    /// A coordinate with no inertia held by a constraint row: `A` is singular but the
+    /// saddle-point matrix is not, and is factorised whole by LU; dependent rows are named.
+    #[test]
+    fn a_singular_block_falls_back_to_lu_and_dependent_rows_are_named() {
+        // A = diag(2, 0); the row B = [0, 1] holds the second coordinate.
+        let mass = DMatrix::from_row_slice(2, 2, &[2.0, 0.0, 0.0, 0.0]);
+        let b = DMatrix::from_row_slice(1, 2, &[0.0, 1.0]);
+        let k = assembled(&mass, None, &b);
+        let rhs = DVector::from_column_slice(&[1.0, 3.0, 0.5]);
+        let expected = k.clone().lu().solve(&rhs).expect("regular");
+        let kind = FactorKind::SaddlePoint { constraint_rows: 1 };
+        for from_blocks in [false, true] {
+            let mut s = DenseSolver::new(3, kind);
+            if from_blocks {
+                s.factor_blocks(&mass, None, &b).expect("regular");
+            } else {
+                s.factor(&k).expect("regular");
+            }
+            assert!(s.whole_by_lu);
+            let mut x = rhs.clone();
+            s.solve_in_place(&mut x);
+            assert!((&x - &expected).amax() < SOLVE_TOL, "{x}");
+        }
+
+        // Two copies of one row: the Schur complement's second pivot vanishes.
+        let (mass, _, row) = blocks(4, 1, 11);
+        let b = DMatrix::from_fn(2, 4, |_, j| row[(0, j)]);
+        let mut s = DenseSolver::new(6, FactorKind::SaddlePoint { constraint_rows: 2 });
+        let failure = s.factor_blocks(&mass, None, &b).unwrap_err();
+        assert_eq!(failure.index, 5);
+        assert!(failure.pivot_relative < SINGULAR_PIVOT_RELATIVE);
     }
 
     #[test]

@@ -180,6 +180,8 @@ struct Workspace {
     /// `a_n` as the attempted step sees it, dim nv: `a_n` itself for a step of the last size, else
     /// rescaled to the new size (`q̈_n + (h/h_last)(a_n − q̈_n)`, docs/step-control.md §3).
     a_start: DVector<f64>,
+    /// The Newton matrix's diagonal terms `β'h² k_j + γ'h c_j`, dim nv.
+    newton_diagonal: DVector<f64>,
     /// Full stiffness `∂r/∂q`, nv × nv.
     stiffness_full: DMatrix<f64>,
     /// Full damping `∂r/∂q̇`, nv × nv.
@@ -229,6 +231,7 @@ impl Workspace {
             matrix: DMatrix::zeros(n, n),
             rhs: DVector::zeros(n),
             a_start: DVector::zeros(nv),
+            newton_diagonal: DVector::zeros(nv),
             stiffness_full: DMatrix::zeros(nv, nv),
             damping_full: DMatrix::zeros(nv, nv),
             full_solver: DenseSolver::new(n, FactorKind::Lu),
@@ -274,7 +277,7 @@ impl NewtonMemory {
         let kind = if m == 0 {
             FactorKind::Cholesky
         } else {
-            FactorKind::Lu
+            FactorKind::SaddlePoint { constraint_rows: m }
         };
         Self {
             solver: DenseSolver::new(nv + m, kind),
@@ -1547,25 +1550,25 @@ impl HhtIntegrator {
     ) -> Result<(), IntegrateError> {
         let ws = &mut self.ws;
         ws.use_full = false;
-        let diagonal = if self.settings.newton_diagonal_terms {
+        let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
+        if self.settings.newton_diagonal_terms {
             eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)?;
-            Some((&ws.stiffness, &ws.damping))
-        } else {
-            None
-        };
+        }
         if self.m > 0 {
             eval::constraint_jacobian(system, at, &ws.q, &mut ws.phi_q)?;
         }
-        assemble_iteration_matrix(
-            &ws.mass,
-            diagonal,
-            &ws.phi_q,
-            self.coeffs.beta_h2(),
-            self.coeffs.gamma_h(),
-            1.0,
-            &mut ws.matrix,
-        );
-        if self.settings.newton_diagonal_terms && system.provides_newton_coupling() {
+        let solver = &mut self.trajectory.newton.solver;
+        let factorised = if self.settings.newton_diagonal_terms && system.provides_newton_coupling()
+        {
+            assemble_iteration_matrix(
+                &ws.mass,
+                Some((&ws.stiffness, &ws.damping)),
+                &ws.phi_q,
+                beta_h2,
+                gamma_h,
+                1.0,
+                &mut ws.matrix,
+            );
             // Forces that couple joints (contacts): their Jacobians beside the diagonal ones,
             // in the buffers of the full matrix (unused on this path).
             eval::newton_coupling(
@@ -1576,25 +1579,38 @@ impl HhtIntegrator {
                 &mut ws.stiffness_full,
                 &mut ws.damping_full,
             )?;
-            let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
             for c in 0..self.nv {
                 for r in 0..self.nv {
                     ws.matrix[(r, c)] +=
                         beta_h2 * ws.stiffness_full[(r, c)] + gamma_h * ws.damping_full[(r, c)];
                 }
             }
-        }
-        self.trajectory
-            .newton
-            .solver
-            .factor(&ws.matrix)
-            .map_err(|b| IntegrateError::SingularMatrix {
-                t: at.t,
-                step: at.step,
-                matrix: "Newton iteration matrix",
-                index: b.index,
-                pivot_relative: b.pivot_relative,
-            })?;
+            solver.factor(&ws.matrix)
+        } else {
+            // The matrix of docs/method.md §5 from its blocks, unassembled (the same bits).
+            let diagonal = if self.settings.newton_diagonal_terms {
+                for ((d, k), c) in ws
+                    .newton_diagonal
+                    .as_mut_slice()
+                    .iter_mut()
+                    .zip(ws.stiffness.as_slice())
+                    .zip(ws.damping.as_slice())
+                {
+                    *d = beta_h2 * k + gamma_h * c;
+                }
+                Some(ws.newton_diagonal.as_slice())
+            } else {
+                None
+            };
+            solver.factor_blocks(&ws.mass, diagonal, &ws.phi_q)
+        };
+        factorised.map_err(|b| IntegrateError::SingularMatrix {
+            t: at.t,
+            step: at.step,
+            matrix: "Newton iteration matrix",
+            index: b.index,
+            pivot_relative: b.pivot_relative,
+        })?;
         ws.mass_fresh = true;
         ws.phi_q_fresh = true;
         self.trajectory.stats.factorisations += 1;
@@ -1870,14 +1886,13 @@ impl HhtIntegrator {
             eval::mass_matrix(system, at, &self.trajectory.state.q, &mut ws.mass)?;
         }
         ws.mass_fresh = false;
-        assemble_iteration_matrix(&ws.mass, None, &ws.phi_q, 0.0, 0.0, 1.0, &mut ws.matrix);
-        // The projection's matrix replaces the stored Newton factorisation (never reused with
-        // constraint rows).
+        // The projection's matrix [M Φ_qᵀ; Φ_q 0] replaces the stored Newton factorisation
+        // (never reused with constraint rows).
         self.trajectory.newton.reusable = false;
         self.trajectory
             .newton
             .solver
-            .factor(&ws.matrix)
+            .factor_blocks(&ws.mass, None, &ws.phi_q)
             .map_err(|b| IntegrateError::SingularMatrix {
                 t: at.t,
                 step: at.step,

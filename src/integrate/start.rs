@@ -168,7 +168,7 @@ pub fn consistent_start<S: DaeSystem + ?Sized>(
     let kind = if m == 0 {
         FactorKind::Cholesky
     } else {
-        FactorKind::Lu
+        FactorKind::SaddlePoint { constraint_rows: m }
     };
     let mut solver = DenseSolver::new(nv + m, kind);
     solver

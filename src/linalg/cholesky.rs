@@ -120,20 +120,45 @@ fn diagonal_entry(
 }
 
 /// Solves `L Lᵀ x = b` in place (`b` of dimension `n` becomes `x`), with `L` in the lower triangle
-/// of the column-major `n × n` `factor` from [`factor_in_place`].
+/// of the column-major `n × n` `factor` from [`factor_in_place`]: [`forward_substitute`] then
+/// [`backward_substitute`].
 pub fn solve_in_place(factor: &[f64], n: usize, b: &mut [f64]) {
     return_for_fixed_size!(n, solve_fixed(factor, b));
-    substitute(&factor[..n * n], n, &mut b[..n]);
+    forward(&factor[..n * n], n, &mut b[..n]);
+    backward(&factor[..n * n], n, &mut b[..n]);
 }
 
-/// [`substitute`] compiled for `n = N` (see [`super::FIXED_SIZE_UP_TO`]).
+/// [`forward`] and [`backward`] compiled for `n = N` (see [`super::FIXED_SIZE_UP_TO`]).
 fn solve_fixed<const N: usize>(factor: &[f64], b: &mut [f64]) {
-    substitute(&factor[..N * N], N, &mut b[..N]);
+    forward(&factor[..N * N], N, &mut b[..N]);
+    backward(&factor[..N * N], N, &mut b[..N]);
 }
 
-/// Forward then backward substitution with `L` and `Lᵀ`.
+/// Solves `L y = b` in place (`b` of dimension `n` becomes `y`), `L` as in [`solve_in_place`].
+pub fn forward_substitute(factor: &[f64], n: usize, b: &mut [f64]) {
+    return_for_fixed_size!(n, forward_fixed(factor, b));
+    forward(&factor[..n * n], n, &mut b[..n]);
+}
+
+/// Solves `Lᵀ x = y` in place (`y` of dimension `n` becomes `x`), `L` as in [`solve_in_place`].
+pub fn backward_substitute(factor: &[f64], n: usize, y: &mut [f64]) {
+    return_for_fixed_size!(n, backward_fixed(factor, y));
+    backward(&factor[..n * n], n, &mut y[..n]);
+}
+
+/// [`forward`] compiled for `n = N` (see [`super::FIXED_SIZE_UP_TO`]).
+fn forward_fixed<const N: usize>(factor: &[f64], b: &mut [f64]) {
+    forward(&factor[..N * N], N, &mut b[..N]);
+}
+
+/// [`backward`] compiled for `n = N` (see [`super::FIXED_SIZE_UP_TO`]).
+fn backward_fixed<const N: usize>(factor: &[f64], y: &mut [f64]) {
+    backward(&factor[..N * N], N, &mut y[..N]);
+}
+
+/// `y_i = (b_i − Σ_{k<i} l_ik y_k) / l_ii`, sums in increasing `k`.
 #[inline(always)]
-fn substitute(factor: &[f64], n: usize, b: &mut [f64]) {
+fn forward(factor: &[f64], n: usize, b: &mut [f64]) {
     for i in 0..n {
         let mut value = b[i];
         for k in 0..i {
@@ -141,12 +166,17 @@ fn substitute(factor: &[f64], n: usize, b: &mut [f64]) {
         }
         b[i] = value / factor[i * n + i];
     }
+}
+
+/// `x_i = (y_i − Σ_{k>i} l_ki x_k) / l_ii`, from the last row up, sums in increasing `k`.
+#[inline(always)]
+fn backward(factor: &[f64], n: usize, y: &mut [f64]) {
     for i in (0..n).rev() {
-        let mut value = b[i];
+        let mut value = y[i];
         for k in i + 1..n {
-            value -= factor[i * n + k] * b[k];
+            value -= factor[i * n + k] * y[k];
         }
-        b[i] = value / factor[i * n + i];
+        y[i] = value / factor[i * n + i];
     }
 }
 

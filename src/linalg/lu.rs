@@ -215,10 +215,17 @@ mod tests {
             let mut pivots = vec![0; size];
             factor_in_place(got.as_mut_slice(), size, &mut pivots, 0.0).unwrap();
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(got.as_slice()), bits(expected.as_slice()), "n = {size}");
+            assert_eq!(
+                bits(got.as_slice()),
+                bits(expected.as_slice()),
+                "n = {size}"
+            );
             assert_eq!(pivots, expected_pivots, "n = {size}");
             if m > 0 {
-                assert!(pivots.iter().enumerate().any(|(k, &p)| p != k), "n = {size}");
+                assert!(
+                    pivots.iter().enumerate().any(|(k, &p)| p != k),
+                    "n = {size}"
+                );
             }
 
             let b = DVector::from_fn(size, |_, _| next());
