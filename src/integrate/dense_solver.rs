@@ -159,7 +159,7 @@ impl DenseSolver {
                     let n = nv + m;
                     let whole = self.factors.as_mut_slice();
                     write_a(whole, n);
-                    assemble_constraint_blocks(whole, n, b);
+                    assemble_constraint_blocks(whole, n, b, 1.0);
                 }
                 self.finish_saddle_point(regular, scale)
             }
@@ -167,7 +167,7 @@ impl DenseSolver {
                 let n = nv + m;
                 let whole = self.factors.as_mut_slice();
                 write_a(whole, n);
-                assemble_constraint_blocks(whole, n, b);
+                assemble_constraint_blocks(whole, n, b, 1.0);
                 let scale = max_abs(whole);
                 self.factor_whole(scale)
             }
@@ -326,13 +326,20 @@ enum SaddlePointFactor {
     DependentRows(Breakdown),
 }
 
-/// Writes `B` (`m × nv`) and `Bᵀ` into the last `m` rows and columns of the column-major `n × n`
-/// `whole` and zeros its last `m × m` block, as [`crate::integrate::hht`]'s assembly does.
-fn assemble_constraint_blocks(whole: &mut [f64], n: usize, b: &DMatrix<f64>) {
+/// Writes `row_factor · B` (`B` of `m × nv`) into the last `m` rows and `Bᵀ` into the last `m`
+/// columns of the column-major `n × n` `whole`, and zeros its last `m × m` block: the constraint
+/// blocks of every saddle-point matrix the integrator assembles (`row_factor` 1 but for the
+/// unscaled diagnostic matrix, docs/method.md §5).
+pub(crate) fn assemble_constraint_blocks(
+    whole: &mut [f64],
+    n: usize,
+    b: &DMatrix<f64>,
+    row_factor: f64,
+) {
     let (m, nv) = (b.nrows(), n - b.nrows());
     for j in 0..nv {
         for r in 0..m {
-            whole[j * n + nv + r] = b[(r, j)];
+            whole[j * n + nv + r] = row_factor * b[(r, j)];
         }
     }
     for r in 0..m {

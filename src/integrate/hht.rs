@@ -23,7 +23,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::dense_solver::{DenseSolver, FactorKind};
+use super::dense_solver::{assemble_constraint_blocks, DenseSolver, FactorKind};
 use super::error::{IntegrateError, WorstEntry};
 use super::eval::{self, At};
 use super::settings::{
@@ -2000,19 +2000,9 @@ pub(crate) fn assemble_iteration_matrix(
     let mass = mass.as_slice();
     let out = out.as_mut_slice();
     for j in 0..nv {
-        let column = &mut out[j * n..(j + 1) * n];
-        column[..nv].copy_from_slice(&mass[j * nv..(j + 1) * nv]);
-        for r in 0..m {
-            column[nv + r] = constraint_row_factor * phi_q[(r, j)];
-        }
+        out[j * n..j * n + nv].copy_from_slice(&mass[j * nv..(j + 1) * nv]);
     }
-    for r in 0..m {
-        let column = &mut out[(nv + r) * n..(nv + r + 1) * n];
-        for (i, entry) in column[..nv].iter_mut().enumerate() {
-            *entry = phi_q[(r, i)];
-        }
-        column[nv..].fill(0.0);
-    }
+    assemble_constraint_blocks(out, n, phi_q, constraint_row_factor);
     if let Some((k, c)) = diagonal {
         for j in 0..nv {
             out[j * n + j] += beta_h2 * k[j] + gamma_h * c[j];

@@ -14,7 +14,6 @@ use nalgebra::{DMatrix, DVector, SVD};
 use super::dense_solver::{DenseSolver, FactorKind};
 use super::error::IntegrateError;
 use super::eval::{self, At};
-use super::hht::assemble_iteration_matrix;
 use super::system::DaeSystem;
 
 /// `Φ_q` rows count as dependent when its smallest singular value is below this fraction of its
@@ -163,8 +162,6 @@ pub fn consistent_start<S: DaeSystem + ?Sized>(
         eval::constraint_acceleration_bias(sys, at, &q, &v, &mut bias)?;
         rhs.rows_mut(nv, m).copy_from(&bias);
     }
-    let mut kkt = DMatrix::zeros(nv + m, nv + m);
-    assemble_iteration_matrix(&mass, None, &phi_q, 0.0, 0.0, 1.0, &mut kkt);
     let kind = if m == 0 {
         FactorKind::Cholesky
     } else {
@@ -172,7 +169,7 @@ pub fn consistent_start<S: DaeSystem + ?Sized>(
     };
     let mut solver = DenseSolver::new(nv + m, kind);
     solver
-        .factor(&kkt)
+        .factor_blocks(&mass, None, &phi_q)
         .map_err(|b| IntegrateError::SingularMatrix {
             t: t0,
             step: 0,
