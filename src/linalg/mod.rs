@@ -11,9 +11,9 @@ pub mod lu;
 /// Largest `n` for which the factorisations and solves here run a kernel compiled for that size:
 /// the same operations in the same order as for any other `n` (so the same bits), with the loop
 /// bounds known to the compiler, which unrolls them and drops the index checks. The dynamics and
-/// Newton matrices of the robots we ship are 6 to 14 rows; a 6 × 6 Cholesky factorisation retired
-/// 691 instructions before, 52 % fewer this way, and its solve 538, 63 % fewer (callgrind, one HHT
-/// step of the example-robot-data ur5).
+/// Newton matrices of the robots we ship are 6 to 14 rows; on the example-robot-data ur5 the 6 × 6
+/// Cholesky factorisation went from 691 to 419 instructions and its solve from 538 to 156 (per
+/// sample and step of a lock-step study under callgrind, benches/README.md).
 pub const FIXED_SIZE_UP_TO: usize = 16;
 
 /// `return kernel::<N>(args…)` when `n` is `N` in `1..=`[`FIXED_SIZE_UP_TO`]; otherwise nothing.
