@@ -45,6 +45,8 @@ pub mod setup;
 pub mod sidecar;
 pub mod simulate;
 pub mod spatial;
+#[cfg(test)]
+pub(crate) mod test_support;
 pub mod text;
 pub mod uncertainty;
 pub mod uq;

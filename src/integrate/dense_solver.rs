@@ -151,7 +151,11 @@ impl DenseSolver {
             }
         };
         match self.kind {
-            FactorKind::SaddlePoint { constraint_rows } if constraint_rows == m => {
+            FactorKind::SaddlePoint { constraint_rows } => {
+                assert_eq!(
+                    constraint_rows, m,
+                    "DenseSolver::factor_blocks: B has the solver's constraint rows"
+                );
                 write_a(&mut self.blocks[..nv * nv], nv);
                 let scale = max_abs(&self.blocks[..nv * nv]).max(max_abs(b.as_slice()));
                 let regular = self.factor_saddle_point(scale, m, |r, j| b[(r, j)]);
@@ -163,7 +167,7 @@ impl DenseSolver {
                 }
                 self.finish_saddle_point(regular, scale)
             }
-            _ => {
+            FactorKind::Lu | FactorKind::Cholesky => {
                 let n = nv + m;
                 let whole = self.factors.as_mut_slice();
                 write_a(whole, n);
@@ -441,6 +445,7 @@ fn max_abs(x: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::SplitMix64;
 
     /// Agreement of an in-place solve with nalgebra's own LU on a well-conditioned matrix.
     const SOLVE_TOL: f64 = 1e-12;
@@ -518,13 +523,9 @@ mod tests {
     }
 
     /// A deterministic stream in `[-0.5, 0.5)`.
-    fn stream(mut seed: u64) -> impl FnMut() -> f64 {
-        move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        }
+    fn stream(seed: u64) -> impl FnMut() -> f64 {
+        let mut generator = SplitMix64::new(seed);
+        move || generator.uniform(-0.5, 0.5)
     }
 
     /// `(M, d, B)`: `M` symmetric positive definite (`nv × nv`), a positive diagonal `d`, and `B`

@@ -200,6 +200,7 @@ pub fn cholesky_solve_in_place(factor: &DMatrix<f64>, b: &mut DVector<f64>) {
 mod tests {
     use super::*;
     use crate::linalg::FIXED_SIZE_UP_TO;
+    use crate::test_support::SplitMix64;
 
     /// The factorisation as a dot product per entry (the textbook loop order), for every `n`:
     /// [`factor_in_place`] must give these bits exactly, with its kernels of fixed size and its
@@ -228,13 +229,8 @@ mod tests {
 
     #[test]
     fn every_size_gives_the_textbook_bits() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut generator = SplitMix64::new(0x9e37_79b9_7f4a_7c15);
+        let mut next = || generator.uniform(-0.5, 0.5);
         for n in [
             1,
             2,

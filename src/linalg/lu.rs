@@ -134,19 +134,16 @@ fn substitute(a: &[f64], n: usize, pivots: &[usize], b: &mut [f64]) {
 mod tests {
     use super::*;
     use crate::linalg::FIXED_SIZE_UP_TO;
+    use crate::test_support::SplitMix64;
     use nalgebra::{DMatrix, DVector};
 
     /// Agreement of the solve with nalgebra's own LU on well-conditioned matrices of order one.
     const SOLVE_TOL: f64 = 1e-11;
 
     /// A deterministic stream in `[-0.5, 0.5)`.
-    fn stream(mut seed: u64) -> impl FnMut() -> f64 {
-        move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        }
+    fn stream(seed: u64) -> impl FnMut() -> f64 {
+        let mut generator = SplitMix64::new(seed);
+        move || generator.uniform(-0.5, 0.5)
     }
 
     /// The elimination written the textbook way on a `DMatrix` (the loops `DenseSolver` had):

@@ -378,11 +378,11 @@ fn minimise(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::SplitMix64;
     use crate::uq::bounds::{interval_bound, RangeMode};
     use crate::uq::design::{Design, Truncation};
     use crate::uq::projection::Projector;
     use crate::uq::scan::{ScanOptions, Scanner};
-    use crate::uq::test_support::SplitMix64;
 
     /// Tolerance of the tests against exact ranges: the bounder's own (1e-6 of the width) plus
     /// rounding.

@@ -582,8 +582,8 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
+    use crate::test_support::SplitMix64;
     use crate::uq::multi_index::MultiIndexSet;
-    use crate::uq::test_support::SplitMix64;
 
     /// Newton converges quadratically; values at stationary points are exact to rounding of sums
     /// of d terms.

@@ -193,7 +193,7 @@ fn apply_block(v: &DMatrix<f64>, m: &DMatrix<f64>, b: &mut DMatrixViewMut<'_, f6
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::uq::test_support::SplitMix64;
+    use crate::test_support::SplitMix64;
 
     /// Householder QR is backward stable: residuals of O(n · ε · ‖A‖).
     const TOL: f64 = 1e-12;

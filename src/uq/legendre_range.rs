@@ -150,7 +150,7 @@ fn to_monomial(coef: &[f64]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::uq::test_support::SplitMix64;
+    use crate::test_support::SplitMix64;
 
     #[test]
     fn matches_dense_sampling() {

@@ -269,7 +269,7 @@ fn apply_upper_in_place(u: &SparseRows, width: usize, y: &mut [f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::uq::test_support::SplitMix64;
+    use crate::test_support::SplitMix64;
 
     #[test]
     fn dense_fit_is_a_matrix_product() {

@@ -65,9 +65,6 @@ pub mod surrogate;
 pub mod taylor;
 pub(crate) mod tensor_contraction;
 
-#[cfg(test)]
-mod test_support;
-
 pub use basis::{legendre_min, Family, MAX_ORDER};
 pub use bernstein::{BernsteinBound, BernsteinBounder, BernsteinOptions, BERNSTEIN_MAX_ORDER};
 pub use bounds::{chebyshev_inclusion, interval_bound, Bound, BoundKind, ErrorEstimate, RangeMode};

@@ -217,9 +217,9 @@ impl Projector {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::SplitMix64;
     use crate::uq::design::{for_each_multi_index, Truncation};
     use crate::uq::surrogate::Surrogate;
-    use crate::uq::test_support::SplitMix64;
 
     /// Reproduction is exact in exact arithmetic; in floating point the fit and evaluation of
     /// O(1)-coefficient polynomials of degree ≤ 6 in 4 variables lose a few hundred ulp at most.

@@ -360,8 +360,8 @@ fn lanczos_max(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::SplitMix64;
     use crate::uq::sobol_design::sobol_design;
-    use crate::uq::test_support::SplitMix64;
 
     /// Least squares reproduces polynomials in the span exactly; rounding scales with κ ≈ 2–5.
     const REPRODUCTION_TOL: f64 = 1e-11;

@@ -426,10 +426,10 @@ fn min_max(v: &[f64]) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::SplitMix64;
     use crate::uq::bounds::{chebyshev_inclusion, interval_bound, RangeMode};
     use crate::uq::design::{Design, Truncation};
     use crate::uq::projection::Projector;
-    use crate::uq::test_support::SplitMix64;
 
     /// Interval arithmetic on exactly representable coefficients: a few ulp.
     const IA_TOL: f64 = 1e-12;

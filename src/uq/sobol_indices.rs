@@ -311,10 +311,10 @@ pub fn sobol_indices_monte_carlo(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::SplitMix64;
     use crate::uq::design::{Design, Truncation};
     use crate::uq::projection::Projector;
     use crate::uq::surrogate::Surrogate;
-    use crate::uq::test_support::SplitMix64;
     use std::f64::consts::PI;
 
     /// Exact arithmetic up to rounding: indices of polynomials the surrogate holds exactly.

@@ -322,7 +322,7 @@ fn factors(set: &MultiIndexSet, w_inv: &[f64], t_coef: &[f64]) -> (SparseRows, S
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::uq::test_support::SplitMix64;
+    use crate::test_support::SplitMix64;
 
     /// Interpolation reproduces span{P_α} exactly; in floating point the triangular factors of
     /// degree ≤ 6 lose a few hundred ulp at most relative to Σ|c|.

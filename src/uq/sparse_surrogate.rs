@@ -477,8 +477,8 @@ impl SparseSurrogate {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::SplitMix64;
     use crate::uq::basis::legendre_values;
-    use crate::uq::test_support::SplitMix64;
 
     const TOL: f64 = 1e-13;
 
