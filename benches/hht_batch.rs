@@ -36,7 +36,7 @@ use std::time::{Duration, Instant};
 use fall::STEPS_PER_FALL;
 use nalgebra::DVector;
 use ribbon::dynamics::batch::LANES;
-use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings};
+use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, ReportedVelocity};
 use ribbon::scene::Scene;
 use ribbon::simulate::{hht_settings, BatchStepCounts, BatchStepper, RobotSystem};
 
@@ -98,13 +98,26 @@ impl Batch {
         }
     }
 
-    /// One whole fall of every sample; the time spent stepping.
+    /// One whole fall of every sample, every step computing the reported velocity; the time spent
+    /// stepping.
     fn fall(&mut self) -> Duration {
+        self.fall_recording_every(1)
+    }
+
+    /// One whole fall of every sample, only every `record_every`-th step computing the reported
+    /// velocity (a study recording every `record_every` steps; [`ReportedVelocity::Skipped`]
+    /// between); the time spent stepping.
+    fn fall_recording_every(&mut self, record_every: u64) -> Duration {
         self.restart();
         let start = Instant::now();
-        for _ in 0..STEPS_PER_FALL {
+        for k in 1..=STEPS_PER_FALL {
+            let report = if k % record_every == 0 {
+                ReportedVelocity::Computed
+            } else {
+                ReportedVelocity::Skipped
+            };
             for (stepper, active) in self.steppers.iter_mut().zip(&self.active) {
-                let errors = stepper.step(active);
+                let errors = stepper.step(active, report);
                 assert!(
                     errors.iter().all(Option::is_none),
                     "the fall steps converge"
@@ -234,11 +247,12 @@ fn mujoco_euler(root: &Path, robots: &[(String, PathBuf)]) -> Result<Vec<(String
         .collect())
 }
 
-/// `--count-steps ROBOT SIZE`: one whole fall of a batch of SIZE samples of ROBOT and nothing else
-/// (no MuJoCo, no timing, no scalar runs), for instruction counts under callgrind with
-/// `--toggle-collect` on `BatchStepper::step` (`benches/step_instructions.py --batch`).
+/// `--count-steps ROBOT SIZE [--record-every K]`: one whole fall of a batch of SIZE samples of
+/// ROBOT and nothing else (no MuJoCo, no timing, no scalar runs), every step computing the reported
+/// velocity or only every K-th; for instruction counts under callgrind with `--toggle-collect` on
+/// `BatchStepper::step` (`benches/step_instructions.py`).
 fn count_steps(root: &Path, args: &[String]) {
-    let usage = "usage: hht_batch --count-steps ROBOT SIZE";
+    let usage = "usage: hht_batch --count-steps ROBOT SIZE [--record-every K]";
     let (Some(robot), Some(Ok(size))) = (args.first(), args.get(1).map(|s| s.parse::<usize>()))
     else {
         eprintln!("{usage}");
@@ -253,9 +267,23 @@ fn count_steps(root: &Path, args: &[String]) {
         eprintln!("hht_batch: SIZE must be at least 1; {usage}");
         std::process::exit(2);
     }
+    let record_every = match (args.get(2).map(String::as_str), args.get(3)) {
+        (None, _) => 1,
+        (Some("--record-every"), Some(k)) => match k.parse::<u64>() {
+            Ok(k) if k >= 1 => k,
+            _ => {
+                eprintln!("hht_batch: --record-every needs a whole number of steps >= 1; {usage}");
+                std::process::exit(2);
+            }
+        },
+        _ => {
+            eprintln!("{usage}");
+            std::process::exit(2);
+        }
+    };
     let (template, scene, q0, v0) = fall::fall_problem(path);
     let mut batch = Batch::new(&template, &scene, hht_settings(&scene), (&q0, &v0), size);
-    batch.fall();
+    batch.fall_recording_every(record_every);
     let counts = batch.counts();
     println!(
         "{{\"robot\": \"{robot}\", \"samples\": {size}, \"steps\": {STEPS_PER_FALL}, \"batched\": {}, \"scalar\": {}}}",

@@ -29,7 +29,9 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, Criterion};
 use nalgebra::{DMatrix, DVector};
-use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, StepControl, SystemError};
+use ribbon::integrate::{
+    DaeSystem, HhtIntegrator, HhtSettings, ReportedVelocity, StepControl, SystemError,
+};
 use ribbon::model::{LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::{hht_settings, RobotSystem};
@@ -457,14 +459,17 @@ fn main() {
     Criterion::default().configure_from_args().final_summary();
 }
 
-/// `hht_step --count-steps ROBOT STEPS [fresh|reuse]`: only the fall of ROBOT (a name of
-/// [`robots`]), restarted, then STEPS steps (0 ..= 1000) with the Newton matrix factorised at every
-/// step (the default settings) or reused across steps (the opt-in
-/// [`HhtSettings::reuse_newton_matrix`]); prints the statistics and exits. Run under
-/// `valgrind --tool=callgrind` with STEPS = 1000 and 0: the difference of the two instruction
-/// counts over 1000 is the instructions per step (benches/README.md).
+/// `hht_step --count-steps ROBOT STEPS [fresh|reuse] [--record-every K]`: only the fall of ROBOT
+/// (a name of [`robots`]), restarted, then STEPS steps (0 ..= 1000) with the Newton matrix
+/// factorised at every step (the default settings) or reused across steps (the opt-in
+/// [`HhtSettings::reuse_newton_matrix`]); prints the statistics and exits. Every step computes the
+/// reported velocity, or, with `--record-every K`, only every K-th (a study recording every K
+/// steps: [`ReportedVelocity::Skipped`] between). Run under `valgrind --tool=callgrind` with
+/// `--toggle-collect` on `HhtIntegrator::advance_grid_step` (benches/step_instructions.py), or
+/// with STEPS = 1000 and 0: the difference of the two instruction counts over 1000 is the
+/// instructions per step (benches/README.md).
 fn count_steps(args: &[String]) {
-    let usage = "usage: hht_step --count-steps ROBOT STEPS [fresh|reuse]";
+    let usage = "usage: hht_step --count-steps ROBOT STEPS [fresh|reuse] [--record-every K]";
     let (Some(robot), Some(steps)) = (args.first(), args.get(1)) else {
         eprintln!("{usage}");
         std::process::exit(2);
@@ -477,22 +482,43 @@ fn count_steps(args: &[String]) {
         eprintln!("hht_step: STEPS must be at most {STEPS_PER_FALL} (one 1 s fall), got {steps}");
         std::process::exit(2);
     }
-    let reuse = match args.get(2).map(String::as_str) {
-        None | Some("fresh") => false,
-        Some("reuse") => true,
-        Some(other) => {
-            eprintln!("hht_step: expected 'fresh' or 'reuse', got '{other}'; {usage}");
-            std::process::exit(2);
+    let mut reuse = false;
+    let mut record_every = 1u64;
+    let mut rest = args[2..].iter();
+    while let Some(arg) = rest.next() {
+        match arg.as_str() {
+            "fresh" => reuse = false,
+            "reuse" => reuse = true,
+            "--record-every" => match rest.next().map(|k| k.parse::<u64>()) {
+                Some(Ok(k)) if k >= 1 => record_every = k,
+                _ => {
+                    eprintln!(
+                        "hht_step: --record-every needs a whole number of steps >= 1; {usage}"
+                    );
+                    std::process::exit(2);
+                }
+            },
+            other => {
+                eprintln!("hht_step: expected 'fresh', 'reuse' or '--record-every K', got '{other}'; {usage}");
+                std::process::exit(2);
+            }
         }
-    };
+    }
     let Some((_, path)) = robots().into_iter().find(|(name, _)| name == robot) else {
         eprintln!("hht_step: no robot '{robot}' (ribbon-ur5, erd-ur5, erd-panda, ribbon-quadruped, ribbon-four-bar; the erd robots need the reference venv)");
         std::process::exit(2);
     };
     let mut fall = Fall::with_reuse(&path, reuse);
     fall.restart();
-    for _ in 0..steps {
-        fall.hht.step(&mut fall.system).expect("step converges");
+    for k in 1..=steps {
+        let report = if k % record_every == 0 {
+            ReportedVelocity::Computed
+        } else {
+            ReportedVelocity::Skipped
+        };
+        fall.hht
+            .advance(&mut fall.system, report)
+            .expect("step converges");
     }
     let stats = fall.hht.stats();
     println!(

@@ -8,7 +8,12 @@ Python with `mujoco` 4.0 and numpy; valgrind from Debian's `valgrind` package):
 
 Besides the scalar step it counts the lock-step step per sample: `BatchStepper::step` in
 `hht_batch --count-steps ROBOT 4` (one 1 s fall of a batch of 4 samples, masses 1 % apart; issue 16
-item 2), divided by 4 x 1000 sample-steps.
+item 2), divided by 4 x 1000 sample-steps. Each is counted twice: with every step computing the
+reported velocity (`HhtIntegrator::step`), and as a study steps when it records every 10 steps (the
+shipped scenes: 100 Hz records, 1 ms steps), only the step into a record computing it
+(`--record-every 10`, `ReportedVelocity::Skipped` between; the records have the same bits). The two
+differ only on robots with constraint rows (the panda's mimic joint, the four-bar's loop), where
+the reported velocity is a projection (docs/method.md §5, "Velocity drift").
 
 Why: MuJoCo's µs per step moved by up to 1.8x between sessions on this shared machine (the same
 script, the same wheel), so a time ratio from one run says as much about the machine's state as
@@ -20,8 +25,9 @@ inside FUNCTION and everything it calls):
 - MuJoCo: `mj_step`, called N times (default 1000: the 1 s of the bench problem) from Python on the
   model and start `benches/mujoco_timing.py` builds (its `load` and `initial_state`; Euler, contacts
   and limits off, equalities on) — the same problem as the time bench.
-- ribbon: `HhtIntegrator::step` in `hht_step --count-steps ROBOT N` (the bench binary's mode for
-  this; the same problem from `benches/support/fall.rs`), after the start, which is not counted.
+- ribbon: `HhtIntegrator::advance` (what `HhtIntegrator::step` calls) in `hht_step --count-steps
+  ROBOT N` (the bench binary's mode for this; the same problem from `benches/support/fall.rs`),
+  after the start, which is not counted.
 Per step = collected instructions / N. Robots: ribbon-ur5, erd-ur5, erd-panda (from the reference
 venv that `cargo test --release` makes; skipped with a line on stderr if missing),
 ribbon-quadruped, ribbon-four-bar. Prints a Markdown table on stdout.
@@ -38,7 +44,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "benches"))
 import mujoco_timing  # noqa: E402  (the problem definitions, shared with the time bench)
 
-RIBBON_STEP = "ribbon::integrate::hht::HhtIntegrator::step"
+RIBBON_STEP = "ribbon::integrate::hht::HhtIntegrator::advance"
+RECORD_EVERY = 10
 BATCH_STEP = "ribbon::simulate::batch_step::BatchStepper::step"
 BATCH_SIZE = 4
 MUJOCO_STEP = "mj_step"
@@ -114,23 +121,31 @@ def main(argv):
     binary = bench_binary("hht_step")
     batch_binary = bench_binary("hht_batch")
     benches = os.path.join(ROOT, "benches")
-    print("| robot | ribbon HHT step (Newton it./step) | batch of 4, per sample | MuJoCo Euler step "
-          "| ratio: step, batch per sample |")
-    print("|---|---|---|---|---|")
+    print(f"| robot | ribbon HHT step (Newton it./step) | recording every {RECORD_EVERY} "
+          f"| batch of 4, per sample | recording every {RECORD_EVERY} | MuJoCo Euler step "
+          f"| ratio: step, batch per sample | recording every {RECORD_EVERY} |")
+    print("|---|---|---|---|---|---|---|---|")
     for label, path in robot_paths():
         if only and label not in only:
             continue
+        every = ["--record-every", str(RECORD_EVERY)]
         ribbon, stdout = collected([binary, "--count-steps", label, str(steps)], RIBBON_STEP)
         stats = json.loads(stdout.strip().splitlines()[-1])
-        batch, stdout = collected([batch_binary, "--count-steps", label, str(BATCH_SIZE)],
-                                  BATCH_STEP)
-        batch_stats = json.loads(stdout.strip().splitlines()[-1])
-        per_sample = batch / (BATCH_SIZE * batch_stats["steps"])
+        recording, _ = collected([binary, "--count-steps", label, str(steps)] + every,
+                                 RIBBON_STEP)
+        per_sample, batch_steps = [], None
+        for extra in ([], every):
+            batch, stdout = collected(
+                [batch_binary, "--count-steps", label, str(BATCH_SIZE)] + extra, BATCH_STEP)
+            batch_steps = json.loads(stdout.strip().splitlines()[-1])["steps"]
+            per_sample.append(batch / (BATCH_SIZE * batch_steps))
         child = MUJOCO_CHILD.format(benches=benches, path=path, steps=steps)
         mujoco, _ = collected([sys.executable, "-c", child], MUJOCO_STEP)
+        mj = mujoco / steps
         print(f"| {label} | {ribbon / steps:,.0f} ({stats['newton_iterations'] / steps:.2f}) "
-              f"| {per_sample:,.0f} | {mujoco / steps:,.0f} | {ribbon / mujoco:.2f}, "
-              f"{per_sample * steps / mujoco:.2f} |", flush=True)
+              f"| {recording / steps:,.0f} | {per_sample[0]:,.0f} | {per_sample[1]:,.0f} "
+              f"| {mj:,.0f} | {ribbon / steps / mj:.2f}, {per_sample[0] / mj:.2f} "
+              f"| {recording / steps / mj:.2f}, {per_sample[1] / mj:.2f} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ mod common;
 
 use nalgebra::DVector;
 use ribbon::analysis::{BlockOutcome, LockStep};
-use ribbon::integrate::{HhtIntegrator, HhtSettings, HhtState, StepControl};
+use ribbon::integrate::{HhtIntegrator, HhtSettings, HhtState, ReportedVelocity, StepControl};
 use ribbon::setup::Setup;
 use ribbon::simulate::{hht_settings, BatchStepper, RobotSystem};
 use std::sync::atomic::AtomicBool;
@@ -46,13 +46,29 @@ struct Run {
     impacts: u64,
 }
 
+/// Every step computes the reported velocity (`HhtIntegrator::step`).
+fn every_step(_step: usize) -> ReportedVelocity {
+    ReportedVelocity::Computed
+}
+
+/// A study's pattern at 100 Hz records and 1 ms steps: only every tenth step (1-based) computes the
+/// reported velocity.
+fn every_tenth_step(step: usize) -> ReportedVelocity {
+    if step.is_multiple_of(10) {
+        ReportedVelocity::Computed
+    } else {
+        ReportedVelocity::Skipped
+    }
+}
+
 /// Steps `settings.len()` samples of `setup` (lane `i` with `settings[i]`) for `steps` steps with
-/// the batched stepper and, separately, each sample with its own scalar integrator; returns both,
-/// and the stepper's counts.
+/// the batched stepper and, separately, each sample with its own scalar integrator, step `k`
+/// (1-based) reporting its velocity as `report(k)` says; returns both, and the stepper's counts.
 fn run_both(
     setup: &Setup,
     settings: &[HhtSettings],
     steps: usize,
+    report: fn(usize) -> ReportedVelocity,
 ) -> (Vec<Run>, Vec<Run>, ribbon::simulate::BatchStepCounts) {
     let scene = &setup.scene;
     let template = RobotSystem::new(setup.model.clone(), scene);
@@ -73,8 +89,8 @@ fn run_both(
             error: None,
             impacts: 0,
         };
-        for _ in 0..steps {
-            if let Err(error) = hht.step(&mut system) {
+        for k in 1..=steps {
+            if let Err(error) = hht.advance(&mut system, report(k)) {
                 run.error = Some(error.to_string());
                 run.states.push(state_bits(hht.state()));
                 run.stats.push(format!("{:?}", hht.stats()));
@@ -104,9 +120,9 @@ fn run_both(
         })
         .collect();
     let mut active = vec![true; lanes];
-    for _ in 0..steps {
+    for k in 1..=steps {
         let errors: Vec<Option<String>> = stepper
-            .step(&active)
+            .step(&active, report(k))
             .iter()
             .map(|e| e.as_ref().map(|e| e.to_string()))
             .collect();
@@ -184,7 +200,8 @@ fn every_lane_steps_bit_for_bit_as_the_scalar_integrator_on_the_shipped_robots()
         let settings = hht_settings(&setup.scene);
         for lanes in [1, 3, 4] {
             let what = format!("{sidecar}, {lanes} lanes");
-            let (scalar, batched, counts) = run_both(&setup, &vec![settings; lanes], steps);
+            let (scalar, batched, counts) =
+                run_both(&setup, &vec![settings; lanes], steps, every_step);
             assert!(
                 scalar.iter().all(|r| r.error.is_none()),
                 "{what}: the scalar runs are expected to succeed"
@@ -199,6 +216,74 @@ fn every_lane_steps_bit_for_bit_as_the_scalar_integrator_on_the_shipped_robots()
                 counts.batched
             );
         }
+    }
+}
+
+/// A study leaves the reported velocity out between its records (`ReportedVelocity::Skipped`):
+/// on the closed loops (constraint rows, the velocity projection) the batched lanes must still be
+/// the scalar integrator's at every step, and every step that computes it must have the bits of
+/// stepping with it every time — `q`, `q̈`, `λ`, `a` at every step, the reported `v` at every
+/// tenth, the Newton counters throughout. Between records `v` is the Newmark velocity.
+#[test]
+fn leaving_the_reported_velocity_out_between_records_changes_no_record() {
+    for (urdf, sidecar) in [
+        (
+            "robots/four_bar/four_bar.urdf",
+            "robots/four_bar/four_bar.uncertainty.toml",
+        ),
+        (
+            "robots/slider_crank/slider_crank.urdf",
+            "robots/slider_crank/slider_crank.uncertainty.toml",
+        ),
+    ] {
+        let steps = 400;
+        let setup = common::shipped_setup(urdf, sidecar, steps as f64 * 1e-3);
+        let settings = [hht_settings(&setup.scene); 4];
+        let (every, _, _) = run_both(&setup, &settings, steps, every_step);
+        let (scalar, batched, counts) = run_both(&setup, &settings, steps, every_tenth_step);
+        assert_lanes_match(&format!("{sidecar}, every tenth step"), &scalar, &batched);
+        let total = (settings.len() * steps) as u64;
+        assert!(counts.batched * 100 >= total * 95, "{sidecar}: {counts:?}");
+        let nv = setup.model.nv;
+        let nq = setup.model.nq;
+        // state_bits: t, step, q (nq), v (nv), then a, q̈, λ.
+        let v_range = 2 + nq..2 + nq + nv;
+        let mut projections_differ = false;
+        for (lane, (full, sparse)) in every.iter().zip(&scalar).enumerate() {
+            assert!(full.error.is_none() && sparse.error.is_none());
+            for (k, (x, y)) in full.states.iter().zip(&sparse.states).enumerate() {
+                let step = k + 1;
+                if every_tenth_step(step) == ReportedVelocity::Computed {
+                    assert_eq!(x, y, "{sidecar}, lane {lane}: record after step {step}");
+                } else {
+                    assert_eq!(
+                        x[..v_range.start],
+                        y[..v_range.start],
+                        "{sidecar} step {step}"
+                    );
+                    assert_eq!(x[v_range.end..], y[v_range.end..], "{sidecar} step {step}");
+                    projections_differ |= x[v_range.clone()] != y[v_range.clone()];
+                }
+            }
+            let iterations = |stats: &String| {
+                stats
+                    .split("newton_iterations: ")
+                    .nth(1)
+                    .and_then(|rest| rest.split(',').next())
+                    .map(str::to_string)
+            };
+            assert_eq!(
+                full.stats.iter().map(iterations).collect::<Vec<_>>(),
+                sparse.stats.iter().map(iterations).collect::<Vec<_>>(),
+                "{sidecar}, lane {lane}: Newton iterations differ"
+            );
+        }
+        // Had nothing been left out, this test would prove nothing: between records the reported
+        // velocity must really be the unprojected one.
+        assert!(
+            projections_differ,
+            "{sidecar}: no skipped step differs in v"
+        );
     }
 }
 
@@ -222,7 +307,7 @@ fn lanes_that_fall_back_or_fail_stay_the_scalar_integrators() {
         ..one_iteration
     };
     let settings = [one_iteration, one_iteration, unreachable, one_iteration];
-    let (scalar, batched, counts) = run_both(&setup, &settings, 400);
+    let (scalar, batched, counts) = run_both(&setup, &settings, 400, every_step);
     assert_lanes_match("ur5, one iteration per pass", &scalar, &batched);
     let failed: Vec<bool> = scalar.iter().map(|r| r.error.is_some()).collect();
     assert_eq!(failed, [false, false, true, false], "{scalar:?}");
@@ -248,7 +333,7 @@ fn adaptive_lanes_stay_the_scalar_integrators() {
             tolerance,
             ..hht_settings(&setup.scene)
         };
-        let (scalar, batched, counts) = run_both(&setup, &[settings; 4], 400);
+        let (scalar, batched, counts) = run_both(&setup, &[settings; 4], 400, every_step);
         let what = format!("ur5, adaptive, tolerance {tolerance:e}");
         assert!(scalar.iter().all(|r| r.error.is_none()), "{what}");
         assert_lanes_match(&what, &scalar, &batched);
@@ -299,7 +384,7 @@ fn lanes_hitting_joint_limits_stay_the_scalar_integrators() {
         1.5,
     );
     let settings = hht_settings(&setup.scene);
-    let (scalar, batched, counts) = run_both(&setup, &[settings; 4], 1500);
+    let (scalar, batched, counts) = run_both(&setup, &[settings; 4], 1500, every_tenth_step);
     assert!(scalar.iter().all(|r| r.error.is_none()));
     assert!(
         scalar.iter().all(|r| r.impacts >= 2),

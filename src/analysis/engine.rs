@@ -23,7 +23,9 @@ use super::schedule::RecordSchedule;
 use super::study::StudyError;
 use crate::dynamics::batch::LANES;
 use crate::effects::{ContactState, ContactStats};
-use crate::integrate::{HhtIntegrator, HhtSettings, HhtState, HhtTrajectory, IntegrateError};
+use crate::integrate::{
+    HhtIntegrator, HhtSettings, HhtState, HhtTrajectory, IntegrateError, ReportedVelocity,
+};
 use crate::scene::Scene;
 use crate::simulate::{
     BatchStepper, FailureContext, InitialOrientations, Recorder, RobotSystem, SimulationError,
@@ -624,7 +626,14 @@ fn step_sample(
                 outcome = Err(SampleStop::Interrupted);
                 break 'records;
             }
-            if let Err(error) = hht.step(system) {
+            // Only the step into a record computes the reported velocity (docs/method.md §5,
+            // "Velocity drift"), and every step with contacts (their bookkeeping reads it).
+            let report = if step + 1 == target || system.effects.has_contacts() {
+                ReportedVelocity::Computed
+            } else {
+                ReportedVelocity::Skipped
+            };
+            if let Err(error) = hht.advance(system, report) {
                 // The step that failed was heading for t_n + h.
                 let time = hht.state().t + settings.step_s;
                 let q = hht.state().q.as_slice().to_vec();

@@ -52,7 +52,9 @@ pub struct HhtState {
     pub q: DVector<f64>,
     /// Velocities, dim `nv`. With constraint rows and `velocity_projection` on, this is the projected
     /// velocity (`Φ_q q̇ + Φ_t = 0` to rounding); the integrator's own recursion keeps the unprojected
-    /// Newmark velocity (see [`HhtSettings::velocity_projection`]).
+    /// Newmark velocity (see [`HhtSettings::velocity_projection`]). After a step that left the
+    /// reported velocity out ([`ReportedVelocity::Skipped`]) it is the Newmark velocity until the
+    /// next step that computes it ([`HhtTrajectory::velocity_reported`]).
     pub v: DVector<f64>,
     /// Acceleration-like variable `a` of the generalized-α scheme, dim `nv` (`a_0 = q̈_0`,
     /// `a_{n+1} = (1 + α) q̈_{n+1} − α q̈_n`). Not a physical acceleration: report `qdd`.
@@ -61,6 +63,22 @@ pub struct HhtState {
     pub qdd: DVector<f64>,
     /// Constraint multipliers `λ`, dim `m` (sign: `M q̈ + Φ_qᵀ λ = Q`; a drive's effort is `−λ`).
     pub lambda: DVector<f64>,
+}
+
+/// Whether a grid step computes the velocity it reports ([`HhtIntegrator::advance`]). Only systems
+/// with constraint rows and no unilateral events tell the two apart: there the reported velocity
+/// (`HhtState::v`) is the Newmark velocity projected onto `Φ_q q̇ + Φ_t = 0`, a product of the step
+/// that the recursion never reads (docs/method.md §5, "Velocity drift"), and so is the end-of-step
+/// bookkeeping of the drift (`Φ` and `Φ_q` at `q_{n+1}`, [`HhtStats::max_constraint_violation`] and
+/// the velocity drifts).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReportedVelocity {
+    /// Computed, with the drift's bookkeeping: the state is read after this step (a record time).
+    Computed,
+    /// Left out: nothing reads `state().v` before the next step that computes it. `state().v` is
+    /// then the Newmark velocity and the drift statistics skip this step; every other number, and
+    /// every later step, has the bits it would have had (the projection feeds nothing back).
+    Skipped,
 }
 
 /// Counters and constraint drift since the last (re)start.
@@ -88,11 +106,14 @@ pub struct HhtStats {
     pub max_iterations_in_a_step: usize,
     /// Gauss–Newton iterations of the consistent start.
     pub start_projection_iterations: usize,
-    /// Largest `max_j |Φ_j|` over the start and every accepted step (m or rad).
+    /// Largest `max_j |Φ_j|` over the start and every accepted step that computed its reported
+    /// velocity (all of them unless stepped with [`ReportedVelocity::Skipped`]) (m or rad).
     pub max_constraint_violation: f64,
-    /// Largest `max_j |Φ_q q̇ + Φ_t|_j` of the state returned (after projection when enabled).
+    /// Largest `max_j |Φ_q q̇ + Φ_t|_j` of the state returned (after projection when enabled), over
+    /// the same steps.
     pub max_velocity_violation: f64,
-    /// Largest `max_j |Φ_q q̇ + Φ_t|_j` before the velocity projection (the drift plain I3 would have).
+    /// Largest `max_j |Φ_q q̇ + Φ_t|_j` before the velocity projection (the drift plain I3 would
+    /// have), over the same steps.
     pub max_velocity_violation_unprojected: f64,
     /// Accepted integration steps, sub-steps included (equals `steps` when no grid interval was
     /// subdivided).
@@ -368,6 +389,10 @@ pub struct HhtTrajectory {
     pub previous_steps: u8,
     /// Statistics of this trajectory.
     pub stats: HhtStats,
+    /// Whether `state.v` is the reported velocity of the current state: `false` after a step taken
+    /// with [`ReportedVelocity::Skipped`] on a system with constraint rows (`state.v` is then the
+    /// Newmark velocity), `true` after the start and any step that computed it.
+    pub velocity_reported: bool,
     /// Step control of this trajectory (the next sub-step, the last one, the full-matrix hold).
     pub control: StepControlState,
     /// The Newton factorisation this trajectory's next step may reuse.
@@ -648,6 +673,9 @@ pub struct HhtIntegrator {
     /// Feed the projected velocity back into the recursion (the textbook post-step projection).
     /// Test-only: it makes q̈ and λ first order (tests.rs pins it).
     projection_feedback: bool,
+    /// Whether the step in progress computes its reported velocity ([`ReportedVelocity`]); `true`
+    /// outside [`HhtIntegrator::advance`] and a plain step's acceptance.
+    report_velocity: bool,
     ws: Workspace,
 }
 
@@ -694,10 +722,12 @@ impl HhtIntegrator {
                 qdd_before_previous: DVector::zeros(nv),
                 previous_steps: 0,
                 stats: HhtStats::default(),
+                velocity_reported: true,
                 control: StepControlState::new(coeffs.h),
                 newton: NewtonMemory::new(nv, m),
             },
             projection_feedback: false,
+            report_velocity: true,
             ws: Workspace::new(nq, nv, m, n_events),
         };
         integrator.restart(system, t0, q0, v0)?;
@@ -723,6 +753,7 @@ impl HhtIntegrator {
         self.trajectory.state.q.copy_from(&start.q);
         self.trajectory.state.v.copy_from(&start.v);
         self.trajectory.v_newmark.copy_from(&start.v);
+        self.trajectory.velocity_reported = true;
         self.trajectory.previous_steps = 0;
         self.trajectory.newton.forget();
         self.trajectory.state.qdd.copy_from(&start.qdd);
@@ -832,6 +863,32 @@ impl HhtIntegrator {
     /// [`IntegrateError::System`], [`IntegrateError::DimensionMismatch`]. Allocation-free on success
     /// (an impact allocates in the consistent start).
     pub fn step<S: DaeSystem + ?Sized>(&mut self, system: &mut S) -> Result<(), IntegrateError> {
+        self.advance(system, ReportedVelocity::Computed)
+    }
+
+    /// [`HhtIntegrator::step`], computing the reported velocity or leaving it out (`report`): a
+    /// study steps with [`ReportedVelocity::Skipped`] between its record times and with
+    /// [`ReportedVelocity::Computed`] into each, which gives every record the bits of `step` at a
+    /// fraction of the cost with constraint rows (the velocity projection is a third of the
+    /// panda's step; docs/method.md §5, "Velocity drift"). A system with unilateral events
+    /// ([`DaeSystem::n_events`]) always computes it: locating an impact reads the step's start
+    /// velocity.
+    pub fn advance<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        report: ReportedVelocity,
+    ) -> Result<(), IntegrateError> {
+        self.report_velocity = report == ReportedVelocity::Computed || self.n_events > 0;
+        let result = self.advance_grid_step(system);
+        self.report_velocity = true;
+        result
+    }
+
+    /// The grid step of [`HhtIntegrator::advance`] (`report_velocity` set).
+    fn advance_grid_step<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+    ) -> Result<(), IntegrateError> {
         eval::check_dimensions(system, self.nq, self.nv, self.m)?;
         let step = self.trajectory.state.step + 1;
         let h_grid = self.grid_coeffs.h;
@@ -1365,7 +1422,11 @@ impl HhtIntegrator {
             h
         };
         if self.m > 0 {
-            self.finish_constrained_step(system, At { t: t1, step })?;
+            if self.report_velocity {
+                self.finish_constrained_step(system, At { t: t1, step })?;
+            } else {
+                self.trajectory.velocity_reported = false;
+            }
         }
         Ok(())
     }
@@ -1471,6 +1532,7 @@ impl HhtIntegrator {
         self.trajectory.state.q.copy_from(&start.q);
         self.trajectory.state.v.copy_from(&start.v);
         self.trajectory.v_newmark.copy_from(&start.v);
+        self.trajectory.velocity_reported = true;
         self.trajectory.state.qdd.copy_from(&start.qdd);
         self.trajectory.state.a.copy_from(&start.qdd);
         self.trajectory.state.lambda.copy_from(&start.lambda);
@@ -1853,6 +1915,8 @@ impl HhtIntegrator {
         at: At,
     ) -> Result<(), IntegrateError> {
         let (nv, m) = (self.nv, self.m);
+        // state.v is the Newmark velocity from here, the projected one below (when enabled).
+        self.trajectory.velocity_reported = true;
         {
             let ws = &mut self.ws;
             eval::constraints_and_jacobian(

@@ -52,9 +52,9 @@ pub(crate) use dense_solver::{DenseSolver, FactorKind};
 pub use error::{IntegrateError, SystemError, WorstEntry};
 pub use hht::{
     iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtState, HhtStats, HhtTrajectory,
-    StepControlState, CARRIED_RATE_FLOOR, CARRIED_RATE_SAFETY, IMPACT_LOCATE_FRACTION,
-    IMPACT_MIN_SPEED, MAX_ATTEMPTS_PER_STEP, PREDICTOR_MAX_ACCELERATION_DISPLACEMENT,
-    RATE_TEST_MAX_CONTRACTION,
+    ReportedVelocity, StepControlState, CARRIED_RATE_FLOOR, CARRIED_RATE_SAFETY,
+    IMPACT_LOCATE_FRACTION, IMPACT_MIN_SPEED, MAX_ATTEMPTS_PER_STEP,
+    PREDICTOR_MAX_ACCELERATION_DISPLACEMENT, RATE_TEST_MAX_CONTRACTION,
 };
 pub(crate) use hht::{PlainProgress, PlainStep};
 pub use sensitivity::{

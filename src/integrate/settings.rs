@@ -39,7 +39,8 @@ pub struct HhtSettings {
     /// second order, and resetting it every step pushes an O(h) error into `a`, `q̈` and `λ`.
     /// Measured on the Cartesian pendulum (α = −0.1, t = 1 s, h = 2e-3 → 5e-4): with the projected
     /// velocity fed back, λ errors 2.4e-3 → 6.0e-4 (ratio 2.0); kept out of the recursion, 1.4e-5 →
-    /// 9.2e-7 (ratio 4.0). Positions are second order either way.
+    /// 9.2e-7 (ratio 4.0). Positions are second order either way. So a step may leave it out when
+    /// nothing reads the state before the next one ([`ReportedVelocity::Skipped`](super::ReportedVelocity)).
     pub velocity_projection: bool,
     /// Add the diagonal spring and damper terms `β'h² k_j + γ'h c_j` of
     /// [`DaeSystem::newton_diagonal`](super::DaeSystem::newton_diagonal) to the iteration matrix

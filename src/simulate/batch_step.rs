@@ -16,7 +16,9 @@
 
 use super::RobotSystem;
 use crate::dynamics::batch::{self, BatchData, BatchError, BatchModel, BatchVectors, LANES};
-use crate::integrate::{HhtIntegrator, HhtSettings, IntegrateError, PlainProgress, PlainStep};
+use crate::integrate::{
+    HhtIntegrator, HhtSettings, IntegrateError, PlainProgress, PlainStep, ReportedVelocity,
+};
 use nalgebra::DVector;
 
 /// How the lanes' grid steps were taken since the stepper was made.
@@ -150,9 +152,15 @@ impl BatchStepper {
     }
 
     /// Advances every lane with `active[lane]` (and an integrator) by one grid step, bitwise as
-    /// [`HhtIntegrator::step`] on the lane's system would. Returns each lane's error (`None`: the
-    /// step succeeded or the lane was not active); a failed lane's state is where `step` leaves it.
-    pub fn step(&mut self, active: &[bool]) -> &mut [Option<IntegrateError>] {
+    /// [`HhtIntegrator::advance`] with `report` on the lane's system would (a study leaves the
+    /// reported velocity out between its record times). Returns each lane's error (`None`: the
+    /// step succeeded or the lane was not active); a failed lane's state is where `advance` leaves
+    /// it.
+    pub fn step(
+        &mut self,
+        active: &[bool],
+        report: ReportedVelocity,
+    ) -> &mut [Option<IntegrateError>] {
         let lanes = self.lanes();
         let nv = self.batch_model.nv;
         let mut any_plain = false;
@@ -165,7 +173,7 @@ impl BatchStepper {
             if !active.get(lane).copied().unwrap_or(false) {
                 continue;
             }
-            self.states[lane] = match integrator.begin_plain_step(&mut self.systems[lane]) {
+            self.states[lane] = match integrator.begin_plain_step(&mut self.systems[lane], report) {
                 Some(plain) => {
                     write_lane(&mut self.q, lane, integrator.plain_iterate().0);
                     any_plain = true;
@@ -202,7 +210,7 @@ impl BatchStepper {
                 continue;
             };
             self.counts.scalar += 1;
-            if let Err(error) = integrator.step(&mut self.systems[lane]) {
+            if let Err(error) = integrator.advance(&mut self.systems[lane], report) {
                 self.errors[lane] = Some(error);
             }
         }

@@ -6,7 +6,7 @@
 
 use super::{describe_failure, record_sample, start_state, Sample, SampleBlock};
 use crate::dynamics::batch::LANES;
-use crate::integrate::{HhtSettings, IntegrateError};
+use crate::integrate::{HhtSettings, IntegrateError, ReportedVelocity};
 use crate::scene::Scene;
 use crate::simulate::{BatchStepper, Recorder, RobotSystem};
 use crate::uncertainty::ParameterSpace;
@@ -88,8 +88,15 @@ pub(super) fn advance_group(
             if block.interrupt.load(Ordering::Relaxed) {
                 break 'records;
             }
+            // Only the step into a record computes the reported velocity (docs/method.md §5,
+            // "Velocity drift"): the records have the bits of stepping with it every time.
+            let report = if step + 1 == target {
+                ReportedVelocity::Computed
+            } else {
+                ReportedVelocity::Skipped
+            };
             let mut failures: [Option<IntegrateError>; LANES] = Default::default();
-            for (lane, error) in stepper.step(&active).iter_mut().enumerate() {
+            for (lane, error) in stepper.step(&active, report).iter_mut().enumerate() {
                 failures[lane] = error.take();
             }
             for (lane, error) in failures.into_iter().enumerate() {

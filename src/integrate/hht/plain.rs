@@ -17,8 +17,8 @@
 
 use super::{
     eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonFlags,
-    NewtonMatrix, NewtonPass, PassVerdict, StepControl, StepControlState, ADAPTIVE_MAX_GROWTH,
-    END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
+    NewtonMatrix, NewtonPass, PassVerdict, ReportedVelocity, StepControl, StepControlState,
+    ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
 };
 use nalgebra::DVector;
 
@@ -38,6 +38,8 @@ pub(crate) struct PlainStep {
     judge: NewtonPass,
     /// The regime of piecewise forces the Newton matrix was formed in ([`DaeSystem::newton_regime`]).
     regime: u64,
+    /// Whether the step computes its reported velocity (as [`HhtIntegrator::advance`] decides).
+    report_velocity: bool,
     /// What the attempt may change before it is accepted, to put back when it is abandoned.
     stats_before: HhtStats,
     control_before: StepControlState,
@@ -76,11 +78,13 @@ impl HhtIntegrator {
     }
 
     /// Starts the next grid step as a plain step: the predictor and the first iterate, whose
-    /// configuration ([`HhtIntegrator::plain_iterate`]) the caller evaluates `M` at next. `None`
-    /// when the step is not plain (then nothing was changed: run [`HhtIntegrator::step`]).
+    /// configuration ([`HhtIntegrator::plain_iterate`]) the caller evaluates `M` at next; `report`
+    /// as for [`HhtIntegrator::advance`]. `None` when the step is not plain (then nothing was
+    /// changed: run [`HhtIntegrator::advance`] with the same `report`).
     pub(crate) fn begin_plain_step<S: DaeSystem + ?Sized>(
         &mut self,
         system: &mut S,
+        report: ReportedVelocity,
     ) -> Option<PlainStep> {
         if !self.plain_step_allowed(system)
             || eval::check_dimensions(system, self.nq, self.nv, self.m).is_err()
@@ -108,6 +112,7 @@ impl HhtIntegrator {
             growth: ADAPTIVE_MAX_GROWTH,
             judge: NewtonPass::at_predictor(self.carried_contraction(self.grid_coeffs.h, false)),
             regime: 0,
+            report_velocity: report == ReportedVelocity::Computed || self.n_events > 0,
             stats_before: self.trajectory.stats,
             control_before: self.trajectory.control,
             newton_before: self.trajectory.newton.flags(),
@@ -211,7 +216,7 @@ impl HhtIntegrator {
                     }
                 }
                 plain.growth = growth;
-                if self.m > 0 && self.settings.velocity_projection {
+                if self.m > 0 && self.settings.velocity_projection && plain.report_velocity {
                     // The projection needs M at q_{n+1}, the converged iterate: the caller's.
                     return Ok(PlainProgress::NeedsProjectionMass);
                 }
@@ -257,7 +262,10 @@ impl HhtIntegrator {
     ) -> Result<(), IntegrateError> {
         let At { t: t1, step } = plain.at;
         let h = self.grid_coeffs.h;
-        self.accept(system, t1, h, step, plain.growth, plain.planned, true)?;
+        self.report_velocity = plain.report_velocity;
+        let accepted = self.accept(system, t1, h, step, plain.growth, plain.planned, true);
+        self.report_velocity = true;
+        accepted?;
         self.end_grid_step(plain.t_end, step, true);
         Ok(())
     }
