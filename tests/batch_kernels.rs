@@ -349,6 +349,71 @@ fn a_singular_lane_reports_the_scalar_pivot_and_the_others_factorise() {
     }
 }
 
+/// The integrator's lock-step factorises its lanes' Newton matrices with their own smallest
+/// pivots (`cholesky_factor_with_min_pivots`): every lane must get the bits and the verdict of
+/// `linalg::cholesky::factor_in_place` with the same threshold — for 14 × 14 matrices (the
+/// quadruped's Newton matrix; the scalar kernel compiled for that size), five samples over two
+/// chunks, one refused by its threshold and one with a NaN.
+#[test]
+fn lanes_with_their_own_minimum_pivots_match_the_scalar_factorisation() {
+    let n = 14;
+    let samples = 5;
+    let mut state = 0x2545_f491_4f6c_dd1d_u64;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let matrices: Vec<Vec<f64>> = (0..samples)
+        .map(|s| {
+            let j = nalgebra::DMatrix::<f64>::from_fn(n, n, |_, _| uniform());
+            let mut a = j.transpose() * &j;
+            for k in 0..n {
+                a[(k, k)] += 0.1;
+            }
+            if s == 4 {
+                a[(6, 6)] = f64::NAN;
+            }
+            a.as_slice().to_vec()
+        })
+        .collect();
+    // Sample 2's threshold is above its own diagonal entries: refused at pivot 0.
+    let min_pivots = [1e-12, 1e-9, 1e6, 0.0, 1e-12];
+    for isa in instruction_sets() {
+        let mut batched = BatchVectors::<4>::zeros(n * n, samples);
+        for (s, m) in matrices.iter().enumerate() {
+            batched.set_sample(s, m).unwrap();
+        }
+        let mut failures = vec![None; samples];
+        assert!(!batch::cholesky_factor_with_min_pivots(
+            isa,
+            &mut batched,
+            n,
+            &min_pivots,
+            &mut failures
+        ));
+        for (s, m) in matrices.iter().enumerate() {
+            let mut scalar = m.clone();
+            let expected =
+                ribbon::linalg::cholesky::factor_in_place(&mut scalar, n, min_pivots[s]).err();
+            assert_eq!(
+                failures[s].map(|f| f.index),
+                expected.map(|f| f.index),
+                "sample {s} ({})",
+                isa.name()
+            );
+            if expected.is_none() {
+                let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&batched.sample(s)), bits(&scalar), "sample {s}");
+            }
+        }
+        assert_eq!(failures[2].map(|f| f.index), Some(0));
+        assert_eq!(failures[4].map(|f| f.index), Some(6));
+        assert!(failures[0].is_none() && failures[1].is_none() && failures[3].is_none());
+    }
+}
+
 #[test]
 fn the_default_instruction_set_is_the_best_available() {
     let model = load(&common::manifest("robots/ur5/ur5.urdf"), false);

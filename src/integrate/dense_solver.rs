@@ -178,6 +178,28 @@ impl DenseSolver {
         }
     }
 
+    /// The smallest pivot a [`FactorKind::Cholesky`] factorisation accepts of a matrix whose
+    /// largest entry in magnitude (NaN entries counted as 0) is `largest`, as
+    /// [`DenseSolver::factor_blocks`] decides it: [`SINGULAR_PIVOT_RELATIVE`] times `largest`;
+    /// `None` for a zero matrix, which it refuses outright.
+    pub fn cholesky_min_pivot_of_largest_entry(largest: f64) -> Option<f64> {
+        (largest != 0.0).then_some(SINGULAR_PIVOT_RELATIVE * largest)
+    }
+
+    /// Stores a Cholesky factorisation made elsewhere — the lock-step's batched factorisation
+    /// (`dynamics::batch::cholesky_factor_with_min_pivots`) of the matrix [`DenseSolver::factor_blocks`]
+    /// would have factorised, with [`DenseSolver::cholesky_min_pivot_of_largest_entry`]'s threshold — as if
+    /// `factor_blocks` had made it: `factor` is the `n × n` column-major result (lower triangle `L`,
+    /// the strict upper triangle the matrix's). Only for the [`FactorKind::Cholesky`] kind.
+    pub fn install_cholesky_factor(&mut self, factor: &[f64]) {
+        assert_eq!(
+            self.kind,
+            FactorKind::Cholesky,
+            "DenseSolver::install_cholesky_factor: a Cholesky solver"
+        );
+        self.factors.as_mut_slice().copy_from_slice(factor);
+    }
+
     /// LU or Cholesky of the whole matrix in `factors` (per the kind; LU for a saddle-point
     /// solver), `scale` its largest entry.
     fn factor_whole(&mut self, scale: f64) -> Result<(), Breakdown> {

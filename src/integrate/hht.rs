@@ -1610,12 +1610,10 @@ impl HhtIntegrator {
         system: &mut S,
         at: At,
     ) -> Result<(), IntegrateError> {
+        self.ws.use_full = false;
+        let has_diagonal = self.evaluate_newton_diagonal(system, at)?;
         let ws = &mut self.ws;
-        ws.use_full = false;
         let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
-        if self.settings.newton_diagonal_terms {
-            eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)?;
-        }
         if self.m > 0 {
             eval::constraint_jacobian(system, at, &ws.q, &mut ws.phi_q)?;
         }
@@ -1650,20 +1648,7 @@ impl HhtIntegrator {
             solver.factor(&ws.matrix)
         } else {
             // The matrix of docs/method.md §5 from its blocks, unassembled (the same bits).
-            let diagonal = if self.settings.newton_diagonal_terms {
-                for ((d, k), c) in ws
-                    .newton_diagonal
-                    .as_mut_slice()
-                    .iter_mut()
-                    .zip(ws.stiffness.as_slice())
-                    .zip(ws.damping.as_slice())
-                {
-                    *d = beta_h2 * k + gamma_h * c;
-                }
-                Some(ws.newton_diagonal.as_slice())
-            } else {
-                None
-            };
+            let diagonal = has_diagonal.then_some(ws.newton_diagonal.as_slice());
             solver.factor_blocks(&ws.mass, diagonal, &ws.phi_q)
         };
         factorised.map_err(|b| IntegrateError::SingularMatrix {
@@ -1677,6 +1662,32 @@ impl HhtIntegrator {
         ws.phi_q_fresh = true;
         self.trajectory.stats.factorisations += 1;
         Ok(())
+    }
+
+    /// With [`HhtSettings::newton_diagonal_terms`]: the spring/damper terms at the current iterate
+    /// (`ws.stiffness`, `ws.damping`) and the Newton matrix's diagonal `β'h² k + γ'h c` from them
+    /// (`ws.newton_diagonal`); returns whether there is one.
+    fn evaluate_newton_diagonal<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<bool, IntegrateError> {
+        if !self.settings.newton_diagonal_terms {
+            return Ok(false);
+        }
+        let ws = &mut self.ws;
+        eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)?;
+        let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
+        for ((d, k), c) in ws
+            .newton_diagonal
+            .as_mut_slice()
+            .iter_mut()
+            .zip(ws.stiffness.as_slice())
+            .zip(ws.damping.as_slice())
+        {
+            *d = beta_h2 * k + gamma_h * c;
+        }
+        Ok(true)
     }
 
     /// Evaluates `M`, the full residual Jacobians and `Φ_q` at the current iterate and factorises

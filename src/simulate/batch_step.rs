@@ -17,8 +17,10 @@
 use super::RobotSystem;
 use crate::dynamics::batch::{self, BatchData, BatchError, BatchModel, BatchVectors, LANES};
 use crate::integrate::{
-    HhtIntegrator, HhtSettings, IntegrateError, PlainProgress, PlainStep, ReportedVelocity,
+    DenseSolver, HhtIntegrator, HhtSettings, IntegrateError, PlainProgress, PlainStep,
+    ReportedVelocity,
 };
+use crate::linalg::cholesky::NonPositivePivot;
 use nalgebra::DVector;
 
 /// How the lanes' grid steps were taken since the stepper was made.
@@ -59,6 +61,8 @@ pub struct BatchStepper {
     errors: Vec<Option<IntegrateError>>,
     /// One lane's `M` (nv²) or `τ` (nv).
     scratch: Vec<f64>,
+    /// The lanes' Newton matrices `M + diag`, factorised together (nv² per sample).
+    newton_matrices: BatchVectors<LANES>,
     counts: BatchStepCounts,
 }
 
@@ -99,6 +103,7 @@ impl BatchStepper {
             states: vec![LaneState::Idle; lanes],
             errors: (0..lanes).map(|_| None).collect(),
             scratch: vec![0.0; nv * nv],
+            newton_matrices: BatchVectors::zeros(nv * nv, lanes),
             counts: BatchStepCounts::default(),
         })
     }
@@ -162,7 +167,6 @@ impl BatchStepper {
         report: ReportedVelocity,
     ) -> &mut [Option<IntegrateError>] {
         let lanes = self.lanes();
-        let nv = self.batch_model.nv;
         let mut any_plain = false;
         for lane in 0..lanes {
             self.errors[lane] = None;
@@ -184,19 +188,7 @@ impl BatchStepper {
         }
         if any_plain {
             batch::crba(&self.batch_model, &mut self.batch_data, &self.q);
-            for lane in 0..lanes {
-                let LaneState::Plain(plain) = &mut self.states[lane] else {
-                    continue;
-                };
-                let Some(integrator) = self.integrators[lane].as_mut() else {
-                    continue;
-                };
-                let mass = &mut self.scratch[..nv * nv];
-                self.batch_data.mass_matrix.copy_sample(lane, mass);
-                if !integrator.plain_factorise(&mut self.systems[lane], plain, mass) {
-                    self.states[lane] = LaneState::Scalar;
-                }
-            }
+            self.factorise_plain_lanes();
         }
         // The first round's iterates are the CRBA's configurations: its placements stand.
         self.iterate_plain_lanes(any_plain);
@@ -298,6 +290,111 @@ impl BatchStepper {
 }
 
 impl BatchStepper {
+    /// The plain lanes' Newton matrices at their first iterates, from the batched CRBA's `M`.
+    /// Without constraint rows each is the Cholesky factorisation of `M + diag`: those are
+    /// formed and factorised together, lane by lane the integrator's own operations and pivot test
+    /// (`batch::cholesky_factor_with_min_pivots`, the threshold of `DenseSolver::cholesky_min_pivot`
+    /// from each lane's largest entry), and handed in; a lane whose matrix that test refuses is
+    /// factorised by its integrator, which refuses it the same way and abandons the step. With rows,
+    /// each lane factorises its own.
+    fn factorise_plain_lanes(&mut self) {
+        let nv = self.batch_model.nv;
+        let n2 = nv * nv;
+        let mut batched = [false; LANES];
+        self.newton_matrices
+            .chunks
+            .copy_from_slice(&self.batch_data.mass_matrix.chunks);
+        let lanes = self.lanes();
+        for (lane, lane_batched) in batched.iter_mut().enumerate().take(lanes) {
+            let LaneState::Plain(plain) = &mut self.states[lane] else {
+                continue;
+            };
+            let Some(integrator) = self.integrators[lane].as_mut() else {
+                continue;
+            };
+            let system = &mut self.systems[lane];
+            if !integrator.plain_factor_is_cholesky() {
+                let mass = &mut self.scratch[..n2];
+                self.batch_data.mass_matrix.copy_sample(lane, mass);
+                if !integrator.plain_factorise(system, plain, mass) {
+                    self.states[lane] = LaneState::Scalar;
+                }
+                continue;
+            }
+            match integrator.plain_newton_diagonal(system, plain) {
+                None => self.states[lane] = LaneState::Scalar,
+                Some(diagonal) => {
+                    // The stepper's lanes are one chunk (at most LANES).
+                    if let Some(diagonal) = diagonal {
+                        for (j, d) in diagonal.iter().enumerate() {
+                            self.newton_matrices.chunks[j * nv + j].0[lane] += d;
+                        }
+                    }
+                    *lane_batched = true;
+                }
+            }
+        }
+        if !batched.contains(&true) {
+            return;
+        }
+        // Each lane's largest entry, as `DenseSolver::cholesky_min_pivot` takes it (NaN as 0;
+        // the largest of a set does not depend on the order it is taken in).
+        let mut largest = [0.0_f64; LANES];
+        for entry in &self.newton_matrices.chunks[..n2] {
+            for (m, x) in largest.iter_mut().zip(entry.0) {
+                let magnitude = x.abs();
+                if !magnitude.is_nan() {
+                    *m = m.max(magnitude);
+                }
+            }
+        }
+        let mut min_pivots = [0.0; LANES];
+        let mut failures: [Option<NonPositivePivot>; LANES] = [None; LANES];
+        for lane in 0..LANES {
+            match DenseSolver::cholesky_min_pivot_of_largest_entry(largest[lane]) {
+                Some(min_pivot) => min_pivots[lane] = min_pivot,
+                // A zero matrix: refused outright (by the integrator below).
+                None => {
+                    failures[lane] = Some(NonPositivePivot {
+                        index: 0,
+                        pivot: 0.0,
+                    })
+                }
+            }
+        }
+        let mut refused = failures;
+        batch::cholesky_factor_with_min_pivots(
+            self.batch_model.isa,
+            &mut self.newton_matrices,
+            nv,
+            &min_pivots,
+            &mut failures,
+        );
+        for lane in 0..self.lanes() {
+            refused[lane] = refused[lane].or(failures[lane]);
+            if !batched[lane] {
+                continue;
+            }
+            let LaneState::Plain(plain) = &mut self.states[lane] else {
+                continue;
+            };
+            let Some(integrator) = self.integrators[lane].as_mut() else {
+                continue;
+            };
+            let system = &mut self.systems[lane];
+            let matrix = &mut self.scratch[..n2];
+            if refused[lane].is_some() {
+                self.batch_data.mass_matrix.copy_sample(lane, matrix);
+                if !integrator.plain_factorise(system, plain, matrix) {
+                    self.states[lane] = LaneState::Scalar;
+                }
+                continue;
+            }
+            self.newton_matrices.copy_sample(lane, matrix);
+            integrator.plain_install_factor(system, plain, matrix);
+        }
+    }
+
     /// The velocity projections of the lanes that converged with constraint rows: one batched CRBA
     /// at their `q_{n+1}`, then each lane accepts its step.
     fn project_lanes(&mut self) {

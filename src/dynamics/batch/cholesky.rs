@@ -32,6 +32,28 @@ pub fn cholesky_factor<const W: usize>(
     }
 }
 
+/// [`cholesky_factor`] with the smallest pivot each sample accepts given: `min_pivots[sample]`
+/// (length ≥ `matrices.size`) instead of the relative rule, so that a caller with another rule (the
+/// integrator's Newton matrix: `SINGULAR_PIVOT_RELATIVE` times the largest entry) gets exactly its
+/// own scalar factorisation's verdict. The factors have the bits of
+/// [`crate::linalg::cholesky::factor_in_place`] on each sample's matrix.
+pub fn cholesky_factor_with_min_pivots<const W: usize>(
+    isa: Isa,
+    matrices: &mut BatchVectors<W>,
+    n: usize,
+    min_pivots: &[f64],
+    failures: &mut [Option<NonPositivePivot>],
+) -> bool {
+    match isa.kind() {
+        #[cfg(target_arch = "x86_64")]
+        IsaKind::Avx2 => {
+            // SAFETY: as in `cholesky_factor`.
+            unsafe { factor_with_min_pivots_avx2(matrices, n, min_pivots, failures) }
+        }
+        _ => factor_with_min_pivots(matrices, n, min_pivots, failures),
+    }
+}
+
 /// Solves `L Lᵀ x = b` for every sample in place (`b` becomes `x`, `dim n`), with `L` in the lower
 /// triangle of `factors` ([`cholesky_factor`]). Allocates nothing.
 pub fn cholesky_solve<const W: usize>(
@@ -70,6 +92,77 @@ fn factor<const W: usize>(
         for (t, s) in threshold.iter_mut().zip(scale) {
             *t = RELATIVE_PIVOT_TOLERANCE * s.max(f64::MIN_POSITIVE);
         }
+        factor_chunk(a, n, c, threshold, size, failures);
+    }
+    failures[..size].iter().all(Option::is_none)
+}
+
+#[inline(always)]
+fn factor_with_min_pivots<const W: usize>(
+    matrices: &mut BatchVectors<W>,
+    n: usize,
+    min_pivots: &[f64],
+    failures: &mut [Option<NonPositivePivot>],
+) -> bool {
+    failures.iter_mut().for_each(|f| *f = None);
+    let size = matrices.size;
+    for (c, a) in matrices.chunks.chunks_exact_mut(n * n).enumerate() {
+        let mut threshold = [0.0; W];
+        for (lane, t) in threshold.iter_mut().enumerate() {
+            *t = min_pivots.get(c * W + lane).copied().unwrap_or(0.0);
+        }
+        factor_chunk_sized(a, n, c, threshold, size, failures);
+    }
+    failures[..size].iter().all(Option::is_none)
+}
+
+/// [`factor_chunk`] compiled for `n` itself up to `linalg::FIXED_SIZE_UP_TO` (the loop bounds
+/// known: unrolled, no index checks; the same operations in the same order).
+#[inline(always)]
+fn factor_chunk_sized<const W: usize>(
+    a: &mut [Lanes<W>],
+    n: usize,
+    c: usize,
+    threshold: [f64; W],
+    size: usize,
+    failures: &mut [Option<NonPositivePivot>],
+) {
+    macro_rules! sized {
+        ($($size:literal)*) => {
+            match n {
+                $($size => return factor_chunk_fixed::<$size, W>(a, c, threshold, size, failures),)*
+                _ => {}
+            }
+        };
+    }
+    // linalg::FIXED_SIZE_UP_TO = 16, as the scalar kernels.
+    sized!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16);
+    factor_chunk(a, n, c, threshold, size, failures)
+}
+
+#[inline(always)]
+fn factor_chunk_fixed<const N: usize, const W: usize>(
+    a: &mut [Lanes<W>],
+    c: usize,
+    threshold: [f64; W],
+    size: usize,
+    failures: &mut [Option<NonPositivePivot>],
+) {
+    factor_chunk(&mut a[..N * N], N, c, threshold, size, failures)
+}
+
+/// The factorisation of chunk `c` (`a`: its `n²` entries), lane `l` refusing pivots that are NaN
+/// or not above `threshold[l]`: the scalar factorisation's operations, in its order, lane by lane.
+#[inline(always)]
+fn factor_chunk<const W: usize>(
+    a: &mut [Lanes<W>],
+    n: usize,
+    c: usize,
+    threshold: [f64; W],
+    size: usize,
+    failures: &mut [Option<NonPositivePivot>],
+) {
+    {
         for j in 0..n {
             let mut pivot = a[j + j * n];
             for k in 0..j {
@@ -102,7 +195,6 @@ fn factor<const W: usize>(
             }
         }
     }
-    failures[..size].iter().all(Option::is_none)
 }
 
 #[inline(always)]
@@ -147,6 +239,18 @@ fn factor_avx2<const W: usize>(
     failures: &mut [Option<NonPositivePivot>],
 ) -> bool {
     factor(matrices, n, failures)
+}
+
+/// [`factor_with_min_pivots`] compiled with AVX2 enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn factor_with_min_pivots_avx2<const W: usize>(
+    matrices: &mut BatchVectors<W>,
+    n: usize,
+    min_pivots: &[f64],
+    failures: &mut [Option<NonPositivePivot>],
+) -> bool {
+    factor_with_min_pivots(matrices, n, min_pivots, failures)
 }
 
 /// [`solve`] compiled with AVX2 enabled.

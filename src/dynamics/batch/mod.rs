@@ -28,7 +28,7 @@ mod model;
 mod rnea;
 mod state;
 
-pub use cholesky::{cholesky_factor, cholesky_solve};
+pub use cholesky::{cholesky_factor, cholesky_factor_with_min_pivots, cholesky_solve};
 pub use crba::crba;
 pub use kinematics::forward_kinematics;
 pub use model::{lane_transform, BatchError, BatchJoint, BatchModel, ChunkValues};

@@ -160,6 +160,56 @@ impl HhtIntegrator {
         true
     }
 
+    /// Whether this integrator's plain steps factorise a Cholesky of `M + diag` (no constraint
+    /// rows), which the caller may make itself: [`HhtIntegrator::plain_newton_diagonal`] and
+    /// [`HhtIntegrator::plain_install_factor`] then replace [`HhtIntegrator::plain_factorise`].
+    pub(crate) fn plain_factor_is_cholesky(&self) -> bool {
+        self.m == 0
+    }
+
+    /// The diagonal the Newton matrix adds to `M` at the plain step's first iterate (`β'h² k +
+    /// γ'h c`, dim nv; `Some(None)` when the settings leave it out), evaluated as
+    /// [`HhtIntegrator::plain_factorise`] would. `None` when the step was abandoned (an error of
+    /// the system).
+    pub(crate) fn plain_newton_diagonal<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        plain: &mut PlainStep,
+    ) -> Option<Option<&[f64]>> {
+        match self.evaluate_newton_diagonal(system, plain.at) {
+            Ok(true) => Some(Some(self.ws.newton_diagonal.as_slice())),
+            Ok(false) => Some(None),
+            Err(_) => {
+                self.abandon_plain_step(plain);
+                None
+            }
+        }
+    }
+
+    /// Takes the plain step's Newton matrix as factorised by the caller: `factor`, the Cholesky
+    /// factorisation of `M` at the first iterate plus [`HhtIntegrator::plain_newton_diagonal`]'s
+    /// diagonal, with the bits and the pivot test of the integrator's own
+    /// ([`crate::integrate::DenseSolver::install_cholesky_factor`]); the rest as
+    /// [`HhtIntegrator::plain_factorise`] does it, except that `M` itself is not kept (a plain
+    /// step takes its residual from the caller and never reads it).
+    pub(crate) fn plain_install_factor<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        plain: &mut PlainStep,
+        factor: &[f64],
+    ) {
+        self.ws.use_full = false;
+        self.trajectory
+            .newton
+            .solver
+            .install_cholesky_factor(factor);
+        // `ws.mass` does not hold M at this iterate.
+        self.ws.mass_fresh = false;
+        self.ws.phi_q_fresh = true;
+        self.trajectory.stats.factorisations += 1;
+        plain.regime = system.newton_regime(&self.ws.q);
+    }
+
     /// The iterate `(q, q̇)` and the buffer the caller writes the dynamics rows of the residual
     /// into (dim nv, as the system's `dynamics_residual` would give them) before
     /// [`HhtIntegrator::plain_correct`].
