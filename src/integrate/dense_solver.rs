@@ -293,14 +293,13 @@ impl DenseSolver {
 
     fn factor_cholesky(&mut self, scale: f64) -> Result<(), Breakdown> {
         let n = self.factors.nrows();
-        cholesky::factor_in_place(
-            self.factors.as_mut_slice(),
-            n,
-            SINGULAR_PIVOT_RELATIVE * scale,
-        )
-        .map_err(|failure| Breakdown {
-            index: failure.index,
-            pivot_relative: failure.pivot / scale,
+        // `factor_whole` refused a zero matrix already.
+        let min_pivot = Self::cholesky_min_pivot_of_largest_entry(scale).unwrap_or(0.0);
+        cholesky::factor_in_place(self.factors.as_mut_slice(), n, min_pivot).map_err(|failure| {
+            Breakdown {
+                index: failure.index,
+                pivot_relative: failure.pivot / scale,
+            }
         })
     }
 

@@ -140,6 +140,7 @@ fn factor_chunk_sized<const W: usize>(
     factor_chunk(a, n, c, threshold, size, failures)
 }
 
+/// [`factor_chunk`] for `n = N`.
 #[inline(always)]
 fn factor_chunk_fixed<const N: usize, const W: usize>(
     a: &mut [Lanes<W>],
@@ -162,37 +163,32 @@ fn factor_chunk<const W: usize>(
     size: usize,
     failures: &mut [Option<NonPositivePivot>],
 ) {
-    {
-        for j in 0..n {
-            let mut pivot = a[j + j * n];
+    for j in 0..n {
+        let mut pivot = a[j + j * n];
+        for k in 0..j {
+            pivot = pivot - a[j + k * n] * a[j + k * n];
+        }
+        let mut diagonal = [0.0; W];
+        for (lane, d) in diagonal.iter_mut().enumerate() {
+            let p = pivot.0[lane];
+            let sample = c * W + lane;
+            if (p.is_nan() || p <= threshold[lane]) && sample < size && failures[sample].is_none() {
+                failures[sample] = Some(NonPositivePivot { index: j, pivot: p });
+            }
+            *d = p.sqrt();
+        }
+        let diagonal = Lanes(diagonal);
+        a[j + j * n] = diagonal;
+        for i in j + 1..n {
+            let mut value = a[i + j * n];
             for k in 0..j {
-                pivot = pivot - a[j + k * n] * a[j + k * n];
+                value = value - a[i + k * n] * a[j + k * n];
             }
-            let mut diagonal = [0.0; W];
-            for (lane, d) in diagonal.iter_mut().enumerate() {
-                let p = pivot.0[lane];
-                let sample = c * W + lane;
-                if (p.is_nan() || p <= threshold[lane])
-                    && sample < size
-                    && failures[sample].is_none()
-                {
-                    failures[sample] = Some(NonPositivePivot { index: j, pivot: p });
-                }
-                *d = p.sqrt();
+            let mut quotient = value.0;
+            for (q, d) in quotient.iter_mut().zip(diagonal.0) {
+                *q /= d;
             }
-            let diagonal = Lanes(diagonal);
-            a[j + j * n] = diagonal;
-            for i in j + 1..n {
-                let mut value = a[i + j * n];
-                for k in 0..j {
-                    value = value - a[i + k * n] * a[j + k * n];
-                }
-                let mut quotient = value.0;
-                for (q, d) in quotient.iter_mut().zip(diagonal.0) {
-                    *q /= d;
-                }
-                a[i + j * n] = Lanes(quotient);
-            }
+            a[i + j * n] = Lanes(quotient);
         }
     }
 }
