@@ -9,8 +9,9 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::linalg::{cholesky, lu};
 
-/// A pivot smaller than this fraction of the matrix's largest entry means "singular to working
-/// precision". A matrix that close to singular (condition ≳ 1e13) leaves no correct digits at the
+/// A pivot smaller than this fraction of the matrix's largest entry (for a Cholesky factorisation:
+/// its largest diagonal entry, the same for the positive-definite matrices it accepts) means
+/// "singular to working precision". A matrix that close to singular (condition ≳ 1e13) leaves no correct digits at the
 /// Newton tolerances we use, and dependent constraint rows give pivots at the 1e-16 rounding level,
 /// well below it.
 pub const SINGULAR_PIVOT_RELATIVE: f64 = 1e-13;
@@ -111,7 +112,11 @@ impl DenseSolver {
                 }
                 self.finish_saddle_point(regular, scale)
             }
-            FactorKind::Lu | FactorKind::Cholesky => {
+            FactorKind::Cholesky => {
+                self.factors.as_mut_slice().copy_from_slice(whole);
+                self.factor_whole(largest_diagonal_entry(whole, a.nrows()))
+            }
+            FactorKind::Lu => {
                 self.factors.as_mut_slice().copy_from_slice(whole);
                 self.factor_whole(scale)
             }
@@ -172,23 +177,28 @@ impl DenseSolver {
                 let whole = self.factors.as_mut_slice();
                 write_a(whole, n);
                 assemble_constraint_blocks(whole, n, b, 1.0);
-                let scale = max_abs(whole);
+                let scale = if self.kind == FactorKind::Cholesky {
+                    largest_diagonal_entry(whole, n)
+                } else {
+                    max_abs(whole)
+                };
                 self.factor_whole(scale)
             }
         }
     }
 
     /// The smallest pivot a [`FactorKind::Cholesky`] factorisation accepts of a matrix whose
-    /// largest entry in magnitude (NaN entries counted as 0) is `largest`, as
+    /// largest diagonal entry in magnitude (NaN entries counted as 0) is `largest`
+    /// ([`largest_diagonal_entry`]), as
     /// [`DenseSolver::factor_blocks`] decides it: [`SINGULAR_PIVOT_RELATIVE`] times `largest`;
     /// `None` for a zero matrix, which it refuses outright.
-    pub fn cholesky_min_pivot_of_largest_entry(largest: f64) -> Option<f64> {
+    pub fn cholesky_min_pivot(largest: f64) -> Option<f64> {
         (largest != 0.0).then_some(SINGULAR_PIVOT_RELATIVE * largest)
     }
 
     /// Stores a Cholesky factorisation made elsewhere — the lock-step's batched factorisation
     /// (`dynamics::batch::cholesky_factor_with_min_pivots`) of the matrix [`DenseSolver::factor_blocks`]
-    /// would have factorised, with [`DenseSolver::cholesky_min_pivot_of_largest_entry`]'s threshold — as if
+    /// would have factorised, with [`DenseSolver::cholesky_min_pivot`]'s threshold — as if
     /// `factor_blocks` had made it: `factor` is the `n × n` column-major result (lower triangle `L`,
     /// the strict upper triangle the matrix's). Only for the [`FactorKind::Cholesky`] kind.
     pub fn install_cholesky_factor(&mut self, factor: &[f64]) {
@@ -294,7 +304,7 @@ impl DenseSolver {
     fn factor_cholesky(&mut self, scale: f64) -> Result<(), Breakdown> {
         let n = self.factors.nrows();
         // `factor_whole` refused a zero matrix already.
-        let min_pivot = Self::cholesky_min_pivot_of_largest_entry(scale).unwrap_or(0.0);
+        let min_pivot = Self::cholesky_min_pivot(scale).unwrap_or(0.0);
         cholesky::factor_in_place(self.factors.as_mut_slice(), n, min_pivot).map_err(|failure| {
             Breakdown {
                 index: failure.index,
@@ -432,6 +442,22 @@ fn first_non_finite_by_lanes(x: &[f64]) -> Option<usize> {
     }
 }
 
+/// The largest `|a_jj|` of the `n × n` column-major `a` over the diagonal entries that are not NaN
+/// (0 for none): the scale of a Cholesky factorisation's pivot test. Of a positive semi-definite
+/// matrix it is the largest entry (`|a_ij| ≤ √(a_ii a_jj)`), read from `n` entries instead of
+/// `n²`; a matrix that is not positive definite has a pivot at or below zero, refused at any
+/// scale.
+pub(crate) fn largest_diagonal_entry(a: &[f64], n: usize) -> f64 {
+    let mut largest = 0.0_f64;
+    for j in 0..n {
+        let magnitude = a[j * n + j].abs();
+        if magnitude > largest {
+            largest = magnitude;
+        }
+    }
+    largest
+}
+
 /// `max |x_i|` over the entries that are not NaN (0 for none): the same value as folding with
 /// `f64::max`, which skips NaN, but in four independent accumulators (a maximum is exact, so the
 /// order does not matter) rather than one chain of dependent comparisons.
@@ -470,6 +496,28 @@ mod tests {
 
     /// Agreement of an in-place solve with nalgebra's own LU on a well-conditioned matrix.
     const SOLVE_TOL: f64 = 1e-12;
+
+    /// The Cholesky kind scales its pivot test by the largest diagonal entry: of a positive
+    /// semi-definite matrix that is its largest entry, so the threshold is the whole matrix's
+    /// (`|a_ij| ≤ √(a_ii a_jj)`), here on Gram matrices of 1 to 16 rows, one singular.
+    #[test]
+    fn the_largest_diagonal_entry_of_a_semi_definite_matrix_is_its_largest_entry() {
+        let mut random = SplitMix64::new(41);
+        for n in 1..=16 {
+            let rank = if n == 9 { 4 } else { n };
+            let j = DMatrix::from_fn(rank, n, |_, _| random.uniform(-2.0, 2.0));
+            let a = j.transpose() * j;
+            assert_eq!(
+                largest_diagonal_entry(a.as_slice(), n),
+                max_abs(a.as_slice()),
+                "n {n}"
+            );
+        }
+        let mut nan = DMatrix::<f64>::identity(3, 3) * 2.0;
+        nan[(1, 1)] = f64::NAN;
+        assert_eq!(largest_diagonal_entry(nan.as_slice(), 3), 2.0);
+        assert_eq!(largest_diagonal_entry(&[], 0), 0.0);
+    }
 
     /// `max_abs` equals the `f64::max` fold it replaced, bit for bit, NaN and infinities included,
     /// for every length around the four accumulators' chunk.

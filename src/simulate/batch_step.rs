@@ -337,21 +337,24 @@ impl BatchStepper {
         if !batched.contains(&true) {
             return;
         }
-        // Each lane's largest entry, as `DenseSolver::cholesky_min_pivot` takes it (NaN as 0;
-        // the largest of a set does not depend on the order it is taken in).
+        // Each lane's largest diagonal entry, as `dense_solver::largest_diagonal_entry` takes it
+        // for `DenseSolver::cholesky_min_pivot` (NaN skipped).
         let mut largest = [0.0_f64; LANES];
-        for entry in &self.newton_matrices.chunks[..n2] {
-            for (m, x) in largest.iter_mut().zip(entry.0) {
+        for j in 0..nv {
+            for (m, x) in largest
+                .iter_mut()
+                .zip(self.newton_matrices.chunks[j * nv + j].0)
+            {
                 let magnitude = x.abs();
-                if !magnitude.is_nan() {
-                    *m = m.max(magnitude);
+                if magnitude > *m {
+                    *m = magnitude;
                 }
             }
         }
         let mut min_pivots = [0.0; LANES];
         let mut failures: [Option<NonPositivePivot>; LANES] = [None; LANES];
         for lane in 0..LANES {
-            match DenseSolver::cholesky_min_pivot_of_largest_entry(largest[lane]) {
+            match DenseSolver::cholesky_min_pivot(largest[lane]) {
                 Some(min_pivot) => min_pivots[lane] = min_pivot,
                 // A zero matrix: refused outright (by the integrator below).
                 None => {

@@ -13,7 +13,7 @@ use crate::model::{JointKind, Model};
 use crate::params::ParamTarget;
 use crate::scene::Scene;
 use crate::spatial::quaternion::{unit_quaternion_from_xyzw, write_xyzw};
-use crate::spatial::{Mat3, Transform, Vec3};
+use crate::spatial::{Transform, Vec3};
 use nalgebra::{DMatrix, DVector};
 
 /// A robot with its effects and constraint rows as the index-3 DAE
@@ -275,25 +275,41 @@ fn limit_sign(side: crate::effects::LimitSide) -> f64 {
     }
 }
 
-fn se3_exp(linear: &Vec3, angular: &Vec3) -> (Vec3, Mat3) {
+/// Below this rotation angle (rad) [`se3_exp`] uses the series of its coefficients: the closed
+/// forms lose digits to cancellation (`1 − cos θ`, `θ − sin θ`).
+const SE3_EXP_SERIES_BELOW: f64 = 1e-4;
+
+/// `exp` of the body twist `(v, ω)` as the translation `V(ω) v` and the rotation, the unit
+/// quaternion `(cos(θ/2), sin(θ/2) ω/θ)` with `θ = |ω|`, from one `sin_cos(θ/2)`:
+/// `V(ω) v = v + b ω × v + c ω × (ω × v)` with `b = (1 − cos θ)/θ² = 2 sin²(θ/2)/θ²` and
+/// `c = (θ − sin θ)/θ³`, `sin θ = 2 sin(θ/2) cos(θ/2)` (docs/method.md §5). Built as the quaternion
+/// itself rather than as a rotation matrix converted back (benches/README.md).
+fn se3_exp(linear: &Vec3, angular: &Vec3) -> (Vec3, nalgebra::UnitQuaternion<f64>) {
     let theta = angular.norm();
-    let skew = angular.cross_matrix();
-    let skew2 = skew * skew;
-    // Series below 1e-4 rad: the closed forms lose digits to cancellation.
-    let (a, b, c) = if theta < 1e-4 {
-        let t2 = theta * theta;
-        (1.0 - t2 / 6.0, 0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0)
-    } else {
-        let (s, co) = theta.sin_cos();
+    let t2 = theta * theta;
+    let (cos_half, sin_half_over_theta, b, c) = if theta < SE3_EXP_SERIES_BELOW {
         (
-            s / theta,
-            (1.0 - co) / (theta * theta),
-            (theta - s) / (theta * theta * theta),
+            1.0 - t2 / 8.0,
+            0.5 - t2 / 48.0,
+            0.5 - t2 / 24.0,
+            1.0 / 6.0 - t2 / 120.0,
+        )
+    } else {
+        let (sin_half, cos_half) = (0.5 * theta).sin_cos();
+        (
+            cos_half,
+            sin_half / theta,
+            2.0 * sin_half * sin_half / t2,
+            (theta - 2.0 * sin_half * cos_half) / (t2 * theta),
         )
     };
-    let rotation = Mat3::identity() + skew * a + skew2 * b;
-    let v_matrix = Mat3::identity() + skew * b + skew2 * c;
-    (v_matrix * linear, rotation)
+    let first = angular.cross(linear);
+    let translation = linear + first * b + angular.cross(&first) * c;
+    let vector = angular * sin_half_over_theta;
+    let rotation = nalgebra::UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(
+        cos_half, vector.x, vector.y, vector.z,
+    ));
+    (translation, rotation)
 }
 
 impl DaeSystem for RobotSystem {
@@ -394,6 +410,8 @@ impl DaeSystem for RobotSystem {
             }
             return Ok(());
         }
+        // Over slices: the entries of DVector's indexing cost more than the arithmetic here.
+        let (q, dq, out) = (q.as_slice(), dq.as_slice(), out.as_mut_slice());
         for joint in &self.model.joints {
             let (qi, vi) = (joint.q_index, joint.v_index);
             if joint.kind != JointKind::Floating {
@@ -402,20 +420,17 @@ impl DaeSystem for RobotSystem {
             }
             // q ⊕ δ = q · exp(δ): the twist δ = (v, ω) is in the body frame.
             let position = Vec3::new(q[qi], q[qi + 1], q[qi + 2]);
-            let orientation = unit_quaternion_from_xyzw(&q.as_slice()[qi + 3..qi + 7]);
+            let orientation = unit_quaternion_from_xyzw(&q[qi + 3..qi + 7]);
             let linear = Vec3::new(dq[vi], dq[vi + 1], dq[vi + 2]);
             let angular = Vec3::new(dq[vi + 3], dq[vi + 4], dq[vi + 5]);
-            let (translation, rotation) = se3_exp(&linear, &angular);
+            let (translation, increment) = se3_exp(&linear, &angular);
             let new_position = position + orientation * translation;
-            let increment = nalgebra::UnitQuaternion::from_rotation_matrix(
-                &nalgebra::Rotation3::from_matrix_unchecked(rotation),
-            );
             let new_orientation = orientation * increment;
             let quaternion = new_orientation.quaternion().normalize();
             out[qi] = new_position.x;
             out[qi + 1] = new_position.y;
             out[qi + 2] = new_position.z;
-            write_xyzw(&quaternion, &mut out.as_mut_slice()[qi + 3..qi + 7]);
+            write_xyzw(&quaternion, &mut out[qi + 3..qi + 7]);
         }
         Ok(())
     }
@@ -907,6 +922,7 @@ mod tests {
     use crate::integrate::{HhtIntegrator, HhtSettings};
     use crate::model::{LoadOptions, Model};
     use crate::scene::{read_sidecar, SceneOverrides};
+    use crate::spatial::Mat3;
 
     fn robot(name: &str) -> (RobotSystem, Scene) {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -1048,7 +1064,7 @@ mod tests {
     fn se3_exp_of_pure_rotation_and_translation() {
         let (t, r) = se3_exp(&Vec3::new(1.0, 2.0, 3.0), &Vec3::zeros());
         assert_eq!(t, Vec3::new(1.0, 2.0, 3.0));
-        assert_eq!(r, Mat3::identity());
+        assert_eq!(*r.to_rotation_matrix().matrix(), Mat3::identity());
         // A screw: rotate π/2 about z while moving 1 along x (body frame) sweeps a quarter circle.
         let (t, r) = se3_exp(
             &Vec3::new(1.0, 0.0, 0.0),
@@ -1057,5 +1073,50 @@ mod tests {
         let radius = 2.0 / std::f64::consts::PI;
         assert!((t - Vec3::new(radius, radius, 0.0)).norm() < 1e-12, "{t}");
         assert!((r * Vec3::x() - Vec3::y()).norm() < 1e-12);
+        assert!((r.quaternion().norm() - 1.0).abs() < 1e-15);
+    }
+
+    /// The quaternion form against the matrix exponential `I + a [ω]× + b [ω]×²` and
+    /// `V = I + b [ω]× + c [ω]×²` (closed forms with `sin θ`, `cos θ`), on both sides of the series
+    /// switch and at large angles.
+    #[test]
+    fn se3_exp_matches_the_matrix_exponential() {
+        for (scale, tolerance) in [
+            (1e-6, 1e-15),
+            (9e-5, 1e-15),
+            (2e-4, 1e-13),
+            (0.3, 1e-14),
+            (2.9, 1e-13),
+        ] {
+            let angular = Vec3::new(0.6, -0.48, 0.64) * scale;
+            let linear = Vec3::new(0.3, 1.1, -0.7);
+            let theta = angular.norm();
+            let skew = angular.cross_matrix();
+            let (sin, cos) = theta.sin_cos();
+            let rotation = Mat3::identity()
+                + skew * (sin / theta)
+                + skew * skew * ((1.0 - cos) / (theta * theta));
+            let v = Mat3::identity()
+                + skew * ((1.0 - cos) / (theta * theta))
+                + skew * skew * ((theta - sin) / (theta * theta * theta));
+            let (t, r) = se3_exp(&linear, &angular);
+            let r = *r.to_rotation_matrix().matrix();
+            assert!(
+                (r - rotation).amax() < tolerance,
+                "θ {theta}: rotation off by {:e}",
+                (r - rotation).amax()
+            );
+            // Below ~1e-3 rad the reference's own (θ − sin θ)/θ³ has lost its digits to cancellation.
+            if theta > 1e-3 {
+                let expected = v * linear;
+                assert!(
+                    (t - expected).amax() < tolerance,
+                    "θ {theta}: translation off by {:e}",
+                    (t - expected).amax()
+                );
+            } else {
+                assert!((t - (linear + angular.cross(&linear) * 0.5)).amax() < theta * theta);
+            }
+        }
     }
 }
