@@ -211,7 +211,7 @@ impl DenseSolver {
     }
 
     /// LU or Cholesky of the whole matrix in `factors` (per the kind; LU for a saddle-point
-    /// solver), `scale` its largest entry.
+    /// solver), `scale` its largest entry (for the Cholesky kind its largest diagonal entry).
     fn factor_whole(&mut self, scale: f64) -> Result<(), Breakdown> {
         if scale == 0.0 && self.dimension() > 0 {
             return Err(Breakdown {
@@ -227,7 +227,7 @@ impl DenseSolver {
 
     /// With `A` (`nv × nv`) in the first block of `blocks`: `A = L Lᵀ` (pivots refused below
     /// [`SINGULAR_PIVOT_RELATIVE`] × `scale`, the largest entry of the whole matrix, as for the
-    /// other kinds), `Y = L⁻¹ Bᵀ` (`b_entry(r, j)` = `B_rj`), `S = Yᵀ Y = L_S L_Sᵀ` (pivots
+    /// LU), `Y = L⁻¹ Bᵀ` (`b_entry(r, j)` = `B_rj`), `S = Yᵀ Y = L_S L_Sᵀ` (pivots
     /// refused below [`SINGULAR_PIVOT_RELATIVE`] × S's largest diagonal entry: dependent rows of
     /// `B`). An `A` that is not positive definite (a coordinate that moves no inertia but is held
     /// by a constraint row) can leave the saddle-point matrix regular: then the caller puts the

@@ -166,7 +166,8 @@ pub enum IntegrateError {
         index: usize,
     },
     /// A linear system was singular to working precision (a pivot below
-    /// `SINGULAR_PIVOT_RELATIVE` times the matrix's largest entry).
+    /// `SINGULAR_PIVOT_RELATIVE` times the matrix's largest entry; for a Cholesky factorisation its
+    /// largest diagonal entry, the same for a positive semi-definite matrix).
     #[error(
         "singular {matrix} at t = {} s (step {step}): pivot {index} is {pivot_relative:.3e} of the \
          largest entry (M not positive definite, or constraint rows dependent?)",

@@ -56,7 +56,7 @@ const CLOSED_AT_START: f64 = 1e-6;
 
 /// A joint whose column of the mass matrix is below this fraction of its largest diagonal entry
 /// moves (practically) no mass or inertia: a pivot that small is what the factorisations call
-/// singular too (`SINGULAR_PIVOT_RELATIVE` is 1e-12 relative to the largest entry).
+/// singular too (`SINGULAR_PIVOT_RELATIVE` is 1e-13 relative to the largest entry).
 const MASSLESS_RELATIVE: f64 = 1e-10;
 
 /// A coordinate takes part in a singular motion when its component in the null vector is at least
