@@ -61,8 +61,6 @@ pub struct BatchStepper {
     errors: Vec<Option<IntegrateError>>,
     /// One lane's `M` (nv²) or `τ` (nv).
     scratch: Vec<f64>,
-    /// The lanes' Newton matrices `M + diag`, factorised together (nv² per sample).
-    newton_matrices: BatchVectors<LANES>,
     counts: BatchStepCounts,
 }
 
@@ -103,7 +101,6 @@ impl BatchStepper {
             states: vec![LaneState::Idle; lanes],
             errors: (0..lanes).map(|_| None).collect(),
             scratch: vec![0.0; nv * nv],
-            newton_matrices: BatchVectors::zeros(nv * nv, lanes),
             counts: BatchStepCounts::default(),
         })
     }
@@ -292,18 +289,16 @@ impl BatchStepper {
 impl BatchStepper {
     /// The plain lanes' Newton matrices at their first iterates, from the batched CRBA's `M`.
     /// Without constraint rows each is the Cholesky factorisation of `M + diag`: those are
-    /// formed and factorised together, lane by lane the integrator's own operations and pivot test
+    /// formed and factorised together in place of the batch's `M` (which nothing reads after),
+    /// lane by lane the integrator's own operations and pivot test
     /// (`batch::cholesky_factor_with_min_pivots`, the threshold of `DenseSolver::cholesky_min_pivot`
-    /// from each lane's largest entry), and handed in; a lane whose matrix that test refuses is
-    /// factorised by its integrator, which refuses it the same way and abandons the step. With rows,
-    /// each lane factorises its own.
+    /// from each lane's largest diagonal entry), and handed in; a lane whose matrix that test
+    /// refuses abandons its plain step, and the scalar step, repeating it, refuses the same matrix.
+    /// With rows, each lane factorises its own from a copy of its `M`.
     fn factorise_plain_lanes(&mut self) {
         let nv = self.batch_model.nv;
         let n2 = nv * nv;
         let mut batched = [false; LANES];
-        self.newton_matrices
-            .chunks
-            .copy_from_slice(&self.batch_data.mass_matrix.chunks);
         let lanes = self.lanes();
         for (lane, lane_batched) in batched.iter_mut().enumerate().take(lanes) {
             let LaneState::Plain(plain) = &mut self.states[lane] else {
@@ -327,7 +322,7 @@ impl BatchStepper {
                     // The stepper's lanes are one chunk (at most LANES).
                     if let Some(diagonal) = diagonal {
                         for (j, d) in diagonal.iter().enumerate() {
-                            self.newton_matrices.chunks[j * nv + j].0[lane] += d;
+                            self.batch_data.mass_matrix.chunks[j * nv + j].0[lane] += d;
                         }
                     }
                     *lane_batched = true;
@@ -343,7 +338,7 @@ impl BatchStepper {
         for j in 0..nv {
             for (m, x) in largest
                 .iter_mut()
-                .zip(self.newton_matrices.chunks[j * nv + j].0)
+                .zip(self.batch_data.mass_matrix.chunks[j * nv + j].0)
             {
                 let magnitude = x.abs();
                 if magnitude > *m {
@@ -368,7 +363,7 @@ impl BatchStepper {
         let mut refused = failures;
         batch::cholesky_factor_with_min_pivots(
             self.batch_model.isa,
-            &mut self.newton_matrices,
+            &mut self.batch_data.mass_matrix,
             nv,
             &min_pivots,
             &mut failures,
@@ -385,15 +380,14 @@ impl BatchStepper {
                 continue;
             };
             let system = &mut self.systems[lane];
-            let matrix = &mut self.scratch[..n2];
             if refused[lane].is_some() {
-                self.batch_data.mass_matrix.copy_sample(lane, matrix);
-                if !integrator.plain_factorise(system, plain, matrix) {
-                    self.states[lane] = LaneState::Scalar;
-                }
+                // The scalar step repeats the attempt and refuses the same matrix.
+                integrator.plain_abandon(plain);
+                self.states[lane] = LaneState::Scalar;
                 continue;
             }
-            self.newton_matrices.copy_sample(lane, matrix);
+            let matrix = &mut self.scratch[..n2];
+            self.batch_data.mass_matrix.copy_sample(lane, matrix);
             integrator.plain_install_factor(system, plain, matrix);
         }
     }

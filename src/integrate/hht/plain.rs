@@ -320,6 +320,13 @@ impl HhtIntegrator {
         Ok(())
     }
 
+    /// Abandons the plain step (the caller runs [`HhtIntegrator::advance`] instead, which repeats
+    /// the attempt bit for bit): for a caller whose own evaluation for the step refused it, as
+    /// the integrator would (the lock-step's batched factorisation refusing a lane's matrix).
+    pub(crate) fn plain_abandon(&mut self, plain: &mut PlainStep) {
+        self.abandon_plain_step(plain);
+    }
+
     /// Puts back what a plain attempt changed outside the workspace.
     fn abandon_plain_step(&mut self, plain: &mut PlainStep) {
         self.trajectory.stats = plain.stats_before;
