@@ -36,7 +36,7 @@ use std::time::{Duration, Instant};
 use fall::STEPS_PER_FALL;
 use nalgebra::DVector;
 use ribbon::dynamics::batch::LANES;
-use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, ReportedVelocity};
+use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings};
 use ribbon::scene::Scene;
 use ribbon::simulate::{hht_settings, BatchStepCounts, BatchStepper, RobotSystem};
 
@@ -105,17 +105,13 @@ impl Batch {
     }
 
     /// One whole fall of every sample, only every `record_every`-th step computing the reported
-    /// velocity (a study recording every `record_every` steps; [`ReportedVelocity::Skipped`]
+    /// velocity (a study recording every `record_every` steps; [`ribbon::integrate::ReportedVelocity::Skipped`]
     /// between); the time spent stepping.
     fn fall_recording_every(&mut self, record_every: u64) -> Duration {
         self.restart();
         let start = Instant::now();
         for k in 1..=STEPS_PER_FALL {
-            let report = if k % record_every == 0 {
-                ReportedVelocity::Computed
-            } else {
-                ReportedVelocity::Skipped
-            };
+            let report = fall::reported_velocity(k, record_every);
             for (stepper, active) in self.steppers.iter_mut().zip(&self.active) {
                 let errors = stepper.step(active, report);
                 assert!(

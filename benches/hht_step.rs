@@ -29,9 +29,7 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, Criterion};
 use nalgebra::{DMatrix, DVector};
-use ribbon::integrate::{
-    DaeSystem, HhtIntegrator, HhtSettings, ReportedVelocity, StepControl, SystemError,
-};
+use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, StepControl, SystemError};
 use ribbon::model::{LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::{hht_settings, RobotSystem};
@@ -464,7 +462,7 @@ fn main() {
 /// factorised at every step (the default settings) or reused across steps (the opt-in
 /// [`HhtSettings::reuse_newton_matrix`]); prints the statistics and exits. Every step computes the
 /// reported velocity, or, with `--record-every K`, only every K-th (a study recording every K
-/// steps: [`ReportedVelocity::Skipped`] between). Run under `valgrind --tool=callgrind` with
+/// steps: [`ribbon::integrate::ReportedVelocity::Skipped`] between). Run under `valgrind --tool=callgrind` with
 /// `--toggle-collect` on `HhtIntegrator::advance_grid_step` (benches/step_instructions.py), or
 /// with STEPS = 1000 and 0: the difference of the two instruction counts over 1000 is the
 /// instructions per step (benches/README.md).
@@ -511,11 +509,7 @@ fn count_steps(args: &[String]) {
     let mut fall = Fall::with_reuse(&path, reuse);
     fall.restart();
     for k in 1..=steps {
-        let report = if k % record_every == 0 {
-            ReportedVelocity::Computed
-        } else {
-            ReportedVelocity::Skipped
-        };
+        let report = fall::reported_velocity(k, record_every);
         fall.hht
             .advance(&mut fall.system, report)
             .expect("step converges");

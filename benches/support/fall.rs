@@ -23,6 +23,16 @@ use ribbon::simulate::RobotSystem;
 /// Steps per trajectory: 1 s at h = 1 ms.
 pub const STEPS_PER_FALL: u64 = 1000;
 
+/// Whether step `k` (1-based) of a fall computes the reported velocity when a study records every
+/// `record_every` steps: only the step into a record does.
+pub fn reported_velocity(k: u64, record_every: u64) -> ribbon::integrate::ReportedVelocity {
+    if k.is_multiple_of(record_every) {
+        ribbon::integrate::ReportedVelocity::Computed
+    } else {
+        ribbon::integrate::ReportedVelocity::Skipped
+    }
+}
+
 /// Initial revolute angles (rad), cycled over the revolute joints in coordinate order; prismatic joints
 /// start at `PRISMATIC_Q0` (m). Within the joint limits of all three robots. Keep in sync with
 /// `REVOLUTE_Q0` in benches/mujoco_timing.py.

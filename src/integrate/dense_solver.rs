@@ -80,6 +80,11 @@ impl DenseSolver {
         }
     }
 
+    /// Which factorisation it makes.
+    pub fn kind(&self) -> FactorKind {
+        self.kind
+    }
+
     /// The dimension `n` of the systems it solves.
     pub fn dimension(&self) -> usize {
         self.factors.nrows()

@@ -54,7 +54,7 @@ pub struct HhtState {
     /// velocity (`Φ_q q̇ + Φ_t = 0` to rounding); the integrator's own recursion keeps the unprojected
     /// Newmark velocity (see [`HhtSettings::velocity_projection`]). After a step that left the
     /// reported velocity out ([`ReportedVelocity::Skipped`]) it is the Newmark velocity until the
-    /// next step that computes it ([`HhtTrajectory::velocity_reported`]).
+    /// next step that computes it.
     pub v: DVector<f64>,
     /// Acceleration-like variable `a` of the generalized-α scheme, dim `nv` (`a_0 = q̈_0`,
     /// `a_{n+1} = (1 + α) q̈_{n+1} − α q̈_n`). Not a physical acceleration: report `qdd`.
@@ -389,10 +389,6 @@ pub struct HhtTrajectory {
     pub previous_steps: u8,
     /// Statistics of this trajectory.
     pub stats: HhtStats,
-    /// Whether `state.v` is the reported velocity of the current state: `false` after a step taken
-    /// with [`ReportedVelocity::Skipped`] on a system with constraint rows (`state.v` is then the
-    /// Newmark velocity), `true` after the start and any step that computed it.
-    pub velocity_reported: bool,
     /// Step control of this trajectory (the next sub-step, the last one, the full-matrix hold).
     pub control: StepControlState,
     /// The Newton factorisation this trajectory's next step may reuse.
@@ -722,7 +718,6 @@ impl HhtIntegrator {
                 qdd_before_previous: DVector::zeros(nv),
                 previous_steps: 0,
                 stats: HhtStats::default(),
-                velocity_reported: true,
                 control: StepControlState::new(coeffs.h),
                 newton: NewtonMemory::new(nv, m),
             },
@@ -753,7 +748,6 @@ impl HhtIntegrator {
         self.trajectory.state.q.copy_from(&start.q);
         self.trajectory.state.v.copy_from(&start.v);
         self.trajectory.v_newmark.copy_from(&start.v);
-        self.trajectory.velocity_reported = true;
         self.trajectory.previous_steps = 0;
         self.trajectory.newton.forget();
         self.trajectory.state.qdd.copy_from(&start.qdd);
@@ -1421,12 +1415,8 @@ impl HhtIntegrator {
         } else {
             h
         };
-        if self.m > 0 {
-            if self.report_velocity {
-                self.finish_constrained_step(system, At { t: t1, step })?;
-            } else {
-                self.trajectory.velocity_reported = false;
-            }
+        if self.m > 0 && self.report_velocity {
+            self.finish_constrained_step(system, At { t: t1, step })?;
         }
         Ok(())
     }
@@ -1532,7 +1522,6 @@ impl HhtIntegrator {
         self.trajectory.state.q.copy_from(&start.q);
         self.trajectory.state.v.copy_from(&start.v);
         self.trajectory.v_newmark.copy_from(&start.v);
-        self.trajectory.velocity_reported = true;
         self.trajectory.state.qdd.copy_from(&start.qdd);
         self.trajectory.state.a.copy_from(&start.qdd);
         self.trajectory.state.lambda.copy_from(&start.lambda);
@@ -1926,8 +1915,6 @@ impl HhtIntegrator {
         at: At,
     ) -> Result<(), IntegrateError> {
         let (nv, m) = (self.nv, self.m);
-        // state.v is the Newmark velocity from here, the projected one below (when enabled).
-        self.trajectory.velocity_reported = true;
         {
             let ws = &mut self.ws;
             eval::constraints_and_jacobian(

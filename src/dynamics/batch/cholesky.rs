@@ -78,9 +78,7 @@ fn factor<const W: usize>(
     n: usize,
     failures: &mut [Option<NonPositivePivot>],
 ) -> bool {
-    failures.iter_mut().for_each(|f| *f = None);
-    let size = matrices.size;
-    for (c, a) in matrices.chunks.chunks_exact_mut(n * n).enumerate() {
+    factor_chunks(matrices, n, failures, |_, a| {
         // Column-major: entry (row, column) at `row + column · n`.
         let mut scale = [0.0; W];
         for i in 0..n {
@@ -92,9 +90,8 @@ fn factor<const W: usize>(
         for (t, s) in threshold.iter_mut().zip(scale) {
             *t = RELATIVE_PIVOT_TOLERANCE * s.max(f64::MIN_POSITIVE);
         }
-        factor_chunk(a, n, c, threshold, size, failures);
-    }
-    failures[..size].iter().all(Option::is_none)
+        threshold
+    })
 }
 
 #[inline(always)]
@@ -104,13 +101,29 @@ fn factor_with_min_pivots<const W: usize>(
     min_pivots: &[f64],
     failures: &mut [Option<NonPositivePivot>],
 ) -> bool {
-    failures.iter_mut().for_each(|f| *f = None);
-    let size = matrices.size;
-    for (c, a) in matrices.chunks.chunks_exact_mut(n * n).enumerate() {
+    factor_chunks(matrices, n, failures, |c, _| {
         let mut threshold = [0.0; W];
         for (lane, t) in threshold.iter_mut().enumerate() {
             *t = min_pivots.get(c * W + lane).copied().unwrap_or(0.0);
         }
+        threshold
+    })
+}
+
+/// Every chunk `c` factorised ([`factor_chunk`]) with the smallest pivots `threshold(c, its
+/// entries)`; `failures` overwritten as [`cholesky_factor`] says. Returns whether every sample
+/// succeeded.
+#[inline(always)]
+fn factor_chunks<const W: usize>(
+    matrices: &mut BatchVectors<W>,
+    n: usize,
+    failures: &mut [Option<NonPositivePivot>],
+    threshold: impl Fn(usize, &[Lanes<W>]) -> [f64; W],
+) -> bool {
+    failures.iter_mut().for_each(|f| *f = None);
+    let size = matrices.size;
+    for (c, a) in matrices.chunks.chunks_exact_mut(n * n).enumerate() {
+        let threshold = threshold(c, a);
         factor_chunk_sized(a, n, c, threshold, size, failures);
     }
     failures[..size].iter().all(Option::is_none)
@@ -127,6 +140,8 @@ fn factor_chunk_sized<const W: usize>(
     size: usize,
     failures: &mut [Option<NonPositivePivot>],
 ) {
+    // The sizes of `linalg::return_for_fixed_size!` (up to `FIXED_SIZE_UP_TO` = 16); that macro
+    // cannot pass the lane count `W` through.
     macro_rules! sized {
         ($($size:literal)*) => {
             match n {
@@ -135,7 +150,6 @@ fn factor_chunk_sized<const W: usize>(
             }
         };
     }
-    // linalg::FIXED_SIZE_UP_TO = 16, as the scalar kernels.
     sized!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16);
     factor_chunk(a, n, c, threshold, size, failures)
 }

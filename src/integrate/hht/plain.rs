@@ -20,6 +20,7 @@ use super::{
     NewtonMatrix, NewtonPass, PassVerdict, ReportedVelocity, StepControl, StepControlState,
     ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
 };
+use crate::integrate::FactorKind;
 use nalgebra::DVector;
 
 /// A plain grid step in progress ([`HhtIntegrator::begin_plain_step`]).
@@ -164,7 +165,7 @@ impl HhtIntegrator {
     /// rows), which the caller may make itself: [`HhtIntegrator::plain_newton_diagonal`] and
     /// [`HhtIntegrator::plain_install_factor`] then replace [`HhtIntegrator::plain_factorise`].
     pub(crate) fn plain_factor_is_cholesky(&self) -> bool {
-        self.m == 0
+        self.trajectory.newton.solver.kind() == FactorKind::Cholesky
     }
 
     /// The diagonal the Newton matrix adds to `M` at the plain step's first iterate (`β'h² k +
