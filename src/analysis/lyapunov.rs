@@ -155,9 +155,7 @@ pub fn estimate_lyapunov(
             pull(&mut far.state.qdd, &near.state.qdd);
             pull(&mut far.state.lambda, &near.state.lambda);
             pull(&mut far.v_newmark, &near.v_newmark);
-            pull(&mut far.qdd_previous, &near.qdd_previous);
-            pull(&mut far.qdd_before_previous, &near.qdd_before_previous);
-            pull(&mut far.lambda_previous, &near.lambda_previous);
+            far.predictor.pull_towards(&near.predictor, scale);
             shadow.swap_trajectory(&mut far).ok()?;
         }
     }

@@ -35,11 +35,13 @@ use super::system::DaeSystem;
 
 mod newton_pass;
 mod plain;
+mod predictor;
 use newton_pass::{
     CarriedContraction, IterationReport, MeasuredContraction, NewtonPass, PassVerdict,
 };
 pub use newton_pass::{CARRIED_RATE_FLOOR, CARRIED_RATE_SAFETY, RATE_TEST_MAX_CONTRACTION};
 pub(crate) use plain::{PlainProgress, PlainStep};
+pub use predictor::{PredictorHistory, PREDICTOR_CURVATURE_MAX_STEP_RATIO, PREDICTOR_MAX_ORDER};
 
 /// The integrator's state at time `t` (all vectors in the system's coordinates).
 #[derive(Debug, Clone, PartialEq)]
@@ -376,17 +378,9 @@ pub struct HhtTrajectory {
     pub state: HhtState,
     /// The Newmark velocity of the recursion (differs from `state.v` after a velocity projection).
     pub v_newmark: DVector<f64>,
-    /// `q̈` at the start of the last accepted step, for the predictor (valid when
-    /// `previous_steps ≥ 1`).
-    pub qdd_previous: DVector<f64>,
-    /// `q̈` at the start of the step before that, for the predictor's curvature (valid when
-    /// `previous_steps = 2`).
-    pub qdd_before_previous: DVector<f64>,
-    /// `λ` of the previous step, for the predictor (valid when `previous_steps ≥ 1`).
-    pub lambda_previous: DVector<f64>,
-    /// How many accepted steps the predictor's history holds since the start or the last impact
-    /// (0, 1 or 2): it extrapolates `q̈` from that many past values besides `q̈_n`.
-    pub previous_steps: u8,
+    /// The accepted `q̈` and `λ` before the current ones, which the predictor extrapolates
+    /// through (emptied at a start, a restart and an impact).
+    pub predictor: PredictorHistory,
     /// Statistics of this trajectory.
     pub stats: HhtStats,
     /// Step control of this trajectory (the next sub-step, the last one, the full-matrix hold).
@@ -420,113 +414,6 @@ impl StepControlState {
             h_before_last: h,
             full_newton_hold: 0,
             last_step_plain: true,
-        }
-    }
-}
-
-/// The predictor uses its quadratic term only when the next step and the last two accepted ones
-/// are within this factor of each other: the curvature is a difference of differences divided by
-/// the steps, and across a sharp change of step size (a step shortened to an impact, a halving)
-/// it would amplify the history's rounding noise rather than extrapolate the motion.
-pub const PREDICTOR_CURVATURE_MAX_STEP_RATIO: f64 = 2.0;
-
-/// The quadratic term of the predictor for a step of `h` after accepted steps `h_last` (from
-/// `t_{n−1}` to `t_n`) and `h_before_last`: with `Δ₁ = q̈_n − q̈_{n−1}`, `Δ₀ = q̈_{n−1} − q̈_{n−2}`,
-/// the term `h (h + h_last)/(h_last + h_before_last) · (Δ₁/h_last − Δ₀/h_before_last)` that
-/// Newton's divided differences add to the linear extrapolation (`Δ₁ − Δ₀` when all three steps
-/// are equal, giving `3q̈_n − 3q̈_{n−1} + q̈_{n−2}`).
-#[derive(Debug, Clone, Copy)]
-enum CurvatureWeights {
-    /// All three steps equal: the term is `Δ₁ − Δ₀`.
-    Equal,
-    /// The term is `scale · (Δ₁/h_last − Δ₀/h_before_last)`.
-    Variable {
-        scale: f64,
-        h_last: f64,
-        h_before_last: f64,
-    },
-}
-
-impl CurvatureWeights {
-    /// The weights for a step of `h`, or `None` when the steps differ by more than
-    /// [`PREDICTOR_CURVATURE_MAX_STEP_RATIO`].
-    fn new(h: f64, control: &StepControlState) -> Option<Self> {
-        let (h_last, h_before_last) = (control.h_last, control.h_before_last);
-        if h == h_last && h_last == h_before_last {
-            return Some(Self::Equal);
-        }
-        let largest = h.max(h_last).max(h_before_last);
-        let smallest = h.min(h_last).min(h_before_last);
-        (largest <= PREDICTOR_CURVATURE_MAX_STEP_RATIO * smallest).then(|| Self::Variable {
-            scale: h * (h + h_last) / (h_last + h_before_last),
-            h_last,
-            h_before_last,
-        })
-    }
-}
-
-/// The predicted `q̈_{n+1}` of every coordinate into `out` from `[q̈_n, q̈_{n−1}, q̈_{n−2}]`
-/// (`history`; the last is read only with `curvature`): the linear extrapolation with the step
-/// ratio `ratio = h/h_last`, plus the quadratic term where the coordinate's history is smooth — a
-/// history that bends more than it rises in either of its last two steps is not (a mode the step
-/// does not resolve flips q̈'s sign from step to step, and the quadratic term would throw the
-/// prediction 7× the swing away), and keeps the linear prediction. One loop per case, so that the
-/// common ones (equal steps) run without branches.
-fn predict_accelerations(
-    out: &mut [f64],
-    history: [&[f64]; 3],
-    ratio: f64,
-    curvature: Option<CurvatureWeights>,
-) {
-    let [now, before, before_that] = history;
-    let Some(curvature) = curvature else {
-        return extrapolate_linearly(out, now, before, ratio);
-    };
-    let entries = out.iter_mut().zip(now).zip(before).zip(before_that);
-    match curvature {
-        CurvatureWeights::Equal => {
-            for (((x, now), before), before_that) in entries {
-                let rise = now - before;
-                let rise_before = before - before_that;
-                let bend = rise - rise_before;
-                let linear = 2.0 * now - before;
-                let smooth = bend.abs() <= rise.abs().max(rise_before.abs());
-                *x = if smooth { linear + bend } else { linear };
-            }
-        }
-        CurvatureWeights::Variable {
-            scale,
-            h_last,
-            h_before_last,
-        } => {
-            for (((x, now), before), before_that) in entries {
-                let rise = now - before;
-                let (linear, increment) = if ratio == 1.0 {
-                    (2.0 * now - before, rise)
-                } else {
-                    let increment = ratio * rise;
-                    (now + increment, increment)
-                };
-                let rise_before = before - before_that;
-                let bend = scale * (rise / h_last - rise_before / h_before_last);
-                let smooth = bend.abs() <= increment.abs().max(rise_before.abs());
-                *x = if smooth { linear + bend } else { linear };
-            }
-        }
-    }
-}
-
-/// The linear extrapolation `now + ratio · (now − before)` of every entry into `out`
-/// (`2 now − before` for equal steps): the predictor's `λ`, and its `q̈` without a curvature term.
-fn extrapolate_linearly(out: &mut [f64], now: &[f64], before: &[f64], ratio: f64) {
-    let entries = out.iter_mut().zip(now).zip(before);
-    if ratio == 1.0 {
-        for ((x, now), before) in entries {
-            *x = 2.0 * now - before;
-        }
-    } else {
-        for ((x, now), before) in entries {
-            *x = now + ratio * (now - before);
         }
     }
 }
@@ -713,10 +600,7 @@ impl HhtIntegrator {
                     lambda: DVector::zeros(m),
                 },
                 v_newmark: DVector::zeros(nv),
-                qdd_previous: DVector::zeros(nv),
-                lambda_previous: DVector::zeros(m),
-                qdd_before_previous: DVector::zeros(nv),
-                previous_steps: 0,
+                predictor: PredictorHistory::new(nv, m),
                 stats: HhtStats::default(),
                 control: StepControlState::new(coeffs.h),
                 newton: NewtonMemory::new(nv, m),
@@ -748,7 +632,7 @@ impl HhtIntegrator {
         self.trajectory.state.q.copy_from(&start.q);
         self.trajectory.state.v.copy_from(&start.v);
         self.trajectory.v_newmark.copy_from(&start.v);
-        self.trajectory.previous_steps = 0;
+        self.trajectory.predictor.clear();
         self.trajectory.newton.forget();
         self.trajectory.state.qdd.copy_from(&start.qdd);
         self.trajectory.state.a.copy_from(&start.qdd);
@@ -1097,19 +981,13 @@ impl HhtIntegrator {
     /// Sets the coefficients of a step of size `h` and the predictor: `a_n` as this step sees it
     /// (`ws.a_start`) and the first iterate `ws.qdd`, `ws.lambda` (counted in
     /// `stats.stiff_predictions` when the constant-velocity predictor replaces the extrapolation).
-    fn predict(&mut self, h: f64) {
+    fn predict(&mut self, h: f64, by_order: bool) {
         self.coeffs = if h == self.grid_coeffs.h {
             self.grid_coeffs
         } else {
             HhtCoefficients::new(self.grid_coeffs.alpha, h)
         };
 
-        // Predictor (docs/step-control.md §2): q̈_{n+1} extrapolated from q̈_n and the history —
-        // linearly, q̈_n + (h/h_last)(q̈_n − q̈_{n−1}), after one accepted step; with the quadratic
-        // term through q̈_{n−2} as well after two, on entries whose history is smooth; λ
-        // linearly. On smooth motion each order starts Newton 10–100× closer to the solution
-        // (measured on the ur5 and panda falls), which saves iterations; the converged result is
-        // the same to the Newton tolerance.
         // a_n stands for q̈ at t_n + α h_last (a_n = q̈_n + α (q̈_n − q̈_{n−1})); a step of another
         // size needs it at t_n + α h: rescale its offset from q̈_n, or the variable step loses its
         // second order.
@@ -1128,32 +1006,21 @@ impl HhtIntegrator {
                 *x = qdd_n + ratio * (a_n - qdd_n);
             }
         }
-        if self.trajectory.previous_steps > 0 {
-            let trajectory = &self.trajectory;
-            let ws = &mut self.ws;
-            let curvature = (trajectory.previous_steps == 2)
-                .then(|| CurvatureWeights::new(h, &trajectory.control))
-                .flatten();
-            predict_accelerations(
-                ws.qdd.as_mut_slice(),
-                [
-                    trajectory.state.qdd.as_slice(),
-                    trajectory.qdd_previous.as_slice(),
-                    trajectory.qdd_before_previous.as_slice(),
-                ],
-                ratio,
-                curvature,
-            );
-            extrapolate_linearly(
-                ws.lambda.as_mut_slice(),
+        // Predictor (docs/step-control.md §2, hht/predictor.rs): q̈_{n+1} and λ_{n+1} extrapolated
+        // through the accepted history, each entry by the order that predicted its last value best
+        // on a run of equal steps. The converged result is the same to the Newton tolerance.
+        let trajectory = &self.trajectory;
+        trajectory.predictor.predict(
+            h,
+            by_order,
+            &trajectory.control,
+            (
+                trajectory.state.qdd.as_slice(),
                 trajectory.state.lambda.as_slice(),
-                trajectory.lambda_previous.as_slice(),
-                ratio,
-            );
-        } else {
-            self.ws.qdd.copy_from(&self.trajectory.state.qdd);
-            self.ws.lambda.copy_from(&self.trajectory.state.lambda);
-        }
+            ),
+            self.ws.qdd.as_mut_slice(),
+            self.ws.lambda.as_mut_slice(),
+        );
         // An unresolved stiff mode (a spring whose period is far below h) makes the extrapolated
         // q̈ meaningless: its position term h²[(½ − β) a_n + β a_{n+1}] can throw the predicted
         // configuration radians away, where no Newton matrix helps. Then predict constant velocity
@@ -1187,6 +1054,13 @@ impl HhtIntegrator {
         }
     }
 
+    /// Whether the predictor blends its orders by the history on runs of equal steps
+    /// ([`HhtSettings::choose_predictor_order`] and a system whose forces are smooth between steps,
+    /// [`DaeSystem::smooth_between_steps`]).
+    fn predicts_by_order<S: DaeSystem + ?Sized>(&self, system: &S) -> bool {
+        self.settings.choose_predictor_order && system.smooth_between_steps()
+    }
+
     /// One attempt of a (sub-)step of size `h` from the current state to `t1`: predictor, then
     /// Newton (diagonal matrix first; the full matrix on refresh or while held, see
     /// [`NewtonMatrix`]). The state is not touched; the candidate end state is left in the workspace.
@@ -1201,7 +1075,7 @@ impl HhtIntegrator {
         check_prediction: bool,
     ) -> Result<Attempt, IntegrateError> {
         let at = At { t: t1, step };
-        self.predict(h);
+        self.predict(h, self.predicts_by_order(system));
         self.update_iterate(system, at)?;
         if check_prediction {
             if let Some(crossing) = self.find_crossing(system, t1, h)? {
@@ -1381,19 +1255,18 @@ impl HhtIntegrator {
         h: f64,
         step: u64,
     ) -> Result<(), IntegrateError> {
-        // The history moves back one step by swapping buffers: q̈_n and λ_n become the previous
-        // ones, and the buffers they leave are overwritten with the new state just below.
+        // The history moves back one step by swapping buffers: q̈_n and λ_n go into the predictor's
+        // history, and the buffers they leave are overwritten with the new state just below.
+        let by_order = self.predicts_by_order(system);
         let trajectory = &mut self.trajectory;
-        std::mem::swap(
-            &mut trajectory.qdd_before_previous,
-            &mut trajectory.qdd_previous,
-        );
-        std::mem::swap(&mut trajectory.qdd_previous, &mut trajectory.state.qdd);
-        std::mem::swap(
-            &mut trajectory.lambda_previous,
+        trajectory.predictor.push(
+            h,
+            trajectory.control.h_last,
+            by_order,
+            &mut trajectory.state.qdd,
             &mut trajectory.state.lambda,
+            (self.ws.qdd.as_slice(), self.ws.lambda.as_slice()),
         );
-        trajectory.previous_steps = (trajectory.previous_steps + 1).min(2);
         let ws = &self.ws;
         let state = &mut self.trajectory.state;
         state.t = t1;
@@ -1525,7 +1398,7 @@ impl HhtIntegrator {
         self.trajectory.state.qdd.copy_from(&start.qdd);
         self.trajectory.state.a.copy_from(&start.qdd);
         self.trajectory.state.lambda.copy_from(&start.lambda);
-        self.trajectory.previous_steps = 0;
+        self.trajectory.predictor.clear();
         self.trajectory.newton.forget();
         self.trajectory.stats.impacts += 1;
         self.ws.mass_fresh = false;

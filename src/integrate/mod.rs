@@ -52,9 +52,10 @@ pub(crate) use dense_solver::{DenseSolver, FactorKind};
 pub use error::{IntegrateError, SystemError, WorstEntry};
 pub use hht::{
     iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtState, HhtStats, HhtTrajectory,
-    ReportedVelocity, StepControlState, CARRIED_RATE_FLOOR, CARRIED_RATE_SAFETY,
+    PredictorHistory, ReportedVelocity, StepControlState, CARRIED_RATE_FLOOR, CARRIED_RATE_SAFETY,
     IMPACT_LOCATE_FRACTION, IMPACT_MIN_SPEED, MAX_ATTEMPTS_PER_STEP,
-    PREDICTOR_MAX_ACCELERATION_DISPLACEMENT, RATE_TEST_MAX_CONTRACTION,
+    PREDICTOR_CURVATURE_MAX_STEP_RATIO, PREDICTOR_MAX_ACCELERATION_DISPLACEMENT,
+    PREDICTOR_MAX_ORDER, RATE_TEST_MAX_CONTRACTION,
 };
 pub(crate) use hht::{PlainProgress, PlainStep};
 pub use sensitivity::{

@@ -206,6 +206,16 @@ pub trait DaeSystem {
         0
     }
 
+    /// Whether the forces are smooth along a trajectory between steps, so that the predictor may
+    /// extrapolate `q̈` and `λ` by polynomials of up to fourth order
+    /// ([`HhtSettings::choose_predictor_order`](super::HhtSettings::choose_predictor_order)).
+    /// Default `true`. A system whose forces switch within a step (contacts touching down, a
+    /// sliding contact coming to stick) returns `false`: high orders extrapolate such a kink into
+    /// an overshoot that Newton cannot recover from at the fixed step (docs/step-control.md §2).
+    fn smooth_between_steps(&self) -> bool {
+        true
+    }
+
     /// Whether [`newton_coupling`](Self::newton_coupling) adds anything. Default `false`.
     fn provides_newton_coupling(&self) -> bool {
         false

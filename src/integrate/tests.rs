@@ -1655,12 +1655,15 @@ const TIGHT_NEWTON_FACTOR: f64 = 1e-3;
 
 /// A step accepted after its first correction by the last step's contraction (docs/step-control.md
 /// §2, "Accepting the first correction") is within the Newton tolerance: over 1 s of the shipped
-/// ur5, double pendulum and four-bar scenes, the positions stay within one step's position
-/// tolerance (`reltol · max|q| + abstol_position`) of a run converged 1000× tighter, while the
-/// acceptance saves iterations.
+/// ur5, double pendulum, four-bar and slider-crank scenes, the positions stay within one step's
+/// position tolerance (`reltol · max|q| + abstol_position`) of a run converged 1000× tighter, while
+/// the acceptance saves iterations. (Since the predictor chooses its order per entry, the double
+/// pendulum's first correction is within tolerance at every step and the rule is never asked; the
+/// loop scenes and the ur5 still use it.)
 #[test]
 fn first_corrections_accepted_by_the_carried_contraction_stay_within_the_tolerance() {
-    for dir in ["ur5", "double_pendulum", "four_bar"] {
+    let mut scenes_using_the_rule = 0;
+    for dir in ["ur5", "double_pendulum", "four_bar", "slider_crank"] {
         let (mut system, scene) = shipped_scene(dir);
         let (q0, v0) = (dvec(&scene.initial_q), dvec(&scene.initial_v));
         let settings = crate::simulate::hht_settings(&scene);
@@ -1686,7 +1689,9 @@ fn first_corrections_accepted_by_the_carried_contraction_stay_within_the_toleran
             "{dir}: {} Newton iterations in 1000 steps, {} accepted by the carried contraction; max |Δq| {max_difference:.2e} against one step's tolerance {one_step_tolerance:.2e}",
             stats.newton_iterations, stats.carried_rate_acceptances
         );
-        assert!(stats.carried_rate_acceptances > 0, "{dir}: never used");
+        if stats.carried_rate_acceptances > 0 {
+            scenes_using_the_rule += 1;
+        }
         // The reference must not depend on the rule under test.
         assert_eq!(
             reference.stats().carried_rate_acceptances,
@@ -1698,4 +1703,8 @@ fn first_corrections_accepted_by_the_carried_contraction_stay_within_the_toleran
             "{dir}: {max_difference:e} > {one_step_tolerance:e}"
         );
     }
+    assert!(
+        scenes_using_the_rule >= 3,
+        "only {scenes_using_the_rule} of the four scenes accepted a first correction by the carried contraction"
+    );
 }

@@ -72,6 +72,8 @@ pub fn central_difference_settings(scene: &Scene) -> HhtSettings {
         reuse_newton_matrix: false,
         // Likewise the first correction accepted by the last step's contraction.
         accept_by_carried_contraction: false,
+        // Likewise the predictor's order chosen by the history.
+        choose_predictor_order: false,
         ..hht_settings(scene)
     }
 }

@@ -558,6 +558,11 @@ impl DaeSystem for RobotSystem {
         self.effects.has_contact_coupling()
     }
 
+    /// Not with contacts: touch-downs and stick-slip transitions are kinks within a step.
+    fn smooth_between_steps(&self) -> bool {
+        !self.effects.has_contacts()
+    }
+
     /// Contacts: `Jᵀ K J` and `Jᵀ C J` over the touching pairs (docs/contacts.md §4).
     fn newton_coupling(
         &mut self,

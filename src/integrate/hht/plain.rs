@@ -118,7 +118,7 @@ impl HhtIntegrator {
             control_before: self.trajectory.control,
             newton_before: self.trajectory.newton.flags(),
         };
-        self.predict(plan.h);
+        self.predict(plan.h, self.predicts_by_order(system));
         if self.update_iterate(system, plain.at).is_err() {
             self.abandon_plain_step(&mut plain);
             return None;
