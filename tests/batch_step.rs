@@ -219,6 +219,57 @@ fn every_lane_steps_bit_for_bit_as_the_scalar_integrator_on_the_shipped_robots()
     }
 }
 
+/// A branched tree: the shipped quadruped without its contacts (a floating base falling with its
+/// legs on PD springs; contacts are not plain steps). Its mass matrix has entries that couple
+/// different legs, zero in every configuration: the batched CRBA zeroes only those, and the
+/// lock-step factorises in place of its `M`, so every lane must still be the scalar integrator's
+/// bit for bit over many steps.
+#[test]
+fn every_lane_steps_bit_for_bit_as_the_scalar_integrator_on_a_branched_tree() {
+    let shipped = std::fs::read_to_string(common::manifest(
+        "robots/quadruped/quadruped.uncertainty.toml",
+    ))
+    .expect("read the quadruped's sidecar");
+    let (before_contact, after_contact) = shipped
+        .split_once("[scene.contact]")
+        .expect("the quadruped's sidecar declares contacts");
+    let outputs = &after_contact[after_contact.find("[outputs]").expect("an [outputs] table")..];
+    let without_contacts: String = format!("{before_contact}{outputs}")
+        .lines()
+        .filter(|line| {
+            !["contact", "r_foot", "step_control"]
+                .iter()
+                .any(|word| line.contains(word))
+        })
+        .map(|line| format!("{line}\n"))
+        .collect();
+    let sidecar = common::scratch_file("batch_step", "quadruped_without_contacts.toml");
+    std::fs::write(&sidecar, without_contacts).expect("write the sidecar");
+    let steps = 300;
+    let setup = common::shipped_setup(
+        "robots/quadruped/quadruped.urdf",
+        sidecar.to_str().expect("a UTF-8 path"),
+        steps as f64 * 1e-3,
+    );
+    assert!(setup.scene.contact.is_none(), "contacts left in the scene");
+    let settings = hht_settings(&setup.scene);
+    for lanes in [1, 4] {
+        let what = format!("quadruped without contacts, {lanes} lanes");
+        let (scalar, batched, counts) = run_both(&setup, &vec![settings; lanes], steps, every_step);
+        assert!(
+            scalar.iter().all(|r| r.error.is_none()),
+            "{what}: the scalar runs are expected to succeed"
+        );
+        assert_lanes_match(&what, &scalar, &batched);
+        let total = (lanes * steps) as u64;
+        assert!(
+            counts.batched * 100 >= total * 95,
+            "{what}: only {} of {total} lane steps were batched",
+            counts.batched
+        );
+    }
+}
+
 /// A study leaves the reported velocity out between its records (`ReportedVelocity::Skipped`):
 /// on the closed loops (constraint rows, the velocity projection) the batched lanes must still be
 /// the scalar integrator's at every step, and every step that computes it must have the bits of

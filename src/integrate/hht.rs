@@ -4,8 +4,9 @@
 //! One step, as data flow:
 //!
 //! ```text
-//! (t_n, q_n, q̇_n, a_n, q̈_n, λ_n) => predictor: q̈ extrapolated through q̈_{n−1} (and q̈_{n−2}
-//!      where smooth), λ = 2λ_n − λ_{n−1}                               (docs/step-control.md §2)
+//! (t_n, q_n, q̇_n, a_n, q̈_n, λ_n) => predictor (hht/predictor.rs): on a run of equal steps q̈ and
+//!      λ by orders 0–4 blended per entry by their last misses; else q̈ through q̈_{n−1} (and
+//!      q̈_{n−2} where smooth), λ linearly                                (docs/step-control.md §2)
 //!   => without constraint rows: iterate with the trajectory's stored factorisation if the last
 //!      step contracted fast (ρ ≤ NEWTON_REUSE_MAX_RATE) at the same h; slower drops it at once
 //!   => else factorise the iteration matrix at the predicted (q, q̇)     (modified Newton)

@@ -50,7 +50,11 @@ pub(super) fn crba_chunks<const W: usize>(
         }
         // Column-major storage: entry (row, column) at `row + column · n`.
         let mass = &mut data.mass_matrix.chunks[c * n * n..(c + 1) * n * n];
-        mass.fill(Lanes::zero());
+        // Every entry below is written except those of joints on different branches, which are
+        // zero (and the lock-step's in-place factorisation may have overwritten).
+        for &k in &model.mass_matrix_zeros {
+            mass[k] = Lanes::zero();
+        }
         let mut projected = [Lanes::zero(); 6];
         for (i, joint) in model.joints.iter().enumerate() {
             let axis = &values.axis[i];

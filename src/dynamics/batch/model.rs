@@ -106,6 +106,10 @@ pub struct BatchModel<const W: usize> {
     pub chunks: Vec<ChunkValues<W>>,
     /// The instruction set the kernels run with ([`Isa::best`] after [`BatchModel::from_models`]).
     pub isa: Isa,
+    /// Column-major indices (`row + column · nv`) of the entries of `M` that couple two joints
+    /// neither of which is an ancestor of the other: zero in every configuration, and the only
+    /// entries the batched CRBA does not write (it zeroes them instead of the whole matrix).
+    pub mass_matrix_zeros: Vec<usize>,
 }
 
 impl<const W: usize> BatchModel<W> {
@@ -125,6 +129,7 @@ impl<const W: usize> BatchModel<W> {
             .collect();
         let chunk_count = models.len().div_ceil(W);
         let nb = joints.len();
+        let mass_matrix_zeros = decoupled_entries(&joints, first.nv);
         let blank = ChunkValues {
             parent_from_joint: vec![TransformLanes::identity(); nb],
             axis: vec![[Lanes::zero(); 3]; nb],
@@ -138,6 +143,7 @@ impl<const W: usize> BatchModel<W> {
             size: models.len(),
             chunks: vec![blank; chunk_count],
             isa: Isa::best(),
+            mass_matrix_zeros,
         };
         for (sample, model) in models.iter().enumerate() {
             batch.check_tree(sample, model)?;
@@ -241,4 +247,24 @@ pub fn lane_transform<const W: usize>(value: &TransformLanes<W>, lane: usize) ->
     let r = &value.rotation;
     let rotation = Mat3::from_fn(|i, j| r[i][j].0[lane]);
     Transform::new(rotation, lane_v3(&value.translation, lane))
+}
+
+/// The column-major indices of the `nv × nv` entries that couple two joints neither of which is an
+/// ancestor of the other (`BatchModel::mass_matrix_zeros`).
+fn decoupled_entries(joints: &[BatchJoint], nv: usize) -> Vec<usize> {
+    let mut coupled = vec![false; nv * nv];
+    for (i, joint) in joints.iter().enumerate() {
+        let mut ancestor = Some(i);
+        while let Some(a) = ancestor {
+            let other = &joints[a];
+            for column in joint.v_index..joint.v_index + joint.nv() {
+                for row in other.v_index..other.v_index + other.nv() {
+                    coupled[row + column * nv] = true;
+                    coupled[column + row * nv] = true;
+                }
+            }
+            ancestor = other.parent;
+        }
+    }
+    (0..nv * nv).filter(|&k| !coupled[k]).collect()
 }
