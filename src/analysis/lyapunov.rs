@@ -144,18 +144,7 @@ pub fn estimate_lyapunov(
             let scale = SHADOW_SEPARATION / d;
             let near = reference.trajectory();
             let mut far = shadow.trajectory();
-            let pull = |x: &mut DVector<f64>, base: &DVector<f64>| {
-                for (x, b) in x.iter_mut().zip(base.iter()) {
-                    *x = b + scale * (*x - b);
-                }
-            };
-            pull(&mut far.state.q, &near.state.q);
-            pull(&mut far.state.v, &near.state.v);
-            pull(&mut far.state.a, &near.state.a);
-            pull(&mut far.state.qdd, &near.state.qdd);
-            pull(&mut far.state.lambda, &near.state.lambda);
-            pull(&mut far.v_newmark, &near.v_newmark);
-            far.predictor.pull_towards(&near.predictor, scale);
+            far.pull_towards(&near, scale);
             shadow.swap_trajectory(&mut far).ok()?;
         }
     }

@@ -390,6 +390,35 @@ pub struct HhtTrajectory {
     newton: NewtonMemory,
 }
 
+impl HhtTrajectory {
+    /// Moves every vector the recursion carries (the state's `q`, `q̇`, `a`, `q̈`, `λ`, the Newmark
+    /// velocity and the predictor's history) towards `reference`'s, `x ← r + scale (x − r)`: the
+    /// Lyapunov estimate pulls a shadow trajectory back to its reference this way instead of
+    /// restarting it (a restart would reset the generalized-α recursion). Time, step count,
+    /// statistics, step control and Newton memory stay this trajectory's.
+    pub fn pull_towards(&mut self, reference: &Self, scale: f64) {
+        let (own, base) = (&mut self.state, &reference.state);
+        for (x, r) in [
+            (&mut own.q, &base.q),
+            (&mut own.v, &base.v),
+            (&mut own.a, &base.a),
+            (&mut own.qdd, &base.qdd),
+            (&mut own.lambda, &base.lambda),
+            (&mut self.v_newmark, &reference.v_newmark),
+        ] {
+            pull(x, r, scale);
+        }
+        self.predictor.pull_towards(&reference.predictor, scale);
+    }
+}
+
+/// `x ← r + scale (x − r)` entry by entry ([`HhtTrajectory::pull_towards`]).
+fn pull(x: &mut DVector<f64>, reference: &DVector<f64>, scale: f64) {
+    for (x, r) in x.iter_mut().zip(reference.iter()) {
+        *x = r + scale * (*x - r);
+    }
+}
+
 /// What the step control carries from step to step of one trajectory: part of [`HhtTrajectory`], so
 /// that a sample's steps never depend on which sample the same integrator advanced before.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -12,7 +12,7 @@
 
 use nalgebra::DVector;
 
-use super::StepControlState;
+use super::{pull, StepControlState};
 
 /// Highest order of the extrapolation on a run of equal steps: the predictor keeps the backward
 /// differences of `q̈` and `λ` up to this order (docs/step-control.md §2, where the Newton
@@ -128,13 +128,6 @@ impl DifferenceTable {
     }
 }
 
-/// `x ← r + scale (x − r)` entry by entry.
-fn pull(own: &mut DVector<f64>, reference: &DVector<f64>, scale: f64) {
-    for (x, r) in own.iter_mut().zip(reference.iter()) {
-        *x = r + scale * (*x - r);
-    }
-}
-
 /// What the predictor keeps of a trajectory's accepted steps: the backward differences of `q̈` and
 /// `λ` on the run of equal steps ending at the current state (with the blended extrapolation of
 /// each entry), and the last two values of `q̈` and the last of `λ` for a step of
@@ -150,8 +143,7 @@ pub struct PredictorHistory {
     qdd_previous: [DVector<f64>; 2],
     /// `λ_{n−1}` (valid when `held ≥ 1`), for a step of another size.
     lambda_previous: DVector<f64>,
-    /// How many accepted values before the current ones are held (0 after a start, a restart or an
-    /// impact; at most [`PREDICTOR_MAX_ORDER`]).
+    /// How many of `qdd_previous` are valid (0 after a start, a restart or an impact; at most 2).
     held: usize,
     /// How many of them continue the last step's size back from `t_n` (the run's length).
     equal_run: usize,
@@ -174,8 +166,8 @@ impl PredictorHistory {
         }
     }
 
-    /// How many accepted values before the current ones the predictor holds (0 to
-    /// [`PREDICTOR_MAX_ORDER`]).
+    /// How many accepted values of `q̈` before the current one the predictor holds for a step of
+    /// another size (0, 1 or 2; the run of equal steps is counted apart).
     pub fn held(&self) -> usize {
         self.held
     }
@@ -188,9 +180,9 @@ impl PredictorHistory {
         self.run_chosen = false;
     }
 
-    /// Moves every held vector towards `reference`'s, `x ← r + scale (x − r)` (the Lyapunov
-    /// estimate pulls a shadow trajectory back to its reference).
-    pub fn pull_towards(&mut self, reference: &Self, scale: f64) {
+    /// Moves every held vector towards `reference`'s, `x ← r + scale (x − r)`
+    /// ([`HhtTrajectory::pull_towards`](super::HhtTrajectory::pull_towards)).
+    pub(super) fn pull_towards(&mut self, reference: &Self, scale: f64) {
         self.qdd_run.pull_towards(&reference.qdd_run, scale);
         self.lambda_run.pull_towards(&reference.lambda_run, scale);
         for (own, base) in self
@@ -270,7 +262,7 @@ impl PredictorHistory {
         self.qdd_previous.swap(0, 1);
         std::mem::swap(&mut self.qdd_previous[0], qdd);
         std::mem::swap(&mut self.lambda_previous, lambda);
-        self.held = (self.held + 1).min(PREDICTOR_MAX_ORDER);
+        self.held = (self.held + 1).min(self.qdd_previous.len());
         self.equal_run = if continues_run {
             (self.equal_run + 1).min(PREDICTOR_MAX_ORDER)
         } else {
