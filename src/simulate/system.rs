@@ -295,7 +295,7 @@ fn se3_exp(linear: &Vec3, angular: &Vec3) -> (Vec3, nalgebra::UnitQuaternion<f64
             1.0 / 6.0 - t2 / 120.0,
         )
     } else {
-        let (sin_half, cos_half) = (0.5 * theta).sin_cos();
+        let (sin_half, cos_half) = crate::spatial::trig::sin_cos(0.5 * theta);
         (
             cos_half,
             sin_half / theta,

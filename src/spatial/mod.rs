@@ -13,6 +13,7 @@ mod inertia;
 mod motion;
 pub mod quaternion;
 mod transform;
+pub mod trig;
 
 pub use inertia::Inertia;
 pub use motion::{Force, Motion};

@@ -35,10 +35,11 @@ pub fn rotation_from_rpy(roll: f64, pitch: f64, yaw: f64) -> Mat3 {
     )
 }
 
-/// Rotation by `angle` (rad) about the unit vector `axis` (Rodrigues' formula).
+/// Rotation by `angle` (rad) about the unit vector `axis` (Rodrigues' formula; sine and cosine by
+/// [`super::trig::sin_cos`], as the batched joint transform).
 #[inline]
 pub fn rotation_about_axis(axis: &Vec3, angle: f64) -> Mat3 {
-    let (s, c) = angle.sin_cos();
+    let (s, c) = super::trig::sin_cos(angle);
     let t = 1.0 - c;
     let (x, y, z) = (axis.x, axis.y, axis.z);
     Mat3::new(

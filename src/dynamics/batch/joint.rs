@@ -6,8 +6,8 @@ use super::lanes::{v3_scale, v3_zero, ForceLanes, Lanes, MotionLanes, TransformL
 use crate::model::JointKind;
 
 /// `joint_from_child` for the coordinates `q` (`q: dim nq` of the joint): Rodrigues' rotation
-/// about `axis` for a revolute joint (sine and cosine per lane by the scalar `sin_cos`, the rest
-/// lane-wise in [`crate::spatial::rotation_about_axis`]'s order), a translation along `axis` for a
+/// about `axis` for a revolute joint (sine and cosine by [`crate::spatial::trig::sin_cos_lanes`],
+/// the rest lane-wise in [`crate::spatial::rotation_about_axis`]'s order), a translation along `axis` for a
 /// prismatic one, position and unit quaternion `(x y z w)` for a floating one (nalgebra's
 /// quaternion-to-matrix formula).
 #[inline(always)]
@@ -20,10 +20,7 @@ pub fn joint_transform<const W: usize>(
     let zero = Lanes::zero();
     match kind {
         JointKind::Revolute => {
-            let (mut s, mut c) = ([0.0; W], [0.0; W]);
-            for ((s, c), angle) in s.iter_mut().zip(c.iter_mut()).zip(q[0].0) {
-                (*s, *c) = angle.sin_cos();
-            }
+            let (s, c) = crate::spatial::trig::sin_cos_lanes(q[0].0);
             let (s, c) = (Lanes(s), Lanes(c));
             let t = one - c;
             let [x, y, z] = *axis;
