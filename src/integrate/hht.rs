@@ -1703,27 +1703,58 @@ impl HhtIntegrator {
         system: &mut S,
         at: At,
     ) -> Result<IterationReport, IntegrateError> {
+        let residual_inf = self.newton_rhs();
+        self.solve_newton_rhs();
+        self.apply_newton_correction(system, at, residual_inf)
+    }
+
+    /// Solves the Newton system in place of its right-hand side `ws.rhs`, with the stored
+    /// factorisation (the full Newton matrix's when it is in use).
+    #[inline(always)]
+    fn solve_newton_rhs(&mut self) {
+        if self.ws.use_full {
+            self.ws.full_solver.solve_in_place(&mut self.ws.rhs);
+        } else {
+            self.trajectory
+                .newton
+                .solver
+                .solve_in_place(&mut self.ws.rhs);
+        }
+    }
+
+    /// The Newton system's right-hand side `−(r, Φ/(β'h²))` into `ws.rhs` (`r` the dynamics rows
+    /// in `ws.dyn_residual`); returns its largest magnitude, the residual the report carries.
+    #[inline(always)]
+    fn newton_rhs(&mut self) -> f64 {
         let (nv, m) = (self.nv, self.m);
         let beta_h2 = self.coeffs.beta_h2();
         let ws = &mut self.ws;
         let mut residual_inf: f64 = 0.0;
-        {
-            let rhs = &mut ws.rhs.as_mut_slice()[..nv + m];
-            for (x, r) in rhs[..nv].iter_mut().zip(&ws.dyn_residual.as_slice()[..nv]) {
-                residual_inf = residual_inf.max(r.abs());
-                *x = -r;
-            }
-            for (x, phi) in rhs[nv..].iter_mut().zip(&ws.phi.as_slice()[..m]) {
-                let r = phi / beta_h2;
-                residual_inf = residual_inf.max(r.abs());
-                *x = -r;
-            }
+        let rhs = &mut ws.rhs.as_mut_slice()[..nv + m];
+        for (x, r) in rhs[..nv].iter_mut().zip(&ws.dyn_residual.as_slice()[..nv]) {
+            residual_inf = residual_inf.max(r.abs());
+            *x = -r;
         }
-        if ws.use_full {
-            ws.full_solver.solve_in_place(&mut ws.rhs);
-        } else {
-            self.trajectory.newton.solver.solve_in_place(&mut ws.rhs);
+        for (x, phi) in rhs[nv..].iter_mut().zip(&ws.phi.as_slice()[..m]) {
+            let r = phi / beta_h2;
+            residual_inf = residual_inf.max(r.abs());
+            *x = -r;
         }
+        residual_inf
+    }
+
+    /// [`Self::correct_iterate`] after the solve: `ws.rhs` holds the correction `(Δq̈, Δλ)`;
+    /// `residual_inf` is [`Self::newton_rhs`]'s.
+    #[inline(always)]
+    fn apply_newton_correction<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+        residual_inf: f64,
+    ) -> Result<IterationReport, IntegrateError> {
+        let (nv, m) = (self.nv, self.m);
+        let beta_h2 = self.coeffs.beta_h2();
+        let ws = &mut self.ws;
         at.check_finite("newton_update", ws.rhs.as_slice())?;
 
         // Weighted RMS of the position-level correction β'h² Δq̈ and of Δλ, at the iterate before

@@ -23,6 +23,14 @@ use crate::integrate::{
 use crate::linalg::cholesky::NonPositivePivot;
 use nalgebra::DVector;
 
+/// From this many coordinates on, the lanes whose Newton matrix was factorised in the batch also
+/// solve their Newton systems there (`batch::cholesky_solve`, the scalar solve's operations lane by
+/// lane) instead of each with its own copy of the factor. Per sample step of a lock-step fall
+/// (callgrind, benches/README.md): the quadruped's 14 coordinates 14 807 → 14 329 instructions;
+/// below, handing the right-hand sides out and the solutions back costs more than the vectors
+/// save (the ur5's 6: 10 119 → 10 418).
+pub const BATCHED_SOLVE_FROM: usize = 12;
+
 /// How the lanes' grid steps were taken since the stepper was made.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BatchStepCounts {
@@ -57,6 +65,12 @@ pub struct BatchStepper {
     q: BatchVectors<LANES>,
     v: BatchVectors<LANES>,
     qdd: BatchVectors<LANES>,
+    /// The Newton systems' right-hand sides, then their solutions, of the lanes whose factor is
+    /// the batch's (`factor_in_batch`).
+    newton_rhs: BatchVectors<LANES>,
+    /// Per lane: its plain step's Newton matrix was factorised in the batch (and is still there,
+    /// in `batch_data.mass_matrix`), so its Newton systems are solved there too.
+    factor_in_batch: [bool; LANES],
     states: Vec<LaneState>,
     errors: Vec<Option<IntegrateError>>,
     /// One lane's `M` (nv²) or `τ` (nv).
@@ -98,6 +112,8 @@ impl BatchStepper {
             q: BatchVectors::zeros(nq, lanes),
             v: BatchVectors::zeros(nv, lanes),
             qdd: BatchVectors::zeros(nv, lanes),
+            newton_rhs: BatchVectors::zeros(nv, lanes),
+            factor_in_batch: [false; LANES],
             states: vec![LaneState::Idle; lanes],
             errors: (0..lanes).map(|_| None).collect(),
             scratch: vec![0.0; nv * nv],
@@ -165,6 +181,7 @@ impl BatchStepper {
     ) -> &mut [Option<IntegrateError>] {
         let lanes = self.lanes();
         let mut any_plain = false;
+        self.factor_in_batch = [false; LANES];
         for lane in 0..lanes {
             self.errors[lane] = None;
             self.states[lane] = LaneState::Idle;
@@ -176,7 +193,7 @@ impl BatchStepper {
             }
             self.states[lane] = match integrator.begin_plain_step(&mut self.systems[lane], report) {
                 Some(plain) => {
-                    write_lane(&mut self.q, lane, integrator.plain_iterate().0);
+                    write_lane(&mut self.q, lane, integrator.plain_iterate().0.as_slice());
                     any_plain = true;
                     LaneState::Plain(plain)
                 }
@@ -222,9 +239,9 @@ impl BatchStepper {
                     continue;
                 };
                 let (q, v, qdd) = integrator.plain_iterate();
-                write_lane(&mut self.q, lane, q);
-                write_lane(&mut self.v, lane, v);
-                write_lane(&mut self.qdd, lane, qdd);
+                write_lane(&mut self.q, lane, q.as_slice());
+                write_lane(&mut self.v, lane, v.as_slice());
+                write_lane(&mut self.qdd, lane, qdd.as_slice());
                 pending = true;
             }
             if !pending {
@@ -247,7 +264,12 @@ impl BatchStepper {
                     &self.qdd,
                 );
             }
-            for lane in 0..self.lanes() {
+            // Per lane: the residual, then the correction. A lane whose factor is the batch's
+            // has its system solved with the others' below (the scalar solve's operations, lane
+            // by lane: the same bits); the others solve their own.
+            let mut solved_in_batch: [Option<f64>; LANES] = [None; LANES];
+            let lanes = self.lanes();
+            for (lane, solved_in_batch) in solved_in_batch.iter_mut().enumerate().take(lanes) {
                 let LaneState::Plain(plain) = &mut self.states[lane] else {
                     continue;
                 };
@@ -266,21 +288,69 @@ impl BatchStepper {
                     v.as_slice(),
                     residual.as_mut_slice(),
                 );
-                match integrator.plain_correct(system, plain) {
-                    Ok(PlainProgress::Iterate) => {}
-                    Ok(PlainProgress::Done) => {
-                        self.counts.batched += 1;
-                        self.states[lane] = LaneState::Idle;
+                if self.factor_in_batch[lane] {
+                    match integrator.plain_newton_rhs(system, plain) {
+                        Some(residual_inf) => {
+                            write_lane(
+                                &mut self.newton_rhs,
+                                lane,
+                                integrator.plain_newton_rhs_mut(),
+                            );
+                            *solved_in_batch = Some(residual_inf);
+                        }
+                        None => self.states[lane] = LaneState::Scalar,
                     }
-                    Ok(PlainProgress::NeedsProjectionMass) => {
-                        self.states[lane] = LaneState::Projecting(*plain);
-                    }
-                    Ok(PlainProgress::Abandoned) => self.states[lane] = LaneState::Scalar,
-                    Err(error) => {
-                        self.errors[lane] = Some(error);
-                        self.states[lane] = LaneState::Idle;
-                    }
+                    continue;
                 }
+                let progress = integrator.plain_correct(system, plain);
+                self.settle(lane, progress);
+            }
+            if solved_in_batch.iter().all(Option::is_none) {
+                continue;
+            }
+            batch::cholesky_solve(
+                self.batch_model.isa,
+                &self.batch_data.mass_matrix,
+                nv,
+                &mut self.newton_rhs,
+            );
+            for (lane, residual_inf) in solved_in_batch.into_iter().enumerate() {
+                let Some(residual_inf) = residual_inf else {
+                    continue;
+                };
+                let LaneState::Plain(plain) = &mut self.states[lane] else {
+                    continue;
+                };
+                let Some(integrator) = self.integrators[lane].as_mut() else {
+                    continue;
+                };
+                self.newton_rhs
+                    .copy_sample(lane, integrator.plain_newton_rhs_mut());
+                let progress =
+                    integrator.plain_correct_solved(&mut self.systems[lane], plain, residual_inf);
+                self.settle(lane, progress);
+            }
+        }
+    }
+
+    /// Lane `lane`'s state after a Newton correction of its plain step that returned `progress`.
+    #[inline(always)]
+    fn settle(&mut self, lane: usize, progress: Result<PlainProgress, IntegrateError>) {
+        match progress {
+            Ok(PlainProgress::Iterate) => {}
+            Ok(PlainProgress::Done) => {
+                self.counts.batched += 1;
+                self.states[lane] = LaneState::Idle;
+            }
+            Ok(PlainProgress::NeedsProjectionMass) => {
+                if let LaneState::Plain(plain) = self.states[lane] {
+                    self.states[lane] = LaneState::Projecting(plain);
+                }
+            }
+            Ok(PlainProgress::Abandoned) => self.states[lane] = LaneState::Scalar,
+            Err(error) => {
+                self.errors[lane] = Some(error);
+                self.states[lane] = LaneState::Idle;
             }
         }
     }
@@ -389,6 +459,7 @@ impl BatchStepper {
             let matrix = &mut self.scratch[..n2];
             self.batch_data.mass_matrix.copy_sample(lane, matrix);
             integrator.plain_install_factor(system, plain, matrix);
+            self.factor_in_batch[lane] = nv >= BATCHED_SOLVE_FROM;
         }
     }
 
@@ -401,7 +472,7 @@ impl BatchStepper {
             if let (LaneState::Projecting(_), Some(integrator)) =
                 (&self.states[lane], self.integrators[lane].as_ref())
             {
-                write_lane(&mut self.q, lane, integrator.plain_iterate().0);
+                write_lane(&mut self.q, lane, integrator.plain_iterate().0.as_slice());
                 any = true;
             }
         }
@@ -429,12 +500,12 @@ impl BatchStepper {
 }
 
 /// Writes one lane's vector into a batch (dimensions fixed at construction).
-fn write_lane(batch: &mut BatchVectors<LANES>, lane: usize, values: &DVector<f64>) {
+fn write_lane(batch: &mut BatchVectors<LANES>, lane: usize, values: &[f64]) {
     let dim = batch.dim;
     let (chunk, l) = (lane / LANES, lane % LANES);
     for (entry, value) in batch.chunks[chunk * dim..(chunk + 1) * dim]
         .iter_mut()
-        .zip(values.as_slice())
+        .zip(values)
     {
         entry.0[l] = *value;
     }

@@ -200,13 +200,16 @@ mod tests {
 
     #[test]
     fn random_angles_are_within_one_ulp_of_libm() {
-        let mut generator = SplitMix64::new(0x5eed_0f_a11);
+        let mut generator = SplitMix64::new(0x5eed_fa11);
         for range in [1.0, 4.0, 40.0, REDUCED_HERE_BELOW] {
             let angles: Vec<f64> = (0..200_000)
                 .map(|_| generator.uniform(-range, range))
                 .collect();
             let (distance, at) = worst(angles);
-            assert!(distance <= 1, "{distance} ulps at x = {at:e} (range ±{range})");
+            assert!(
+                distance <= 1,
+                "{distance} ulps at x = {at:e} (range ±{range})"
+            );
         }
     }
 
@@ -259,7 +262,11 @@ mod tests {
         for x in [REDUCED_HERE_BELOW, -REDUCED_HERE_BELOW, 1e6, -3.3e15, 1e300] {
             let (s, c) = sin_cos(x);
             let (s_ref, c_ref) = x.sin_cos();
-            assert_eq!((s.to_bits(), c.to_bits()), (s_ref.to_bits(), c_ref.to_bits()), "x = {x:e}");
+            assert_eq!(
+                (s.to_bits(), c.to_bits()),
+                (s_ref.to_bits(), c_ref.to_bits()),
+                "x = {x:e}"
+            );
         }
     }
 
@@ -274,8 +281,16 @@ mod tests {
             let (sin, cos) = sin_cos_lanes(lanes);
             for (lane, &x) in lanes.iter().enumerate() {
                 let (s, c) = sin_cos(x);
-                assert_eq!(sin[lane].to_bits(), s.to_bits(), "sin, lane {lane}, x = {x}");
-                assert_eq!(cos[lane].to_bits(), c.to_bits(), "cos, lane {lane}, x = {x}");
+                assert_eq!(
+                    sin[lane].to_bits(),
+                    s.to_bits(),
+                    "sin, lane {lane}, x = {x}"
+                );
+                assert_eq!(
+                    cos[lane].to_bits(),
+                    c.to_bits(),
+                    "cos, lane {lane}, x = {x}"
+                );
             }
         }
     }

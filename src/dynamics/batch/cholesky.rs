@@ -207,6 +207,7 @@ fn factor_chunk<const W: usize>(
     }
 }
 
+/// Every chunk's systems solved ([`solve_chunk_sized`]).
 #[inline(always)]
 fn solve<const W: usize>(factors: &BatchVectors<W>, n: usize, b: &mut BatchVectors<W>) {
     for (l, x) in factors
@@ -214,20 +215,43 @@ fn solve<const W: usize>(factors: &BatchVectors<W>, n: usize, b: &mut BatchVecto
         .chunks_exact(n * n)
         .zip(b.chunks.chunks_exact_mut(n))
     {
-        for i in 0..n {
-            let mut value = x[i];
-            for k in 0..i {
-                value = value - l[i + k * n] * x[k];
+        solve_chunk_sized(l, n, x);
+    }
+}
+
+/// [`solve_chunk`] compiled for `n` itself up to `linalg::FIXED_SIZE_UP_TO`, as
+/// [`factor_chunk_sized`].
+#[inline(always)]
+fn solve_chunk_sized<const W: usize>(l: &[Lanes<W>], n: usize, x: &mut [Lanes<W>]) {
+    macro_rules! sized {
+        ($($size:literal)*) => {
+            match n {
+                $($size => return solve_chunk(&l[..$size * $size], $size, &mut x[..$size]),)*
+                _ => {}
             }
-            x[i] = divide(value, l[i + i * n]);
+        };
+    }
+    sized!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16);
+    solve_chunk(l, n, x)
+}
+
+/// `L Lᵀ x = b` for one chunk (`l`: its `n²` factor entries, `x`: its right-hand sides, becoming
+/// the solutions): the scalar solve's forward and backward substitutions, lane by lane.
+#[inline(always)]
+fn solve_chunk<const W: usize>(l: &[Lanes<W>], n: usize, x: &mut [Lanes<W>]) {
+    for i in 0..n {
+        let mut value = x[i];
+        for k in 0..i {
+            value = value - l[i + k * n] * x[k];
         }
-        for i in (0..n).rev() {
-            let mut value = x[i];
-            for k in i + 1..n {
-                value = value - l[k + i * n] * x[k];
-            }
-            x[i] = divide(value, l[i + i * n]);
+        x[i] = divide(value, l[i + i * n]);
+    }
+    for i in (0..n).rev() {
+        let mut value = x[i];
+        for k in i + 1..n {
+            value = value - l[k + i * n] * x[k];
         }
+        x[i] = divide(value, l[i + i * n]);
     }
 }
 

@@ -16,9 +16,9 @@
 //! [`HhtIntegrator::step`], which repeats the same attempt bit for bit and goes on from there.
 
 use super::{
-    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonFlags,
-    NewtonMatrix, NewtonPass, PassVerdict, ReportedVelocity, StepControl, StepControlState,
-    ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
+    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, IterationReport,
+    NewtonFlags, NewtonMatrix, NewtonPass, PassVerdict, ReportedVelocity, StepControl,
+    StepControlState, ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
 };
 use crate::integrate::FactorKind;
 use nalgebra::DVector;
@@ -236,7 +236,60 @@ impl HhtIntegrator {
             self.abandon_plain_step(plain);
             return Ok(PlainProgress::Abandoned);
         }
-        let report = match self.correct_iterate(system, plain.at) {
+        let report = self.correct_iterate(system, plain.at);
+        self.judge_plain_correction(system, plain, report)
+    }
+
+    /// The first half of [`HhtIntegrator::plain_correct`], for a caller that solves the Newton
+    /// system itself with the factor it installed ([`HhtIntegrator::plain_install_factor`]): counts
+    /// the iteration and writes the right-hand side, which [`HhtIntegrator::plain_newton_rhs_mut`]
+    /// then lends out. Returns the residual's largest magnitude to hand back to
+    /// [`HhtIntegrator::plain_correct_solved`], or `None` when the step was abandoned
+    /// ([`PlainProgress::Abandoned`]).
+    #[inline]
+    pub(crate) fn plain_newton_rhs<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        plain: &mut PlainStep,
+    ) -> Option<f64> {
+        plain.iterations += 1;
+        if self.add_constraint_rows(system, plain.at).is_err() {
+            self.abandon_plain_step(plain);
+            return None;
+        }
+        Some(self.newton_rhs())
+    }
+
+    /// The Newton system's right-hand side after [`HhtIntegrator::plain_newton_rhs`], to be
+    /// overwritten by the solution `(Δq̈, Δλ)` (dimension `nv + m`).
+    pub(crate) fn plain_newton_rhs_mut(&mut self) -> &mut [f64] {
+        let n = self.nv + self.m;
+        &mut self.ws.rhs.as_mut_slice()[..n]
+    }
+
+    /// The second half of [`HhtIntegrator::plain_correct`], once the right-hand side holds the
+    /// solution (solved with the step's factor, so with the bits its own solve would give).
+    #[inline]
+    pub(crate) fn plain_correct_solved<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        plain: &mut PlainStep,
+        residual_inf: f64,
+    ) -> Result<PlainProgress, IntegrateError> {
+        let report = self.apply_newton_correction(system, plain.at, residual_inf);
+        self.judge_plain_correction(system, plain, report)
+    }
+
+    /// The pass's tests on a plain step's correction (`report`; an error abandons the step), and
+    /// on convergence the step's acceptance: the end of [`HhtIntegrator::plain_correct`].
+    #[inline(always)]
+    fn judge_plain_correction<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        plain: &mut PlainStep,
+        report: Result<IterationReport, IntegrateError>,
+    ) -> Result<PlainProgress, IntegrateError> {
+        let report = match report {
             Ok(report) => report,
             Err(_) => {
                 self.abandon_plain_step(plain);
