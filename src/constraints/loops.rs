@@ -101,18 +101,23 @@ fn world_rotation(model: &Model, data: &Data, link: Option<usize>) -> Mat3 {
     }
 }
 
-/// Adds `linear · J_point + angular · J^ω` of the chain from the point's body to the root into
-/// `out[row, :]` (`J_point`: the point's linear velocity Jacobian in the world frame; `J^ω`: its
-/// body's angular velocity Jacobian). `weights = (linear, angular)`.
+/// The rows whose Jacobian entries one walk of a chain writes (a ball joint's three directions,
+/// the most a loop has; more would be taken in groups of this many).
+const MAX_LOOP_ROWS: usize = 3;
+
+/// For each row `i < weights.len()`, adds `linear_i · J_point + angular_i · J^ω` of the chain from
+/// the point's body to the root into `out[first_row + i, :]` (`J_point`: the point's linear
+/// velocity Jacobian in the world frame; `J^ω`: its body's angular velocity Jacobian;
+/// `weights[i] = (linear_i, angular_i)`). The chain is walked once, each joint column's world
+/// motion computed once for every row.
 fn add_chain(
     model: &Model,
     data: &Data,
     point: &LinkPoint,
-    weights: (Vec3, Vec3),
-    row: usize,
+    weights: &[(Vec3, Vec3)],
+    first_row: usize,
     out: &mut DMatrix<f64>,
 ) {
-    let (linear, angular) = weights;
     let point_in_world = &point.in_world;
     let mut current = point.body;
     while let Some(b) = current {
@@ -120,8 +125,10 @@ fn add_chain(
         for k in 0..joint.nv() {
             let column = data.world_from_body[b].act_motion(&joint.subspace_column(k));
             let point_velocity = column.linear + column.angular.cross(point_in_world);
-            out[(row, joint.v_index + k)] +=
-                linear.dot(&point_velocity) + angular.dot(&column.angular);
+            for (i, (linear, angular)) in weights.iter().enumerate() {
+                out[(first_row + i, joint.v_index + k)] +=
+                    linear.dot(&point_velocity) + angular.dot(&column.angular);
+            }
         }
         current = joint.parent;
     }
@@ -150,12 +157,20 @@ impl LoopClosure {
         let b = link_point(model, data, Some(self.child), &self.point_in_child);
         let rotation = world_rotation(model, data, self.parent);
         let d = b.in_world - a.in_world;
-        for (i, e) in self.directions.iter().enumerate() {
-            let row = first_row + i;
-            let e_world = rotation * e;
-            add_chain(model, data, &b, (e_world, Vec3::zeros()), row, out);
-            // The parent's point moves with its body, and so do the directions (rotation term).
-            add_chain(model, data, &a, (-e_world, e_world.cross(&d)), row, out);
+        // Every entry gets the child chain's term, then the parent chain's, as row by row.
+        for (chunk, directions) in self.directions.chunks(MAX_LOOP_ROWS).enumerate() {
+            let rows = directions.len();
+            let mut child = [(Vec3::zeros(), Vec3::zeros()); MAX_LOOP_ROWS];
+            let mut parent = [(Vec3::zeros(), Vec3::zeros()); MAX_LOOP_ROWS];
+            for ((e, child), parent) in directions.iter().zip(&mut child).zip(&mut parent) {
+                let e_world = rotation * e;
+                *child = (e_world, Vec3::zeros());
+                // The parent's point moves with its body, and so do the directions (rotation term).
+                *parent = (-e_world, e_world.cross(&d));
+            }
+            let first = first_row + chunk * MAX_LOOP_ROWS;
+            add_chain(model, data, &b, &child[..rows], first, out);
+            add_chain(model, data, &a, &parent[..rows], first, out);
         }
     }
 
