@@ -68,7 +68,7 @@ fn factor_fixed<const N: usize>(a: &mut [f64], min_pivot: f64) -> Result<(), Non
 }
 
 /// From this size on, [`factor_in_place`] computes the entries below a pivot four at a time
-/// ([`factor_four_entries_at_a_time`]) instead of one by one. Per factorisation inside an HHT step
+/// (`factor_four_entries_at_a_time`) instead of one by one. Per factorisation inside an HHT step
 /// (callgrind, benches/README.md): the quadruped's 14 × 14 matrix retired 2 895 instructions
 /// instead of 4 161, but the panda's 9 × 9 571 instead of 555 and the ur5's 6 × 6 481 instead of 419
 /// (small sizes are unrolled whole one entry at a time). Both forms give the same bits.

@@ -64,9 +64,9 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 /// `(sin x, cos x)` of every lane, each lane the same operations as [`sin_cos`] of it.
 ///
 /// When every lane is within [`REDUCED_HERE_BELOW`] (always, in a simulation) the lanes go through
-/// [`reduced_lanes`] together, whose every statement is a loop over the lanes that the compiler
+/// `reduced_lanes` together, whose every statement is a loop over the lanes that the compiler
 /// vectorises where the caller is compiled for vectors (26 instructions per lane under AVX2 against
-/// about 110 for a libm call). Otherwise [`outlying_lanes`] takes them one by one: a lane in range
+/// about 110 for a libm call). Otherwise `outlying_lanes` takes them one by one: a lane in range
 /// gets the same operations, so the same bits, and a lane out of range libm's value. (A per-lane
 /// branch to libm inside the vector path stopped the compiler from vectorising any of it.)
 #[inline(always)]
