@@ -49,7 +49,7 @@ pub const COLUMN_WISE_FROM: usize = 24;
 /// upper triangle is left as it was. A pivot that is NaN or `≤ min_pivot` stops the factorisation
 /// (`a` then holds the columns finished so far) and is returned.
 pub fn factor_in_place(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), NonPositivePivot> {
-    return_for_fixed_size!(n, factor_fixed(a, min_pivot));
+    return_for_fixed_size!(n, N => factor_fixed::<N>(a, min_pivot));
     if n < COLUMN_WISE_FROM {
         factor_four_entries_at_a_time(&mut a[..n * n], n, min_pivot)
     } else {
@@ -202,7 +202,7 @@ fn factor_column_wise(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), Non
 /// of the column-major `n × n` `factor` from [`factor_in_place`]: [`forward_substitute`] then
 /// [`backward_substitute`].
 pub fn solve_in_place(factor: &[f64], n: usize, b: &mut [f64]) {
-    return_for_fixed_size!(n, solve_fixed(factor, b));
+    return_for_fixed_size!(n, N => solve_fixed::<N>(factor, b));
     forward(&factor[..n * n], n, &mut b[..n]);
     backward(&factor[..n * n], n, &mut b[..n]);
 }
@@ -215,13 +215,13 @@ fn solve_fixed<const N: usize>(factor: &[f64], b: &mut [f64]) {
 
 /// Solves `L y = b` in place (`b` of dimension `n` becomes `y`), `L` as in [`solve_in_place`].
 pub fn forward_substitute(factor: &[f64], n: usize, b: &mut [f64]) {
-    return_for_fixed_size!(n, forward_fixed(factor, b));
+    return_for_fixed_size!(n, N => forward_fixed::<N>(factor, b));
     forward(&factor[..n * n], n, &mut b[..n]);
 }
 
 /// Solves `Lᵀ x = y` in place (`y` of dimension `n` becomes `x`), `L` as in [`solve_in_place`].
 pub fn backward_substitute(factor: &[f64], n: usize, y: &mut [f64]) {
-    return_for_fixed_size!(n, backward_fixed(factor, y));
+    return_for_fixed_size!(n, N => backward_fixed::<N>(factor, y));
     backward(&factor[..n * n], n, &mut y[..n]);
 }
 

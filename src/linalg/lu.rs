@@ -36,7 +36,7 @@ pub fn factor_in_place(
     pivots: &mut [usize],
     min_pivot: f64,
 ) -> Result<(), SmallPivot> {
-    return_for_fixed_size!(n, factor_fixed(a, pivots, min_pivot));
+    return_for_fixed_size!(n, N => factor_fixed::<N>(a, pivots, min_pivot));
     factor(&mut a[..n * n], n, &mut pivots[..n], min_pivot)
 }
 
@@ -94,7 +94,7 @@ fn factor(a: &mut [f64], n: usize, pivots: &mut [usize], min_pivot: f64) -> Resu
 /// Solves `A x = b` in place (`b` of dimension `n` becomes `x`) with the factors and row swaps of
 /// [`factor_in_place`].
 pub fn solve_in_place(factor: &[f64], n: usize, pivots: &[usize], b: &mut [f64]) {
-    return_for_fixed_size!(n, solve_fixed(factor, pivots, b));
+    return_for_fixed_size!(n, N => solve_fixed::<N>(factor, pivots, b));
     substitute(&factor[..n * n], n, &pivots[..n], &mut b[..n]);
 }
 

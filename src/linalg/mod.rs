@@ -16,28 +16,24 @@ pub mod lu;
 /// sample and step of a lock-step study under callgrind, benches/README.md).
 pub const FIXED_SIZE_UP_TO: usize = 16;
 
-/// `return kernel::<N>(args…)` when `n` is `N` in `1..=`[`FIXED_SIZE_UP_TO`]; otherwise nothing.
+/// `return body` with the const `SIZE` (the caller's name for it) equal to `n` when `n` is in
+/// `1..=`[`FIXED_SIZE_UP_TO`]; otherwise nothing: `return_for_fixed_size!(n, N => kernel::<N>(…))`.
+/// The one list of the sizes that the factorisations and solves here and the batched ones
+/// (`dynamics::batch::cholesky`) compile for.
 macro_rules! return_for_fixed_size {
-    ($n:expr, $kernel:ident($($arg:expr),*)) => {
+    ($n:expr, $size:ident => $body:expr) => {
+        $crate::linalg::return_for_fixed_size!(
+            @sizes $n, $size, $body, 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16
+        )
+    };
+    (@sizes $n:expr, $size:ident, $body:expr, $($fixed:literal)*) => {
         match $n {
-            1 => return $kernel::<1>($($arg),*),
-            2 => return $kernel::<2>($($arg),*),
-            3 => return $kernel::<3>($($arg),*),
-            4 => return $kernel::<4>($($arg),*),
-            5 => return $kernel::<5>($($arg),*),
-            6 => return $kernel::<6>($($arg),*),
-            7 => return $kernel::<7>($($arg),*),
-            8 => return $kernel::<8>($($arg),*),
-            9 => return $kernel::<9>($($arg),*),
-            10 => return $kernel::<10>($($arg),*),
-            11 => return $kernel::<11>($($arg),*),
-            12 => return $kernel::<12>($($arg),*),
-            13 => return $kernel::<13>($($arg),*),
-            14 => return $kernel::<14>($($arg),*),
-            15 => return $kernel::<15>($($arg),*),
-            16 => return $kernel::<16>($($arg),*),
+            $($fixed => {
+                const $size: usize = $fixed;
+                return $body;
+            })*
             _ => {}
         }
     };
 }
-use return_for_fixed_size;
+pub(crate) use return_for_fixed_size;

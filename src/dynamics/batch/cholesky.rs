@@ -7,6 +7,7 @@ use super::lanes::Lanes;
 use super::state::BatchVectors;
 use super::{Isa, IsaKind};
 use crate::linalg::cholesky::{NonPositivePivot, RELATIVE_PIVOT_TOLERANCE};
+use crate::linalg::return_for_fixed_size;
 
 /// Factorises every sample's `n × n` symmetric matrix in `matrices` (column-major, `dim n²`) in
 /// place: the lower triangle becomes `L` (the strict upper triangle is kept).
@@ -140,17 +141,7 @@ fn factor_chunk_sized<const W: usize>(
     size: usize,
     failures: &mut [Option<NonPositivePivot>],
 ) {
-    // The sizes of `linalg::return_for_fixed_size!` (up to `FIXED_SIZE_UP_TO` = 16); that macro
-    // cannot pass the lane count `W` through.
-    macro_rules! sized {
-        ($($size:literal)*) => {
-            match n {
-                $($size => return factor_chunk_fixed::<$size, W>(a, c, threshold, size, failures),)*
-                _ => {}
-            }
-        };
-    }
-    sized!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16);
+    return_for_fixed_size!(n, N => factor_chunk_fixed::<N, W>(a, c, threshold, size, failures));
     factor_chunk(a, n, c, threshold, size, failures)
 }
 
@@ -223,15 +214,7 @@ fn solve<const W: usize>(factors: &BatchVectors<W>, n: usize, b: &mut BatchVecto
 /// [`factor_chunk_sized`].
 #[inline(always)]
 fn solve_chunk_sized<const W: usize>(l: &[Lanes<W>], n: usize, x: &mut [Lanes<W>]) {
-    macro_rules! sized {
-        ($($size:literal)*) => {
-            match n {
-                $($size => return solve_chunk(&l[..$size * $size], $size, &mut x[..$size]),)*
-                _ => {}
-            }
-        };
-    }
-    sized!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16);
+    return_for_fixed_size!(n, N => solve_chunk(&l[..N * N], N, &mut x[..N]));
     solve_chunk(l, n, x)
 }
 
