@@ -74,7 +74,9 @@ fn factor_fixed<const N: usize>(a: &mut [f64], min_pivot: f64) -> Result<(), Non
 /// (small sizes are unrolled whole one entry at a time). Both forms give the same bits.
 pub const FOUR_ENTRIES_AT_A_TIME_FROM: usize = 12;
 
-/// The factorisation with a dot product per entry (`a.len() == n²`), one entry at a time.
+/// The factorisation with a dot product per entry (`a.len() == n²`), one entry at a time. The
+/// pivot is written out here rather than taken from `column_pivot`: indexed this way the compiler
+/// unrolls the small sizes whole (the ur5's 6 × 6: 419 instructions; 481 through `column_pivot`).
 #[inline(always)]
 fn factor_entry_by_entry(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), NonPositivePivot> {
     for j in 0..n {

@@ -141,20 +141,8 @@ fn factor_chunk_sized<const W: usize>(
     size: usize,
     failures: &mut [Option<NonPositivePivot>],
 ) {
-    return_for_fixed_size!(n, N => factor_chunk_fixed::<N, W>(a, c, threshold, size, failures));
+    return_for_fixed_size!(n, N => factor_chunk(&mut a[..N * N], N, c, threshold, size, failures));
     factor_chunk(a, n, c, threshold, size, failures)
-}
-
-/// [`factor_chunk`] for `n = N`.
-#[inline(always)]
-fn factor_chunk_fixed<const N: usize, const W: usize>(
-    a: &mut [Lanes<W>],
-    c: usize,
-    threshold: [f64; W],
-    size: usize,
-    failures: &mut [Option<NonPositivePivot>],
-) {
-    factor_chunk(&mut a[..N * N], N, c, threshold, size, failures)
 }
 
 /// The factorisation of chunk `c` (`a`: its `n²` entries), lane `l` refusing pivots that are NaN

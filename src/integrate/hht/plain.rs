@@ -16,9 +16,9 @@
 //! [`HhtIntegrator::step`], which repeats the same attempt bit for bit and goes on from there.
 
 use super::{
-    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, IterationReport,
-    NewtonFlags, NewtonMatrix, NewtonPass, PassVerdict, ReportedVelocity, StepControl,
-    StepControlState, ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
+    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonFlags,
+    NewtonMatrix, NewtonPass, PassVerdict, ReportedVelocity, StepControl, StepControlState,
+    ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
 };
 use crate::integrate::FactorKind;
 use nalgebra::DVector;
@@ -231,13 +231,11 @@ impl HhtIntegrator {
         system: &mut S,
         plain: &mut PlainStep,
     ) -> Result<PlainProgress, IntegrateError> {
-        plain.iterations += 1;
-        if self.add_constraint_rows(system, plain.at).is_err() {
-            self.abandon_plain_step(plain);
+        let Some(residual_inf) = self.plain_newton_rhs(system, plain) else {
             return Ok(PlainProgress::Abandoned);
-        }
-        let report = self.correct_iterate(system, plain.at);
-        self.judge_plain_correction(system, plain, report)
+        };
+        self.solve_newton_rhs();
+        self.plain_correct_solved(system, plain, residual_inf)
     }
 
     /// The first half of [`HhtIntegrator::plain_correct`], for a caller that solves the Newton
@@ -276,20 +274,7 @@ impl HhtIntegrator {
         plain: &mut PlainStep,
         residual_inf: f64,
     ) -> Result<PlainProgress, IntegrateError> {
-        let report = self.apply_newton_correction(system, plain.at, residual_inf);
-        self.judge_plain_correction(system, plain, report)
-    }
-
-    /// The pass's tests on a plain step's correction (`report`; an error abandons the step), and
-    /// on convergence the step's acceptance: the end of [`HhtIntegrator::plain_correct`].
-    #[inline(always)]
-    fn judge_plain_correction<S: DaeSystem + ?Sized>(
-        &mut self,
-        system: &mut S,
-        plain: &mut PlainStep,
-        report: Result<IterationReport, IntegrateError>,
-    ) -> Result<PlainProgress, IntegrateError> {
-        let report = match report {
+        let report = match self.apply_newton_correction(system, plain.at, residual_inf) {
             Ok(report) => report,
             Err(_) => {
                 self.abandon_plain_step(plain);
