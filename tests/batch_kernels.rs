@@ -39,6 +39,13 @@ fn wiggle(sample: usize, k: usize, salt: f64) -> f64 {
 /// diagonal ±3 %, every joint origin ±1 cm and ±0.01 rad, every moving axis tilted by ~0.02, gravity
 /// tilted and scaled by ±1 %.
 fn sample_model(base: &Model, sample: usize) -> Model {
+    sample_model_with_axes(base, sample, true)
+}
+
+/// [`sample_model`], with the axes and the joint origins' orientations moved only when
+/// `tilt_axes` (else as in the URDF: a joint about a coordinate axis of its frame stays on it, and
+/// the kernels take their aligned path).
+fn sample_model_with_axes(base: &Model, sample: usize, tilt_axes: bool) -> Model {
     let mut model = base.clone();
     for (k, link) in model.description.links.iter_mut().enumerate() {
         let inertial = &mut link.inertial;
@@ -53,10 +60,13 @@ fn sample_model(base: &Model, sample: usize) -> Model {
         }
     }
     for (k, joint) in model.description.joints.iter_mut().enumerate() {
-        for (c, value) in joint.origin.iter_mut().enumerate() {
+        // Without the tilt the origins keep their URDF orientation too, and with it its exact
+        // zeros (whose signs the aligned formulas must keep).
+        let moved = if tilt_axes { 6 } else { 3 };
+        for (c, value) in joint.origin.iter_mut().enumerate().take(moved) {
             *value += 0.01 * wiggle(sample, 6 * k + c, 0.4);
         }
-        if joint.joint_type != UrdfJointType::Fixed {
+        if tilt_axes && joint.joint_type != UrdfJointType::Fixed {
             for (c, value) in joint.axis.iter_mut().enumerate() {
                 *value += 0.02 * wiggle(sample, 3 * k + c, 0.5);
             }
@@ -71,12 +81,13 @@ fn sample_model(base: &Model, sample: usize) -> Model {
     model
 }
 
-/// Sample `sample`'s state `(q, v, q̈)`: angles within ±1.5 rad, prismatic offsets within ±1.5 cm
-/// (as angles, scaled), speeds within ±2, accelerations within ±3; a floating base's quaternion
-/// normalised.
+/// Sample `sample`'s state `(q, v, q̈)`: angles within ±3 rad (every quadrant, so that sines and
+/// cosines of both signs meet the zeros of the joint frames), prismatic offsets the same
+/// numbers in metres, speeds within ±2 (every fifth sample at rest: zero products whose signs the
+/// kernels must keep), accelerations within ±3; a floating base's quaternion normalised.
 fn sample_state(model: &Model, sample: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let mut q: Vec<f64> = (0..model.nq)
-        .map(|i| 1.5 * wiggle(sample, i, 0.7))
+        .map(|i| 3.0 * wiggle(sample, i, 0.7))
         .collect();
     for joint in &model.joints {
         if joint.kind == JointKind::Floating {
@@ -86,8 +97,9 @@ fn sample_state(model: &Model, sample: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) 
             quaternion.iter_mut().for_each(|x| *x /= norm);
         }
     }
+    let at_rest = if sample % 5 == 2 { 0.0 } else { 1.0 };
     let v = (0..model.nv)
-        .map(|i| 2.0 * wiggle(sample, i, 0.8))
+        .map(|i| at_rest * 2.0 * wiggle(sample, i, 0.8))
         .collect();
     let qdd = (0..model.nv)
         .map(|i| 3.0 * wiggle(sample, i, 0.9))
@@ -260,16 +272,27 @@ fn instruction_sets() -> Vec<Isa> {
 }
 
 /// Checks `base` at every batch size of [`SIZES`] (4 lanes), sizes 3 and 8 at widths 2 and 8, with
-/// every instruction set.
+/// every instruction set, for three populations of samples: every axis tilted (the kernels'
+/// general path), every axis as in the URDF (the aligned path wherever the URDF puts an axis on
+/// `x`, `y` or `z`), and every third sample as in the URDF among tilted ones (chunks that mix
+/// both, docs/batch.md §7).
 fn check_robot(base: &Model) {
-    let models: Vec<Model> = (0..32).map(|s| sample_model(base, s)).collect();
-    for isa in instruction_sets() {
-        for size in SIZES {
-            compare::<4>(&models[..size], isa).unwrap_or_else(|e| panic!("{e}"));
-        }
-        for size in [3, 8] {
-            compare::<2>(&models[..size], isa).unwrap_or_else(|e| panic!("{e}"));
-            compare::<8>(&models[..size], isa).unwrap_or_else(|e| panic!("{e}"));
+    let tilted: Vec<Model> = (0..32).map(|s| sample_model(base, s)).collect();
+    let as_in_urdf: Vec<Model> = (0..32)
+        .map(|s| sample_model_with_axes(base, s, false))
+        .collect();
+    let mixed: Vec<Model> = (0..32)
+        .map(|s| sample_model_with_axes(base, s, s % 3 != 0))
+        .collect();
+    for models in [&tilted, &as_in_urdf, &mixed] {
+        for isa in instruction_sets() {
+            for size in SIZES {
+                compare::<4>(&models[..size], isa).unwrap_or_else(|e| panic!("{e}"));
+            }
+            for size in [3, 8] {
+                compare::<2>(&models[..size], isa).unwrap_or_else(|e| panic!("{e}"));
+                compare::<8>(&models[..size], isa).unwrap_or_else(|e| panic!("{e}"));
+            }
         }
     }
 }
@@ -281,7 +304,13 @@ fn load(path: &Path, floating_base: bool) -> Model {
 
 #[test]
 fn ur5_lanes_match_the_scalar_kernels_bit_for_bit() {
-    check_robot(&load(&common::manifest("robots/ur5/ur5.urdf"), false));
+    let ur5 = load(&common::manifest("robots/ur5/ur5.urdf"), false);
+    // Every ur5 joint turns about z: the untilted population runs the aligned path throughout.
+    assert!(ur5
+        .joints
+        .iter()
+        .all(|j| j.revolute_coordinate_axis() == Some(2)));
+    check_robot(&ur5);
 }
 
 #[test]

@@ -8,7 +8,7 @@
 
 use super::Data;
 use crate::model::Model;
-use crate::spatial::{Motion, Vec3};
+use crate::spatial::{Motion, Transform, Vec3};
 
 /// Inverse dynamics: `data.tau = M(q) q̈ + C(q, v) v + g(q)`, rigid-body terms only.
 ///
@@ -87,17 +87,30 @@ fn run(model: &Model, data: &mut Data, placements: Placements, v: &[f64], qdd: O
             }
             Placements::Given => data.parent_from_body[i],
         };
-        let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
         let (parent_velocity, parent_acceleration) = match joint.parent {
             Some(p) => (data.velocity[p], data.acceleration[p]),
             None => (Motion::zero(), base_acceleration),
         };
-        let velocity = parent_from_body.inv_act_motion(&parent_velocity) + joint_velocity;
-        let mut acceleration = parent_from_body.inv_act_motion(&parent_acceleration)
-            + velocity.cross_motion(&joint_velocity);
-        if let Some(qdd) = qdd {
-            acceleration += joint.motion(&qdd[vi..vi + joint.nv()]);
-        }
+        let (velocity, acceleration) = match joint.revolute_coordinate_axis() {
+            Some(k) => motion_through_coordinate_axis(
+                &parent_from_body,
+                &parent_velocity,
+                &parent_acceleration,
+                k,
+                v[vi],
+                qdd.map(|qdd| qdd[vi]),
+            ),
+            None => {
+                let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
+                let velocity = parent_from_body.inv_act_motion(&parent_velocity) + joint_velocity;
+                let mut acceleration = parent_from_body.inv_act_motion(&parent_acceleration)
+                    + velocity.cross_motion(&joint_velocity);
+                if let Some(qdd) = qdd {
+                    acceleration += joint.motion(&qdd[vi..vi + joint.nv()]);
+                }
+                (velocity, acceleration)
+            }
+        };
         let inertia = &model.bodies[i].inertia;
         data.force[i] =
             inertia.apply(&acceleration) + velocity.cross_force(&inertia.apply(&velocity));
@@ -107,6 +120,46 @@ fn run(model: &Model, data: &mut Data, placements: Placements, v: &[f64], qdd: O
     }
 }
 
+/// A body's velocity and acceleration in the forward pass, moved by a revolute joint about the
+/// coordinate axis `e_k` of its frame at rate `rate` (and `q̈` `qdd`, `None` for the bias forces):
+/// the general step with the joint motion's zero entries left out, the same bits (signs of zero
+/// aside; docs/batch.md §7). Also the batched kernels' aligned lanes of a mixed chunk.
+#[inline(always)]
+pub(crate) fn motion_through_coordinate_axis(
+    parent_from_body: &Transform,
+    parent_velocity: &Motion,
+    parent_acceleration: &Motion,
+    k: usize,
+    rate: f64,
+    qdd: Option<f64>,
+) -> (Motion, Motion) {
+    let (x, v, a) = (parent_from_body, parent_velocity, parent_acceleration);
+    match k {
+        0 => motion_through_axis::<0>(x, v, a, rate, qdd),
+        1 => motion_through_axis::<1>(x, v, a, rate, qdd),
+        _ => motion_through_axis::<2>(x, v, a, rate, qdd),
+    }
+}
+
+/// [`motion_through_coordinate_axis`] about `e_K` (`K` a constant: the entries stay registers).
+#[inline(always)]
+fn motion_through_axis<const K: usize>(
+    parent_from_body: &Transform,
+    parent_velocity: &Motion,
+    parent_acceleration: &Motion,
+    rate: f64,
+    qdd: Option<f64>,
+) -> (Motion, Motion) {
+    let mut velocity = parent_from_body.inv_act_motion(parent_velocity);
+    velocity.angular[K] += rate;
+    let mut acceleration = parent_from_body.inv_act_motion(parent_acceleration)
+        + velocity.cross_coordinate_axis(K, rate);
+    if let Some(qdd) = qdd {
+        acceleration.angular[K] += qdd;
+    }
+    (velocity, acceleration)
+}
+
 fn backward(
     model: &Model,
     parent_from_body: &[crate::spatial::Transform],
@@ -114,10 +167,13 @@ fn backward(
     out: &mut [f64],
 ) {
     for (i, joint) in model.joints.iter().enumerate().rev() {
-        joint.project_force(
-            &force[i],
-            &mut out[joint.v_index..joint.v_index + joint.nv()],
-        );
+        match joint.revolute_coordinate_axis() {
+            Some(k) => out[joint.v_index] = force[i].angular[k],
+            None => joint.project_force(
+                &force[i],
+                &mut out[joint.v_index..joint.v_index + joint.nv()],
+            ),
+        }
         if let Some(p) = joint.parent {
             let in_parent = parent_from_body[i].act_force(&force[i]);
             force[p] += in_parent;

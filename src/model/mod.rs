@@ -196,7 +196,25 @@ impl Joint {
     /// `parent_from_child` for coordinates `q` (`q: dim self.nq()`).
     #[inline]
     pub fn parent_from_child(&self, q: &[f64]) -> Transform {
-        self.parent_from_joint.compose(&self.joint_transform(q))
+        match self.revolute_coordinate_axis() {
+            Some(k) => self
+                .parent_from_joint
+                .compose_rotation_about_coordinate_axis(k, q[0]),
+            None => self.parent_from_joint.compose(&self.joint_transform(q)),
+        }
+    }
+
+    /// `Some(k)` for a revolute joint whose axis is exactly the coordinate axis `e_k` of its frame
+    /// (k ∈ {0, 1, 2}; most URDFs put every axis on `z`), else `None`. The kernels then leave out
+    /// the products by the joint motion's zero entries (docs/batch.md §7); the result has the bits
+    /// of the general formulas (signs of zero aside). Read from [`Joint::axis`] at every call, so a
+    /// parameter that moves the axis off `e_k` takes the general path at once.
+    #[inline]
+    pub fn revolute_coordinate_axis(&self) -> Option<usize> {
+        if self.kind != JointKind::Revolute {
+            return None;
+        }
+        coordinate_axis_index(&self.axis)
     }
 
     /// Joint motion `S v` in the child frame (`v: dim self.nv()`).
@@ -240,6 +258,21 @@ impl Joint {
                 out[3..6].copy_from_slice(force.angular.as_slice());
             }
         }
+    }
+}
+
+/// `Some(k)` when `axis` is exactly the coordinate axis `e_k` (`−0` counts as `0`).
+#[inline]
+pub fn coordinate_axis_index(axis: &Vec3) -> Option<usize> {
+    let [x, y, z] = [axis.x, axis.y, axis.z];
+    if x == 0.0 && y == 0.0 && z == 1.0 {
+        Some(2)
+    } else if x == 1.0 && y == 0.0 && z == 0.0 {
+        Some(0)
+    } else if x == 0.0 && y == 1.0 && z == 0.0 {
+        Some(1)
+    } else {
+        None
     }
 }
 

@@ -42,6 +42,24 @@ impl Motion {
         }
     }
 
+    /// `self ×ₘ (0, rate · e_k)`: [`Motion::cross_motion`] with the motion of a revolute joint about
+    /// the coordinate axis `e_k` (`axis_index` k ∈ {0, 1, 2}), the products by its zero entries left
+    /// out. Same bits as `self.cross_motion(&Motion::new(0, rate · e_k))` (signs of zero aside).
+    #[inline]
+    pub fn cross_coordinate_axis(&self, axis_index: usize, rate: f64) -> Motion {
+        let cross = |a: &Vec3| -> Vec3 {
+            match axis_index {
+                0 => Vec3::new(0.0, a.z * rate, -(a.y * rate)),
+                1 => Vec3::new(-(a.z * rate), 0.0, a.x * rate),
+                _ => Vec3::new(a.y * rate, -(a.x * rate), 0.0),
+            }
+        };
+        Motion {
+            linear: cross(&self.linear),
+            angular: cross(&self.angular),
+        }
+    }
+
     /// The force cross product `self ×* force`.
     #[inline]
     pub fn cross_force(&self, force: &Force) -> Force {
@@ -127,6 +145,23 @@ vector_ops!(Force);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn crossing_a_coordinate_axis_has_the_bits_of_the_general_cross_product() {
+        let a = Motion::new(Vec3::new(0.3, -1.0, 2.0), Vec3::new(0.5, 0.1, -0.7));
+        for k in 0..3 {
+            for rate in [0.0, 1.3, -7.25e-3] {
+                let mut axis = Vec3::zeros();
+                axis[k] = 1.0;
+                let general = a.cross_motion(&Motion::new(Vec3::zeros(), axis * rate));
+                assert_eq!(
+                    a.cross_coordinate_axis(k, rate),
+                    general,
+                    "axis {k}, rate {rate}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn cross_products_are_dual() {

@@ -80,6 +80,49 @@ impl Transform {
         }
     }
 
+    /// `self ∘ (rotation by angle about e_k)`: [`Transform::compose`] with
+    /// `Transform::new(rotation_about_axis(&e_k, angle), 0)` for the coordinate axis `e_k`
+    /// (`axis_index` k ∈ {0, 1, 2}), the products by that rotation's zero entries left out (a
+    /// revolute joint about a coordinate axis of its frame, docs/batch.md §7). Every entry is the
+    /// same sum of the same nonzero products, so the result has the same bits as the composition
+    /// (signs of zero aside); the axis entry of the rotation is written `(1 − c) + c`, as Rodrigues'
+    /// formula computes it.
+    #[inline]
+    pub fn compose_rotation_about_coordinate_axis(
+        &self,
+        axis_index: usize,
+        angle: f64,
+    ) -> Transform {
+        match axis_index {
+            0 => self.compose_rotation_about::<0, 1, 2>(angle),
+            1 => self.compose_rotation_about::<1, 2, 0>(angle),
+            _ => self.compose_rotation_about::<2, 0, 1>(angle),
+        }
+    }
+
+    /// [`Self::compose_rotation_about_coordinate_axis`] about `e_K`, where the rotation takes `e_I`
+    /// to `c e_I + s e_J` and `e_J` to `−s e_I + c e_J` (`(K, I, J)` a cyclic order of 0, 1, 2).
+    #[inline(always)]
+    fn compose_rotation_about<const K: usize, const I: usize, const J: usize>(
+        &self,
+        angle: f64,
+    ) -> Transform {
+        let (s, c) = super::trig::sin_cos(angle);
+        let along_axis = (1.0 - c) + c;
+        let r = &self.rotation;
+        let mut columns = [[0.0; 3]; 3];
+        for row in 0..3 {
+            let (a, b) = (r[(row, I)], r[(row, J)]);
+            columns[I][row] = a * c + b * s;
+            columns[J][row] = a * -s + b * c;
+            columns[K][row] = r[(row, K)] * along_axis;
+        }
+        Transform {
+            rotation: Mat3::from_column_slice(columns.as_flattened()),
+            translation: self.translation,
+        }
+    }
+
     /// `self * child_from_x`: composes `parent_from_child` with `child_from_x` into `parent_from_x`.
     #[inline]
     pub fn compose(&self, child_from_x: &Transform) -> Transform {
@@ -187,6 +230,28 @@ mod tests {
         let unit = nalgebra::Unit::new_normalize(axis);
         let theirs = *nalgebra::Rotation3::from_axis_angle(&unit, 0.77).matrix();
         assert!((ours - theirs).abs().max() < EXACT);
+    }
+
+    #[test]
+    fn composing_a_coordinate_axis_rotation_has_the_bits_of_the_general_composition() {
+        let parent_from_joint = Transform::from_xyz_rpy([0.1, -0.4, 0.7], [0.3, 0.2, -1.0]);
+        let aligned =
+            Transform::from_xyz_rpy([0.0, -0.09, 0.0], [std::f64::consts::FRAC_PI_2, 0.0, 0.0]);
+        for x in [parent_from_joint, aligned, Transform::identity()] {
+            for k in 0..3 {
+                let mut axis = Vec3::zeros();
+                axis[k] = 1.0;
+                for angle in [0.0, 0.3, -1.7, 2.9, 1e-9, -41.0, std::f64::consts::PI] {
+                    let general = x.compose(&Transform::new(
+                        rotation_about_axis(&axis, angle),
+                        Vec3::zeros(),
+                    ));
+                    let special = x.compose_rotation_about_coordinate_axis(k, angle);
+                    // `==` on f64 equates the two zeros and nothing else.
+                    assert_eq!(special, general, "axis {k}, angle {angle}");
+                }
+            }
+        }
     }
 
     #[test]

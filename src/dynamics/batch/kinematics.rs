@@ -1,6 +1,6 @@
 //! Forward kinematics over a batch: [`crate::dynamics::forward_kinematics`] lane by lane.
 
-use super::joint::joint_transform;
+use super::joint::parent_from_child;
 use super::lanes::Lanes;
 use super::model::BatchModel;
 use super::state::{BatchData, BatchVectors};
@@ -53,12 +53,13 @@ pub(super) fn joint_placements_chunks<const W: usize>(
         let q = q.chunk(c);
         let parent_from_body = &mut data.parent_from_body[c * nb..(c + 1) * nb];
         for (i, joint) in model.joints.iter().enumerate() {
-            let motion = joint_transform(
+            parent_from_body[i] = parent_from_child(
                 joint.kind,
+                &values.coordinate_axes[i],
+                &values.parent_from_joint[i],
                 &values.axis[i],
                 &q[joint.q_index..joint.q_index + joint.nq()],
             );
-            parent_from_body[i] = values.parent_from_joint[i].compose(&motion);
         }
     }
 }
@@ -72,12 +73,13 @@ fn chunk<const W: usize>(
     world_from_body: &mut [super::lanes::TransformLanes<W>],
 ) {
     for (i, joint) in model.joints.iter().enumerate() {
-        let motion = joint_transform(
+        let x = parent_from_child(
             joint.kind,
+            &values.coordinate_axes[i],
+            &values.parent_from_joint[i],
             &values.axis[i],
             &q[joint.q_index..joint.q_index + joint.nq()],
         );
-        let x = values.parent_from_joint[i].compose(&motion);
         parent_from_body[i] = x;
         world_from_body[i] = match joint.parent {
             Some(p) => world_from_body[p].compose(&x),

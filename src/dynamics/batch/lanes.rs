@@ -230,6 +230,44 @@ impl<const W: usize> TransformLanes<W> {
         }
     }
 
+    /// [`crate::spatial::Transform::compose_rotation_about_coordinate_axis`] lane by lane (every
+    /// lane about `e_k`, its angle in `angle`).
+    #[inline(always)]
+    pub fn compose_rotation_about_coordinate_axis(
+        &self,
+        axis_index: usize,
+        angle: Lanes<W>,
+    ) -> Self {
+        match axis_index {
+            0 => self.compose_rotation_about::<0, 1, 2>(angle),
+            1 => self.compose_rotation_about::<1, 2, 0>(angle),
+            _ => self.compose_rotation_about::<2, 0, 1>(angle),
+        }
+    }
+
+    /// The scalar `compose_rotation_about::<K, I, J>`'s operations lane by lane.
+    #[inline(always)]
+    fn compose_rotation_about<const K: usize, const I: usize, const J: usize>(
+        &self,
+        angle: Lanes<W>,
+    ) -> Self {
+        let (s, c) = crate::spatial::trig::sin_cos_lanes(angle.0);
+        let (s, c) = (Lanes(s), Lanes(c));
+        let along_axis = (Lanes::splat(1.0) - c) + c;
+        let r = &self.rotation;
+        let mut rotation = [[Lanes::zero(); 3]; 3];
+        for row in 0..3 {
+            let (a, b) = (r[row][I], r[row][J]);
+            rotation[row][I] = a * c + b * s;
+            rotation[row][J] = a * -s + b * c;
+            rotation[row][K] = r[row][K] * along_axis;
+        }
+        Self {
+            rotation,
+            translation: self.translation,
+        }
+    }
+
     /// [`crate::spatial::Transform::inv_act_motion`] lane by lane.
     #[inline(always)]
     pub fn inv_act_motion(&self, m: &MotionLanes<W>) -> MotionLanes<W> {
@@ -309,6 +347,23 @@ impl<const W: usize> MotionLanes<W> {
                 &cross(&self.linear, &other.angular),
             ),
             angular: cross(&self.angular, &other.angular),
+        }
+    }
+
+    /// [`crate::spatial::Motion::cross_coordinate_axis`] lane by lane (every lane about `e_k`).
+    #[inline(always)]
+    pub fn cross_coordinate_axis(&self, axis_index: usize, rate: Lanes<W>) -> Self {
+        let zero = Lanes::zero();
+        let cross = |a: &V3<W>| -> V3<W> {
+            match axis_index {
+                0 => [zero, a[2] * rate, -(a[1] * rate)],
+                1 => [-(a[2] * rate), zero, a[0] * rate],
+                _ => [a[1] * rate, -(a[0] * rate), zero],
+            }
+        };
+        Self {
+            linear: cross(&self.linear),
+            angular: cross(&self.angular),
         }
     }
 

@@ -31,7 +31,7 @@ mod state;
 pub use cholesky::{cholesky_factor, cholesky_factor_with_min_pivots, cholesky_solve};
 pub use crba::crba;
 pub use kinematics::forward_kinematics;
-pub use model::{lane_transform, BatchError, BatchJoint, BatchModel, ChunkValues};
+pub use model::{lane_transform, BatchError, BatchJoint, BatchModel, ChunkValues, LaneAxes};
 pub use rnea::{nonlinear_effects, rnea, rnea_at_placements};
 pub use state::{BatchData, BatchVectors};
 

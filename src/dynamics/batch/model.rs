@@ -83,6 +83,9 @@ pub struct ChunkValues<const W: usize> {
     pub parent_from_joint: Vec<TransformLanes<W>>,
     /// Unit axis of every joint in its joint frame.
     pub axis: Vec<V3<W>>,
+    /// Per joint, which lanes are a revolute joint about a coordinate axis of its frame
+    /// ([`crate::model::Joint::revolute_coordinate_axis`]; docs/batch.md §7).
+    pub coordinate_axes: Vec<LaneAxes<W>>,
     /// Merged spatial inertia of every body, about the body origin.
     pub inertia: Vec<InertiaLanes<W>>,
     /// Gravity in the world frame (m/s²).
@@ -133,6 +136,7 @@ impl<const W: usize> BatchModel<W> {
         let blank = ChunkValues {
             parent_from_joint: vec![TransformLanes::identity(); nb],
             axis: vec![[Lanes::zero(); 3]; nb],
+            coordinate_axes: vec![LaneAxes::None; nb],
             inertia: vec![InertiaLanes::zero(); nb],
             gravity: [Lanes::zero(); 3],
         };
@@ -204,6 +208,8 @@ impl<const W: usize> BatchModel<W> {
         for (i, joint) in model.joints.iter().enumerate() {
             set_transform(&mut chunk.parent_from_joint[i], l, &joint.parent_from_joint);
             set_v3(&mut chunk.axis[i], l, &joint.axis);
+            chunk.coordinate_axes[i] =
+                chunk.coordinate_axes[i].with_lane(l, joint.revolute_coordinate_axis());
         }
         for (i, body) in model.bodies.iter().enumerate() {
             set_inertia(&mut chunk.inertia[i], l, &body.inertia);
@@ -212,7 +218,44 @@ impl<const W: usize> BatchModel<W> {
     }
 }
 
-fn set_v3<const W: usize>(target: &mut V3<W>, lane: usize, value: &Vec3) {
+/// Which lanes of a chunk turn one joint about a coordinate axis `e_k` of its frame: the batched
+/// kernels leave out the joint motion's zero products where the scalar kernels do, lane for lane,
+/// so that every lane keeps the scalar bits, signs of zero included (docs/batch.md §7).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LaneAxes<const W: usize> {
+    /// Every lane, about `e_k` (`k` ∈ {0, 1, 2}): the kernels' aligned path.
+    Every(usize),
+    /// No lane: the general formulas.
+    None,
+    /// Some lanes (each `Some(k)`), not all about one axis (a study that moves an axis, its
+    /// nominal sample exactly on `e_k`): the general formulas for the chunk, then the aligned
+    /// lanes again by the scalar kernels' aligned path.
+    Mixed([Option<usize>; W]),
+}
+
+impl<const W: usize> LaneAxes<W> {
+    /// Every lane's `Some(k)` or `None`.
+    pub fn per_lane(&self) -> [Option<usize>; W] {
+        match *self {
+            LaneAxes::Every(k) => [Some(k); W],
+            LaneAxes::None => [None; W],
+            LaneAxes::Mixed(lanes) => lanes,
+        }
+    }
+
+    /// `self` with lane `lane` set to `axis`, summarised again.
+    fn with_lane(&self, lane: usize, axis: Option<usize>) -> Self {
+        let mut lanes = self.per_lane();
+        lanes[lane] = axis;
+        match lanes[0] {
+            first if lanes.iter().any(|a| *a != first) => LaneAxes::Mixed(lanes),
+            Some(k) => LaneAxes::Every(k),
+            None => LaneAxes::None,
+        }
+    }
+}
+
+pub(super) fn set_v3<const W: usize>(target: &mut V3<W>, lane: usize, value: &Vec3) {
     for (t, v) in target.iter_mut().zip(value.iter()) {
         t.0[lane] = *v;
     }
@@ -226,7 +269,11 @@ fn set_m3<const W: usize>(target: &mut [[Lanes<W>; 3]; 3], lane: usize, value: &
     }
 }
 
-fn set_transform<const W: usize>(target: &mut TransformLanes<W>, lane: usize, value: &Transform) {
+pub(super) fn set_transform<const W: usize>(
+    target: &mut TransformLanes<W>,
+    lane: usize,
+    value: &Transform,
+) {
     set_m3(&mut target.rotation, lane, &value.rotation);
     set_v3(&mut target.translation, lane, &value.translation);
 }

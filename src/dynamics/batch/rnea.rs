@@ -2,7 +2,7 @@
 //! [`crate::dynamics::nonlinear_effects`] lane by lane (Featherstone §5.3; the recursion is in
 //! `src/dynamics/rnea.rs`).
 
-use super::joint::{joint_motion, joint_transform, project_force};
+use super::joint::{forward_motion, parent_from_child, project_force_aligned};
 use super::lanes::{v3_neg, v3_zero, ForceLanes, Lanes, MotionLanes, TransformLanes};
 use super::model::{BatchModel, ChunkValues};
 use super::state::{BatchData, BatchVectors};
@@ -127,40 +127,43 @@ fn chunk<const W: usize>(
     for (i, joint) in model.joints.iter().enumerate() {
         let (qi, vi) = (joint.q_index, joint.v_index);
         let axis = &values.axis[i];
-        let parent_from_body = match q {
-            Some(q) => {
-                let motion = joint_transform(joint.kind, axis, &q[qi..qi + joint.nq()]);
-                values.parent_from_joint[i].compose(&motion)
-            }
-            // The placement this configuration already has (`rnea_at_placements`).
-            None => b.parent_from_body[i],
-        };
-        let joint_velocity = joint_motion(joint.kind, axis, &v[vi..vi + joint.nv()]);
+        let axes = &values.coordinate_axes[i];
+        // Without `q`, the placement this configuration already has (`rnea_at_placements`).
+        if let Some(q) = q {
+            b.parent_from_body[i] = parent_from_child(
+                joint.kind,
+                axes,
+                &values.parent_from_joint[i],
+                axis,
+                &q[qi..qi + joint.nq()],
+            );
+        }
+        let parent_from_body = &b.parent_from_body[i];
         let (parent_velocity, parent_acceleration) = match joint.parent {
             Some(p) => (b.velocity[p], b.acceleration[p]),
             None => (MotionLanes::zero(), base_acceleration),
         };
-        let velocity = parent_from_body
-            .inv_act_motion(&parent_velocity)
-            .add(&joint_velocity);
-        let mut acceleration = parent_from_body
-            .inv_act_motion(&parent_acceleration)
-            .add(&velocity.cross_motion(&joint_velocity));
-        if let Some(qdd) = qdd {
-            acceleration =
-                acceleration.add(&joint_motion(joint.kind, axis, &qdd[vi..vi + joint.nv()]));
-        }
+        let (velocity, acceleration) = forward_motion(
+            joint.kind,
+            axes,
+            axis,
+            parent_from_body,
+            &parent_velocity,
+            &parent_acceleration,
+            &v[vi..vi + joint.nv()],
+            qdd.map(|qdd| &qdd[vi..vi + joint.nv()]),
+        );
         let inertia = &values.inertia[i];
         b.force[i] = inertia
             .apply(&acceleration)
             .add(&velocity.cross_force(&inertia.apply(&velocity)));
         b.velocity[i] = velocity;
         b.acceleration[i] = acceleration;
-        b.parent_from_body[i] = parent_from_body;
     }
     for (i, joint) in model.joints.iter().enumerate().rev() {
-        project_force(
+        project_force_aligned(
             joint.kind,
+            &values.coordinate_axes[i],
             &values.axis[i],
             &b.force[i],
             &mut out[joint.v_index..joint.v_index + joint.nv()],
