@@ -556,3 +556,52 @@ fn a_study_records_the_same_bits_batched_and_unbatched() {
         }
     }
 }
+
+/// A study that moves joint axes: its nominal sample keeps them exactly on `z` (the kernels'
+/// aligned path, docs/batch.md §7) while the other samples of its chunks tilt them, so the batch
+/// mixes aligned and general lanes. The records are the same bits batched and unbatched.
+#[test]
+fn a_study_that_tilts_joint_axes_records_the_same_bits_batched_and_unbatched() {
+    let shipped = std::fs::read_to_string(common::manifest("robots/ur5/ur5.uncertainty.toml"))
+        .expect("the shipped ur5 sidecar reads");
+    let sidecar = shipped.replacen(
+        "[parameters]\n",
+        "[parameters]\n\"joint.wrist_2_joint.axis.x\" = [-0.02, 0.02]\n\
+         \"joint.wrist_3_joint.axis.y\" = [-0.02, 0.02]\n",
+        1,
+    );
+    assert_ne!(sidecar, shipped, "the axis parameters are added");
+    let path = common::scratch_file("batch_step", "ur5_tilted_axes.uncertainty.toml");
+    std::fs::write(&path, sidecar).expect("scratch sidecar writes");
+    let setup = common::shipped_setup(
+        "robots/ur5/ur5.urdf",
+        path.to_str().expect("UTF-8 scratch path"),
+        0.3,
+    );
+    let d = setup.space.len();
+    let axes: Vec<usize> = (0..d)
+        .filter(|&k| setup.space.dimensions()[k].name.contains(".axis."))
+        .collect();
+    assert_eq!(axes.len(), 2, "two axis parameters in {d}");
+    let mut points: Vec<f64> = lane_points(d, 9).concat();
+    // Samples 1 and 6 with both axes exactly as in the URDF (ξ = 0), the others tilted: mixed
+    // chunks. (The nominal run, ξ = 0 throughout, is aligned too.)
+    for sample in 0..9 {
+        for &k in &axes {
+            let value = &mut points[sample * d + k];
+            *value = if sample == 1 || sample == 6 {
+                0.0
+            } else if *value == 0.0 {
+                0.5
+            } else {
+                *value
+            };
+        }
+    }
+    let settings = hht_settings(&setup.scene);
+    let reference = study_records(&setup, settings, &points, false, 1);
+    assert_eq!(reference.1, "[]", "no sample is expected to fail");
+    let batched = study_records(&setup, settings, &points, true, 2);
+    assert_eq!(reference.2, batched.2, "counters differ");
+    assert!(reference.0 == batched.0, "records differ");
+}
