@@ -263,7 +263,7 @@ impl Joint {
 
 /// `Some(k)` when `axis` is exactly the coordinate axis `e_k` (`−0` counts as `0`).
 #[inline]
-pub fn coordinate_axis_index(axis: &Vec3) -> Option<usize> {
+fn coordinate_axis_index(axis: &Vec3) -> Option<usize> {
     let [x, y, z] = [axis.x, axis.y, axis.z];
     if x == 0.0 && y == 0.0 && z == 1.0 {
         Some(2)
