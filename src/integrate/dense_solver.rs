@@ -56,6 +56,11 @@ pub(crate) struct DenseSolver {
     /// [`FactorKind::SaddlePoint`]: the last factorisation is an LU of the whole matrix in
     /// `factors` (`A` was not positive definite).
     whole_by_lu: bool,
+    /// [`FactorKind::SaddlePoint`]: `blocks` hold the Cholesky factor of the `A` that
+    /// [`DenseSolver::factor_blocks`] was last handed without a diagonal, or with a zero one
+    /// (`A` = its `mass`), so
+    /// [`DenseSolver::refactor_constraint_rows`] can keep it.
+    holds_mass_factor: bool,
 }
 
 impl DenseSolver {
@@ -77,6 +82,7 @@ impl DenseSolver {
             kind,
             blocks,
             whole_by_lu: false,
+            holds_mass_factor: false,
         }
     }
 
@@ -98,6 +104,7 @@ impl DenseSolver {
             a.shape(),
             "DenseSolver::factor: the matrix has the solver's dimension"
         );
+        self.holds_mass_factor = false;
         let whole = a.as_slice();
         let scale = max_abs(whole);
         match self.kind {
@@ -160,6 +167,7 @@ impl DenseSolver {
                 }
             }
         };
+        self.holds_mass_factor = false;
         match self.kind {
             FactorKind::SaddlePoint { constraint_rows } => {
                 assert_eq!(
@@ -175,7 +183,11 @@ impl DenseSolver {
                     write_a(whole, n);
                     assemble_constraint_blocks(whole, n, b, 1.0);
                 }
-                self.finish_saddle_point(regular, scale)
+                let factorised = self.finish_saddle_point(regular, scale);
+                // `mass + 0` is `mass`, bit for bit (its diagonal is positive once factorised).
+                let unshifted = diagonal.is_none_or(|d| d.iter().all(|x| *x == 0.0));
+                self.holds_mass_factor = unshifted && factorised.is_ok();
+                factorised
             }
             FactorKind::Lu | FactorKind::Cholesky => {
                 let n = nv + m;
@@ -213,6 +225,39 @@ impl DenseSolver {
             "DenseSolver::install_cholesky_factor: a Cholesky solver"
         );
         self.factors.as_mut_slice().copy_from_slice(factor);
+        self.holds_mass_factor = false;
+    }
+
+    /// Whether the last factorisation was [`DenseSolver::factor_blocks`]'s of `[M Bᵀ; B 0]`
+    /// without a diagonal (or with a zero one), by the Schur complement: then
+    /// [`DenseSolver::refactor_constraint_rows`] can keep `M`'s factor.
+    pub fn holds_mass_factor(&self) -> bool {
+        self.holds_mass_factor
+    }
+
+    /// Refactorises `[M Bᵀ; B 0]` for new constraint rows `b` (`m × nv`), keeping the Cholesky
+    /// factor of the `M` that the last [`DenseSolver::factor_blocks`] was handed (only when
+    /// [`DenseSolver::holds_mass_factor`]): `Y = L⁻¹ Bᵀ` and the Schur complement's factor
+    /// only, `m` triangular solves and an `m × m` Cholesky instead of `M`'s. The same bits as
+    /// `factor_blocks` with that `M`, no diagonal and `b`. On a breakdown (dependent rows) the factor of `M`
+    /// stays and the caller factorises afresh.
+    pub fn refactor_constraint_rows(&mut self, b: &DMatrix<f64>) -> Result<(), Breakdown> {
+        let FactorKind::SaddlePoint { constraint_rows: m } = self.kind else {
+            panic!("DenseSolver::refactor_constraint_rows: a saddle-point solver");
+        };
+        assert!(
+            self.holds_mass_factor,
+            "DenseSolver::refactor_constraint_rows: after factor_blocks without a diagonal"
+        );
+        assert_eq!(
+            b.shape(),
+            (m, self.dimension() - m),
+            "DenseSolver::refactor_constraint_rows: B has the solver's constraint rows"
+        );
+        match self.factor_schur_complement(m, |r, j| b[(r, j)]) {
+            SaddlePointFactor::DependentRows(breakdown) => Err(breakdown),
+            _ => Ok(()),
+        }
     }
 
     /// LU or Cholesky of the whole matrix in `factors` (per the kind; LU for a saddle-point
@@ -244,13 +289,25 @@ impl DenseSolver {
         b_entry: impl Fn(usize, usize) -> f64,
     ) -> SaddlePointFactor {
         let nv = self.dimension() - m;
-        let (l, rest) = self.blocks.split_at_mut(nv * nv);
-        let (y, s) = rest.split_at_mut(nv * m);
+        let l = &mut self.blocks[..nv * nv];
         if scale == 0.0
             || cholesky::factor_in_place(l, nv, SINGULAR_PIVOT_RELATIVE * scale).is_err()
         {
             return SaddlePointFactor::ByLu;
         }
+        self.factor_schur_complement(m, b_entry)
+    }
+
+    /// The second half of [`DenseSolver::factor_saddle_point`], with `A`'s factor `L` in
+    /// `blocks`: `Y = L⁻¹ Bᵀ` and the Cholesky factor of the Schur complement `YᵀY`.
+    fn factor_schur_complement(
+        &mut self,
+        m: usize,
+        b_entry: impl Fn(usize, usize) -> f64,
+    ) -> SaddlePointFactor {
+        let nv = self.dimension() - m;
+        let (l, rest) = self.blocks.split_at_mut(nv * nv);
+        let (y, s) = rest.split_at_mut(nv * m);
         for (r, column) in y.chunks_exact_mut(nv.max(1)).take(m).enumerate() {
             for (j, entry) in column.iter_mut().enumerate() {
                 *entry = b_entry(r, j);
@@ -410,6 +467,27 @@ fn first_non_finite_by_entry(x: &[f64]) -> Option<usize> {
     } else {
         x.iter().position(|v| !v.is_finite())
     }
+}
+
+/// Whether every entry of `x` is finite: `v − v` is 0 for a finite entry and NaN for NaN or ±∞, so
+/// sums of those in two lanes (one vector register of the x86-64 baseline) are both 0 exactly when
+/// every entry is finite. Long slices take four lanes ([`first_non_finite`]).
+#[inline]
+#[allow(clippy::eq_op)] // `v − v` is the test itself.
+pub(crate) fn all_finite(x: &[f64]) -> bool {
+    if x.len() >= LANE_TEST_FROM {
+        return first_non_finite_by_lanes(x).is_none();
+    }
+    let mut lanes = [0.0_f64; 2];
+    let mut pairs = x.chunks_exact(2);
+    for pair in &mut pairs {
+        lanes[0] += pair[0] - pair[0];
+        lanes[1] += pair[1] - pair[1];
+    }
+    for v in pairs.remainder() {
+        lanes[0] += v - v;
+    }
+    lanes[0] == 0.0 && lanes[1] == 0.0
 }
 
 /// Index of the first non-finite entry (column-major for matrices), if any. The common case, every
@@ -681,6 +759,55 @@ mod tests {
                 .expect("positive definite");
             assert_eq!(from_blocks.factors.as_slice(), reference.factors.as_slice());
         }
+    }
+
+    /// Refactorising only the rows keeps `M`'s factor and gives `factor_blocks`'s bits for the new
+    /// rows; it is offered only after `factor_blocks` of `M` alone (or with a zero diagonal), and a
+    /// breakdown (dependent rows) leaves the caller to factorise afresh.
+    #[test]
+    fn refactoring_the_rows_keeps_the_factor_of_m_and_the_bits_of_a_fresh_factorisation() {
+        for (nv, m) in [(1, 1), (6, 1), (7, 2), (14, 5)] {
+            let (mass, diagonal, b) = blocks(nv, m, 0x2f_41a9_03d1 + nv as u64);
+            let (_, _, new_rows) = blocks(nv, m, 0x77_0b3e_5c19 + nv as u64);
+            let kind = FactorKind::SaddlePoint { constraint_rows: m };
+            let rhs = DVector::from_fn(nv + m, |i, _| (i as f64 * 1.3).cos());
+            let zero = DVector::zeros(nv);
+            for d in [None, Some(&zero)] {
+                let mut kept = DenseSolver::new(nv + m, kind);
+                kept.factor_blocks(&mass, d.map(|d| d.as_slice()), &b)
+                    .expect("regular");
+                assert!(kept.holds_mass_factor(), "nv {nv}, m {m}");
+                kept.refactor_constraint_rows(&new_rows).expect("regular");
+                let mut fresh = DenseSolver::new(nv + m, kind);
+                fresh
+                    .factor_blocks(&mass, None, &new_rows)
+                    .expect("regular");
+                assert_eq!(kept.blocks, fresh.blocks, "nv {nv}, m {m}");
+                let (mut x, mut y) = (rhs.clone(), rhs.clone());
+                kept.solve_in_place(&mut x);
+                fresh.solve_in_place(&mut y);
+                assert_eq!(x.as_slice(), y.as_slice(), "nv {nv}, m {m}");
+            }
+            // A non-zero diagonal, or a whole matrix: M's factor is not what the blocks hold.
+            let mut shifted = DenseSolver::new(nv + m, kind);
+            shifted
+                .factor_blocks(&mass, Some(diagonal.as_slice()), &b)
+                .expect("regular");
+            assert!(!shifted.holds_mass_factor());
+            let mut whole = DenseSolver::new(nv + m, kind);
+            whole.factor(&assembled(&mass, None, &b)).expect("regular");
+            assert!(!whole.holds_mass_factor());
+        }
+        // Two copies of one row: refused, M's factor kept for the next attempt.
+        let (mass, _, row) = blocks(4, 2, 5);
+        let kind = FactorKind::SaddlePoint { constraint_rows: 2 };
+        let mut s = DenseSolver::new(6, kind);
+        s.factor_blocks(&mass, None, &row).expect("regular");
+        let doubled = DMatrix::from_fn(2, 4, |_, j| row[(0, j)]);
+        let failure = s.refactor_constraint_rows(&doubled).unwrap_err();
+        assert_eq!(failure.index, 5);
+        assert!(s.holds_mass_factor());
+        s.refactor_constraint_rows(&row).expect("regular");
     }
 
     /// A coordinate with no inertia held by a constraint row: `A` is singular but the

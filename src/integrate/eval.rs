@@ -4,7 +4,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::dense_solver::first_non_finite;
+use super::dense_solver::{all_finite, first_non_finite};
 use super::error::IntegrateError;
 use super::system::DaeSystem;
 
@@ -31,16 +31,26 @@ impl At {
     }
 
     /// `Err(NonFinite)` naming `quantity` if any entry of `x` is NaN or infinite.
+    /// Inlined test, out-of-line report: the common case is a short loop at the call site.
+    #[inline]
     pub fn check_finite(self, quantity: &'static str, x: &[f64]) -> Result<(), IntegrateError> {
-        match first_non_finite(x) {
-            None => Ok(()),
-            Some(index) => Err(IntegrateError::NonFinite {
-                t: self.t,
-                step: self.step,
-                quantity,
-                index,
-            }),
+        if all_finite(x) {
+            Ok(())
+        } else {
+            self.non_finite(quantity, x)
         }
+    }
+
+    /// The [`IntegrateError::NonFinite`] of `x`, which holds a NaN or infinite entry.
+    #[cold]
+    #[inline(never)]
+    fn non_finite(self, quantity: &'static str, x: &[f64]) -> Result<(), IntegrateError> {
+        Err(IntegrateError::NonFinite {
+            t: self.t,
+            step: self.step,
+            quantity,
+            index: first_non_finite(x).unwrap_or(0),
+        })
     }
 }
 
@@ -186,6 +196,7 @@ pub(crate) fn constraint_acceleration_bias<S: DaeSystem + ?Sized>(
 }
 
 /// `out (nq) = q ⊕ dq`.
+#[inline]
 pub(crate) fn integrate_position<S: DaeSystem + ?Sized>(
     sys: &S,
     at: At,

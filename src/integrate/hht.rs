@@ -99,7 +99,8 @@ pub struct HhtStats {
     pub factorisations: u64,
     /// Steps whose first Newton pass failed and that refreshed the matrix.
     pub refreshes: u64,
-    /// Factorisations of `[M Φ_qᵀ; Φ_q 0]` for the velocity projection.
+    /// Factorisations of `[M Φ_qᵀ; Φ_q 0]` for the velocity projection (of its rows only when it
+    /// keeps the Newton matrix's `M`).
     pub projection_factorisations: u64,
     /// Steps accepted with the multiplier correction at its rounding floor (positions converged, `Δλ`
     /// stagnating above the multiplier tolerance; see `LAMBDA_STAGNATION_RATIO`). Non-zero means the
@@ -1466,12 +1467,26 @@ impl HhtIntegrator {
             &mut ws.dq.as_mut_slice()[..nv],
             &mut ws.v.as_mut_slice()[..nv],
         );
-        for i in 0..nv {
-            let a_new = (1.0 + alpha) * qdd[i] - alpha * qdd_n[i];
-            let a_n = a_start[i];
-            a[i] = a_new;
-            dq[i] = h * v_n[i] + h * h * ((0.5 - beta) * a_n + beta * a_new);
-            v[i] = v_n[i] + h * ((1.0 - gamma) * a_n + gamma * a_new);
+        // Two entries at a time (one vector register of the x86-64 baseline), the last alone.
+        let newmark = NewmarkUpdate {
+            h,
+            alpha,
+            beta,
+            gamma,
+        };
+        let pairs = nv - nv % 2;
+        for i in (0..pairs).step_by(2) {
+            let pair = |x: &[f64]| -> [f64; 2] { [x[i], x[i + 1]] };
+            let (a_new, dq_new, v_new) =
+                newmark.entries(pair(qdd), pair(qdd_n), pair(a_start), pair(v_n));
+            a[i..i + 2].copy_from_slice(&a_new);
+            dq[i..i + 2].copy_from_slice(&dq_new);
+            v[i..i + 2].copy_from_slice(&v_new);
+        }
+        for i in pairs..nv {
+            let ([a_new], [dq_new], [v_new]) =
+                newmark.entries([qdd[i]], [qdd_n[i]], [a_start[i]], [v_n[i]]);
+            (a[i], dq[i], v[i]) = (a_new, dq_new, v_new);
         }
         eval::integrate_position(system, at, &s.q, &ws.dq, &mut ws.q)?;
         ws.mass_fresh = false;
@@ -1877,25 +1892,35 @@ impl HhtIntegrator {
             return Ok(());
         }
         // ws.phi_q holds Φ_q(q_{n+1}), ws.phi_dot Φ_q q̇ + Φ_t.
+        // The projection's matrix [M Φ_qᵀ; Φ_q 0] replaces the stored Newton factorisation
+        // (never reused with constraint rows). Its metric M is the Newton matrix's when that was
+        // M alone (docs/method.md §5, "Velocity projection"): only the rows are refactorised.
+        self.trajectory.newton.reusable = false;
+        let keeps_newton_mass = self.projection_keeps_newton_mass()
+            && self
+                .trajectory
+                .newton
+                .solver
+                .refactor_constraint_rows(&self.ws.phi_q)
+                .is_ok();
         let ws = &mut self.ws;
-        if !ws.projection_mass_given {
-            eval::mass_matrix(system, at, &self.trajectory.state.q, &mut ws.mass)?;
+        if !keeps_newton_mass {
+            if !ws.projection_mass_given {
+                eval::mass_matrix(system, at, &self.trajectory.state.q, &mut ws.mass)?;
+            }
+            self.trajectory
+                .newton
+                .solver
+                .factor_blocks(&ws.mass, None, &ws.phi_q)
+                .map_err(|b| IntegrateError::SingularMatrix {
+                    t: at.t,
+                    step: at.step,
+                    matrix: "velocity projection matrix [M Φ_qᵀ; Φ_q 0]",
+                    index: b.index,
+                    pivot_relative: b.pivot_relative,
+                })?;
         }
         ws.mass_fresh = false;
-        // The projection's matrix [M Φ_qᵀ; Φ_q 0] replaces the stored Newton factorisation
-        // (never reused with constraint rows).
-        self.trajectory.newton.reusable = false;
-        self.trajectory
-            .newton
-            .solver
-            .factor_blocks(&ws.mass, None, &ws.phi_q)
-            .map_err(|b| IntegrateError::SingularMatrix {
-                t: at.t,
-                step: at.step,
-                matrix: "velocity projection matrix [M Φ_qᵀ; Φ_q 0]",
-                index: b.index,
-                pivot_relative: b.pivot_relative,
-            })?;
         self.trajectory.stats.projection_factorisations += 1;
         for i in 0..nv {
             ws.rhs[i] = 0.0;
@@ -1918,6 +1943,16 @@ impl HhtIntegrator {
         self.trajectory.stats.max_velocity_violation =
             self.trajectory.stats.max_velocity_violation.max(after);
         Ok(())
+    }
+
+    /// Whether the velocity projection of the step being accepted can keep the factor of `M` in
+    /// the Newton matrix it converged with: that matrix was `[M Φ_qᵀ; Φ_q 0]` of this step (no
+    /// diagonal terms, not the full Newton matrix), so the projection refactorises only its rows
+    /// at `q_{n+1}` (docs/method.md §5, "Velocity projection").
+    pub(crate) fn projection_keeps_newton_mass(&self) -> bool {
+        self.settings.projection_keeps_newton_mass
+            && !self.ws.use_full
+            && self.trajectory.newton.solver.holds_mass_factor()
     }
 
     /// Test-only: feed the projected velocity back into the recursion (the textbook post-step
@@ -2066,6 +2101,43 @@ pub fn iteration_matrix<S: DaeSystem + ?Sized>(
     Ok(out)
 }
 
+/// The HHT-α/Newmark coefficients of [`HhtIntegrator::update_iterate`].
+#[derive(Clone, Copy)]
+struct NewmarkUpdate {
+    h: f64,
+    alpha: f64,
+    beta: f64,
+    gamma: f64,
+}
+
+impl NewmarkUpdate {
+    /// `W` entries' `(a_{n+1}, Δq, q̇_{n+1})` from `q̈_{n+1}`, `q̈_n`, `a_n` and the Newmark
+    /// `q̇_n`, lane by lane over arrays (vector instructions; each lane the operations of one
+    /// entry).
+    #[inline(always)]
+    fn entries<const W: usize>(
+        self,
+        qdd: [f64; W],
+        qdd_n: [f64; W],
+        a_n: [f64; W],
+        v_n: [f64; W],
+    ) -> ([f64; W], [f64; W], [f64; W]) {
+        let Self {
+            h,
+            alpha,
+            beta,
+            gamma,
+        } = self;
+        let (mut a, mut dq, mut v) = ([0.0; W], [0.0; W], [0.0; W]);
+        for l in 0..W {
+            let a_new = (1.0 + alpha) * qdd[l] - alpha * qdd_n[l];
+            a[l] = a_new;
+            dq[l] = h * v_n[l] + h * h * ((0.5 - beta) * a_n[l] + beta * a_new);
+            v[l] = v_n[l] + h * ((1.0 - gamma) * a_n[l] + gamma * a_new);
+        }
+        (a, dq, v)
+    }
+}
 /// Whether a failed attempt is worth retrying with a smaller step: Newton failures, non-finite
 /// numbers and a singular Newton matrix can all come from a step too long for the dynamics;
 /// dimension mismatches and errors of the consistent start cannot.

@@ -30,7 +30,9 @@ pub struct HhtSettings {
     /// fails with [`IntegrateError::NewtonNotConverged`].
     pub max_newton_iterations: usize,
     /// Post-step projection of the reported `q̇` onto `Φ_q q̇ + Φ_t = 0` (default `true`), by
-    /// `[M Φ_qᵀ; Φ_q 0][Δq̇; μ] = [0; −(Φ_q q̇ + Φ_t)]`. Only meaningful with constraint rows; without
+    /// `[M Φ_qᵀ; Φ_q 0][Δq̇; μ] = [0; −(Φ_q q̇ + Φ_t)]`, with `Φ_q` at `q_{n+1}` and `M` there or the
+    /// Newton matrix's ([`HhtSettings::projection_keeps_newton_mass`]). Only meaningful with
+    /// constraint rows; without
     /// it the velocity-level constraint of the reported velocity is off by O(h²) (bounded, no drift
     /// growth: plain I3 enforces only `Φ = 0`).
     ///
@@ -42,6 +44,14 @@ pub struct HhtSettings {
     /// 9.2e-7 (ratio 4.0). Positions are second order either way. So a step may leave it out when
     /// nothing reads the state before the next one ([`ReportedVelocity::Skipped`](super::ReportedVelocity)).
     pub velocity_projection: bool,
+    /// Let the velocity projection use the `M` of the Newton matrix the step converged with when
+    /// that matrix was `M` alone, refactorising only the rows at `q_{n+1}` (default `true`;
+    /// docs/method.md §5, "Velocity drift"): the panda's step 40 209 → 28 458 instructions. The
+    /// projected velocity then depends on where the iteration started (the predictor), by far
+    /// less than the Newton tolerance; off, the metric is `M(q_{n+1})`, a function of the state
+    /// alone, as difference quotients and the forward sensitivities' derivative of the projection
+    /// need (the four-bar's velocity sensitivities differ by 3e-5 relative otherwise).
+    pub projection_keeps_newton_mass: bool,
     /// Add the diagonal spring and damper terms `β'h² k_j + γ'h c_j` of
     /// [`DaeSystem::newton_diagonal`](super::DaeSystem::newton_diagonal) to the iteration matrix
     /// (default `true`). Turning it off only serves to measure what the terms buy: a stiff spring on
@@ -177,6 +187,7 @@ impl Default for HhtSettings {
             abstol_multiplier: 1e-8,
             max_newton_iterations: 10,
             velocity_projection: true,
+            projection_keeps_newton_mass: true,
             newton_diagonal_terms: true,
             newton_matrix: NewtonMatrix::Diagonal,
             step_control: StepControl::Fixed,

@@ -74,6 +74,9 @@ pub fn central_difference_settings(scene: &Scene) -> HhtSettings {
         accept_by_carried_contraction: false,
         // Likewise the predictor's order chosen by the history.
         choose_predictor_order: false,
+        // The projection's metric at q_{n+1}: the sensitivities differentiate that projection,
+        // and one at the Newton matrix's iterate depends on where the iteration started.
+        projection_keeps_newton_mass: false,
         ..hht_settings(scene)
     }
 }
@@ -230,7 +233,9 @@ pub fn sensitivity_run(
 /// One trajectory of `scene` at the point `xi` of `space` (dim d) with the derivatives of every
 /// output with respect to every ξ_j, by direct differentiation of each HHT-I3 step
 /// (docs/sensitivities.md). `model` is prepared as for [`super::simulate`] (the scene's gravity
-/// applied); `settings` are the integrator's (the scene's: [`hht_settings`]).
+/// applied); `settings` are the integrator's (the scene's: [`hht_settings`]), with
+/// [`HhtSettings::projection_keeps_newton_mass`] off: the derivative of the reported velocity is
+/// that of the projection with `M(q_{n+1})` (the values are a plain run's with that setting off).
 ///
 /// Cost: about the plain run plus, per step, the analytic Jacobians of RNEA (about two RNEA
 /// passes), one LU of `nv + m` and `d` solves, one regressor column per inertial target and two
@@ -248,6 +253,10 @@ pub fn sensitivity_run_with(
     settings: HhtSettings,
 ) -> Result<SensitivityRun, SensitivityRunError> {
     check_point(space, xi)?;
+    let settings = HhtSettings {
+        projection_keeps_newton_mass: false,
+        ..settings
+    };
     let d = space.len();
     let mut system = system_at(model, scene, space, xi);
     let mut list = Vec::new();

@@ -305,7 +305,11 @@ impl HhtIntegrator {
                     }
                 }
                 plain.growth = growth;
-                if self.m > 0 && self.settings.velocity_projection && plain.report_velocity {
+                if self.m > 0
+                    && self.settings.velocity_projection
+                    && plain.report_velocity
+                    && !self.projection_keeps_newton_mass()
+                {
                     // The projection needs M at q_{n+1}, the converged iterate: the caller's.
                     return Ok(PlainProgress::NeedsProjectionMass);
                 }

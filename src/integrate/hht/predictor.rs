@@ -70,47 +70,48 @@ impl DifferenceTable {
         }
     }
 
-    /// [`Self::push`] blending the orders 0 to `HIGHEST`.
+    /// [`Self::push`] blending the orders 0 to `HIGHEST`, [`BLEND_LANES`] entries at a time
+    /// ([`blend`]: each entry's operations are those of one at a time, in vector instructions).
     fn push_testing<const HIGHEST: usize>(&mut self, current: &[f64], new: &[f64]) {
         let n = new.len();
         let [d1, d2, d3, d4] = &mut self.differences;
-        let (d1, d2, d3, d4) = (
+        let differences = [
             &mut d1.as_mut_slice()[..n],
             &mut d2.as_mut_slice()[..n],
             &mut d3.as_mut_slice()[..n],
             &mut d4.as_mut_slice()[..n],
-        );
+        ];
         let (current, next) = (&current[..n], &mut self.next.as_mut_slice()[..n]);
-        for i in 0..n {
-            let x = new[i];
-            // n_k = ∇^k x_{n+1}: x_{n+1} minus the order-(k−1) extrapolation from t_n.
-            let n1 = x - current[i];
-            let n2 = n1 - d1[i];
-            let n3 = n2 - d2[i];
-            let n4 = n3 - d3[i];
-            let n5 = n4 - d4[i];
-            // The order-o extrapolation from x_{n+1} is x + rises[o − 1] (x + n1 + … + n_o); order
-            // o missed x_{n+1} by |n_{o+1}|. Each order weighs max(0, 2 − miss/smallest miss):
-            // the best one 1, one that missed by twice as much or more nothing, so that the best
-            // order dominates and the prediction stays continuous in the history.
-            let rises = [0.0, n1, n1 + n2, n1 + n2 + n3, n1 + n2 + n3 + n4];
-            let misses = [n1.abs(), n2.abs(), n3.abs(), n4.abs(), n5.abs()];
-            let mut smallest = misses[0];
-            for &miss in &misses[1..=HIGHEST] {
-                smallest = if miss < smallest { miss } else { smallest };
+        let full = n - n % BLEND_LANES;
+        for start in (0..full).step_by(BLEND_LANES) {
+            let entries = start..start + BLEND_LANES;
+            let lanes = |x: &[f64]| -> [f64; BLEND_LANES] {
+                x[entries.clone()].try_into().expect("BLEND_LANES entries")
+            };
+            let old = [
+                lanes(differences[0]),
+                lanes(differences[1]),
+                lanes(differences[2]),
+                lanes(differences[3]),
+            ];
+            let (best, rises) = blend::<BLEND_LANES, HIGHEST>(lanes(new), lanes(current), old);
+            next[entries.clone()].copy_from_slice(&best);
+            for k in 0..PREDICTOR_MAX_ORDER {
+                differences[k][entries.clone()].copy_from_slice(&rises[k]);
             }
-            // An order that was exact (smallest miss 0) weighs 2 and every other one nothing: the
-            // floor keeps the inverse finite, no branch.
-            let inverse = 1.0 / smallest.max(f64::MIN_POSITIVE);
-            let (mut weight_sum, mut rise) = (0.0, 0.0);
-            for o in 0..=HIGHEST {
-                let w = (2.0 - misses[o] * inverse).max(0.0);
-                weight_sum += w;
-                rise += w * rises[o];
+        }
+        for i in full..n {
+            let old = [
+                [differences[0][i]],
+                [differences[1][i]],
+                [differences[2][i]],
+                [differences[3][i]],
+            ];
+            let (best, rises) = blend::<1, HIGHEST>([new[i]], [current[i]], old);
+            next[i] = best[0];
+            for k in 0..PREDICTOR_MAX_ORDER {
+                differences[k][i] = rises[k][0];
             }
-            let best = x + rise / weight_sum;
-            next[i] = best;
-            (d1[i], d2[i], d3[i], d4[i]) = (n1, n2, n3, n4);
         }
     }
 
@@ -269,6 +270,78 @@ impl PredictorHistory {
             1
         };
     }
+}
+
+/// How many entries [`DifferenceTable::push`] blends together: two `f64` fill a vector register of
+/// the x86-64 baseline (SSE2).
+const BLEND_LANES: usize = 2;
+
+/// `W` entries of [`DifferenceTable::push`]: from their new values `x`, their current values and
+/// their old differences `∇¹ … ∇⁴` (`old[k]`: `∇^{k+1}`), the blend of the orders 0 to `HIGHEST`
+/// extrapolated from `x`, and the new differences. Written lane by lane over arrays so that the
+/// compiler emits vector instructions; each lane's operations are those of one entry.
+#[inline(always)]
+fn blend<const W: usize, const HIGHEST: usize>(
+    x: [f64; W],
+    current: [f64; W],
+    old: [[f64; W]; PREDICTOR_MAX_ORDER],
+) -> ([f64; W], [[f64; W]; PREDICTOR_MAX_ORDER]) {
+    // n[k] = ∇^{k+1} x_{n+1}: x_{n+1} minus the order-k extrapolation from t_n.
+    let mut n = [[0.0; W]; PREDICTOR_MAX_ORDER + 1];
+    for l in 0..W {
+        n[0][l] = x[l] - current[l];
+    }
+    for k in 1..=PREDICTOR_MAX_ORDER {
+        for l in 0..W {
+            n[k][l] = n[k - 1][l] - old[k - 1][l];
+        }
+    }
+    // The order-o extrapolation from x_{n+1} is x + rises[o] (x + n1 + … + n_o); order o missed
+    // x_{n+1} by |n_{o+1}|. Each order weighs max(0, 2 − miss/smallest miss): the best one 1, one
+    // that missed by twice as much or more nothing, so that the best order dominates and the
+    // prediction stays continuous in the history.
+    let mut rises = [[0.0; W]; PREDICTOR_MAX_ORDER + 1];
+    rises[1] = n[0];
+    for o in 2..=PREDICTOR_MAX_ORDER {
+        for l in 0..W {
+            rises[o][l] = rises[o - 1][l] + n[o - 1][l];
+        }
+    }
+    let mut misses = [[0.0; W]; PREDICTOR_MAX_ORDER + 1];
+    for o in 0..=PREDICTOR_MAX_ORDER {
+        for l in 0..W {
+            misses[o][l] = n[o][l].abs();
+        }
+    }
+    let mut smallest = misses[0];
+    for miss in &misses[1..=HIGHEST] {
+        for l in 0..W {
+            smallest[l] = if miss[l] < smallest[l] {
+                miss[l]
+            } else {
+                smallest[l]
+            };
+        }
+    }
+    // An order that was exact (smallest miss 0) weighs 2 and every other one nothing: the floor
+    // keeps the inverse finite, no branch.
+    let mut inverse = [0.0; W];
+    for l in 0..W {
+        inverse[l] = 1.0 / smallest[l].max(f64::MIN_POSITIVE);
+    }
+    let (mut weight_sum, mut rise) = ([0.0; W], [0.0; W]);
+    for o in 0..=HIGHEST {
+        for l in 0..W {
+            let w = (2.0 - misses[o][l] * inverse[l]).max(0.0);
+            weight_sum[l] += w;
+            rise[l] += w * rises[o][l];
+        }
+    }
+    let mut best = [0.0; W];
+    for l in 0..W {
+        best[l] = x[l] + rise[l] / weight_sum[l];
+    }
+    (best, [n[0], n[1], n[2], n[3]])
 }
 
 /// The quadratic term of the predictor for a step of `h` after accepted steps `h_last` (from
