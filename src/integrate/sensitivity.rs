@@ -70,6 +70,13 @@ pub enum SensitivityError {
         /// The integrator's step count.
         step: u64,
     },
+    /// The integrator's velocity projection takes the Newton matrix's `M`, which depends on where
+    /// each step's iteration started; the sensitivities differentiate the projection with
+    /// `M(q_{n+1})`.
+    #[error(
+        "forward sensitivities of a constrained run need the velocity projection's metric at          q_{{n+1}}: start the integrator with HhtSettings::projection_keeps_newton_mass = false"
+    )]
+    ProjectionMetric,
     /// The integrator was stepped without the sensitivities (or another trajectory was swapped in).
     #[error(
         "the integrator is at step {integrator_step} but the sensitivities at step \
@@ -287,7 +294,9 @@ impl HhtSensitivity {
     ///
     /// - `q0`: dim `nq`; `v0`: dim `nv`.
     ///
-    /// Errors: [`SensitivityError::NotAtStart`]; system errors of `parameter_jacobians`,
+    /// Errors: [`SensitivityError::NotAtStart`]; [`SensitivityError::ProjectionMetric`] for a
+    /// constrained system whose projection keeps the Newton matrix's `M`; system errors of
+    /// `parameter_jacobians`,
     /// `set_parameter_offset` (constrained systems) and the start's own errors at a perturbed point.
     pub fn new<S: DaeSystem + ?Sized>(
         system: &mut S,
@@ -298,6 +307,13 @@ impl HhtSensitivity {
         let state = integrator.state();
         if state.step != 0 {
             return Err(SensitivityError::NotAtStart { step: state.step });
+        }
+        let settings = integrator.settings();
+        if system.n_constraints() > 0
+            && settings.velocity_projection
+            && settings.projection_keeps_newton_mass
+        {
+            return Err(SensitivityError::ProjectionMetric);
         }
         let (nq, nv, m, p) = (
             system.nq(),

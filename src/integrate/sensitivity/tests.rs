@@ -41,6 +41,8 @@ fn tight(h: f64) -> HhtSettings {
         reltol: 1e-13,
         abstol_position: 1e-17,
         abstol_multiplier: 1e-12,
+        // The projection the sensitivities differentiate (SensitivityError::ProjectionMetric).
+        projection_keeps_newton_mass: false,
         ..HhtSettings::default()
     }
 }
@@ -539,7 +541,10 @@ fn a_sensitivity_step_allocates_nothing() {
         offset: [0.0; 2],
         analytic_jacobians: false,
     };
-    let settings = HhtSettings::default();
+    let settings = HhtSettings {
+        projection_keeps_newton_mass: false,
+        ..HhtSettings::default()
+    };
     let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).unwrap();
     let mut sens = HhtSensitivity::new(&mut system, &hht, &q0, &v0).unwrap();
     sens.step(&mut system, &mut hht).unwrap();
@@ -572,6 +577,22 @@ fn misuse_is_refused_clearly() {
         .to_string();
     assert!(
         message.contains("must start with the trajectory"),
+        "{message}"
+    );
+    // A constrained system whose projection keeps the Newton matrix's M: not what the
+    // sensitivities differentiate.
+    let q0 = DVector::from_column_slice(&[0.5, -0.6]);
+    let v0 = DVector::zeros(2);
+    let mut pendulum = Pendulum {
+        offset: [0.0; 2],
+        analytic_jacobians: false,
+    };
+    let hht = HhtIntegrator::new(&mut pendulum, HhtSettings::default(), 0.0, &q0, &v0).unwrap();
+    let message = HhtSensitivity::new(&mut pendulum, &hht, &q0, &v0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("projection_keeps_newton_mass = false"),
         "{message}"
     );
 }
