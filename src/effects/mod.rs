@@ -280,6 +280,15 @@ impl Effects {
         self.limits.as_ref().map_or(0, |l| l.regime(model, q))
     }
 
+    /// Whether [`Effects::add_newton_diagonal`] adds anything: damping, friction, springs or
+    /// limits are declared.
+    pub fn has_newton_diagonal(&self) -> bool {
+        self.damping.is_some()
+            || self.friction.is_some()
+            || self.springs.is_some()
+            || self.limits.is_some()
+    }
+
     /// Adds the effects' diagonal stiffness `k_j = −∂Q_j/∂q_j` and damping `c_j = −∂Q_j/∂q̇_j` to
     /// `stiffness` and `damping` (`dim nv`).
     pub fn add_newton_diagonal(

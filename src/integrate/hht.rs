@@ -1583,6 +1583,12 @@ impl HhtIntegrator {
             return Ok(false);
         }
         let ws = &mut self.ws;
+        if !system.provides_newton_diagonal() {
+            // Zero terms, as the system would give them (the contacts' branch reads them).
+            ws.stiffness.as_mut_slice().fill(0.0);
+            ws.damping.as_mut_slice().fill(0.0);
+            return Ok(false);
+        }
         eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)?;
         let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
         for ((d, k), c) in ws

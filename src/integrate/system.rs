@@ -216,6 +216,13 @@ pub trait DaeSystem {
         true
     }
 
+    /// Whether [`newton_diagonal`](Self::newton_diagonal) can be non-zero (springs, dampers,
+    /// friction, limits). Default `true`; a system that answers `false` is never asked for it and
+    /// its Newton matrix is `M` alone (the same bits as adding a zero diagonal).
+    fn provides_newton_diagonal(&self) -> bool {
+        true
+    }
+
     /// Whether [`newton_coupling`](Self::newton_coupling) adds anything. Default `false`.
     fn provides_newton_coupling(&self) -> bool {
         false

@@ -539,6 +539,10 @@ impl DaeSystem for RobotSystem {
         Ok(())
     }
 
+    fn provides_newton_diagonal(&self) -> bool {
+        self.effects.has_newton_diagonal()
+    }
+
     fn newton_diagonal(
         &mut self,
         _t: f64,
