@@ -1782,11 +1782,9 @@ impl HhtIntegrator {
         // the correction; the worst weighted entry is kept for the failure report.
         system.position_scale(&ws.q, &mut ws.scale);
         let reltol = self.settings.reltol;
-        let mut worst = WorstEntry::Coordinate {
-            index: 0,
-            weighted_correction: 0.0,
-        };
-        let mut worst_value = -1.0;
+        // The worst weighted entry over coordinates then rows (index ≥ nv: row index − nv); the
+        // first of equal ones.
+        let (mut worst_value, mut worst_index) = (-1.0, 0);
         let mut sum_q = 0.0;
         let (rhs, scale) = (&ws.rhs.as_slice()[..nv + m], &ws.scale.as_slice()[..nv]);
         for i in 0..nv {
@@ -1794,11 +1792,7 @@ impl HhtIntegrator {
             let x = (beta_h2 * rhs[i] * ewt).abs();
             sum_q += x * x;
             if x > worst_value {
-                worst_value = x;
-                worst = WorstEntry::Coordinate {
-                    index: i,
-                    weighted_correction: x,
-                };
+                (worst_value, worst_index) = (x, i);
             }
         }
         let mut sum_l = 0.0;
@@ -1807,14 +1801,21 @@ impl HhtIntegrator {
             let x = (rhs[nv + j] * ewt).abs();
             sum_l += x * x;
             if x > worst_value {
-                worst_value = x;
-                worst = WorstEntry::Constraint {
-                    index: j,
-                    weighted_correction: x,
-                    violation: ws.phi[j],
-                };
+                (worst_value, worst_index) = (x, nv + j);
             }
         }
+        let worst = if worst_index < nv || worst_value < 0.0 {
+            WorstEntry::Coordinate {
+                index: worst_index,
+                weighted_correction: worst_value.max(0.0),
+            }
+        } else {
+            WorstEntry::Constraint {
+                index: worst_index - nv,
+                weighted_correction: worst_value,
+                violation: ws.phi[worst_index - nv],
+            }
+        };
         let wrms_q = if nv > 0 {
             (sum_q / nv as f64).sqrt()
         } else {
