@@ -216,15 +216,16 @@ impl DenseSolver {
     /// Stores a Cholesky factorisation made elsewhere — the lock-step's batched factorisation
     /// (`dynamics::batch::cholesky_factor_with_min_pivots`) of the matrix [`DenseSolver::factor_blocks`]
     /// would have factorised, with [`DenseSolver::cholesky_min_pivot`]'s threshold — as if
-    /// `factor_blocks` had made it: `factor` is the `n × n` column-major result (lower triangle `L`,
-    /// the strict upper triangle the matrix's). Only for the [`FactorKind::Cholesky`] kind.
-    pub fn install_cholesky_factor(&mut self, factor: &[f64]) {
+    /// `factor_blocks` had made it. Only for the [`FactorKind::Cholesky`] kind.
+    /// `write` fills the `n × n` column-major factor in place (as [`DenseSolver::factor_blocks`]
+    /// would have left it: lower triangle `L`, the strict upper triangle the matrix's).
+    pub fn install_cholesky_factor(&mut self, write: impl FnOnce(&mut [f64])) {
         assert_eq!(
             self.kind,
             FactorKind::Cholesky,
             "DenseSolver::install_cholesky_factor: a Cholesky solver"
         );
-        self.factors.as_mut_slice().copy_from_slice(factor);
+        write(self.factors.as_mut_slice());
         self.holds_mass_factor = false;
     }
 

@@ -1057,18 +1057,31 @@ impl HhtIntegrator {
         // configuration radians away, where no Newton matrix helps. Then predict constant velocity
         // instead (that term zero): q_{n+1} = q_n ⊕ h q̇_n (docs/step-control.md §1–§2).
         let (alpha, beta) = (self.coeffs.alpha, self.coeffs.beta);
-        let acceleration_displacement = self
-            .ws
-            .qdd
-            .as_slice()
-            .iter()
-            .zip(self.trajectory.state.qdd.as_slice())
-            .zip(self.ws.a_start.as_slice())
-            .map(|((qdd, qdd_n), a_n)| {
-                let a = (1.0 + alpha) * qdd - alpha * qdd_n;
-                (h * h * ((0.5 - beta) * a_n + beta * a)).abs()
-            })
-            .fold(0.0, f64::max);
+        // Two entries at a time; the largest is the same in any order (comparisons are exact, NaN
+        // skipped as `f64::max` skips it).
+        let nv = self.nv;
+        let (qdd, qdd_n, a_start) = (
+            &self.ws.qdd.as_slice()[..nv],
+            &self.trajectory.state.qdd.as_slice()[..nv],
+            &self.ws.a_start.as_slice()[..nv],
+        );
+        let displacement = |qdd: f64, qdd_n: f64, a_n: f64| {
+            let a = (1.0 + alpha) * qdd - alpha * qdd_n;
+            (h * h * ((0.5 - beta) * a_n + beta * a)).abs()
+        };
+        let mut largest = [0.0_f64; 2];
+        let pairs = nv - nv % 2;
+        for i in (0..pairs).step_by(2) {
+            for l in 0..2 {
+                let d = displacement(qdd[i + l], qdd_n[i + l], a_start[i + l]);
+                largest[l] = if d > largest[l] { d } else { largest[l] };
+            }
+        }
+        for i in pairs..nv {
+            let d = displacement(qdd[i], qdd_n[i], a_start[i]);
+            largest[0] = if d > largest[0] { d } else { largest[0] };
+        }
+        let acceleration_displacement = largest[0].max(largest[1]);
         if acceleration_displacement > PREDICTOR_MAX_ACCELERATION_DISPLACEMENT {
             self.trajectory.stats.stiff_predictions += 1;
             for ((x, qdd_n), a_n) in self
@@ -1475,13 +1488,24 @@ impl HhtIntegrator {
             gamma,
         };
         let pairs = nv - nv % 2;
-        for i in (0..pairs).step_by(2) {
-            let pair = |x: &[f64]| -> [f64; 2] { [x[i], x[i + 1]] };
+        let pair = |x: &[f64]| -> [f64; 2] { [x[0], x[1]] };
+        for (((a, dq), v), (((qdd, qdd_n), a_start), v_n)) in a[..pairs]
+            .chunks_exact_mut(2)
+            .zip(dq[..pairs].chunks_exact_mut(2))
+            .zip(v[..pairs].chunks_exact_mut(2))
+            .zip(
+                qdd[..pairs]
+                    .chunks_exact(2)
+                    .zip(qdd_n[..pairs].chunks_exact(2))
+                    .zip(a_start[..pairs].chunks_exact(2))
+                    .zip(v_n[..pairs].chunks_exact(2)),
+            )
+        {
             let (a_new, dq_new, v_new) =
                 newmark.entries(pair(qdd), pair(qdd_n), pair(a_start), pair(v_n));
-            a[i..i + 2].copy_from_slice(&a_new);
-            dq[i..i + 2].copy_from_slice(&dq_new);
-            v[i..i + 2].copy_from_slice(&v_new);
+            a.copy_from_slice(&a_new);
+            dq.copy_from_slice(&dq_new);
+            v.copy_from_slice(&v_new);
         }
         for i in pairs..nv {
             let ([a_new], [dq_new], [v_new]) =
@@ -1750,15 +1774,18 @@ impl HhtIntegrator {
         let (nv, m) = (self.nv, self.m);
         let beta_h2 = self.coeffs.beta_h2();
         let ws = &mut self.ws;
+        // The largest magnitude by comparison (NaN skipped, as `f64::max` skips it), which
+        // compiles to fewer instructions than `max`'s NaN handling.
+        let larger = |largest: f64, r: f64| if r.abs() > largest { r.abs() } else { largest };
         let mut residual_inf: f64 = 0.0;
         let rhs = &mut ws.rhs.as_mut_slice()[..nv + m];
         for (x, r) in rhs[..nv].iter_mut().zip(&ws.dyn_residual.as_slice()[..nv]) {
-            residual_inf = residual_inf.max(r.abs());
+            residual_inf = larger(residual_inf, *r);
             *x = -r;
         }
         for (x, phi) in rhs[nv..].iter_mut().zip(&ws.phi.as_slice()[..m]) {
             let r = phi / beta_h2;
-            residual_inf = residual_inf.max(r.abs());
+            residual_inf = larger(residual_inf, r);
             *x = -r;
         }
         residual_inf

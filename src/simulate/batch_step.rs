@@ -239,7 +239,10 @@ impl BatchStepper {
                     continue;
                 };
                 let (q, v, qdd) = integrator.plain_iterate();
-                write_lane(&mut self.q, lane, q.as_slice());
+                if !placements_current {
+                    // Else the CRBA's configurations, written for it: the iterates' own.
+                    write_lane(&mut self.q, lane, q.as_slice());
+                }
                 write_lane(&mut self.v, lane, v.as_slice());
                 write_lane(&mut self.qdd, lane, qdd.as_slice());
                 pending = true;
@@ -277,11 +280,13 @@ impl BatchStepper {
                     continue;
                 };
                 let system = &mut self.systems[lane];
-                let tau = &mut self.scratch[..nv];
-                self.batch_data.tau.copy_sample(lane, tau);
                 let (q, v, residual) = integrator.plain_residual_buffers();
-                for (r, t) in residual.as_mut_slice().iter_mut().zip(tau.iter()) {
-                    *r = -t;
+                // The stepper's lanes are one chunk (at most LANES): lane `lane` of each entry.
+                for (r, t) in residual.as_mut_slice()[..nv]
+                    .iter_mut()
+                    .zip(self.batch_data.tau.chunk(0))
+                {
+                    *r = -t.0[lane];
                 }
                 system.finish_dynamics_residual(
                     q.as_slice(),
@@ -456,9 +461,8 @@ impl BatchStepper {
                 self.states[lane] = LaneState::Scalar;
                 continue;
             }
-            let matrix = &mut self.scratch[..n2];
-            self.batch_data.mass_matrix.copy_sample(lane, matrix);
-            integrator.plain_install_factor(system, plain, matrix);
+            let factors = &self.batch_data.mass_matrix;
+            integrator.plain_install_factor(system, plain, |out| factors.copy_sample(lane, out));
             self.factor_in_batch[lane] = nv >= BATCHED_SOLVE_FROM;
         }
     }

@@ -187,8 +187,8 @@ impl HhtIntegrator {
         }
     }
 
-    /// Takes the plain step's Newton matrix as factorised by the caller: `factor`, the Cholesky
-    /// factorisation of `M` at the first iterate plus [`HhtIntegrator::plain_newton_diagonal`]'s
+    /// Takes the plain step's Newton matrix as factorised by the caller: `write_factor` fills in
+    /// (`nv × nv`, column-major) the Cholesky factorisation of `M` at the first iterate plus [`HhtIntegrator::plain_newton_diagonal`]'s
     /// diagonal, with the bits and the pivot test of the integrator's own
     /// ([`crate::integrate::DenseSolver::install_cholesky_factor`]); the rest as
     /// [`HhtIntegrator::plain_factorise`] does it, except that `M` itself is not kept (a plain
@@ -197,13 +197,13 @@ impl HhtIntegrator {
         &mut self,
         system: &mut S,
         plain: &mut PlainStep,
-        factor: &[f64],
+        write_factor: impl FnOnce(&mut [f64]),
     ) {
         self.ws.use_full = false;
         self.trajectory
             .newton
             .solver
-            .install_cholesky_factor(factor);
+            .install_cholesky_factor(write_factor);
         // `ws.mass` does not hold M at this iterate.
         self.ws.mass_fresh = false;
         self.ws.phi_q_fresh = true;

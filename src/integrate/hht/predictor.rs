@@ -327,12 +327,19 @@ fn blend<const W: usize, const HIGHEST: usize>(
     // keeps the inverse finite, no branch.
     let mut inverse = [0.0; W];
     for l in 0..W {
-        inverse[l] = 1.0 / smallest[l].max(f64::MIN_POSITIVE);
+        let floored = if smallest[l] > f64::MIN_POSITIVE {
+            smallest[l]
+        } else {
+            f64::MIN_POSITIVE
+        };
+        inverse[l] = 1.0 / floored;
     }
     let (mut weight_sum, mut rise) = ([0.0; W], [0.0; W]);
     for o in 0..=HIGHEST {
         for l in 0..W {
-            let w = (2.0 - misses[o][l] * inverse[l]).max(0.0);
+            // max(0, ·) by comparison (never −0: 2 − y rounds to +0), without `max`'s NaN code.
+            let w = 2.0 - misses[o][l] * inverse[l];
+            let w = if w > 0.0 { w } else { 0.0 };
             weight_sum[l] += w;
             rise[l] += w * rises[o][l];
         }
