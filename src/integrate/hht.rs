@@ -591,6 +591,9 @@ pub struct HhtIntegrator {
     /// outside [`HhtIntegrator::advance`] and a plain step's acceptance.
     report_velocity: bool,
     ws: Workspace,
+    /// The statistics before the plain step in progress (hht/plain.rs), to put back when it is
+    /// abandoned; kept here rather than in the `PlainStep` its caller moves around.
+    plain_stats_before: HhtStats,
 }
 
 impl HhtIntegrator {
@@ -637,6 +640,7 @@ impl HhtIntegrator {
                 newton: NewtonMemory::new(nv, m),
             },
             projection_feedback: false,
+            plain_stats_before: HhtStats::default(),
             report_velocity: true,
             ws: Workspace::new(nq, nv, m, n_events),
         };
@@ -1311,19 +1315,25 @@ impl HhtIntegrator {
             &mut trajectory.state.lambda,
             (self.ws.qdd.as_slice(), self.ws.lambda.as_slice()),
         );
-        let ws = &self.ws;
+        // The converged iterate becomes the state by swapping buffers (of equal dimensions): the
+        // next attempt overwrites every one of them (the predictor q̈ and λ, update_iterate a, q
+        // and q̇) before it reads them.
+        let ws = &mut self.ws;
         let state = &mut self.trajectory.state;
         state.t = t1;
         for (to, from) in [
-            (&mut state.q, &ws.q),
-            (&mut state.v, &ws.v),
-            (&mut self.trajectory.v_newmark, &ws.v),
-            (&mut state.a, &ws.a),
-            (&mut state.qdd, &ws.qdd),
-            (&mut state.lambda, &ws.lambda),
+            (&mut state.q, &mut ws.q),
+            (&mut state.v, &mut ws.v),
+            (&mut state.a, &mut ws.a),
+            (&mut state.qdd, &mut ws.qdd),
+            (&mut state.lambda, &mut ws.lambda),
         ] {
-            to.as_mut_slice().copy_from_slice(from.as_slice());
+            std::mem::swap(to, from);
         }
+        self.trajectory
+            .v_newmark
+            .as_mut_slice()
+            .copy_from_slice(state.v.as_slice());
         self.trajectory.control.h_before_last = self.trajectory.control.h_last;
         self.trajectory.control.h_last = h;
         self.trajectory.stats.substeps += 1;

@@ -16,9 +16,9 @@
 //! [`HhtIntegrator::step`], which repeats the same attempt bit for bit and goes on from there.
 
 use super::{
-    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, HhtStats, IntegrateError, NewtonFlags,
-    NewtonMatrix, NewtonPass, PassVerdict, ReportedVelocity, StepControl, StepControlState,
-    ADAPTIVE_MAX_GROWTH, END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
+    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, IntegrateError, NewtonFlags, NewtonMatrix,
+    NewtonPass, PassVerdict, ReportedVelocity, StepControl, StepControlState, ADAPTIVE_MAX_GROWTH,
+    END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
 };
 use crate::integrate::FactorKind;
 use nalgebra::DVector;
@@ -41,8 +41,8 @@ pub(crate) struct PlainStep {
     regime: u64,
     /// Whether the step computes its reported velocity (as [`HhtIntegrator::advance`] decides).
     report_velocity: bool,
-    /// What the attempt may change before it is accepted, to put back when it is abandoned.
-    stats_before: HhtStats,
+    /// What the attempt may change before it is accepted, to put back when it is abandoned (the
+    /// statistics are kept by the integrator: `HhtIntegrator::plain_stats_before`).
     control_before: StepControlState,
     newton_before: NewtonFlags,
 }
@@ -104,6 +104,7 @@ impl HhtIntegrator {
         if plan.h != h_grid || !plan.reaches_end {
             return None;
         }
+        self.plain_stats_before = self.trajectory.stats;
         let mut plain = PlainStep {
             at: At { t: plan.t1, step },
             t_end,
@@ -114,7 +115,6 @@ impl HhtIntegrator {
             judge: NewtonPass::at_predictor(self.carried_contraction(self.grid_coeffs.h, false)),
             regime: 0,
             report_velocity: report == ReportedVelocity::Computed || self.n_events > 0,
-            stats_before: self.trajectory.stats,
             control_before: self.trajectory.control,
             newton_before: self.trajectory.newton.flags(),
         };
@@ -372,7 +372,7 @@ impl HhtIntegrator {
 
     /// Puts back what a plain attempt changed outside the workspace.
     fn abandon_plain_step(&mut self, plain: &mut PlainStep) {
-        self.trajectory.stats = plain.stats_before;
+        self.trajectory.stats = self.plain_stats_before;
         self.trajectory.control = plain.control_before;
         self.trajectory.newton.restore_flags(plain.newton_before);
     }
