@@ -58,8 +58,7 @@ pub(crate) struct DenseSolver {
     whole_by_lu: bool,
     /// [`FactorKind::SaddlePoint`]: `blocks` hold the Cholesky factor of the `A` that
     /// [`DenseSolver::factor_blocks`] was last handed without a diagonal, or with a zero one
-    /// (`A` = its `mass`), so
-    /// [`DenseSolver::refactor_constraint_rows`] can keep it.
+    /// (`A` = its `mass`), so [`DenseSolver::refactor_constraint_rows`] can keep it.
     holds_mass_factor: bool,
 }
 
@@ -216,9 +215,9 @@ impl DenseSolver {
     /// Stores a Cholesky factorisation made elsewhere — the lock-step's batched factorisation
     /// (`dynamics::batch::cholesky_factor_with_min_pivots`) of the matrix [`DenseSolver::factor_blocks`]
     /// would have factorised, with [`DenseSolver::cholesky_min_pivot`]'s threshold — as if
-    /// `factor_blocks` had made it. Only for the [`FactorKind::Cholesky`] kind.
-    /// `write` fills the `n × n` column-major factor in place (as [`DenseSolver::factor_blocks`]
-    /// would have left it: lower triangle `L`, the strict upper triangle the matrix's).
+    /// `factor_blocks` had made it: `write` fills in the `n × n` column-major result (lower
+    /// triangle `L`, the strict upper triangle the matrix's). Only for the
+    /// [`FactorKind::Cholesky`] kind.
     pub fn install_cholesky_factor(&mut self, write: impl FnOnce(&mut [f64])) {
         assert_eq!(
             self.kind,
@@ -240,8 +239,8 @@ impl DenseSolver {
     /// factor of the `M` that the last [`DenseSolver::factor_blocks`] was handed (only when
     /// [`DenseSolver::holds_mass_factor`]): `Y = L⁻¹ Bᵀ` and the Schur complement's factor
     /// only, `m` triangular solves and an `m × m` Cholesky instead of `M`'s. The same bits as
-    /// `factor_blocks` with that `M`, no diagonal and `b`. On a breakdown (dependent rows) the factor of `M`
-    /// stays and the caller factorises afresh.
+    /// `factor_blocks` with that `M`, no diagonal and `b`. On a breakdown (dependent rows) the
+    /// factor of `M` stays and the caller factorises afresh.
     pub fn refactor_constraint_rows(&mut self, b: &DMatrix<f64>) -> Result<(), Breakdown> {
         let FactorKind::SaddlePoint { constraint_rows: m } = self.kind else {
             panic!("DenseSolver::refactor_constraint_rows: a saddle-point solver");

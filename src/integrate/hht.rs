@@ -1060,7 +1060,7 @@ impl HhtIntegrator {
         // q̈ meaningless: its position term h²[(½ − β) a_n + β a_{n+1}] can throw the predicted
         // configuration radians away, where no Newton matrix helps. Then predict constant velocity
         // instead (that term zero): q_{n+1} = q_n ⊕ h q̇_n (docs/step-control.md §1–§2).
-        let (alpha, beta) = (self.coeffs.alpha, self.coeffs.beta);
+        let newmark = NewmarkUpdate::of(&self.coeffs);
         // Two entries at a time; the largest is the same in any order (comparisons are exact, NaN
         // skipped as `f64::max` skips it).
         let nv = self.nv;
@@ -1070,8 +1070,9 @@ impl HhtIntegrator {
             &self.ws.a_start.as_slice()[..nv],
         );
         let displacement = |qdd: f64, qdd_n: f64, a_n: f64| {
-            let a = (1.0 + alpha) * qdd - alpha * qdd_n;
-            (h * h * ((0.5 - beta) * a_n + beta * a)).abs()
+            newmark
+                .acceleration_displacement(a_n, newmark.acceleration(qdd, qdd_n))
+                .abs()
         };
         let mut largest = [0.0_f64; 2];
         let pairs = nv - nv % 2;
@@ -1096,6 +1097,7 @@ impl HhtIntegrator {
                 .zip(self.trajectory.state.qdd.as_slice())
                 .zip(self.ws.a_start.as_slice())
             {
+                let (alpha, beta) = (newmark.alpha, newmark.beta);
                 let a = -(0.5 - beta) / beta * a_n;
                 *x = (a + alpha * qdd_n) / (1.0 + alpha);
             }
@@ -1472,8 +1474,7 @@ impl HhtIntegrator {
         system: &S,
         at: At,
     ) -> Result<(), IntegrateError> {
-        let c = self.coeffs;
-        let (h, alpha, beta, gamma) = (c.h, c.alpha, c.beta, c.gamma);
+        let newmark = NewmarkUpdate::of(&self.coeffs);
         let s = &self.trajectory.state;
         let v_n = &self.trajectory.v_newmark;
         let ws = &mut self.ws;
@@ -1491,12 +1492,6 @@ impl HhtIntegrator {
             &mut ws.v.as_mut_slice()[..nv],
         );
         // Two entries at a time (one vector register of the x86-64 baseline), the last alone.
-        let newmark = NewmarkUpdate {
-            h,
-            alpha,
-            beta,
-            gamma,
-        };
         let pairs = nv - nv % 2;
         let pair = |x: &[f64]| -> [f64; 2] { [x[0], x[1]] };
         for (((a, dq), v), (((qdd, qdd_n), a_start), v_n)) in a[..pairs]
@@ -1938,7 +1933,7 @@ impl HhtIntegrator {
         // ws.phi_q holds Φ_q(q_{n+1}), ws.phi_dot Φ_q q̇ + Φ_t.
         // The projection's matrix [M Φ_qᵀ; Φ_q 0] replaces the stored Newton factorisation
         // (never reused with constraint rows). Its metric M is the Newton matrix's when that was
-        // M alone (docs/method.md §5, "Velocity projection"): only the rows are refactorised.
+        // M alone (docs/method.md §5, "Velocity drift"): only the rows are refactorised.
         self.trajectory.newton.reusable = false;
         let keeps_newton_mass = self.projection_keeps_newton_mass()
             && self
@@ -1992,7 +1987,7 @@ impl HhtIntegrator {
     /// Whether the velocity projection of the step being accepted can keep the factor of `M` in
     /// the Newton matrix it converged with: that matrix was `[M Φ_qᵀ; Φ_q 0]` of this step (no
     /// diagonal terms, not the full Newton matrix), so the projection refactorises only its rows
-    /// at `q_{n+1}` (docs/method.md §5, "Velocity projection").
+    /// at `q_{n+1}` (docs/method.md §5, "Velocity drift").
     pub(crate) fn projection_keeps_newton_mass(&self) -> bool {
         self.settings.projection_keeps_newton_mass
             && !self.ws.use_full
@@ -2145,7 +2140,8 @@ pub fn iteration_matrix<S: DaeSystem + ?Sized>(
     Ok(out)
 }
 
-/// The HHT-α/Newmark coefficients of [`HhtIntegrator::update_iterate`].
+/// The HHT-α/Newmark update of an iterate ([`HhtIntegrator::update_iterate`]), whose
+/// acceleration term the predictor's stiffness check also measures: one owner of the formulas.
 #[derive(Clone, Copy)]
 struct NewmarkUpdate {
     h: f64,
@@ -2155,6 +2151,29 @@ struct NewmarkUpdate {
 }
 
 impl NewmarkUpdate {
+    /// The update of a step with `coeffs`.
+    fn of(coeffs: &HhtCoefficients) -> Self {
+        Self {
+            h: coeffs.h,
+            alpha: coeffs.alpha,
+            beta: coeffs.beta,
+            gamma: coeffs.gamma,
+        }
+    }
+
+    /// `a_{n+1} = (1 + α) q̈_{n+1} − α q̈_n`.
+    #[inline(always)]
+    fn acceleration(self, qdd: f64, qdd_n: f64) -> f64 {
+        (1.0 + self.alpha) * qdd - self.alpha * qdd_n
+    }
+
+    /// The acceleration part of the position update, `h² [(½ − β) a_n + β a_{n+1}]`.
+    #[inline(always)]
+    fn acceleration_displacement(self, a_n: f64, a_new: f64) -> f64 {
+        let (h, beta) = (self.h, self.beta);
+        h * h * ((0.5 - beta) * a_n + beta * a_new)
+    }
+
     /// `W` entries' `(a_{n+1}, Δq, q̇_{n+1})` from `q̈_{n+1}`, `q̈_n`, `a_n` and the Newmark
     /// `q̇_n`, lane by lane over arrays (vector instructions; each lane the operations of one
     /// entry).
@@ -2166,22 +2185,18 @@ impl NewmarkUpdate {
         a_n: [f64; W],
         v_n: [f64; W],
     ) -> ([f64; W], [f64; W], [f64; W]) {
-        let Self {
-            h,
-            alpha,
-            beta,
-            gamma,
-        } = self;
+        let (h, gamma) = (self.h, self.gamma);
         let (mut a, mut dq, mut v) = ([0.0; W], [0.0; W], [0.0; W]);
         for l in 0..W {
-            let a_new = (1.0 + alpha) * qdd[l] - alpha * qdd_n[l];
+            let a_new = self.acceleration(qdd[l], qdd_n[l]);
             a[l] = a_new;
-            dq[l] = h * v_n[l] + h * h * ((0.5 - beta) * a_n[l] + beta * a_new);
+            dq[l] = h * v_n[l] + self.acceleration_displacement(a_n[l], a_new);
             v[l] = v_n[l] + h * ((1.0 - gamma) * a_n[l] + gamma * a_new);
         }
         (a, dq, v)
     }
 }
+
 /// Whether a failed attempt is worth retrying with a smaller step: Newton failures, non-finite
 /// numbers and a singular Newton matrix can all come from a step too long for the dynamics;
 /// dimension mismatches and errors of the consistent start cannot.
