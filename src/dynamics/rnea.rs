@@ -116,7 +116,9 @@ fn run(model: &Model, data: &mut Data, placements: Placements, v: &[f64], qdd: O
             inertia.apply(&acceleration) + velocity.cross_force(&inertia.apply(&velocity));
         data.velocity[i] = velocity;
         data.acceleration[i] = acceleration;
-        data.parent_from_body[i] = parent_from_body;
+        if let Placements::From(_) = placements {
+            data.parent_from_body[i] = parent_from_body;
+        }
     }
 }
 

@@ -71,6 +71,9 @@ pub struct Effects {
     springs: Option<springs::JointSprings>,
     limits: Option<limits::JointLimits>,
     contacts: Option<contact::Contacts>,
+    /// Some effect above is declared (else [`Effects::add_forces`] adds nothing and returns at
+    /// once).
+    has_forces: bool,
 }
 
 impl Effects {
@@ -78,7 +81,7 @@ impl Effects {
     pub fn assemble(model: &Model, scene: &Scene) -> Effects {
         let joints = one_dof_joints(model);
         let e = &scene.effects;
-        Effects {
+        let mut effects = Effects {
             damping: e.joint_damping.then(|| damping::JointDamping::new(&joints)),
             friction: e
                 .joint_friction
@@ -98,7 +101,14 @@ impl Effects {
                 .contact
                 .as_ref()
                 .map(|c| contact::Contacts::new(model, c.geometry.clone())),
-        }
+            has_forces: false,
+        };
+        effects.has_forces = effects.damping.is_some()
+            || effects.friction.is_some()
+            || effects.springs.is_some()
+            || effects.limits.is_some()
+            || effects.contacts.is_some();
+        effects
     }
 
     /// Whether the scene declares contacts (then the generalised forces couple joints: see
@@ -248,7 +258,22 @@ impl Effects {
     /// `data` must hold RNEA's kinematics at `(q, v)` (call [`crate::dynamics::rnea`] or
     /// [`crate::dynamics::nonlinear_effects`] at the same `q`, `v` just before, as every residual
     /// does); contacts overwrite `data.world_from_body`.
+    #[inline]
     pub fn add_forces(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        q: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        if self.has_forces {
+            self.add_declared_forces(model, data, q, v, out);
+        }
+    }
+
+    /// [`Effects::add_forces`] once some effect is declared.
+    fn add_declared_forces(
         &mut self,
         model: &Model,
         data: &mut Data,

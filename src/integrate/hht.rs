@@ -190,6 +190,9 @@ struct Workspace {
     stiffness: DVector<f64>,
     /// Diagonal damping c_j, dim nv.
     damping: DVector<f64>,
+    /// `stiffness` and `damping` hold zeros (as they are created, and after a system without a
+    /// Newton diagonal filled them), so they need no second fill.
+    diagonal_terms_zero: bool,
     /// Position magnitudes for error weights, dim nv.
     scale: DVector<f64>,
     /// Φ, dim m.
@@ -249,6 +252,7 @@ impl Workspace {
             dyn_residual: DVector::zeros(nv),
             stiffness: DVector::zeros(nv),
             damping: DVector::zeros(nv),
+            diagonal_terms_zero: true,
             scale: DVector::zeros(nv),
             phi: DVector::zeros(m),
             phi_q: DMatrix::zeros(m, nv),
@@ -1614,10 +1618,14 @@ impl HhtIntegrator {
         let ws = &mut self.ws;
         if !system.provides_newton_diagonal() {
             // Zero terms, as the system would give them (the contacts' branch reads them).
-            ws.stiffness.as_mut_slice().fill(0.0);
-            ws.damping.as_mut_slice().fill(0.0);
+            if !ws.diagonal_terms_zero {
+                ws.stiffness.as_mut_slice().fill(0.0);
+                ws.damping.as_mut_slice().fill(0.0);
+                ws.diagonal_terms_zero = true;
+            }
             return Ok(false);
         }
+        ws.diagonal_terms_zero = false;
         eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)?;
         let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
         for ((d, k), c) in ws

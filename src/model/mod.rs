@@ -82,8 +82,12 @@ pub struct Joint {
     pub source: Option<usize>,
     /// Placement of the joint frame in the parent body frame (derived; see [`Model::refresh`]).
     pub parent_from_joint: Transform,
-    /// Unit axis in the joint frame (derived).
-    pub axis: Vec3,
+    /// Unit axis in the joint frame (derived; read with [`Joint::axis`], set with
+    /// [`Joint::set_axis`]).
+    axis: Vec3,
+    /// `Some(k)` when `axis` is exactly the coordinate axis `e_k` (kept with `axis` by
+    /// [`Joint::set_axis`]; see [`Joint::revolute_coordinate_axis`]).
+    axis_index: Option<usize>,
     /// `q = multiplier · q_leader + offset` for a URDF mimic joint (leader: a joint index).
     pub mimic: Option<(usize, f64, f64)>,
 }
@@ -207,14 +211,27 @@ impl Joint {
     /// `Some(k)` for a revolute joint whose axis is exactly the coordinate axis `e_k` of its frame
     /// (k ∈ {0, 1, 2}; most URDFs put every axis on `z`), else `None`. The kernels then leave out
     /// the products by the joint motion's zero entries (docs/batch.md §7); the result has the bits
-    /// of the general formulas (signs of zero aside). Read from [`Joint::axis`] at every call, so a
-    /// parameter that moves the axis off `e_k` takes the general path at once.
+    /// of the general formulas (signs of zero aside). Kept with the axis by [`Joint::set_axis`], so
+    /// a parameter that moves the axis off `e_k` takes the general path at once.
     #[inline]
     pub fn revolute_coordinate_axis(&self) -> Option<usize> {
         if self.kind != JointKind::Revolute {
             return None;
         }
-        coordinate_axis_index(&self.axis)
+        self.axis_index
+    }
+
+    /// Unit axis in the joint frame (derived from the URDF's `<axis>` by [`Model::refresh`]).
+    #[inline]
+    pub fn axis(&self) -> &Vec3 {
+        &self.axis
+    }
+
+    /// Sets the unit axis in the joint frame (`axis` must have unit length) and whether it is a
+    /// coordinate axis ([`Joint::revolute_coordinate_axis`]).
+    pub fn set_axis(&mut self, axis: Vec3) {
+        self.axis = axis;
+        self.axis_index = coordinate_axis_index(&axis);
     }
 
     /// Joint motion `S v` in the child frame (`v: dim self.nv()`).
@@ -507,6 +524,7 @@ impl Model {
             source,
             parent_from_joint: Transform::identity(),
             axis: Vec3::x(),
+            axis_index: coordinate_axis_index(&Vec3::x()),
             mimic: None,
         };
         self.nq += joint.nq();
@@ -582,7 +600,7 @@ impl Model {
             let axis = Vec3::from(spec.axis);
             let norm = axis.norm();
             if norm > 0.0 {
-                joint.axis = axis / norm;
+                joint.set_axis(axis / norm);
             }
         }
     }
@@ -698,6 +716,28 @@ mod tests {
     <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
 </robot>"#;
 
+    /// The coordinate-axis shortcut follows the axis: a refresh that tilts it off `e_z` (a
+    /// parameter) takes the general path, one that puts it back the shortcut, and a prismatic joint
+    /// never has it.
+    #[test]
+    fn coordinate_axis_follows_the_axis() {
+        let mut model = load(CHAIN, false).unwrap();
+        assert_eq!(model.joints[0].revolute_coordinate_axis(), Some(2));
+        assert_eq!(model.joints[1].revolute_coordinate_axis(), None);
+        model.description.joints[0].axis = [0.0, 1e-3, 1.0];
+        model.refresh();
+        assert_eq!(model.joints[0].revolute_coordinate_axis(), None);
+        let tilted = model.joints[0].parent_from_child(&[0.7]);
+        let general = model.joints[0]
+            .parent_from_joint
+            .compose(&model.joints[0].joint_transform(&[0.7]));
+        assert_eq!(tilted.rotation, general.rotation);
+        model.description.joints[0].axis = [1.0, 0.0, 0.0];
+        model.refresh();
+        assert_eq!(model.joints[0].revolute_coordinate_axis(), Some(0));
+        assert_eq!(*model.joints[0].axis(), Vec3::x());
+    }
+
     #[test]
     fn fixed_children_merge_with_parallel_axis_inertia() {
         let model = load(CHAIN, false).unwrap();
@@ -710,7 +750,7 @@ mod tests {
         let jb = &model.joints[1];
         assert_eq!(jb.parent, Some(0));
         assert!((jb.parent_from_joint.translation - Vec3::new(1.0, 0.0, 0.5)).norm() < 1e-15);
-        assert!((model.joints[0].axis - Vec3::z()).norm() < 1e-15);
+        assert!((model.joints[0].axis() - Vec3::z()).norm() < 1e-15);
         // The massless moving link b is reported.
         assert!(
             model.warnings.iter().any(|w| w.contains("link 'b' moves")),

@@ -132,7 +132,7 @@ fn refresh_joint(model: &mut Model, k: usize) {
     let joint = &mut model.joints[k];
     joint.parent_from_joint = parent_from_joint;
     if norm > 0.0 {
-        joint.axis = axis / norm;
+        joint.set_axis(axis / norm);
     }
 }
 
@@ -533,7 +533,7 @@ mod tests {
                 full.refresh();
                 for (a, b) in local.joints.iter().zip(&full.joints) {
                     assert_eq!(a.parent_from_joint, b.parent_from_joint, "{target:?}");
-                    assert_eq!(a.axis, b.axis, "{target:?}");
+                    assert_eq!(a.axis(), b.axis(), "{target:?}");
                 }
                 for (a, b) in local.links.iter().zip(&full.links) {
                     assert_eq!(a.body_from_link, b.body_from_link, "{target:?}");

@@ -46,31 +46,53 @@ pub struct RobotSystem {
 }
 
 /// The configuration of the last [`DaeSystem::mass_matrix`] call and the joint placements its
-/// CRBA computed there (a private copy: other calls reuse `data`), for
-/// [`DaeSystem::dynamics_residual_after_mass_matrix`]. Empty before the first call.
-#[derive(Clone, Debug, Default)]
+/// CRBA computed there, held aside for [`DaeSystem::dynamics_residual_after_mass_matrix`] (other
+/// calls reuse `data`). The placements move by swapping buffers with `data.parent_from_body`, never
+/// by copying: while they are held here, `data.parent_from_body` holds an old set, which every
+/// kernel that reads it overwrites first (RNEA and CRBA from `q`, forward kinematics), except RNEA
+/// at given placements, which only the hand-back below precedes.
+#[derive(Clone, Debug)]
 struct MassMatrixKinematics {
     q: Vec<f64>,
     placements: Vec<Transform>,
+    /// `placements` are the CRBA's at `q` (else they are an old set of `data`'s).
+    holds: bool,
 }
 
 impl MassMatrixKinematics {
-    fn record(&mut self, q: &[f64], placements: &[Transform]) {
-        self.q.clear();
-        self.q.extend_from_slice(q);
-        self.placements.clear();
-        self.placements.extend_from_slice(placements);
+    /// Buffers for a model of `bodies` bodies (as many placements as `data.parent_from_body`).
+    fn new(bodies: usize) -> Self {
+        Self {
+            q: Vec::new(),
+            placements: vec![Transform::identity(); bodies],
+            holds: false,
+        }
     }
 
-    /// The placements, when `q` is bit for bit the recorded configuration.
-    fn at(&self, q: &[f64]) -> Option<&[Transform]> {
-        let same = self.q.len() == q.len()
+    /// Takes the placements the CRBA has just written into `data_placements` at `q`, leaving an
+    /// old set there in exchange.
+    fn take(&mut self, q: &[f64], data_placements: &mut Vec<Transform>) {
+        self.q.clear();
+        self.q.extend_from_slice(q);
+        std::mem::swap(&mut self.placements, data_placements);
+        self.holds = true;
+    }
+
+    /// Hands the held placements back into `data_placements` when `q` is bit for bit the
+    /// configuration they were taken at; returns whether it did.
+    fn give_back(&mut self, q: &[f64], data_placements: &mut Vec<Transform>) -> bool {
+        let same = self.holds
+            && self.q.len() == q.len()
             && self
                 .q
                 .iter()
                 .zip(q)
                 .all(|(a, b)| a.to_bits() == b.to_bits());
-        same.then_some(self.placements.as_slice())
+        if same {
+            std::mem::swap(&mut self.placements, data_placements);
+            self.holds = false;
+        }
+        same
     }
 }
 
@@ -114,6 +136,7 @@ impl RobotSystem {
             model.gravity = Vec3::zeros();
         }
         let data = Data::new(&model);
+        let data_bodies = data.parent_from_body.len();
         let effects = Effects::assemble(&model, scene);
         let has_floating_joint = model.joints.iter().any(|j| j.kind == JointKind::Floating);
         let has_translation_coordinate = model
@@ -133,7 +156,7 @@ impl RobotSystem {
             },
             parameters: ParameterDirections::default(),
             jacobians: None,
-            mass_matrix_kinematics: MassMatrixKinematics::default(),
+            mass_matrix_kinematics: MassMatrixKinematics::new(data_bodies),
         }
     }
 
@@ -476,7 +499,7 @@ impl DaeSystem for RobotSystem {
         out.as_mut_slice()
             .copy_from_slice(crba(&self.model, &mut self.data, q.as_slice()).as_slice());
         self.mass_matrix_kinematics
-            .record(q.as_slice(), &self.data.parent_from_body);
+            .take(q.as_slice(), &mut self.data.parent_from_body);
         Ok(())
     }
 
@@ -528,13 +551,9 @@ impl DaeSystem for RobotSystem {
         qdd: &DVector<f64>,
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
-        let reuse = match self.mass_matrix_kinematics.at(q.as_slice()) {
-            Some(placements) => {
-                self.data.parent_from_body.copy_from_slice(placements);
-                true
-            }
-            None => false,
-        };
+        let reuse = self
+            .mass_matrix_kinematics
+            .give_back(q.as_slice(), &mut self.data.parent_from_body);
         self.inverse_dynamics_residual(q, v, qdd, reuse, out);
         Ok(())
     }
@@ -984,6 +1003,12 @@ mod tests {
         // At the mass matrix's q, with `data` left at another q by a residual in between.
         system.mass_matrix(0.0, &q1, &mut mass).unwrap();
         plain(&mut system, &q2);
+        system
+            .dynamics_residual_after_mass_matrix(0.0, &q1, &v, &qdd, &mut out)
+            .unwrap();
+        assert_eq!(bits(&out), bits(&at_q1));
+        // Once more at the same q: the placements went back into `data` and are not held any
+        // more, so this one computes them, with the same bits.
         system
             .dynamics_residual_after_mass_matrix(0.0, &q1, &v, &qdd, &mut out)
             .unwrap();

@@ -207,7 +207,7 @@ impl<const W: usize> BatchModel<W> {
         let (chunk, l) = (&mut self.chunks[lane / W], lane % W);
         for (i, joint) in model.joints.iter().enumerate() {
             set_transform(&mut chunk.parent_from_joint[i], l, &joint.parent_from_joint);
-            set_v3(&mut chunk.axis[i], l, &joint.axis);
+            set_v3(&mut chunk.axis[i], l, joint.axis());
             chunk.coordinate_axes[i] =
                 chunk.coordinate_axes[i].with_lane(l, joint.revolute_coordinate_axis());
         }
