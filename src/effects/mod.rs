@@ -111,6 +111,12 @@ impl Effects {
         effects
     }
 
+    /// Whether some effect is declared (else [`Effects::add_forces`] adds nothing).
+    #[inline]
+    pub fn has_forces(&self) -> bool {
+        self.has_forces
+    }
+
     /// Whether the scene declares contacts (then the generalised forces couple joints: see
     /// [`Effects::add_newton_matrices`]).
     pub fn has_contacts(&self) -> bool {

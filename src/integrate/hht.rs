@@ -1032,7 +1032,10 @@ impl HhtIntegrator {
         // second order.
         let ratio = h / self.trajectory.control.h_last;
         if ratio == 1.0 {
-            self.ws.a_start.copy_from(&self.trajectory.state.a);
+            self.ws
+                .a_start
+                .as_mut_slice()
+                .copy_from_slice(self.trajectory.state.a.as_slice());
         } else {
             for ((x, a_n), qdd_n) in self
                 .ws

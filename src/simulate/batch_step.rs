@@ -286,7 +286,7 @@ impl BatchStepper {
                     .iter_mut()
                     .zip(self.batch_data.tau.chunk(0))
                 {
-                    *r = -t.0[lane];
+                    *r = t.0[lane];
                 }
                 system.finish_dynamics_residual(
                     q.as_slice(),

@@ -176,11 +176,18 @@ impl RobotSystem {
         &self.parameters
     }
 
-    /// Completes the dynamics residual `M q̈ + C q̇ + g − Q_effects` from the negated inverse
-    /// dynamics: `out` holds `−τ_rnea(q, q̇, q̈)` on entry (dim nv) and the residual on return,
-    /// computed as `−(−τ_rnea + Q_effects)`. [`DaeSystem::dynamics_residual`] and the batched step
+    /// Completes the dynamics residual `M q̈ + C q̇ + g − Q_effects` from the inverse dynamics:
+    /// `out` holds `τ_rnea(q, q̇, q̈)` on entry (dim nv) and the residual on return, computed as
+    /// `−(−τ_rnea + Q_effects)`; without effects that is `τ_rnea` itself, bit for bit (negation is
+    /// exact), and `out` is left as it is. [`DaeSystem::dynamics_residual`] and the batched step
     /// (which computes `τ_rnea` for many samples at once, bitwise the same) share it.
     pub(crate) fn finish_dynamics_residual(&mut self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        if !self.effects.has_forces() {
+            return;
+        }
+        for o in out.iter_mut() {
+            *o = -*o;
+        }
         self.effects
             .add_forces(&self.model, &mut self.data, q, v, out);
         for o in out.iter_mut() {
@@ -209,9 +216,7 @@ impl RobotSystem {
                 qdd.as_slice(),
             )
         };
-        for (o, t) in out.iter_mut().zip(tau) {
-            *o = -t;
-        }
+        out.as_mut_slice().copy_from_slice(tau);
         self.finish_dynamics_residual(q.as_slice(), v.as_slice(), out.as_mut_slice());
     }
 
