@@ -195,6 +195,8 @@ struct Workspace {
     diagonal_terms_zero: bool,
     /// Position magnitudes for error weights, dim nv.
     scale: DVector<f64>,
+    /// `scale` holds zeros (as created, and after a system whose scale is zero filled it).
+    scale_zero: bool,
     /// Φ, dim m.
     phi: DVector<f64>,
     /// Φ_q, m × nv.
@@ -254,6 +256,7 @@ impl Workspace {
             damping: DVector::zeros(nv),
             diagonal_terms_zero: true,
             scale: DVector::zeros(nv),
+            scale_zero: true,
             phi: DVector::zeros(m),
             phi_q: DMatrix::zeros(m, nv),
             phi_dot: DVector::zeros(m),
@@ -1823,19 +1826,36 @@ impl HhtIntegrator {
 
         // Weighted RMS of the position-level correction β'h² Δq̈ and of Δλ, at the iterate before
         // the correction; the worst weighted entry is kept for the failure report.
-        system.position_scale(&ws.q, &mut ws.scale);
+        if !system.position_scale_is_zero() {
+            system.position_scale(&ws.q, &mut ws.scale);
+            ws.scale_zero = false;
+        } else if !ws.scale_zero {
+            ws.scale.as_mut_slice().fill(0.0);
+            ws.scale_zero = true;
+        }
         let reltol = self.settings.reltol;
         // The worst weighted entry over coordinates then rows (index ≥ nv: row index − nv); the
         // first of equal ones.
         let (mut worst_value, mut worst_index) = (-1.0, 0);
         let mut sum_q = 0.0;
         let (rhs, scale) = (&ws.rhs.as_slice()[..nv + m], &ws.scale.as_slice()[..nv]);
-        for i in 0..nv {
-            let ewt = 1.0 / (reltol * scale[i] + self.settings.abstol_position);
+        let abstol = self.settings.abstol_position;
+        let mut take = |i: usize, ewt: f64| {
             let x = (beta_h2 * rhs[i] * ewt).abs();
             sum_q += x * x;
             if x > worst_value {
                 (worst_value, worst_index) = (x, i);
+            }
+        };
+        if ws.scale_zero {
+            // `1 / (reltol · 0 + abstol)`, bit for bit, once.
+            let ewt = 1.0 / abstol;
+            for i in 0..nv {
+                take(i, ewt);
+            }
+        } else {
+            for (i, scale) in scale.iter().enumerate() {
+                take(i, 1.0 / (reltol * scale + abstol));
             }
         }
         let mut sum_l = 0.0;

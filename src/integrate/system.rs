@@ -93,6 +93,13 @@ pub trait DaeSystem {
         Ok(())
     }
 
+    /// Whether [`DaeSystem::position_scale`] is zero at every `q` (the Newton test weighs every
+    /// coordinate by the absolute tolerance alone); the integrator then need not ask for it at
+    /// every iteration. Default: `false`.
+    fn position_scale_is_zero(&self) -> bool {
+        false
+    }
+
     /// Magnitude of each velocity coordinate's position, for the error weights of the Newton test
     /// (`ewt_i = 1 / (reltol · scale_i + abstol)`).
     ///

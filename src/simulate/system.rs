@@ -195,6 +195,32 @@ impl RobotSystem {
         }
     }
 
+    /// [`DaeSystem::integrate_position`] of a model with a floating joint (`q ⊕ δ = q · exp(δ)` for
+    /// it, `q + δ` for the others), kept out of line so that the common case stays small.
+    #[inline(never)]
+    fn integrate_position_with_floating_joint(&self, q: &[f64], dq: &[f64], out: &mut [f64]) {
+        for joint in &self.model.joints {
+            let (qi, vi) = (joint.q_index, joint.v_index);
+            if joint.kind != JointKind::Floating {
+                out[qi] = q[qi] + dq[vi];
+                continue;
+            }
+            // q ⊕ δ = q · exp(δ): the twist δ = (v, ω) is in the body frame.
+            let position = Vec3::new(q[qi], q[qi + 1], q[qi + 2]);
+            let orientation = unit_quaternion_from_xyzw(&q[qi + 3..qi + 7]);
+            let linear = Vec3::new(dq[vi], dq[vi + 1], dq[vi + 2]);
+            let angular = Vec3::new(dq[vi + 3], dq[vi + 4], dq[vi + 5]);
+            let (translation, increment) = se3_exp(&linear, &angular);
+            let new_position = position + orientation * translation;
+            let new_orientation = orientation * increment;
+            let quaternion = new_orientation.quaternion().normalize();
+            out[qi] = new_position.x;
+            out[qi + 1] = new_position.y;
+            out[qi + 2] = new_position.z;
+            write_xyzw(&quaternion, &mut out[qi + 3..qi + 7]);
+        }
+    }
+
     /// `out = M q̈ − Q` from RNEA: with `placements_given`, RNEA reads the joint placements
     /// already in `data.parent_from_body` (which must be those at `q`) instead of computing them.
     fn inverse_dynamics_residual(
@@ -446,29 +472,17 @@ impl DaeSystem for RobotSystem {
             }
             return Ok(());
         }
-        // Over slices: the entries of DVector's indexing cost more than the arithmetic here.
-        let (q, dq, out) = (q.as_slice(), dq.as_slice(), out.as_mut_slice());
-        for joint in &self.model.joints {
-            let (qi, vi) = (joint.q_index, joint.v_index);
-            if joint.kind != JointKind::Floating {
-                out[qi] = q[qi] + dq[vi];
-                continue;
-            }
-            // q ⊕ δ = q · exp(δ): the twist δ = (v, ω) is in the body frame.
-            let position = Vec3::new(q[qi], q[qi + 1], q[qi + 2]);
-            let orientation = unit_quaternion_from_xyzw(&q[qi + 3..qi + 7]);
-            let linear = Vec3::new(dq[vi], dq[vi + 1], dq[vi + 2]);
-            let angular = Vec3::new(dq[vi + 3], dq[vi + 4], dq[vi + 5]);
-            let (translation, increment) = se3_exp(&linear, &angular);
-            let new_position = position + orientation * translation;
-            let new_orientation = orientation * increment;
-            let quaternion = new_orientation.quaternion().normalize();
-            out[qi] = new_position.x;
-            out[qi + 1] = new_position.y;
-            out[qi + 2] = new_position.z;
-            write_xyzw(&quaternion, &mut out[qi + 3..qi + 7]);
-        }
+        self.integrate_position_with_floating_joint(
+            q.as_slice(),
+            dq.as_slice(),
+            out.as_mut_slice(),
+        );
         Ok(())
+    }
+
+    /// Without translation coordinates every entry of [`DaeSystem::position_scale`] is zero.
+    fn position_scale_is_zero(&self) -> bool {
+        !self.has_translation_coordinate
     }
 
     /// Scale of each coordinate for the Newton test's relative tolerance. An angle's size says
