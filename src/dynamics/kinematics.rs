@@ -57,9 +57,10 @@ pub fn drift_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
                 None,
             ),
         };
-        let velocity = parent_from_body.inv_act_motion(&parent_velocity) + joint_velocity;
-        data.acceleration[i] = parent_from_body.inv_act_motion(&parent_acceleration)
-            + velocity.cross_motion(&joint_velocity);
+        let (moved_velocity, moved_acceleration) =
+            parent_from_body.inv_act_motion_pair(&parent_velocity, &parent_acceleration);
+        let velocity = moved_velocity + joint_velocity;
+        data.acceleration[i] = moved_acceleration + velocity.cross_motion(&joint_velocity);
         data.velocity[i] = velocity;
         data.parent_from_body[i] = parent_from_body;
         data.world_from_body[i] = match world_from_parent {

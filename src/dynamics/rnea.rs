@@ -102,9 +102,10 @@ fn run(model: &Model, data: &mut Data, placements: Placements, v: &[f64], qdd: O
             ),
             None => {
                 let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
-                let velocity = parent_from_body.inv_act_motion(&parent_velocity) + joint_velocity;
-                let mut acceleration = parent_from_body.inv_act_motion(&parent_acceleration)
-                    + velocity.cross_motion(&joint_velocity);
+                let (moved_velocity, moved_acceleration) =
+                    parent_from_body.inv_act_motion_pair(&parent_velocity, &parent_acceleration);
+                let velocity = moved_velocity + joint_velocity;
+                let mut acceleration = moved_acceleration + velocity.cross_motion(&joint_velocity);
                 if let Some(qdd) = qdd {
                     acceleration += joint.motion(&qdd[vi..vi + joint.nv()]);
                 }
@@ -152,10 +153,10 @@ fn motion_through_axis<const K: usize>(
     rate: f64,
     qdd: Option<f64>,
 ) -> (Motion, Motion) {
-    let mut velocity = parent_from_body.inv_act_motion(parent_velocity);
+    let (mut velocity, moved_acceleration) =
+        parent_from_body.inv_act_motion_pair(parent_velocity, parent_acceleration);
     velocity.angular[K] += rate;
-    let mut acceleration = parent_from_body.inv_act_motion(parent_acceleration)
-        + velocity.cross_coordinate_axis(K, rate);
+    let mut acceleration = moved_acceleration + velocity.cross_coordinate_axis(K, rate);
     if let Some(qdd) = qdd {
         acceleration.angular[K] += qdd;
     }

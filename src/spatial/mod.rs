@@ -11,6 +11,7 @@
 
 mod inertia;
 mod motion;
+pub(crate) mod pair;
 pub mod quaternion;
 mod transform;
 pub mod trig;
