@@ -377,7 +377,21 @@ impl DenseSolver {
 
     /// Solves `A x = b` in place (`b` of dimension `n`, overwritten with `x`) with the last successful
     /// factorisation. Allocation-free.
+    #[inline]
     pub fn solve_in_place(&self, b: &mut DVector<f64>) {
+        // The Cholesky factor (a matrix without constraint rows) at the call site; the other
+        // kinds out of line.
+        if self.kind == FactorKind::Cholesky {
+            let a = &self.factors;
+            cholesky::solve_in_place(a.as_slice(), a.nrows(), b.as_mut_slice());
+        } else {
+            self.solve_other_in_place(b);
+        }
+    }
+
+    /// [`Self::solve_in_place`] with an LU or saddle-point factorisation.
+    #[inline(never)]
+    fn solve_other_in_place(&self, b: &mut DVector<f64>) {
         let a = &self.factors;
         let n = a.nrows();
         match self.kind {

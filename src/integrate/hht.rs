@@ -959,6 +959,7 @@ impl HhtIntegrator {
 
     /// The size of the next attempt towards the grid time `t_end` when `remaining` (s) is left,
     /// from the step control's plan, never below `h_min` nor leaving a sliver below it.
+    #[inline]
     fn plan_attempt(&self, t_end: f64, h_min: f64, remaining: f64) -> PlannedAttempt {
         let h_grid = self.grid_coeffs.h;
         let planned = self.trajectory.control.h_next.clamp(h_min, h_grid);

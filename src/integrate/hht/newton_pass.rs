@@ -145,6 +145,7 @@ impl NewtonPass {
 
     /// Judges the iteration that produced `report` (counting a rounding-limited acceptance in
     /// `stats`).
+    #[inline]
     pub(super) fn judge(&mut self, report: IterationReport, stats: &mut HhtStats) -> PassVerdict {
         let rate = self.previous.map(|prev| report.wrms() / prev.wrms());
         if let Some(rate) = rate {

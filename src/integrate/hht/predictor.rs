@@ -219,7 +219,9 @@ impl PredictorHistory {
         }
         if by_order && self.run_chosen && h == control.h_last {
             qdd_out.copy_from_slice(self.qdd_run.next.as_slice());
-            lambda_out.copy_from_slice(self.lambda_run.next.as_slice());
+            if !lambda_out.is_empty() {
+                lambda_out.copy_from_slice(self.lambda_run.next.as_slice());
+            }
             return;
         }
         let ratio = h / control.h_last;
@@ -257,7 +259,9 @@ impl PredictorHistory {
         let highest = if continues_run { self.equal_run } else { 0 };
         if by_order {
             self.qdd_run.push(qdd.as_slice(), new.0, highest);
-            self.lambda_run.push(lambda.as_slice(), new.1, highest);
+            if !new.1.is_empty() {
+                self.lambda_run.push(lambda.as_slice(), new.1, highest);
+            }
         }
         self.run_chosen = by_order && highest >= 1;
         self.qdd_previous.swap(0, 1);
