@@ -192,7 +192,9 @@ impl DenseSolver {
                 let n = nv + m;
                 let whole = self.factors.as_mut_slice();
                 write_a(whole, n);
-                assemble_constraint_blocks(whole, n, b, 1.0);
+                if m > 0 {
+                    assemble_constraint_blocks(whole, n, b, 1.0);
+                }
                 let scale = if self.kind == FactorKind::Cholesky {
                     largest_diagonal_entry(whole, n)
                 } else {
