@@ -71,9 +71,6 @@ pub struct Effects {
     springs: Option<springs::JointSprings>,
     limits: Option<limits::JointLimits>,
     contacts: Option<contact::Contacts>,
-    /// Some effect above is declared (else [`Effects::add_forces`] adds nothing and returns at
-    /// once).
-    has_forces: bool,
 }
 
 impl Effects {
@@ -81,7 +78,7 @@ impl Effects {
     pub fn assemble(model: &Model, scene: &Scene) -> Effects {
         let joints = one_dof_joints(model);
         let e = &scene.effects;
-        let mut effects = Effects {
+        Effects {
             damping: e.joint_damping.then(|| damping::JointDamping::new(&joints)),
             friction: e
                 .joint_friction
@@ -101,20 +98,13 @@ impl Effects {
                 .contact
                 .as_ref()
                 .map(|c| contact::Contacts::new(model, c.geometry.clone())),
-            has_forces: false,
-        };
-        effects.has_forces = effects.damping.is_some()
-            || effects.friction.is_some()
-            || effects.springs.is_some()
-            || effects.limits.is_some()
-            || effects.contacts.is_some();
-        effects
+        }
     }
 
     /// Whether some effect is declared (else [`Effects::add_forces`] adds nothing).
     #[inline]
     pub fn has_forces(&self) -> bool {
-        self.has_forces
+        self.has_newton_diagonal() || self.has_contacts()
     }
 
     /// Whether the scene declares contacts (then the generalised forces couple joints: see
@@ -273,7 +263,7 @@ impl Effects {
         v: &[f64],
         out: &mut [f64],
     ) {
-        if self.has_forces {
+        if self.has_forces() {
             self.add_declared_forces(model, data, q, v, out);
         }
     }

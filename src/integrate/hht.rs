@@ -190,13 +190,8 @@ struct Workspace {
     stiffness: DVector<f64>,
     /// Diagonal damping c_j, dim nv.
     damping: DVector<f64>,
-    /// `stiffness` and `damping` hold zeros (as they are created, and after a system without a
-    /// Newton diagonal filled them), so they need no second fill.
-    diagonal_terms_zero: bool,
     /// Position magnitudes for error weights, dim nv.
     scale: DVector<f64>,
-    /// `scale` holds zeros (as created, and after a system whose scale is zero filled it).
-    scale_zero: bool,
     /// Φ, dim m.
     phi: DVector<f64>,
     /// Φ_q, m × nv.
@@ -254,9 +249,7 @@ impl Workspace {
             dyn_residual: DVector::zeros(nv),
             stiffness: DVector::zeros(nv),
             damping: DVector::zeros(nv),
-            diagonal_terms_zero: true,
             scale: DVector::zeros(nv),
-            scale_zero: true,
             phi: DVector::zeros(m),
             phi_q: DMatrix::zeros(m, nv),
             phi_dot: DVector::zeros(m),
@@ -1569,7 +1562,7 @@ impl HhtIntegrator {
         {
             assemble_iteration_matrix(
                 &ws.mass,
-                Some((&ws.stiffness, &ws.damping)),
+                has_diagonal.then_some((&ws.stiffness, &ws.damping)),
                 &ws.phi_q,
                 beta_h2,
                 gamma_h,
@@ -1624,15 +1617,9 @@ impl HhtIntegrator {
         }
         let ws = &mut self.ws;
         if !system.provides_newton_diagonal() {
-            // Zero terms, as the system would give them (the contacts' branch reads them).
-            if !ws.diagonal_terms_zero {
-                ws.stiffness.as_mut_slice().fill(0.0);
-                ws.damping.as_mut_slice().fill(0.0);
-                ws.diagonal_terms_zero = true;
-            }
+            // No terms: `stiffness` and `damping` are left as they are, and nothing reads them.
             return Ok(false);
         }
-        ws.diagonal_terms_zero = false;
         eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)?;
         let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
         for ((d, k), c) in ws
@@ -1827,12 +1814,10 @@ impl HhtIntegrator {
 
         // Weighted RMS of the position-level correction β'h² Δq̈ and of Δλ, at the iterate before
         // the correction; the worst weighted entry is kept for the failure report.
-        if !system.position_scale_is_zero() {
+        // A system whose scale is zero everywhere is not asked for it (and `ws.scale` not read).
+        let scale_is_zero = system.position_scale_is_zero();
+        if !scale_is_zero {
             system.position_scale(&ws.q, &mut ws.scale);
-            ws.scale_zero = false;
-        } else if !ws.scale_zero {
-            ws.scale.as_mut_slice().fill(0.0);
-            ws.scale_zero = true;
         }
         let reltol = self.settings.reltol;
         // The worst weighted entry over coordinates then rows (index ≥ nv: row index − nv); the
@@ -1848,7 +1833,7 @@ impl HhtIntegrator {
                 (worst_value, worst_index) = (x, i);
             }
         };
-        if ws.scale_zero {
+        if scale_is_zero {
             // `1 / (reltol · 0 + abstol)`, bit for bit, once.
             let ewt = 1.0 / abstol;
             for i in 0..nv {
