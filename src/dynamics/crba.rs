@@ -4,7 +4,7 @@
 //! `M[i, i] = S_iᵀ F`, then walking up the ancestors `F ← X F`, `M[j, i] = M[i, j]ᵀ = S_jᵀ F`.
 
 use super::{joint_placements, Data};
-use crate::model::{JointKind, Model};
+use crate::model::{Joint, JointKind, Model};
 use crate::spatial::{Force, Inertia, Motion};
 
 /// Joint-space mass matrix: `data.mass_matrix = M(q)` (full, symmetric).
@@ -34,31 +34,41 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::D
     // Column-major storage: entry (row, column) at `row + column · n`.
     let mass = mass_matrix.as_mut_slice();
     mass.fill(0.0);
-    let mut projected = [0.0; 6];
     for (i, joint) in model.joints.iter().enumerate() {
         for k in 0..joint.nv() {
             let column = joint.v_index + k;
             let mut force =
                 apply_to_subspace_column(&composite[i], joint.kind, &joint.subspace_column(k));
-            joint.project_force(&force, &mut projected);
-            for (kk, value) in projected[..joint.nv()].iter().enumerate() {
-                mass[joint.v_index + kk + column * n] = *value;
-            }
+            for_each_projection(joint, &force, |row, value| mass[row + column * n] = value);
             let mut child = i;
             while let Some(ancestor) = model.joints[child].parent {
                 force = parent_from_body[child].act_force(&force);
-                let ancestor_joint = &model.joints[ancestor];
-                ancestor_joint.project_force(&force, &mut projected);
-                for (kk, value) in projected[..ancestor_joint.nv()].iter().enumerate() {
-                    let row = ancestor_joint.v_index + kk;
-                    mass[row + column * n] = *value;
-                    mass[column + row * n] = *value;
-                }
+                for_each_projection(&model.joints[ancestor], &force, |row, value| {
+                    mass[row + column * n] = value;
+                    mass[column + row * n] = value;
+                });
                 child = ancestor;
             }
         }
     }
     &data.mass_matrix
+}
+
+/// Calls `write(row, value)` for each entry of `Sᵀ f` ([`crate::model::Joint::project_force`]),
+/// `row` counting in `v`: a one-degree-of-freedom joint's single entry without a buffer or a loop.
+#[inline(always)]
+fn for_each_projection(joint: &Joint, force: &Force, mut write: impl FnMut(usize, f64)) {
+    match joint.kind {
+        JointKind::Revolute => write(joint.v_index, joint.axis().dot(&force.angular)),
+        JointKind::Prismatic => write(joint.v_index, joint.axis().dot(&force.linear)),
+        JointKind::Floating => {
+            let mut projected = [0.0; 6];
+            joint.project_force(force, &mut projected);
+            for (k, value) in projected.into_iter().enumerate() {
+                write(joint.v_index + k, value);
+            }
+        }
+    }
 }
 
 /// `I S_k` for a column of a joint's motion subspace: [`Inertia::apply`] with the products by the

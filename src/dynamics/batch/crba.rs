@@ -4,9 +4,9 @@
 use super::joint::{project_force, subspace_column};
 use super::kinematics::joint_placements_chunks;
 use super::lanes::{
-    cross, mat_vec, v3_neg, v3_scale, ForceLanes, InertiaLanes, Lanes, MotionLanes,
+    cross, dot, mat_vec, v3_neg, v3_scale, ForceLanes, InertiaLanes, Lanes, MotionLanes, V3,
 };
-use super::model::BatchModel;
+use super::model::{BatchJoint, BatchModel};
 use super::state::{BatchData, BatchVectors};
 use super::IsaKind;
 use crate::model::JointKind;
@@ -55,7 +55,6 @@ pub(super) fn crba_chunks<const W: usize>(
         for &k in &model.mass_matrix_zeros {
             mass[k] = Lanes::zero();
         }
-        let mut projected = [Lanes::zero(); 6];
         for (i, joint) in model.joints.iter().enumerate() {
             let axis = &values.axis[i];
             for k in 0..joint.nv() {
@@ -65,27 +64,46 @@ pub(super) fn crba_chunks<const W: usize>(
                     joint.kind,
                     &subspace_column(joint.kind, axis, k),
                 );
-                project_force(joint.kind, axis, &force, &mut projected);
-                for (kk, value) in projected[..joint.nv()].iter().enumerate() {
-                    mass[joint.v_index + kk + column * n] = *value;
-                }
+                for_each_projection(joint, axis, &force, |row, value| {
+                    mass[row + column * n] = value
+                });
                 let mut child = i;
                 while let Some(ancestor) = model.joints[child].parent {
                     force = parent_from_body[child].act_force(&force);
-                    let ancestor_joint = &model.joints[ancestor];
-                    project_force(
-                        ancestor_joint.kind,
-                        &values.axis[ancestor],
+                    let ancestor_axis = &values.axis[ancestor];
+                    for_each_projection(
+                        &model.joints[ancestor],
+                        ancestor_axis,
                         &force,
-                        &mut projected,
+                        |row, value| {
+                            mass[row + column * n] = value;
+                            mass[column + row * n] = value;
+                        },
                     );
-                    for (kk, value) in projected[..ancestor_joint.nv()].iter().enumerate() {
-                        let row = ancestor_joint.v_index + kk;
-                        mass[row + column * n] = *value;
-                        mass[column + row * n] = *value;
-                    }
                     child = ancestor;
                 }
+            }
+        }
+    }
+}
+
+/// Calls `write(row, value)` for each entry of `Sᵀ f` ([`project_force`]), `row` counting in `v`:
+/// a one-degree-of-freedom joint's single entry without a buffer or a loop (as the scalar CRBA).
+#[inline(always)]
+fn for_each_projection<const W: usize>(
+    joint: &BatchJoint,
+    axis: &V3<W>,
+    force: &ForceLanes<W>,
+    mut write: impl FnMut(usize, Lanes<W>),
+) {
+    match joint.kind {
+        JointKind::Revolute => write(joint.v_index, dot(axis, &force.angular)),
+        JointKind::Prismatic => write(joint.v_index, dot(axis, &force.linear)),
+        JointKind::Floating => {
+            let mut projected = [Lanes::zero(); 6];
+            project_force(joint.kind, axis, force, &mut projected);
+            for (k, value) in projected.into_iter().enumerate() {
+                write(joint.v_index + k, value);
             }
         }
     }
