@@ -15,6 +15,15 @@ use crate::spatial::{Force, Inertia, Motion};
 /// returns `data.mass_matrix`.
 pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::DMatrix<f64> {
     joint_placements(model, data, q);
+    crba_at_placements(model, data)
+}
+
+/// [`crba`] at the joint placements `data.parent_from_body` already holds (as [`rnea`](super::rnea),
+/// [`nonlinear_effects`](super::nonlinear_effects) and [`crba`] leave them for their `q`): the same
+/// bits as `crba` at that `q`, without computing the placements again.
+///
+/// Overwrites `data.composite` and `data.mass_matrix`; returns `data.mass_matrix`.
+pub fn crba_at_placements<'a>(model: &Model, data: &'a mut Data) -> &'a nalgebra::DMatrix<f64> {
     for (composite, body) in data.composite.iter_mut().zip(&model.bodies) {
         *composite = body.inertia;
     }
@@ -87,5 +96,37 @@ fn apply_to_subspace_column(inertia: &Inertia, kind: JointKind, column: &Motion)
             angular: inertia.first_moment.cross(&column.linear),
         },
         JointKind::Floating => inertia.apply(column),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dynamics::nonlinear_effects;
+    use crate::model::LoadOptions;
+    use std::path::Path;
+
+    /// `crba_at_placements` after the RNEA at `q` has the bits of `crba` at `q`, on a fixed-base arm
+    /// and on a floating-base robot (a six-degree-of-freedom joint's block included).
+    #[test]
+    fn mass_matrix_at_given_placements_has_the_bits_of_the_full_call() {
+        for file in ["robots/ur5/ur5.urdf", "robots/quadruped/quadruped.urdf"] {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
+            let model = Model::from_urdf_file(&path, LoadOptions::default()).unwrap();
+            let mut q: Vec<f64> = (0..model.nq).map(|i| 0.3 + 0.1 * i as f64).collect();
+            if model.joints[0].kind == JointKind::Floating {
+                // A unit quaternion for the base (x, y, z, w after the position).
+                q[3..7].copy_from_slice(&[0.1, -0.2, 0.3, (1.0f64 - 0.14).sqrt()]);
+            }
+            let v: Vec<f64> = (0..model.nv).map(|i| 0.5 - 0.2 * i as f64).collect();
+            let mut data = Data::new(&model);
+            let full = crba(&model, &mut data, &q).clone();
+            let mut other = Data::new(&model);
+            nonlinear_effects(&model, &mut other, &q, &v);
+            let given = crba_at_placements(&model, &mut other);
+            let bits =
+                |m: &nalgebra::DMatrix<f64>| m.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(given), bits(&full), "{file}");
+        }
     }
 }

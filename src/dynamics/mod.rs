@@ -1,10 +1,11 @@
 //! Rigid-body dynamics on a [`crate::model::Model`] in joint coordinates:
 //! - [`forward_kinematics`] — body placements;
 //! - [`rnea`] — inverse dynamics `τ = M(q) q̈ + C(q, q̇) q̇ + g(q)` and [`nonlinear_effects`] (`q̈ = 0`);
-//! - [`crba`] — the joint-space mass matrix `M(q)`;
-//! - [`forward_dynamics`] — `q̈ = M⁻¹ (τ − C q̇ − g)` through CRBA, RNEA and an in-place Cholesky
-//!   factorisation (for the small dense systems of robot arms this is as fast as ABA and reuses the
-//!   pieces the implicit integrator needs anyway);
+//! - [`crba`] — the joint-space mass matrix `M(q)` ([`crba_at_placements`] at placements already
+//!   computed);
+//! - [`forward_dynamics`] — `q̈ = M⁻¹ (τ − C q̇ − g)` through RNEA, CRBA (at the RNEA's placements)
+//!   and an in-place Cholesky factorisation (for the small dense systems of robot arms this is as
+//!   fast as ABA and reuses the pieces the implicit integrator needs anyway);
 //! - [`world_from_link`] — one URDF link's placement in the world frame;
 //! - derivatives for the forward sensitivities ([`link_inertia_derivative`],
 //!   [`rnea_inertia_derivative`], [`link_origin_jacobian`], [`rnea_derivatives`];
@@ -22,7 +23,7 @@ mod kinematics;
 mod rnea;
 
 pub use crate::linalg::cholesky::{cholesky_factor_in_place, cholesky_solve_in_place};
-pub use crba::crba;
+pub use crba::{crba, crba_at_placements};
 pub use data::Data;
 pub use derivatives::{
     link_inertia_derivative, link_origin_jacobian, rnea_derivatives, rnea_inertia_derivative,
@@ -119,7 +120,8 @@ pub fn forward_dynamics<'a>(
     tau: &[f64],
 ) -> Result<&'a [f64], DynamicsError> {
     nonlinear_effects(model, data, q, v);
-    crba(model, data, q);
+    // The RNEA has just left the placements at `q` in `data`.
+    crba_at_placements(model, data);
     for ((qdd, tau), bias) in data.qdd.iter_mut().zip(tau).zip(data.bias.iter()) {
         *qdd = tau - bias;
     }
