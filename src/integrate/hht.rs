@@ -230,8 +230,19 @@ struct Workspace {
     /// `mass` holds M at the accepted `q_{n+1}`, handed in for the velocity projection (a plain
     /// step driven from outside, `hht/plain.rs`).
     projection_mass_given: bool,
-    /// `phi_q` holds Φ_q at the current iterate.
-    phi_q_fresh: bool,
+    /// What `phi` and `phi_q` hold at the current iterate.
+    constraints_at_iterate: ConstraintsAtIterate,
+}
+
+/// Which constraint quantities the workspace holds at the current iterate `ws.q`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ConstraintsAtIterate {
+    /// Neither (the iterate has moved since, or they were evaluated at another configuration).
+    Stale,
+    /// `phi_q = Φ_q(q)`.
+    Jacobian,
+    /// `phi = Φ(q)` and `phi_q = Φ_q(q)`.
+    ValuesAndJacobian,
 }
 
 impl Workspace {
@@ -270,7 +281,7 @@ impl Workspace {
             dv_trial: DVector::zeros(nv),
             mass_fresh: false,
             projection_mass_given: false,
-            phi_q_fresh: false,
+            constraints_at_iterate: ConstraintsAtIterate::Stale,
         }
     }
 }
@@ -723,7 +734,7 @@ impl HhtIntegrator {
         }
         std::mem::swap(&mut self.trajectory, other);
         self.ws.mass_fresh = false;
-        self.ws.phi_q_fresh = false;
+        self.ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
         Ok(())
     }
 
@@ -1462,7 +1473,7 @@ impl HhtIntegrator {
         self.trajectory.newton.forget();
         self.trajectory.stats.impacts += 1;
         self.ws.mass_fresh = false;
-        self.ws.phi_q_fresh = false;
+        self.ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
         Ok(())
     }
 
@@ -1523,7 +1534,7 @@ impl HhtIntegrator {
         }
         eval::integrate_position(system, at, &s.q, &ws.dq, &mut ws.q)?;
         ws.mass_fresh = false;
-        ws.phi_q_fresh = false;
+        ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
         Ok(())
     }
 
@@ -1555,7 +1566,9 @@ impl HhtIntegrator {
         let ws = &mut self.ws;
         let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
         if self.m > 0 {
-            eval::constraint_jacobian(system, at, &ws.q, &mut ws.phi_q)?;
+            // Φ with Φ_q (one pass of the kinematics): the iteration that follows at this
+            // iterate reads it (`add_constraint_rows`).
+            eval::constraints_and_jacobian(system, at, &ws.q, &mut ws.phi, &mut ws.phi_q)?;
         }
         let solver = &mut self.trajectory.newton.solver;
         let factorised = if self.settings.newton_diagonal_terms && system.provides_newton_coupling()
@@ -1599,7 +1612,7 @@ impl HhtIntegrator {
             pivot_relative: b.pivot_relative,
         })?;
         ws.mass_fresh = true;
-        ws.phi_q_fresh = true;
+        ws.constraints_at_iterate = ConstraintsAtIterate::ValuesAndJacobian;
         self.trajectory.stats.factorisations += 1;
         Ok(())
     }
@@ -1676,7 +1689,7 @@ impl HhtIntegrator {
                 pivot_relative: b.pivot_relative,
             })?;
         ws.mass_fresh = true;
-        ws.phi_q_fresh = true;
+        ws.constraints_at_iterate = ConstraintsAtIterate::Jacobian;
         self.trajectory.stats.factorisations += 1;
         self.trajectory.stats.full_factorisations += 1;
         Ok(())
@@ -1736,11 +1749,16 @@ impl HhtIntegrator {
             return Ok(());
         }
         let ws = &mut self.ws;
-        if ws.phi_q_fresh {
-            eval::constraints(system, at, &ws.q, &mut ws.phi)?;
-        } else {
-            eval::constraints_and_jacobian(system, at, &ws.q, &mut ws.phi, &mut ws.phi_q)?;
-            ws.phi_q_fresh = true;
+        match ws.constraints_at_iterate {
+            ConstraintsAtIterate::ValuesAndJacobian => {}
+            ConstraintsAtIterate::Jacobian => {
+                eval::constraints(system, at, &ws.q, &mut ws.phi)?;
+                ws.constraints_at_iterate = ConstraintsAtIterate::ValuesAndJacobian;
+            }
+            ConstraintsAtIterate::Stale => {
+                eval::constraints_and_jacobian(system, at, &ws.q, &mut ws.phi, &mut ws.phi_q)?;
+                ws.constraints_at_iterate = ConstraintsAtIterate::ValuesAndJacobian;
+            }
         }
         ws.dyn_residual.gemv_tr(1.0, &ws.phi_q, &ws.lambda, 1.0);
         Ok(())
@@ -1929,7 +1947,7 @@ impl HhtIntegrator {
                 &mut ws.phi,
                 &mut ws.phi_q,
             )?;
-            ws.phi_q_fresh = false;
+            ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
         }
         self.trajectory.stats.max_constraint_violation = self
             .trajectory
@@ -2027,7 +2045,7 @@ impl HhtIntegrator {
     ) -> Result<f64, IntegrateError> {
         let ws = &mut self.ws;
         eval::constraint_jacobian(system, at, &self.trajectory.state.q, &mut ws.phi_q)?;
-        ws.phi_q_fresh = false;
+        ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
         self.velocity_violation_at_jacobian(system, at)
     }
 

@@ -206,7 +206,7 @@ impl HhtIntegrator {
             .install_cholesky_factor(write_factor);
         // `ws.mass` does not hold M at this iterate.
         self.ws.mass_fresh = false;
-        self.ws.phi_q_fresh = true;
+        self.ws.constraints_at_iterate = super::ConstraintsAtIterate::Jacobian;
         self.trajectory.stats.factorisations += 1;
         plain.regime = system.newton_regime(&self.ws.q);
     }
