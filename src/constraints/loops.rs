@@ -89,6 +89,15 @@ fn link_point(model: &Model, data: &Data, link: Option<usize>, point: &Vec3) -> 
     }
 }
 
+/// A loop at the last kinematics: its point on the parent link (`a`) and on the child link (`b`),
+/// the parent link's orientation in the world, and the gap `b − a` in the world frame.
+struct LoopGeometry {
+    a: LinkPoint,
+    b: LinkPoint,
+    rotation: Mat3,
+    gap: Vec3,
+}
+
 /// Orientation of a link in the world.
 fn world_rotation(model: &Model, data: &Data, link: Option<usize>) -> Mat3 {
     let Some(link) = link else {
@@ -140,23 +149,67 @@ impl LoopClosure {
         self.directions.len()
     }
 
-    /// `out = Φ` of this loop (`dim rows`), from the placements in `data`.
-    pub fn evaluate(&self, model: &Model, data: &Data, out: &mut [f64]) {
+    /// The loop's two points and the parent's orientation at the placements in `data`.
+    fn geometry(&self, model: &Model, data: &Data) -> LoopGeometry {
         let a = link_point(model, data, self.parent, &self.point_in_parent);
         let b = link_point(model, data, Some(self.child), &self.point_in_child);
         let rotation = world_rotation(model, data, self.parent);
-        let d = b.in_world - a.in_world;
-        for (value, e) in out.iter_mut().zip(&self.directions) {
-            *value = (rotation * e).dot(&d);
+        let gap = b.in_world - a.in_world;
+        LoopGeometry {
+            a,
+            b,
+            rotation,
+            gap,
         }
+    }
+
+    /// `out = Φ` of this loop (`dim rows`), from the placements in `data`.
+    pub fn evaluate(&self, model: &Model, data: &Data, out: &mut [f64]) {
+        self.values_at(&self.geometry(model, data), out);
     }
 
     /// Writes this loop's rows of `Φ_q` into `out` from row `first_row`, from the placements in `data`.
     pub fn jacobian(&self, model: &Model, data: &Data, first_row: usize, out: &mut DMatrix<f64>) {
-        let a = link_point(model, data, self.parent, &self.point_in_parent);
-        let b = link_point(model, data, Some(self.child), &self.point_in_child);
-        let rotation = world_rotation(model, data, self.parent);
-        let d = b.in_world - a.in_world;
+        self.jacobian_at(model, data, &self.geometry(model, data), first_row, out);
+    }
+
+    /// [`evaluate`](Self::evaluate) into `values` and [`jacobian`](Self::jacobian) into `out`
+    /// from one evaluation of the loop's points (the same bits as the two calls).
+    pub fn evaluate_with_jacobian(
+        &self,
+        model: &Model,
+        data: &Data,
+        values: &mut [f64],
+        first_row: usize,
+        out: &mut DMatrix<f64>,
+    ) {
+        let geometry = self.geometry(model, data);
+        self.values_at(&geometry, values);
+        self.jacobian_at(model, data, &geometry, first_row, out);
+    }
+
+    /// `Φ` of this loop from its geometry: the gap along each direction turned into the world.
+    fn values_at(&self, geometry: &LoopGeometry, out: &mut [f64]) {
+        for (value, e) in out.iter_mut().zip(&self.directions) {
+            *value = (geometry.rotation * e).dot(&geometry.gap);
+        }
+    }
+
+    /// This loop's rows of `Φ_q` from its geometry (the chains' placements read from `data`).
+    fn jacobian_at(
+        &self,
+        model: &Model,
+        data: &Data,
+        geometry: &LoopGeometry,
+        first_row: usize,
+        out: &mut DMatrix<f64>,
+    ) {
+        let LoopGeometry {
+            a,
+            b,
+            rotation,
+            gap: d,
+        } = geometry;
         // Every entry gets the child chain's term, then the parent chain's, as row by row.
         for (chunk, directions) in self.directions.chunks(MAX_LOOP_ROWS).enumerate() {
             let rows = directions.len();
@@ -166,11 +219,11 @@ impl LoopClosure {
                 let e_world = rotation * e;
                 *child = (e_world, Vec3::zeros());
                 // The parent's point moves with its body, and so do the directions (rotation term).
-                *parent = (-e_world, e_world.cross(&d));
+                *parent = (-e_world, e_world.cross(d));
             }
             let first = first_row + chunk * MAX_LOOP_ROWS;
-            add_chain(model, data, &b, &child[..rows], first, out);
-            add_chain(model, data, &a, &parent[..rows], first, out);
+            add_chain(model, data, b, &child[..rows], first, out);
+            add_chain(model, data, a, &parent[..rows], first, out);
         }
     }
 

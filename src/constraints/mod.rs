@@ -123,7 +123,6 @@ impl ConstraintSet {
         q: &[f64],
         out: &mut DVector<f64>,
     ) {
-        let (mimic_start, drive_start) = self.offsets();
         if !self.loops.is_empty() {
             forward_kinematics(model, data, q);
             let mut row = 0;
@@ -132,6 +131,12 @@ impl ConstraintSet {
                 row += l.rows();
             }
         }
+        self.non_loop_values(t, q, out);
+    }
+
+    /// The mimic and drive rows of `Φ(q, t)` into `out`.
+    fn non_loop_values(&self, t: f64, q: &[f64], out: &mut DVector<f64>) {
+        let (mimic_start, drive_start) = self.offsets();
         for (i, m) in self.mimics.iter().enumerate() {
             out[mimic_start + i] = q[m.follower.0] - m.multiplier * q[m.leader.0] - m.offset;
         }
@@ -153,14 +158,18 @@ impl ConstraintSet {
     /// depend on it).
     fn jacobian_at_kinematics(&self, model: &Model, data: &Data, out: &mut DMatrix<f64>) {
         out.fill(0.0);
-        let (mimic_start, drive_start) = self.offsets();
-        if !self.loops.is_empty() {
-            let mut row = 0;
-            for l in &self.loops {
-                l.jacobian(model, data, row, out);
-                row += l.rows();
-            }
+        let mut row = 0;
+        for l in &self.loops {
+            l.jacobian(model, data, row, out);
+            row += l.rows();
         }
+        self.non_loop_jacobian(out);
+    }
+
+    /// Adds the mimic rows' entries of `Φ_q` into `out` and writes the drive rows' (after the
+    /// loops' rows: the entries of different rows never meet).
+    fn non_loop_jacobian(&self, out: &mut DMatrix<f64>) {
+        let (mimic_start, drive_start) = self.offsets();
         for (i, m) in self.mimics.iter().enumerate() {
             out[(mimic_start + i, m.follower.1)] += 1.0;
             out[(mimic_start + i, m.leader.1)] -= m.multiplier;
@@ -182,8 +191,18 @@ impl ConstraintSet {
         phi: &mut DVector<f64>,
         phi_q: &mut DMatrix<f64>,
     ) {
-        self.evaluate(model, data, t, q, phi);
-        self.jacobian_at_kinematics(model, data, phi_q);
+        phi_q.fill(0.0);
+        if !self.loops.is_empty() {
+            forward_kinematics(model, data, q);
+            let mut row = 0;
+            for l in &self.loops {
+                let values = &mut phi.as_mut_slice()[row..row + l.rows()];
+                l.evaluate_with_jacobian(model, data, values, row, phi_q);
+                row += l.rows();
+            }
+        }
+        self.non_loop_values(t, q, phi);
+        self.non_loop_jacobian(phi_q);
     }
 
     /// `out = Φ_t` (`dim m`): only drives depend on time explicitly.
