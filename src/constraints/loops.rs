@@ -11,8 +11,8 @@
 //! orthogonal to `axis` (2 rows).
 
 use crate::dynamics::Data;
-use crate::model::Model;
-use crate::spatial::{Mat3, Vec3};
+use crate::model::{Joint, Model};
+use crate::spatial::{Mat3, Motion, Transform, Vec3};
 use nalgebra::DMatrix;
 
 /// The kind of a loop closure.
@@ -132,7 +132,7 @@ fn add_chain(
     while let Some(b) = current {
         let joint = &model.joints[b];
         for k in 0..joint.nv() {
-            let column = data.world_from_body[b].act_motion(&joint.subspace_column(k));
+            let column = world_subspace_column(&data.world_from_body[b], joint, k);
             let point_velocity = column.linear + column.angular.cross(point_in_world);
             for (i, (linear, angular)) in weights.iter().enumerate() {
                 out[(first_row + i, joint.v_index + k)] +=
@@ -140,6 +140,21 @@ fn add_chain(
             }
         }
         current = joint.parent;
+    }
+}
+
+/// Column `k` of a joint's motion subspace in the world frame, `world_from_body · S[:, k]`. For a
+/// revolute joint on a coordinate axis `e_a`, `R e_a` is `R`'s column `a` and the linear part
+/// `R 0 + p × ω` is `p × ω`: the values of the general product, signs of zero aside (the sums of
+/// zero products are left out).
+#[inline]
+fn world_subspace_column(world_from_body: &Transform, joint: &Joint, k: usize) -> Motion {
+    match joint.revolute_coordinate_axis() {
+        Some(axis) => {
+            let angular = world_from_body.rotation.column(axis).into_owned();
+            Motion::new(world_from_body.translation.cross(&angular), angular)
+        }
+        None => world_from_body.act_motion(&joint.subspace_column(k)),
     }
 }
 
@@ -256,6 +271,41 @@ impl LoopClosure {
             let e_dot = omega.cross(&e_world);
             let e_drift = alpha.cross(&e_world) + omega.cross(&e_dot);
             *value = -(e_world.dot(&d_drift) + 2.0 * e_dot.dot(&d_dot) + e_drift.dot(&d));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::LoadOptions;
+
+    /// The coordinate-axis shortcut has the values of the general product (`==` equates the two
+    /// zeros and nothing else), for rotations with exact zeros and without, about each axis.
+    #[test]
+    fn coordinate_axis_column_has_the_values_of_the_general_product() {
+        let urdf = r#"<robot name="r"><link name="a"/><link name="b"><inertial><mass value="1"/>
+          <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+          <joint name="j" type="continuous"><parent link="a"/><child link="b"/>
+          <axis xyz="0 0 1"/></joint></robot>"#;
+        let model = Model::from_urdf_str(urdf, "r.urdf", LoadOptions::default()).unwrap();
+        let placements = [
+            Transform::from_xyz_rpy([0.1, -0.4, 0.7], [0.3, 0.2, -1.0]),
+            Transform::from_xyz_rpy([0.0, -0.09, 0.0], [std::f64::consts::FRAC_PI_2, 0.0, 0.0]),
+            Transform::from_xyz_rpy([1.5, 0.0, -2.0], [0.0, 0.0, 2.5]),
+            Transform::identity(),
+        ];
+        for axis in 0..3 {
+            let mut joint = model.joints[0].clone();
+            let mut e = Vec3::zeros();
+            e[axis] = 1.0;
+            joint.set_axis(e);
+            assert_eq!(joint.revolute_coordinate_axis(), Some(axis));
+            for x in &placements {
+                let shortcut = world_subspace_column(x, &joint, 0);
+                let general = x.act_motion(&joint.subspace_column(0));
+                assert_eq!(shortcut, general, "axis {axis}");
+            }
         }
     }
 }
