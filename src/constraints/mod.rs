@@ -135,7 +135,11 @@ impl ConstraintSet {
     }
 
     /// The mimic and drive rows of `Φ(q, t)` into `out`.
+    #[inline]
     fn non_loop_values(&self, t: f64, q: &[f64], out: &mut DVector<f64>) {
+        if self.mimics.is_empty() && self.drives.is_empty() {
+            return;
+        }
         let (mimic_start, drive_start) = self.offsets();
         for (i, m) in self.mimics.iter().enumerate() {
             out[mimic_start + i] = q[m.follower.0] - m.multiplier * q[m.leader.0] - m.offset;
@@ -157,7 +161,7 @@ impl ConstraintSet {
     /// [`forward_kinematics`] pass at the configuration of interest; the other rows do not
     /// depend on it).
     fn jacobian_at_kinematics(&self, model: &Model, data: &Data, out: &mut DMatrix<f64>) {
-        out.fill(0.0);
+        out.as_mut_slice().fill(0.0);
         let mut row = 0;
         for l in &self.loops {
             l.jacobian(model, data, row, out);
@@ -168,7 +172,11 @@ impl ConstraintSet {
 
     /// Adds the mimic rows' entries of `Φ_q` into `out` and writes the drive rows' (after the
     /// loops' rows: the entries of different rows never meet).
+    #[inline]
     fn non_loop_jacobian(&self, out: &mut DMatrix<f64>) {
+        if self.mimics.is_empty() && self.drives.is_empty() {
+            return;
+        }
         let (mimic_start, drive_start) = self.offsets();
         for (i, m) in self.mimics.iter().enumerate() {
             out[(mimic_start + i, m.follower.1)] += 1.0;
@@ -191,7 +199,7 @@ impl ConstraintSet {
         phi: &mut DVector<f64>,
         phi_q: &mut DMatrix<f64>,
     ) {
-        phi_q.fill(0.0);
+        phi_q.as_mut_slice().fill(0.0);
         if !self.loops.is_empty() {
             forward_kinematics(model, data, q);
             let mut row = 0;
