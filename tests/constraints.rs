@@ -539,3 +539,43 @@ fn constraints_and_jacobian_in_one_call_equal_the_separate_calls_bitwise() {
         }
     }
 }
+
+/// A system that says its constraints are scleronomic writes `+0` into every row of `Φ_t` (what
+/// the integrator then writes itself); one with drives says they are not.
+#[test]
+fn scleronomic_constraints_have_a_zero_time_derivative() {
+    use ribbon::integrate::DaeSystem;
+    for (urdf, sidecar, scleronomic) in [
+        (
+            "robots/four_bar/four_bar.urdf",
+            "robots/four_bar/four_bar.uncertainty.toml",
+            true,
+        ),
+        (
+            "robots/slider_crank/slider_crank.urdf",
+            "robots/slider_crank/slider_crank.uncertainty.toml",
+            false,
+        ),
+    ] {
+        let model = load(urdf);
+        let (file, _) = read_sidecar(&manifest(sidecar)).expect("sidecar");
+        let scene = Scene::resolve(&file, &model, "test", SceneOverrides::default())
+            .expect("scene resolves");
+        let mut system = RobotSystem::new(model.clone(), &scene);
+        assert_eq!(system.constraints_are_scleronomic(), scleronomic, "{urdf}");
+        let q = DVector::from_vec(scene.initial_q.clone());
+        let mut phi_t = DVector::from_element(system.n_constraints(), f64::NAN);
+        system
+            .constraint_time_derivative(0.3, &q, &mut phi_t)
+            .unwrap();
+        let all_plus_zero = phi_t.iter().all(|x| x.to_bits() == 0);
+        if scleronomic {
+            assert!(all_plus_zero, "{urdf}: Φ_t = {phi_t}");
+        } else {
+            assert!(
+                !all_plus_zero,
+                "{urdf}: a drive's row moves with time, Φ_t = {phi_t}"
+            );
+        }
+    }
+}

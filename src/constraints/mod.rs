@@ -213,6 +213,12 @@ impl ConstraintSet {
         self.non_loop_jacobian(phi_q);
     }
 
+    /// Whether no row depends on time explicitly (no drives): [`Self::time_derivative`] is then
+    /// `+0` in every row.
+    pub fn is_scleronomic(&self) -> bool {
+        self.drives.is_empty()
+    }
+
     /// `out = Φ_t` (`dim m`): only drives depend on time explicitly.
     pub fn time_derivative(&self, t: f64, out: &mut DVector<f64>) {
         out.fill(0.0);

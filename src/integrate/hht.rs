@@ -2058,7 +2058,11 @@ impl HhtIntegrator {
     ) -> Result<f64, IntegrateError> {
         let ws = &mut self.ws;
         let s = &self.trajectory.state;
-        eval::constraint_time_derivative(system, at, &s.q, &mut ws.phi_dot)?;
+        if system.constraints_are_scleronomic() {
+            ws.phi_dot.as_mut_slice().fill(0.0);
+        } else {
+            eval::constraint_time_derivative(system, at, &s.q, &mut ws.phi_dot)?;
+        }
         ws.phi_dot.gemv(1.0, &ws.phi_q, &s.v, 1.0);
         Ok(ws.phi_dot.amax())
     }

@@ -93,6 +93,13 @@ pub trait DaeSystem {
         Ok(())
     }
 
+    /// Whether [`DaeSystem::constraint_time_derivative`] writes `+0` into every row at every
+    /// `(q, t)` (no row depends on time explicitly); the integrator then writes those zeros
+    /// without asking. Default: `false`.
+    fn constraints_are_scleronomic(&self) -> bool {
+        false
+    }
+
     /// Whether [`DaeSystem::position_scale`] is zero at every `q` (the Newton test weighs every
     /// coordinate by the absolute tolerance alone); the integrator then need not ask for it at
     /// every iteration. Default: `false`.
@@ -334,6 +341,9 @@ pub trait DaeSystem {
     /// - `t`: time, s; `q`: dim `nq`; `out`: dim `m`, overwritten.
     ///
     /// Default: zeros (scleronomic constraints).
+    ///
+    /// A system whose `Φ_t` is zero at every `(q, t)` says so with
+    /// [`DaeSystem::constraints_are_scleronomic`], and the integrator writes the zeros itself.
     fn constraint_time_derivative(
         &mut self,
         t: f64,

@@ -485,6 +485,10 @@ impl DaeSystem for RobotSystem {
         !self.has_translation_coordinate
     }
 
+    fn constraints_are_scleronomic(&self) -> bool {
+        self.constraints.is_scleronomic()
+    }
+
     /// Scale of each coordinate for the Newton test's relative tolerance. An angle's size says
     /// nothing about its precision (a spinning wrist reaches 50 rad; `reltol · 50` would loosen the
     /// test 10⁵-fold), so revolute joints and base rotations use the absolute tolerance alone;
