@@ -185,7 +185,14 @@ impl LoopClosure {
 
     /// Writes this loop's rows of `Φ_q` into `out` from row `first_row`, from the placements in `data`.
     pub fn jacobian(&self, model: &Model, data: &Data, first_row: usize, out: &mut DMatrix<f64>) {
-        self.jacobian_at(model, data, &self.geometry(model, data), first_row, out);
+        self.jacobian_at(
+            model,
+            data,
+            &self.geometry(model, data),
+            None,
+            first_row,
+            out,
+        );
     }
 
     /// [`evaluate`](Self::evaluate) into `values` and [`jacobian`](Self::jacobian) into `out`
@@ -199,8 +206,7 @@ impl LoopClosure {
         out: &mut DMatrix<f64>,
     ) {
         let geometry = self.geometry(model, data);
-        self.values_at(&geometry, values);
-        self.jacobian_at(model, data, &geometry, first_row, out);
+        self.jacobian_at(model, data, &geometry, Some(values), first_row, out);
     }
 
     /// `Φ` of this loop from its geometry: the gap along each direction turned into the world.
@@ -210,12 +216,15 @@ impl LoopClosure {
         }
     }
 
-    /// This loop's rows of `Φ_q` from its geometry (the chains' placements read from `data`).
+    /// This loop's rows of `Φ_q` from its geometry (the chains' placements read from `data`),
+    /// and with `values` its `Φ` as [`Self::values_at`] computes it, from the same world
+    /// directions.
     fn jacobian_at(
         &self,
         model: &Model,
         data: &Data,
         geometry: &LoopGeometry,
+        mut values: Option<&mut [f64]>,
         first_row: usize,
         out: &mut DMatrix<f64>,
     ) {
@@ -228,17 +237,20 @@ impl LoopClosure {
         // Every entry gets the child chain's term, then the parent chain's, as row by row.
         for (chunk, directions) in self.directions.chunks(MAX_LOOP_ROWS).enumerate() {
             let rows = directions.len();
+            let first = chunk * MAX_LOOP_ROWS;
             let mut child = [(Vec3::zeros(), Vec3::zeros()); MAX_LOOP_ROWS];
             let mut parent = [(Vec3::zeros(), Vec3::zeros()); MAX_LOOP_ROWS];
-            for ((e, child), parent) in directions.iter().zip(&mut child).zip(&mut parent) {
+            for (i, e) in directions.iter().enumerate() {
                 let e_world = rotation * e;
-                *child = (e_world, Vec3::zeros());
+                if let Some(values) = values.as_deref_mut() {
+                    values[first + i] = e_world.dot(d);
+                }
+                child[i] = (e_world, Vec3::zeros());
                 // The parent's point moves with its body, and so do the directions (rotation term).
-                *parent = (-e_world, e_world.cross(d));
+                parent[i] = (-e_world, e_world.cross(d));
             }
-            let first = first_row + chunk * MAX_LOOP_ROWS;
-            add_chain(model, data, b, &child[..rows], first, out);
-            add_chain(model, data, a, &parent[..rows], first, out);
+            add_chain(model, data, b, &child[..rows], first_row + first, out);
+            add_chain(model, data, a, &parent[..rows], first_row + first, out);
         }
     }
 
