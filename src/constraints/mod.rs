@@ -13,7 +13,7 @@ mod profile;
 pub use loops::{LoopClosure, LoopKind};
 pub use profile::{Profile, Spline};
 
-use crate::dynamics::{drift_kinematics, forward_kinematics, Data};
+use crate::dynamics::{drift_kinematics, world_placements, Data};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
@@ -114,7 +114,8 @@ impl ConstraintSet {
         (loop_rows, loop_rows + self.mimics.len())
     }
 
-    /// `out = Φ(q, t)` (`dim m`). Runs forward kinematics into `data` when there are loops.
+    /// `out = Φ(q, t)` (`dim m`). Writes the world placements `data.world_from_body`
+    /// ([`world_placements`]) when there are loops.
     pub fn evaluate(
         &self,
         model: &Model,
@@ -124,7 +125,7 @@ impl ConstraintSet {
         out: &mut DVector<f64>,
     ) {
         if !self.loops.is_empty() {
-            forward_kinematics(model, data, q);
+            world_placements(model, data, q);
             let mut row = 0;
             for l in &self.loops {
                 l.evaluate(model, data, &mut out.as_mut_slice()[row..row + l.rows()]);
@@ -149,16 +150,17 @@ impl ConstraintSet {
         }
     }
 
-    /// `out = Φ_q` (`m × nv`). Runs forward kinematics into `data` when there are loops.
+    /// `out = Φ_q` (`m × nv`). Writes the world placements `data.world_from_body`
+    /// ([`world_placements`]) when there are loops.
     pub fn jacobian(&self, model: &Model, data: &mut Data, q: &[f64], out: &mut DMatrix<f64>) {
         if !self.loops.is_empty() {
-            forward_kinematics(model, data, q);
+            world_placements(model, data, q);
         }
         self.jacobian_at_kinematics(model, data, out);
     }
 
     /// `out = Φ_q` with the loops' chains read from the placements already in `data` (a
-    /// [`forward_kinematics`] pass at the configuration of interest; the other rows do not
+    /// [`world_placements`] pass at the configuration of interest; the other rows do not
     /// depend on it).
     fn jacobian_at_kinematics(&self, model: &Model, data: &Data, out: &mut DMatrix<f64>) {
         out.as_mut_slice().fill(0.0);
@@ -187,7 +189,7 @@ impl ConstraintSet {
         }
     }
 
-    /// `phi = Φ(q, t)` and `phi_q = Φ_q` with one forward-kinematics pass: the same bits as
+    /// `phi = Φ(q, t)` and `phi_q = Φ_q` with one pass of world placements: the same bits as
     /// [`evaluate`](Self::evaluate) then [`jacobian`](Self::jacobian) (both read the placements
     /// of that pass).
     pub fn evaluate_with_jacobian(
@@ -201,7 +203,7 @@ impl ConstraintSet {
     ) {
         phi_q.as_mut_slice().fill(0.0);
         if !self.loops.is_empty() {
-            forward_kinematics(model, data, q);
+            world_placements(model, data, q);
             let mut row = 0;
             for l in &self.loops {
                 let values = &mut phi.as_mut_slice()[row..row + l.rows()];

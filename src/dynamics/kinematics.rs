@@ -6,10 +6,25 @@ use crate::spatial::Transform;
 
 /// Computes `data.parent_from_body` and `data.world_from_body` for `q` (`dim nq`).
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
+    placements::<true>(model, data, q);
+}
+
+/// Computes `data.world_from_body` for `q` (`dim nq`) and nothing else: [`forward_kinematics`]'s
+/// world placements, with the same bits, for a caller that reads only those (the loop
+/// closures' rows); `data.parent_from_body` is left as it was.
+pub fn world_placements(model: &Model, data: &mut Data, q: &[f64]) {
+    placements::<false>(model, data, q);
+}
+
+/// The world placements, and with `KEEP_JOINT` the joint placements they compose.
+#[inline(always)]
+fn placements<const KEEP_JOINT: bool>(model: &Model, data: &mut Data, q: &[f64]) {
     for (i, joint) in model.joints.iter().enumerate() {
         let parent_from_body =
             joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()]);
-        data.parent_from_body[i] = parent_from_body;
+        if KEEP_JOINT {
+            data.parent_from_body[i] = parent_from_body;
+        }
         data.world_from_body[i] = match joint.parent {
             Some(p) => data.world_from_body[p].compose(&parent_from_body),
             None => parent_from_body,
@@ -67,5 +82,41 @@ pub fn drift_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
             Some(w) => w.compose(&parent_from_body),
             None => parent_from_body,
         };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::LoadOptions;
+    use std::path::Path;
+
+    /// `world_placements` writes `forward_kinematics`'s world placements bit for bit and leaves
+    /// the joint placements as they were.
+    #[test]
+    fn world_placements_have_the_bits_of_forward_kinematics_and_leave_the_joints() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/four_bar/four_bar.urdf");
+        let model = Model::from_urdf_file(&path, LoadOptions::default()).unwrap();
+        let q: Vec<f64> = (0..model.nq).map(|i| 0.4 - 0.7 * i as f64).collect();
+        let mut full = Data::new(&model);
+        forward_kinematics(&model, &mut full, &q);
+        let mut world_only = Data::new(&model);
+        let elsewhere: Vec<f64> = q.iter().map(|x| x + 1.0).collect();
+        forward_kinematics(&model, &mut world_only, &elsewhere);
+        let joints_before = world_only.parent_from_body.clone();
+        world_placements(&model, &mut world_only, &q);
+        let bits = |placements: &[Transform]| {
+            placements
+                .iter()
+                .flat_map(|x| x.rotation.iter().chain(x.translation.iter()))
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert!(model.joints.iter().any(|j| j.parent.is_some()));
+        assert_eq!(
+            bits(&world_only.world_from_body),
+            bits(&full.world_from_body)
+        );
+        assert_eq!(bits(&world_only.parent_from_body), bits(&joints_before));
     }
 }

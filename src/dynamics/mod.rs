@@ -29,7 +29,9 @@ pub use derivatives::{
     link_inertia_derivative, link_origin_jacobian, rnea_derivatives, rnea_inertia_derivative,
     InertialField, RneaDerivatives,
 };
-pub use kinematics::{drift_kinematics, forward_kinematics, joint_placements, world_from_link};
+pub use kinematics::{
+    drift_kinematics, forward_kinematics, joint_placements, world_from_link, world_placements,
+};
 pub use rnea::{
     add_external_forces, nonlinear_effects, rnea, rnea_at_placements, rnea_with_external,
 };
