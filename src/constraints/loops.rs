@@ -146,7 +146,8 @@ fn add_chain(
 /// Column `k` of a joint's motion subspace in the world frame, `world_from_body · S[:, k]`. For a
 /// revolute joint on a coordinate axis `e_a`, `R e_a` is `R`'s column `a` and the linear part
 /// `R 0 + p × ω` is `p × ω`: the values of the general product, signs of zero aside (the sums of
-/// zero products are left out).
+/// zero products are left out). [`add_chain`] adds each Jacobian entry onto `+0`, and
+/// `+0 + (−0) = +0`, so not even a sign of zero reaches `Φ_q`.
 #[inline]
 fn world_subspace_column(world_from_body: &Transform, joint: &Joint, k: usize) -> Motion {
     match joint.revolute_coordinate_axis() {
