@@ -5,8 +5,13 @@
 //
 // Usage: timing URDF [CALLS_PER_RUN] [RUNS] [KERNEL]
 // Prints one JSON object: nq, nv, and per kernel the minimum over RUNS of the mean time of
-// CALLS_PER_RUN calls, in microseconds. With KERNEL (crba_world, crba_local, rnea, aba_world,
-// aba_local) only that kernel runs and the others are reported as -1 (for instruction counts).
+// CALLS_PER_RUN calls, in microseconds. With KERNEL (crba_world, crba_local, crba_local_full,
+// rnea, aba_world, aba_local) only that kernel runs and the others are reported as -1 (for
+// instruction counts).
+//
+// Pinocchio's crba fills the upper triangle of data.M only (its crba.hpp); crba_local_full adds
+// the copy into the strictly lower triangle that its documentation gives, so that it returns the
+// whole matrix, as ribbon's crba does.
 
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
@@ -80,6 +85,15 @@ int main(int argc, char **argv) {
         keep(data.M);
       },
       calls, runs);
+  const double crba_local_full_us = best_mean_us(
+      "crba_local_full", only,
+      [&] {
+        pinocchio::crba(model, data, q, pinocchio::Convention::LOCAL);
+        data.M.triangularView<Eigen::StrictlyLower>() =
+            data.M.transpose().triangularView<Eigen::StrictlyLower>();
+        keep(data.M);
+      },
+      calls, runs);
   const double rnea_us = best_mean_us(
       "rnea", only,
       [&] {
@@ -103,7 +117,9 @@ int main(int argc, char **argv) {
       calls, runs);
   std::printf(
       "{\"nq\": %d, \"nv\": %d, \"calls_per_run\": %ld, \"runs\": %d, \"us\": {\"crba_world\": %.5f, "
-      "\"crba_local\": %.5f, \"rnea\": %.5f, \"aba_world\": %.5f, \"aba_local\": %.5f}}\n",
-      model.nq, model.nv, calls, runs, crba_us, crba_local_us, rnea_us, aba_us, aba_local_us);
+      "\"crba_local\": %.5f, \"crba_local_full\": %.5f, \"rnea\": %.5f, \"aba_world\": %.5f, "
+      "\"aba_local\": %.5f}}\n",
+      model.nq, model.nv, calls, runs, crba_us, crba_local_us, crba_local_full_us, rnea_us, aba_us,
+      aba_local_us);
   return 0;
 }
