@@ -1555,7 +1555,7 @@ impl HhtIntegrator {
 
     /// Factorises the diagonal Newton matrix `[M + β'h² K + γ'h C, Φ_qᵀ; Φ_q, 0]` (plus the
     /// contacts' coupling) at the current iterate, with `M` already in `ws.mass`: evaluates the
-    /// diagonal spring/damper terms and `Φ_q` there (see [`assemble_iteration_matrix`]).
+    /// diagonal spring/damper terms and `Φ`, `Φ_q` there (see [`assemble_iteration_matrix`]).
     fn factorise_diagonal<S: DaeSystem + ?Sized>(
         &mut self,
         system: &mut S,
@@ -1563,13 +1563,9 @@ impl HhtIntegrator {
     ) -> Result<(), IntegrateError> {
         self.ws.use_full = false;
         let has_diagonal = self.evaluate_newton_diagonal(system, at)?;
+        self.constraint_rows_at_iterate(system, at)?;
         let ws = &mut self.ws;
         let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
-        if self.m > 0 {
-            // Φ with Φ_q (one pass of the kinematics): the iteration that follows at this
-            // iterate reads it (`add_constraint_rows`).
-            eval::constraints_and_jacobian(system, at, &ws.q, &mut ws.phi, &mut ws.phi_q)?;
-        }
         let solver = &mut self.trajectory.newton.solver;
         let factorised = if self.settings.newton_diagonal_terms && system.provides_newton_coupling()
         {
@@ -1612,8 +1608,23 @@ impl HhtIntegrator {
             pivot_relative: b.pivot_relative,
         })?;
         ws.mass_fresh = true;
-        ws.constraints_at_iterate = ConstraintsAtIterate::ValuesAndJacobian;
         self.trajectory.stats.factorisations += 1;
+        Ok(())
+    }
+
+    /// With constraint rows, `Φ` and `Φ_q` at the current iterate in one pass of the kinematics
+    /// (`ws.phi`, `ws.phi_q`): a factorisation needs `Φ_q`, and the iteration that follows at this
+    /// iterate reads both (`add_constraint_rows`).
+    fn constraint_rows_at_iterate<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+    ) -> Result<(), IntegrateError> {
+        if self.m > 0 {
+            let ws = &mut self.ws;
+            eval::constraints_and_jacobian(system, at, &ws.q, &mut ws.phi, &mut ws.phi_q)?;
+        }
+        self.ws.constraints_at_iterate = ConstraintsAtIterate::ValuesAndJacobian;
         Ok(())
     }
 
@@ -1647,14 +1658,15 @@ impl HhtIntegrator {
         Ok(true)
     }
 
-    /// Evaluates `M`, the full residual Jacobians and `Φ_q` at the current iterate and factorises
-    /// the full Newton matrix `[M + β'h² K_t + γ'h D_t, Φ_qᵀ; Φ_q, 0]` (LU; docs/step-control.md §1–§2).
+    /// Evaluates `M`, the full residual Jacobians and `Φ`, `Φ_q` at the current iterate and
+    /// factorises the full Newton matrix `[M + β'h² K_t + γ'h D_t, Φ_qᵀ; Φ_q, 0]` (LU;
+    /// docs/step-control.md §1–§2).
     fn factorise_full_at_iterate<S: DaeSystem + ?Sized>(
         &mut self,
         system: &mut S,
         at: At,
     ) -> Result<(), IntegrateError> {
-        let (nv, m) = (self.nv, self.m);
+        let nv = self.nv;
         let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
         let ws = &mut self.ws;
         ws.use_full = true;
@@ -1669,9 +1681,8 @@ impl HhtIntegrator {
             &mut ws.stiffness_full,
             &mut ws.damping_full,
         )?;
-        if m > 0 {
-            eval::constraint_jacobian(system, at, &ws.q, &mut ws.phi_q)?;
-        }
+        self.constraint_rows_at_iterate(system, at)?;
+        let ws = &mut self.ws;
         assemble_iteration_matrix(&ws.mass, None, &ws.phi_q, 0.0, 0.0, 1.0, &mut ws.matrix);
         for c in 0..nv {
             for r in 0..nv {
@@ -1689,7 +1700,6 @@ impl HhtIntegrator {
                 pivot_relative: b.pivot_relative,
             })?;
         ws.mass_fresh = true;
-        ws.constraints_at_iterate = ConstraintsAtIterate::Jacobian;
         self.trajectory.stats.factorisations += 1;
         self.trajectory.stats.full_factorisations += 1;
         Ok(())
