@@ -230,19 +230,9 @@ struct Workspace {
     /// `mass` holds M at the accepted `q_{n+1}`, handed in for the velocity projection (a plain
     /// step driven from outside, `hht/plain.rs`).
     projection_mass_given: bool,
-    /// What `phi` and `phi_q` hold at the current iterate.
-    constraints_at_iterate: ConstraintsAtIterate,
-}
-
-/// Which constraint quantities the workspace holds at the current iterate `ws.q`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum ConstraintsAtIterate {
-    /// Neither (the iterate has moved since, or they were evaluated at another configuration).
-    Stale,
-    /// `phi_q = Φ_q(q)`.
-    Jacobian,
-    /// `phi = Φ(q)` and `phi_q = Φ_q(q)`.
-    ValuesAndJacobian,
+    /// `phi` and `phi_q` hold `Φ` and `Φ_q` at the current iterate (set where they are
+    /// evaluated there, cleared where the iterate moves or they are evaluated elsewhere).
+    constraints_fresh: bool,
 }
 
 impl Workspace {
@@ -281,7 +271,7 @@ impl Workspace {
             dv_trial: DVector::zeros(nv),
             mass_fresh: false,
             projection_mass_given: false,
-            constraints_at_iterate: ConstraintsAtIterate::Stale,
+            constraints_fresh: false,
         }
     }
 }
@@ -734,7 +724,7 @@ impl HhtIntegrator {
         }
         std::mem::swap(&mut self.trajectory, other);
         self.ws.mass_fresh = false;
-        self.ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
+        self.ws.constraints_fresh = false;
         Ok(())
     }
 
@@ -1473,7 +1463,7 @@ impl HhtIntegrator {
         self.trajectory.newton.forget();
         self.trajectory.stats.impacts += 1;
         self.ws.mass_fresh = false;
-        self.ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
+        self.ws.constraints_fresh = false;
         Ok(())
     }
 
@@ -1534,7 +1524,7 @@ impl HhtIntegrator {
         }
         eval::integrate_position(system, at, &s.q, &ws.dq, &mut ws.q)?;
         ws.mass_fresh = false;
-        ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
+        ws.constraints_fresh = false;
         Ok(())
     }
 
@@ -1624,7 +1614,7 @@ impl HhtIntegrator {
             let ws = &mut self.ws;
             eval::constraints_and_jacobian(system, at, &ws.q, &mut ws.phi, &mut ws.phi_q)?;
         }
-        self.ws.constraints_at_iterate = ConstraintsAtIterate::ValuesAndJacobian;
+        self.ws.constraints_fresh = true;
         Ok(())
     }
 
@@ -1759,16 +1749,9 @@ impl HhtIntegrator {
             return Ok(());
         }
         let ws = &mut self.ws;
-        match ws.constraints_at_iterate {
-            ConstraintsAtIterate::ValuesAndJacobian => {}
-            ConstraintsAtIterate::Jacobian => {
-                eval::constraints(system, at, &ws.q, &mut ws.phi)?;
-                ws.constraints_at_iterate = ConstraintsAtIterate::ValuesAndJacobian;
-            }
-            ConstraintsAtIterate::Stale => {
-                eval::constraints_and_jacobian(system, at, &ws.q, &mut ws.phi, &mut ws.phi_q)?;
-                ws.constraints_at_iterate = ConstraintsAtIterate::ValuesAndJacobian;
-            }
+        if !ws.constraints_fresh {
+            eval::constraints_and_jacobian(system, at, &ws.q, &mut ws.phi, &mut ws.phi_q)?;
+            ws.constraints_fresh = true;
         }
         ws.dyn_residual.gemv_tr(1.0, &ws.phi_q, &ws.lambda, 1.0);
         Ok(())
@@ -1957,7 +1940,7 @@ impl HhtIntegrator {
                 &mut ws.phi,
                 &mut ws.phi_q,
             )?;
-            ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
+            ws.constraints_fresh = false;
         }
         self.trajectory.stats.max_constraint_violation = self
             .trajectory
@@ -2055,7 +2038,7 @@ impl HhtIntegrator {
     ) -> Result<f64, IntegrateError> {
         let ws = &mut self.ws;
         eval::constraint_jacobian(system, at, &self.trajectory.state.q, &mut ws.phi_q)?;
-        ws.constraints_at_iterate = ConstraintsAtIterate::Stale;
+        ws.constraints_fresh = false;
         self.velocity_violation_at_jacobian(system, at)
     }
 

@@ -206,7 +206,8 @@ impl HhtIntegrator {
             .install_cholesky_factor(write_factor);
         // `ws.mass` does not hold M at this iterate.
         self.ws.mass_fresh = false;
-        self.ws.constraints_at_iterate = super::ConstraintsAtIterate::Jacobian;
+        // A matrix of `M` alone: no constraint rows, so none to evaluate.
+        self.ws.constraints_fresh = true;
         self.trajectory.stats.factorisations += 1;
         plain.regime = system.newton_regime(&self.ws.q);
     }
