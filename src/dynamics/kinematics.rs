@@ -1,7 +1,8 @@
 //! Forward kinematics: `q ⇒ (parent_from_body, world_from_body)`, and URDF link frames.
 
 use super::Data;
-use crate::model::Model;
+use crate::model::{JointKind, Model};
+use crate::spatial::trig::sin_cos_lanes;
 use crate::spatial::Transform;
 
 /// Computes `data.parent_from_body` and `data.world_from_body` for `q` (`dim nq`).
@@ -19,12 +20,15 @@ pub fn world_placements(model: &Model, data: &mut Data, q: &[f64]) {
 /// The world placements, and with `KEEP_JOINT` the joint placements they compose.
 #[inline(always)]
 fn placements<const KEEP_JOINT: bool>(model: &Model, data: &mut Data, q: &[f64]) {
+    if KEEP_JOINT {
+        joint_placements(model, data, q);
+    }
     for (i, joint) in model.joints.iter().enumerate() {
-        let parent_from_body =
-            joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()]);
-        if KEEP_JOINT {
-            data.parent_from_body[i] = parent_from_body;
-        }
+        let parent_from_body = if KEEP_JOINT {
+            data.parent_from_body[i]
+        } else {
+            joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()])
+        };
         data.world_from_body[i] = match joint.parent {
             Some(p) => data.world_from_body[p].compose(&parent_from_body),
             None => parent_from_body,
@@ -36,10 +40,61 @@ fn placements<const KEEP_JOINT: bool>(model: &Model, data: &mut Data, q: &[f64])
 /// nq`): what the composite-rigid-body algorithm needs, without composing the world placements
 /// (`data.world_from_body` is left as it was; [`forward_kinematics`] computes both, with the same
 /// `parent_from_body` bits).
+///
+/// The revolute joints' sines and cosines are computed [`SIN_COS_LANES`] angles at a time
+/// ([`crate::spatial::trig::sin_cos_lanes`]: each lane the operations, so the bits, of one
+/// [`crate::spatial::trig::sin_cos`]), so that their polynomials run side by side in vector
+/// registers; every placement has the bits of [`crate::model::Joint::parent_from_child`].
 pub fn joint_placements(model: &Model, data: &mut Data, q: &[f64]) {
+    let mut chunk = RevoluteChunk::default();
     for (i, joint) in model.joints.iter().enumerate() {
-        data.parent_from_body[i] =
-            joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()]);
+        if joint.kind == JointKind::Revolute {
+            if chunk.len == SIN_COS_LANES {
+                chunk.place(model, data);
+            }
+            chunk.push(i, q[joint.q_index]);
+        } else {
+            data.parent_from_body[i] =
+                joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()]);
+        }
+    }
+    chunk.place(model, data);
+}
+
+/// How many revolute joints' sines and cosines [`joint_placements`] computes together: eight
+/// `f64` lanes, four SSE2 registers (the baseline instruction set) per statement, so that the
+/// polynomials of a whole arm run side by side.
+pub const SIN_COS_LANES: usize = 8;
+
+/// Up to [`SIN_COS_LANES`] revolute joints (their indices and angles) waiting for their sines and
+/// cosines.
+#[derive(Default)]
+struct RevoluteChunk {
+    joints: [usize; SIN_COS_LANES],
+    angles: [f64; SIN_COS_LANES],
+    len: usize,
+}
+
+impl RevoluteChunk {
+    fn push(&mut self, joint: usize, angle: f64) {
+        self.joints[self.len] = joint;
+        self.angles[self.len] = angle;
+        self.len += 1;
+    }
+
+    /// Writes the waiting joints' placements (the unused lanes hold angle 0) and empties the chunk.
+    fn place(&mut self, model: &Model, data: &mut Data) {
+        if self.len == 0 {
+            return;
+        }
+        self.angles[self.len..].fill(0.0);
+        let (sin, cos) = sin_cos_lanes(self.angles);
+        for lane in 0..self.len {
+            let i = self.joints[lane];
+            data.parent_from_body[i] =
+                model.joints[i].revolute_parent_from_child(sin[lane], cos[lane]);
+        }
+        self.len = 0;
     }
 }
 
@@ -56,9 +111,10 @@ pub fn world_from_link(model: &Model, data: &Data, link: usize) -> Transform {
 /// and no gravity (the `J̇ q̇` terms of constraint accelerations). `q: dim nq`, `v: dim nv`.
 /// Overwrites `data.parent_from_body`, `data.world_from_body`, `data.velocity`, `data.acceleration`.
 pub fn drift_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
+    joint_placements(model, data, q);
     for (i, joint) in model.joints.iter().enumerate() {
-        let (qi, vi) = (joint.q_index, joint.v_index);
-        let parent_from_body = joint.parent_from_child(&q[qi..qi + joint.nq()]);
+        let vi = joint.v_index;
+        let parent_from_body = data.parent_from_body[i];
         let joint_velocity = joint.motion(&v[vi..vi + joint.nv()]);
         let (parent_velocity, parent_acceleration, world_from_parent) = match joint.parent {
             Some(p) => (
@@ -77,7 +133,6 @@ pub fn drift_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
         let velocity = moved_velocity + joint_velocity;
         data.acceleration[i] = moved_acceleration + velocity.cross_motion(&joint_velocity);
         data.velocity[i] = velocity;
-        data.parent_from_body[i] = parent_from_body;
         data.world_from_body[i] = match world_from_parent {
             Some(w) => w.compose(&parent_from_body),
             None => parent_from_body,
@@ -90,6 +145,77 @@ mod tests {
     use super::*;
     use crate::model::LoadOptions;
     use std::path::Path;
+
+    /// A serial chain of `kinds.len()` joints (`(type, axis)` each) with unit links, as URDF text.
+    fn chain_urdf(kinds: &[(&str, &str)]) -> String {
+        let link = |i: usize| {
+            format!(
+                r#"<link name="l{i}"><inertial><origin xyz="0.1 0 0"/><mass value="1"/>
+                <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>"#
+            )
+        };
+        let mut text = String::from(r#"<robot name="chain">"#);
+        text += &link(0);
+        for (i, (kind, axis)) in kinds.iter().enumerate() {
+            text += &link(i + 1);
+            text += &format!(
+                r#"<joint name="j{i}" type="{kind}"><parent link="l{i}"/><child link="l{}"/>
+                <origin xyz="0.3 0.1 0" rpy="0.2 -0.1 0.4"/><axis xyz="{axis}"/>
+                <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>"#,
+                i + 1
+            );
+        }
+        text + "</robot>"
+    }
+
+    /// `joint_placements` (sines and cosines eight joints at a time) gives every joint the bits of
+    /// its own `parent_from_child`: on a chain of eleven revolute joints (a full chunk and a
+    /// partial one) about every coordinate axis and a tilted one (the general rotation), with a
+    /// prismatic joint between them, at angles within and beyond the reduced range (libm's sine
+    /// and cosine); and on the quadruped (a floating base).
+    #[test]
+    fn joint_placements_have_the_bits_of_each_joints_own_placement() {
+        let mut kinds = vec![("revolute", "0 0 1"); 11];
+        kinds[1].1 = "1 0 0";
+        kinds[2].1 = "0 1 0";
+        kinds[3].1 = "0.6 0 0.8";
+        kinds[9].1 = "0 -1 0";
+        kinds.insert(5, ("prismatic", "0 1 0"));
+        let chain = Model::from_urdf_str(&chain_urdf(&kinds), "chain.urdf", LoadOptions::default())
+            .unwrap();
+        assert_eq!(chain.joints[3].revolute_coordinate_axis(), None);
+        assert!(chain.joints.len() > SIN_COS_LANES + 2);
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/quadruped/quadruped.urdf");
+        let quadruped = Model::from_urdf_file(&path, LoadOptions::default()).unwrap();
+        for model in [chain, quadruped] {
+            let mut q: Vec<f64> = (0..model.nq).map(|i| 0.37 - 0.61 * i as f64).collect();
+            if model.joints[0].kind == JointKind::Floating {
+                q[3..7].copy_from_slice(&[0.1, -0.2, 0.3, (1.0f64 - 0.14).sqrt()]);
+            }
+            for far in [0.0, 2.0e3, -7.5e5] {
+                let mut q = q.clone();
+                *q.last_mut().unwrap() += far;
+                let mut data = Data::new(&model);
+                joint_placements(&model, &mut data, &q);
+                for (i, joint) in model.joints.iter().enumerate() {
+                    let own =
+                        joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()]);
+                    let bits = |x: &Transform| {
+                        x.rotation
+                            .iter()
+                            .chain(x.translation.iter())
+                            .map(|v| v.to_bits())
+                            .collect::<Vec<_>>()
+                    };
+                    assert_eq!(
+                        bits(&data.parent_from_body[i]),
+                        bits(&own),
+                        "joint {i}, {far}"
+                    );
+                }
+            }
+        }
+    }
 
     /// `world_placements` writes `forward_kinematics`'s world placements bit for bit and leaves
     /// the joint placements as they were.

@@ -6,7 +6,7 @@
 //!   `f_i = I_i a_i + v_i ×* (I_i v_i)`
 //! backward pass: `τ_i = Sᵀ f_i`, `f_p += X f_i`.
 
-use super::Data;
+use super::{joint_placements, Data};
 use crate::model::Model;
 use crate::spatial::{Motion, Transform, Vec3};
 
@@ -16,7 +16,8 @@ use crate::spatial::{Motion, Transform, Vec3};
 /// `data.acceleration`, `data.force` and `data.tau` (not `data.world_from_body`: call
 /// [`forward_kinematics`](super::forward_kinematics) for placements); returns `data.tau`.
 pub fn rnea<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64], qdd: &[f64]) -> &'a [f64] {
-    inverse_dynamics(model, data, Placements::From(q), v, qdd)
+    joint_placements(model, data, q);
+    rnea_at_placements(model, data, v, qdd)
 }
 
 /// [`rnea`] with the joint placements already in `data.parent_from_body` (a [`crba`] or
@@ -31,18 +32,7 @@ pub fn rnea_at_placements<'a>(
     v: &[f64],
     qdd: &[f64],
 ) -> &'a [f64] {
-    inverse_dynamics(model, data, Placements::Given, v, qdd)
-}
-
-/// [`rnea`]'s two passes with the placements taken from `placements`.
-fn inverse_dynamics<'a>(
-    model: &Model,
-    data: &'a mut Data,
-    placements: Placements,
-    v: &[f64],
-    qdd: &[f64],
-) -> &'a [f64] {
-    run(model, data, placements, v, Some(qdd));
+    run(model, data, v, Some(qdd));
     let Data {
         parent_from_body,
         force,
@@ -57,7 +47,8 @@ fn inverse_dynamics<'a>(
 ///
 /// `q: dim nq`, `v: dim nv`. Overwrites the same kinematic buffers as [`rnea`] and `data.bias`.
 pub fn nonlinear_effects<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64]) -> &'a [f64] {
-    run(model, data, Placements::From(q), v, None);
+    joint_placements(model, data, q);
+    run(model, data, v, None);
     let Data {
         parent_from_body,
         force,
@@ -68,25 +59,12 @@ pub fn nonlinear_effects<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[
     data.bias.as_slice()
 }
 
-/// Where the forward pass takes each joint's placement from.
-#[derive(Clone, Copy)]
-enum Placements<'q> {
-    /// Computed from the coordinates `q` (dim nq), and written to `data.parent_from_body`.
-    From(&'q [f64]),
-    /// Read from `data.parent_from_body`.
-    Given,
-}
-
-fn run(model: &Model, data: &mut Data, placements: Placements, v: &[f64], qdd: Option<&[f64]>) {
+/// The forward pass at the joint placements in `data.parent_from_body`.
+fn run(model: &Model, data: &mut Data, v: &[f64], qdd: Option<&[f64]>) {
     let base_acceleration = Motion::new(-model.gravity, Vec3::zeros());
     for (i, joint) in model.joints.iter().enumerate() {
         let vi = joint.v_index;
-        let parent_from_body = match placements {
-            Placements::From(q) => {
-                joint.parent_from_child(&q[joint.q_index..joint.q_index + joint.nq()])
-            }
-            Placements::Given => data.parent_from_body[i],
-        };
+        let parent_from_body = data.parent_from_body[i];
         let (parent_velocity, parent_acceleration) = match joint.parent {
             Some(p) => (data.velocity[p], data.acceleration[p]),
             None => (Motion::zero(), base_acceleration),
@@ -117,9 +95,6 @@ fn run(model: &Model, data: &mut Data, placements: Placements, v: &[f64], qdd: O
             inertia.apply(&acceleration) + velocity.cross_force(&inertia.apply(&velocity));
         data.velocity[i] = velocity;
         data.acceleration[i] = acceleration;
-        if let Placements::From(_) = placements {
-            data.parent_from_body[i] = parent_from_body;
-        }
     }
 }
 
@@ -198,7 +173,8 @@ pub fn rnea_with_external<'a>(
     qdd: &[f64],
     external: &[crate::spatial::Force],
 ) -> &'a [f64] {
-    run(model, data, Placements::From(q), v, Some(qdd));
+    joint_placements(model, data, q);
+    run(model, data, v, Some(qdd));
     for (f, e) in data.force.iter_mut().zip(external) {
         *f = *f - *e;
     }

@@ -34,7 +34,8 @@ pub use singular::{explain_null_motion, NULL_DIRECTION_RELATIVE_THRESHOLD};
 pub use urdf::{parse_description, read_description, MAX_XML_DEPTH};
 
 use crate::spatial::{
-    rotation_about_axis, rotation_from_rpy, Force, Inertia, Mat3, Motion, Transform, Vec3,
+    rotation_about_axis, rotation_about_axis_given_sin_cos, rotation_from_rpy, Force, Inertia,
+    Mat3, Motion, Transform, Vec3,
 };
 use std::path::Path;
 
@@ -205,6 +206,22 @@ impl Joint {
                 .parent_from_joint
                 .compose_rotation_about_coordinate_axis(k, q[0]),
             None => self.parent_from_joint.compose(&self.joint_transform(q)),
+        }
+    }
+
+    /// [`Joint::parent_from_child`] of a revolute joint from the sine and cosine of its angle (as
+    /// [`crate::spatial::trig::sin_cos`] gives them): the same bits. The caller checks the kind.
+    #[inline]
+    pub fn revolute_parent_from_child(&self, sin: f64, cos: f64) -> Transform {
+        debug_assert_eq!(self.kind, JointKind::Revolute);
+        match self.axis_index {
+            Some(k) => self
+                .parent_from_joint
+                .compose_rotation_about_coordinate_axis_given_sin_cos(k, sin, cos),
+            None => self.parent_from_joint.compose(&Transform::new(
+                rotation_about_axis_given_sin_cos(&self.axis, sin, cos),
+                Vec3::zeros(),
+            )),
         }
     }
 

@@ -18,7 +18,9 @@ pub mod trig;
 
 pub use inertia::Inertia;
 pub use motion::{Force, Motion};
-pub use transform::{rotation_about_axis, rotation_from_rpy, Transform};
+pub use transform::{
+    rotation_about_axis, rotation_about_axis_given_sin_cos, rotation_from_rpy, Transform,
+};
 
 /// A 3-vector of `f64`.
 pub type Vec3 = nalgebra::Vector3<f64>;

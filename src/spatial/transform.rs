@@ -39,7 +39,13 @@ pub fn rotation_from_rpy(roll: f64, pitch: f64, yaw: f64) -> Mat3 {
 /// [`super::trig::sin_cos`], as the batched joint transform).
 #[inline]
 pub fn rotation_about_axis(axis: &Vec3, angle: f64) -> Mat3 {
-    let (s, c) = super::trig::sin_cos(angle);
+    let (sin, cos) = super::trig::sin_cos(angle);
+    rotation_about_axis_given_sin_cos(axis, sin, cos)
+}
+
+/// [`rotation_about_axis`] from the angle's sine and cosine (as [`super::trig::sin_cos`] gives them).
+#[inline]
+pub fn rotation_about_axis_given_sin_cos(axis: &Vec3, s: f64, c: f64) -> Mat3 {
     let t = 1.0 - c;
     let (x, y, z) = (axis.x, axis.y, axis.z);
     Mat3::new(
@@ -93,10 +99,23 @@ impl Transform {
         axis_index: usize,
         angle: f64,
     ) -> Transform {
+        let (sin, cos) = super::trig::sin_cos(angle);
+        self.compose_rotation_about_coordinate_axis_given_sin_cos(axis_index, sin, cos)
+    }
+
+    /// [`Self::compose_rotation_about_coordinate_axis`] from the angle's sine and cosine (as
+    /// [`super::trig::sin_cos`] gives them).
+    #[inline]
+    pub fn compose_rotation_about_coordinate_axis_given_sin_cos(
+        &self,
+        axis_index: usize,
+        sin: f64,
+        cos: f64,
+    ) -> Transform {
         match axis_index {
-            0 => self.compose_rotation_about::<0, 1, 2>(angle),
-            1 => self.compose_rotation_about::<1, 2, 0>(angle),
-            _ => self.compose_rotation_about::<2, 0, 1>(angle),
+            0 => self.compose_rotation_about::<0, 1, 2>(sin, cos),
+            1 => self.compose_rotation_about::<1, 2, 0>(sin, cos),
+            _ => self.compose_rotation_about::<2, 0, 1>(sin, cos),
         }
     }
 
@@ -105,9 +124,9 @@ impl Transform {
     #[inline(always)]
     fn compose_rotation_about<const K: usize, const I: usize, const J: usize>(
         &self,
-        angle: f64,
+        s: f64,
+        c: f64,
     ) -> Transform {
-        let (s, c) = super::trig::sin_cos(angle);
         let along_axis = (1.0 - c) + c;
         let r = &self.rotation;
         let mut columns = [[0.0; 3]; 3];
