@@ -41,7 +41,7 @@ fn placements<const KEEP_JOINT: bool>(model: &Model, data: &mut Data, q: &[f64])
 /// (`data.world_from_body` is left as it was; [`forward_kinematics`] computes both, with the same
 /// `parent_from_body` bits).
 ///
-/// The revolute joints' sines and cosines are computed [`SIN_COS_LANES`] angles at a time
+/// The revolute joints' sines and cosines are computed eight angles at a time (`SIN_COS_LANES`)
 /// ([`crate::spatial::trig::sin_cos_lanes`]: each lane the operations, so the bits, of one
 /// [`crate::spatial::trig::sin_cos`]), so that their polynomials run side by side in vector
 /// registers; every placement has the bits of [`crate::model::Joint::parent_from_child`].
@@ -64,7 +64,7 @@ pub fn joint_placements(model: &Model, data: &mut Data, q: &[f64]) {
 /// How many revolute joints' sines and cosines [`joint_placements`] computes together: eight
 /// `f64` lanes, four SSE2 registers (the baseline instruction set) per statement, so that the
 /// polynomials of a whole arm run side by side.
-pub const SIN_COS_LANES: usize = 8;
+const SIN_COS_LANES: usize = 8;
 
 /// Up to [`SIN_COS_LANES`] revolute joints (their indices and angles) waiting for their sines and
 /// cosines.
