@@ -268,11 +268,16 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
     let dir = scratch_file("analysis", "check_wide_box");
     std::fs::create_dir_all(&dir).unwrap();
     let urdf = dir.join("dp.urdf");
-    std::fs::copy(
-        manifest("robots/double_pendulum/double_pendulum.urdf"),
-        &urdf,
-    )
-    .unwrap();
+    // Both joints limited to ±0.05 rad, which this scene does not enforce (the motion is the
+    // double pendulum's): the limit warning must tell the untrusted bounds from the true runs.
+    let text = std::fs::read_to_string(manifest("robots/double_pendulum/double_pendulum.urdf"))
+        .unwrap()
+        .replace("type=\"continuous\"", "type=\"revolute\"")
+        .replace(
+            "<axis xyz=\"0 0 1\"/>",
+            "<axis xyz=\"0 0 1\"/><limit lower=\"-0.05\" upper=\"0.05\" effort=\"1\" velocity=\"1\"/>",
+        );
+    std::fs::write(&urdf, text).unwrap();
     let sidecar = dir.join("dp.uncertainty.toml");
     std::fs::write(
         &sidecar,
@@ -338,6 +343,57 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
         summary["parameters"][0]["lower"].as_f64().unwrap(),
         summary["parameters"][0]["upper"].as_f64().unwrap(),
     );
+    // The warning says how much of the widest envelope the study's true runs reached: an output,
+    // a record time, the envelope there and the hull of the runs (checked against the
+    // independent runs below).
+    let spread = runs_spread(&stderr);
+    let times = series(&summary, &spread.output, "lower").len();
+    let record = (0..times)
+        .find(|&k| {
+            (summary["outputs"][0]["time"][k].as_f64().unwrap() - spread.time_s).abs() < 1e-9
+        })
+        .unwrap_or_else(|| panic!("no record at t = {} s", spread.time_s));
+    let printed = |x: f64, y: f64| (x - y).abs() <= 1e-4 * y.abs().max(1e-12);
+    let (envelope_lower, envelope_upper) = (
+        series(&summary, &spread.output, "lower")[record],
+        series(&summary, &spread.output, "upper")[record],
+    );
+    assert!(
+        printed(spread.envelope[0], envelope_lower) && printed(spread.envelope[1], envelope_upper),
+        "{spread:?} against the summary's [{envelope_lower}, {envelope_upper}]"
+    );
+    assert!(
+        envelope_lower <= spread.runs[0] && spread.runs[1] <= envelope_upper,
+        "{spread:?}"
+    );
+    let share = 100.0 * (spread.runs[1] - spread.runs[0]) / (envelope_upper - envelope_lower);
+    assert!(
+        (share - spread.percent).abs() <= 0.1,
+        "{spread:?}: {share} %"
+    );
+    // The limit warning names the joints whose envelope bound comes from an untrusted surrogate
+    // and how far the study's true runs went (checked against the independent runs below).
+    let note = stderr
+        .split("the study's true runs went: ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no true-run note in the limit warning:\n{stderr}"));
+    let mut deepest_runs: Vec<(String, f64)> = Vec::new();
+    for entry in note.split(';').take_while(|entry| entry.contains(" to ")) {
+        let entry = entry.trim();
+        let joint = entry.split('\'').nth(1).unwrap().to_string();
+        let reached: f64 = entry
+            .split(" to ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(reached.abs() > 0.05, "{entry}: not past ±0.05 rad");
+        deepest_runs.push((format!("q.{joint}"), reached));
+    }
+    assert!(!deepest_runs.is_empty(), "{note}");
     let points = check["points_xi"].as_array().unwrap();
     assert!(!points.is_empty());
     for (i, point) in points.iter().enumerate() {
@@ -371,8 +427,68 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
                     lo <= value && value <= hi,
                     "{column} at record {k}: the true run at mass {mass} gives {value}, outside the envelope [{lo}, {hi}]"
                 );
+                // No check run goes deeper past the limits than the deepest true run the
+                // warning names (printed to four decimals).
+                if let Some((_, reached)) = deepest_runs.iter().find(|(name, _)| name == column) {
+                    assert!(
+                        value.abs() <= reached.abs() + 1e-4,
+                        "{column} at record {k}: the check run at mass {mass} reaches {value}, past the true runs' deepest {reached}"
+                    );
+                }
+                // A check run is one of the study's true runs: inside the hull the warning gave.
+                if *column == spread.output && k == record {
+                    let slack = 1e-4 * value.abs().max(1e-12);
+                    assert!(
+                        spread.runs[0] - slack <= value && value <= spread.runs[1] + slack,
+                        "{column} at t = {} s: the check run at mass {mass} gives {value}, outside the true runs' span {:?}",
+                        spread.time_s,
+                        spread.runs
+                    );
+                }
             }
         }
+    }
+}
+
+/// The untrusted warning's "Where the envelope of O is widest (t = T s, [l, u] U), the study's
+/// true runs span [a, b] U, P % of it".
+#[derive(Debug)]
+struct RunsSpread {
+    output: String,
+    time_s: f64,
+    envelope: [f64; 2],
+    runs: [f64; 2],
+    percent: f64,
+}
+
+fn runs_spread(stderr: &str) -> RunsSpread {
+    let after = |text: &str, marker: &str| -> String {
+        let start = text
+            .find(marker)
+            .unwrap_or_else(|| panic!("no '{marker}' in:\n{stderr}"));
+        text[start + marker.len()..].to_string()
+    };
+    let rest = after(stderr, "Where the envelope of ");
+    let output = rest.split(' ').next().unwrap().to_string();
+    let number = |text: &str, end: char| -> (f64, String) {
+        let stop = text.find(end).unwrap();
+        (
+            text[..stop].trim().parse().unwrap(),
+            text[stop + 1..].to_string(),
+        )
+    };
+    let (time_s, rest) = number(&after(&rest, "(t = "), ' ');
+    let (lower, rest) = number(&after(&rest, "["), ',');
+    let (upper, rest) = number(&rest, ']');
+    let (runs_lower, rest) = number(&after(&rest, "true runs span ["), ',');
+    let (runs_upper, rest) = number(&rest, ']');
+    let (percent, _) = number(&after(&rest, ", "), '%');
+    RunsSpread {
+        output,
+        time_s,
+        envelope: [lower, upper],
+        runs: [runs_lower, runs_upper],
+        percent,
     }
 }
 

@@ -300,6 +300,8 @@ mod tests {
             nominal: vec![vec![0.0, 0.0]],
             error: None,
             outer: None,
+            runs_lower: vec![vec![0.0, -0.5]],
+            runs_upper: vec![vec![0.0, 0.5]],
         };
         assert_eq!(widest_record(&envelope, 0), Some(1));
         let text = series.table(&envelope, &["m1".to_string(), "l2".to_string()], 3);

@@ -182,6 +182,13 @@ pub struct Envelope {
     /// one, where the method has both (sparse designs); the gap between them is what the inner
     /// search might have missed on the surrogate.
     pub outer: Option<OuterBounds>,
+    /// `runs_lower[o][k]`, `runs_upper[o][k]`: the smallest and largest value of every true-model
+    /// run the study made (design, nominal, screening and check runs; excluded samples left out).
+    /// The envelope contains them; where a surrogate is not trusted, they say how much of its
+    /// envelope true runs actually reached.
+    pub runs_lower: Vec<Vec<f64>>,
+    /// See [`Envelope::runs_lower`].
+    pub runs_upper: Vec<Vec<f64>>,
 }
 
 /// `(outer_lower[o][k], outer_upper[o][k])`.
@@ -438,14 +445,32 @@ pub(super) struct Accumulator {
     pub(super) nominal: Vec<f64>,
     /// The nominal run's configuration per record (`records × nq`).
     pub(super) nominal_positions: Vec<f64>,
+    /// The hull of every true run, record-major `records × outputs` (`(lowest, highest)`;
+    /// `(+∞, −∞)` before any run).
+    runs: Vec<(f64, f64)>,
 }
 
 impl Accumulator {
+    /// Widens the envelopes and the hull of true runs at `record` to contain `values`, a true
+    /// run's outputs (or the lowest or highest of several).
     fn widen(&mut self, record: usize, values: &[f64]) {
         let row = &mut self.points[record * self.n_outputs..(record + 1) * self.n_outputs];
         for (point, &value) in row.iter_mut().zip(values) {
             point.lower = point.lower.min(value);
             point.upper = point.upper.max(value);
+        }
+        self.widen_runs(record, values);
+    }
+
+    /// Widens the hull of true runs at `record` to contain `values` (the envelopes already do).
+    fn widen_runs(&mut self, record: usize, values: &[f64]) {
+        let needed = (record + 1) * self.n_outputs;
+        if self.runs.len() < needed {
+            self.runs.resize(needed, (f64::INFINITY, f64::NEG_INFINITY));
+        }
+        let row = &mut self.runs[record * self.n_outputs..needed];
+        for (hull, &value) in row.iter_mut().zip(values) {
+            *hull = (hull.0.min(value), hull.1.max(value));
         }
     }
 }
@@ -483,6 +508,13 @@ impl DesignBounding<'_> {
         self.sobol.extend(&bounded);
         for r in 0..count {
             let record = first + r;
+            // The design's runs (the bounds already contain them) into the hull of true runs.
+            let record_values = values(r);
+            for (sample, run) in record_values.chunks_exact(n_outputs.max(1)).enumerate() {
+                if !excluded(sample) {
+                    accumulator.widen_runs(record, run);
+                }
+            }
             // The nominal run is a true response inside the box: the envelope contains it.
             let nominal =
                 accumulator.nominal[record * n_outputs..(record + 1) * n_outputs].to_vec();
@@ -767,6 +799,8 @@ impl Study<'_> {
                 nominal: Vec::new(),
                 error: None,
                 outer: None,
+                runs_lower: Vec::new(),
+                runs_upper: Vec::new(),
             },
             runs: 0,
             excluded: Vec::new(),
@@ -893,6 +927,7 @@ impl Study<'_> {
             points: Vec::with_capacity(n_records * n_outputs),
             nominal: Vec::with_capacity(n_records * n_outputs),
             nominal_positions: Vec::new(),
+            runs: Vec::with_capacity(n_records * n_outputs),
         };
 
         // Screening (auto above the budget of a full total-degree set): the star design ranks the
@@ -1421,6 +1456,8 @@ impl Study<'_> {
         envelope.lower = vec![Vec::with_capacity(n_done); n_outputs];
         envelope.upper = vec![Vec::with_capacity(n_done); n_outputs];
         envelope.nominal = vec![Vec::with_capacity(n_done); n_outputs];
+        envelope.runs_lower = vec![Vec::with_capacity(n_done); n_outputs];
+        envelope.runs_upper = vec![Vec::with_capacity(n_done); n_outputs];
         let has_error = accumulator.points.iter().any(|p| p.error.is_some());
         if has_error {
             envelope.error = Some(vec![Vec::with_capacity(n_done); n_outputs]);
@@ -1437,6 +1474,13 @@ impl Study<'_> {
                 envelope.lower[o].push(point.lower);
                 envelope.upper[o].push(point.upper);
                 envelope.nominal[o].push(accumulator.nominal[r * n_outputs + o]);
+                let (lowest, highest) = accumulator
+                    .runs
+                    .get(r * n_outputs + o)
+                    .copied()
+                    .unwrap_or((f64::INFINITY, f64::NEG_INFINITY));
+                envelope.runs_lower[o].push(lowest);
+                envelope.runs_upper[o].push(highest);
                 if let Some(errors) = &mut envelope.error {
                     errors[o].push(point.error.unwrap_or(0.0));
                 }

@@ -197,7 +197,20 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         &report.envelope.upper,
     );
     if !excursions.is_empty() {
-        warnings.push(describe_limit_excursions(&excursions, true));
+        let mut warning = describe_limit_excursions(&excursions, true);
+        if let Some(check) = &report.check {
+            warning += &untrusted_excursions_note(&report, check, &excursions, |runs| {
+                limit_excursions(
+                    &kinematic_model,
+                    &scene,
+                    &report.envelope.outputs,
+                    &report.envelope.times,
+                    runs.0,
+                    runs.1,
+                )
+            });
+        }
+        warnings.push(warning);
     }
     if let Some(check) = &report.check {
         note_below_resolution(&report, check);
@@ -914,15 +927,92 @@ fn untrusted_warning(report: &StudyReport, check: &CheckReport, advice: &str) ->
             )
         })
         .collect();
+    let spread = worst
+        .first()
+        .and_then(|&o| runs_spread_where_widest(&report.envelope, o))
+        .unwrap_or_default();
     format!(
-        "the surrogate cannot be trusted for {} of {} outputs: true-model runs at its predicted extremes differ from it by more than {:.0} % of the envelope width: {}{}. The envelopes were widened to contain every true run, but they may still be too narrow; {}",
+        "the surrogate cannot be trusted for {} of {} outputs: true-model runs at its predicted extremes differ from it by more than {:.0} % of the envelope width: {}{}. The envelopes were widened to contain every true run, but they may still be too narrow{}; {}",
         worst.len(),
         outputs.len(),
         100.0 * TRUST_RELATIVE_MISFIT,
         listed.join(", "),
         if worst.len() > 5 { ", …" } else { "" },
+        spread,
         advice,
     )
+}
+
+/// For the limit-excursion warning: which of `excursions` (found on the envelopes) are envelope
+/// bounds of outputs whose surrogate the check does not trust, and how far the study's true runs
+/// went there (`runs_excursions` applied to the hull of true runs); empty when none is.
+fn untrusted_excursions_note(
+    report: &StudyReport,
+    check: &CheckReport,
+    excursions: &[LimitExcursion],
+    runs_excursions: impl Fn((&[Vec<f64>], &[Vec<f64>])) -> Vec<LimitExcursion>,
+) -> String {
+    let untrusted: Vec<&LimitExcursion> = excursions
+        .iter()
+        .filter(|excursion| check.untrusted_outputs.contains(&excursion.output))
+        .collect();
+    if untrusted.is_empty() {
+        return String::new();
+    }
+    let by_runs = runs_excursions((&report.envelope.runs_lower, &report.envelope.runs_upper));
+    let described: Vec<String> = untrusted
+        .iter()
+        .take(5)
+        .map(
+            |excursion| match by_runs.iter().find(|r| r.joint == excursion.joint) {
+                Some(run) => format!(
+                    "'{}' to {:.4} {} at t = {} s",
+                    run.joint,
+                    run.reached,
+                    run.unit,
+                    crate::text::message_time(run.time_s)
+                ),
+                None => format!("'{}' stayed within its limits", excursion.joint),
+            },
+        )
+        .collect();
+    format!(
+        ". Of these, {} are bounds of surrogates the check does not trust (below); the study's true runs went: {}{}",
+        untrusted.len(),
+        described.join("; "),
+        if untrusted.len() > 5 { "; …" } else { "" },
+    )
+}
+
+/// Where output `o`'s envelope is widest, how much of it the study's true runs reached (`". Where
+/// the envelope of q.x is widest (t = …, [l, u]), the study's true runs span [a, b], N % of it"`);
+/// `None` without a positive width or without runs there. A small share means the surrogate swings far
+/// past anything a true run did between its samples — the envelope is loose there, not
+/// established — and a share near 100 % that the runs themselves reach the edges.
+fn runs_spread_where_widest(envelope: &crate::analysis::Envelope, o: usize) -> Option<String> {
+    let k = crate::analysis::widest_record(envelope, o)?;
+    let width = envelope.upper[o][k] - envelope.lower[o][k];
+    let (lowest, highest) = (
+        *envelope.runs_lower.get(o)?.get(k)?,
+        *envelope.runs_upper.get(o)?.get(k)?,
+    );
+    // Neither a zero or NaN width nor an empty hull (no run at that record) makes a share.
+    let measurable = width > 0.0 && highest >= lowest;
+    if !measurable {
+        return None;
+    }
+    let output = &envelope.outputs[o];
+    Some(format!(
+        ". Where the envelope of {1} is widest (t = {0} s, [{2:.4e}, {3:.4e}] {unit}), the study's true runs span [{4:.4e}, {5:.4e}] {unit}, {6:.1} % of it",
+        crate::text::message_time(envelope.times[k]),
+        output.name,
+        envelope.lower[o][k],
+        envelope.upper[o][k],
+        lowest,
+        highest,
+        100.0 * (highest - lowest) / width,
+        unit = output.unit,
+    ))
 }
 
 fn write_envelope_csv(path: &Path, report: &StudyReport) -> Result<(), Error> {

@@ -43,6 +43,9 @@ pub struct LimitExcursion {
     pub at_start: bool,
     /// `rad` or `m`.
     pub unit: &'static str,
+    /// The index of the joint's position among the outputs it was found in.
+    #[serde(skip)]
+    pub output: usize,
 }
 
 impl LimitExcursion {
@@ -97,6 +100,7 @@ pub fn limit_excursions(
             time_s: times[k],
             at_start: k == 0,
             unit: output.unit,
+            output: i,
         }));
     }
     found.sort_by(|a, b| b.depth().total_cmp(&a.depth()));
@@ -158,7 +162,7 @@ pub fn describe_limit_excursions(excursions: &[LimitExcursion], envelope: bool) 
             let when = if e.at_start {
                 "at the start".to_string()
             } else {
-                format!("at t = {} s", e.time_s)
+                format!("at t = {} s", crate::text::message_time(e.time_s))
             };
             format!(
                 "{subject} '{}' reaches {:.4} {} {when}, {} {} past its limits [{}, {}]",
