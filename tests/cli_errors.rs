@@ -377,3 +377,52 @@ fn a_robot_with_nothing_to_output_is_refused_before_running() {
     ]);
     assert_eq!(out.code, Some(0), "{}", out.stderr);
 }
+
+/// A study without a sidecar is refused naming `--uncertainty`, and the message carries a start
+/// that works as written: pasted into the sidecar it makes a box of every link's mass scale and
+/// centre of mass, which `ribbon params` lists.
+#[test]
+fn a_missing_sidecar_is_refused_with_a_start_that_works() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cli_errors_no_sidecar");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let urdf = dir.join("dp.urdf");
+    std::fs::copy(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("robots/double_pendulum/double_pendulum.urdf"),
+        &urdf,
+    )
+    .expect("copy urdf");
+    let urdf = urdf.to_str().unwrap();
+    let refused = ribbon_outcome(&["analyze", urdf]);
+    assert_input_error(
+        &refused,
+        &["--uncertainty", "no sidecar", "dp.uncertainty.toml"],
+    );
+    let start: Vec<&str> = refused
+        .stderr
+        .lines()
+        .skip_while(|line| *line != "[parameters]")
+        .take(3)
+        .collect();
+    assert_eq!(start.len(), 3, "no start in: {}", refused.stderr);
+    let sidecar = dir.join("dp.uncertainty.toml");
+    std::fs::write(&sidecar, start.join("\n") + "\n").expect("write sidecar");
+    let listed = ribbon_outcome(&["params", urdf, "--uncertainty", sidecar.to_str().unwrap()]);
+    assert_eq!(listed.code, Some(0), "{}", listed.stderr);
+    for dimension in [
+        "link.bar1.scale",
+        "link.bar2.scale",
+        "link.bar1.com.x",
+        "link.bar2.com.z",
+    ] {
+        assert!(
+            listed.stdout.contains(dimension),
+            "{dimension} not in the box: {}",
+            listed.stdout
+        );
+    }
+    // And the study it makes runs.
+    let study = ribbon_outcome(&["analyze", urdf, "--duration", "0.05"]);
+    assert_eq!(study.code, Some(0), "{}", study.stderr);
+}
