@@ -326,7 +326,10 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
         "{check}"
     );
     assert!(
-        stderr.contains(&format!("the first miss is at t = {first_miss} s")),
+        stderr.contains(&format!(
+            "the first miss is at t = {} s",
+            ribbon::text::message_time(first_miss)
+        )),
         "{stderr}"
     );
     // A person reading the report sees the same warning, above the table.
@@ -336,7 +339,10 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
         .unwrap_or_else(|| panic!("no warning in report.md:\n{page}"));
     assert!(warning < page.find("```text").unwrap(), "{page}");
     assert!(
-        page.contains(&format!("the first miss is at t = {first_miss} s")),
+        page.contains(&format!(
+            "the first miss is at t = {} s",
+            ribbon::text::message_time(first_miss)
+        )),
         "{page}"
     );
     let (lower, upper) = (

@@ -86,6 +86,11 @@ pub fn untrusted_advice(
     at_stops: &[&str],
 ) -> String {
     let mut parts = Vec::new();
+    // Times as a person reads and types them (`0.35`, not the grid's `0.35000000000000003`).
+    let times: Vec<f64> = times
+        .iter()
+        .map(|&t| crate::text::message_time(t))
+        .collect();
     if let Some(t) = check.first_miss_record.and_then(|r| times.get(r).copied()) {
         let earlier = match check.checks_before_first_miss {
             0 => String::new(),
@@ -383,7 +388,8 @@ mod tests {
 
     #[test]
     fn untrusted_advice_names_the_first_miss_the_separation_and_a_method_that_fits_d() {
-        let times = [0.0, 0.1, 0.2, 0.3];
+        // The last time as a step grid makes it, 350 · 1e-3 = 0.35000000000000003: messages say 0.35.
+        let times = [0.0, 0.1, 0.2, 350.0 * 1e-3];
         let separating = LyapunovEstimate {
             exponent_per_s: 9.0,
             amplification: 8.1e3,
@@ -439,7 +445,7 @@ mod tests {
         );
         assert_eq!(
             advice,
-            "the first miss is at t = 0.3 s (the one check at earlier times agreed); q.finger \
+            "the first miss is at t = 0.35 s (the one check at earlier times agreed); q.finger \
              reaches a joint limit, where the joint stops: whether and when it hits moves with the \
              parameters, which puts a kink in the response that no polynomial follows; narrow the \
              box, or use --method monte-carlo (a scan is out of reach at d = 9)"

@@ -277,7 +277,7 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     );
     write_stdout(&table_text)?;
     if report.partial {
-        let done = report.envelope.times.last().copied().unwrap_or(0.0);
+        let done = crate::text::message_time(report.envelope.times.last().copied().unwrap_or(0.0));
         return Err(Error::Interrupted(format!(
             "stopped after t = {done} s of {} s; the envelopes computed so far were written (MCAP marked partial)",
             scene.duration_s

@@ -89,7 +89,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
     if trajectory.partial {
         return Err(Error::Interrupted(format!(
             "stopped after t = {} s of {} s; the series computed so far were written (summary stats.partial = true, MCAP marked partial)",
-            trajectory.times.last().copied().unwrap_or(0.0),
+            crate::text::message_time(trajectory.times.last().copied().unwrap_or(0.0)),
             scene.duration_s
         )));
     }
