@@ -986,9 +986,9 @@ fn untrusted_excursions_note(
 
 /// Where output `o`'s envelope is widest, how much of it the study's true runs reached (`". Where
 /// the envelope of q.x is widest (t = …, [l, u]), the study's true runs span [a, b], N % of it"`);
-/// `None` without a positive width or without runs there. A small share means the surrogate swings far
-/// past anything a true run did between its samples — the envelope is loose there, not
-/// established — and a share near 100 % that the runs themselves reach the edges.
+/// `None` without a positive width or without runs there. A small share means the surrogate
+/// swings far past anything a true run did between its samples (the envelope is loose there, not
+/// established); a share near 100 %, that the runs themselves reach its edges.
 fn runs_spread_where_widest(envelope: &crate::analysis::Envelope, o: usize) -> Option<String> {
     let k = crate::analysis::widest_record(envelope, o)?;
     let width = envelope.upper[o][k] - envelope.lower[o][k];
