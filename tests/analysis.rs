@@ -441,6 +441,15 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
                         "{column} at record {k}: the check run at mass {mass} reaches {value}, past the true runs' deepest {reached}"
                     );
                 }
+                // ... and inside the summary's hull of the study's true runs at every record.
+                let (runs_lo, runs_hi) = (
+                    series(&summary, column, "runs_lower")[k],
+                    series(&summary, column, "runs_upper")[k],
+                );
+                assert!(
+                    lo <= runs_lo && runs_lo <= value && value <= runs_hi && runs_hi <= hi,
+                    "{column} at record {k}: the check run at mass {mass} gives {value}; runs' hull [{runs_lo}, {runs_hi}], envelope [{lo}, {hi}]"
+                );
                 // A check run is one of the study's true runs: inside the hull the warning gave.
                 if *column == spread.output && k == record {
                     let slack = 1e-4 * value.abs().max(1e-12);
@@ -642,6 +651,24 @@ fn results_do_not_depend_on_the_thread_count() {
             one["outputs"], two["outputs"],
             "{method}: outputs differ between 1 and 2 threads"
         );
+        // Every envelope holds the hull of the study's true runs; a Monte Carlo envelope is
+        // nothing else (the nominal run is one of its runs too).
+        for output in one["outputs"].as_array().unwrap() {
+            let name = output["name"].as_str().unwrap();
+            let [lower, upper, runs_lower, runs_upper] =
+                ["lower", "upper", "runs_lower", "runs_upper"].map(|key| series(&one, name, key));
+            for k in 0..lower.len() {
+                assert!(
+                    lower[k] <= runs_lower[k]
+                        && runs_lower[k] <= runs_upper[k]
+                        && runs_upper[k] <= upper[k],
+                    "{method} {name} record {k}"
+                );
+            }
+            if method == "monte-carlo" {
+                assert_eq!((&runs_lower, &runs_upper), (&lower, &upper), "{name}");
+            }
+        }
     }
 }
 

@@ -706,6 +706,8 @@ fn summary(
                 error_estimate: e.error.as_ref().map(|errors| errors[o].clone()),
                 outer_lower: e.outer.as_ref().map(|(lower, _)| lower[o].clone()),
                 outer_upper: e.outer.as_ref().map(|(_, upper)| upper[o].clone()),
+                runs_lower: runs_hull_series(&e.runs_lower, o),
+                runs_upper: runs_hull_series(&e.runs_upper, o),
             })
             .collect(),
         stats: serde_json::json!({
@@ -1013,6 +1015,16 @@ fn runs_spread_where_widest(envelope: &crate::analysis::Envelope, o: usize) -> O
         100.0 * (highest - lowest) / width,
         unit = output.unit,
     ))
+}
+
+/// Output `o`'s series of the hull of true runs for the summary, when every record has one (every
+/// record of a study has at least the nominal run; a record without any would hold ±∞, which JSON
+/// cannot carry, so the series is then left out rather than the summary refused).
+fn runs_hull_series(series: &[Vec<f64>], o: usize) -> Option<Vec<f64>> {
+    series
+        .get(o)
+        .filter(|values| values.iter().all(|x| x.is_finite()))
+        .cloned()
 }
 
 fn write_envelope_csv(path: &Path, report: &StudyReport) -> Result<(), Error> {

@@ -230,6 +230,8 @@ fn summary(
                 error_estimate: None,
                 outer_lower: None,
                 outer_upper: None,
+                runs_lower: None,
+                runs_upper: None,
             })
             .collect(),
         stats,

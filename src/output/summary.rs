@@ -75,6 +75,13 @@ pub struct EnvelopeSeries {
     /// Upper counterpart of `outer_lower`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub outer_upper: Option<Vec<f64>>,
+    /// A study's: the smallest value any of its true-model runs took, per time (design, nominal,
+    /// screening and check runs; `lower` ≤ it always). Absent for one run (`simulate`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub runs_lower: Option<Vec<f64>>,
+    /// Upper counterpart of `runs_lower` (≤ `upper`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub runs_upper: Option<Vec<f64>>,
 }
 
 /// One dimension of the box as the Sobol' indices name it.
@@ -230,6 +237,8 @@ impl Summary {
                 ("error_estimate", &output.error_estimate),
                 ("outer_lower", &output.outer_lower),
                 ("outer_upper", &output.outer_upper),
+                ("runs_lower", &output.runs_lower),
+                ("runs_upper", &output.runs_upper),
             ] {
                 if let Some(values) = values {
                     names.push(format!("{}.{series}", output.name));
@@ -291,6 +300,8 @@ mod tests {
             error_estimate: None,
             outer_lower: None,
             outer_upper: None,
+            runs_lower: None,
+            runs_upper: None,
         };
         let mut summary = Summary {
             robot: "r".to_string(),
