@@ -199,16 +199,15 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
     if !excursions.is_empty() {
         let mut warning = describe_limit_excursions(&excursions, true);
         if let Some(check) = &report.check {
-            warning += &untrusted_excursions_note(&report, check, &excursions, |runs| {
-                limit_excursions(
-                    &kinematic_model,
-                    &scene,
-                    &report.envelope.outputs,
-                    &report.envelope.times,
-                    runs.0,
-                    runs.1,
-                )
-            });
+            let by_runs = limit_excursions(
+                &kinematic_model,
+                &scene,
+                &report.envelope.outputs,
+                &report.envelope.times,
+                &report.envelope.runs_lower,
+                &report.envelope.runs_upper,
+            );
+            warning += &untrusted_excursions_note(check, &excursions, &by_runs);
         }
         warnings.push(warning);
     }
@@ -947,12 +946,11 @@ fn untrusted_warning(report: &StudyReport, check: &CheckReport, advice: &str) ->
 
 /// For the limit-excursion warning: which of `excursions` (found on the envelopes) are envelope
 /// bounds of outputs whose surrogate the check does not trust, and how far the study's true runs
-/// went there (`runs_excursions` applied to the hull of true runs); empty when none is.
+/// went there (`by_runs`: the excursions found on the hull of true runs); empty when none is.
 fn untrusted_excursions_note(
-    report: &StudyReport,
     check: &CheckReport,
     excursions: &[LimitExcursion],
-    runs_excursions: impl Fn((&[Vec<f64>], &[Vec<f64>])) -> Vec<LimitExcursion>,
+    by_runs: &[LimitExcursion],
 ) -> String {
     let untrusted: Vec<&LimitExcursion> = excursions
         .iter()
@@ -961,7 +959,6 @@ fn untrusted_excursions_note(
     if untrusted.is_empty() {
         return String::new();
     }
-    let by_runs = runs_excursions((&report.envelope.runs_lower, &report.envelope.runs_upper));
     let described: Vec<String> = untrusted
         .iter()
         .take(5)
