@@ -198,20 +198,21 @@ impl Joint {
         }
     }
 
-    /// `parent_from_child` for coordinates `q` (`q: dim self.nq()`); a revolute joint's through
-    /// [`Joint::revolute_parent_from_child`].
+    /// `parent_from_child` for coordinates `q` (`q: dim self.nq()`).
     #[inline]
     pub fn parent_from_child(&self, q: &[f64]) -> Transform {
-        if self.kind == JointKind::Revolute {
-            let (sin, cos) = crate::spatial::trig::sin_cos(q[0]);
-            return self.revolute_parent_from_child(sin, cos);
+        match self.revolute_coordinate_axis() {
+            Some(k) => self
+                .parent_from_joint
+                .compose_rotation_about_coordinate_axis(k, q[0]),
+            None => self.parent_from_joint.compose(&self.joint_transform(q)),
         }
-        self.parent_from_joint.compose(&self.joint_transform(q))
     }
 
-    /// A revolute joint's `parent_from_child` from the sine and cosine of its angle (as
-    /// [`crate::spatial::trig::sin_cos`] gives them), about a coordinate axis with the zero
-    /// products left out ([`Joint::revolute_coordinate_axis`]). The caller checks the kind.
+    /// [`Joint::parent_from_child`] of a revolute joint from the sine and cosine of its angle (as
+    /// [`crate::spatial::trig::sin_cos`] gives them): the same bits. The caller checks the kind.
+    /// (`parent_from_child` keeps its own two-arm match: routed through this function it cost our
+    /// ur5's HHT step 421 instructions and the four-bar's 223, by how the compiler then inlined.)
     #[inline]
     pub fn revolute_parent_from_child(&self, sin: f64, cos: f64) -> Transform {
         debug_assert_eq!(self.kind, JointKind::Revolute);
