@@ -45,6 +45,7 @@ pub mod setup;
 pub mod sidecar;
 pub mod simulate;
 pub mod spatial;
+pub mod starter;
 #[cfg(test)]
 pub(crate) mod test_support;
 pub mod text;

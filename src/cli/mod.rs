@@ -4,6 +4,7 @@
 mod analyze_cmd;
 mod compare_cmd;
 mod dynamics_cmd;
+mod init_cmd;
 mod merge_cmd;
 mod params_cmd;
 mod plan_cmd;
@@ -45,9 +46,30 @@ pub enum Command {
     Plan(PlanArgs),
     /// Simulate one shard of a planned study into its record block file.
     Run(RunArgs),
+    /// Write a first sidecar for a robot (`ROBOT.uncertainty.toml` beside the URDF, never
+    /// overwritten): every link's mass ±5 % and centre of mass ±2 mm, the robot holding a pose
+    /// inside its limits on PD joint controllers under gravity.
+    Init(InitArgs),
     /// Merge the shards' record blocks into the study's outputs (the same as `analyze`); a
     /// screened or adaptive study that needs another stage gets its plan instead (exit 3).
     Merge(MergeArgs),
+}
+
+/// `ribbon init`.
+#[derive(Debug, Args)]
+pub struct InitArgs {
+    /// The robot's URDF file.
+    pub urdf: PathBuf,
+    /// Put the root link on a floating joint (the sidecar then says `base = "floating"`).
+    #[arg(long)]
+    pub floating: bool,
+    /// The sidecar to write (default: `ROBOT.uncertainty.toml` beside the URDF); an existing file
+    /// is never overwritten.
+    #[arg(long, value_name = "FILE", conflicts_with = "print")]
+    pub out: Option<PathBuf>,
+    /// Print the sidecar on stdout instead of writing a file.
+    #[arg(long)]
+    pub print: bool,
 }
 
 /// `ribbon plan`.
@@ -331,6 +353,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Command::Plan(args) => plan_cmd::run(&args),
         Command::Run(args) => run_cmd::run(&args),
         Command::Merge(args) => merge_cmd::run(&args),
+        Command::Init(args) => init_cmd::run(&args),
     }
 }
 
