@@ -58,6 +58,7 @@ pub use sobol_indices::{
 pub use sparse::{screened_set, SparseDesign, REGRESSION_OVERSAMPLING, REGRESSION_SEED};
 pub use stages::{FirstStage, PendingStage, SimulateHere, StageRecords, StageRequest, StageSource};
 pub use study::{
-    BlockView, CheckReport, DesignKind, DesignPart, Envelope, OuterBounds, PartSink, Progress,
-    Study, StudyError, StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,
+    BlockView, CheckReport, DesignKind, DesignPart, Envelope, ForeignError, OuterBounds, PartSink,
+    Progress, Study, StudyError, StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET,
+    MAX_BLOCK_RECORDS,
 };

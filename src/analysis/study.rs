@@ -113,10 +113,10 @@ pub enum StudyError {
     },
     /// A sink (MCAP, …) failed.
     #[error(transparent)]
-    Sink(Box<crate::Error>),
+    Sink(ForeignError),
     /// The recorded values of a phase could not be read (a shard's record block).
     #[error(transparent)]
-    Records(Box<crate::Error>),
+    Records(ForeignError),
     /// Not a failure: the study needs the records of a stage that has not run yet (`plan` and
     /// `merge` write its plan; `analyze` never stops here). See docs/distributed.md §7.
     #[error("the study needs the records of stage {} ({} phase) before it can go on", .0.stage, .0.phase)]
@@ -129,6 +129,38 @@ pub enum StudyError {
         /// The reason.
         message: String,
     },
+}
+
+/// The error of a part a study calls but does not define — a record source that reads files
+/// written elsewhere ([`StudyError::Records`]), a sink that writes outputs
+/// ([`StudyError::Sink`]) — kept whole, so that whoever knows its type (the crate's error, which
+/// decides exit codes) can still tell what it was ([`ForeignError::downcast_ref`]). Its message
+/// is the part's own.
+#[derive(Debug)]
+pub struct ForeignError(Box<dyn std::error::Error + Send + Sync + 'static>);
+
+impl ForeignError {
+    /// Wraps a part's error.
+    pub fn new(error: impl std::error::Error + Send + Sync + 'static) -> ForeignError {
+        ForeignError(Box::new(error))
+    }
+
+    /// The part's error, when it is an `E`.
+    pub fn downcast_ref<E: std::error::Error + 'static>(&self) -> Option<&E> {
+        self.0.downcast_ref::<E>()
+    }
+}
+
+impl std::fmt::Display for ForeignError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl std::error::Error for ForeignError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.0.source()
+    }
 }
 
 /// One block of envelopes, as handed to the sink.
@@ -317,7 +349,7 @@ impl StudyPlan {
 
 /// What [`Study::simulate_design_part`] calls after each block: `(first record, records, the
 /// part's recorded values)`.
-pub type PartSink<'s> = dyn FnMut(usize, usize, &dyn RecordSource) -> Result<(), crate::Error> + 's;
+pub type PartSink<'s> = dyn FnMut(usize, usize, &dyn RecordSource) -> Result<(), ForeignError> + 's;
 
 /// What simulating a part of a design did ([`Study::simulate_design_part`]).
 #[derive(Clone, Debug)]
@@ -738,8 +770,7 @@ impl Study<'_> {
             &mut lockstep,
             self.design_failure_policy(study_plan.method),
             &mut |block, _| {
-                on_block(block.first, block.count, block.lockstep)
-                    .map_err(|e| StudyError::Sink(Box::new(e)))
+                on_block(block.first, block.count, block.lockstep).map_err(StudyError::Sink)
             },
         );
         let complete = match result {
@@ -859,7 +890,7 @@ impl Study<'_> {
         &self,
         interrupt: &AtomicBool,
         progress: &mut dyn FnMut(Progress),
-        sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
+        sink: &mut dyn FnMut(&BlockView) -> Result<(), ForeignError>,
     ) -> Result<StudyReport, StudyError> {
         let study_plan = self.plan()?;
         self.run_planned(study_plan, interrupt, progress, sink)
@@ -872,7 +903,7 @@ impl Study<'_> {
         study_plan: StudyPlan,
         interrupt: &AtomicBool,
         progress: &mut dyn FnMut(Progress),
-        sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
+        sink: &mut dyn FnMut(&BlockView) -> Result<(), ForeignError>,
     ) -> Result<StudyReport, StudyError> {
         self.run_stages(study_plan, &mut SimulateHere, interrupt, progress, sink)
     }
@@ -901,7 +932,7 @@ impl Study<'_> {
         stages: &mut dyn StageRecords,
         interrupt: &AtomicBool,
         progress: &mut dyn FnMut(Progress),
-        sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
+        sink: &mut dyn FnMut(&BlockView) -> Result<(), ForeignError>,
     ) -> Result<StudyReport, StudyError> {
         let started = Instant::now();
         let o = &self.options;
@@ -1446,7 +1477,7 @@ impl Study<'_> {
         &self,
         mut report: StudyReport,
         accumulator: Accumulator,
-        sink: &mut dyn FnMut(&BlockView) -> Result<(), crate::Error>,
+        sink: &mut dyn FnMut(&BlockView) -> Result<(), ForeignError>,
     ) -> Result<StudyReport, StudyError> {
         let n_outputs = accumulator.n_outputs;
         let n_done = accumulator.times.len();
@@ -1507,7 +1538,7 @@ impl Study<'_> {
                 nominal_positions: &accumulator.nominal_positions[positions],
                 sobol: report.sobol.as_ref().and_then(|s| s.block(first, count)),
             })
-            .map_err(|e| StudyError::Sink(Box::new(e)))?;
+            .map_err(StudyError::Sink)?;
             first += count;
         }
         Ok(report)

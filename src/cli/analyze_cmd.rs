@@ -9,10 +9,11 @@ use super::{
     check_finite, check_output_paths, install_interrupt, write_stdout, AnalyzeArgs, SceneArgs,
 };
 use crate::analysis::{
-    has_sobol_indices, sobol_values_per_record, untrusted_advice, CheckReport, DesignKind, Method,
-    Progress, RecordSchedule, SimulateHere, StageRecords, Study, StudyOptions, StudyPlan,
-    StudyReport, ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, DEFAULT_MAX_RUNS, METHODS,
-    TABLE_SOBOL_CONTRIBUTORS, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
+    has_sobol_indices, sobol_values_per_record, untrusted_advice, CheckReport, DesignKind,
+    ForeignError, Method, Progress, RecordSchedule, SimulateHere, StageRecords, Study,
+    StudyOptions, StudyPlan, StudyReport, ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION,
+    DEFAULT_MAX_RUNS, METHODS, TABLE_SOBOL_CONTRIBUTORS, TRUST_RELATIVE_MISFIT,
+    TRUST_RESOLUTION_FACTOR,
 };
 use crate::distributed::{PlanFile, ShardError, ShardStages};
 use crate::dynamics::Data;
@@ -173,7 +174,9 @@ pub fn run_study(args: &AnalyzeArgs, merge: Option<MergeInput>) -> Result<(), Er
         interrupt,
         &mut |progress| reporter.report(progress),
         &mut |block| match log.as_mut() {
-            Some(log) => log.write_block(block, &kinematic_model, &mut data),
+            Some(log) => log
+                .write_block(block, &kinematic_model, &mut data)
+                .map_err(ForeignError::new),
             None => Ok(()),
         },
     )?;
@@ -1037,7 +1040,7 @@ fn write_envelope_csv(path: &Path, report: &StudyReport) -> Result<(), Error> {
         columns.push(&e.upper[o]);
     }
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
-    write_csv(path, &e.times, &names, &columns)
+    Ok(write_csv(path, &e.times, &names, &columns)?)
 }
 
 fn table(

@@ -626,5 +626,10 @@ fn write_report(
         times: &r.times,
         layers,
     };
-    write_plot(dir, "envelope", envelope_plot.svg(), envelope_plot.png())
+    Ok(write_plot(
+        dir,
+        "envelope",
+        envelope_plot.svg(),
+        envelope_plot.png(),
+    )?)
 }

@@ -350,7 +350,7 @@ fn check_output_paths(
         .iter()
         .filter_map(|(flag, path)| path.map(|p| (*flag, p.as_path())))
         .collect();
-    crate::output::check_outputs(&inputs, &outputs)
+    Ok(crate::output::check_outputs(&inputs, &outputs)?)
 }
 
 /// Installs the SIGINT/SIGTERM watcher ([`crate::interrupt`]); a failure is a warning (the signals
@@ -379,12 +379,13 @@ fn check_finite(
     columns: &[&[f64]],
 ) -> Result<(), Error> {
     match crate::output::first_non_finite(names, times, columns) {
-        Some(bad) => Err(Error::NonFiniteResult {
+        Some(bad) => Err(crate::output::OutputError::NonFinite {
             what: what.to_string(),
             output: bad.series.to_string(),
             time_s: bad.time_s,
             value: bad.value,
-        }),
+        }
+        .into()),
         None => Ok(()),
     }
 }
@@ -402,8 +403,11 @@ fn write_stdout(text: &str) -> Result<(), Error> {
     let mut out = std::io::stdout().lock();
     out.write_all(text.as_bytes())
         .and_then(|_| out.flush())
-        .map_err(|source| Error::Output {
-            what: "to standard output".to_string(),
-            source,
+        .map_err(|source| {
+            crate::output::OutputError::Write {
+                what: "to standard output".to_string(),
+                source,
+            }
+            .into()
         })
 }

@@ -7,7 +7,7 @@
 
 use super::analyze_cmd::{check_plan_matches, prepare, study_options, ProgressReporter};
 use super::{install_interrupt, AnalyzeArgs, RunArgs, SceneArgs};
-use crate::analysis::{RecordSchedule, Study};
+use crate::analysis::{ForeignError, RecordSchedule, Study};
 use crate::distributed::{
     shard_file_name, BlockHeader, BlockTrailer, PlanFile, RecordBlockWriter, ShardError, ShardSpec,
     Stage,
@@ -139,7 +139,9 @@ pub fn run(args: &RunArgs) -> Result<(), Error> {
                 let nominal = records
                     .nominal_index()
                     .map(|n| (records.record(n, r), records.nominal_positions(r)));
-                writer.write_record(schedule.time(first + r), &row, nominal)?;
+                writer
+                    .write_record(schedule.time(first + r), &row, nominal)
+                    .map_err(ForeignError::new)?;
             }
             Ok(())
         },

@@ -130,7 +130,7 @@ fn write_log(
         forward_kinematics(model, &mut data, &trajectory.positions[k]);
         log.write_frames(*t, model, &data)?;
     }
-    log.finish(trajectory.partial)
+    Ok(log.finish(trajectory.partial)?)
 }
 
 fn print_statistics(trajectory: &Trajectory, scene: &Scene, wall_seconds: f64) {

@@ -3,9 +3,9 @@
 //! doubled), so that any joint or link name survives a CSV reader. Values are written with Rust's
 //! shortest round-trip formatting; a NaN or infinity is refused before anything is written.
 
+use super::error::OutputError;
 use super::paths::AtomicFile;
 use super::{first_non_finite, NonFinite};
-use crate::Error;
 use std::io::Write;
 use std::path::Path;
 
@@ -26,14 +26,14 @@ pub fn write_csv(
     times: &[f64],
     names: &[&str],
     columns: &[&[f64]],
-) -> Result<(), Error> {
+) -> Result<(), OutputError> {
     if let Some(NonFinite {
         series,
         time_s,
         value,
     }) = first_non_finite(names, times, columns)
     {
-        return Err(Error::NonFiniteResult {
+        return Err(OutputError::NonFinite {
             what: format!("CSV '{}'", path.display()),
             output: series.to_string(),
             time_s,

@@ -10,6 +10,7 @@
 
 mod csv;
 mod envelope_log;
+mod error;
 pub mod mcap;
 pub mod paths;
 pub mod plot;
@@ -19,6 +20,7 @@ pub mod viewer;
 
 pub use csv::{csv_field, write_csv};
 pub use envelope_log::EnvelopeLog;
+pub use error::OutputError;
 pub use paths::{
     check_outputs, prepare_output_directory, remove_live_temporaries, write_atomically, AtomicFile,
 };
