@@ -7,7 +7,7 @@
 
 use super::analyze_cmd::{check_plan_matches, prepare, study_options, ProgressReporter};
 use super::{install_interrupt, AnalyzeArgs, RunArgs, SceneArgs};
-use crate::analysis::{ForeignError, RecordSchedule, Study};
+use crate::analysis::{DesignPartRequest, ForeignError, RecordSchedule, Study};
 use crate::distributed::{
     shard_file_name, BlockHeader, BlockTrailer, PlanFile, RecordBlockWriter, ShardError, ShardSpec,
     Stage,
@@ -120,9 +120,11 @@ pub fn run(args: &RunArgs) -> Result<(), Error> {
     let mut reporter = ProgressReporter::new();
     let part = study.simulate_design_part(
         &study_plan,
-        points,
-        range.clone(),
-        with_nominal,
+        DesignPartRequest {
+            points,
+            range: range.clone(),
+            with_nominal,
+        },
         crate::interrupt::flag(),
         &mut |progress| reporter.report(progress),
         &mut |first, count, records| {
