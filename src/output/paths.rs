@@ -299,6 +299,24 @@ struct Checked<'a> {
     id: Option<FileId>,
 }
 
+/// [`check_outputs`] of a command that reads `urdf` and, when given, a `sidecar`: its `outputs`
+/// are `(flag, path)` pairs, `None` for a flag not given.
+pub fn check_command_outputs(
+    urdf: &Path,
+    sidecar: Option<&Path>,
+    outputs: &[(&str, Option<&Path>)],
+) -> Result<(), OutputError> {
+    let mut inputs = vec![("URDF", urdf)];
+    if let Some(sidecar) = sidecar {
+        inputs.push(("sidecar", sidecar));
+    }
+    let outputs: Vec<(&str, &Path)> = outputs
+        .iter()
+        .filter_map(|(flag, path)| path.map(|p| (*flag, p)))
+        .collect();
+    check_outputs(&inputs, &outputs)
+}
+
 /// Checks every output file of a command before any simulation: `inputs` are `(role, path)` pairs
 /// (`("URDF", urdf)`, `("sidecar", sidecar)`), `outputs` are `(flag, path)` pairs (`("--csv",
 /// csv)`). Refuses, naming the flag and what to do: an output that is an input, a directory, a
