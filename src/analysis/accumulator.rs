@@ -40,6 +40,14 @@ impl Accumulator {
         }
     }
 
+    /// Appends the nominal run's record at `time_s`: its outputs `values` and configuration
+    /// `positions` (the next record's envelope points come from the bounding).
+    pub fn push_nominal(&mut self, time_s: f64, values: &[f64], positions: &[f64]) {
+        self.times.push(time_s);
+        self.nominal.extend_from_slice(values);
+        self.nominal_positions.extend_from_slice(positions);
+    }
+
     /// Widens the envelopes and the hull of true runs at `record` to contain `values`, a true
     /// run's outputs (or the lowest or highest of several).
     pub fn widen(&mut self, record: usize, values: &[f64]) {

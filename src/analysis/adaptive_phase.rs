@@ -19,11 +19,11 @@ use super::adaptive::{
     AdaptiveSet, ADAPTIVE_BATCH_FRACTION, ADAPTIVE_MIN_BATCH, ADAPTIVE_TOLERANCE,
 };
 use super::error::StudyError;
+use super::method::Method;
 use super::phase::PhaseContext;
 use super::report::AdaptiveReport;
 use super::schedule::RecordSchedule;
 use super::stages::StageCursor;
-use super::Method;
 use crate::uq::{Factor, SparseGrid, UqError};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -100,13 +100,11 @@ pub(super) fn adapt(
                     }
                     if with_nominal {
                         let nominal = lockstep.nominal_index().unwrap_or(new_terms.len());
-                        accumulator.times.push(schedule.time(record));
-                        accumulator
-                            .nominal
-                            .extend_from_slice(block.record(nominal, r));
-                        accumulator
-                            .nominal_positions
-                            .extend_from_slice(lockstep.nominal_positions(r));
+                        accumulator.push_nominal(
+                            schedule.time(record),
+                            block.record(nominal, r),
+                            lockstep.nominal_positions(r),
+                        );
                     }
                 }
                 Ok(())

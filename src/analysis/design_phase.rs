@@ -18,12 +18,12 @@ use super::bounds::{Bounder, EnvelopePoint};
 use super::check::{CheckCandidates, Side};
 use super::engine::RecordSource;
 use super::error::StudyError;
+use super::method::Method;
 use super::phase::PhaseContext;
 use super::plan::Plan;
 use super::schedule::RecordSchedule;
 use super::sobol_indices::{has_sobol_indices, SobolSeries};
 use super::stages::StageCursor;
-use super::Method;
 use std::time::Instant;
 
 /// What the design phase bounds, once the phases before it are done.
@@ -117,13 +117,11 @@ pub(super) fn bound_design(
                 let t_bound = Instant::now();
                 let lockstep = block.lockstep;
                 for r in 0..block.count {
-                    accumulator.times.push(schedule.time(block.first + r));
-                    accumulator
-                        .nominal
-                        .extend_from_slice(block.record(nominal_index, r));
-                    accumulator
-                        .nominal_positions
-                        .extend_from_slice(lockstep.nominal_positions(r));
+                    accumulator.push_nominal(
+                        schedule.time(block.first + r),
+                        block.record(nominal_index, r),
+                        lockstep.nominal_positions(r),
+                    );
                 }
                 let values = |r: usize| -> Vec<f64> {
                     let mut row = Vec::with_capacity(plan_samples.len() * n_outputs);

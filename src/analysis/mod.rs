@@ -7,6 +7,11 @@
 //! Memory holds one block of records for all samples, never whole trajectories: peak memory does not
 //! grow with horizon × samples. Results are bitwise identical for any thread count: each sample's
 //! trajectory depends only on its parameters, and fits read samples in plan order.
+//!
+//! Where things are: what a study is asked and will do in `study_plan.rs`; the phase driver in
+//! `study.rs`, each phase in its own `*_phase.rs` over the `PhaseContext` of `phase.rs`; what a
+//! study hands back in `report.rs` and `envelope.rs`; its errors in `error.rs`. No file here
+//! imports one that imports it.
 
 mod accumulator;
 mod adaptive;

@@ -17,11 +17,11 @@
 
 use super::engine::{BlockOutcome, LockStep, RecordSource};
 use super::error::StudyError;
+use super::method::Method;
 use super::report::{Progress, StudyReport};
 use super::schedule::RecordSchedule;
 use super::stages::StageCursor;
 use super::study_plan::StudyOptions;
-use super::Method;
 use crate::effects::ContactStats;
 use crate::model::Model;
 use crate::scene::Scene;

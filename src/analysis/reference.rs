@@ -107,15 +107,7 @@ impl Study<'_> {
         let mut report = self.empty_report(&threads);
         let mut hull = Hull {
             n_outputs,
-            points: vec![
-                EnvelopePoint {
-                    lower: f64::INFINITY,
-                    upper: f64::NEG_INFINITY,
-                    error: None,
-                    outer: None,
-                };
-                n_records * n_outputs
-            ],
+            points: vec![EnvelopePoint::EMPTY; n_records * n_outputs],
             attained_by: vec![0; 2 * n_records * n_outputs],
             run_points: Vec::new(),
         };

@@ -14,9 +14,9 @@ use super::auto::AutoChoice;
 use super::bounds::EnvelopePoint;
 use super::envelope::Envelope;
 use super::lyapunov::LyapunovEstimate;
+use super::method::Method;
 use super::screening::Screening;
 use super::sobol_indices::{SobolBlock, SobolSeries};
-use super::Method;
 use crate::effects::ContactStats;
 use crate::scene::Output;
 

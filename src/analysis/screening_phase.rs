@@ -39,15 +39,7 @@ pub(super) fn screen(
         &mut |block, _| {
             for r in 0..block.count {
                 screening.add_record(block.record(2 * d, r), |i| block.record(i, r));
-                let mut row = vec![
-                    EnvelopePoint {
-                        lower: f64::INFINITY,
-                        upper: f64::NEG_INFINITY,
-                        error: None,
-                        outer: None,
-                    };
-                    n_outputs
-                ];
+                let mut row = vec![EnvelopePoint::EMPTY; n_outputs];
                 for i in 0..=2 * d {
                     for (point, &value) in row.iter_mut().zip(block.record(i, r)) {
                         point.lower = point.lower.min(value);

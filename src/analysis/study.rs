@@ -143,8 +143,8 @@ impl Study<'_> {
             .map(|plan| plan.points(self.space.len()))
     }
 
-    /// Runs the study: `progress` after each block of each phase, then `sink` with each block of the
-    /// finished envelopes. Stops at the next step when `interrupt` is set (the report is then
+    /// Runs the study: `progress` after each block of each phase, then `sink` with each block of
+    /// the finished envelopes. Stops at the next step when `interrupt` is set (the report is then
     /// `partial` and covers the records finished before).
     pub fn run(
         &self,

@@ -13,9 +13,9 @@ use super::auto::{
 };
 use super::check::automatic_check_runs;
 use super::error::StudyError;
+use super::method::Method;
 use super::plan::{Plan, MAX_RUNS};
 use super::sparse::SparseDesign;
-use super::Method;
 use crate::uq::Truncation;
 use std::sync::Arc;
 

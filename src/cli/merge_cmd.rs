@@ -7,8 +7,8 @@
 //! A design that chooses runs from earlier runs (screened, adaptive) runs in stages
 //! (docs/distributed.md §7): when the records of every stage so far exist but the study needs
 //! another, `merge` writes that stage's plan `DIR/stage-K/stage.plan`, prints one line on stdout
-//! and exits with [`crate::distributed::NEXT_STAGE_EXIT_CODE`] (3), writing no output; the merge after the last stage
-//! writes the outputs and exits 0. The merge itself is
+//! and exits with [`crate::distributed::NEXT_STAGE_EXIT_CODE`] (3), writing no output; the merge
+//! after the last stage writes the outputs and exits 0. The merge itself is
 //! [`crate::study_front::merge`].
 
 use super::MergeArgs;

@@ -1,7 +1,7 @@
 //! `ribbon plan ROBOT.urdf [analyze options] --plan study.plan`: the first stage of a distributed
 //! study (docs/distributed.md): writes the plan file and prints one line on stdout with the runs,
-//! the record-block bytes and the expected wall time per shard from a short calibration run. The planning itself is
-//! [`crate::study_front::plan_study`].
+//! the record-block bytes and the expected wall time per shard from a short calibration run. The
+//! planning itself is [`crate::study_front::plan_study`].
 
 use super::PlanArgs;
 use crate::study_front::plan_study;

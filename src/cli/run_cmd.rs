@@ -3,7 +3,8 @@
 //! `DIR/shard-K-of-N.records.mcap` (docs/distributed.md §3). The file appears only when the shard
 //! is complete (written beside it and renamed); a re-run replaces only that shard's file. A staged
 //! study's shard runs the last stage planned under DIR (or `--stage K`) into
-//! `DIR/stage-K/shard-K-of-N.records.mcap` (docs/distributed.md §7). The shard itself is [`crate::study_front::run_shard`].
+//! `DIR/stage-K/shard-K-of-N.records.mcap` (docs/distributed.md §7). The shard itself is
+//! [`crate::study_front::run_shard`].
 
 use super::RunArgs;
 use crate::study_front::{run_shard, ShardRequest};

@@ -5,7 +5,7 @@
 //! exit code ([`OutputError::exit_code`]). Does not: decide file names or contents (the writers
 //! do), or know the commands that call them.
 
-use super::mcap::McapError;
+use super::mcap::error::McapError;
 use thiserror::Error;
 
 /// Why an output was refused or could not be written.

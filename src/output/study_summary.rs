@@ -130,13 +130,14 @@ impl Summary {
 
 impl SensitivitySummary {
     /// Per dimension, how much it moves the outputs, from what the study measured (issue 11 §2):
-    /// - `relative_slope`: the screening's largest secant slope `|y(e_j) − y(−e_j)|/2` (∂y/∂ξ across the
-    ///   half-width) over outputs and times, relative to the output's largest envelope width;
+    /// - `relative_slope`: the screening's largest secant slope `|y(e_j) − y(−e_j)|/2` (∂y/∂ξ
+    ///   across the half-width) over outputs and times, relative to the output's largest envelope
+    ///   width;
     /// - `importance`: the screening's share of an output's one-at-a-time spread;
     /// - `total_index`: the largest total Sobol' index of the sparse surrogates, with where.
     ///
-    /// Sorted by the screening's rank where there was one, else by total index; `None` when the study
-    /// measured neither (tensor designs).
+    /// Sorted by the screening's rank where there was one, else by total index; `None` when the
+    /// study measured neither (tensor designs).
     pub fn of_study(
         space: &ParameterSpace,
         report: &StudyReport,

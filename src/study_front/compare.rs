@@ -6,7 +6,7 @@
 //!
 //! Does not: bound anything itself (each row is an ordinary study).
 
-use super::compare_report::{write_report, REPORT_FILES};
+use super::compare_report::{render_table, write_report, Row, REPORT_FILES};
 use super::install_interrupt;
 use super::options::{max_runs_of, parse_design, SceneInputs, DESIGN_NAMES};
 use super::run_study::prepare;
@@ -111,34 +111,6 @@ fn parse_method_token(token: &str) -> Result<(Method, Option<NamedDesign>), Erro
         ))
     })?;
     Ok((method, Some((design.to_string(), truncation, kind))))
-}
-
-/// One compared configuration.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Row {
-    /// Method name.
-    pub method: String,
-    /// Order (surrogates, Taylor 1) or Monte Carlo runs.
-    pub setting: Option<usize>,
-    /// Bound kind.
-    pub bound_kind: String,
-    /// The design that ran (`auto` resolved).
-    pub design: String,
-    /// Model runs, the nominal one included.
-    pub runs: usize,
-    /// Wall time, s.
-    pub wall_seconds: f64,
-    /// Worst over outputs of the max-over-time error.
-    pub max_error: f64,
-    /// Mean over outputs of the mean-over-time error.
-    pub mean_error: f64,
-    /// The output with the worst error.
-    pub worst_output: String,
-    /// The record time of the worst error, s.
-    pub worst_time_s: f64,
-    /// Worst over outputs of the largest share of the reference's range the envelope misses
-    /// ([`crate::uq::EnvelopeError::max_missed`]).
-    pub max_missed: f64,
 }
 
 fn parse_list(flag: &str, text: &str) -> Result<Vec<String>, Error> {
@@ -465,62 +437,4 @@ not compared (no uncertainty: reference width ≤ {CERTAIN_OUTPUT_RELATIVE_WIDTH
     }
     write_stdout(&table)?;
     Ok(())
-}
-
-fn render_table(
-    rows: &[Row],
-    reference_runs: usize,
-    reference_seconds: f64,
-    reference_label: &str,
-) -> String {
-    let mut text = format!(
-        "reference: {reference_label}, {reference_runs} runs, {reference_seconds:.3} s\n\
-         error: docs/method.md §4, max over time and outputs (mean over time, averaged over outputs); \
-         missed: the largest share of the reference's range an envelope does not cover (against \
-         true runs, certainly wrong; the rest of the error is an envelope wider than the runs)\n\n"
-    );
-    text.push_str(&format!(
-        "| {:<24} | {:>7} | {:<15} | {:<11} | {:>7} | {:>10} | {:>10} | {:>13} | {:>10} | {:>10} | {:>9} |\n",
-        "method",
-        "setting",
-        "design",
-        "bounds",
-        "runs",
-        "wall (s)",
-        "max error",
-        "at",
-        "mean error",
-        "missed",
-        "speed-up"
-    ));
-    text.push_str("|--------------------------|---------|-----------------|-------------|---------|------------|------------|---------------|------------|------------|-----------|\n");
-    for row in rows {
-        let setting = match (row.method.as_str(), row.setting) {
-            ("monte-carlo", Some(n)) => format!("N={n}"),
-            ("taylor", _) => "1".to_string(),
-            (_, Some(k)) => format!("k={k}"),
-            _ => String::new(),
-        };
-        text.push_str(&format!(
-            "| {:<24} | {:>7} | {:<15} | {:<11} | {:>7} | {:>10.3} | {:>10.3e} | {:>13} | {:>10.3e} | {:>10.3e} | {:>8.1}× |\n",
-            row.method,
-            setting,
-            row.design,
-            row.bound_kind,
-            row.runs,
-            row.wall_seconds,
-            row.max_error,
-            format!("{} {:.3}s", short_output(&row.worst_output), row.worst_time_s),
-            row.mean_error,
-            row.max_missed,
-            reference_seconds / row.wall_seconds.max(1e-9),
-        ));
-    }
-    text
-}
-
-/// The last dotted segment of an output's name, at most 7 characters (the table's `at` column).
-fn short_output(name: &str) -> String {
-    let last = name.rsplit('.').next().unwrap_or(name);
-    last.chars().take(7).collect()
 }

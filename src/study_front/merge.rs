@@ -9,6 +9,8 @@
 //! another, `merge` writes that stage's plan `DIR/stage-K/stage.plan`, prints one line on stdout
 //! and exits with [`crate::distributed::NEXT_STAGE_EXIT_CODE`] (3), writing no output; the merge
 //! after the last stage writes the outputs and exits 0.
+//!
+//! Does not: read the record blocks (`distributed::ShardStages`) or fit anything (`analysis/`).
 
 use super::options::{StudyOutputs, StudyRequest};
 use super::run_study::{run_study, MergeInput};

@@ -2,7 +2,7 @@
 //! share between a person's options and the study's results, without the command line's parser.
 //!
 //! ```text
-//! cli/ (clap) ─▶ StudyRequest, CompareRequest, ShardRequest, MergeRequest (plain structs, options.rs)
+//! cli/ (clap) ─▶ StudyRequest, CompareRequest, ShardRequest, MergeRequest (plain structs)
 //!   ─▶ options ⇒ StudyOptions ─▶ analysis/ (Study: plan, phases) ─▶ StudyReport
 //!   ─▶ output/ (MCAP log, summary JSON, CSV, report page) and the person (progress, warnings,
 //!      the stdout table)
