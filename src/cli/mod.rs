@@ -14,6 +14,7 @@ mod values;
 
 pub use values::{parse_set, parse_vector};
 
+use crate::study_front::{install_interrupt, SceneInputs};
 use crate::Error;
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -294,6 +295,16 @@ impl SceneArgs {
             alpha: self.alpha,
         }
     }
+
+    /// The study front end's inputs for these flags.
+    pub fn inputs(&self) -> SceneInputs {
+        SceneInputs {
+            urdf: self.urdf.clone(),
+            uncertainty: self.uncertainty.clone(),
+            overrides: self.overrides(),
+            floating: self.floating,
+        }
+    }
 }
 
 /// `ribbon params`.
@@ -357,33 +368,6 @@ pub fn run(cli: Cli) -> Result<(), Error> {
     }
 }
 
-/// Checks every output file of a command before anything is loaded or simulated
-/// ([`crate::output::check_outputs`]): never the URDF or the sidecar, never a directory, special
-/// file or symlink, never two outputs on one file.
-fn check_output_paths(
-    scene: &SceneArgs,
-    sidecar: Option<&std::path::Path>,
-    outputs: &[(&str, Option<&PathBuf>)],
-) -> Result<(), Error> {
-    let mut inputs = vec![("URDF", scene.urdf.as_path())];
-    if let Some(sidecar) = sidecar {
-        inputs.push(("sidecar", sidecar));
-    }
-    let outputs: Vec<(&str, &std::path::Path)> = outputs
-        .iter()
-        .filter_map(|(flag, path)| path.map(|p| (*flag, p.as_path())))
-        .collect();
-    crate::output::check_outputs(&inputs, &outputs)
-}
-
-/// Installs the SIGINT/SIGTERM watcher ([`crate::interrupt`]); a failure is a warning (the signals
-/// then end the process at once, which still never leaves a half-written output in place).
-fn install_interrupt() {
-    if let Err(message) = crate::interrupt::install() {
-        eprintln!("warning: {message}; an interruption will not save partial results");
-    }
-}
-
 /// Checks that the nominal model can start the scene (exit 2 naming the joints when it cannot)
 /// and prints what the start changed ([`crate::simulate::check_start`]).
 fn check_start(model: &crate::model::Model, scene: &crate::scene::Scene) -> Result<(), Error> {
@@ -393,23 +377,14 @@ fn check_start(model: &crate::model::Model, scene: &crate::scene::Scene) -> Resu
     Ok(())
 }
 
-/// Refuses to report a NaN or infinity: the first non-finite value of `columns[i][k]` (series
-/// `names[i]` at `times[k]`) is an error naming the series and the time (exit 1).
+/// Refuses to report a NaN or infinity ([`crate::output::check_finite`], exit 1).
 fn check_finite(
     what: &str,
     names: &[&str],
     times: &[f64],
     columns: &[&[f64]],
 ) -> Result<(), Error> {
-    match crate::output::first_non_finite(names, times, columns) {
-        Some(bad) => Err(Error::NonFiniteResult {
-            what: what.to_string(),
-            output: bad.series.to_string(),
-            time_s: bad.time_s,
-            value: bad.value,
-        }),
-        None => Ok(()),
-    }
+    Ok(crate::output::check_finite(what, names, times, columns)?)
 }
 
 /// Prints the model's load warnings on stderr.
@@ -419,14 +394,7 @@ fn print_warnings(model: &crate::model::Model) {
     }
 }
 
-/// Writes `text` to stdout, turning a closed pipe into an error instead of a panic.
+/// Writes `text` to stdout ([`crate::output::write_stdout`]: a closed pipe is an error).
 fn write_stdout(text: &str) -> Result<(), Error> {
-    use std::io::Write;
-    let mut out = std::io::stdout().lock();
-    out.write_all(text.as_bytes())
-        .and_then(|_| out.flush())
-        .map_err(|source| Error::Output {
-            what: "to standard output".to_string(),
-            source,
-        })
+    Ok(crate::output::write_stdout(text)?)
 }
