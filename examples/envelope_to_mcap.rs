@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release --example envelope_to_mcap -- [OUT.mcap]` (default `target/envelope_example.mcap`)
 
-use ribbon::analysis::{Method, Study, StudyOptions};
+use ribbon::analysis::{ForeignError, Method, Study, StudyOptions};
 use ribbon::dynamics::Data;
 use ribbon::output::mcap::McapMetadata;
 use ribbon::output::EnvelopeLog;
@@ -91,6 +91,7 @@ fn run(out: &Path) -> Result<usize, ribbon::Error> {
     let mut data = Data::new(&model);
     let report = study.run(&AtomicBool::new(false), &mut |_| {}, &mut |block| {
         log.write_block(block, &model, &mut data)
+            .map_err(ForeignError::new)
     })?;
     log.finish(false)?;
     Ok(report.envelope.times.len())

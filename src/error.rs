@@ -51,21 +51,10 @@ pub enum Error {
     /// The run was interrupted (SIGINT/SIGTERM); what was computed has been written.
     #[error("interrupted: {0}")]
     Interrupted(String),
-    /// Writing the MCAP log failed.
+    /// An output was refused before anything ran, could not be written, or would have held a NaN
+    /// or an infinity.
     #[error(transparent)]
-    Mcap(#[from] crate::output::mcap::McapError),
-    /// A result holds a NaN or an infinity: it is never written or printed (exit 1).
-    #[error("{what}: output '{output}' is {value} at t = {} s; a non-finite number is never reported as a result, so nothing was written (the run overflowed: check the scene's values, or use a smaller step)", crate::text::message_time(*.time_s))]
-    NonFiniteResult {
-        /// Where it would have gone (`CSV 'out.csv'`, `summary 'x.json'`, `the table`).
-        what: String,
-        /// The output (series) name.
-        output: String,
-        /// The record time, s.
-        time_s: f64,
-        /// The value found (NaN or ±inf).
-        value: f64,
-    },
+    Output(#[from] crate::output::OutputError),
     /// A plan, a shard's record block or the set of shards was refused (`plan`, `run`, `merge`).
     #[error(transparent)]
     Shard(#[from] crate::distributed::ShardError),
@@ -83,14 +72,18 @@ pub enum Error {
         /// What to do ([`crate::analysis::untrusted_advice`]).
         advice: String,
     },
-    /// Writing a result failed.
-    #[error("cannot write {what}: {source}")]
-    Output {
-        /// What was being written.
-        what: String,
-        /// The operating system's reason.
-        source: std::io::Error,
-    },
+}
+
+/// The exit code of an error a study's part (a sink, a record source) gave it: the part's own
+/// when it is one of ribbon's output or shard errors, else 1 (a run that started failed).
+fn foreign_exit_code(part: &crate::analysis::ForeignError) -> u8 {
+    if let Some(error) = part.downcast_ref::<crate::output::OutputError>() {
+        error.exit_code()
+    } else if let Some(error) = part.downcast_ref::<crate::distributed::ShardError>() {
+        error.exit_code()
+    } else {
+        1
+    }
 }
 
 impl Error {
@@ -115,18 +108,16 @@ impl Error {
             Error::Integrate(source) => crate::simulate::integrate_exit_code(source),
             Error::Simulation(error) => error.exit_code(),
             Error::Dynamics(_) => 2,
-            Error::Output { .. }
-            | Error::NonFiniteResult { .. }
-            | Error::Mcap(_)
-            | Error::Interrupted(_) => 1,
+            Error::Output(error) => error.exit_code(),
+            Error::Interrupted(_) => 1,
             Error::Untrusted { .. } => UNTRUSTED_EXIT_CODE,
             Error::Study(
                 crate::analysis::StudyError::BadOptions(_) | crate::analysis::StudyError::Uq(_),
             ) => 2,
             Error::Study(
-                crate::analysis::StudyError::Sink(inner)
-                | crate::analysis::StudyError::Records(inner),
-            ) => inner.exit_code(),
+                crate::analysis::StudyError::Sink(part)
+                | crate::analysis::StudyError::Records(part),
+            ) => foreign_exit_code(part),
             Error::Shard(error) => error.exit_code(),
             // A sample that fails at t = 0 failed its consistent start: its parameters make a
             // model that cannot start (the nominal one is checked before the study).
@@ -137,5 +128,42 @@ impl Error {
             }
             Error::Study(_) => 1,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::{ForeignError, StudyError};
+    use crate::distributed::ShardError;
+    use crate::output::OutputError;
+    use std::path::PathBuf;
+
+    #[test]
+    fn a_part_error_keeps_its_exit_code_and_message_inside_a_study_error() {
+        let truncated = || ShardError::Truncated {
+            path: PathBuf::from("shard-0-of-2.records.mcap"),
+            message: "it ends after record 3".to_string(),
+            command: "ribbon run study.plan --shard 0/2 --into shards".to_string(),
+        };
+        let records = Error::from(StudyError::Records(ForeignError::new(truncated())));
+        assert_eq!(records.exit_code(), 2);
+        assert_eq!(records.to_string(), Error::from(truncated()).to_string());
+        let write = || OutputError::Write {
+            what: "MCAP 'out.mcap'".to_string(),
+            source: std::io::Error::other("disk full"),
+        };
+        let sink = Error::from(StudyError::Sink(ForeignError::new(write())));
+        assert_eq!(sink.exit_code(), 1);
+        assert_eq!(sink.to_string(), Error::from(write()).to_string());
+        let bad_path = OutputError::BadPath {
+            flag: "--out".to_string(),
+            message: "is the URDF".to_string(),
+        };
+        let sink = Error::from(StudyError::Sink(ForeignError::new(bad_path)));
+        assert_eq!(sink.exit_code(), 2);
+        // A part's error ribbon does not know: the run failed.
+        let other = Error::from(StudyError::Sink(ForeignError::new(std::fmt::Error)));
+        assert_eq!(other.exit_code(), 1);
     }
 }

@@ -17,6 +17,8 @@
 //! - [`setup`] — URDF, sidecar, scene and parameter box loaded and checked in one place;
 //! - [`distributed`] — one study across many machines: plan, shards of runs, merge;
 //! - [`output`] — CSV, summary JSON, MCAP and SVG writers, and the output-path rules;
+//! - [`study_front`] — what the study commands share: options, the driver, progress, warnings,
+//!   the stdout table;
 //! - [`interrupt`] — SIGINT/SIGTERM: stop at the next step, or at once on a second signal;
 //! - [`cli`] — the `ribbon` command line.
 //!
@@ -45,6 +47,8 @@ pub mod setup;
 pub mod sidecar;
 pub mod simulate;
 pub mod spatial;
+pub mod starter;
+pub mod study_front;
 #[cfg(test)]
 pub(crate) mod test_support;
 pub mod text;

@@ -110,7 +110,7 @@ impl Setup {
             return Err(Error::BadArgument {
                 flag: "--uncertainty".to_string(),
                 message: format!(
-                    "no sidecar: '{}' does not exist; write one with [parameters] (see README) or pass --uncertainty FILE. A start, every link's mass and inertia ±5 % and every centre of mass ±2 mm (`ribbon params {} --uncertainty FILE` then lists the box it makes):\n[parameters]\n\"link.*.scale\" = {{ rel = 0.05 }}\n\"link.*.com.*\" = {{ abs = 0.002 }}",
+                    "no sidecar: '{}' does not exist. Write a first one with `ribbon init {}` (every link's mass and inertia ±5 % and centre of mass ±2 mm; the robot holding a pose inside its limits on PD joint controllers under gravity), edit it to your question, or pass --uncertainty FILE",
                     sidecar_path.display(),
                     request.urdf.display()
                 ),

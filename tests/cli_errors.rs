@@ -378,9 +378,9 @@ fn a_robot_with_nothing_to_output_is_refused_before_running() {
     assert_eq!(out.code, Some(0), "{}", out.stderr);
 }
 
-/// A study without a sidecar is refused naming `--uncertainty`, and the message carries a start
-/// that works as written: pasted into the sidecar it makes a box of every link's mass scale and
-/// centre of mass, which `ribbon params` lists.
+/// A study without a sidecar is refused naming `--uncertainty` and the command that writes a
+/// start; `ribbon init` writes it (never over an existing file), `ribbon params` lists the box it
+/// declares, and the study it makes runs and is trusted.
 #[test]
 fn a_missing_sidecar_is_refused_with_a_start_that_works() {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cli_errors_no_sidecar");
@@ -395,19 +395,32 @@ fn a_missing_sidecar_is_refused_with_a_start_that_works() {
     .expect("copy urdf");
     let urdf = urdf.to_str().unwrap();
     let refused = ribbon_outcome(&["analyze", urdf]);
+    let init_command = format!("ribbon init {urdf}");
     assert_input_error(
         &refused,
-        &["--uncertainty", "no sidecar", "dp.uncertainty.toml"],
+        &[
+            "--uncertainty",
+            "no sidecar",
+            "dp.uncertainty.toml",
+            &init_command,
+        ],
     );
-    let start: Vec<&str> = refused
-        .stderr
-        .lines()
-        .skip_while(|line| *line != "[parameters]")
-        .take(3)
-        .collect();
-    assert_eq!(start.len(), 3, "no start in: {}", refused.stderr);
+    let written = ribbon_outcome(&["init", urdf]);
+    assert_eq!(written.code, Some(0), "{}", written.stderr);
     let sidecar = dir.join("dp.uncertainty.toml");
-    std::fs::write(&sidecar, start.join("\n") + "\n").expect("write sidecar");
+    let text = std::fs::read_to_string(&sidecar).expect("init wrote the sidecar");
+    for part in [
+        "joint_springs",
+        "joint_limits",
+        "[[scene.spring]]",
+        "joint = \"j1\"",
+    ] {
+        assert!(text.contains(part), "{part} not in the start:\n{text}");
+    }
+    // Never over an existing file: the second init is refused and the file is unchanged.
+    let again = ribbon_outcome(&["init", urdf]);
+    assert_input_error(&again, &["--out", "already exists"]);
+    assert_eq!(std::fs::read_to_string(&sidecar).unwrap(), text);
     let listed = ribbon_outcome(&["params", urdf, "--uncertainty", sidecar.to_str().unwrap()]);
     assert_eq!(listed.code, Some(0), "{}", listed.stderr);
     for dimension in [
@@ -422,7 +435,7 @@ fn a_missing_sidecar_is_refused_with_a_start_that_works() {
             listed.stdout
         );
     }
-    // And the study it makes runs.
-    let study = ribbon_outcome(&["analyze", urdf, "--duration", "0.05"]);
+    // And the study it makes runs, trusted.
+    let study = ribbon_outcome(&["analyze", urdf, "--duration", "0.2"]);
     assert_eq!(study.code, Some(0), "{}", study.stderr);
 }

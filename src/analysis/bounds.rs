@@ -35,6 +35,17 @@ pub struct EnvelopePoint {
     pub outer: Option<(f64, f64)>,
 }
 
+impl EnvelopePoint {
+    /// The empty envelope (`lower = +∞`, `upper = −∞`), which the first value widened into it
+    /// replaces.
+    pub const EMPTY: EnvelopePoint = EnvelopePoint {
+        lower: f64::INFINITY,
+        upper: f64::NEG_INFINITY,
+        error: None,
+        outer: None,
+    };
+}
+
 /// Where a surrogate predicts one output's extremes at one time (methods that locate them: the
 /// surrogate scans). The a-posteriori check runs the true model there.
 #[derive(Clone, Debug, PartialEq)]
@@ -298,15 +309,7 @@ impl Bounder {
                     outer: None,
                 })
                 .collect(),
-            (None, None) => vec![
-                EnvelopePoint {
-                    lower: f64::INFINITY,
-                    upper: f64::NEG_INFINITY,
-                    error: None,
-                    outer: None,
-                };
-                n_outputs
-            ],
+            (None, None) => vec![EnvelopePoint::EMPTY; n_outputs],
         };
         // Every run made is a true response inside the box: include it.
         for sample in 0..n_samples {

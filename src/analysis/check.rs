@@ -11,7 +11,7 @@
 //! check runs and reports the misfit `|true − predicted|` where a candidate was run.
 
 use super::lyapunov::LyapunovEstimate;
-use super::study::CheckReport;
+use super::report::CheckReport;
 use std::collections::HashMap;
 
 /// Two predicted extremisers closer than this in every coordinate of ξ are checked by one run: a
@@ -49,7 +49,7 @@ pub enum TrustVerdict {
 /// most `width` wide (over the records judged), with the output's `resolution`
 /// ([`output_resolution`]): the relative misfit `misfit / width` (0 for a zero width) and the
 /// verdict. The one rule for the whole run and for its prefixes
-/// ([`super::study::CheckReport::passes_until_record`]).
+/// ([`CheckReport::passes_until_record`]).
 pub fn trust_verdict(misfit: f64, width: f64, resolution: Option<f64>) -> (f64, TrustVerdict) {
     let relative = if width > 0.0 { misfit / width } else { 0.0 };
     let verdict = if relative > TRUST_RELATIVE_MISFIT {

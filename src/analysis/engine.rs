@@ -19,8 +19,9 @@
 
 mod batched;
 
+use super::error::StudyError;
+use super::report::SampleFailure;
 use super::schedule::RecordSchedule;
-use super::study::StudyError;
 use crate::dynamics::batch::LANES;
 use crate::effects::{ContactState, ContactStats};
 use crate::integrate::{
@@ -34,24 +35,6 @@ use crate::uncertainty::ParameterSpace;
 use nalgebra::DVector;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
-
-/// A sample that failed: where in the box, when, and why.
-#[derive(Clone, Debug)]
-pub struct SampleFailure {
-    /// Index of the sample in the plan (the nominal run is the last index).
-    pub index: usize,
-    /// Its point in standard coordinates.
-    pub xi: Vec<f64>,
-    /// Its parameter values.
-    pub values: Vec<f64>,
-    /// Time of the failure, s.
-    pub time_s: f64,
-    /// The record the sample was heading for when it failed: its values are missing from this
-    /// record on (a study leaves the sample out of the block holding this record and after).
-    pub record: usize,
-    /// What went wrong.
-    pub message: String,
-}
 
 /// Where the recorded values of a phase's samples come from, one block of record times at a time:
 /// simulated here ([`LockStep`]) or read from the record blocks of shards simulated elsewhere

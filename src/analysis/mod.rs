@@ -7,29 +7,44 @@
 //! Memory holds one block of records for all samples, never whole trajectories: peak memory does not
 //! grow with horizon × samples. Results are bitwise identical for any thread count: each sample's
 //! trajectory depends only on its parameters, and fits read samples in plan order.
+//!
+//! Where things are: what a study is asked and will do in `study_plan.rs`; the phase driver in
+//! `study.rs`, each phase in its own `*_phase.rs` over the `PhaseContext` of `phase.rs`; what a
+//! study hands back in `report.rs` and `envelope.rs`; its errors in `error.rs`. No file here
+//! imports one that imports it.
 
+mod accumulator;
 mod adaptive;
-mod adaptive_study;
+mod adaptive_phase;
 mod auto;
 mod bounds;
 mod check;
+mod check_phase;
+mod design_part;
+mod design_phase;
 mod engine;
+mod envelope;
+mod error;
 mod lyapunov;
 mod method;
+mod phase;
 mod plan;
 mod reference;
+mod report;
 mod schedule;
 mod screening;
+mod screening_phase;
 mod sobol_indices;
 mod sparse;
 mod stages;
 mod study;
+mod study_plan;
 
 pub use adaptive::{
     AdaptiveSet, Term, ADAPTIVE_BATCH_FRACTION, ADAPTIVE_MAX_DEGREE, ADAPTIVE_MIN_BATCH,
     ADAPTIVE_TOLERANCE, LOOK_AHEAD,
 };
-pub use adaptive_study::{AdaptiveReport, ADAPTIVE_NOISE_FLOOR};
+pub use adaptive_phase::ADAPTIVE_NOISE_FLOOR;
 pub use auto::{
     adaptive_choice, binomial, choose as choose_auto, screened_choice, screened_terms,
     total_degree_terms, AutoChoice, AutoDesign, ADAPTIVE_VALUE_BUDGET, AUTO_TENSOR_MAX_DIM,
@@ -41,7 +56,10 @@ pub use check::{
     CheckPlan, Side, TrustVerdict, CHECK_POINT_TOLERANCE, CHECK_RUNS_FRACTION, MIN_CHECK_RUNS,
     SEPARATION_ADVICE_AMPLIFICATION, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
-pub use engine::{BlockOutcome, LockStep, RecordSource, SampleFailure};
+pub use design_part::{DesignPartRequest, PartSink};
+pub use engine::{BlockOutcome, LockStep, RecordSource};
+pub use envelope::{widest_record, Envelope, OuterBounds};
+pub use error::{ForeignError, StudyError};
 pub use lyapunov::{
     estimate_lyapunov, LyapunovEstimate, CHAOS_AMPLIFICATION, COLLAPSED_SEPARATION, MAX_PULL,
     RENORMALISATION_INTERVAL_S, SHADOW_SEPARATION, VELOCITY_TIME_SCALE_S,
@@ -49,15 +67,16 @@ pub use lyapunov::{
 pub use method::{Method, METHODS};
 pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
-pub use schedule::RecordSchedule;
+pub use report::{
+    AdaptiveReport, BlockView, CheckReport, DesignPart, PendingStage, Progress, SampleFailure,
+    StudyReport,
+};
+pub use schedule::{RecordSchedule, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS};
 pub use screening::{DimensionScreening, Screening};
 pub use sobol_indices::{
-    has_sobol_indices, sobol_values_per_record, widest_record, SobolBlock, SobolSeries,
-    TABLE_SOBOL_CONTRIBUTORS,
+    has_sobol_indices, sobol_values_per_record, SobolBlock, SobolSeries, TABLE_SOBOL_CONTRIBUTORS,
 };
 pub use sparse::{screened_set, SparseDesign, REGRESSION_OVERSAMPLING, REGRESSION_SEED};
-pub use stages::{FirstStage, PendingStage, SimulateHere, StageRecords, StageRequest, StageSource};
-pub use study::{
-    BlockView, CheckReport, DesignKind, DesignPart, Envelope, OuterBounds, PartSink, Progress,
-    Study, StudyError, StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS,
-};
+pub use stages::{FirstStage, SimulateHere, StageRecords, StageRequest, StageSource};
+pub use study::Study;
+pub use study_plan::{DesignKind, StudyOptions, StudyPlan};

@@ -17,11 +17,12 @@
 
 use super::bounds::EnvelopePoint;
 use super::check::{CheckCandidates, Side};
+use super::error::StudyError;
+use super::phase::{PhaseBlock, PhaseContext};
 use super::plan::TAYLOR_STEP;
-use super::study::{
-    n_records, record_time, PhaseBlock, PhaseContext, Study, StudyError, StudyReport,
-};
-use super::Progress;
+use super::report::{Progress, StudyReport};
+use super::schedule::RecordSchedule;
+use super::study::Study;
 use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -102,25 +103,18 @@ impl Study<'_> {
         let threads = self.thread_pool()?;
         let scene = self.scene;
         let n_outputs = scene.outputs.len();
-        let n_records = n_records(scene);
+        let n_records = RecordSchedule::of(scene).len();
         let mut report = self.empty_report(&threads);
         let mut hull = Hull {
             n_outputs,
-            points: vec![
-                EnvelopePoint {
-                    lower: f64::INFINITY,
-                    upper: f64::NEG_INFINITY,
-                    error: None,
-                    outer: None,
-                };
-                n_records * n_outputs
-            ],
+            points: vec![EnvelopePoint::EMPTY; n_records * n_outputs],
             attained_by: vec![0; 2 * n_records * n_outputs],
             run_points: Vec::new(),
         };
         let mut times = Vec::with_capacity(n_records);
         let mut nominal = Vec::with_capacity(n_records * n_outputs);
-        let policy = self.exclusion_policy("reference run");
+        let mut context = self.phase_context(&threads, interrupt, started, &mut report, progress);
+        let policy = context.exclusion_policy("reference run");
 
         // 1. Central-difference gradients at the centre; their sign vertices.
         let mut stencil = Vec::with_capacity(2 * d * d);
@@ -139,8 +133,7 @@ impl Study<'_> {
         let mut vertices = CheckCandidates::new(d);
         let mut gradient = vec![0.0; d];
         let mut vertex = vec![0.0; d];
-        let complete = self.run_phase(
-            &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
+        let complete = context.run_phase(
             "gradients",
             &stencil,
             Some(&nominal_xi),
@@ -150,7 +143,7 @@ impl Study<'_> {
                 let nominal_index = lockstep.nominal_index().unwrap_or(2 * d + 1);
                 for r in 0..block.count {
                     let record = block.first + r;
-                    times.push(record_time(scene, record));
+                    times.push(RecordSchedule::of(scene).time(record));
                     nominal.extend_from_slice(block.record(nominal_index, r));
                     for i in 0..=2 * d {
                         hull.add(record, block.record(i, r), first_run + i as u32);
@@ -182,9 +175,8 @@ impl Study<'_> {
         if complete {
             let plan = vertices.select(options.max_vertex_runs);
             let first = register_points(&mut hull, &plan.points, d);
-            let policy = self.exclusion_policy("vertex run");
-            self.run_phase(
-                &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
+            let policy = context.exclusion_policy("vertex run");
+            context.run_phase(
                 "vertices",
                 &plan.points,
                 None,
@@ -200,16 +192,12 @@ impl Study<'_> {
                     Ok(())
                 },
             )?;
-            report.runs += plan.points.len() / d;
+            context.report.runs += plan.points.len() / d;
         }
 
         // 3. Greedy one-flip search per output and side, at the output's widest time.
-        if !report.partial {
-            self.greedy_flips(
-                &mut hull,
-                options.max_flip_rounds,
-                &mut PhaseContext::new(&threads, interrupt, started, &mut report, progress),
-            )?;
+        if !context.report.partial {
+            greedy_flips(&mut context, &mut hull, options.max_flip_rounds)?;
         }
 
         let n_done = times.len();
@@ -229,163 +217,164 @@ impl Study<'_> {
         report.runs += 2 * d + 2;
         Ok(report)
     }
+}
 
-    fn greedy_flips(
-        &self,
-        hull: &mut Hull,
-        max_rounds: usize,
-        context: &mut PhaseContext<'_>,
-    ) -> Result<(), StudyError> {
-        let d = self.space.len();
-        let n_outputs = hull.n_outputs;
-        let n_records = hull.points.len() / n_outputs.max(1);
-        // One search per (output, side): the record where the output is widest, the current best
-        // point and value there, whether it is still improving.
-        struct Search {
-            output: usize,
-            upper: bool,
-            record: usize,
-            best: Vec<f64>,
-            value: f64,
-            active: bool,
-        }
-        let mut searches = Vec::new();
-        for o in 0..n_outputs {
-            let width = |r: usize| {
-                let p = hull.points[r * n_outputs + o];
-                p.upper - p.lower
-            };
-            // The widest times, at least SEARCH_TIME_SEPARATION of the horizon apart.
-            let mut order: Vec<usize> = (0..n_records)
-                .filter(|&r| width(r).is_finite() && width(r) > 0.0)
-                .collect();
-            order.sort_by(|&a, &b| width(b).total_cmp(&width(a)).then(a.cmp(&b)));
-            let separation = ((SEARCH_TIME_SEPARATION * n_records as f64).ceil() as usize).max(1);
-            let mut records: Vec<usize> = Vec::new();
-            for r in order {
-                if records.len() == SEARCH_TIMES_PER_OUTPUT {
-                    break;
-                }
-                if records.iter().all(|&q| q.abs_diff(r) >= separation) {
-                    records.push(r);
-                }
-            }
-            for record in records {
-                for upper in [false, true] {
-                    let k = record * n_outputs + o;
-                    let run = hull.attained_by[2 * k + usize::from(upper)] as usize;
-                    let best = hull.run_points[run * d..(run + 1) * d].to_vec();
-                    let p = hull.points[k];
-                    searches.push(Search {
-                        output: o,
-                        upper,
-                        record,
-                        best,
-                        value: if upper { p.upper } else { p.lower },
-                        active: true,
-                    });
-                }
-            }
-        }
-        for _round in 0..max_rounds {
-            // The candidates of every active search, deduplicated.
-            let mut index: HashMap<Vec<i8>, usize> = HashMap::new();
-            let mut points: Vec<f64> = Vec::new();
-            let mut owners: Vec<Vec<(usize, usize)>> = Vec::new();
-            for (s, search) in searches.iter().enumerate().filter(|(_, s)| s.active) {
-                for j in 0..d {
-                    let mut candidate = search.best.clone();
-                    // Flip to the opposite face; an interior coordinate goes to the far face.
-                    candidate[j] = if candidate[j] > 0.0 { -1.0 } else { 1.0 };
-                    let key: Vec<i8> = candidate
-                        .iter()
-                        .map(|x| (x * 100.0).round() as i8)
-                        .collect();
-                    let next = owners.len();
-                    let slot = *index.entry(key).or_insert(next);
-                    if slot == next {
-                        points.extend_from_slice(&candidate);
-                        owners.push(Vec::new());
-                    }
-                    owners[slot].push((s, j));
-                }
-            }
-            if points.is_empty() {
+/// Step 3 of the module documentation: per output and side, from the best run so far at the
+/// output's widest times, the d vertices one flip away, repeated while one improves (at most
+/// `max_rounds` rounds).
+fn greedy_flips(
+    context: &mut PhaseContext<'_>,
+    hull: &mut Hull,
+    max_rounds: usize,
+) -> Result<(), StudyError> {
+    let d = context.space.len();
+    let n_outputs = hull.n_outputs;
+    let n_records = hull.points.len() / n_outputs.max(1);
+    // One search per (output, side): the record where the output is widest, the current best
+    // point and value there, whether it is still improving.
+    struct Search {
+        output: usize,
+        upper: bool,
+        record: usize,
+        best: Vec<f64>,
+        value: f64,
+        active: bool,
+    }
+    let mut searches = Vec::new();
+    for o in 0..n_outputs {
+        let width = |r: usize| {
+            let p = hull.points[r * n_outputs + o];
+            p.upper - p.lower
+        };
+        // The widest times, at least SEARCH_TIME_SEPARATION of the horizon apart.
+        let mut order: Vec<usize> = (0..n_records)
+            .filter(|&r| width(r).is_finite() && width(r) > 0.0)
+            .collect();
+        order.sort_by(|&a, &b| width(b).total_cmp(&width(a)).then(a.cmp(&b)));
+        let separation = ((SEARCH_TIME_SEPARATION * n_records as f64).ceil() as usize).max(1);
+        let mut records: Vec<usize> = Vec::new();
+        for r in order {
+            if records.len() == SEARCH_TIMES_PER_OUTPUT {
                 break;
             }
-            let first = register_points(hull, &points, d);
-            let mut at_record: Vec<Vec<f64>> = vec![Vec::new(); owners.len()];
-            let policy = self.exclusion_policy("flip run");
-            let complete = self.run_phase(
-                context,
-                "flips",
-                &points,
-                None,
-                policy,
-                &mut |block: &PhaseBlock, _| {
-                    for r in 0..block.count {
-                        let record = block.first + r;
-                        for i in 0..block.lockstep.len() {
-                            if block.lockstep.failed(i) {
-                                continue;
-                            }
-                            let values = block.record(i, r);
-                            hull.add(record, values, first + i as u32);
-                            for &(s, _) in &owners[i] {
-                                if searches[s].record == record {
-                                    at_record[i] = values.to_vec();
-                                }
+            if records.iter().all(|&q| q.abs_diff(r) >= separation) {
+                records.push(r);
+            }
+        }
+        for record in records {
+            for upper in [false, true] {
+                let k = record * n_outputs + o;
+                let run = hull.attained_by[2 * k + usize::from(upper)] as usize;
+                let best = hull.run_points[run * d..(run + 1) * d].to_vec();
+                let p = hull.points[k];
+                searches.push(Search {
+                    output: o,
+                    upper,
+                    record,
+                    best,
+                    value: if upper { p.upper } else { p.lower },
+                    active: true,
+                });
+            }
+        }
+    }
+    for _round in 0..max_rounds {
+        // The candidates of every active search, deduplicated.
+        let mut index: HashMap<Vec<i8>, usize> = HashMap::new();
+        let mut points: Vec<f64> = Vec::new();
+        let mut owners: Vec<Vec<(usize, usize)>> = Vec::new();
+        for (s, search) in searches.iter().enumerate().filter(|(_, s)| s.active) {
+            for j in 0..d {
+                let mut candidate = search.best.clone();
+                // Flip to the opposite face; an interior coordinate goes to the far face.
+                candidate[j] = if candidate[j] > 0.0 { -1.0 } else { 1.0 };
+                let key: Vec<i8> = candidate
+                    .iter()
+                    .map(|x| (x * 100.0).round() as i8)
+                    .collect();
+                let next = owners.len();
+                let slot = *index.entry(key).or_insert(next);
+                if slot == next {
+                    points.extend_from_slice(&candidate);
+                    owners.push(Vec::new());
+                }
+                owners[slot].push((s, j));
+            }
+        }
+        if points.is_empty() {
+            break;
+        }
+        let first = register_points(hull, &points, d);
+        let mut at_record: Vec<Vec<f64>> = vec![Vec::new(); owners.len()];
+        let policy = context.exclusion_policy("flip run");
+        let complete = context.run_phase(
+            "flips",
+            &points,
+            None,
+            policy,
+            &mut |block: &PhaseBlock, _| {
+                for r in 0..block.count {
+                    let record = block.first + r;
+                    for i in 0..block.lockstep.len() {
+                        if block.lockstep.failed(i) {
+                            continue;
+                        }
+                        let values = block.record(i, r);
+                        hull.add(record, values, first + i as u32);
+                        for &(s, _) in &owners[i] {
+                            if searches[s].record == record {
+                                at_record[i] = values.to_vec();
                             }
                         }
                     }
-                    Ok(())
-                },
-            )?;
-            context.report.runs += owners.len();
-            if !complete {
-                return Ok(());
-            }
-            let mut improved = vec![None::<(f64, usize)>; searches.len()];
-            for (i, owned) in owners.iter().enumerate() {
-                if at_record[i].is_empty() {
-                    continue;
                 }
-                for &(s, _) in owned {
-                    let search = &searches[s];
-                    let value = at_record[i][search.output];
-                    let better = if search.upper {
-                        value > search.value
-                    } else {
-                        value < search.value
-                    };
-                    let best_so_far = improved[s].map_or(search.value, |(v, _)| v);
-                    let beats = if search.upper {
-                        value > best_so_far
-                    } else {
-                        value < best_so_far
-                    };
-                    if better && beats {
-                        improved[s] = Some((value, i));
-                    }
-                }
+                Ok(())
+            },
+        )?;
+        context.report.runs += owners.len();
+        if !complete {
+            return Ok(());
+        }
+        let mut improved = vec![None::<(f64, usize)>; searches.len()];
+        for (i, owned) in owners.iter().enumerate() {
+            if at_record[i].is_empty() {
+                continue;
             }
-            let mut any = false;
-            for (s, search) in searches.iter_mut().enumerate() {
-                match improved[s] {
-                    Some((value, i)) if search.active => {
-                        search.value = value;
-                        search.best = points[i * d..(i + 1) * d].to_vec();
-                        any = true;
-                    }
-                    _ => search.active = false,
+            for &(s, _) in owned {
+                let search = &searches[s];
+                let value = at_record[i][search.output];
+                let better = if search.upper {
+                    value > search.value
+                } else {
+                    value < search.value
+                };
+                let best_so_far = improved[s].map_or(search.value, |(v, _)| v);
+                let beats = if search.upper {
+                    value > best_so_far
+                } else {
+                    value < best_so_far
+                };
+                if better && beats {
+                    improved[s] = Some((value, i));
                 }
-            }
-            if !any {
-                break;
             }
         }
-        Ok(())
+        let mut any = false;
+        for (s, search) in searches.iter_mut().enumerate() {
+            match improved[s] {
+                Some((value, i)) if search.active => {
+                    search.value = value;
+                    search.best = points[i * d..(i + 1) * d].to_vec();
+                    any = true;
+                }
+                _ => search.active = false,
+            }
+        }
+        if !any {
+            break;
+        }
     }
+    Ok(())
 }
 
 /// Appends `points` to the hull's run list and returns the index of the first.

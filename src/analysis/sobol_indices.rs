@@ -12,7 +12,7 @@
 //! Does not: compute indices from coefficients (see [`crate::uq::sobol_indices`]).
 
 use super::bounds::BoundedBlock;
-use super::study::Envelope;
+use super::envelope::{widest_record, Envelope};
 use super::Method;
 
 /// Main and total indices, and the surrogate's variance, of every output at every record time.
@@ -208,22 +208,6 @@ impl SobolSeries {
 
 /// Stdout lines: dimensions listed per output.
 pub const TABLE_SOBOL_CONTRIBUTORS: usize = 3;
-
-/// The record where output `o`'s envelope is widest (the first of equal widths); `None` without
-/// records.
-pub fn widest_record(envelope: &Envelope, o: usize) -> Option<usize> {
-    let (lower, upper) = (envelope.lower.get(o)?, envelope.upper.get(o)?);
-    lower
-        .iter()
-        .zip(upper)
-        .map(|(l, u)| u - l)
-        .enumerate()
-        .fold(None, |best: Option<(usize, f64)>, (k, w)| match best {
-            Some((_, b)) if w <= b => best,
-            _ => Some((k, w)),
-        })
-        .map(|(k, _)| k)
-}
 
 #[cfg(test)]
 mod tests {

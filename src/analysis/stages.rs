@@ -16,7 +16,8 @@
 //! the decisions `analyze` takes, and its final outputs are the same bytes.
 
 use super::engine::RecordSource;
-use super::study::StudyError;
+use super::error::StudyError;
+use super::report::PendingStage;
 
 /// What a study asks before simulating a stage.
 #[derive(Clone, Copy, Debug)]
@@ -63,26 +64,6 @@ pub struct FirstStage;
 impl StageRecords for FirstStage {
     fn stage(&mut self, _request: &StageRequest) -> Result<StageSource, StudyError> {
         Ok(StageSource::Pending)
-    }
-}
-
-/// A stage whose records do not exist yet, with the points the study chose for it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PendingStage {
-    /// The stage's number, from 1.
-    pub stage: usize,
-    /// Its phase (`design`, `screening`, `adaptive`).
-    pub phase: &'static str,
-    /// Its sample points, row-major `samples × d`.
-    pub points: Vec<f64>,
-    /// Whether its first shard also runs the nominal run.
-    pub nominal: bool,
-}
-
-impl PendingStage {
-    /// Design samples of the stage (the nominal run not counted), for `dim` parameters.
-    pub fn samples(&self, dim: usize) -> usize {
-        self.points.len() / dim.max(1)
     }
 }
 

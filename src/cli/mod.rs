@@ -4,6 +4,7 @@
 mod analyze_cmd;
 mod compare_cmd;
 mod dynamics_cmd;
+mod init_cmd;
 mod merge_cmd;
 mod params_cmd;
 mod plan_cmd;
@@ -13,6 +14,7 @@ mod values;
 
 pub use values::{parse_set, parse_vector};
 
+use crate::study_front::{install_interrupt, SceneInputs};
 use crate::Error;
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -45,9 +47,30 @@ pub enum Command {
     Plan(PlanArgs),
     /// Simulate one shard of a planned study into its record block file.
     Run(RunArgs),
+    /// Write a first sidecar for a robot (`ROBOT.uncertainty.toml` beside the URDF, never
+    /// overwritten): every link's mass ±5 % and centre of mass ±2 mm, the robot holding a pose
+    /// inside its limits on PD joint controllers under gravity.
+    Init(InitArgs),
     /// Merge the shards' record blocks into the study's outputs (the same as `analyze`); a
     /// screened or adaptive study that needs another stage gets its plan instead (exit 3).
     Merge(MergeArgs),
+}
+
+/// `ribbon init`.
+#[derive(Debug, Args)]
+pub struct InitArgs {
+    /// The robot's URDF file.
+    pub urdf: PathBuf,
+    /// Put the root link on a floating joint (the sidecar then says `base = "floating"`).
+    #[arg(long)]
+    pub floating: bool,
+    /// The sidecar to write (default: `ROBOT.uncertainty.toml` beside the URDF); an existing file
+    /// is never overwritten.
+    #[arg(long, value_name = "FILE", conflicts_with = "print")]
+    pub out: Option<PathBuf>,
+    /// Print the sidecar on stdout instead of writing a file.
+    #[arg(long)]
+    pub print: bool,
 }
 
 /// `ribbon plan`.
@@ -272,6 +295,16 @@ impl SceneArgs {
             alpha: self.alpha,
         }
     }
+
+    /// The study front end's inputs for these flags.
+    pub fn inputs(&self) -> SceneInputs {
+        SceneInputs {
+            urdf: self.urdf.clone(),
+            uncertainty: self.uncertainty.clone(),
+            overrides: self.overrides(),
+            floating: self.floating,
+        }
+    }
 }
 
 /// `ribbon params`.
@@ -331,33 +364,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Command::Plan(args) => plan_cmd::run(&args),
         Command::Run(args) => run_cmd::run(&args),
         Command::Merge(args) => merge_cmd::run(&args),
-    }
-}
-
-/// Checks every output file of a command before anything is loaded or simulated
-/// ([`crate::output::check_outputs`]): never the URDF or the sidecar, never a directory, special
-/// file or symlink, never two outputs on one file.
-fn check_output_paths(
-    scene: &SceneArgs,
-    sidecar: Option<&std::path::Path>,
-    outputs: &[(&str, Option<&PathBuf>)],
-) -> Result<(), Error> {
-    let mut inputs = vec![("URDF", scene.urdf.as_path())];
-    if let Some(sidecar) = sidecar {
-        inputs.push(("sidecar", sidecar));
-    }
-    let outputs: Vec<(&str, &std::path::Path)> = outputs
-        .iter()
-        .filter_map(|(flag, path)| path.map(|p| (*flag, p.as_path())))
-        .collect();
-    crate::output::check_outputs(&inputs, &outputs)
-}
-
-/// Installs the SIGINT/SIGTERM watcher ([`crate::interrupt`]); a failure is a warning (the signals
-/// then end the process at once, which still never leaves a half-written output in place).
-fn install_interrupt() {
-    if let Err(message) = crate::interrupt::install() {
-        eprintln!("warning: {message}; an interruption will not save partial results");
+        Command::Init(args) => init_cmd::run(&args),
     }
 }
 
@@ -370,23 +377,14 @@ fn check_start(model: &crate::model::Model, scene: &crate::scene::Scene) -> Resu
     Ok(())
 }
 
-/// Refuses to report a NaN or infinity: the first non-finite value of `columns[i][k]` (series
-/// `names[i]` at `times[k]`) is an error naming the series and the time (exit 1).
+/// Refuses to report a NaN or infinity ([`crate::output::check_finite`], exit 1).
 fn check_finite(
     what: &str,
     names: &[&str],
     times: &[f64],
     columns: &[&[f64]],
 ) -> Result<(), Error> {
-    match crate::output::first_non_finite(names, times, columns) {
-        Some(bad) => Err(Error::NonFiniteResult {
-            what: what.to_string(),
-            output: bad.series.to_string(),
-            time_s: bad.time_s,
-            value: bad.value,
-        }),
-        None => Ok(()),
-    }
+    Ok(crate::output::check_finite(what, names, times, columns)?)
 }
 
 /// Prints the model's load warnings on stderr.
@@ -396,14 +394,7 @@ fn print_warnings(model: &crate::model::Model) {
     }
 }
 
-/// Writes `text` to stdout, turning a closed pipe into an error instead of a panic.
+/// Writes `text` to stdout ([`crate::output::write_stdout`]: a closed pipe is an error).
 fn write_stdout(text: &str) -> Result<(), Error> {
-    use std::io::Write;
-    let mut out = std::io::stdout().lock();
-    out.write_all(text.as_bytes())
-        .and_then(|_| out.flush())
-        .map_err(|source| Error::Output {
-            what: "to standard output".to_string(),
-            source,
-        })
+    Ok(crate::output::write_stdout(text)?)
 }

@@ -3,201 +3,21 @@
 //! `DIR/shard-K-of-N.records.mcap` (docs/distributed.md §3). The file appears only when the shard
 //! is complete (written beside it and renamed); a re-run replaces only that shard's file. A staged
 //! study's shard runs the last stage planned under DIR (or `--stage K`) into
-//! `DIR/stage-K/shard-K-of-N.records.mcap` (docs/distributed.md §7).
+//! `DIR/stage-K/shard-K-of-N.records.mcap` (docs/distributed.md §7). The shard itself is
+//! [`crate::study_front::run_shard`].
 
-use super::analyze_cmd::{check_plan_matches, prepare, study_options, ProgressReporter};
-use super::{install_interrupt, AnalyzeArgs, RunArgs, SceneArgs};
-use crate::analysis::{RecordSchedule, Study};
-use crate::distributed::{
-    shard_file_name, BlockHeader, BlockTrailer, PlanFile, RecordBlockWriter, ShardError, ShardSpec,
-    Stage,
-};
+use super::RunArgs;
+use crate::study_front::{run_shard, ShardRequest};
 use crate::Error;
-use std::time::Instant;
 
 /// Runs `ribbon run`.
 pub fn run(args: &RunArgs) -> Result<(), Error> {
-    let started = Instant::now();
-    let plan = PlanFile::read(&args.plan)?;
-    let spec = match (&args.shard, args.shards) {
-        (Some(text), None) => ShardSpec::parse(text)?,
-        (None, Some(count)) => ShardSpec::from_environment(count, &|k| std::env::var(k).ok())?,
-        (Some(_), Some(_)) => {
-            return Err(ShardError::BadShard {
-                flag: "--shards".to_string(),
-                message: "give either --shard K/N or --shards N (K from the scheduler), not both"
-                    .to_string(),
-            }
-            .into())
-        }
-        (None, None) => return Err(ShardError::BadShard {
-            flag: "--shard".to_string(),
-            message:
-                "which shard? give --shard K/N (K from 0), or --shards N under Slurm or Kubernetes"
-                    .to_string(),
-        }
-        .into()),
-    };
-    plan.body.urdf.check(&args.plan, "URDF")?;
-    plan.body.sidecar.check(&args.plan, "sidecar")?;
-    let analyze_args = analyze_args_of(&plan, args.threads);
-    std::fs::create_dir_all(&args.into).map_err(|source| ShardError::Io {
-        what: "create the shard directory",
-        path: args.into.clone(),
-        source,
-    })?;
-    // The stage to run: --stage, or the last one planned in DIR (stage 1 for a fixed design).
-    let number = args
-        .stage
-        .unwrap_or_else(|| Stage::latest_number(&plan, &args.into));
-    if number == 0 {
-        return Err(ShardError::BadShard {
-            flag: "--stage".to_string(),
-            message: "stages are counted from 1".to_string(),
-        }
-        .into());
-    }
-    let stage = Stage::resolve(&plan, &args.plan, &args.into, number)?;
-    std::fs::create_dir_all(&stage.directory).map_err(|source| ShardError::Io {
-        what: "create the stage directory",
-        path: stage.directory.clone(),
-        source,
-    })?;
-    let path = stage.directory.join(shard_file_name(spec));
-    crate::output::check_outputs(
-        &[
-            ("URDF", plan.body.urdf.path.as_path()),
-            ("sidecar", plan.body.sidecar.path.as_path()),
-            ("plan", args.plan.as_path()),
-        ],
-        &[("--into", path.as_path())],
-    )?;
-    install_interrupt();
-    let setup = prepare(&analyze_args.scene)?;
-    let options = study_options(&analyze_args, &setup.sidecar.analysis)?;
-    let study = Study::new(&setup.model, &setup.scene, &setup.space, options);
-    let study_plan = study.plan()?;
-    check_plan_matches(&plan, &args.plan, &study, &study_plan)?;
-    let points = &stage.points;
-    let range = spec.samples(stage.samples);
-    let with_nominal = spec.runs_nominal() && stage.nominal;
-    let schedule = RecordSchedule::of(&setup.scene);
-    let n_outputs = setup.scene.outputs.len();
-    let header = BlockHeader {
-        plan_hash: stage.hash.clone(),
-        shard: spec.index,
-        shards: spec.count,
-        first_sample: range.start,
-        end_sample: range.end,
-        nominal: with_nominal,
-        outputs: n_outputs,
-        records: schedule.len(),
-        nq: setup.model.nq,
-    };
-    eprintln!(
-        "run: shard {}/{} of {}{}: samples {}..{}{} of {}, {} record times",
-        spec.index,
-        spec.count,
-        if plan.body.staged.is_some() {
-            format!("stage {} ", stage.number)
-        } else {
-            String::new()
-        },
-        stage.hash,
-        range.start,
-        range.end,
-        if with_nominal {
-            " and the nominal run"
-        } else {
-            ""
-        },
-        stage.samples,
-        schedule.len()
-    );
-    let mut writer = RecordBlockWriter::create(&path, header)?;
-    let part_samples = range.len();
-    let mut row: Vec<f64> = Vec::with_capacity(part_samples * n_outputs);
-    let mut reporter = ProgressReporter::new();
-    let part = study.simulate_design_part(
-        &study_plan,
-        points,
-        range.clone(),
-        with_nominal,
-        crate::interrupt::flag(),
-        &mut |progress| reporter.report(progress),
-        &mut |first, count, records| {
-            for r in 0..count {
-                row.clear();
-                for i in 0..part_samples {
-                    if records.failed(i) {
-                        // Left out by the merge from this block on, as by `analyze`.
-                        row.extend(std::iter::repeat_n(0.0, n_outputs));
-                    } else {
-                        row.extend_from_slice(records.record(i, r));
-                    }
-                }
-                let nominal = records
-                    .nominal_index()
-                    .map(|n| (records.record(n, r), records.nominal_positions(r)));
-                writer.write_record(schedule.time(first + r), &row, nominal)?;
-            }
-            Ok(())
-        },
-    )?;
-    reporter.finish();
-    if !part.complete {
-        return Err(Error::Interrupted(format!(
-            "shard {}/{} stopped before the end; no record block was written (run it again)",
-            spec.index, spec.count
-        )));
-    }
-    let failures = part.failures.len();
-    writer.finish(&BlockTrailer {
-        complete: true,
-        failures: part.failures,
-        newton_iterations: part.newton_iterations,
-        steps: part.steps,
-        contacts: part.contacts,
-    })?;
-    let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
-    eprintln!(
-        "run: wrote {} ({size} bytes): {} runs, {} steps, {failures} samples excluded; simulate {:.3} s, wall {:.3} s",
-        path.display(),
-        part_samples + usize::from(with_nominal),
-        part.steps,
-        part.simulate_seconds,
-        started.elapsed().as_secs_f64()
-    );
-    Ok(())
-}
-
-/// The `analyze` flags the plan was made with (`--uncertainty` naming the planned sidecar), with
-/// `threads` and no outputs.
-pub(super) fn analyze_args_of(plan: &PlanFile, threads: Option<usize>) -> AnalyzeArgs {
-    let o = &plan.body.options;
-    AnalyzeArgs {
-        scene: SceneArgs {
-            urdf: plan.body.urdf.path.clone(),
-            uncertainty: Some(plan.body.sidecar.path.clone()),
-            duration: o.duration,
-            step: o.step,
-            alpha: o.alpha,
-            floating: o.floating,
-        },
-        method: o.method.clone(),
-        order: o.order,
-        design: o.design.clone(),
-        grid: o.grid,
-        scan_grid: o.scan_grid,
-        samples: o.samples,
-        seed: o.seed,
-        threads,
-        keep_going: o.keep_going,
-        max_runs: o.max_runs,
-        check_runs: o.check_runs,
-        summary: None,
-        csv: None,
-        out: None,
-        report: None,
-    }
+    run_shard(&ShardRequest {
+        plan: args.plan.clone(),
+        shard: args.shard.clone(),
+        shards: args.shards,
+        into: args.into.clone(),
+        stage: args.stage,
+        threads: args.threads,
+    })
 }

@@ -4,9 +4,7 @@
 //! current step, write what was computed (marked partial) and exit 1; a second signal stops at
 //! once, removing the temporary files.
 
-use super::{
-    check_finite, check_output_paths, check_start, install_interrupt, write_stdout, SimulateArgs,
-};
+use super::{check_finite, check_start, install_interrupt, write_stdout, SimulateArgs};
 use crate::cli::values::apply_set_flags;
 use crate::dynamics::{forward_kinematics, Data};
 use crate::model::Model;
@@ -26,13 +24,13 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
         .uncertainty
         .clone()
         .or_else(|| Some(args.scene.request().sidecar_path()).filter(|p| p.exists()));
-    check_output_paths(
-        &args.scene,
+    crate::output::check_command_outputs(
+        &args.scene.urdf,
         sidecar_path.as_deref(),
         &[
-            ("--csv", args.csv.as_ref()),
-            ("--summary", args.summary.as_ref()),
-            ("--out", args.out.as_ref()),
+            ("--csv", args.csv.as_deref()),
+            ("--summary", args.summary.as_deref()),
+            ("--out", args.out.as_deref()),
         ],
     )?;
     install_interrupt();
@@ -130,7 +128,7 @@ fn write_log(
         forward_kinematics(model, &mut data, &trajectory.positions[k]);
         log.write_frames(*t, model, &data)?;
     }
-    log.finish(trajectory.partial)
+    Ok(log.finish(trajectory.partial)?)
 }
 
 fn print_statistics(trajectory: &Trajectory, scene: &Scene, wall_seconds: f64) {

@@ -4,7 +4,7 @@ use super::error::ShardError;
 use super::plan_file::{InputFile, PlanFile};
 use super::record_block::RecordBlockReader;
 use super::stage_plan::Stage;
-use crate::analysis::{BlockOutcome, RecordSource, SampleFailure, StudyError};
+use crate::analysis::{BlockOutcome, ForeignError, RecordSource, SampleFailure, StudyError};
 use crate::effects::ContactStats;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -383,7 +383,7 @@ impl RecordSource for ShardSet {
                 let target = has_nominal.then_some(nominal.as_mut_slice());
                 reader
                     .read_record(&mut row[range], target)
-                    .map_err(|e| StudyError::Records(Box::new(crate::Error::from(e))))?;
+                    .map_err(|e| StudyError::Records(ForeignError::new(e)))?;
                 if has_nominal {
                     row[self.samples * outputs..].copy_from_slice(&nominal[..outputs]);
                     self.positions[r].copy_from_slice(&nominal[outputs..]);

@@ -6,7 +6,7 @@ use super::error::ShardError;
 use super::plan_file::{InputFile, PlanFile};
 use super::shards::ShardSet;
 use super::stage_plan::{stage_directory, Stage, STAGE_PLAN_FILE};
-use crate::analysis::{StageRecords, StageRequest, StageSource, StudyError};
+use crate::analysis::{ForeignError, StageRecords, StageRequest, StageSource, StudyError};
 use std::path::{Path, PathBuf};
 
 /// The stages of a planned study whose record blocks lie under one directory.
@@ -142,6 +142,6 @@ impl ShardStages<'_> {
 impl StageRecords for ShardStages<'_> {
     fn stage(&mut self, request: &StageRequest) -> Result<StageSource, StudyError> {
         self.source(request)
-            .map_err(|e| StudyError::Records(Box::new(crate::Error::from(e))))
+            .map_err(|e| StudyError::Records(ForeignError::new(e)))
     }
 }

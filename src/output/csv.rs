@@ -3,9 +3,9 @@
 //! doubled), so that any joint or link name survives a CSV reader. Values are written with Rust's
 //! shortest round-trip formatting; a NaN or infinity is refused before anything is written.
 
+use super::check_finite;
+use super::error::OutputError;
 use super::paths::AtomicFile;
-use super::{first_non_finite, NonFinite};
-use crate::Error;
 use std::io::Write;
 use std::path::Path;
 
@@ -26,20 +26,8 @@ pub fn write_csv(
     times: &[f64],
     names: &[&str],
     columns: &[&[f64]],
-) -> Result<(), Error> {
-    if let Some(NonFinite {
-        series,
-        time_s,
-        value,
-    }) = first_non_finite(names, times, columns)
-    {
-        return Err(Error::NonFiniteResult {
-            what: format!("CSV '{}'", path.display()),
-            output: series.to_string(),
-            time_s,
-            value,
-        });
-    }
+) -> Result<(), OutputError> {
+    check_finite(&format!("CSV '{}'", path.display()), names, times, columns)?;
     let mut file = AtomicFile::create(path, "CSV")?;
     let result = (|| -> std::io::Result<()> {
         file.write_all(b"t")?;

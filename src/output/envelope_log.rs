@@ -5,6 +5,7 @@
 //! it adds what the viewers need (docs/mcap.md §4–§5): the Foxglove layout as an attachment and
 //! the box the robot moved in as entries of the `ribbon` metadata record.
 
+use super::error::OutputError;
 use super::mcap::{
     EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, ParentFromLink,
     SobolChannel, SobolIndexKind, ENVELOPE_PREFIX, SOBOL_PREFIX, WORLD_FRAME,
@@ -17,7 +18,6 @@ use crate::analysis::BlockView;
 use crate::dynamics::{forward_kinematics, world_from_link, Data};
 use crate::model::Model;
 use crate::scene::Output;
-use crate::Error;
 use std::path::Path;
 
 /// The smallest peak total Sobol' index (over the record times) of a parameter that an output's
@@ -49,13 +49,13 @@ pub struct EnvelopeLog {
     parent_links: Option<Vec<Option<usize>>>,
 }
 
-fn mcap_error(error: super::mcap::McapError) -> Error {
-    Error::Mcap(error)
+fn mcap_error(error: super::mcap::McapError) -> OutputError {
+    OutputError::Mcap(error)
 }
 
 /// Reads a file named in the log's attachments.
-fn read_text(path: &Path, what: &str) -> Result<String, Error> {
-    std::fs::read_to_string(path).map_err(|source| Error::Output {
+fn read_text(path: &Path, what: &str) -> Result<String, OutputError> {
+    std::fs::read_to_string(path).map_err(|source| OutputError::Write {
         what: format!("{what} '{}' for the MCAP attachment", path.display()),
         source,
     })
@@ -73,7 +73,7 @@ impl EnvelopeLog {
         metadata: McapMetadata,
         outputs: &[Output],
         with_errors: bool,
-    ) -> Result<EnvelopeLog, Error> {
+    ) -> Result<EnvelopeLog, OutputError> {
         let urdf_text = read_text(urdf, "URDF")?;
         let sidecar_text = sidecar.map(|p| read_text(p, "sidecar")).transpose()?;
         let name_of = |p: &Path| {
@@ -139,7 +139,7 @@ impl EnvelopeLog {
     /// Adds the main and total Sobol' index channels of every output (docs/mcap.md §1), one series
     /// per dimension of the box named by `dimensions`; [`write_block`](Self::write_block) then
     /// writes the indices a block carries. Call before the first block.
-    pub fn add_sobol_channels(&mut self, dimensions: &[String]) -> Result<(), Error> {
+    pub fn add_sobol_channels(&mut self, dimensions: &[String]) -> Result<(), OutputError> {
         for output in &self.layout_outputs {
             let name = OutputName::from_parts(&output.parts);
             let main = self
@@ -164,7 +164,7 @@ impl EnvelopeLog {
         t: f64,
         main: &dyn Fn(usize) -> Vec<f64>,
         total: &dyn Fn(usize) -> Vec<f64>,
-    ) -> Result<(), Error> {
+    ) -> Result<(), OutputError> {
         for o in 0..self.sobol_channels.len() {
             let (main_channel, total_channel) = self.sobol_channels[o];
             for (label, channel, values) in [
@@ -172,7 +172,7 @@ impl EnvelopeLog {
                 ("total Sobol' index", total_channel, total(o)),
             ] {
                 if let Some(value) = values.iter().find(|v| !v.is_finite()) {
-                    return Err(Error::NonFiniteResult {
+                    return Err(OutputError::NonFinite {
                         what: format!("MCAP '{}'", self.sink.path().display()),
                         output: format!(
                             "{} ({label})",
@@ -196,7 +196,7 @@ impl EnvelopeLog {
     }
 
     /// Writes every output's envelope at time `t` (s); `error` per output when the log has error
-    /// channels. A NaN or infinity is refused ([`Error::NonFiniteResult`], naming the output and
+    /// channels. A NaN or infinity is refused ([`OutputError::NonFinite`], naming the output and
     /// time): the log is then never finished, and its temporary file is removed when dropped.
     pub fn write_time(
         &mut self,
@@ -205,7 +205,7 @@ impl EnvelopeLog {
         nominal: &[f64],
         upper: &[f64],
         error: Option<&[f64]>,
-    ) -> Result<(), Error> {
+    ) -> Result<(), OutputError> {
         let series: [(&str, &[f64]); 4] = [
             ("lower", lower),
             ("nominal", nominal),
@@ -214,7 +214,7 @@ impl EnvelopeLog {
         ];
         for (label, values) in series {
             if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-                return Err(Error::NonFiniteResult {
+                return Err(OutputError::NonFinite {
                     what: format!("MCAP '{}'", self.sink.path().display()),
                     output: format!(
                         "{} ({label})",
@@ -243,7 +243,7 @@ impl EnvelopeLog {
     /// Writes every URDF link's placement on `/tf` at time `t`, from the body placements of the
     /// last forward kinematics in `data`: each link relative to its parent link in the URDF tree
     /// (the root relative to `world`), so that the viewers' frame trees follow the kinematic chain.
-    pub fn write_frames(&mut self, t: f64, model: &Model, data: &Data) -> Result<(), Error> {
+    pub fn write_frames(&mut self, t: f64, model: &Model, data: &Data) -> Result<(), OutputError> {
         let links = &model.description.links;
         let parents = self.parent_links.get_or_insert_with(|| {
             let mut parents = vec![None; links.len()];
@@ -295,7 +295,7 @@ impl EnvelopeLog {
         block: &BlockView,
         model: &Model,
         data: &mut Data,
-    ) -> Result<(), Error> {
+    ) -> Result<(), OutputError> {
         let n = self.channels.len();
         let nq = model.nq;
         for (r, t) in block.times.iter().enumerate() {
@@ -362,7 +362,7 @@ impl EnvelopeLog {
     /// Writes the viewer facts (the Foxglove layout as the attachment `foxglove-layout.json`, the
     /// scene extent as `scene_centre_m` / `scene_radius_m` in the `ribbon` metadata record), the
     /// metadata record, summary and index, and renames the file into place.
-    pub fn finish(mut self, partial: bool) -> Result<(), Error> {
+    pub fn finish(mut self, partial: bool) -> Result<(), OutputError> {
         // `{:#}` pretty-prints a JSON value (infallible, unlike `to_vec_pretty`'s signature).
         let layout = format!("{:#}", self.foxglove_layout());
         self.sink

@@ -6,22 +6,29 @@
 //! input, a directory, a special file or a symlink; never two outputs on one file), written to a
 //! unique temporary file beside its target and renamed when complete, so a failure or an
 //! interruption never leaves a corrupt or half-written output and never touches an input. No
-//! non-finite number is ever written ([`first_non_finite`]).
+//! non-finite number is ever written ([`first_non_finite`], [`check_finite`]); standard output is
+//! one more output ([`write_stdout`]: a closed pipe is an error, not a panic). Every failure is an
+//! [`OutputError`].
 
 mod csv;
 mod envelope_log;
+mod error;
 pub mod mcap;
 pub mod paths;
 pub mod plot;
 pub mod report;
+mod study_summary;
 mod summary;
 pub mod viewer;
 
 pub use csv::{csv_field, write_csv};
 pub use envelope_log::EnvelopeLog;
+pub use error::OutputError;
 pub use paths::{
-    check_outputs, prepare_output_directory, remove_live_temporaries, write_atomically, AtomicFile,
+    check_command_outputs, check_outputs, prepare_output_directory, remove_live_temporaries,
+    write_atomically, AtomicFile,
 };
+pub use study_summary::peak_memory;
 pub use summary::{
     EnvelopeSeries, OutputSobol, ParameterSummary, SensitivitySummary, SobolDimension,
     SobolSummary, Summary,
@@ -65,4 +72,36 @@ pub fn first_non_finite<'a>(
         }
     }
     None
+}
+
+/// Refuses to report a NaN or infinity: the first non-finite value of `columns[i][k]` (series
+/// `names[i]` at `times[k]`) is an [`OutputError::NonFinite`] naming `what` (where it would have
+/// gone), the series and the time (exit 1).
+pub fn check_finite(
+    what: &str,
+    names: &[&str],
+    times: &[f64],
+    columns: &[&[f64]],
+) -> Result<(), OutputError> {
+    match first_non_finite(names, times, columns) {
+        Some(bad) => Err(OutputError::NonFinite {
+            what: what.to_string(),
+            output: bad.series.to_string(),
+            time_s: bad.time_s,
+            value: bad.value,
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Writes `text` to stdout, turning a closed pipe into an error instead of a panic.
+pub fn write_stdout(text: &str) -> Result<(), OutputError> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|_| out.flush())
+        .map_err(|source| OutputError::Write {
+            what: "to standard output".to_string(),
+            source,
+        })
 }

@@ -20,7 +20,7 @@
 //!
 //! Not done here: choosing file names (the commands do), and file contents (the writers do).
 
-use crate::Error;
+use super::error::OutputError;
 use std::ffi::OsString;
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
@@ -161,10 +161,10 @@ pub struct AtomicFile {
 
 impl AtomicFile {
     /// Starts writing `target`; `what` names the output in messages ("CSV", "summary").
-    pub fn create(target: &Path, what: &str) -> Result<AtomicFile, Error> {
+    pub fn create(target: &Path, what: &str) -> Result<AtomicFile, OutputError> {
         let what = format!("{what} '{}'", target.display());
         let (file, temporary) =
-            TemporaryFile::create_beside(target).map_err(|source| Error::Output {
+            TemporaryFile::create_beside(target).map_err(|source| OutputError::Write {
                 what: what.clone(),
                 source,
             })?;
@@ -176,13 +176,13 @@ impl AtomicFile {
     }
 
     /// Flushes, syncs and renames the file into place.
-    pub fn commit(self) -> Result<(), Error> {
+    pub fn commit(self) -> Result<(), OutputError> {
         let AtomicFile {
             writer,
             temporary,
             what,
         } = self;
-        let fail = |source| Error::Output {
+        let fail = |source| OutputError::Write {
             what: what.clone(),
             source,
         };
@@ -193,8 +193,8 @@ impl AtomicFile {
     }
 
     /// The error for a failed write of this file.
-    pub fn error(&self, source: std::io::Error) -> Error {
-        Error::Output {
+    pub fn error(&self, source: std::io::Error) -> OutputError {
+        OutputError::Write {
             what: self.what.clone(),
             source,
         }
@@ -212,7 +212,7 @@ impl Write for AtomicFile {
 }
 
 /// Writes `bytes` to `path` through a unique temporary file, a sync and a rename.
-pub fn write_atomically(path: &Path, what: &str, bytes: &[u8]) -> Result<(), Error> {
+pub fn write_atomically(path: &Path, what: &str, bytes: &[u8]) -> Result<(), OutputError> {
     let mut file = AtomicFile::create(path, what)?;
     file.write_all(bytes).map_err(|e| file.error(e))?;
     file.commit()
@@ -299,12 +299,33 @@ struct Checked<'a> {
     id: Option<FileId>,
 }
 
+/// [`check_outputs`] of a command that reads `urdf` and, when given, a `sidecar`: its `outputs`
+/// are `(flag, path)` pairs, `None` for a flag not given.
+pub fn check_command_outputs(
+    urdf: &Path,
+    sidecar: Option<&Path>,
+    outputs: &[(&str, Option<&Path>)],
+) -> Result<(), OutputError> {
+    let mut inputs = vec![("URDF", urdf)];
+    if let Some(sidecar) = sidecar {
+        inputs.push(("sidecar", sidecar));
+    }
+    let outputs: Vec<(&str, &Path)> = outputs
+        .iter()
+        .filter_map(|(flag, path)| path.map(|p| (*flag, p)))
+        .collect();
+    check_outputs(&inputs, &outputs)
+}
+
 /// Checks every output file of a command before any simulation: `inputs` are `(role, path)` pairs
 /// (`("URDF", urdf)`, `("sidecar", sidecar)`), `outputs` are `(flag, path)` pairs (`("--csv",
 /// csv)`). Refuses, naming the flag and what to do: an output that is an input, a directory, a
 /// FIFO, socket or device, a symbolic link, a path without a file name, a parent that does not
 /// exist or is not writable, and two outputs that are the same file. Exit code 2 (bad argument).
-pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<(), Error> {
+pub fn check_outputs(
+    inputs: &[(&str, &Path)],
+    outputs: &[(&str, &Path)],
+) -> Result<(), OutputError> {
     let inputs: Vec<Input> = inputs
         .iter()
         .map(|(role, path)| Input {
@@ -336,14 +357,18 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Res
     Ok(())
 }
 
-fn bad(flag: &str, message: String) -> Error {
-    Error::BadArgument {
+fn bad(flag: &str, message: String) -> OutputError {
+    OutputError::BadPath {
         flag: flag.to_string(),
         message,
     }
 }
 
-fn check_one<'a>(flag: &'a str, path: &'a Path, inputs: &[Input]) -> Result<Checked<'a>, Error> {
+fn check_one<'a>(
+    flag: &'a str,
+    path: &'a Path,
+    inputs: &[Input],
+) -> Result<Checked<'a>, OutputError> {
     let shown = path.display();
     let file_name = match path.file_name() {
         Some(name) if !path.as_os_str().to_string_lossy().ends_with('/') => name,
@@ -452,7 +477,7 @@ pub fn prepare_output_directory(
     directory: &Path,
     files: &[&str],
     inputs: &[(&str, &Path)],
-) -> Result<(), Error> {
+) -> Result<(), OutputError> {
     match std::fs::metadata(directory) {
         Ok(metadata) if metadata.is_dir() => {}
         Ok(_) => {

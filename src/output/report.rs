@@ -7,10 +7,10 @@
 //! design also gives an outer bound, that bound as dashed lines. The engine does not keep the
 //! true-model runs of the a-posteriori check per output and time, so they are not drawn.
 
+use super::error::OutputError;
 use super::plot::{Layer, PlotError, TimePlot};
 use super::viewer::FOXGLOVE_LAYOUT_NAME;
 use super::write_atomically;
-use crate::Error;
 use std::collections::HashSet;
 use std::path::Path;
 
@@ -154,8 +154,8 @@ pub fn report_files(stems: &[String], with_layout: bool) -> Vec<String> {
     files
 }
 
-fn plot_error(path: &Path, error: PlotError) -> Error {
-    Error::Output {
+fn plot_error(path: &Path, error: PlotError) -> OutputError {
+    OutputError::Write {
         what: format!("plot '{}'", path.display()),
         source: std::io::Error::other(error),
     }
@@ -167,7 +167,7 @@ pub fn write_plot(
     stem: &str,
     svg: Result<String, PlotError>,
     png: Result<Vec<u8>, PlotError>,
-) -> Result<(), Error> {
+) -> Result<(), OutputError> {
     let svg_path = dir.join(format!("{stem}.svg"));
     let png_path = dir.join(format!("{stem}.png"));
     let svg = svg.map_err(|e| plot_error(&svg_path, e))?;
@@ -200,7 +200,7 @@ pub struct AnalyzeReport<'a> {
 
 /// Writes the report into `dir` (which [`crate::output::prepare_output_directory`] has checked
 /// for [`report_files`]): the plots, the layout, then `report.md`.
-pub fn write_analyze_report(dir: &Path, report: &AnalyzeReport<'_>) -> Result<(), Error> {
+pub fn write_analyze_report(dir: &Path, report: &AnalyzeReport<'_>) -> Result<(), OutputError> {
     let warnings: String = report
         .warnings
         .iter()

@@ -2,11 +2,11 @@
 //! series of lower, upper and nominal bounds with an error estimate; for surrogate studies also the
 //! Sobol' indices of every output at every record time (`sobol_indices`, docs/sobol-indices.md §5).
 
+use super::error::OutputError;
 use super::first_non_finite;
 use super::paths::AtomicFile;
 use crate::analysis::{widest_record, Envelope, SobolSeries};
 use crate::uncertainty::ParameterSpace;
-use crate::Error;
 use serde::Serialize;
 use std::path::Path;
 
@@ -225,7 +225,7 @@ impl Summary {
     /// Writes the summary as pretty JSON to `path`, streaming through a temporary file (see
     /// [`super::paths`]). JSON has no NaN or infinity (serde would write `null`): a non-finite
     /// value in any series is refused, naming the output and time, and nothing is written.
-    pub fn write(&self, path: &Path) -> Result<(), Error> {
+    pub fn write(&self, path: &Path) -> Result<(), OutputError> {
         for output in &self.outputs {
             let mut names: Vec<String> = vec![
                 format!("{}.lower", output.name),
@@ -247,7 +247,7 @@ impl Summary {
             }
             let names: Vec<&str> = names.iter().map(String::as_str).collect();
             if let Some(bad) = first_non_finite(&names, &output.time, &columns) {
-                return Err(Error::NonFiniteResult {
+                return Err(OutputError::NonFinite {
                     what: format!("summary '{}'", path.display()),
                     output: bad.series.to_string(),
                     time_s: bad.time_s,
@@ -266,7 +266,7 @@ impl Summary {
                 .find(|o| o.name == output)
                 .and_then(|o| o.time.get(record).copied())
                 .unwrap_or(f64::NAN);
-            return Err(Error::NonFiniteResult {
+            return Err(OutputError::NonFinite {
                 what: format!("summary '{}'", path.display()),
                 output: format!("{output} ({what})"),
                 time_s,

@@ -63,6 +63,21 @@ pub enum OutputKind {
     },
 }
 
+impl OutputKind {
+    /// The interval every value of this output lies in by the model's construction, whatever the
+    /// parameters, where there is one narrower than the reals: a contact's normal force never
+    /// pulls (`f_n ≥ 0`, docs/contacts.md), so `[0, ∞)`. A bound may be clipped to it without
+    /// leaving out any true value (docs/method.md §12, "known ranges"). Joint positions at
+    /// enforced limits are not clipped: the penalty of a resting limit lets a joint a little
+    /// past it.
+    pub fn known_range(&self) -> Option<(f64, f64)> {
+        match self {
+            OutputKind::ContactNormalForce { .. } => Some((0.0, f64::INFINITY)),
+            _ => None,
+        }
+    }
+}
+
 /// One recorded scalar series.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Output {

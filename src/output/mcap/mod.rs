@@ -30,7 +30,7 @@
 
 #![warn(missing_docs)]
 
-mod error;
+pub(super) mod error;
 mod foxglove;
 mod name;
 mod ros2;

@@ -1,0 +1,120 @@
+//! The envelopes under construction: per record time and output, the envelope point the bounding
+//! gave (widened by every true run a phase makes), the nominal run's values and configuration,
+//! and the hull of every true run. The design phase and the adaptive rounds fill the records,
+//! the check widens them, and at the end they become the study's [`Envelope`] and the sinks'
+//! blocks.
+//!
+//! Record-major `records × outputs` throughout: one block of records is a contiguous slice.
+//! Does not: bound anything (the phases hand it their bounds and runs).
+
+use super::bounds::EnvelopePoint;
+use super::envelope::Envelope;
+
+/// The envelopes under construction, and the hull of every true run.
+pub(super) struct Accumulator {
+    /// Outputs per record.
+    pub n_outputs: usize,
+    /// Record times done, s.
+    pub times: Vec<f64>,
+    /// Record-major `records × outputs`.
+    pub points: Vec<EnvelopePoint>,
+    /// The nominal run's values, record-major `records × outputs`.
+    pub nominal: Vec<f64>,
+    /// The nominal run's configuration per record (`records × nq`).
+    pub nominal_positions: Vec<f64>,
+    /// The hull of every true run, record-major `records × outputs` (`(lowest, highest)`;
+    /// `(+∞, −∞)` before any run).
+    runs: Vec<(f64, f64)>,
+}
+
+impl Accumulator {
+    /// Empty, with room for `n_records` records of `n_outputs` outputs.
+    pub fn new(n_outputs: usize, n_records: usize) -> Accumulator {
+        Accumulator {
+            n_outputs,
+            times: Vec::with_capacity(n_records),
+            points: Vec::with_capacity(n_records * n_outputs),
+            nominal: Vec::with_capacity(n_records * n_outputs),
+            nominal_positions: Vec::new(),
+            runs: Vec::with_capacity(n_records * n_outputs),
+        }
+    }
+
+    /// Appends the nominal run's record at `time_s`: its outputs `values` and configuration
+    /// `positions` (the next record's envelope points come from the bounding).
+    pub fn push_nominal(&mut self, time_s: f64, values: &[f64], positions: &[f64]) {
+        self.times.push(time_s);
+        self.nominal.extend_from_slice(values);
+        self.nominal_positions.extend_from_slice(positions);
+    }
+
+    /// Widens the envelopes and the hull of true runs at `record` to contain `values`, a true
+    /// run's outputs (or the lowest or highest of several).
+    pub fn widen(&mut self, record: usize, values: &[f64]) {
+        let row = &mut self.points[record * self.n_outputs..(record + 1) * self.n_outputs];
+        for (point, &value) in row.iter_mut().zip(values) {
+            point.lower = point.lower.min(value);
+            point.upper = point.upper.max(value);
+        }
+        self.widen_runs(record, values);
+    }
+
+    /// Widens the hull of true runs at `record` to contain `values` (the envelopes already do).
+    pub fn widen_runs(&mut self, record: usize, values: &[f64]) {
+        let needed = (record + 1) * self.n_outputs;
+        if self.runs.len() < needed {
+            self.runs.resize(needed, (f64::INFINITY, f64::NEG_INFINITY));
+        }
+        let row = &mut self.runs[record * self.n_outputs..needed];
+        for (hull, &value) in row.iter_mut().zip(values) {
+            *hull = (hull.0.min(value), hull.1.max(value));
+        }
+    }
+
+    /// Fills `envelope`'s series (times, bounds, nominal, hull of true runs, and the error
+    /// estimate and outer bound where the points have them) from the records done.
+    pub fn fill(&self, envelope: &mut Envelope) {
+        let n_outputs = self.n_outputs;
+        let n_done = self.times.len();
+        envelope.times = self.times.clone();
+        envelope.lower = vec![Vec::with_capacity(n_done); n_outputs];
+        envelope.upper = vec![Vec::with_capacity(n_done); n_outputs];
+        envelope.nominal = vec![Vec::with_capacity(n_done); n_outputs];
+        envelope.runs_lower = vec![Vec::with_capacity(n_done); n_outputs];
+        envelope.runs_upper = vec![Vec::with_capacity(n_done); n_outputs];
+        let has_error = self.points.iter().any(|p| p.error.is_some());
+        if has_error {
+            envelope.error = Some(vec![Vec::with_capacity(n_done); n_outputs]);
+        }
+        if self.points.iter().any(|p| p.outer.is_some()) {
+            envelope.outer = Some((
+                vec![Vec::with_capacity(n_done); n_outputs],
+                vec![Vec::with_capacity(n_done); n_outputs],
+            ));
+        }
+        for r in 0..n_done {
+            for o in 0..n_outputs {
+                let point = self.points[r * n_outputs + o];
+                envelope.lower[o].push(point.lower);
+                envelope.upper[o].push(point.upper);
+                envelope.nominal[o].push(self.nominal[r * n_outputs + o]);
+                let (lowest, highest) = self
+                    .runs
+                    .get(r * n_outputs + o)
+                    .copied()
+                    .unwrap_or((f64::INFINITY, f64::NEG_INFINITY));
+                envelope.runs_lower[o].push(lowest);
+                envelope.runs_upper[o].push(highest);
+                if let Some(errors) = &mut envelope.error {
+                    errors[o].push(point.error.unwrap_or(0.0));
+                }
+                if let Some((outer_lower, outer_upper)) = &mut envelope.outer {
+                    // The outer bound contains the envelope (which contains every run).
+                    let (lo, hi) = point.outer.unwrap_or((point.lower, point.upper));
+                    outer_lower[o].push(lo.min(point.lower));
+                    outer_upper[o].push(hi.max(point.upper));
+                }
+            }
+        }
+    }
+}

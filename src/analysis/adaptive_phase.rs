@@ -1,0 +1,250 @@
+//! The rounds of a dimension-adaptive study (docs/method.md §11):
+//!
+//! ```text
+//! round 0: the centre and one Leja point per parameter (d + 1 runs) and the nominal run
+//! round i: fit every output at every record time on the runs so far (Leja interpolation)
+//!          ⇒ each candidate term's indicator: its largest |coefficient| over records, relative
+//!            to the output's spread ⇒ AdaptiveSet::refine picks the next terms ⇒ run their points
+//! stop:    the budget is spent, or every candidate's indicator is below ADAPTIVE_TOLERANCE
+//! ```
+//!
+//! Every round is a lock-step phase over the whole horizon (and a stage of a distributed study:
+//! docs/distributed.md §7), and every run's values are kept (the
+//! next round's fit needs them): `runs × outputs × records` values, which `auto` checks against
+//! [`super::auto::ADAPTIVE_VALUE_BUDGET`] before choosing this design. The study then bounds the
+//! final interpolant from the stored values like any other sparse design.
+
+use super::accumulator::Accumulator;
+use super::adaptive::{
+    AdaptiveSet, ADAPTIVE_BATCH_FRACTION, ADAPTIVE_MIN_BATCH, ADAPTIVE_TOLERANCE,
+};
+use super::error::StudyError;
+use super::method::Method;
+use super::phase::PhaseContext;
+use super::report::AdaptiveReport;
+use super::schedule::RecordSchedule;
+use super::stages::StageCursor;
+use crate::uq::{Factor, SparseGrid, UqError};
+use rayon::prelude::*;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// An output whose spread over the runs is below this fraction of `1 + max |value|` carries no
+/// signal above the integrator's convergence noise (Newton stops at ~10⁻¹⁰ relative): its
+/// coefficients do not steer the refinement.
+pub const ADAPTIVE_NOISE_FLOOR: f64 = 1e-9;
+
+/// Every run's values of the design the rounds produced (its grid is returned beside it).
+pub(super) struct AdaptiveOutcome {
+    /// `values[row][record · outputs + output]` by [`AdaptiveSet::evaluated`] row.
+    values: Vec<Vec<f64>>,
+    /// Grid point t → row of `values`.
+    row_of_point: Vec<usize>,
+    /// The summary.
+    pub(super) report: AdaptiveReport,
+    /// Whether every round ran to the end (false: interrupted; the grid is the last complete one).
+    pub(super) complete: bool,
+}
+
+impl AdaptiveOutcome {
+    /// Record `r`'s values in grid order, row-major `points × outputs`.
+    pub(super) fn record(&self, r: usize, n_outputs: usize) -> Vec<f64> {
+        gather_record(&self.values, &self.row_of_point, r, n_outputs)
+    }
+}
+
+/// Runs the rounds (module documentation) within `budget` design runs; the first round also
+/// runs the nominal parameters into `accumulator`. Returns the interpolation grid on the terms
+/// of the complete rounds and the runs' values; `None` when interrupted during the first round
+/// (nothing to fit).
+pub(super) fn adapt(
+    context: &mut PhaseContext<'_>,
+    stages: &mut StageCursor,
+    budget: usize,
+    nominal_xi: &[f64],
+    accumulator: &mut Accumulator,
+) -> Result<Option<(SparseGrid, AdaptiveOutcome)>, StudyError> {
+    let d = context.space.len();
+    let scene = context.scene;
+    let schedule = RecordSchedule::of(scene);
+    let n_outputs = scene.outputs.len();
+    let n_records = schedule.len();
+    let stride = n_records * n_outputs;
+    let mut set = AdaptiveSet::new(d);
+    let mut values: Vec<Vec<f64>> = Vec::new();
+    let mut new_terms = set.evaluated().to_vec();
+    // The last complete round's grid and, per grid point, its row of `values`.
+    let mut grid: Option<(SparseGrid, Vec<usize>)> = None;
+    let mut rounds = 0;
+    let policy = context.design_failure_policy(Method::LegendreScan);
+    let (stop, complete) = loop {
+        // Run this round's points.
+        let points = set.points(&new_terms)?;
+        let first_row = values.len();
+        values.resize_with(first_row + new_terms.len(), || vec![0.0; stride]);
+        let with_nominal = rounds == 0;
+        context.report.runs += new_terms.len() + usize::from(with_nominal);
+        let round_complete = context.run_stage(
+            stages,
+            "adaptive",
+            &points,
+            with_nominal.then_some(nominal_xi),
+            policy,
+            &mut |block, _| {
+                let lockstep = block.lockstep;
+                for r in 0..block.count {
+                    let record = block.first + r;
+                    for (i, row) in values[first_row..].iter_mut().enumerate() {
+                        row[record * n_outputs..(record + 1) * n_outputs]
+                            .copy_from_slice(block.record(i, r));
+                    }
+                    if with_nominal {
+                        let nominal = lockstep.nominal_index().unwrap_or(new_terms.len());
+                        accumulator.push_nominal(
+                            schedule.time(record),
+                            block.record(nominal, r),
+                            lockstep.nominal_positions(r),
+                        );
+                    }
+                }
+                Ok(())
+            },
+        )?;
+        rounds += 1;
+        if !round_complete {
+            if grid.is_none() {
+                return Ok(None);
+            }
+            values.truncate(first_row);
+            break ("interrupted", false);
+        }
+        // Fit the set evaluated so far and measure the candidates.
+        let t_fit = Instant::now();
+        let round_grid = SparseGrid::new(Arc::new(set.multi_index_set()?))?;
+        let rows = rows_of_points(&round_grid, &set)?;
+        let coefficients =
+            fit_all_records(&round_grid, &rows, &values, n_outputs, context.threads)?;
+        let spread = output_spreads(&values, n_outputs);
+        let mi = round_grid.set().clone();
+        set.measure(|term| {
+            let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
+            let Some(t) = mi.index_of(&factors) else {
+                return 0.0;
+            };
+            coefficients
+                .iter()
+                .map(|record| {
+                    (0..n_outputs)
+                        .filter_map(|o| spread[o].map(|s| record[t * n_outputs + o].abs() / s))
+                        .fold(0.0, f64::max)
+                })
+                .fold(0.0, f64::max)
+        });
+        grid = Some((round_grid, rows));
+        context.report.bound_seconds += t_fit.elapsed().as_secs_f64();
+        if set.len() >= budget {
+            break ("budget", true);
+        }
+        if set.largest_indicator() < ADAPTIVE_TOLERANCE {
+            break ("converged", true);
+        }
+        let batch = ADAPTIVE_MIN_BATCH.max((ADAPTIVE_BATCH_FRACTION * set.len() as f64) as usize);
+        new_terms = set.refine(batch, budget, ADAPTIVE_TOLERANCE);
+        if new_terms.is_empty() {
+            break ("converged", true);
+        }
+    };
+    let (grid, row_of_point) = grid.expect("a complete round built a grid");
+    let set_of_grid = grid.set().clone();
+    let interactions = (0..set_of_grid.len())
+        .filter(|&t| set_of_grid.term(t).len() >= 2)
+        .count();
+    Ok(Some((
+        grid,
+        AdaptiveOutcome {
+            report: AdaptiveReport {
+                rounds,
+                runs: set_of_grid.len(),
+                budget,
+                max_degree: set_of_grid.max_degree(),
+                interactions,
+                largest_remaining_indicator: set.largest_indicator(),
+                stop,
+            },
+            values,
+            row_of_point,
+            complete,
+        },
+    )))
+}
+
+/// Per point of `grid` (built on `set`'s evaluated terms), the row of its run in the values.
+fn rows_of_points(grid: &SparseGrid, set: &AdaptiveSet) -> Result<Vec<usize>, StudyError> {
+    let mi = grid.set();
+    (0..mi.len())
+        .map(|t| {
+            let term: Vec<(usize, usize)> = mi
+                .term(t)
+                .iter()
+                .map(|f| (f.dim as usize, f.degree as usize))
+                .collect();
+            set.row_of(&term).ok_or(StudyError::Uq(UqError::Empty {
+                what: "adaptive design row of a grid term",
+            }))
+        })
+        .collect()
+}
+
+/// Record `r` of the runs `rows` (in that order), row-major `rows × outputs`.
+fn gather_record(values: &[Vec<f64>], rows: &[usize], r: usize, n_outputs: usize) -> Vec<f64> {
+    let mut record = Vec::with_capacity(rows.len() * n_outputs);
+    for &row in rows {
+        record.extend_from_slice(&values[row][r * n_outputs..(r + 1) * n_outputs]);
+    }
+    record
+}
+
+/// The Legendre coefficients of every record: `[record][term · outputs + output]`, by the grid's
+/// term order; `rows` maps the grid's points to rows of `values` ([`rows_of_points`]).
+fn fit_all_records(
+    grid: &SparseGrid,
+    rows: &[usize],
+    values: &[Vec<f64>],
+    n_outputs: usize,
+    threads: &rayon::ThreadPool,
+) -> Result<Vec<Vec<f64>>, StudyError> {
+    let n_records = values.first().map_or(0, |v| v.len() / n_outputs.max(1));
+    threads.install(|| {
+        (0..n_records)
+            .into_par_iter()
+            .map(|r| {
+                let record = gather_record(values, rows, r, n_outputs);
+                grid.fit().fit(&record, n_outputs).map_err(StudyError::Uq)
+            })
+            .collect()
+    })
+}
+
+/// Per output: its largest spread (max − min over the runs) over the records, or `None` when that
+/// is below the noise floor ([`ADAPTIVE_NOISE_FLOOR`]).
+fn output_spreads(values: &[Vec<f64>], n_outputs: usize) -> Vec<Option<f64>> {
+    let n_records = values.first().map_or(0, |v| v.len() / n_outputs.max(1));
+    (0..n_outputs)
+        .map(|o| {
+            let mut spread = 0.0_f64;
+            let mut magnitude = 0.0_f64;
+            for r in 0..n_records {
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for run in values {
+                    let v = run[r * n_outputs + o];
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                    magnitude = magnitude.max(v.abs());
+                }
+                spread = spread.max(hi - lo);
+            }
+            (spread.is_finite() && spread > ADAPTIVE_NOISE_FLOOR * (1.0 + magnitude))
+                .then_some(spread)
+        })
+        .collect()
+}

@@ -1,0 +1,149 @@
+//! The a-posteriori check's phase (docs/method.md §7): the true-model runs of a [`CheckPlan`]
+//! over the whole horizon; each run widens the envelopes (a true response in the box), and each
+//! checked prediction gives a misfit `|true − predicted|` at its output and record. Then, per
+//! output, the largest misfit against the envelope's width and the output's resolution decides
+//! whether its surrogate is trusted ([`trust_verdict`]), when the first miss came, and up to when
+//! the same checks pass.
+//!
+//! Does not: choose the points (`check.rs`: [`super::CheckCandidates`]), or say what to do about
+//! an untrusted surrogate (`check.rs`: [`super::untrusted_advice`]).
+
+use super::accumulator::Accumulator;
+use super::check::{
+    output_resolution, trust_verdict, CheckPlan, TrustVerdict, TRUST_RELATIVE_MISFIT,
+};
+use super::error::StudyError;
+use super::phase::PhaseContext;
+use super::report::CheckReport;
+use crate::simulate::hht_settings;
+
+/// Runs the check plan's points, widens the envelopes with them and measures the misfits.
+pub(super) fn check(
+    context: &mut PhaseContext<'_>,
+    check_plan: &CheckPlan,
+    accumulator: &mut Accumulator,
+) -> Result<CheckReport, StudyError> {
+    let n_outputs = accumulator.n_outputs;
+    let runs = check_plan.checks.len();
+    // Per record, the (run, output, predicted) checks made there.
+    let n_records = accumulator.times.len();
+    let mut by_record: Vec<Vec<(usize, usize, f64)>> = vec![Vec::new(); n_records];
+    for (run, checks) in check_plan.checks.iter().enumerate() {
+        for &(record, output, _side, predicted) in checks {
+            by_record[record].push((run, output, predicted));
+        }
+    }
+    let mut checked: Vec<(usize, usize, f64)> = Vec::new();
+    let mut misfit = vec![vec![0.0_f64; n_records]; n_outputs];
+    let policy = context.exclusion_policy("check run");
+    context.report.runs += runs;
+    let complete = context.run_phase(
+        "check",
+        &check_plan.points,
+        None,
+        policy,
+        &mut |block, _report| {
+            for r in 0..block.count {
+                let record = block.first + r;
+                for i in 0..runs {
+                    if block.lockstep.failed(i) {
+                        continue;
+                    }
+                    accumulator.widen(record, block.record(i, r));
+                }
+                for &(run, output, predicted) in &by_record[record] {
+                    if block.lockstep.failed(run) {
+                        continue;
+                    }
+                    let truth = block.record(run, r)[output];
+                    checked.push((output, record, truth));
+                    let m = &mut misfit[output][record];
+                    *m = m.max((truth - predicted).abs());
+                }
+            }
+            Ok(())
+        },
+    )?;
+    let mut max_misfit = vec![0.0; n_outputs];
+    let mut relative_misfit = vec![0.0; n_outputs];
+    let mut untrusted_outputs = Vec::new();
+    let mut below_resolution_outputs = Vec::new();
+    let settings = hht_settings(context.scene);
+    let mut resolution = Vec::with_capacity(n_outputs);
+    let mut widths = Vec::with_capacity(n_outputs);
+    for o in 0..n_outputs {
+        max_misfit[o] = misfit[o].iter().copied().fold(0.0, f64::max);
+        let (width, magnitude) = (0..n_records)
+            .map(|r| accumulator.points[r * n_outputs + o])
+            .fold((0.0_f64, 0.0_f64), |(width, magnitude), p| {
+                (
+                    width.max(p.upper - p.lower),
+                    magnitude.max(p.lower.abs()).max(p.upper.abs()),
+                )
+            });
+        widths.push(width);
+        let floor = output_resolution(&context.scene.outputs[o].kind, magnitude, &settings);
+        resolution.push(floor);
+        let (relative, verdict) = trust_verdict(max_misfit[o], width, floor);
+        relative_misfit[o] = relative;
+        match verdict {
+            TrustVerdict::Trusted => {}
+            TrustVerdict::BelowResolution => below_resolution_outputs.push(o),
+            TrustVerdict::Untrusted => untrusted_outputs.push(o),
+        }
+        for (r, &m) in misfit[o].iter().enumerate() {
+            let point = &mut accumulator.points[r * n_outputs + o];
+            if let Some(error) = &mut point.error {
+                *error = error.max(m);
+            }
+        }
+    }
+    let first_miss_record = untrusted_outputs
+        .iter()
+        .filter_map(|&o| {
+            misfit[o]
+                .iter()
+                .position(|&m| m > TRUST_RELATIVE_MISFIT * widths[o])
+        })
+        .min();
+    // The trust test of every prefix of the records, with running widths and misfits: the
+    // last prefix it passes is what the check would say of a run that ended there.
+    let mut passes_until_record = None;
+    let mut prefix_width = vec![0.0_f64; n_outputs];
+    let mut prefix_misfit = vec![0.0_f64; n_outputs];
+    for (r, points) in accumulator
+        .points
+        .chunks_exact(n_outputs.max(1))
+        .enumerate()
+    {
+        let mut passes = true;
+        for (o, point) in points.iter().enumerate() {
+            prefix_width[o] = prefix_width[o].max(point.upper - point.lower);
+            prefix_misfit[o] = prefix_misfit[o].max(misfit[o][r]);
+            let (_, verdict) = trust_verdict(prefix_misfit[o], prefix_width[o], resolution[o]);
+            passes &= verdict != TrustVerdict::Untrusted;
+        }
+        if passes {
+            passes_until_record = Some(r);
+        }
+    }
+    let checks_before_first_miss = checked
+        .iter()
+        .filter(|&&(_, record, _)| first_miss_record.is_none_or(|first| record < first))
+        .count();
+    Ok(CheckReport {
+        runs,
+        unique_candidates: check_plan.unique_candidates,
+        points: check_plan.points.clone(),
+        max_misfit,
+        relative_misfit,
+        untrusted_outputs,
+        resolution,
+        below_resolution_outputs,
+        complete,
+        checked,
+        first_miss_record,
+        checks_before_first_miss,
+        passes_until_record,
+    })
+}

@@ -1,0 +1,234 @@
+//! The design phase: the design's records — simulated here, read from a stage's record blocks,
+//! or, for the adaptive design, the values its rounds already made — fitted and bounded block by
+//! block into the envelopes ([`Bounder`]), with the predicted extremes collected for the check
+//! ([`CheckCandidates`]) and the surrogates' Sobol' indices ([`SobolSeries`]). Every design run,
+//! the nominal run and the screening's runs widen the envelopes and the hull of true runs.
+//!
+//! ```text
+//! per block: records (samples × outputs per record) ⇒ Bounder::bound_records ⇒ envelope points
+//!            ⇒ + nominal, screening hull ⇒ accumulator; argmin/argmax ⇒ candidates; indices
+//! ```
+//!
+//! Does not: choose the design (`study_plan.rs`, the screening and adaptive phases) or run the
+//! check (`check_phase.rs`).
+
+use super::accumulator::Accumulator;
+use super::adaptive_phase::AdaptiveOutcome;
+use super::bounds::{Bounder, EnvelopePoint};
+use super::check::{CheckCandidates, Side};
+use super::engine::RecordSource;
+use super::error::StudyError;
+use super::method::Method;
+use super::phase::PhaseContext;
+use super::plan::Plan;
+use super::schedule::RecordSchedule;
+use super::sobol_indices::{has_sobol_indices, SobolSeries};
+use super::stages::StageCursor;
+use std::time::Instant;
+
+/// What the design phase bounds, once the phases before it are done.
+pub(super) struct Design {
+    /// The design's sample points (for the adaptive design: its final interpolation grid).
+    pub plan: Plan,
+    /// The adaptive design's runs, already made by its rounds (`None`: the design is run here).
+    pub adapted: Option<AdaptiveOutcome>,
+    /// Min/max of the screening runs per record and output (empty without screening).
+    pub screen_hull: Vec<EnvelopePoint>,
+}
+
+/// What the design phase leaves for the check.
+pub(super) struct Bounded {
+    /// Whether every record time was bounded (false when interrupted).
+    pub complete: bool,
+    /// The surrogates' predicted extremes (empty unless the method locates them).
+    pub candidates: CheckCandidates,
+}
+
+/// Bounds `design` into `accumulator` (module documentation) with `method`; `locates_extremes`
+/// collects the predicted extremes for the check. Sets the report's condition number (sparse
+/// designs), largest total indices (sparse designs) and Sobol' series (surrogate methods).
+pub(super) fn bound_design(
+    context: &mut PhaseContext<'_>,
+    stages: &mut StageCursor,
+    design: &Design,
+    method: Method,
+    locates_extremes: bool,
+    accumulator: &mut Accumulator,
+) -> Result<Bounded, StudyError> {
+    let o = context.options;
+    let d = context.space.len();
+    let scene = context.scene;
+    let n_outputs = scene.outputs.len();
+    let schedule = RecordSchedule::of(scene);
+    let n_records = schedule.len();
+    let plan = &design.plan;
+    if let Plan::Sparse(design) = plan {
+        context.report.condition_number = Some(design.condition_number());
+    }
+    let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid)?;
+    let mut bounding = DesignBounding {
+        bounder: &bounder,
+        threads: context.threads,
+        n_outputs,
+        locates_extremes,
+        candidates: CheckCandidates::new(d),
+        sobol: SobolSeries::new(d, n_outputs),
+        screen_hull: &design.screen_hull,
+    };
+    let complete = match &design.adapted {
+        Some(outcome) => {
+            let t_bound = Instant::now();
+            let mut first = 0;
+            let block = context.report.block_records.max(1);
+            while first < n_records {
+                let count = block.min(n_records - first);
+                let values = |r: usize| outcome.record(first + r, n_outputs);
+                bounding.absorb(first, count, &values, &|_| false, accumulator)?;
+                first += count;
+            }
+            context.report.bound_seconds += t_bound.elapsed().as_secs_f64();
+            if !outcome.complete {
+                context.report.partial = true;
+            }
+            outcome.complete
+        }
+        None => {
+            let points = plan.points(d);
+            let nominal_xi = context.space.nominal_xi();
+            let mut simulated;
+            let mut recorded = stages.source("design", &points, true)?;
+            let source: &mut dyn RecordSource = match recorded.as_deref_mut() {
+                Some(source) => source,
+                None => {
+                    simulated = context.lockstep(&points, Some(&nominal_xi));
+                    &mut simulated
+                }
+            };
+            let Some(nominal_index) = source.nominal_index() else {
+                return Err(StudyError::BadOptions(
+                    "internal: the design's records hold no nominal run".to_string(),
+                ));
+            };
+            // The design's samples in plan order; the nominal run is named, not positional.
+            let plan_samples: Vec<usize> =
+                (0..source.len()).filter(|&i| i != nominal_index).collect();
+            let policy = context.design_failure_policy(method);
+            context.run_source("design", source, policy, &mut |block, report| {
+                let t_bound = Instant::now();
+                let lockstep = block.lockstep;
+                for r in 0..block.count {
+                    accumulator.push_nominal(
+                        schedule.time(block.first + r),
+                        block.record(nominal_index, r),
+                        lockstep.nominal_positions(r),
+                    );
+                }
+                let values = |r: usize| -> Vec<f64> {
+                    let mut row = Vec::with_capacity(plan_samples.len() * n_outputs);
+                    for &i in &plan_samples {
+                        row.extend_from_slice(lockstep.record(i, r));
+                    }
+                    row
+                };
+                let excluded = |i: usize| lockstep.failed(i);
+                bounding.absorb(block.first, block.count, &values, &excluded, accumulator)?;
+                report.bound_seconds += t_bound.elapsed().as_secs_f64();
+                Ok(())
+            })?
+        }
+    };
+    if matches!(plan, Plan::Sparse(_)) {
+        context.report.total_index_max = Some(bounding.sobol.total_index_max());
+    }
+    if has_sobol_indices(method) {
+        context.report.sobol = Some(bounding.sobol);
+    }
+    Ok(Bounded {
+        complete,
+        candidates: bounding.candidates,
+    })
+}
+
+/// The design's bounding: fits and bounds blocks of records into the accumulator, collecting the
+/// predicted extremes for the check and the surrogates' Sobol' indices.
+struct DesignBounding<'b> {
+    bounder: &'b Bounder,
+    threads: &'b rayon::ThreadPool,
+    n_outputs: usize,
+    locates_extremes: bool,
+    candidates: CheckCandidates,
+    /// The surrogates' Sobol' indices, record after record.
+    sobol: SobolSeries,
+    /// Min/max of the screening runs per record and output (empty without screening).
+    screen_hull: &'b [EnvelopePoint],
+}
+
+impl DesignBounding<'_> {
+    /// Bounds records `first..first + count` from the design's `values(r)` (row-major `samples ×
+    /// outputs`); `accumulator` already holds those records' times and nominal values.
+    fn absorb(
+        &mut self,
+        first: usize,
+        count: usize,
+        values: &(dyn Fn(usize) -> Vec<f64> + Sync),
+        excluded: &(dyn Fn(usize) -> bool + Sync),
+        accumulator: &mut Accumulator,
+    ) -> Result<(), StudyError> {
+        let n_outputs = self.n_outputs;
+        let bounded =
+            self.bounder
+                .bound_records(count, n_outputs, values, excluded, self.threads)?;
+        accumulator.points.extend_from_slice(&bounded.points);
+        self.sobol.extend(&bounded);
+        for r in 0..count {
+            let record = first + r;
+            // The design's runs (the bounds already contain them) into the hull of true runs.
+            let record_values = values(r);
+            for (sample, run) in record_values.chunks_exact(n_outputs.max(1)).enumerate() {
+                if !excluded(sample) {
+                    accumulator.widen_runs(record, run);
+                }
+            }
+            // The nominal run is a true response inside the box: the envelope contains it.
+            let nominal =
+                accumulator.nominal[record * n_outputs..(record + 1) * n_outputs].to_vec();
+            accumulator.widen(record, &nominal);
+            // The screening's runs are true responses too.
+            if let Some(hull) = self
+                .screen_hull
+                .get(record * n_outputs..(record + 1) * n_outputs)
+            {
+                let (lower, upper): (Vec<f64>, Vec<f64>) =
+                    hull.iter().map(|p| (p.lower, p.upper)).unzip();
+                accumulator.widen(record, &lower);
+                accumulator.widen(record, &upper);
+            }
+            if !self.locates_extremes {
+                continue;
+            }
+            for o in 0..n_outputs {
+                if let Some(extremes) = &bounded.extremes[r * n_outputs + o] {
+                    let point = &accumulator.points[record * n_outputs + o];
+                    let width = point.upper - point.lower;
+                    self.candidates.add(
+                        record,
+                        o,
+                        Side::Lower,
+                        &extremes.argmin,
+                        extremes.at_min,
+                        width,
+                    );
+                    self.candidates.add(
+                        record,
+                        o,
+                        Side::Upper,
+                        &extremes.argmax,
+                        extremes.at_max,
+                        width,
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,266 @@
+//! What a study hands back, and what it hands out while it runs: the shared result types that the
+//! phases fill and that `output/`, the study front end and `distributed/` read.
+//!
+//! ```text
+//! while it runs:  Progress after every block of every phase; BlockView of the finished envelopes
+//!                 (the sinks); PendingStage when a stage's records do not exist yet
+//! when it ends:   StudyReport (the Envelope, the runs, the CheckReport, the AdaptiveReport, the
+//!                 excluded samples as SampleFailure, the timings); DesignPart for a shard
+//! ```
+//!
+//! Plain data: nothing here runs a model or computes a bound.
+
+use super::auto::AutoChoice;
+use super::bounds::EnvelopePoint;
+use super::envelope::Envelope;
+use super::lyapunov::LyapunovEstimate;
+use super::method::Method;
+use super::screening::Screening;
+use super::sobol_indices::{SobolBlock, SobolSeries};
+use crate::effects::ContactStats;
+use crate::scene::Output;
+
+/// A sample that failed: where in the box, when, and why.
+#[derive(Clone, Debug)]
+pub struct SampleFailure {
+    /// Index of the sample in the plan (the nominal run is the last index).
+    pub index: usize,
+    /// Its point in standard coordinates.
+    pub xi: Vec<f64>,
+    /// Its parameter values.
+    pub values: Vec<f64>,
+    /// Time of the failure, s.
+    pub time_s: f64,
+    /// The record the sample was heading for when it failed: its values are missing from this
+    /// record on (a study leaves the sample out of the block holding this record and after).
+    pub record: usize,
+    /// What went wrong.
+    pub message: String,
+}
+
+/// A stage whose records do not exist yet, with the points the study chose for it
+/// (docs/distributed.md §7).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PendingStage {
+    /// The stage's number, from 1.
+    pub stage: usize,
+    /// Its phase (`design`, `screening`, `adaptive`).
+    pub phase: &'static str,
+    /// Its sample points, row-major `samples × d`.
+    pub points: Vec<f64>,
+    /// Whether its first shard also runs the nominal run.
+    pub nominal: bool,
+}
+
+impl PendingStage {
+    /// Design samples of the stage (the nominal run not counted), for `dim` parameters.
+    pub fn samples(&self, dim: usize) -> usize {
+        self.points.len() / dim.max(1)
+    }
+}
+
+/// One block of envelopes, as handed to the sink.
+pub struct BlockView<'a> {
+    /// Index of the block's first record.
+    pub first_record: usize,
+    /// Record times of the block, s.
+    pub times: &'a [f64],
+    /// `records × outputs` envelope points, record-major.
+    pub points: &'a [EnvelopePoint],
+    /// The nominal run's values, `records × outputs`.
+    pub nominal: &'a [f64],
+    /// The nominal run's configuration per record (`records × nq`).
+    pub nominal_positions: &'a [f64],
+    /// Surrogate methods: the block's Sobol' indices.
+    pub sobol: Option<SobolBlock<'a>>,
+}
+
+/// Progress after a block.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// The phase: `design` or `check`.
+    pub phase: &'static str,
+    /// Records done in this phase.
+    pub records_done: usize,
+    /// Records in all.
+    pub records_total: usize,
+    /// Model runs of this phase.
+    pub runs: usize,
+    /// Seconds since the start of the study.
+    pub elapsed_s: f64,
+}
+
+/// What the a-posteriori check did.
+#[derive(Clone, Debug)]
+pub struct CheckReport {
+    /// Runs made.
+    pub runs: usize,
+    /// Distinct predicted extremisers there were to choose from.
+    pub unique_candidates: usize,
+    /// The points run, in standard coordinates (`runs × d`, row-major).
+    pub points: Vec<f64>,
+    /// Per output: the largest `|true − predicted|` over its checked predictions, in its unit.
+    pub max_misfit: Vec<f64>,
+    /// Per output: `max_misfit` over the output's largest envelope width (0 where the width is 0).
+    pub relative_misfit: Vec<f64>,
+    /// Outputs whose relative misfit exceeds [`super::TRUST_RELATIVE_MISFIT`] and whose misfit
+    /// exceeds [`super::TRUST_RESOLUTION_FACTOR`] times their resolution: their surrogate cannot
+    /// be trusted (the envelope still contains every true run).
+    pub untrusted_outputs: Vec<usize>,
+    /// Per output: how finely the true model resolves it ([`super::output_resolution`]; `None`:
+    /// no floor).
+    pub resolution: Vec<Option<f64>>,
+    /// Outputs whose relative misfit exceeds [`super::TRUST_RELATIVE_MISFIT`] but whose misfit is
+    /// within their resolution: envelopes at the integrator's noise level (a planar robot's
+    /// out-of-plane coordinate), not a failed surrogate.
+    pub below_resolution_outputs: Vec<usize>,
+    /// Whether the check ran over the whole horizon (false when interrupted).
+    pub complete: bool,
+    /// Every checked prediction: `(output, record, true value)` at the record time where the
+    /// surrogate put an extreme (for plots: true runs on the envelope's edge).
+    pub checked: Vec<(usize, usize, f64)>,
+    /// The first record at which a check of an untrusted output missed by more than
+    /// [`super::TRUST_RELATIVE_MISFIT`] of the output's width (`None` when every output is
+    /// trusted).
+    pub first_miss_record: Option<usize>,
+    /// Checks made at records before [`CheckReport::first_miss_record`] (all of them when it is
+    /// `None`): each agreed within the tolerance or the output's resolution.
+    pub checks_before_first_miss: usize,
+    /// The last record `R` at which the check, comparing only the misfits and widths of records
+    /// `0..=R`, trusts every output — what the check would say of a run that ended there (the last
+    /// record exactly when every output is trusted; `None` when no prefix passes).
+    pub passes_until_record: Option<usize>,
+}
+
+/// What the adaptive design did, for the summary.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AdaptiveReport {
+    /// Rounds run (round 0, the start, included).
+    pub rounds: usize,
+    /// Design runs (terms), the nominal run not included.
+    pub runs: usize,
+    /// The budget of design runs.
+    pub budget: usize,
+    /// Highest degree of any one parameter.
+    pub max_degree: usize,
+    /// Terms with two or more parameters (interactions found).
+    pub interactions: usize,
+    /// Largest indicator left among the candidates not run (relative to the output's spread).
+    pub largest_remaining_indicator: f64,
+    /// Why it stopped: `converged`, `budget` or `interrupted`.
+    pub stop: &'static str,
+}
+
+/// What a study did.
+#[derive(Clone, Debug)]
+pub struct StudyReport {
+    /// The envelopes.
+    pub envelope: Envelope,
+    /// Model runs, the nominal one and the check runs included.
+    pub runs: usize,
+    /// Samples left out with `keep_going`.
+    pub excluded: Vec<SampleFailure>,
+    /// Whether the study stopped early (interrupted): the envelopes cover the times done.
+    pub partial: bool,
+    /// Seconds spent simulating.
+    pub simulate_seconds: f64,
+    /// Seconds spent fitting and bounding.
+    pub bound_seconds: f64,
+    /// Newton iterations of all samples.
+    pub newton_iterations: u64,
+    /// Steps of all samples.
+    pub steps: u64,
+    /// Worker threads used.
+    pub threads: usize,
+    /// Record times per block of the design phase.
+    pub block_records: usize,
+    /// The a-posteriori check, when the method has one.
+    pub check: Option<CheckReport>,
+    /// The method that ran (`auto` resolved).
+    pub method: Method,
+    /// The design's name (see [`super::StudyPlan::design_name`]).
+    pub design: &'static str,
+    /// What `auto` chose and why.
+    pub auto: Option<AutoChoice>,
+    /// The screening, when there was one.
+    pub screening: Option<Screening>,
+    /// The dimensions from the most important, when a screening ranked them.
+    pub ranking: Option<Vec<usize>>,
+    /// Sparse designs: per dimension, the largest total Sobol' index over outputs and record times
+    /// of the surrogates, with the output and record where it occurs.
+    pub total_index_max: Option<Vec<(f64, usize, usize)>>,
+    /// Surrogate methods: the main and total Sobol' indices of every output at every record time
+    /// (docs/sobol-indices.md).
+    pub sobol: Option<SobolSeries>,
+    /// Sparse designs: the condition number of the design's basis matrix.
+    pub condition_number: Option<f64>,
+    /// The adaptive design's rounds, when it ran.
+    pub adaptive: Option<AdaptiveReport>,
+    /// The largest Lyapunov exponent of the nominal motion (two extra runs: the nominal
+    /// parameters and a shadow with a perturbed state; `None` when either failed or the study was
+    /// interrupted before).
+    pub lyapunov: Option<LyapunovEstimate>,
+    /// The contact counters of all runs, summed (the deepest penetration: the largest;
+    /// docs/contacts.md §4); `None` when the scene declares no contacts.
+    pub contacts: Option<ContactStats>,
+}
+
+impl StudyReport {
+    /// A report with no runs and empty envelopes over `outputs`, for a study of `method` on
+    /// `threads` worker threads.
+    pub fn empty(outputs: Vec<Output>, threads: usize, method: Method) -> StudyReport {
+        StudyReport {
+            envelope: Envelope {
+                outputs,
+                times: Vec::new(),
+                lower: Vec::new(),
+                upper: Vec::new(),
+                nominal: Vec::new(),
+                error: None,
+                outer: None,
+                runs_lower: Vec::new(),
+                runs_upper: Vec::new(),
+            },
+            runs: 0,
+            excluded: Vec::new(),
+            partial: false,
+            simulate_seconds: 0.0,
+            bound_seconds: 0.0,
+            newton_iterations: 0,
+            steps: 0,
+            threads,
+            block_records: 0,
+            check: None,
+            lyapunov: None,
+            contacts: None,
+            method,
+            design: "",
+            auto: None,
+            screening: None,
+            ranking: None,
+            total_index_max: None,
+            sobol: None,
+            condition_number: None,
+            adaptive: None,
+        }
+    }
+}
+
+/// What simulating a part of a design did (`Study::simulate_design_part`, one shard of
+/// `ribbon run`).
+#[derive(Clone, Debug)]
+pub struct DesignPart {
+    /// Whether every record time was simulated (false when interrupted).
+    pub complete: bool,
+    /// Samples left out under `--keep-going`, by their index in the whole design (the nominal
+    /// run, which may not fail, never appears).
+    pub failures: Vec<SampleFailure>,
+    /// Newton iterations of the part's runs.
+    pub newton_iterations: u64,
+    /// Steps of the part's runs.
+    pub steps: u64,
+    /// Contact counters of the part's runs, summed; `None` when the scene declares no contacts.
+    pub contacts: Option<ContactStats>,
+    /// Seconds spent simulating.
+    pub simulate_seconds: f64,
+}

@@ -1,0 +1,284 @@
+//! The one driver of `analyze` and `merge`: a [`StudyRequest`] from its outputs checked to its
+//! results written, the same stages and sinks whether the design's records are simulated here
+//! (`analyze`) or read from the shards' record blocks (`merge`).
+//!
+//! ```text
+//! check the outputs ⇒ load (Setup) ⇒ options ⇒ --report DIR checked ⇒ memory check ⇒ plan
+//!   ⇒ "analyze: …" on stderr ⇒ MCAP log opened ⇒ the study's phases (progress on stderr; the
+//!     finished envelopes into the log, block by block) ⇒ no NaN or infinity ⇒ warnings
+//!   ⇒ summary, CSV, log closed, report page ⇒ statistics on stderr ⇒ the table on stdout
+//!   ⇒ exit: 1 when interrupted, 4 when the check did not trust a surrogate
+//! ```
+//!
+//! Does not: parse command lines (`cli/`), run phases (`analysis/`), or format files (`output/`).
+
+use super::install_interrupt;
+use super::options::{order_of, study_options, SceneInputs, StudyRequest};
+use super::plan_match::check_plan_matches;
+use super::progress::ProgressReporter;
+use super::report_page::{prepare_report, write_report, ReportText};
+use super::table::table;
+use super::warnings::{untrusted, warn, StudyWarnings};
+use crate::analysis::{
+    has_sobol_indices, sobol_values_per_record, Envelope, ForeignError, Method, SimulateHere,
+    StageRecords, Study, StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET,
+};
+use crate::distributed::{PlanFile, ShardStages};
+use crate::dynamics::Data;
+use crate::output::mcap::McapMetadata;
+use crate::output::{
+    check_command_outputs, check_finite, peak_memory, write_csv, write_stdout, EnvelopeLog,
+    ParameterSummary, Summary,
+};
+use crate::scene::Scene;
+use crate::setup::{print_message, Setup};
+use crate::uncertainty::ParameterSpace;
+use crate::Error;
+use std::path::Path;
+use std::time::Instant;
+
+/// The design's records of a merge: the plan and the directory of its shards' record blocks.
+pub struct MergeInput<'a> {
+    /// The plan file.
+    pub plan: &'a PlanFile,
+    /// Its path.
+    pub plan_path: &'a Path,
+    /// The directory holding the record blocks.
+    pub dir: &'a Path,
+}
+
+/// Loads the URDF and its sidecar (`uncertainty`, or `ROBOT.uncertainty.toml` beside the URDF),
+/// resolves the scene and the parameter box, checks that the nominal model can start the scene
+/// (exit 2 naming the joints when it cannot), and prints the warnings ([`Setup::load`]).
+pub fn prepare(scene: &SceneInputs) -> Result<Setup, Error> {
+    Setup::load(&scene.request(), &mut print_message)
+}
+
+/// `analyze` (`merge` is `None`: the design is simulated here) or `merge` (the design's records are
+/// read from the shards): the same stages and sinks either way (module documentation).
+pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<(), Error> {
+    let started = Instant::now();
+    let outputs = &request.outputs;
+    check_command_outputs(
+        &request.scene.urdf,
+        Some(&request.scene.sidecar_path()),
+        &outputs.files(),
+    )?;
+    install_interrupt();
+    let Setup {
+        sidecar_path,
+        sidecar,
+        model,
+        scene,
+        space,
+    } = prepare(&request.scene)?;
+    let options = study_options(&request.flags, &sidecar.analysis)?;
+    let report_stems = prepare_report(&request.scene.urdf, outputs, &sidecar_path, &scene)?;
+    // Kept per record time: the envelope (time; lower, upper, nominal and an error estimate per
+    // output) and, with --summary, its five copies per output; plus one block of samples.
+    // Surrogate studies also keep their Sobol' indices (and, with --summary, a copy).
+    let sobol = sobol_values_per_record(options.method, space.len());
+    let per_output = 4
+        + sobol
+        + if outputs.summary.is_some() {
+            5 + sobol
+        } else {
+            0
+        };
+    scene.check_memory(
+        "analyze",
+        (1 + scene.outputs.len() * per_output) as u64,
+        (BLOCK_VALUE_BUDGET * 8) as u64,
+    )?;
+    let robot = model.name().to_string();
+    let study = Study::new(&model, &scene, &space, options.clone());
+    let plan = study.plan()?;
+    // Where the records of each stage come from: simulated here, or the shards' record blocks.
+    let mut simulate_here = SimulateHere;
+    let mut shard_stages;
+    let stages: &mut dyn StageRecords = match &merge {
+        Some(input) => {
+            check_plan_matches(input.plan, input.plan_path, &study, &plan)?;
+            shard_stages = ShardStages::new(input.plan, input.plan_path, input.dir);
+            &mut shard_stages
+        }
+        None => &mut simulate_here,
+    };
+    announce(&plan, &options, &space, &scene);
+
+    let interrupt = crate::interrupt::flag();
+    let metadata = McapMetadata {
+        robot: robot.clone(),
+        method: plan.method.name().to_string(),
+        order: order_of(plan.method, &options),
+        runs: plan.max_runs(),
+        parameters_json: serde_json::to_string(&ParameterSummary::of_space(&space))
+            .unwrap_or_else(|_| "[]".to_string()),
+    };
+    let mut log = match &outputs.out {
+        Some(path) => Some(EnvelopeLog::create(
+            path,
+            &request.scene.urdf,
+            Some(&sidecar_path),
+            metadata,
+            &scene.outputs,
+            plan.method.family().is_some() || plan.method == Method::Taylor,
+        )?),
+        None => None,
+    };
+    if let (Some(log), true) = (log.as_mut(), has_sobol_indices(plan.method)) {
+        let names: Vec<String> = space.dimensions().iter().map(|d| d.name.clone()).collect();
+        log.add_sobol_channels(&names)?;
+    }
+    let kinematic_model = model;
+    let mut data = Data::new(&kinematic_model);
+    let mut reporter = ProgressReporter::new();
+    let scans_a_surrogate = plan.method.locates_extremes();
+    let report = study.run_stages(
+        plan,
+        stages,
+        interrupt,
+        &mut |progress| reporter.report(progress),
+        &mut |block| match log.as_mut() {
+            Some(log) => log
+                .write_block(block, &kinematic_model, &mut data)
+                .map_err(ForeignError::new),
+            None => Ok(()),
+        },
+    )?;
+    reporter.finish();
+    let wall_seconds = started.elapsed().as_secs_f64();
+    check_envelope_finite(&report.envelope)?;
+    let StudyWarnings {
+        warnings,
+        excursions,
+        advice,
+    } = warn(
+        &report,
+        &kinematic_model,
+        &scene,
+        space.len(),
+        scans_a_surrogate,
+    );
+
+    if let Some(path) = &outputs.summary {
+        let order = order_of(report.method, &options);
+        Summary::of_study(&robot, order, &space, &report, excursions, wall_seconds).write(path)?;
+    }
+    if let Some(path) = &outputs.csv {
+        write_envelope_csv(path, &report.envelope)?;
+    }
+    let foxglove_layout = log.as_ref().map(EnvelopeLog::foxglove_layout);
+    if let Some(mut log) = log.take() {
+        log.metadata_mut().runs = report.runs;
+        log.finish(report.partial)?;
+    }
+    let table_text = table(&options, &space, &report, wall_seconds);
+    if let (Some(dir), Some(stems)) = (&outputs.report, &report_stems) {
+        write_report(
+            dir,
+            &robot,
+            &report,
+            &ReportText {
+                table: &table_text,
+                warnings: &warnings,
+            },
+            stems,
+            foxglove_layout,
+        )?;
+    }
+    print_statistics(&report, wall_seconds);
+    write_stdout(&table_text)?;
+    if report.partial {
+        let done = crate::text::message_time(report.envelope.times.last().copied().unwrap_or(0.0));
+        return Err(Error::Interrupted(format!(
+            "stopped after t = {done} s of {} s; the envelopes computed so far were written (MCAP marked partial)",
+            scene.duration_s
+        )));
+    }
+    match (&report.check, advice) {
+        (Some(check), Some(advice)) => Err(untrusted(&report, check, advice)),
+        _ => Ok(()),
+    }
+}
+
+/// The study's plan on stderr: parameters, method, design, runs and horizon; what `auto` chose.
+fn announce(plan: &StudyPlan, options: &StudyOptions, space: &ParameterSpace, scene: &Scene) {
+    eprintln!(
+        "analyze: {} parameters, method {}{} ({}), design {}, {}{} model runs{} of {} s at h = {} s",
+        space.len(),
+        plan.method.name(),
+        if options.method == Method::Auto { " (auto)" } else { "" },
+        plan.method.bound_kind(),
+        plan.design_name,
+        if plan.screening_runs > 0 {
+            format!("{} screening + ", plan.screening_runs)
+        } else {
+            String::new()
+        },
+        plan.design_runs,
+        if plan.check_runs > 0 {
+            format!(" + up to {} check runs", plan.check_runs)
+        } else {
+            String::new()
+        },
+        scene.duration_s,
+        scene.step_s
+    );
+    if let Some(auto) = &plan.auto {
+        eprintln!("auto: {}", auto.reason);
+    }
+}
+
+/// The study's runs, steps, timings, threads, block size and peak memory on stderr.
+fn print_statistics(report: &StudyReport, wall_seconds: f64) {
+    eprintln!(
+        "{} runs, {} steps, {} Newton iterations ({:.2} per step); simulate {:.3} s, fit + bound {:.3} s ({:.1} % of the total), {} threads, {} records per block; wall {:.3} s{}",
+        report.runs,
+        report.steps,
+        report.newton_iterations,
+        report.newton_iterations as f64 / report.steps.max(1) as f64,
+        report.simulate_seconds,
+        report.bound_seconds,
+        100.0 * report.bound_seconds / wall_seconds.max(1e-12),
+        report.threads,
+        report.block_records,
+        wall_seconds,
+        peak_memory().map_or(String::new(), |bytes| format!("; peak memory {:.1} MiB", bytes as f64 / 1048576.0)),
+    );
+}
+
+/// The envelope's series as `NAME.lower`, `NAME.nominal`, `NAME.upper` per output and, with
+/// `with_error`, `NAME.error_estimate` where the envelope has one.
+fn envelope_columns(e: &Envelope, with_error: bool) -> (Vec<String>, Vec<&[f64]>) {
+    let mut names = Vec::with_capacity(4 * e.outputs.len());
+    let mut columns: Vec<&[f64]> = Vec::with_capacity(4 * e.outputs.len());
+    for (o, output) in e.outputs.iter().enumerate() {
+        names.push(format!("{}.lower", output.name));
+        names.push(format!("{}.nominal", output.name));
+        names.push(format!("{}.upper", output.name));
+        columns.push(&e.lower[o]);
+        columns.push(&e.nominal[o]);
+        columns.push(&e.upper[o]);
+        if let (true, Some(errors)) = (with_error, &e.error) {
+            names.push(format!("{}.error_estimate", output.name));
+            columns.push(&errors[o]);
+        }
+    }
+    (names, columns)
+}
+
+/// Refuses envelopes that hold a NaN or infinity (exit 1, naming the output and time) before
+/// anything is written or printed.
+fn check_envelope_finite(envelope: &Envelope) -> Result<(), Error> {
+    let (names, columns) = envelope_columns(envelope, true);
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    Ok(check_finite("analyze", &names, &envelope.times, &columns)?)
+}
+
+/// `--csv`: `t`, then `NAME.lower`, `NAME.nominal`, `NAME.upper` per output.
+fn write_envelope_csv(path: &Path, envelope: &Envelope) -> Result<(), Error> {
+    let (names, columns) = envelope_columns(envelope, false);
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    Ok(write_csv(path, &envelope.times, &names, &columns)?)
+}

@@ -1,0 +1,134 @@
+//! The stdout table of a study: per output its largest envelope width with when and where, the
+//! line of the method, its design, runs and check, the adaptive design's rounds, the Sobol'
+//! contributors and the most influential parameters. The same text heads the report page.
+//!
+//! Does not: print it (the caller writes it after the outputs), or compute anything the report
+//! does not hold.
+
+use super::options::order_of;
+use crate::analysis::{StudyOptions, StudyReport, ADAPTIVE_TOLERANCE, TABLE_SOBOL_CONTRIBUTORS};
+use crate::output::SensitivitySummary;
+use crate::uncertainty::ParameterSpace;
+
+/// The table of `report` (a study with `options` over `space`) that took `wall_seconds`.
+pub fn table(
+    options: &StudyOptions,
+    space: &ParameterSpace,
+    report: &StudyReport,
+    wall_seconds: f64,
+) -> String {
+    let e = &report.envelope;
+    let width = crate::text::name_column_width(e.outputs.iter().map(|o| o.name.as_str()));
+    let mut text = format!(
+        "{:<width$}  {:>8}  {:>13}  {:>9}  {:>13}  {:>13}\n",
+        "output", "unit", "max width", "at t (s)", "lower there", "upper there"
+    );
+    for (o, output) in e.outputs.iter().enumerate() {
+        let (k, w) = e.lower[o]
+            .iter()
+            .zip(&e.upper[o])
+            .map(|(l, u)| u - l)
+            .enumerate()
+            .fold((0, f64::NEG_INFINITY), |best, (k, w)| {
+                if w > best.1 {
+                    (k, w)
+                } else {
+                    best
+                }
+            });
+        text.push_str(&format!(
+            "{:<width$}  {:>8}  {:>13.6e}  {:>9.3}  {:>13.6e}  {:>13.6e}\n",
+            output.name,
+            output.unit,
+            w,
+            e.times.get(k).copied().unwrap_or(f64::NAN),
+            e.lower[o].get(k).copied().unwrap_or(f64::NAN),
+            e.upper[o].get(k).copied().unwrap_or(f64::NAN),
+        ));
+    }
+    text.push_str(&format!(
+        "method {} ({} bounds{}, design {}), {} model runs{}, {:.3} s wall{}\n",
+        report.method.name(),
+        report.method.bound_kind(),
+        order_of(report.method, options).map_or(String::new(), |k| format!(", order {k}")),
+        report.design,
+        report.runs,
+        report.check.as_ref().map_or(String::new(), |c| {
+            // Outputs within the integrator's resolution are noise, not the surrogate's misfit.
+            let worst = c
+                .relative_misfit
+                .iter()
+                .enumerate()
+                .filter(|(o, _)| !c.below_resolution_outputs.contains(o))
+                .map(|(_, &m)| m)
+                .fold(0.0, f64::max);
+            format!(
+                " ({} of them checking the surrogate's extremes: largest misfit {:.2e} of the width{}{})",
+                c.runs,
+                worst,
+                if c.below_resolution_outputs.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        " outside {} output(s) within the integrator's resolution",
+                        c.below_resolution_outputs.len()
+                    )
+                },
+                if c.untrusted_outputs.is_empty() { "" } else { ", NOT TRUSTED" }
+            )
+        }),
+        wall_seconds,
+        if report.excluded.is_empty() {
+            String::new()
+        } else {
+            format!(", {} samples excluded", report.excluded.len())
+        }
+    ));
+    if let Some(a) = &report.adaptive {
+        text.push_str(&format!(
+            "adaptive design: {} runs in {} rounds ({}), {} interaction terms, degree up to {}, largest term left {:.1e} of an output's spread\n",
+            a.runs,
+            a.rounds,
+            match a.stop {
+                "converged" => format!("converged below {ADAPTIVE_TOLERANCE:e}"),
+                "budget" => format!("stopped by the budget of {} runs", a.budget),
+                other => other.to_string(),
+            },
+            a.interactions,
+            a.max_degree,
+            a.largest_remaining_indicator
+        ));
+    }
+    if let Some(series) = &report.sobol {
+        let names: Vec<String> = space.dimensions().iter().map(|d| d.name.clone()).collect();
+        text.push_str(&series.table(e, &names, TABLE_SOBOL_CONTRIBUTORS));
+    }
+    if let Some(rows) = SensitivitySummary::of_study(space, report) {
+        text.push_str(&format!(
+            "most influential parameters (of {}):\n",
+            rows.len()
+        ));
+        for row in rows.iter().take(TABLE_SENSITIVITIES) {
+            let mut parts = Vec::new();
+            if let (Some(slope), Some(output)) = (row.relative_slope, &row.slope_output) {
+                parts.push(format!(
+                    "slope × half-width {:.1} % of the width of {output}",
+                    100.0 * slope
+                ));
+            }
+            if let (Some(index), Some(output)) = (row.total_index, &row.total_index_output) {
+                parts.push(format!("total Sobol' index {index:.3} on {output}"));
+            }
+            text.push_str(&format!(
+                "  {:>3}. {}: {}\n",
+                row.rank,
+                row.name,
+                parts.join("; ")
+            ));
+        }
+    }
+    text
+}
+
+/// Parameters listed in the stdout table's ranking.
+const TABLE_SENSITIVITIES: usize = 5;
