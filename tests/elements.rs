@@ -313,3 +313,66 @@ fn elements_are_refused_for_methods_they_cannot_split() {
     assert_eq!(outcome.code, Some(2), "{}", outcome.stderr);
     assert!(outcome.stderr.contains("auto"), "{}", outcome.stderr);
 }
+
+/// Element rounds are stages of a plan (docs/distributed.md §7): `plan`, `run` and `merge` of
+/// the planted kink ask for the round's stage (exit 3, its stage plan beside the blocks), run it
+/// in shards like any stage, and merge into the bytes `analyze` writes.
+#[test]
+fn plan_run_and_merge_of_elements_are_the_bytes_of_analyze() {
+    let (urdf, dir) = planted_kink("shards");
+    let urdf = urdf.to_str().unwrap();
+    let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let (plan, shards) = (path("stop.plan"), path("shards"));
+    let planned = ribbon_outcome(&["plan", urdf, "--plan", &plan]);
+    assert_eq!(planned.code, Some(0), "{}", planned.stderr);
+    let mut stages_planned = 0;
+    loop {
+        for shard in ["0/2", "1/2"] {
+            let run = ribbon_outcome(&["run", &plan, "--shard", shard, "--into", &shards]);
+            assert_eq!(run.code, Some(0), "{}", run.stderr);
+        }
+        let merged = ribbon_outcome(&[
+            "merge",
+            &plan,
+            &shards,
+            "--summary",
+            &path("merge.json"),
+            "--csv",
+            &path("merge.csv"),
+        ]);
+        match merged.code {
+            Some(3) => {
+                assert!(
+                    merged.stdout.contains("a round of elements"),
+                    "{}",
+                    merged.stdout
+                );
+                stages_planned += 1;
+                assert!(stages_planned < 10, "merge keeps asking for stages");
+            }
+            Some(0) => break,
+            other => panic!("merge exited {other:?}: {}", merged.stderr),
+        }
+    }
+    assert!(
+        stages_planned >= 1,
+        "the kink needs at least one round of elements"
+    );
+    let analyzed = ribbon_outcome(&[
+        "analyze",
+        urdf,
+        "--summary",
+        &path("analyze.json"),
+        "--csv",
+        &path("analyze.csv"),
+    ]);
+    assert_eq!(analyzed.code, Some(0), "{}", analyzed.stderr);
+    assert!(
+        std::fs::read(path("merge.csv")).unwrap() == std::fs::read(path("analyze.csv")).unwrap(),
+        "merge's CSV differs from analyze's"
+    );
+    assert_eq!(
+        masked_summary_file(&dir.join("merge.json")),
+        masked_summary_file(&dir.join("analyze.json"))
+    );
+}

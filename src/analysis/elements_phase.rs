@@ -26,7 +26,7 @@ use super::error::StudyError;
 use super::method::Method;
 use super::phase::PhaseContext;
 use super::plan::Plan;
-use super::refine_phase::{refine_extremes, RefineTarget};
+use super::refine_phase::{refine_extremes, refine_reserve, RefineTarget};
 use super::report::{ElementSummary, ElementsReport};
 use super::sobol_indices::SobolSeries;
 use super::sparse::SparseDesign;
@@ -197,6 +197,12 @@ pub(super) fn split_into_elements(
         complete: first_check.complete,
     };
     let runs_before = context.report.runs;
+    // Runs set aside for refining the extremes of what stays untrusted.
+    let reserve = refine_reserve(
+        d,
+        first_check.untrusted_outputs.len(),
+        context.options.max_runs,
+    );
     let mut rounds = 0;
     let stop = loop {
         let union = tree.union(&|r, o| accumulator.run_hull(r, o));
@@ -204,7 +210,10 @@ pub(super) fn split_into_elements(
         if tree.failing_leaves(&scales).is_empty() {
             break "trusted";
         }
-        let budget = context.options.max_runs.saturating_sub(context.report.runs);
+        let budget = context
+            .options
+            .max_runs
+            .saturating_sub(context.report.runs + reserve);
         let planned = match planned_round(
             &tree,
             &scales,
@@ -232,7 +241,10 @@ pub(super) fn split_into_elements(
     // true runs give (the envelope takes in every value found).
     if !check.untrusted_outputs.is_empty() && stop != "interrupted" {
         let targets = refine_targets(&tree, &check.untrusted_outputs, accumulator);
-        if let Some(refinement) = refine_extremes(context, &targets, accumulator, &mut misfit)? {
+        let budget = context.options.max_runs.saturating_sub(context.report.runs);
+        if let Some(refinement) =
+            refine_extremes(context, &targets, budget, accumulator, &mut misfit)?
+        {
             accumulator.widen_to_runs();
             check = judge(scene, runs, &misfit, accumulator);
             context.report.refinement = Some(refinement);

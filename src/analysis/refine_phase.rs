@@ -36,13 +36,27 @@ pub(super) struct RefineTarget {
     pub start: Vec<f64>,
 }
 
-/// Runs the searches of `targets` on the true model (module documentation); every run widens
-/// the hull of true runs in `accumulator`, and `misfit[o][r]` takes in how far a found value lies
-/// beyond the envelope point `accumulator.points` held before. Returns the account, or `None`
-/// when interrupted (the runs made still widen the hull).
+/// Most of a study's `--max-runs` the elements leave for refining the extremes: a quarter.
+pub const REFINE_BUDGET_FRACTION: f64 = 0.25;
+
+/// The runs set aside for refining `outputs` untrusted outputs' extremes in `dim` dimensions
+/// within `max_runs`: a full search of both sides of each (its start and
+/// `ExtremeSearchSettings::max_iterations` trials, each with its `2d` differences), at most
+/// [`REFINE_BUDGET_FRACTION`] of `max_runs`.
+pub(super) fn refine_reserve(dim: usize, outputs: usize, max_runs: usize) -> usize {
+    let per_search = (1 + ExtremeSearchSettings::default().max_iterations) * (2 * dim + 1);
+    (2 * outputs * per_search).min((REFINE_BUDGET_FRACTION * max_runs as f64) as usize)
+}
+
+/// Runs the searches of `targets` on the true model (module documentation) while a whole batch
+/// fits in `budget` runs; every run widens the hull of true runs in `accumulator`, and
+/// `misfit[o][r]` takes in how far a found value lies beyond the envelope point
+/// `accumulator.points` held before. Returns the account, or `None` when interrupted (the runs
+/// made still widen the hull).
 pub(super) fn refine_extremes(
     context: &mut PhaseContext<'_>,
     targets: &[RefineTarget],
+    budget: usize,
     accumulator: &mut Accumulator,
     misfit: &mut [Vec<f64>],
 ) -> Result<Option<RefinementReport>, StudyError> {
@@ -73,7 +87,7 @@ pub(super) fn refine_extremes(
     let mut batches = 0;
     loop {
         let probes = search.next_probes();
-        if probes.is_empty() {
+        if probes.is_empty() || runs + probes.len() > budget {
             break;
         }
         let points: Vec<f64> = probes.iter().flat_map(|p| p.point.clone()).collect();

@@ -33,7 +33,8 @@ pub struct StageBody {
     pub previous_stage_hash: String,
     /// The stage's number, from 2 (stage 1 is the study plan).
     pub stage: usize,
-    /// Its phase: `design` (of a screened design) or `adaptive` (a round).
+    /// Its phase: `design` (of a screened design), `adaptive` (a round) or `elements` (a round
+    /// of splitting the box, docs/method.md §12).
     pub phase: String,
     /// Whether its first shard also runs the nominal run.
     pub nominal: bool,
@@ -214,9 +215,11 @@ impl Stage {
         )
     }
 
-    /// Stage `number` of the staged `plan` with its stage plans under `dir`, checking the chain of
-    /// hashes from the study plan to it (each stage plan names the study plan and the stage
-    /// before).
+    /// Stage `number` of `plan` with its stage plans under `dir`, checking the chain of hashes
+    /// from the study plan to it (each stage plan names the study plan and the stage before).
+    /// Stages after the first are a staged design's later rounds, or the element rounds of a
+    /// study whose first check did not trust its surrogate (docs/method.md §12), for a fixed
+    /// design too.
     pub fn resolve(
         plan: &PlanFile,
         plan_path: &Path,
@@ -226,15 +229,6 @@ impl Stage {
         let mut stage = Stage::first(plan, plan_path, dir);
         if number <= 1 {
             return Ok(stage);
-        }
-        if plan.body.staged.is_none() {
-            return Err(ShardError::Plan {
-                path: plan_path.to_path_buf(),
-                message: format!(
-                    "its {} design runs in one stage, so there is no stage {number}",
-                    plan.body.design
-                ),
-            });
         }
         let dim = plan.body.parameters.len();
         for k in 2..=number {
@@ -288,11 +282,9 @@ impl Stage {
     }
 
     /// The last stage planned under `dir` for `plan`: the highest k with `DIR/stage-k/stage.plan`
-    /// (counting up from 2 without gaps), else 1.
-    pub fn latest_number(plan: &PlanFile, dir: &Path) -> usize {
-        if plan.body.staged.is_none() {
-            return 1;
-        }
+    /// (counting up from 2 without gaps), else 1. (The plan is not needed to count: any study may
+    /// have later stages, docs/method.md §12.)
+    pub fn latest_number(_plan: &PlanFile, dir: &Path) -> usize {
         let mut k = 1;
         while stage_directory(dir, k + 1).join(STAGE_PLAN_FILE).exists() {
             k += 1;

@@ -27,16 +27,7 @@ impl<'p> ShardStages<'p> {
     }
 
     fn source(&mut self, request: &StageRequest) -> Result<StageSource, ShardError> {
-        let staged = self.plan.body.staged.is_some();
-        if !staged && request.stage > 1 {
-            return Err(ShardError::Plan {
-                path: self.plan_path.clone(),
-                message: format!(
-                    "internal: the {} design reached a stage {}",
-                    self.plan.body.design, request.stage
-                ),
-            });
-        }
+        let staged = self.plan.body.staged.is_some() || request.stage > 1;
         if request.stage > 1
             && !stage_directory(&self.dir, request.stage)
                 .join(STAGE_PLAN_FILE)
@@ -98,7 +89,7 @@ impl ShardStages<'_> {
     fn check_planned_from(&self, stage: &Stage, set: &ShardSet) -> Result<(), ShardError> {
         let next = stage.number + 1;
         let planned = stage_directory(&self.dir, next).join(STAGE_PLAN_FILE);
-        if !stage.staged || !planned.exists() {
+        if !planned.exists() {
             return Ok(());
         }
         let next = Stage::resolve(self.plan, &self.plan_path, &self.dir, next)?;

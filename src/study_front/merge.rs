@@ -45,10 +45,8 @@ pub fn merge(args: &MergeRequest) -> Result<(), Error> {
     plan.body.sidecar.check(&args.plan, "sidecar")?;
     // The plan, the record blocks and the stage plans are inputs too: no output may overwrite them.
     let mut inputs_found: Vec<PathBuf> = mcap_and_plans(&args.dir);
-    if plan.body.staged.is_some() {
-        for k in 1..=Stage::latest_number(&plan, &args.dir) {
-            inputs_found.extend(mcap_and_plans(&stage_directory(&args.dir, k)));
-        }
+    for k in 1..=Stage::latest_number(&plan, &args.dir) {
+        inputs_found.extend(mcap_and_plans(&stage_directory(&args.dir, k)));
     }
     let mut inputs = vec![("plan", args.plan.as_path())];
     inputs.extend(inputs_found.iter().map(|p| ("record block", p.as_path())));
@@ -96,7 +94,7 @@ fn next_stage(plan: &PlanFile, args: &MergeRequest, pending: &PendingStage) -> R
     let dim = plan.body.parameters.len();
     let directory = stage_directory(&args.dir, pending.stage);
     let path = directory.join(STAGE_PLAN_FILE);
-    if pending.stage < 2 || plan.body.staged.is_none() {
+    if pending.stage < 2 {
         return Err(ShardError::Plan {
             path: args.plan.clone(),
             message: format!(
@@ -171,6 +169,7 @@ fn next_stage(plan: &PlanFile, args: &MergeRequest, pending: &PendingStage) -> R
             pending.stage - 1
         ),
         "design" => "the design built on the screening".to_string(),
+        "elements" => "a round of elements (sub-boxes with their own surrogates where the check did not trust one, docs/method.md §12)".to_string(),
         other => other.to_string(),
     };
     let command = format!(
