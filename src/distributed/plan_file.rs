@@ -83,6 +83,12 @@ pub struct PlanOptions {
     pub max_runs: Option<usize>,
     /// `--check-runs`.
     pub check_runs: Option<usize>,
+    /// `--elements` (absent when not given, so that earlier plans hash as before).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elements: Option<String>,
+    /// `--max-elements` (absent when not given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_elements: Option<usize>,
 }
 
 /// Everything the plan fixes; its canonical JSON is what the plan hash covers.
