@@ -328,6 +328,13 @@ impl<'a> LockStep<'a> {
                             positions.resize(count * nq, 0.0);
                         }
                         space.apply(&mut system.model, &sample.xi);
+                        // A `[bind]` value no model can have is named with its expression and
+                        // symbol values, before the integrator meets it.
+                        if let Err(error) = space.check_bound_values(&system.model, &sample.xi) {
+                            let time_s = start_step as f64 * scene.step_s;
+                            sample.fail(index, space, time_s, first_record, error.to_string());
+                            return (0, 0);
+                        }
                         let before = sample
                             .trajectory
                             .as_ref()

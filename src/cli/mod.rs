@@ -248,7 +248,9 @@ pub struct SimulateArgs {
     /// The robot, its sidecar (optional here: the defaults apply without one) and scene overrides.
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Override one parameter (repeatable), e.g. `--set joint.elbow_joint.origin.z=0.43`.
+    /// Override one parameter (repeatable), e.g. `--set joint.elbow_joint.origin.z=0.43`, or give
+    /// a free symbol of the sidecar, e.g. `--set r_wheel=0.3`: the `[bind]` expressions that use it
+    /// are evaluated again (an explicit path wins over them).
     #[arg(long = "set", value_name = "PATH=VALUE", allow_hyphen_values = true)]
     pub set: Vec<String>,
     /// Write the recorded series as CSV (`t`, then one column per output).

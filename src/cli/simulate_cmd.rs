@@ -5,7 +5,7 @@
 //! once, removing the temporary files.
 
 use super::{check_finite, check_start, install_interrupt, write_stdout, SimulateArgs};
-use crate::cli::values::apply_set_flags;
+use crate::cli::values::apply_set_flags_with_symbols;
 use crate::dynamics::{forward_kinematics, Data};
 use crate::model::Model;
 use crate::output::mcap::McapMetadata;
@@ -35,9 +35,14 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
     )?;
     install_interrupt();
     let SceneSetup {
-        mut model, scene, ..
+        mut model,
+        scene,
+        sidecar,
+        sidecar_path,
     } = SceneSetup::load(&args.scene.request(), &mut print_message)?;
-    apply_set_flags(&mut model, &args.set)?;
+    let sidecar_name = sidecar_path.as_ref().map(|p| p.display().to_string());
+    let symbols = sidecar_name.as_deref().map(|name| (&sidecar, name));
+    apply_set_flags_with_symbols(&mut model, &args.set, symbols)?;
     // Kept per record time: the time, the configuration, every output, and the summary's four
     // copies of each output (time, lower, upper, nominal).
     let per_output = 1 + if args.summary.is_some() { 4 } else { 0 };

@@ -67,10 +67,67 @@ pub fn parse_set(text: &str) -> Result<(String, f64), Error> {
 
 /// Applies `--set PATH=VALUE` flags to a model (validated, then one refresh).
 pub fn apply_set_flags(model: &mut crate::model::Model, flags: &[String]) -> Result<(), Error> {
+    apply_set_flags_with_symbols(model, flags, None)
+}
+
+/// [`apply_set_flags`] where a flag may also name a free symbol of `sidecar` (the file and its name
+/// in messages), `--set r_wheel=0.3`: the `[bind]` expressions that use the symbols given are
+/// evaluated again (the other symbols at their midpoints) and written, and checked as a study
+/// checks them ([`ParameterSpace::apply_symbol_values`]); path flags are written after them, so an
+/// explicit path wins. The box is expanded only when a flag names a symbol. An unknown name gets
+/// the closest path or symbol as a suggestion.
+pub fn apply_set_flags_with_symbols(
+    model: &mut crate::model::Model,
+    flags: &[String],
+    sidecar: Option<(&crate::sidecar::SidecarFile, &str)>,
+) -> Result<(), Error> {
+    let symbol_keys: Vec<&str> = sidecar
+        .map(|(file, _)| {
+            file.parameters
+                .keys()
+                .map(String::as_str)
+                .filter(|k| crate::uncertainty::is_symbol_name(k))
+                .collect()
+        })
+        .unwrap_or_default();
+    let mut paths = Vec::new();
+    let mut symbols: Vec<(String, f64)> = Vec::new();
     for flag in flags {
-        let (path, value) = parse_set(flag)?;
-        let target = crate::params::resolve(model, &path)?;
-        crate::params::validate_value(model, target, value)?;
+        let (name, value) = parse_set(flag)?;
+        match crate::params::resolve_without_suggestion(model, &name) {
+            Ok(target) => {
+                crate::params::validate_value(model, target, value)?;
+                paths.push((target, value));
+            }
+            Err(crate::params::ParamError::Unknown { .. })
+                if symbol_keys.contains(&name.as_str()) =>
+            {
+                symbols.push((name, value));
+            }
+            Err(crate::params::ParamError::Unknown { path, .. }) => {
+                let listed = crate::params::list(model);
+                let names = listed
+                    .iter()
+                    .map(|p| p.path.as_str())
+                    .chain(symbol_keys.iter().copied());
+                return Err(crate::params::ParamError::Unknown {
+                    suggestion: crate::text::closest_suggestion(&path, names.collect::<Vec<_>>()),
+                    path,
+                }
+                .into());
+            }
+            Err(other) => return Err(other.into()),
+        }
+    }
+    if let (Some((file, name)), false) = (sidecar, symbols.is_empty()) {
+        let space = crate::uncertainty::ParameterSpace::from_sidecar(file, model, name)?;
+        let values: Vec<(usize, f64)> = symbols
+            .iter()
+            .filter_map(|(symbol, value)| space.symbol_index(symbol).map(|k| (k, *value)))
+            .collect();
+        space.apply_symbol_values(model, &values)?;
+    }
+    for (target, value) in paths {
         crate::params::set(model, target, value);
     }
     if let Some(joint) = model

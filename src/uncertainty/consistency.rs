@@ -152,7 +152,7 @@ fn describe_point(dimensions: &[Dimension], varying: &[usize], xi: &[f64]) -> St
 }
 
 /// The rotational inertia about the COM in the link frame: `R I Rᵀ` (kg·m²).
-fn inertia_about_com_in_link(inertial: &InertialSpec) -> Mat3 {
+pub(super) fn inertia_about_com_in_link(inertial: &InertialSpec) -> Mat3 {
     let [ixx, ixy, ixz, iyy, iyz, izz] = inertial.inertia;
     let in_inertia_frame = Mat3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz);
     let rotation = rotation_from_rpy(inertial.rpy[0], inertial.rpy[1], inertial.rpy[2]);

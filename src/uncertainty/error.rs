@@ -127,6 +127,38 @@ pub enum UncertaintyError {
         /// Why the value is impossible.
         reason: &'static str,
     },
+    /// A bound value that is not finite or not possible at one point: a sample of a study (between
+    /// the points the box check visits), or the symbol values `simulate --set` gives.
+    #[error("{file}: {key} gives {value} at {point}, which is impossible: {reason}; {advice}")]
+    BoundValueAt {
+        /// The sidecar file.
+        file: String,
+        /// The `[bind]` key with its expression.
+        key: String,
+        /// The value it gives.
+        value: f64,
+        /// The symbols and their values there, e.g. `k = 0.34, m0 = 2`.
+        point: String,
+        /// Why the value is impossible.
+        reason: &'static str,
+        /// Where the point came from, and so what to do.
+        advice: BoundValueSource,
+    },
+    /// Bound inertia values that no rigid body has at one point (a sample, or `--set` values).
+    #[error("{file}: {keys} make the inertia of link '{link}' {violation_at}, while its URDF inertia is physical; {advice}")]
+    BoundInertiaAt {
+        /// The sidecar file.
+        file: String,
+        /// The `[bind]` keys with their expressions that write the link's inertia.
+        keys: String,
+        /// The link.
+        link: String,
+        /// What is violated, with the principal moments, and the symbols' values there
+        /// (`… at k = 0.2`).
+        violation_at: String,
+        /// Where the point came from, and so what to do.
+        advice: BoundValueSource,
+    },
     /// The box contains inertia values that no rigid body has, while the URDF values are physical.
     #[error("{file}: [parameters]: at the {point} of the box, the inertia of link '{link}' {violation}, while its URDF inertia is physical; narrow the intervals of these parameters, or vary the link's mass and inertia together with \"link.{link}.scale\" (a scale keeps them physical)")]
     InconsistentInertia {
@@ -140,4 +172,22 @@ pub enum UncertaintyError {
         /// What is violated, with the principal moments.
         violation: String,
     },
+}
+
+/// Where a point with an impossible bound value came from; displayed as what to do about it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BoundValueSource {
+    /// A point a study applies (a design sample, a check run, the nominal run).
+    Sample,
+    /// The symbol values `simulate --set` gives.
+    SetFlags,
+}
+
+impl std::fmt::Display for BoundValueSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            BoundValueSource::Sample => "the box check visits the corners and a grid of the symbols, and this point lies between them: narrow the symbols' intervals or change the expression",
+            BoundValueSource::SetFlags => "give the symbols other values with --set, or change the expression",
+        })
+    }
 }

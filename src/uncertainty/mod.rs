@@ -39,6 +39,7 @@
 //! overrides, or check merged bodies apart from their links (a sum of physical inertias is
 //! physical). A `{ abs = 0 }` or `[a, a]` interval is refused: zero width is no uncertainty.
 
+mod bound_values;
 mod consistency;
 mod error;
 mod expression;
@@ -46,7 +47,7 @@ mod space;
 
 pub use crate::sidecar::is_symbol_name;
 pub use consistency::{DENSE_CHECK_MAX_POINTS, DENSE_CHECK_POINTS_PER_DIMENSION};
-pub use error::UncertaintyError;
+pub use error::{BoundValueSource, UncertaintyError};
 pub use expression::{Expression, ExpressionError, SQRT};
 pub use space::{
     Binding, BoxCheckSummary, Dimension, DimensionKind, Group, GroupMember, GroupMode,

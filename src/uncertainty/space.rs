@@ -3,7 +3,7 @@
 //! (`[parameters]` expanded by [`crate::sidecar::expand_parameters`], `[bind]`, model) ⇒
 //! (dimensions of ξ, shared groups, bound paths, warnings, notes)
 
-use super::consistency::check_box;
+use super::consistency::{check_box, inertia_about_com_in_link};
 use super::error::UncertaintyError;
 use super::expression::{Expression, ExpressionError};
 use crate::model::Model;
@@ -209,6 +209,11 @@ pub struct ParameterSpace {
     warnings: Vec<String>,
     notes: Vec<String>,
     box_check: BoxCheckSummary,
+    /// The sidecar file, for messages.
+    file: String,
+    /// The links whose inertia a `[bind]` expression moves and whose URDF inertia is physical:
+    /// checked again at every point a study applies ([`ParameterSpace::check_bound_values`]).
+    bound_inertia_links: Vec<usize>,
 }
 
 impl ParameterSpace {
@@ -241,6 +246,8 @@ impl ParameterSpace {
             warnings: Vec::new(),
             notes: expanded.notes,
             box_check: BoxCheckSummary::default(),
+            file: file.to_string(),
+            bound_inertia_links: Vec::new(),
         };
         // Every declared target with the key that declared it first, to refuse a value declared
         // twice (a map: a list searched per key made a box of every link quadratic).
@@ -287,6 +294,7 @@ impl ParameterSpace {
         )?;
         space.warnings.extend(box_warnings);
         space.box_check = summary;
+        space.bound_inertia_links = bound_inertia_links(&space.bindings, model);
         Ok(space)
     }
 
@@ -523,6 +531,16 @@ impl ParameterSpace {
         &self.bindings
     }
 
+    /// The sidecar file the space was read from (as named in messages).
+    pub fn sidecar_file(&self) -> &str {
+        &self.file
+    }
+
+    /// The links whose inertia a binding moves and whose URDF inertia is physical.
+    pub(super) fn bound_inertia_links(&self) -> &[usize] {
+        &self.bound_inertia_links
+    }
+
     /// Non-fatal findings: unused symbols, bindings that do not reproduce the URDF value, links whose
     /// URDF inertia is already unphysical, a box check that could not be exhaustive.
     pub fn warnings(&self) -> &[String] {
@@ -679,6 +697,27 @@ pub(super) fn nominal_xi(dimensions: &[Dimension]) -> Vec<f64> {
         .collect()
 }
 
+/// The links whose inertia some binding writes and whose URDF inertia is physical, in order
+/// (a link whose URDF inertia already violates is only warned about, as by the box check).
+fn bound_inertia_links(bindings: &[Binding], model: &Model) -> Vec<usize> {
+    let mut links: Vec<usize> = bindings
+        .iter()
+        .filter_map(|b| match b.target {
+            ParamTarget::LinkInertia(link, _) => Some(link),
+            _ => None,
+        })
+        .filter(|&link| {
+            crate::model::check_inertia(&inertia_about_com_in_link(
+                &model.description.links[link].inertial,
+            ))
+            .is_none()
+        })
+        .collect();
+    links.sort_unstable();
+    links.dedup();
+    links
+}
+
 /// Records that `label` declares `target`, refusing a target some key declared before.
 fn declare(
     declared: &mut HashMap<ParamTarget, String>,
@@ -705,7 +744,7 @@ pub const QUOTED_EXPRESSION_MAX_CHARS: usize = 120;
 
 /// `"text"`, or for a long one its first and last [`QUOTED_EXPRESSION_MAX_CHARS`]/2 characters
 /// around "…", with the total length.
-fn quoted_excerpt(text: &str) -> String {
+pub(super) fn quoted_excerpt(text: &str) -> String {
     let n = text.chars().count();
     if n <= QUOTED_EXPRESSION_MAX_CHARS {
         return format!("\"{text}\"");

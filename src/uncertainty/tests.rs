@@ -737,12 +737,14 @@ fn apply_allocates_nothing_with_groups_scales_and_bindings() {
     s.target_derivatives(&xi, 0, &mut derivatives);
     let before = allocations();
     s.apply(&mut m, &xi);
+    let checked = s.check_bound_values(&m, &xi);
     for j in 0..s.len() {
         s.target_derivatives(&xi, j, &mut derivatives);
     }
     assert_eq!(
         allocations() - before,
         0,
-        "apply or target_derivatives allocated"
+        "apply, check_bound_values or target_derivatives allocated"
     );
+    assert!(checked.is_ok(), "{checked:?}");
 }

@@ -164,6 +164,11 @@ fn load_lane(
     context
         .space
         .apply(&mut stepper.system_mut(lane).model, &sample.xi);
+    // A `[bind]` value no model can have is named with its expression and symbol values.
+    context
+        .space
+        .check_bound_values(&stepper.system_mut(lane).model, &sample.xi)
+        .map_err(|error| error.to_string())?;
     stepper
         .sync_lane(lane)
         .map_err(|error| format!("internal: {error}"))?;
