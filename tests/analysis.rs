@@ -553,7 +553,15 @@ fn the_check_finds_nothing_on_a_smooth_response_and_can_be_turned_off() {
     }
     let unchecked = analyze(urdf, &sidecar, &["--check-runs", "0"], "check_off");
     assert_eq!(unchecked["samples"], 26);
-    assert!(unchecked["stats"]["check"].is_null());
+    // Turned off, and said so.
+    let skipped = &unchecked["stats"]["check"];
+    assert_eq!(skipped["runs"], 0, "{skipped}");
+    assert!(
+        skipped["skipped"]
+            .as_str()
+            .is_some_and(|reason| reason.starts_with("--check-runs 0")),
+        "{skipped}"
+    );
     // The check only ever widens.
     for name in output_names(&checked) {
         let (l0, u0) = (

@@ -99,7 +99,9 @@ pub struct CheckReport {
     pub unique_candidates: usize,
     /// The points run, in standard coordinates (`runs × d`, row-major).
     pub points: Vec<f64>,
-    /// Per output: the largest `|true − predicted|` over its checked predictions, in its unit.
+    /// Per output: the largest misfit in its unit, by the method's [`super::CheckMisfit`]: the
+    /// largest `|true − predicted|` over its checked predictions (scans), or the largest excess of
+    /// a check run's value past the envelope as the method gave it (outer, approximate).
     pub max_misfit: Vec<f64>,
     /// Per output: `max_misfit` over the output's largest envelope width (0 where the width is 0).
     pub relative_misfit: Vec<f64>,
@@ -130,6 +132,24 @@ pub struct CheckReport {
     /// `0..=R`, trusts every output — what the check would say of a run that ended there (the last
     /// record exactly when every output is trusted; `None` when no prefix passes).
     pub passes_until_record: Option<usize>,
+}
+
+/// Why a study whose method the check follows made no check runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CheckSkipped {
+    /// `--check-runs 0`.
+    TurnedOff,
+}
+
+impl CheckSkipped {
+    /// The reason as the summary (`stats.check.skipped`) and the stdout table say it.
+    pub fn reason(self) -> &'static str {
+        match self {
+            CheckSkipped::TurnedOff => {
+                "--check-runs 0: the envelopes were not compared with the true model"
+            }
+        }
+    }
 }
 
 /// What the adaptive design did, for the summary.
@@ -174,8 +194,11 @@ pub struct StudyReport {
     pub threads: usize,
     /// Record times per block of the design phase.
     pub block_records: usize,
-    /// The a-posteriori check, when the method has one.
+    /// The a-posteriori check, when the method has one and it ran.
     pub check: Option<CheckReport>,
+    /// Why a method that is checked ([`Method::is_checked`]) made no check (`None`: it made one,
+    /// or the method has none, or the study was interrupted before it).
+    pub check_skipped: Option<CheckSkipped>,
     /// The method that ran (`auto` resolved).
     pub method: Method,
     /// The design's name (see [`super::StudyPlan::design_name`]).
@@ -231,6 +254,7 @@ impl StudyReport {
             threads,
             block_records: 0,
             check: None,
+            check_skipped: None,
             lyapunov: None,
             contacts: None,
             method,

@@ -86,7 +86,13 @@ impl Summary {
             "threads": report.threads,
             "block_records": report.block_records,
             "peak_memory_bytes": peak_memory(),
-            "check": report.check.as_ref().map(|c| check_json(report, c, space.len())),
+            "check": report.check.as_ref().map_or_else(
+                || report.check_skipped.map(|skipped| serde_json::json!({
+                    "runs": 0,
+                    "skipped": skipped.reason(),
+                })),
+                |c| Some(check_json(report, c, space.len())),
+            ),
             "auto": report.auto.as_ref().map(|a| serde_json::json!({
                 "requested": "auto",
                 "design": report.design,
