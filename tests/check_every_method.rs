@@ -18,7 +18,7 @@
 
 mod common;
 
-use common::{fresh_scratch_dir, ribbon_outcome};
+use common::{fresh_scratch_dir, ribbon_outcome, summary_series as series};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -94,20 +94,6 @@ fn analyze(method: &str, extra: &[&str]) -> Analyzed {
         stderr: outcome.stderr,
         summary: serde_json::from_str(&summary).unwrap(),
     }
-}
-
-fn series(summary: &Value, output: &str, key: &str) -> Vec<f64> {
-    summary["outputs"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|o| o["name"] == output)
-        .unwrap_or_else(|| panic!("no output {output}"))[key]
-        .as_array()
-        .unwrap_or_else(|| panic!("{output}: no {key}"))
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
 }
 
 const OUTPUTS: [&str; 3] = ["q.hinge", "v.hinge", "qdd.hinge"];

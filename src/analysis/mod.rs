@@ -69,7 +69,7 @@ pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
 pub use report::{
     AdaptiveReport, BlockView, CheckReport, CheckSkipped, DesignPart, PendingStage, Progress,
-    SampleFailure, StudyReport,
+    SampleFailure, SampleRetry, StudyReport,
 };
 pub use schedule::{RecordSchedule, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS};
 pub use screening::{DimensionScreening, Screening};

@@ -38,6 +38,20 @@ pub struct SampleFailure {
     pub message: String,
 }
 
+/// A run that failed at the study's fixed step and was re-run from t = 0 with the adaptive step
+/// on the same record grid (docs/step-control.md §3): its records from the record the fixed step
+/// failed to reach on are the adaptive run's.
+#[derive(Clone, Debug)]
+pub struct SampleRetry {
+    /// The phase whose run it is (`design`, `screening`, `adaptive`, `check`).
+    pub phase: &'static str,
+    /// The run as messages name it (`sample 3 of 17`, `check run 2 of 8`, `the nominal run`).
+    pub run: String,
+    /// The fixed step's failure: the sample (its index in the phase's runs, the nominal run
+    /// last), its ξ and parameter values, where and why the fixed step failed.
+    pub fixed_step_failure: SampleFailure,
+}
+
 /// A stage whose records do not exist yet, with the points the study chose for it
 /// (docs/distributed.md §7).
 #[derive(Clone, Debug, PartialEq)]
@@ -180,6 +194,9 @@ pub struct StudyReport {
     pub runs: usize,
     /// Samples left out with `keep_going`.
     pub excluded: Vec<SampleFailure>,
+    /// Runs that failed at the fixed step and were re-run with the adaptive step, phase by
+    /// phase in the order they ran.
+    pub retried: Vec<SampleRetry>,
     /// Whether the study stopped early (interrupted): the envelopes cover the times done.
     pub partial: bool,
     /// Seconds spent simulating.
@@ -246,6 +263,7 @@ impl StudyReport {
             },
             runs: 0,
             excluded: Vec::new(),
+            retried: Vec::new(),
             partial: false,
             simulate_seconds: 0.0,
             bound_seconds: 0.0,
@@ -279,6 +297,9 @@ pub struct DesignPart {
     /// Samples left out under `--keep-going`, by their index in the whole design (the nominal
     /// run, which may not fail, never appears).
     pub failures: Vec<SampleFailure>,
+    /// Samples re-run with the adaptive step (the fixed step's failure of each), by their index
+    /// in the whole design (the nominal run after the design's samples).
+    pub retried: Vec<SampleFailure>,
     /// Newton iterations of the part's runs.
     pub newton_iterations: u64,
     /// Steps of the part's runs.

@@ -58,6 +58,18 @@ impl Summary {
             .iter()
             .map(|f| serde_json::json!({"index": f.index, "xi": f.xi, "values": f.values, "time": f.time_s, "error": f.message}))
             .collect(),
+        retried_samples: report
+            .retried
+            .iter()
+            .map(|retry| {
+                let f = &retry.fixed_step_failure;
+                serde_json::json!({
+                    "phase": retry.phase, "run": retry.run, "index": f.index, "xi": f.xi,
+                    "values": f.values, "time": f.time_s, "error": f.message,
+                    "adaptive_from_time": e.times.get(f.record),
+                })
+            })
+            .collect(),
         wall_seconds,
         outputs: e
             .outputs

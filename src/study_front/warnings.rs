@@ -2,7 +2,8 @@
 //! joints whose envelopes pass limits the scene does not enforce (and, where the surrogate is not
 //! trusted, how far true runs went there), outputs whose misfit is below the integrator's
 //! resolution, surrogates the check did not trust with what to do about them, an unchecked
-//! surrogate, and a chaotic nominal motion; and the exit-4 error of an untrusted study.
+//! surrogate, runs re-run with the adaptive step after the fixed step failed, and a chaotic
+//! nominal motion; and the exit-4 error of an untrusted study.
 //!
 //! ```text
 //! notes (`note: …`):        printed as they are found
@@ -72,6 +73,7 @@ pub fn warn(
         }
         warnings.push(warning);
     }
+    note_retries(report);
     if let Some(check) = &report.check {
         note_below_resolution(report, check);
         if let Some(advice) = &advice {
@@ -200,6 +202,41 @@ pub fn untrusted(report: &StudyReport, check: &CheckReport, advice: String) -> E
         total: outputs.len(),
         worst,
         advice,
+    }
+}
+
+/// Retried runs named on stderr, one line each; past this many, a count of the rest.
+const RETRIES_NAMED: usize = 3;
+
+/// Notes the runs that failed at the fixed step and were re-run with the adaptive step: one line
+/// per run for the first [`RETRIES_NAMED`], then how many more (all of them are in the summary).
+fn note_retries(report: &StudyReport) {
+    for retry in report.retried.iter().take(RETRIES_NAMED) {
+        let failure = &retry.fixed_step_failure;
+        let from = report
+            .envelope
+            .times
+            .get(failure.record)
+            .map_or(String::new(), |&t| {
+                format!(
+                    " (its records from t = {} s on are that run's)",
+                    crate::text::message_time(t)
+                )
+            });
+        eprintln!(
+            "note: {} of the {} phase failed at the fixed step at t = {} s and was re-run from t = 0 with the adaptive step on the same record grid{from}; the fixed step's failure: {}",
+            retry.run,
+            retry.phase,
+            crate::text::message_time(failure.time_s),
+            failure.message
+        );
+    }
+    if report.retried.len() > RETRIES_NAMED {
+        eprintln!(
+            "note: {} more runs failed at the fixed step and were re-run with the adaptive step ({} in all; the summary's retried_samples lists each)",
+            report.retried.len() - RETRIES_NAMED,
+            report.retried.len()
+        );
     }
 }
 
