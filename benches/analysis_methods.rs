@@ -192,6 +192,7 @@ fn run(p: &Problem, c: Config) -> (StudyReport, f64) {
             threads: c.threads,
             keep_going: false,
             check_runs: None,
+            elements: ribbon::analysis::ElementsOptions::default(),
             design: ribbon::analysis::DesignKind::Tensor,
             max_runs: ribbon::analysis::DEFAULT_MAX_RUNS,
         },

@@ -63,6 +63,7 @@ fn run(out: &Path) -> Result<usize, ribbon::Error> {
         threads: 0,
         keep_going: false,
         check_runs: None,
+        elements: ribbon::analysis::ElementsOptions::default(),
         design: ribbon::analysis::DesignKind::Tensor,
         max_runs: ribbon::analysis::DEFAULT_MAX_RUNS,
     };

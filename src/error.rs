@@ -149,6 +149,7 @@ mod tests {
         let truncated = || ShardError::Truncated {
             path: PathBuf::from("shard-0-of-2.records.mcap"),
             message: "it ends after record 3".to_string(),
+            command: "ribbon run study.plan --shard 0/2 --into shards".to_string(),
         };
         let records = Error::from(StudyError::Records(ForeignError::new(truncated())));
         assert_eq!(records.exit_code(), 2);

@@ -159,6 +159,7 @@ fn load_model_and_scene(
     for warning in &model.warnings {
         message(SetupMessage::Warning, warning);
     }
+    crate::scene::check_dense_matrices("simulating it", &model)?;
     let scene = Scene::resolve(sidecar, &model, sidecar_name, request.overrides)?;
     if let Some(contact) = &scene.contact {
         for note in &contact.geometry.notes {

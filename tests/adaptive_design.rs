@@ -61,6 +61,7 @@ fn options(threads: usize, max_runs: usize) -> StudyOptions {
         threads,
         keep_going: false,
         check_runs: None,
+        elements: ribbon::analysis::ElementsOptions::default(),
         design: DesignKind::Tensor,
         max_runs,
     }

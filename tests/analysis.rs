@@ -262,7 +262,8 @@ const SMOOTH_CHECK_MAX_RELATIVE_MISFIT: f64 = 1e-5;
 
 /// The a-posteriori check on a hostile box: bar 2's mass across nine decades. An order-4 surrogate
 /// cannot follow the response; the check must say so (stderr, summary) and the envelope must contain
-/// true runs that `ribbon simulate` makes independently at the check's points.
+/// true runs that `ribbon simulate` makes independently at the check's points. One surrogate
+/// (`--elements off`): with elements, the box splits and is trusted (`tests/elements.rs`).
 #[test]
 fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
     let dir = scratch_file("analysis", "check_wide_box");
@@ -290,6 +291,8 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
     let out = ribbon_output(&[
         "analyze",
         urdf.to_str().unwrap(),
+        "--elements",
+        "off",
         "--summary",
         summary_path.to_str().unwrap(),
         "--report",

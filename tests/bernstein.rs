@@ -39,6 +39,7 @@ fn run(method: Method) -> StudyReport {
             threads: 2,
             keep_going: false,
             check_runs: Some(0),
+            elements: ribbon::analysis::ElementsOptions::default(),
         },
     };
     study

@@ -35,6 +35,7 @@ fn the_vertex_reference_is_inside_the_legendre_envelope_and_contains_the_nominal
             threads: 0,
             keep_going: false,
             check_runs: None,
+            elements: ribbon::analysis::ElementsOptions::default(),
             design: ribbon::analysis::DesignKind::Tensor,
             max_runs: ribbon::analysis::DEFAULT_MAX_RUNS,
         },

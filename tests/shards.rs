@@ -2,6 +2,9 @@
 //! byte-identical to a single-machine `analyze` (timing fields aside) for 1, 2, 4 and 7 shards with
 //! different thread counts; bad shard sets are named and refused. Designs that choose runs from
 //! earlier runs (adaptive, screened) run in stages, each merge planning the next, to the same bytes.
+//! Every shard byte is checked (issue 39): a flipped bit anywhere in a record block or a stage
+//! plan is refused with exit 2, named with the command that writes it again, and nothing is
+//! written.
 
 mod common;
 
@@ -127,9 +130,9 @@ fn assert_same(name: &str, expected: &Outputs, found: &Outputs) {
     assert_eq!(expected.4, found.4, "{name}: the exit status differs");
 }
 
-/// `analyze` once, then plan and merge 1, 2, 4 and 7 shards with different thread counts.
-/// `analyze` against `plan`, `run` in 1, 2, 4 and 7 shards and `merge`, byte for byte; returns
-/// `analyze`'s outputs.
+/// `analyze` once, then plan and merge 1, 2, 4 and 7 shards with different thread counts; a study
+/// whose first check does not trust its surrogate goes on in element rounds, each a stage that
+/// `merge` plans and the shards run (docs/method.md §12). Returns `analyze`'s outputs.
 fn check_study(name: &str, study: &[&str]) -> Outputs {
     let dir = fresh_test_scratch_dir("shards", name);
     let single = dir.join("single");
@@ -141,10 +144,37 @@ fn check_study(name: &str, study: &[&str]) -> Outputs {
         run_shards(&plan, &shards, n, run_threads);
         let merged = dir.join(format!("merged-{n}"));
         std::fs::create_dir_all(&merged).expect("mkdir");
-        let found = merge(&plan, &shards, &merged, merge_threads);
+        let found = merge_through_stages(&plan, &shards, &merged, n, merge_threads);
         assert_same(&format!("{name}, {n} shards"), &expected, &found);
     }
     expected
+}
+
+/// `merge` of the shards in `shards`; while it asks for another stage (exit 3: an element
+/// round), the `n` shards of that stage run and the merge is made again.
+fn merge_through_stages(
+    plan: &Path,
+    shards: &Path,
+    merged: &Path,
+    n: usize,
+    threads: usize,
+) -> Outputs {
+    let flags = outputs_flags(merged);
+    let threads = threads.to_string();
+    let mut args = vec!["merge", s(plan), s(shards), "--threads", &threads];
+    args.extend(flags.iter().map(String::as_str));
+    for _ in 0..100 {
+        let out = ribbon_output_outside_scheduler(&args);
+        match out.status.code() {
+            Some(3) => run_stage_shards(plan, shards, n, 1),
+            Some(0 | 4) => return read_outputs(merged, &out),
+            other => panic!(
+                "ribbon {args:?} failed ({other:?}): {}",
+                String::from_utf8_lossy(&out.stderr)
+            ),
+        }
+    }
+    panic!("no end after 100 stages");
 }
 
 #[test]
@@ -697,27 +727,30 @@ fn adaptive_d19_stages_merge_to_the_single_machine_bytes() {
     );
 }
 
+/// The screened study of the d = 19 box in `sidecar` (`--design screened --order 2`, 0.05 s): the
+/// screening is stage 1, the design built on its ranking stage 2.
+fn screened_study(sidecar: &Path) -> [&str; 11] {
+    [
+        "robots/ur5/ur5.urdf",
+        "--uncertainty",
+        s(sidecar),
+        "--method",
+        "legendre-scan",
+        "--design",
+        "screened",
+        "--order",
+        "2",
+        "--duration",
+        "0.05",
+    ]
+}
+
 /// A screened design: the screening is stage 1, the design built on its ranking stage 2.
 #[test]
 fn screened_stages_merge_to_the_single_machine_bytes() {
     let dir = fresh_test_scratch_dir("shards", "screened_sidecar");
     let sidecar = ur5_d19_sidecar(&dir);
-    let (stages, _, _) = check_staged_study(
-        "screened",
-        &[
-            "robots/ur5/ur5.urdf",
-            "--uncertainty",
-            s(&sidecar),
-            "--method",
-            "legendre-scan",
-            "--design",
-            "screened",
-            "--order",
-            "2",
-            "--duration",
-            "0.05",
-        ],
-    );
+    let (stages, _, _) = check_staged_study("screened", &screened_study(&sidecar));
     assert_eq!(stages, 2);
 }
 
@@ -778,4 +811,316 @@ with open(sys.argv[1], "rb") as f:
         plan_text.contains(fields[0]),
         "the plan hash is in the block"
     );
+}
+
+/// The byte regions of a record block, from its MCAP framing: name and byte range.
+fn regions(bytes: &[u8]) -> Vec<(String, usize, usize)> {
+    let u64_at = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().expect("8 bytes"));
+    let mut regions = vec![("start magic".to_string(), 0, 8)];
+    let mut at = 8;
+    let mut metadata = 0;
+    loop {
+        let op = bytes[at];
+        let end = at + 9 + u64_at(at + 1) as usize;
+        let name = match op {
+            0x01 => "Header".to_string(),
+            0x04 => "Channel".to_string(),
+            0x05 => "Message".to_string(),
+            0x0C => {
+                metadata += 1;
+                if metadata == 1 {
+                    "ribbon.shard metadata"
+                } else {
+                    "ribbon.shard.end metadata (trailer)"
+                }
+                .to_string()
+            }
+            0x0F => "DataEnd".to_string(),
+            other => format!("record {other:#04x}"),
+        };
+        regions.push((name, at, end));
+        at = end;
+        if op == 0x0F {
+            break;
+        }
+    }
+    let footer = bytes.len() - 8 - 29;
+    regions.push(("summary section".to_string(), at, footer));
+    regions.push(("Footer".to_string(), footer, bytes.len() - 8));
+    regions.push(("end magic".to_string(), bytes.len() - 8, bytes.len()));
+    regions
+}
+
+/// 64 (byte, region) positions over a block: the first, middle and last byte of every region but
+/// the messages, and the rest spread evenly over the messages.
+fn flip_positions(bytes: &[u8]) -> Vec<(usize, String)> {
+    let regions = regions(bytes);
+    let mut positions: Vec<(usize, String)> = Vec::new();
+    for (name, start, end) in regions.iter().filter(|(n, _, _)| n != "Message") {
+        let mut picks = vec![*start, (start + end) / 2, end - 1];
+        picks.dedup();
+        positions.extend(picks.into_iter().map(|p| (p, name.clone())));
+    }
+    let messages: Vec<&(String, usize, usize)> =
+        regions.iter().filter(|(n, _, _)| n == "Message").collect();
+    let first = messages.first().expect("messages").1;
+    let last = messages.last().expect("messages").2;
+    let left = 64 - positions.len();
+    positions.extend((0..left).map(|i| (first + i * (last - first) / left, "Message".to_string())));
+    assert_eq!(positions.len(), 64);
+    positions
+}
+
+/// The files in `dir`, sorted.
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("list")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// The merge arguments with every output flag into `dir`.
+fn merge_with_outputs(plan: &Path, shards: &Path, flags: &[String]) -> Vec<String> {
+    let mut args: Vec<String> = vec!["merge".into(), s(plan).into(), s(shards).into()];
+    args.extend(flags.iter().cloned());
+    args
+}
+
+fn run_args(args: &[String]) -> Output {
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    ribbon_output_outside_scheduler(&args)
+}
+
+/// Every shard byte checked (issue 39): the ur5 in three shards, one bit flipped at 64 positions
+/// of shard 1's block (every region: both magics, the Header, both metadata records, the
+/// channel, the messages, DataEnd, the summary, the Footer) and at 4 of each other shard: each
+/// merge exits 2, names the flipped block (and no other) with the exact command that writes it
+/// again, and leaves its output directory empty. Restored, the merge is `analyze`'s bytes.
+#[test]
+fn a_flipped_bit_anywhere_in_a_block_is_refused_and_named() {
+    let dir = fresh_test_scratch_dir("shards", "bit_flips");
+    let study = ["robots/ur5/ur5.urdf", "--duration", "0.2"];
+    let single = dir.join("single");
+    std::fs::create_dir_all(&single).expect("mkdir");
+    let expected = analyze(&single, &study);
+    let plan = plan(&dir, &study);
+    let shards = dir.join("shards");
+    run_shards(&plan, &shards, 3, 1);
+    let merged = dir.join("merged");
+    std::fs::create_dir_all(&merged).expect("mkdir");
+    let merge_args = merge_with_outputs(&plan, &shards, &outputs_flags(&merged));
+
+    let block = |k: usize| shards.join(format!("shard-{k}-of-3.records.mcap"));
+    let bytes = std::fs::read(block(1)).expect("block 1");
+    let positions = flip_positions(&bytes);
+    let covered: std::collections::BTreeSet<&str> =
+        positions.iter().map(|(_, n)| n.as_str()).collect();
+    for region in [
+        "start magic",
+        "Header",
+        "ribbon.shard metadata",
+        "Channel",
+        "Message",
+        "ribbon.shard.end metadata (trailer)",
+        "DataEnd",
+        "summary section",
+        "Footer",
+        "end magic",
+    ] {
+        assert!(covered.contains(region), "no flip in the {region}");
+    }
+    let mut cases: Vec<(usize, usize, String)> =
+        positions.into_iter().map(|(p, n)| (1, p, n)).collect();
+    for k in [0, 2] {
+        let len = std::fs::read(block(k)).expect("block").len();
+        cases.extend(
+            [0.1, 0.5, 0.9, 0.999].map(|f| (k, (len as f64 * f) as usize, "spread".into())),
+        );
+    }
+
+    let mut missed: Vec<String> = Vec::new();
+    for (i, (k, position, region)) in cases.iter().enumerate() {
+        let path = block(*k);
+        let clean = std::fs::read(&path).expect("block");
+        let mut flipped = clean.clone();
+        let bit = i % 8;
+        flipped[*position] ^= 1 << bit;
+        std::fs::write(&path, &flipped).expect("flip");
+        let out = run_args(&merge_args);
+        std::fs::write(&path, &clean).expect("restore");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let command = format!(
+            "ribbon run {} --shard {k}/3 --into {}",
+            s(&plan),
+            s(&shards)
+        );
+        let named = stderr.contains(&format!("shard-{k}-of-3.records.mcap"))
+            && stderr.contains(&command)
+            && (0..3)
+                .filter(|j| j != k)
+                .all(|other| !stderr.contains(&format!("shard-{other}-of-3")));
+        let written = files_in(&merged);
+        if out.status.code() != Some(2) || !named || !written.is_empty() {
+            missed.push(format!(
+                "shard {k}, byte {position} of {} ({region}), bit {bit}: exit {:?}, wrote {written:?}: {stderr}",
+                clean.len(),
+                out.status.code()
+            ));
+        }
+        for name in written {
+            std::fs::remove_file(merged.join(name)).expect("clear outputs");
+        }
+    }
+    assert!(
+        missed.is_empty(),
+        "{} of {} flipped blocks not refused with exit 2 naming the block and its `ribbon run` command, or with files written:\n{}",
+        missed.len(),
+        cases.len(),
+        missed.join("\n")
+    );
+    // Restored, the merge gives analyze's bytes.
+    let found = merge(&plan, &shards, &merged, 1);
+    assert_same("clean merge", &expected, &found);
+}
+
+/// A screened design (two stages: the screening, the design on its ranking), merged once to
+/// its outputs: a damaged stage plan is refused with exit 2, naming it and the merge that writes
+/// it again, and nothing is written; following that advice gives analyze's bytes. A flipped bit
+/// in a block of stage 1 names `ribbon run … --stage 1`, which writes the same bytes again. A
+/// block of stage 1 replaced after stage 2 was planned from it is refused, named by stage 2's
+/// plan.
+#[test]
+fn damaged_stage_plans_and_replaced_blocks_are_refused_and_named() {
+    let dir = fresh_test_scratch_dir("shards", "damaged_stages");
+    let sidecar = ur5_d19_sidecar(&dir);
+    let study = screened_study(&sidecar);
+    let single = dir.join("single");
+    std::fs::create_dir_all(&single).expect("mkdir");
+    let expected = analyze(&single, &study);
+    let plan = dir.join("study.plan");
+    ok(&[&["plan"][..], &study[..], &["--plan", s(&plan)][..]].concat());
+    let shards = dir.join("shards");
+    let merged = dir.join("merged");
+    std::fs::create_dir_all(&merged).expect("mkdir");
+    let merge_args = merge_with_outputs(&plan, &shards, &outputs_flags(&merged));
+    let clear = || {
+        for name in files_in(&merged) {
+            std::fs::remove_file(merged.join(name)).expect("clear outputs");
+        }
+    };
+    run_stage_shards(&plan, &shards, 2, 1);
+    assert_eq!(
+        run_args(&merge_args).status.code(),
+        Some(3),
+        "stage 2 planned"
+    );
+    run_stage_shards(&plan, &shards, 2, 1);
+
+    // One bit flipped at 16 places of the stage plan: refused, named, with the merge that writes
+    // it again; nothing written.
+    let stage_plan = shards.join("stage-2/stage.plan");
+    let clean = std::fs::read(&stage_plan).expect("stage plan");
+    let remedy = format!("run `ribbon merge {} {}` again", s(&plan), s(&shards));
+    for i in 0..16 {
+        let position = i * (clean.len() - 1) / 15;
+        let mut flipped = clean.clone();
+        flipped[position] ^= 1 << (i % 8);
+        std::fs::write(&stage_plan, &flipped).expect("flip");
+        let out = run_args(&merge_args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let case = format!("byte {position} of {} bit {}", clean.len(), i % 8);
+        assert_eq!(out.status.code(), Some(2), "{case}: {stderr}");
+        assert!(
+            stderr.contains("stage-2/stage.plan") && stderr.contains(&remedy),
+            "{case}: {stderr}"
+        );
+        assert!(
+            files_in(&merged).is_empty(),
+            "{case}: wrote {:?}",
+            files_in(&merged)
+        );
+    }
+    // The advice: remove it and merge again, which writes the same plan back (its blocks stay
+    // valid) and says so; the next merge is analyze's bytes.
+    std::fs::remove_file(&stage_plan).expect("remove");
+    let out = run_args(&merge_args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("already there"), "{stdout}");
+    assert!(
+        clean == std::fs::read(&stage_plan).expect("stage plan"),
+        "the same plan again"
+    );
+    assert!(files_in(&merged).is_empty());
+    let out = finished(&merge_args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_same("staged merge", &expected, &read_outputs(&merged, &out));
+
+    // A flipped bit in a block of stage 1: refused with the command that writes it again, with
+    // `--stage 1`; that command writes the same bytes, which stage 2's plan names, and the merge
+    // is analyze's bytes again.
+    clear();
+    let block = shards.join("stage-1/shard-1-of-2.records.mcap");
+    let clean_block = std::fs::read(&block).expect("block");
+    let mut flipped = clean_block.clone();
+    flipped[clean_block.len() / 3] ^= 0x10;
+    std::fs::write(&block, &flipped).expect("flip");
+    let out = run_args(&merge_args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let command = format!(
+        "ribbon run {} --shard 1/2 --into {} --stage 1",
+        s(&plan),
+        s(&shards)
+    );
+    assert!(
+        stderr.contains("stage-1/shard-1-of-2.records.mcap") && stderr.contains(&command),
+        "{stderr}"
+    );
+    assert!(files_in(&merged).is_empty());
+    let words: Vec<&str> = command.split(' ').skip(1).collect();
+    ok(&words);
+    assert!(
+        clean_block == std::fs::read(&block).expect("block"),
+        "the same bytes again"
+    );
+    let out = finished(&merge_args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_same("rewritten block", &expected, &read_outputs(&merged, &out));
+
+    // Stage 1 run again with another shard count after stage 2 was planned from its two blocks:
+    // refused, named by stage 2's plan.
+    clear();
+    let stage1 = shards.join("stage-1");
+    let saved = dir.join("saved-stage-1");
+    std::fs::rename(&stage1, &saved).expect("move stage 1");
+    ok(&[
+        "run",
+        s(&plan),
+        "--shard",
+        "0/1",
+        "--into",
+        s(&shards),
+        "--stage",
+        "1",
+    ]);
+    let out = run_args(&merge_args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("stage-2/stage.plan")
+            && stderr.contains("shard-0-of-1.records.mcap")
+            && stderr.contains("shard-1-of-2.records.mcap"),
+        "{stderr}"
+    );
+    assert!(files_in(&merged).is_empty());
+    std::fs::remove_dir_all(&stage1).expect("remove");
+    std::fs::rename(&saved, &stage1).expect("restore stage 1");
+    let out = finished(&merge_args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_same("restored", &expected, &read_outputs(&merged, &out));
 }

@@ -55,6 +55,7 @@ fn ur5_study_indices_match_a_refit_and_a_monte_carlo_estimate() {
             threads: 2,
             keep_going: false,
             check_runs: Some(0),
+            elements: ribbon::analysis::ElementsOptions::default(),
         },
     };
     let report = study

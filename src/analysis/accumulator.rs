@@ -71,6 +71,24 @@ impl Accumulator {
         }
     }
 
+    /// The hull of every true run at `record` for `output`: `(lowest, highest)`, `(+∞, −∞)` before
+    /// any run.
+    pub fn run_hull(&self, record: usize, output: usize) -> (f64, f64) {
+        self.runs
+            .get(record * self.n_outputs + output)
+            .copied()
+            .unwrap_or((f64::INFINITY, f64::NEG_INFINITY))
+    }
+
+    /// Widens every envelope point to the hull of true runs at its record and output (after
+    /// runs that only widened the hull).
+    pub fn widen_to_runs(&mut self) {
+        for (point, &(lowest, highest)) in self.points.iter_mut().zip(&self.runs) {
+            point.lower = point.lower.min(lowest);
+            point.upper = point.upper.max(highest);
+        }
+    }
+
     /// Fills `envelope`'s series (times, bounds, nominal, hull of true runs, and the error
     /// estimate and outer bound where the points have them) from the records done.
     pub fn fill(&self, envelope: &mut Envelope) {

@@ -285,6 +285,17 @@ impl CheckCandidates {
         });
     }
 
+    /// Where `output` at `record` was predicted to take its extreme on `side`, and the predicted
+    /// value (the last such prediction added; `None` when there was none).
+    pub fn extreme(&self, record: usize, output: usize, side: Side) -> Option<(&[f64], f64)> {
+        let d = self.dim;
+        self.candidates
+            .iter()
+            .rev()
+            .find(|c| c.record == record && c.output == output && c.side == side)
+            .map(|c| (&self.points[c.point * d..(c.point + 1) * d], c.predicted))
+    }
+
     /// Chooses at most `budget` distinct points (see the module documentation).
     pub fn select(&self, budget: usize) -> CheckPlan {
         let unique_candidates = self.unique_points();

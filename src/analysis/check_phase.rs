@@ -14,18 +14,28 @@ use super::accumulator::Accumulator;
 use super::check::{
     output_resolution, trust_verdict, CheckPlan, TrustVerdict, TRUST_RELATIVE_MISFIT,
 };
+use super::elements::OutputScale;
 use super::error::StudyError;
 use super::method::CheckMisfit;
 use super::phase::PhaseContext;
 use super::report::CheckReport;
 use crate::simulate::hht_settings;
 
+/// What the check found: the report, and the misfit of every checked output at every record
+/// (`misfit[o][r]`, 0 where nothing was checked), which the elements phase splits by.
+pub(super) struct CheckOutcome {
+    /// The verdicts and what they rest on.
+    pub report: CheckReport,
+    /// `misfit[o][r]`: the largest `|true − predicted|` of output `o`'s checks at record `r`.
+    pub misfit: Vec<Vec<f64>>,
+}
+
 /// Runs the check plan's points, widens the envelopes with them and measures the misfits.
 pub(super) fn check(
     context: &mut PhaseContext<'_>,
     check_plan: &CheckPlan,
     accumulator: &mut Accumulator,
-) -> Result<CheckReport, StudyError> {
+) -> Result<CheckOutcome, StudyError> {
     let n_outputs = accumulator.n_outputs;
     let runs = check_plan.checks.len();
     // Per record, the (run, output, predicted) checks made there.
@@ -88,27 +98,93 @@ pub(super) fn check(
             Ok(())
         },
     )?;
+    let report = judge(
+        context.scene,
+        CheckRuns {
+            runs,
+            unique_candidates: check_plan.unique_candidates,
+            points: check_plan.points.clone(),
+            checked,
+            complete,
+        },
+        &misfit,
+        accumulator,
+    );
+    Ok(CheckOutcome { report, misfit })
+}
+
+/// Each output's scale for the trust test over `points` (record-major `records × outputs` of
+/// `scene`'s outputs): its largest width, and its resolution at its largest magnitude
+/// ([`output_resolution`]).
+pub(super) fn output_scales(
+    scene: &crate::scene::Scene,
+    points: &[super::bounds::EnvelopePoint],
+) -> Vec<OutputScale> {
+    let n_outputs = scene.outputs.len();
+    let settings = hht_settings(scene);
+    (0..n_outputs)
+        .map(|o| {
+            let (width, magnitude) = points.iter().skip(o).step_by(n_outputs.max(1)).fold(
+                (0.0_f64, 0.0_f64),
+                |(width, magnitude), p| {
+                    (
+                        width.max(p.upper - p.lower),
+                        magnitude.max(p.lower.abs()).max(p.upper.abs()),
+                    )
+                },
+            );
+            OutputScale {
+                width,
+                resolution: output_resolution(&scene.outputs[o].kind, magnitude, &settings),
+            }
+        })
+        .collect()
+}
+
+/// The runs a check made, for [`judge`].
+#[derive(Clone)]
+pub(super) struct CheckRuns {
+    /// Runs made.
+    pub runs: usize,
+    /// Distinct predicted extremisers there were to choose from.
+    pub unique_candidates: usize,
+    /// The points run, whole-box coordinates, row-major.
+    pub points: Vec<f64>,
+    /// Every checked prediction: `(output, record, true value)`.
+    pub checked: Vec<(usize, usize, f64)>,
+    /// Whether the runs covered the whole horizon.
+    pub complete: bool,
+}
+
+/// The verdicts of a check whose runs found `misfit[o][r]`, against the envelopes in
+/// `accumulator` (whose error estimates become at least the misfits): per output the largest
+/// misfit against the envelope's largest width and the output's resolution ([`trust_verdict`]),
+/// when the first miss came, and up to when the same checks pass.
+pub(super) fn judge(
+    scene: &crate::scene::Scene,
+    runs: CheckRuns,
+    misfit: &[Vec<f64>],
+    accumulator: &mut Accumulator,
+) -> CheckReport {
+    let n_outputs = accumulator.n_outputs;
+    let n_records = accumulator.times.len();
+    let CheckRuns {
+        runs,
+        unique_candidates,
+        points,
+        checked,
+        complete,
+    } = runs;
     let mut max_misfit = vec![0.0; n_outputs];
     let mut relative_misfit = vec![0.0; n_outputs];
     let mut untrusted_outputs = Vec::new();
     let mut below_resolution_outputs = Vec::new();
-    let settings = hht_settings(context.scene);
-    let mut resolution = Vec::with_capacity(n_outputs);
-    let mut widths = Vec::with_capacity(n_outputs);
+    let scales = output_scales(scene, &accumulator.points[..n_records * n_outputs]);
+    let resolution: Vec<Option<f64>> = scales.iter().map(|s| s.resolution).collect();
+    let widths: Vec<f64> = scales.iter().map(|s| s.width).collect();
     for o in 0..n_outputs {
         max_misfit[o] = misfit[o].iter().copied().fold(0.0, f64::max);
-        let (width, magnitude) = (0..n_records)
-            .map(|r| accumulator.points[r * n_outputs + o])
-            .fold((0.0_f64, 0.0_f64), |(width, magnitude), p| {
-                (
-                    width.max(p.upper - p.lower),
-                    magnitude.max(p.lower.abs()).max(p.upper.abs()),
-                )
-            });
-        widths.push(width);
-        let floor = output_resolution(&context.scene.outputs[o].kind, magnitude, &settings);
-        resolution.push(floor);
-        let (relative, verdict) = trust_verdict(max_misfit[o], width, floor);
+        let (relative, verdict) = trust_verdict(max_misfit[o], widths[o], resolution[o]);
         relative_misfit[o] = relative;
         match verdict {
             TrustVerdict::Trusted => {}
@@ -155,10 +231,10 @@ pub(super) fn check(
         .iter()
         .filter(|&&(_, record, _)| first_miss_record.is_none_or(|first| record < first))
         .count();
-    Ok(CheckReport {
+    CheckReport {
         runs,
-        unique_candidates: check_plan.unique_candidates,
-        points: check_plan.points.clone(),
+        unique_candidates,
+        points,
         max_misfit,
         relative_misfit,
         untrusted_outputs,
@@ -169,7 +245,7 @@ pub(super) fn check(
         first_miss_record,
         checks_before_first_miss,
         passes_until_record,
-    })
+    }
 }
 
 /// How far `value` lies outside `[lower, upper]` (0 inside).

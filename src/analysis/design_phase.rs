@@ -66,6 +66,7 @@ pub(super) fn bound_design(
         context.report.condition_number = Some(design.condition_number());
     }
     let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?;
+    let known_ranges = known_ranges(scene);
     let mut bounding = DesignBounding {
         bounder: &bounder,
         threads: context.threads,
@@ -74,6 +75,8 @@ pub(super) fn bound_design(
         candidates: CheckCandidates::new(d),
         sobol: SobolSeries::new(d, n_outputs),
         screen_hull: &design.screen_hull,
+        known_ranges: &known_ranges,
+        element: None,
     };
     let complete = match &design.adapted {
         Some(outcome) => {
@@ -149,24 +152,77 @@ pub(super) fn bound_design(
     })
 }
 
+/// Each output's known range ([`crate::scene::OutputKind::known_range`]), by output index.
+pub(super) fn known_ranges(scene: &crate::scene::Scene) -> Vec<Option<(f64, f64)>> {
+    scene.outputs.iter().map(|o| o.kind.known_range()).collect()
+}
+
+/// Clips a bounded block to the outputs' known ranges (docs/method.md §12, "known ranges"): the
+/// bounds and the predicted extremes, since no true value lies outside the range (a surrogate
+/// of a contact force that dips below 0 where the contact is open is closer to the truth clipped
+/// at 0). `n_outputs` outputs per record, record-major.
+fn clip_to_known_ranges(
+    block: &mut super::bounds::BoundedBlock,
+    known_ranges: &[Option<(f64, f64)>],
+    n_outputs: usize,
+) {
+    if known_ranges.iter().all(Option::is_none) {
+        return;
+    }
+    let clip = |value: &mut f64, (low, high): (f64, f64)| *value = value.clamp(low, high);
+    for (k, point) in block.points.iter_mut().enumerate() {
+        if let Some(range) = known_ranges[k % n_outputs.max(1)] {
+            clip(&mut point.lower, range);
+            clip(&mut point.upper, range);
+            if let Some((lower, upper)) = &mut point.outer {
+                clip(lower, range);
+                clip(upper, range);
+            }
+        }
+    }
+    for (k, extremes) in block.extremes.iter_mut().enumerate() {
+        if let (Some(extremes), Some(range)) = (extremes, known_ranges[k % n_outputs.max(1)]) {
+            clip(&mut extremes.at_min, range);
+            clip(&mut extremes.at_max, range);
+        }
+    }
+}
+
+/// What an element's design covers (docs/method.md §12): its sub-box, whose own standard
+/// coordinates the design and the surrogates use, and which outputs its check looks at.
+pub(super) struct ElementScope<'b> {
+    /// The element.
+    pub element: &'b crate::uq::ElementBox,
+    /// Per output: whether its predicted extremes become check candidates.
+    pub checked_outputs: &'b [bool],
+}
+
 /// The design's bounding: fits and bounds blocks of records into the accumulator, collecting the
 /// predicted extremes for the check and the surrogates' Sobol' indices.
-struct DesignBounding<'b> {
-    bounder: &'b Bounder,
-    threads: &'b rayon::ThreadPool,
-    n_outputs: usize,
-    locates_extremes: bool,
-    candidates: CheckCandidates,
+pub(super) struct DesignBounding<'b> {
+    pub bounder: &'b Bounder,
+    pub threads: &'b rayon::ThreadPool,
+    pub n_outputs: usize,
+    pub locates_extremes: bool,
+    /// The predicted extremes, in the whole box's coordinates.
+    pub candidates: CheckCandidates,
     /// The surrogates' Sobol' indices, record after record.
-    sobol: SobolSeries,
+    pub sobol: SobolSeries,
     /// Min/max of the screening runs per record and output (empty without screening).
-    screen_hull: &'b [EnvelopePoint],
+    pub screen_hull: &'b [EnvelopePoint],
+    /// Each output's known range: bounds and predictions are clipped to it.
+    pub known_ranges: &'b [Option<(f64, f64)>],
+    /// The element this design covers (`None`: the whole box). An element's envelopes do not take
+    /// in the nominal run, which lies outside it in general; its candidates are mapped to the
+    /// whole box's coordinates and kept for its checked outputs only.
+    pub element: Option<ElementScope<'b>>,
 }
 
 impl DesignBounding<'_> {
     /// Bounds records `first..first + count` from the design's `values(r)` (row-major `samples ×
-    /// outputs`); `accumulator` already holds those records' times and nominal values.
-    fn absorb(
+    /// outputs`); `accumulator` already holds those records' times and nominal values (the whole
+    /// box; an element's accumulator holds no nominal run).
+    pub fn absorb(
         &mut self,
         first: usize,
         count: usize,
@@ -175,9 +231,10 @@ impl DesignBounding<'_> {
         accumulator: &mut Accumulator,
     ) -> Result<(), StudyError> {
         let n_outputs = self.n_outputs;
-        let bounded =
+        let mut bounded =
             self.bounder
                 .bound_records(count, n_outputs, values, excluded, self.threads)?;
+        clip_to_known_ranges(&mut bounded, self.known_ranges, n_outputs);
         accumulator.points.extend_from_slice(&bounded.points);
         self.sobol.extend(&bounded);
         for r in 0..count {
@@ -190,9 +247,11 @@ impl DesignBounding<'_> {
                 }
             }
             // The nominal run is a true response inside the box: the envelope contains it.
-            let nominal =
-                accumulator.nominal[record * n_outputs..(record + 1) * n_outputs].to_vec();
-            accumulator.widen(record, &nominal);
+            if self.element.is_none() {
+                let nominal =
+                    accumulator.nominal[record * n_outputs..(record + 1) * n_outputs].to_vec();
+                accumulator.widen(record, &nominal);
+            }
             // The screening's runs are true responses too.
             if let Some(hull) = self
                 .screen_hull
@@ -207,25 +266,25 @@ impl DesignBounding<'_> {
                 continue;
             }
             for o in 0..n_outputs {
+                if let Some(scope) = &self.element {
+                    if !scope.checked_outputs[o] {
+                        continue;
+                    }
+                }
                 if let Some(extremes) = &bounded.extremes[r * n_outputs + o] {
                     let point = &accumulator.points[record * n_outputs + o];
                     let width = point.upper - point.lower;
-                    self.candidates.add(
-                        record,
-                        o,
-                        Side::Lower,
-                        &extremes.argmin,
-                        extremes.at_min,
-                        width,
-                    );
-                    self.candidates.add(
-                        record,
-                        o,
-                        Side::Upper,
-                        &extremes.argmax,
-                        extremes.at_max,
-                        width,
-                    );
+                    let (argmin, argmax) = match &self.element {
+                        Some(scope) => (
+                            scope.element.to_whole(&extremes.argmin),
+                            scope.element.to_whole(&extremes.argmax),
+                        ),
+                        None => (extremes.argmin.clone(), extremes.argmax.clone()),
+                    };
+                    self.candidates
+                        .add(record, o, Side::Lower, &argmin, extremes.at_min, width);
+                    self.candidates
+                        .add(record, o, Side::Upper, &argmax, extremes.at_max, width);
                 }
             }
         }

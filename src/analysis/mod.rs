@@ -22,6 +22,8 @@ mod check;
 mod check_phase;
 mod design_part;
 mod design_phase;
+mod elements;
+mod elements_phase;
 mod engine;
 mod envelope;
 mod error;
@@ -30,6 +32,7 @@ mod method;
 mod phase;
 mod plan;
 mod reference;
+mod refine_phase;
 mod report;
 mod schedule;
 mod screening;
@@ -57,6 +60,11 @@ pub use check::{
     SEPARATION_ADVICE_AMPLIFICATION, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
 pub use design_part::{DesignPartRequest, PartSink};
+pub use elements::{
+    ElementsOptions, DEFAULT_MAX_ELEMENTS, MAX_SPLIT_DIMS, MIN_ELEMENT_HALF_WIDTH,
+    MIN_ELEMENT_ORDER, SPLIT_SHARE,
+};
+pub use elements_phase::ELEMENT_TENSOR_MAX_DIM;
 pub use engine::{BlockOutcome, LockStep, RecordSource};
 pub use envelope::{widest_record, Envelope, OuterBounds};
 pub use error::{ForeignError, StudyError};
@@ -68,8 +76,9 @@ pub use method::{CheckMisfit, Method, METHODS};
 pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
 pub use report::{
-    AdaptiveReport, BlockView, CheckReport, CheckSkipped, DesignPart, PendingStage, Progress,
-    SampleFailure, SampleRetry, StudyReport,
+    AdaptiveReport, BlockView, CheckReport, CheckSkipped, DesignPart, ElementSummary,
+    ElementsReport, PendingStage, Progress, RefinedExtreme, RefinementReport, SampleFailure,
+    SampleRetry, StudyReport,
 };
 pub use schedule::{RecordSchedule, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS};
 pub use screening::{DimensionScreening, Screening};

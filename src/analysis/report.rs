@@ -185,6 +185,114 @@ pub struct AdaptiveReport {
     pub stop: &'static str,
 }
 
+/// One element of a study's box (docs/method.md §12), for the summary and the report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElementSummary {
+    /// Its parent element (`None` for the root, the whole box).
+    pub parent: Option<usize>,
+    /// Splits from the root.
+    pub depth: usize,
+    /// Its lower corner in standard coordinates ξ.
+    pub lower_xi: Vec<f64>,
+    /// Its upper corner in standard coordinates ξ.
+    pub upper_xi: Vec<f64>,
+    /// The dimensions its split halved (empty for a leaf).
+    pub split_dims: Vec<usize>,
+    /// Its design's runs (the root's: the study's design with the nominal run).
+    pub design_runs: usize,
+    /// Its check's runs.
+    pub check_runs: usize,
+    /// Its surrogates' order.
+    pub order: usize,
+    /// Whether it is a leaf (its bounds are in the union).
+    pub leaf: bool,
+    /// The outputs its check fails for, against the union's width (leaves only).
+    pub untrusted_outputs: Vec<usize>,
+    /// A leaf's own envelope of each output the elements were made for: `(output, lower[r],
+    /// upper[r])` (for the report's plots: drawn faintly under the union).
+    pub series: Vec<(usize, Vec<f64>, Vec<f64>)>,
+}
+
+/// What splitting the box into elements did (docs/method.md §12).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElementsReport {
+    /// Rounds of splitting run.
+    pub rounds: usize,
+    /// Runs the elements made beyond the first design and check (their designs and checks).
+    pub runs: usize,
+    /// Why it stopped: `trusted` (every output), `budget` (`--max-runs`), `max-elements`,
+    /// `resolution` (no failing element could be halved further), `stalled` (halving stopped
+    /// improving the failing elements: docs/method.md §12) or `interrupted`.
+    pub stop: &'static str,
+    /// The outputs the first check did not trust, for which the elements were made.
+    pub outputs: Vec<usize>,
+    /// Every element, the root first, parents before children.
+    pub elements: Vec<ElementSummary>,
+}
+
+impl ElementsReport {
+    /// The leaves (the elements whose bounds make the union).
+    pub fn leaves(&self) -> usize {
+        self.elements.iter().filter(|e| e.leaf).count()
+    }
+
+    /// The deepest leaf's depth.
+    pub fn depth(&self) -> usize {
+        self.elements.iter().map(|e| e.depth).max().unwrap_or(0)
+    }
+
+    /// How many splits halved each dimension (length `dim`).
+    pub fn splits_per_dimension(&self, dim: usize) -> Vec<usize> {
+        let mut count = vec![0; dim];
+        for element in &self.elements {
+            for &j in &element.split_dims {
+                if j < dim {
+                    count[j] += 1;
+                }
+            }
+        }
+        count
+    }
+
+    /// Leaves whose check still fails for some output.
+    pub fn untrusted_leaves(&self) -> usize {
+        self.elements
+            .iter()
+            .filter(|e| e.leaf && !e.untrusted_outputs.is_empty())
+            .count()
+    }
+}
+
+/// One extreme refined on the true model (docs/method.md §12).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RefinedExtreme {
+    /// The output.
+    pub output: usize,
+    /// The record time it was refined at (the output's widest).
+    pub record: usize,
+    /// Which side.
+    pub side: super::check::Side,
+    /// Where the search started (the surrogates' predicted extreme), ξ.
+    pub start_xi: Vec<f64>,
+    /// Where the best true value was found, ξ.
+    pub best_xi: Vec<f64>,
+    /// The best true value found (`NaN` when even the start failed).
+    pub value: f64,
+    /// The envelope's bound on that side before the refinement.
+    pub envelope: f64,
+}
+
+/// What refining the untrusted outputs' extremes on the true model did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RefinementReport {
+    /// True runs made.
+    pub runs: usize,
+    /// Batches (lock-step phases) run.
+    pub batches: usize,
+    /// Every extreme refined.
+    pub extremes: Vec<RefinedExtreme>,
+}
+
 /// What a study did.
 #[derive(Clone, Debug)]
 pub struct StudyReport {
@@ -236,6 +344,12 @@ pub struct StudyReport {
     pub condition_number: Option<f64>,
     /// The adaptive design's rounds, when it ran.
     pub adaptive: Option<AdaptiveReport>,
+    /// The elements the box was split into where the first check failed (docs/method.md §12);
+    /// `None` when it was not split.
+    pub elements: Option<ElementsReport>,
+    /// The untrusted outputs' extremes refined on the true model (docs/method.md §12); `None`
+    /// when nothing was refined.
+    pub refinement: Option<RefinementReport>,
     /// The largest Lyapunov exponent of the nominal motion (two extra runs: the nominal
     /// parameters and a shadow with a perturbed state; `None` when either failed or the study was
     /// interrupted before).
@@ -284,6 +398,8 @@ impl StudyReport {
             sobol: None,
             condition_number: None,
             adaptive: None,
+            elements: None,
+            refinement: None,
         }
     }
 }

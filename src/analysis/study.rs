@@ -29,9 +29,11 @@ use super::bounds::EnvelopePoint;
 use super::check::automatic_check_runs;
 use super::check_phase::check;
 use super::design_phase::{bound_design, Bounded, Design};
+use super::elements_phase::split_into_elements;
 use super::engine::LockStep;
 use super::error::{ForeignError, StudyError};
 use super::lyapunov::estimate_lyapunov;
+use super::method::Method;
 use super::phase::{lockstep, PhaseContext};
 use super::plan::Plan;
 use super::report::{BlockView, CheckSkipped, Progress, StudyReport};
@@ -272,8 +274,12 @@ fn run_phases(
     };
     if complete && locates_extremes {
         let check_plan = candidates.select(check_budget);
-        let check_report = check(context, &check_plan, accumulator)?;
-        context.report.check = Some(check_report);
+        let outcome = check(context, &check_plan, accumulator)?;
+        context.report.check = Some(outcome.report);
+        // Where the surrogate is not trusted: elements (sub-boxes with their own surrogates).
+        if context.options.elements.enabled && study_plan.method == Method::LegendreScan {
+            split_into_elements(context, stages, outcome.misfit, candidates, accumulator)?;
+        }
     } else if study_plan.method.is_checked() && context.options.check_runs == Some(0) {
         context.report.check_skipped = Some(CheckSkipped::TurnedOff);
     }

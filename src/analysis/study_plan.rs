@@ -51,6 +51,9 @@ pub struct StudyOptions {
     /// ([`Method::is_checked`]; `None`: [`automatic_check_runs`] of the design; `Some(0)`: no
     /// check, said in the report as [`super::CheckSkipped::TurnedOff`]).
     pub check_runs: Option<usize>,
+    /// Whether the box is split into elements where the first check fails, and into how many at
+    /// most (docs/method.md §12; `legendre-scan` and `auto` only).
+    pub elements: super::elements::ElementsOptions,
 }
 
 /// Where a surrogate method runs the model.

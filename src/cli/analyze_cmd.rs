@@ -31,6 +31,8 @@ impl AnalyzeArgs {
                 keep_going: self.keep_going,
                 max_runs: self.max_runs,
                 check_runs: self.check_runs,
+                elements: self.elements.clone(),
+                max_elements: self.max_elements,
             },
             outputs: StudyOutputs {
                 summary: self.summary.clone(),

@@ -24,6 +24,7 @@ pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
         },
     )?;
     print_warnings(&model);
+    crate::scene::check_dense_matrices("`ribbon dynamics`", &model)?;
     apply_set_flags(&mut model, &args.set)?;
     let (q_names, v_names) = coordinate_names(&model);
     let mut q = match &args.q {

@@ -220,6 +220,14 @@ pub struct AnalyzeArgs {
     /// off, which the summary and the table say).
     #[arg(long, value_name = "N")]
     pub check_runs: Option<usize>,
+    /// Split the box into elements (sub-boxes with their own surrogates and checks) where the
+    /// a-posteriori check does not trust one surrogate: `auto` (default: on for `--method auto`),
+    /// `on` (also `legendre-scan`) or `off` (one surrogate, as before).
+    #[arg(long, value_name = "auto|on|off")]
+    pub elements: Option<String>,
+    /// Most elements (leaves) the box is split into (default 64).
+    #[arg(long, value_name = "N")]
+    pub max_elements: Option<usize>,
     /// Write the summary JSON.
     #[arg(long, value_name = "FILE")]
     pub summary: Option<PathBuf>,

@@ -45,12 +45,25 @@ pub enum ShardError {
         message: String,
     },
     /// A record block file ends early (its writer was killed, or the copy is incomplete).
-    #[error("record block '{path}' is truncated: {message}; run its shard again (`ribbon run PLAN --shard K/N --into DIR` overwrites only that shard)")]
+    #[error("record block '{path}' is truncated: {message}; nothing was written: run its shard again with `{command}` (it overwrites only that shard), then merge again")]
     Truncated {
         /// The file.
         path: PathBuf,
         /// Where it ends.
         message: String,
+        /// The `ribbon run` command that writes the block again.
+        command: String,
+    },
+    /// A record block whose bytes are not the ones its shard wrote (a flipped bit, a damaged
+    /// copy): a checksum or its digest does not match.
+    #[error("record block '{path}' is corrupted: {message}; nothing was written: run its shard again with `{command}` (it overwrites only that shard), then merge again")]
+    Corrupted {
+        /// The file.
+        path: PathBuf,
+        /// Which check failed.
+        message: String,
+        /// The `ribbon run` command that writes the block again.
+        command: String,
     },
     /// A record block of another plan lies among the shards.
     #[error("record block '{path}' belongs to another plan, or to another stage of this one (hash {found}; this plan or stage is {expected}); move it out of the directory, or merge it with its own plan")]

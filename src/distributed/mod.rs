@@ -10,6 +10,7 @@
 
 mod error;
 mod hash;
+mod integrity;
 mod plan_file;
 mod record_block;
 mod shards;
@@ -17,7 +18,7 @@ mod stage_plan;
 mod stage_records;
 
 pub use error::ShardError;
-pub use hash::{fnv1a64, fnv1a64_file};
+pub use hash::{fnv1a64, fnv1a64_file, Fnv1a64};
 pub use plan_file::{
     InputFile, PlanBody, PlanFile, PlanOptions, StagedDesign, PLAN_FORMAT, PLAN_VERSION,
 };

@@ -83,6 +83,12 @@ pub struct PlanOptions {
     pub max_runs: Option<usize>,
     /// `--check-runs`.
     pub check_runs: Option<usize>,
+    /// `--elements` (absent when not given, so that earlier plans hash as before).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elements: Option<String>,
+    /// `--max-elements` (absent when not given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_elements: Option<usize>,
 }
 
 /// Everything the plan fixes; its canonical JSON is what the plan hash covers.
@@ -168,19 +174,27 @@ impl PlanFile {
         text
     }
 
-    /// Reads and checks a plan file: its format, version and hash (an edited plan is refused).
+    /// Reads and checks a plan file: its format, version and hash (an edited plan is refused), and
+    /// that its text is byte for byte the one this ribbon writes for its content (a damaged byte
+    /// anywhere, even one the parse would forgive, is refused).
     pub fn read(path: &Path) -> Result<PlanFile, ShardError> {
         let bad = |message: String| ShardError::Plan {
             path: path.to_path_buf(),
             message,
         };
-        let text = std::fs::read_to_string(path).map_err(|source| ShardError::Io {
+        let bytes = std::fs::read(path).map_err(|source| ShardError::Io {
             what: "read the plan",
             path: path.to_path_buf(),
             source,
         })?;
-        let value: serde_json::Value = serde_json::from_str(&text)
-            .map_err(|e| bad(format!("not JSON ({e}); make it with `ribbon plan`")))?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            bad(format!(
+                "byte {} is not UTF-8 text: it was damaged; {REMAKE}",
+                e.utf8_error().valid_up_to()
+            ))
+        })?;
+        let value: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| bad(format!("not JSON ({e}); {REMAKE}")))?;
         if value.get("format").and_then(|f| f.as_str()) != Some(PLAN_FORMAT) {
             return Err(bad(format!(
                 "not a ribbon plan (no \"format\": \"{PLAN_FORMAT}\"); make one with `ribbon plan ROBOT.urdf … --plan FILE`"
@@ -189,16 +203,21 @@ impl PlanFile {
         let version = value.get("version").and_then(|v| v.as_u64());
         if version != Some(u64::from(PLAN_VERSION)) {
             return Err(bad(format!(
-                "plan format version {version:?}, this ribbon reads version {PLAN_VERSION}; make the plan again with this ribbon"
+                "plan format version {version:?}, this ribbon reads version {PLAN_VERSION}; make the plan again with this ribbon (`ribbon plan`), and run its shards again"
             )));
         }
-        let plan: PlanFile = serde_json::from_value(value)
-            .map_err(|e| bad(format!("{e}; make the plan again with `ribbon plan`")))?;
+        let plan: PlanFile =
+            serde_json::from_value(value).map_err(|e| bad(format!("{e}; {REMAKE}")))?;
         let hash = hash_of(&plan.body);
         if hash != plan.plan_hash {
             return Err(bad(format!(
-                "its body hashes to {hash}, not the {} it records: the plan was edited; make it again with `ribbon plan`",
+                "its body hashes to {hash}, not the {} it records: the plan was edited or damaged; {REMAKE}",
                 plan.plan_hash
+            )));
+        }
+        if let Some(at) = first_difference(&text, &plan.to_json()) {
+            return Err(bad(format!(
+                "its text differs at byte {at} from the text ribbon writes for its content: it was edited or damaged; {REMAKE}"
             )));
         }
         let d = plan.body.parameters.len();
@@ -207,7 +226,7 @@ impl PlanFile {
             || plan.body.nominal_xi.len() != d
         {
             return Err(bad(format!(
-                "{} samples of {d} parameters declared, but the points do not match; make the plan again",
+                "{} samples of {d} parameters declared, but the points do not match; {REMAKE}",
                 plan.body.samples
             )));
         }
@@ -220,8 +239,85 @@ impl PlanFile {
     }
 }
 
+/// What to do about a refused plan file.
+const REMAKE: &str = "make it again with the `ribbon plan` command that made it (the same inputs and options give the same plan and hash, so the record blocks already run stay valid)";
+
+/// The first byte at which `found` differs from `expected` (a shorter text differs where it
+/// ends), or `None` when they are equal.
+pub(super) fn first_difference(found: &str, expected: &str) -> Option<usize> {
+    let (found, expected) = (found.as_bytes(), expected.as_bytes());
+    let common = found
+        .iter()
+        .zip(expected)
+        .take_while(|(a, b)| a == b)
+        .count();
+    (common < found.len().max(expected.len())).then_some(common)
+}
+
 /// FNV-1a 64 of the body's canonical (compact, field-ordered) JSON.
 fn hash_of(body: &PlanBody) -> String {
     let canonical = serde_json::to_string(body).unwrap_or_default();
     format!("{:016x}", fnv1a64(canonical.as_bytes()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan() -> PlanFile {
+        let input = |path: &str| InputFile {
+            path: PathBuf::from(path),
+            fnv1a64: "0123456789abcdef".to_string(),
+        };
+        PlanFile::new(PlanBody {
+            urdf: input("robots/x.urdf"),
+            sidecar: input("robots/x.uncertainty.toml"),
+            options: PlanOptions {
+                duration: Some(0.5),
+                ..PlanOptions::default()
+            },
+            method: "legendre-scan".to_string(),
+            design: "tensor".to_string(),
+            parameters: vec!["l1".to_string()],
+            outputs: vec!["q.j1".to_string()],
+            nq: 1,
+            n_steps: 500,
+            record_every: 10,
+            step_s: 0.001,
+            records: 51,
+            samples: 2,
+            // 1e-7 is written `1e-7`; `1E-7` parses to the same number.
+            points_xi: vec![vec![-0.5], vec![1e-7]],
+            nominal_xi: vec![0.0],
+            check_runs: 1,
+            staged: None,
+        })
+    }
+
+    #[test]
+    fn a_plan_with_any_bit_flipped_is_refused() {
+        let dir = std::env::temp_dir().join(format!("ribbon-plan-flips-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("mkdir");
+        let path = dir.join("study.plan");
+        let clean = plan().to_json().into_bytes();
+        std::fs::write(&path, &clean).expect("write");
+        assert_eq!(PlanFile::read(&path).ok(), Some(plan()));
+        for i in 0..clean.len() {
+            for bit in 0..8 {
+                let mut flipped = clean.clone();
+                flipped[i] ^= 1 << bit;
+                std::fs::write(&path, &flipped).expect("write");
+                match PlanFile::read(&path) {
+                    Err(ShardError::Plan { message, .. }) => {
+                        assert!(
+                            message.contains("ribbon plan"),
+                            "byte {i} bit {bit}: {message}"
+                        )
+                    }
+                    other => panic!("byte {i} bit {bit}: {other:?}"),
+                }
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

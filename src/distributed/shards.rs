@@ -1,7 +1,7 @@
 //! Which samples a shard runs, and the set of shards a merge reads as the design's records.
 
 use super::error::ShardError;
-use super::plan_file::PlanFile;
+use super::plan_file::{InputFile, PlanFile};
 use super::record_block::RecordBlockReader;
 use super::stage_plan::Stage;
 use crate::analysis::{BlockOutcome, ForeignError, RecordSource, SampleFailure, StudyError};
@@ -144,14 +144,16 @@ pub struct ShardSet {
     counters: (u64, u64),
     /// Every shard's contact counters, merged; `None` without contacts.
     contacts: Option<ContactStats>,
+    /// Every block opened (empty shards included), by file name, with its digest.
+    blocks: Vec<InputFile>,
 }
 
 impl ShardSet {
     /// Opens every record block in `dir` (files named `shard-K-of-N.records.mcap`) and checks that
-    /// they belong to `plan` and tile its samples exactly once, with one nominal run. Names the
-    /// missing, duplicated, foreign and truncated ones.
-    pub fn open(plan: &PlanFile, dir: &Path) -> Result<ShardSet, ShardError> {
-        ShardSet::open_stage(plan, &Stage::first(plan, Path::new(""), dir))
+    /// they belong to `plan` (read from `plan_path`) and tile its samples exactly once, with one
+    /// nominal run. Names the missing, duplicated, foreign, truncated and corrupted ones.
+    pub fn open(plan: &PlanFile, plan_path: &Path, dir: &Path) -> Result<ShardSet, ShardError> {
+        ShardSet::open_stage(plan, &Stage::first(plan, plan_path, dir))
     }
 
     /// The record block files of `dir` (`shard-K-of-N.records.mcap`), sorted; none when the
@@ -190,7 +192,7 @@ impl ShardSet {
         let body = &plan.body;
         let mut readers = Vec::with_capacity(paths.len());
         for path in &paths {
-            let reader = RecordBlockReader::open(path)?;
+            let reader = RecordBlockReader::open(path, &stage.run_command(path))?;
             let header = reader.header();
             if header.plan_hash != stage.hash {
                 return Err(ShardError::Foreign {
@@ -220,6 +222,14 @@ impl ShardSet {
         }
         readers.sort_by_key(|r| (r.header().first_sample, r.header().end_sample));
         check_tiling(&readers, stage.samples, stage.nominal, dir)?;
+        let mut blocks: Vec<InputFile> = readers
+            .iter()
+            .map(|r| InputFile {
+                path: PathBuf::from(r.path().file_name().unwrap_or_default()),
+                fnv1a64: r.block_digest().to_string(),
+            })
+            .collect();
+        blocks.sort_by(|a, b| a.path.cmp(&b.path));
         // Empty shards (more shards than samples) hold no samples: keep only those with data
         // or the nominal run.
         readers.retain(|r| r.header().samples() > 0 || r.header().nominal);
@@ -257,12 +267,19 @@ impl ShardSet {
             end: 0,
             counters,
             contacts,
+            blocks,
         })
     }
 
     /// The record block files read, in sample order.
     pub fn files(&self) -> Vec<&Path> {
         self.readers.iter().map(|r| r.path()).collect()
+    }
+
+    /// Every record block read, by file name, with the FNV-1a 64 of its bytes, in file name
+    /// order: what the plan of the next stage names as the records it was planned from.
+    pub fn block_digests(&self) -> &[InputFile] {
+        &self.blocks
     }
 }
 

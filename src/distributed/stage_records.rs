@@ -3,7 +3,7 @@
 //! study chose for it; the first stage without record blocks is pending.
 
 use super::error::ShardError;
-use super::plan_file::PlanFile;
+use super::plan_file::{InputFile, PlanFile};
 use super::shards::ShardSet;
 use super::stage_plan::{stage_directory, Stage, STAGE_PLAN_FILE};
 use crate::analysis::{ForeignError, StageRecords, StageRequest, StageSource, StudyError};
@@ -27,16 +27,7 @@ impl<'p> ShardStages<'p> {
     }
 
     fn source(&mut self, request: &StageRequest) -> Result<StageSource, ShardError> {
-        let staged = self.plan.body.staged.is_some();
-        if !staged && request.stage > 1 {
-            return Err(ShardError::Plan {
-                path: self.plan_path.clone(),
-                message: format!(
-                    "internal: the {} design reached a stage {}",
-                    self.plan.body.design, request.stage
-                ),
-            });
-        }
+        let staged = self.plan.body.staged.is_some() || request.stage > 1;
         if request.stage > 1
             && !stage_directory(&self.dir, request.stage)
                 .join(STAGE_PLAN_FILE)
@@ -78,6 +69,7 @@ impl<'p> ShardStages<'p> {
             },
             other => other,
         })?;
+        self.check_planned_from(&stage, &set)?;
         eprintln!(
             "merge: stage {} ({}): {} record blocks of {} from {}",
             stage.number,
@@ -87,6 +79,54 @@ impl<'p> ShardStages<'p> {
             stage.directory.display()
         );
         Ok(StageSource::Records(Box::new(set)))
+    }
+}
+
+impl ShardStages<'_> {
+    /// When the stage after `stage` is planned, refuses record blocks of `stage` other than the
+    /// ones its plan names (re-run with other bits or another shard count, or replaced, since the
+    /// next stage's points were chosen from them).
+    fn check_planned_from(&self, stage: &Stage, set: &ShardSet) -> Result<(), ShardError> {
+        let next = stage.number + 1;
+        let planned = stage_directory(&self.dir, next).join(STAGE_PLAN_FILE);
+        if !planned.exists() {
+            return Ok(());
+        }
+        let next = Stage::resolve(self.plan, &self.plan_path, &self.dir, next)?;
+        let found = set.block_digests();
+        if next.planned_from == found {
+            return Ok(());
+        }
+        let describe = |blocks: &[InputFile]| -> String {
+            let names: Vec<String> = blocks
+                .iter()
+                .map(|b| format!("{} ({})", b.path.display(), b.fnv1a64))
+                .collect();
+            names.join(", ")
+        };
+        let differing: Vec<String> = found
+            .iter()
+            .filter(|b| !next.planned_from.contains(b))
+            .map(|b| b.path.display().to_string())
+            .collect();
+        Err(ShardError::Plan {
+            path: next.plan_path.clone(),
+            message: format!(
+                "stage {} was planned from the record blocks {} of stage {}, but {} holds {}: {} changed after stage {} was planned (run again by another ribbon or with another shard count, or replaced); put back the blocks it names, or remove the directories of stage {} and later and merge again",
+                next.number,
+                describe(&next.planned_from),
+                stage.number,
+                stage.directory.display(),
+                describe(found),
+                if differing.is_empty() {
+                    "some blocks it names are gone: the stage's records".to_string()
+                } else {
+                    differing.join(", ")
+                },
+                next.number,
+                next.number
+            ),
+        })
     }
 }
 

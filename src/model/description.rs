@@ -4,6 +4,8 @@
 //!
 //! [`Model`]: super::Model
 
+use std::collections::HashMap;
+
 /// The kind of a URDF joint that ribbon supports.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UrdfJointType {
@@ -195,16 +197,106 @@ pub struct Description {
     /// does not affect dynamics and was ignored, repeated elements, unusual limits). A model built
     /// from this description starts its [`warnings`](super::Model::warnings) with them.
     pub notes: Vec<String>,
+    /// The links' names to their indices, for [`Description::link_index`] (a search through the
+    /// list per name made a sidecar with a key per link quadratic in the links).
+    link_names: NameIndex,
+    /// The joints' names to their indices, for [`Description::joint_index`].
+    joint_names: NameIndex,
+}
+
+/// Names to indices, the first occurrence kept. A lookup trusts an index only when the name
+/// there is the one asked for, and searches the list otherwise (a name not in the index, or a
+/// list changed after the index was built), so it always answers as a search of the list would.
+#[derive(Clone, Default, PartialEq)]
+pub(crate) struct NameIndex(HashMap<String, usize>);
+
+impl NameIndex {
+    /// The index of every name of `names`, the first occurrence kept.
+    pub fn of<'a>(names: impl Iterator<Item = &'a str>) -> NameIndex {
+        let mut index = HashMap::new();
+        for (i, name) in names.enumerate() {
+            index.entry(name.to_string()).or_insert(i);
+        }
+        NameIndex(index)
+    }
+
+    /// The index of `name` among `count` names, `name_at(i)` giving the i-th.
+    pub fn find<'a>(
+        &self,
+        name: &str,
+        count: usize,
+        name_at: impl Fn(usize) -> &'a str,
+    ) -> Option<usize> {
+        match self.0.get(name) {
+            Some(&i) if i < count && name_at(i) == name => Some(i),
+            _ => (0..count).find(|&i| name_at(i) == name),
+        }
+    }
+}
+
+impl std::fmt::Debug for NameIndex {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "NameIndex({} names)", self.0.len())
+    }
 }
 
 impl Description {
+    /// A description of `robot_name` (read from `path`) with its links, joints and notes.
+    pub fn new(
+        robot_name: String,
+        path: String,
+        links: Vec<LinkSpec>,
+        joints: Vec<JointSpec>,
+        notes: Vec<String>,
+    ) -> Description {
+        Description {
+            link_names: NameIndex::of(links.iter().map(|l| l.name.as_str())),
+            joint_names: NameIndex::of(joints.iter().map(|j| j.name.as_str())),
+            robot_name,
+            path,
+            links,
+            joints,
+            notes,
+        }
+    }
+
     /// Index of the link with this name.
     pub fn link_index(&self, name: &str) -> Option<usize> {
-        self.links.iter().position(|l| l.name == name)
+        let links = &self.links;
+        self.link_names
+            .find(name, links.len(), |i| links[i].name.as_str())
     }
 
     /// Index of the joint with this name.
     pub fn joint_index(&self, name: &str) -> Option<usize> {
-        self.joints.iter().position(|j| j.name == name)
+        let joints = &self.joints;
+        self.joint_names
+            .find(name, joints.len(), |i| joints[i].name.as_str())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::NameIndex;
+
+    fn find(index: &NameIndex, names: &[&str], name: &str) -> Option<usize> {
+        index.find(name, names.len(), |i| names[i])
+    }
+
+    /// The index answers as a search of the list would: the first of repeated names, none for a
+    /// missing one, and the list's answer when the list changed after the index was built.
+    #[test]
+    fn a_name_index_answers_as_a_search_of_the_list() {
+        let names = ["a", "b", "a", "c"];
+        let index = NameIndex::of(names.iter().copied());
+        assert_eq!(find(&index, &names, "a"), Some(0));
+        assert_eq!(find(&index, &names, "c"), Some(3));
+        assert_eq!(find(&index, &names, "d"), None);
+        let renamed = ["a", "x", "a", "c"];
+        assert_eq!(find(&index, &renamed, "b"), None);
+        assert_eq!(find(&index, &renamed, "x"), Some(1));
+        let shorter = ["c"];
+        assert_eq!(find(&index, &shorter, "c"), Some(0));
+        assert_eq!(find(&index, &shorter, "a"), None);
     }
 }

@@ -25,6 +25,7 @@ mod singular;
 mod urdf;
 
 pub use consistency::{check_inertia, InertiaViolation, INERTIA_RELATIVE_TOLERANCE};
+use description::NameIndex;
 pub use description::{
     CollisionShape, CollisionSpec, Description, InertialSpec, JointSpec, LinkSpec, MimicSpec,
     UrdfJointType,
@@ -144,6 +145,8 @@ pub struct Model {
     pub contact: Option<crate::geometry::ContactMaterial>,
     /// Moving joints in coordinate order.
     pub joints: Vec<Joint>,
+    /// The moving joints' names to their indices ([`Model::joint_index`]).
+    joint_names: NameIndex,
     /// Moving bodies; body `i` is moved by joint `i`.
     pub bodies: Vec<Body>,
     /// One entry per URDF link, same order as `description.links`.
@@ -440,6 +443,7 @@ impl Model {
             gravity: Vec3::from(DEFAULT_GRAVITY),
             contact: None,
             joints: Vec::new(),
+            joint_names: NameIndex::default(),
             bodies: Vec::new(),
             links: vec![
                 LinkPlacement {
@@ -507,9 +511,11 @@ impl Model {
             }
         }
         if model.link_order.len() < n_links {
-            let unreached: Vec<usize> = (0..n_links)
-                .filter(|l| !model.link_order.contains(l))
-                .collect();
+            let mut reached = vec![false; n_links];
+            for &l in &model.link_order {
+                reached[l] = true;
+            }
+            let unreached: Vec<usize> = (0..n_links).filter(|&l| !reached[l]).collect();
             let joint = joint_on_cycle(&parent_joint, &model.description, unreached[0]);
             return Err(ModelError::Cycle {
                 path: path.to_string(),
@@ -518,6 +524,7 @@ impl Model {
                 links: name_list(&unreached),
             });
         }
+        model.joint_names = NameIndex::of(model.joints.iter().map(|j| j.name.as_str()));
         model.resolve_mimics(path);
         model.refresh();
         model.check_nominal_consistency(path);
@@ -564,7 +571,7 @@ impl Model {
             };
             let spec = &self.description.joints[source];
             let Some(mimic) = &spec.mimic else { continue };
-            let leader = self.joints.iter().position(|j| j.name == mimic.joint);
+            let leader = self.joint_index(&mimic.joint);
             match leader {
                 Some(leader) if leader != i && self.joints[leader].nv() == 1 => {
                     self.joints[i].mimic = Some((leader, mimic.multiplier, mimic.offset));
@@ -634,7 +641,9 @@ impl Model {
 
     /// Index of the moving joint with this name.
     pub fn joint_index(&self, name: &str) -> Option<usize> {
-        self.joints.iter().position(|j| j.name == name)
+        let joints = &self.joints;
+        self.joint_names
+            .find(name, joints.len(), |i| joints[i].name.as_str())
     }
 
     /// The neutral configuration: all coordinates 0, identity quaternions (`dim nq`).
@@ -669,15 +678,20 @@ impl Model {
                 }
             }
         }
+        // The links with mass of every body, in link order (one pass over the links: a pass per
+        // body made loading quadratic in the number of links).
+        let mut massive_links: Vec<Vec<usize>> = vec![Vec::new(); self.bodies.len()];
+        for (l, placement) in self.links.iter().enumerate() {
+            if let Some(b) = placement.body {
+                if self.description.links[l].inertial.mass > 0.0 {
+                    massive_links[b].push(l);
+                }
+            }
+        }
         for (b, body) in self.bodies.iter().enumerate() {
-            let merged: Vec<&str> = self
-                .links
+            let merged: Vec<&str> = massive_links[b]
                 .iter()
-                .enumerate()
-                .filter(|(l, p)| {
-                    p.body == Some(b) && self.description.links[*l].inertial.mass > 0.0
-                })
-                .map(|(l, _)| self.description.links[l].name.as_str())
+                .map(|&l| self.description.links[l].name.as_str())
                 .collect();
             let link = &self.description.links[body.link];
             let floating = self.joints[b].kind == JointKind::Floating;

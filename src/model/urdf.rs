@@ -182,13 +182,13 @@ fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description
             line: raw.line,
         });
     }
-    Ok(Description {
+    Ok(Description::new(
         robot_name,
-        path: path.to_string(),
+        path.to_string(),
         links,
         joints,
-        notes: reader.notes,
-    })
+        reader.notes,
+    ))
 }
 
 /// What to do about a joint's `role` ("parent" or "child") link `name` that the file does not

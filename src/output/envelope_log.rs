@@ -321,6 +321,15 @@ impl EnvelopeLog {
         Ok(())
     }
 
+    /// Adds entries to the `ribbon` metadata record written at the end (e.g. `elements`: the
+    /// elements a split study made, as the summary's JSON).
+    pub fn add_metadata(
+        &mut self,
+        entries: std::collections::BTreeMap<String, String>,
+    ) -> Result<(), OutputError> {
+        self.sink.add_metadata_entries(entries).map_err(mcap_error)
+    }
+
     /// The metadata to be written at the end (e.g. to correct `runs` after an interruption).
     pub fn metadata_mut(&mut self) -> &mut McapMetadata {
         self.sink.metadata_mut()

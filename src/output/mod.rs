@@ -28,7 +28,7 @@ pub use paths::{
     check_command_outputs, check_outputs, prepare_output_directory, remove_live_temporaries,
     write_atomically, AtomicFile,
 };
-pub use study_summary::peak_memory;
+pub use study_summary::{elements_json, peak_memory};
 pub use summary::{
     EnvelopeSeries, OutputSobol, ParameterSummary, SensitivitySummary, SobolDimension,
     SobolSummary, Summary,

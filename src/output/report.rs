@@ -24,6 +24,8 @@ pub const NOMINAL_COLOUR: &str = "#009e73";
 pub const OUTER_COLOUR: &str = "#d55e00";
 /// Colour of the dots of true-model runs (Okabe–Ito black: apart from the three series colours).
 pub const TRUE_RUN_COLOUR: &str = "#000000";
+/// Colour of the elements' own bounds, drawn faintly under the union (docs/method.md §12).
+pub const ELEMENT_COLOUR: &str = "#a6bddb";
 /// Colour of a second method's dashed bound (compare's report).
 pub const SECOND_COLOUR: &str = "#cc79a7";
 /// Longest file stem made from an output name (bytes), leaving room for a suffix and extension
@@ -48,6 +50,9 @@ pub struct ReportOutput<'a> {
     /// True-model runs to draw as dots, `(time, value)`: the a-posteriori check's runs at the
     /// times where the surrogate put this output's extremes (empty without a check).
     pub true_runs: &'a [(f64, f64)],
+    /// Where the box was split into elements: each leaf's own `(lower, upper)` per record time,
+    /// drawn faintly under the union (empty otherwise).
+    pub elements: &'a [(&'a [f64], &'a [f64])],
 }
 
 /// The y-axis label of an output: `name [unit]`.
@@ -71,6 +76,21 @@ pub fn band_plot<'a>(
         upper: output.upper,
         colour: BAND_COLOUR,
     }];
+    for (e, &(lower, upper)) in output.elements.iter().enumerate() {
+        for (side, values) in [lower, upper].into_iter().enumerate() {
+            layers.push(Layer::Line {
+                label: if e == 0 && side == 0 {
+                    format!("bounds of each of {} elements", output.elements.len())
+                } else {
+                    String::new()
+                },
+                values,
+                colour: ELEMENT_COLOUR,
+                width: 1,
+                dashed: false,
+            });
+        }
+    }
     if let Some((lower, upper)) = output.outer {
         for (label, values) in [("outer bound", lower), ("", upper)] {
             layers.push(Layer::Line {
@@ -307,6 +327,7 @@ mod tests {
             nominal: &nominal,
             outer: Some((&outer_lower, &outer_upper)),
             true_runs: &[],
+            elements: &[],
         };
         let plot = band_plot(&times, &output, "inner");
         assert_eq!(plot.y_label, "q.j1 [rad]");
@@ -329,5 +350,18 @@ mod tests {
             .svg()
             .unwrap()
             .contains("true runs at predicted extremes"));
+        // With elements, each leaf's bounds as two faint lines, named once.
+        let (element_lower, element_upper) = ([0.05, 0.1, 0.2], [0.6, 0.7, 0.8]);
+        let elements = [
+            (&element_lower[..], &element_upper[..]),
+            (&lower[..], &upper[..]),
+        ];
+        let with_elements = ReportOutput {
+            elements: &elements,
+            ..output
+        };
+        let plot = band_plot(&times, &with_elements, "inner");
+        assert_eq!(plot.layers.len(), 4 + 4);
+        assert!(plot.svg().unwrap().contains("bounds of each of 2 elements"));
     }
 }

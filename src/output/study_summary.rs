@@ -7,8 +7,8 @@
 
 use super::summary::{EnvelopeSeries, ParameterSummary, SensitivitySummary, SobolSummary, Summary};
 use crate::analysis::{
-    CheckReport, StudyReport, ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, TRUST_RELATIVE_MISFIT,
-    TRUST_RESOLUTION_FACTOR,
+    CheckReport, ElementsReport, StudyReport, ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION,
+    TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
 use crate::scene::LimitExcursion;
 use crate::uncertainty::ParameterSpace;
@@ -142,8 +142,72 @@ impl Summary {
         if let (Some(contacts), Some(stats)) = (&report.contacts, summary.stats.as_object_mut()) {
             stats.insert("contacts".to_string(), serde_json::json!(contacts));
         }
+        // Only when the box was split: a study its first check trusts keeps its keys.
+        if let (Some(elements), Some(stats)) = (&report.elements, summary.stats.as_object_mut()) {
+            stats.insert(
+                "elements".to_string(),
+                elements_json(elements, space, &report.envelope),
+            );
+        }
         summary
     }
+}
+
+/// The elements of a split box (docs/method.md §12) for the summary: counts, why it stopped, which
+/// dimensions were split how often, and every element with its corners (standard coordinates and
+/// parameter values), design, check and, for leaves, the outputs its check still fails for.
+pub fn elements_json(
+    elements: &ElementsReport,
+    space: &ParameterSpace,
+    envelope: &crate::analysis::Envelope,
+) -> serde_json::Value {
+    let dimensions = space.dimensions();
+    let names = |indices: &[usize]| -> Vec<String> {
+        indices
+            .iter()
+            .map(|&o| envelope.outputs[o].name.clone())
+            .collect()
+    };
+    // From the nearer end, so that a corner at ±1 is the interval's end exactly.
+    let value = |j: usize, xi: f64| {
+        let (dimension, radius) = (&dimensions[j], dimensions[j].radius());
+        if xi <= 0.0 {
+            dimension.lower + (xi + 1.0) * radius
+        } else {
+            dimension.upper - (1.0 - xi) * radius
+        }
+    };
+    let splits: serde_json::Map<String, serde_json::Value> = elements
+        .splits_per_dimension(dimensions.len())
+        .into_iter()
+        .enumerate()
+        .filter(|&(_, count)| count > 0)
+        .map(|(j, count)| (dimensions[j].name.clone(), serde_json::json!(count)))
+        .collect();
+    serde_json::json!({
+        "rounds": elements.rounds,
+        "runs": elements.runs,
+        "stop": elements.stop,
+        "leaves": elements.leaves(),
+        "depth": elements.depth(),
+        "untrusted_leaves": elements.untrusted_leaves(),
+        "outputs": names(&elements.outputs),
+        "splits": splits,
+        "elements": elements.elements.iter().map(|e| serde_json::json!({
+            "parent": e.parent,
+            "depth": e.depth,
+            "leaf": e.leaf,
+            "xi_lower": e.lower_xi,
+            "xi_upper": e.upper_xi,
+            "lower": e.lower_xi.iter().enumerate().map(|(j, &x)| value(j, x)).collect::<Vec<f64>>(),
+            "upper": e.upper_xi.iter().enumerate().map(|(j, &x)| value(j, x)).collect::<Vec<f64>>(),
+            "split": e.split_dims.iter().map(|&j| dimensions[j].name.clone()).collect::<Vec<String>>(),
+            "design_runs": e.design_runs,
+            "check_runs": e.check_runs,
+            "order": e.order,
+            "untrusted_outputs": names(&e.untrusted_outputs),
+        })).collect::<Vec<_>>(),
+    })
 }
 
 impl SensitivitySummary {

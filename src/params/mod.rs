@@ -265,17 +265,30 @@ pub fn list(model: &Model) -> Vec<ParamInfo> {
         .collect()
 }
 
-/// Resolves a dotted path.
+/// Resolves a dotted path; an unknown one gets the closest path of the registry as a suggestion.
 pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
+    resolve_without_suggestion(model, path).map_err(|error| match error {
+        ParamError::Unknown { path, .. } => ParamError::Unknown {
+            suggestion: closest_suggestion(
+                &path,
+                list(model)
+                    .iter()
+                    .map(|p| p.path.as_str())
+                    .collect::<Vec<_>>(),
+            ),
+            path,
+        },
+        other => other,
+    })
+}
+
+/// [`resolve`] without the suggestion for an unknown path (its search of the whole registry costs
+/// as much as listing it), for callers that try a key as a path and read it otherwise when it is
+/// none.
+pub fn resolve_without_suggestion(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
     let unknown = || ParamError::Unknown {
         path: path.to_string(),
-        suggestion: closest_suggestion(
-            path,
-            list(model)
-                .iter()
-                .map(|p| p.path.as_str())
-                .collect::<Vec<_>>(),
-        ),
+        suggestion: String::new(),
     };
     if let Some(field) = path.strip_prefix("scene.gravity.") {
         return COM_FIELDS

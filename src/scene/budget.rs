@@ -1,12 +1,14 @@
 //! How big a run may be, checked before it starts, so that a hopeless setting is refused with the
 //! numbers instead of running "forever" or aborting on an allocation: the step count
 //! ([`MAX_STEPS`], [`MIN_STEP_S`]), the memory a command keeps ([`MEMORY_BUDGET_BYTES`],
-//! [`Scene::check_memory`]) and the worker threads ([`MAX_THREADS`], [`check_threads`]).
+//! [`Scene::check_memory`]), the dense matrices of a robot's dynamics ([`check_dense_matrices`])
+//! and the worker threads ([`MAX_THREADS`], [`check_threads`]).
 //!
 //! The study engine can call the same checks: [`Scene::record_count`] and [`Scene::check_memory`]
 //! with its own footprint, and [`check_threads`] on its thread count.
 
 use super::{Scene, SceneError};
+use crate::model::Model;
 
 /// Most integrator steps of one run. At the ~2–6 µs a step of a robot arm takes (README "Speed"),
 /// 1e9 steps are one to two hours for a single run — and a study makes tens to thousands of runs.
@@ -26,6 +28,39 @@ pub const MIN_STEP_S: f64 = 1e-9;
 /// envelopes of `analyze` and `compare`, with the copies the summary JSON makes). 4 GiB leaves a
 /// laptop usable; a run over it records at a rate or horizon that no plot or table can show.
 pub const MEMORY_BUDGET_BYTES: u64 = 4 << 30;
+
+/// Dense `nv × nv` matrices one simulated robot holds at once (mass matrix, Newton matrix, their
+/// factors, the integrator's and the report's work space): measured from the peak resident memory
+/// of `ribbon simulate` on generated chains (1 000 links: 71 MB, 8.9 × 8 nv² bytes; 2 000 links:
+/// 262 MB, 8.2 ×), rounded up.
+pub const DENSE_MATRICES_PER_SYSTEM: u64 = 9;
+
+/// Refuses a robot whose dense matrices ([`DENSE_MATRICES_PER_SYSTEM`] of `nv × nv` doubles) would
+/// take more than [`MEMORY_BUDGET_BYTES`], before anything allocates them (a 50 000-link chain
+/// would need 20 GB per matrix and abort on the allocation); `command` names what was asked. Loading
+/// and listing (`ribbon params`) hold no such matrix and are not limited. Returns the bytes.
+pub fn check_dense_matrices(command: &str, model: &Model) -> Result<u64, SceneError> {
+    let nv = model.nv as f64;
+    let bytes = DENSE_MATRICES_PER_SYSTEM as f64 * nv * nv * 8.0;
+    if bytes > MEMORY_BUDGET_BYTES as f64 {
+        let largest = (MEMORY_BUDGET_BYTES as f64 / (DENSE_MATRICES_PER_SYSTEM as f64 * 8.0))
+            .sqrt()
+            .floor();
+        return Err(SceneError::TooManyCoordinates {
+            urdf: model.description.path.clone(),
+            message: format!(
+                "robot '{}' has {} velocity coordinates: {command} works on dense {}×{} matrices (mass matrix, Newton matrix, their factors; {DENSE_MATRICES_PER_SYSTEM} of them), {} in all, more than the budget of {} (MEMORY_BUDGET_BYTES); ribbon's dynamics are dense (CRBA and Cholesky), for robots of up to {largest} coordinates. `ribbon params` lists this robot's parameters without them",
+                model.name(),
+                model.nv,
+                model.nv,
+                model.nv,
+                format_bytes(bytes),
+                format_bytes(MEMORY_BUDGET_BYTES as f64)
+            ),
+        });
+    }
+    Ok(bytes as u64)
+}
 
 /// Most worker threads (`--threads`; 0 means all cores). Each thread holds its own model copy,
 /// dynamics workspace and integrator, and a stack; beyond the cores there is nothing to gain, and

@@ -13,8 +13,8 @@ mod outputs;
 mod step_control;
 
 pub use budget::{
-    check_step_count, check_threads, format_bytes, MAX_STEPS, MAX_THREADS, MEMORY_BUDGET_BYTES,
-    MIN_STEP_S,
+    check_dense_matrices, check_step_count, check_threads, format_bytes, DENSE_MATRICES_PER_SYSTEM,
+    MAX_STEPS, MAX_THREADS, MEMORY_BUDGET_BYTES, MIN_STEP_S,
 };
 pub use contacts::{SceneContacts, DEFAULT_MAX_PENETRATION_M};
 pub use limit_excursions::{
@@ -93,6 +93,14 @@ pub enum SceneError {
         /// The flag, e.g. `--step`.
         flag: String,
         /// What is wrong and what to do.
+        message: String,
+    },
+    /// A robot too big for the dense matrices of its dynamics ([`check_dense_matrices`]).
+    #[error("{urdf}: {message}")]
+    TooManyCoordinates {
+        /// The URDF file.
+        urdf: String,
+        /// The sizes and what to do.
         message: String,
     },
 }

@@ -165,7 +165,7 @@ pub fn expand_parameters(
     }
     for (b, key) in bind.keys().enumerate() {
         // A key that is no path is reported when [bind] is resolved.
-        if let Ok(target) = params::resolve(model, key) {
+        if let Ok(target) = params::resolve_without_suggestion(model, key) {
             owner.entry(target).or_insert(Owner::Bound(b));
         }
     }
@@ -371,7 +371,7 @@ fn classify<'k>(
     file: &str,
 ) -> Result<(KeyClass<'k>, IntervalSpec), SidecarError> {
     let label = key_label("parameters", key);
-    let class = match params::resolve(model, key) {
+    let class = match params::resolve_without_suggestion(model, key) {
         Ok(target) => KeyClass::Path(target),
         Err(error) => match PathPattern::parse(key) {
             Err(reason) => {
@@ -392,11 +392,13 @@ fn classify<'k>(
                 KeyClass::Symbol
             }
             Ok(None) => {
+                // The message with its suggestion, searched only now that it is needed.
+                let reason = params::resolve(model, key).err().unwrap_or(error);
                 return Err(SidecarError::UnknownKey {
                     file: file.to_string(),
                     key: label,
-                    reason: error.to_string(),
-                })
+                    reason: reason.to_string(),
+                });
             }
         },
     };

@@ -11,7 +11,7 @@ use super::install_interrupt;
 use super::options::{max_runs_of, parse_design, SceneInputs, DESIGN_NAMES};
 use super::run_study::prepare;
 use crate::analysis::{
-    DesignKind, Method, Study, StudyOptions, StudyReport, VertexReferenceOptions,
+    DesignKind, ElementsOptions, Method, Study, StudyOptions, StudyReport, VertexReferenceOptions,
     BLOCK_VALUE_BUDGET,
 };
 use crate::output::{prepare_output_directory, write_stdout};
@@ -274,6 +274,7 @@ pub fn compare(args: &CompareRequest) -> Result<(), Error> {
         check_runs: None,
         design: DesignKind::Tensor,
         max_runs: max_runs_of(args.max_runs)?,
+        elements: ElementsOptions::default(),
     };
     let interrupt = crate::interrupt::flag();
     let run_study = |options: StudyOptions| -> Result<(StudyReport, f64), Error> {
@@ -361,6 +362,11 @@ pub fn compare(args: &CompareRequest) -> Result<(), Error> {
                             order: *k,
                             truncation,
                             design: design_kind,
+                            // `auto` compares as `analyze` runs it: with elements.
+                            elements: ElementsOptions {
+                                enabled: *surrogate == Method::Auto,
+                                ..base.elements
+                            },
                             ..base.clone()
                         },
                     ));

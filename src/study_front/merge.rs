@@ -16,8 +16,8 @@ use super::options::{StudyOutputs, StudyRequest};
 use super::run_study::{run_study, MergeInput};
 use crate::analysis::{PendingStage, StudyError};
 use crate::distributed::{
-    stage_directory, PlanFile, ShardError, ShardSet, Stage, StageBody, StagePlanFile,
-    STAGE_PLAN_FILE,
+    stage_directory, PlanFile, RecordBlockReader, ShardError, ShardSet, Stage, StageBody,
+    StagePlanFile, STAGE_PLAN_FILE,
 };
 use crate::output::{check_outputs, write_atomically, write_stdout};
 use crate::Error;
@@ -45,10 +45,8 @@ pub fn merge(args: &MergeRequest) -> Result<(), Error> {
     plan.body.sidecar.check(&args.plan, "sidecar")?;
     // The plan, the record blocks and the stage plans are inputs too: no output may overwrite them.
     let mut inputs_found: Vec<PathBuf> = mcap_and_plans(&args.dir);
-    if plan.body.staged.is_some() {
-        for k in 1..=Stage::latest_number(&plan, &args.dir) {
-            inputs_found.extend(mcap_and_plans(&stage_directory(&args.dir, k)));
-        }
+    for k in 1..=Stage::latest_number(&plan, &args.dir) {
+        inputs_found.extend(mcap_and_plans(&stage_directory(&args.dir, k)));
     }
     let mut inputs = vec![("plan", args.plan.as_path())];
     inputs.extend(inputs_found.iter().map(|p| ("record block", p.as_path())));
@@ -96,7 +94,7 @@ fn next_stage(plan: &PlanFile, args: &MergeRequest, pending: &PendingStage) -> R
     let dim = plan.body.parameters.len();
     let directory = stage_directory(&args.dir, pending.stage);
     let path = directory.join(STAGE_PLAN_FILE);
-    if pending.stage < 2 || plan.body.staged.is_none() {
+    if pending.stage < 2 {
         return Err(ShardError::Plan {
             path: args.plan.clone(),
             message: format!(
@@ -107,8 +105,13 @@ fn next_stage(plan: &PlanFile, args: &MergeRequest, pending: &PendingStage) -> R
         .into());
     }
     let written = path.exists();
+    let mut stage_hash = None;
     if !written {
         let previous = Stage::resolve(plan, &args.plan, &args.dir, pending.stage - 1)?;
+        // The blocks the points were chosen from, named (and checked again) in the stage plan.
+        let previous_blocks = ShardSet::open_stage(plan, &previous)?
+            .block_digests()
+            .to_vec();
         let file = StagePlanFile::new(StageBody {
             study_plan_hash: plan.plan_hash.clone(),
             previous_stage_hash: previous.hash,
@@ -121,7 +124,9 @@ fn next_stage(plan: &PlanFile, args: &MergeRequest, pending: &PendingStage) -> R
                 .chunks(dim.max(1))
                 .map(<[f64]>::to_vec)
                 .collect(),
+            previous_blocks,
         });
+        stage_hash = Some(file.stage_hash.clone());
         std::fs::create_dir_all(&directory).map_err(|source| ShardError::Io {
             what: "create the stage directory",
             path: directory.clone(),
@@ -130,11 +135,20 @@ fn next_stage(plan: &PlanFile, args: &MergeRequest, pending: &PendingStage) -> R
         write_atomically(&path, "stage plan", file.to_json().as_bytes())?;
     }
     // A leftover record block in the directory of a stage just planned belongs to another
-    // study's stage: say so now rather than after the shards ran.
-    if !written {
-        if let Some(stale) = ShardSet::block_files(&directory)?.first() {
+    // study's stage — unless it carries this stage's hash (its plan was removed and written again
+    // the same): say so now rather than after the shards ran.
+    let mut blocks_there = false;
+    if let Some(hash) = &stage_hash {
+        let stage = Stage::resolve(plan, &args.plan, &args.dir, pending.stage)?;
+        for block in ShardSet::block_files(&directory)? {
+            let ours = RecordBlockReader::open(&block, &stage.run_command(&block))
+                .is_ok_and(|reader| &reader.header().plan_hash == hash);
+            blocks_there |= ours;
+            if ours {
+                continue;
+            }
             return Err(ShardError::Plan {
-                path: stale.clone(),
+                path: block,
                 message: format!(
                     "a record block lies in {} before its stage was planned: remove it, then run the shards of stage {}",
                     directory.display(),
@@ -155,6 +169,7 @@ fn next_stage(plan: &PlanFile, args: &MergeRequest, pending: &PendingStage) -> R
             pending.stage - 1
         ),
         "design" => "the design built on the screening".to_string(),
+        "elements" => "a round of elements (sub-boxes with their own surrogates where the check did not trust one, docs/method.md §12)".to_string(),
         other => other.to_string(),
     };
     let command = format!(
@@ -162,15 +177,27 @@ fn next_stage(plan: &PlanFile, args: &MergeRequest, pending: &PendingStage) -> R
         args.plan.display(),
         args.dir.display()
     );
+    let merge_again = format!(
+        "`ribbon merge {} {}` again",
+        args.plan.display(),
+        args.dir.display()
+    );
+    let then = if blocks_there {
+        format!("; its record blocks are already there (the plan was written again the same): run {merge_again}")
+    } else {
+        format!("; run the shards again with `{command}` (or `--shards N` under a scheduler), then {merge_again}")
+    };
     write_stdout(&format!(
-        "stage {}{of}: {} runs ({samples} samples{}) of {phase}, planned in {}{}; run the shards again with `{command}` (or `--shards N` under a scheduler), then `ribbon merge {} {}` again\n",
+        "stage {}{of}: {} runs ({samples} samples{}) of {phase}, planned in {}{}{then}\n",
         pending.stage,
         samples + usize::from(pending.nominal),
-        if pending.nominal { " and the nominal run" } else { "" },
+        if pending.nominal {
+            " and the nominal run"
+        } else {
+            ""
+        },
         path.display(),
         if written { " (already)" } else { "" },
-        args.plan.display(),
-        args.dir.display(),
     ))?;
     Err(ShardError::NextStage {
         stage: pending.stage,

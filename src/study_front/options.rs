@@ -11,7 +11,10 @@
 //! ([`StudyRequest::of_plan`]), so every study command reads options the same way. Does not: check
 //! what the options plan (`analysis::StudyPlan::new` does, e.g. "--grid 4 must be odd").
 
-use crate::analysis::{DesignKind, Method, StudyOptions, DEFAULT_MAX_RUNS, METHODS};
+use crate::analysis::{
+    DesignKind, ElementsOptions, Method, StudyOptions, DEFAULT_MAX_ELEMENTS, DEFAULT_MAX_RUNS,
+    METHODS,
+};
 use crate::distributed::{PlanFile, PlanOptions};
 use crate::scene::{check_threads, AnalysisSection, SceneOverrides};
 use crate::setup::SetupRequest;
@@ -86,6 +89,10 @@ pub struct StudyFlags {
     pub max_runs: Option<usize>,
     /// `--check-runs`.
     pub check_runs: Option<usize>,
+    /// `--elements`: `auto` (default: on for `--method auto`), `on` or `off`.
+    pub elements: Option<String>,
+    /// `--max-elements`.
+    pub max_elements: Option<usize>,
 }
 
 /// Where a study's results go (`None`: not written).
@@ -151,6 +158,8 @@ impl StudyRequest {
                 keep_going: o.keep_going,
                 max_runs: o.max_runs,
                 check_runs: o.check_runs,
+                elements: o.elements.clone(),
+                max_elements: o.max_elements,
             },
             outputs: StudyOutputs::default(),
         }
@@ -175,6 +184,8 @@ impl StudyRequest {
             keep_going: flags.keep_going,
             max_runs: flags.max_runs,
             check_runs: flags.check_runs,
+            elements: flags.elements.clone(),
+            max_elements: flags.max_elements,
         }
     }
 }
@@ -225,6 +236,7 @@ pub fn study_options(flags: &StudyFlags, section: &AnalysisSection) -> Result<St
     }
     let max_runs = max_runs_of(flags.max_runs)?;
     let threads = check_threads("--threads", flags.threads.unwrap_or(0))?;
+    let elements = elements_of(flags, method)?;
     Ok(StudyOptions {
         method,
         order: flags.order.or(section.order).unwrap_or(DEFAULT_ORDER),
@@ -238,6 +250,45 @@ pub fn study_options(flags: &StudyFlags, section: &AnalysisSection) -> Result<St
         check_runs: flags.check_runs,
         design,
         max_runs,
+        elements,
+    })
+}
+
+/// `--elements` and `--max-elements`: `auto` (the default) splits for `--method auto` only, `on`
+/// for `legendre-scan` too; other methods refuse `on` (their bounds are not a surrogate scan that
+/// a check can judge element by element).
+pub fn elements_of(flags: &StudyFlags, method: Method) -> Result<ElementsOptions, Error> {
+    let mode = flags.elements.as_deref().unwrap_or("auto");
+    let enabled = match mode {
+        "auto" => method == Method::Auto,
+        "off" => false,
+        "on" if matches!(method, Method::Auto | Method::LegendreScan) => true,
+        "on" => {
+            return Err(bad(
+                "--elements",
+                format!(
+                    "elements split the box of a Legendre surrogate that is scanned: use them with --method auto or legendre-scan, not {}",
+                    method.name()
+                ),
+            ))
+        }
+        other => {
+            return Err(bad(
+                "--elements",
+                format!("'{other}' is not a choice; use auto (the default: on for --method auto), on or off"),
+            ))
+        }
+    };
+    let max_elements = flags.max_elements.unwrap_or(DEFAULT_MAX_ELEMENTS);
+    if max_elements < 2 && flags.max_elements.is_some() {
+        return Err(bad(
+            "--max-elements",
+            format!("{max_elements} element(s) cannot split anything; give at least 2, or --elements off"),
+        ));
+    }
+    Ok(ElementsOptions {
+        enabled,
+        max_elements,
     })
 }
 

@@ -83,6 +83,17 @@ pub fn write_report(
                 .collect();
         }
     }
+    // The leaves' own bounds of the outputs the elements were made for.
+    let mut element_bounds: Vec<Vec<(&[f64], &[f64])>> = vec![Vec::new(); e.outputs.len()];
+    if let Some(elements) = &report.elements {
+        for leaf in elements.elements.iter().filter(|leaf| leaf.leaf) {
+            for (output, lower, upper) in &leaf.series {
+                if let Some(bounds) = element_bounds.get_mut(*output) {
+                    bounds.push((lower.as_slice(), upper.as_slice()));
+                }
+            }
+        }
+    }
     let outputs = e
         .outputs
         .iter()
@@ -98,6 +109,7 @@ pub fn write_report(
                 .as_ref()
                 .map(|(lower, upper)| (lower[o].as_slice(), upper[o].as_slice())),
             true_runs: &true_runs[o],
+            elements: &element_bounds[o],
         })
         .collect();
     write_analyze_report(

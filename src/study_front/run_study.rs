@@ -152,7 +152,7 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         warnings,
         excursions,
         advice,
-    } = warn(&report, &kinematic_model, &scene, space.len());
+    } = warn(&report, &kinematic_model, &scene, &space);
 
     if let Some(path) = &outputs.summary {
         let order = order_of(report.method, &options);
@@ -164,6 +164,10 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
     let foxglove_layout = log.as_ref().map(EnvelopeLog::foxglove_layout);
     if let Some(mut log) = log.take() {
         log.metadata_mut().runs = report.runs;
+        if let Some(elements) = &report.elements {
+            let json = crate::output::elements_json(elements, &space, &report.envelope);
+            log.add_metadata([("elements".to_string(), json.to_string())].into())?;
+        }
         log.finish(report.partial)?;
     }
     let table_text = table(&options, &space, &report, wall_seconds);

@@ -123,7 +123,7 @@ pub fn run_shard(args: &ShardRequest) -> Result<(), Error> {
         "run: shard {}/{} of {}{}: samples {}..{}{} of {}, {} record times",
         spec.index,
         spec.count,
-        if plan.body.staged.is_some() {
+        if stage.staged {
             format!("stage {} ", stage.number)
         } else {
             String::new()

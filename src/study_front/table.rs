@@ -81,7 +81,7 @@ pub fn table(
                         c.below_resolution_outputs.len()
                     )
                 },
-                if c.untrusted_outputs.is_empty() { "" } else { ", NOT TRUSTED" }
+                if c.untrusted_outputs.is_empty() { ", trusted" } else { ", NOT TRUSTED" }
             )
         }),
         wall_seconds,
@@ -105,6 +105,34 @@ pub fn table(
             a.max_degree,
             a.largest_remaining_indicator
         ));
+    }
+    if let Some(elements) = &report.elements {
+        text.push_str(&format!(
+            "elements: {} leaves of {} elements, depth {}, {} round(s), {} runs ({}); split {}\n",
+            elements.leaves(),
+            elements.elements.len(),
+            elements.depth(),
+            elements.rounds,
+            elements.runs,
+            match elements.untrusted_leaves() {
+                0 => "every leaf trusted".to_string(),
+                1 => format!("1 leaf untrusted, stopped: {}", elements.stop),
+                n => format!("{n} leaves untrusted, stopped: {}", elements.stop),
+            },
+            {
+                let names: Vec<String> = elements
+                    .splits_per_dimension(space.len())
+                    .into_iter()
+                    .enumerate()
+                    .filter(|&(_, count)| count > 0)
+                    .map(|(j, count)| format!("{} ×{count}", space.dimensions()[j].name))
+                    .collect();
+                names.join(", ")
+            }
+        ));
+        if report.sobol.is_some() {
+            text.push_str("(the Sobol' indices below are the first surrogate's, over the whole box; it was not trusted for the outputs the elements were made for)\n");
+        }
     }
     if let Some(series) = &report.sobol {
         let names: Vec<String> = space.dimensions().iter().map(|d| d.name.clone()).collect();

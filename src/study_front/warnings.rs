@@ -14,13 +14,15 @@
 //! (`scene::limit_excursions`); it words what they found.
 
 use crate::analysis::{
-    untrusted_advice, widest_record, CheckMisfit, CheckReport, Envelope, Method, StudyReport,
+    untrusted_advice, widest_record, CheckMisfit, CheckReport, ElementsReport, Envelope, Method,
+    StudyReport,
     TRUST_RELATIVE_MISFIT,
 };
 use crate::model::Model;
 use crate::scene::{
     describe_limit_excursions, limit_excursions, outputs_at_enforced_limits, LimitExcursion, Scene,
 };
+use crate::uncertainty::ParameterSpace;
 use crate::Error;
 
 /// What a study's warnings found.
@@ -35,13 +37,14 @@ pub struct StudyWarnings {
 }
 
 /// Finds and prints the warnings and notes of a finished study of `report` (`model` and `scene`
-/// as it ran, `dimensions` parameters).
+/// as it ran, the box `space`).
 pub fn warn(
     report: &StudyReport,
     model: &Model,
     scene: &Scene,
-    dimensions: usize,
+    space: &ParameterSpace,
 ) -> StudyWarnings {
+    let dimensions = space.len();
     // What to do about untrusted outputs: said once, in the warning and in the exit-4 error.
     let advice = report
         .check
@@ -76,8 +79,19 @@ pub fn warn(
     note_retries(report);
     if let Some(check) = &report.check {
         note_below_resolution(report, check);
+        let elements = report
+            .elements
+            .as_ref()
+            .map(|elements| describe_elements(elements, &report.envelope, space));
+        if let (Some(elements), None) = (&elements, &advice) {
+            eprintln!("note: {elements}; every output is now trusted (docs/method.md §12)");
+        }
         if let Some(advice) = &advice {
-            warnings.push(untrusted_warning(report, check, advice));
+            let mut warning = untrusted_warning(report, check, advice);
+            if let Some(elements) = &elements {
+                warning = format!("{elements}, and still {warning}");
+            }
+            warnings.push(warning);
         }
     } else if report.check_skipped.is_some() {
         // `--check-runs 0` left the surrogate unchecked.
@@ -102,6 +116,55 @@ pub fn warn(
         excursions,
         advice,
     }
+}
+
+/// What the elements of a split box are, in one clause: for which outputs, how many leaves, how
+/// deep, along which parameters, how many runs, and why splitting stopped when it did not end
+/// trusted.
+pub fn describe_elements(
+    elements: &ElementsReport,
+    envelope: &Envelope,
+    space: &ParameterSpace,
+) -> String {
+    let dimensions = space.dimensions();
+    let mut splits: Vec<(usize, usize)> = elements
+        .splits_per_dimension(dimensions.len())
+        .into_iter()
+        .enumerate()
+        .filter(|&(_, count)| count > 0)
+        .collect();
+    splits.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    let along: Vec<String> = splits
+        .iter()
+        .take(4)
+        .map(|&(j, count)| format!("{} ×{count}", dimensions[j].name))
+        .collect();
+    let outputs: Vec<&str> = elements
+        .outputs
+        .iter()
+        .take(4)
+        .map(|&o| envelope.outputs[o].name.as_str())
+        .collect();
+    let stopped = match elements.stop {
+        "trusted" => String::new(),
+        "budget" => " (stopped by the --max-runs budget)".to_string(),
+        "max-elements" => " (stopped at --max-elements)".to_string(),
+        "resolution" => " (stopped: no failing element can be halved further)".to_string(),
+        "stalled" => " (stopped: halving no longer improved the failing elements, a sign of a discontinuity or a response that oscillates across the box)".to_string(),
+        "interrupted" => " (interrupted)".to_string(),
+        other => format!(" (stopped: {other})"),
+    };
+    format!(
+        "the first surrogate was not trusted for {} output(s) ({}{}), so the box was split into {} elements with their own surrogates and checks (depth {}, {} round(s), {} more runs; split along {}){stopped}",
+        elements.outputs.len(),
+        outputs.join(", "),
+        if elements.outputs.len() > 4 { ", …" } else { "" },
+        elements.leaves(),
+        elements.depth(),
+        elements.rounds,
+        elements.runs,
+        if along.is_empty() { "nothing".to_string() } else { along.join(", ") },
+    )
 }
 
 /// What to do about the untrusted outputs of `report` ([`untrusted_advice`]); `model` and `scene`

@@ -79,19 +79,31 @@ impl PointPlan {
         }
     }
 
-    /// Calls `visit(xi, is_corner)` on the corners, then on the other grid points; `xi` starts as
-    /// `base` (the nominal) and only the plan's dimensions change. Returns the number of points
-    /// visited.
-    fn visit<F>(&self, base: &[f64], mut visit: F) -> Result<usize, UncertaintyError>
+    /// Calls `visit(xi, is_corner)` on the corners, then on the other grid points; only the plan's
+    /// dimensions of `xi` change, and they are put back before an `Ok` return (so one buffer at
+    /// the nominal serves every plan: a copy of the whole point per link made a box of every link
+    /// quadratic). Returns the number of points visited.
+    fn visit<F>(&self, xi: &mut [f64], mut visit: F) -> Result<usize, UncertaintyError>
     where
         F: FnMut(&[f64], bool) -> Result<(), UncertaintyError>,
     {
-        let mut xi = base.to_vec();
+        let base: Vec<f64> = self.dimensions.iter().map(|&k| xi[k]).collect();
+        let visited = self.visit_points(xi, &mut visit)?;
+        for (&k, &value) in self.dimensions.iter().zip(&base) {
+            xi[k] = value;
+        }
+        Ok(visited)
+    }
+
+    fn visit_points<F>(&self, xi: &mut [f64], visit: &mut F) -> Result<usize, UncertaintyError>
+    where
+        F: FnMut(&[f64], bool) -> Result<(), UncertaintyError>,
+    {
         for corner in 0..self.corners {
             for (j, &k) in self.dimensions.iter().enumerate() {
                 xi[k] = if (corner >> j) & 1 == 1 { 1.0 } else { -1.0 };
             }
-            visit(&xi, true)?;
+            visit(xi, true)?;
         }
         let mut visited = self.corners;
         if self.levels <= 2 {
@@ -109,7 +121,7 @@ impl PointPlan {
                 xi[k] = -1.0 + step * level as f64;
             }
             if !is_corner {
-                visit(&xi, false)?;
+                visit(xi, false)?;
                 visited += 1;
             }
         }
@@ -168,12 +180,13 @@ pub(super) fn check_box(
 ) -> Result<(Vec<String>, BoxCheckSummary), UncertaintyError> {
     let mut warnings = Vec::new();
     let mut summary = BoxCheckSummary::default();
-    let nominal_xi = nominal_xi(dimensions);
+    // The point the plans vary, at the nominal between them.
+    let mut xi = nominal_xi(dimensions);
 
     // 1. Bound values are possible values.
     for binding in bindings {
         let plan = PointPlan::new(binding.expression.symbols().to_vec(), true);
-        summary.binding_points += plan.visit(&nominal_xi, |xi, _| {
+        summary.binding_points += plan.visit(&mut xi, |xi, _| {
             let value = binding.value_at(dimensions, xi);
             params::validate_value(model, binding.target, value).map_err(|e| {
                 UncertaintyError::ImpossibleBoundValue {
@@ -266,7 +279,7 @@ pub(super) fn check_box(
         }
         let plan = PointPlan::new(varying.clone(), !parameters.bound.is_empty());
         summary.links += 1;
-        summary.inertia_points += plan.visit(&nominal_xi, |xi, is_corner| {
+        summary.inertia_points += plan.visit(&mut xi, |xi, is_corner| {
             let mut inertial = spec.inertial;
             for &(k, component) in &parameters.direct {
                 inertial.inertia[component] = dimensions[k].value_at(xi[k]);

@@ -12,6 +12,8 @@ use crate::sidecar::{
     expand_parameters, key_label, EntryKind, IntervalForm, ParameterEntry, SidecarFile,
 };
 use crate::text::closest_suggestion;
+use std::collections::hash_map::Entry;
+use std::collections::HashMap;
 
 /// Relative tolerance for "a binding reproduces the URDF value at the symbols' midpoints": the
 /// expression and the URDF file may round the same number differently in the last digits.
@@ -240,20 +242,17 @@ impl ParameterSpace {
             notes: expanded.notes,
             box_check: BoxCheckSummary::default(),
         };
-        // Every declared target with its key, to refuse a value declared twice.
-        let mut declared: Vec<(ParamTarget, String)> = Vec::new();
+        // Every declared target with the key that declared it first, to refuse a value declared
+        // twice (a map: a list searched per key made a box of every link quadratic).
+        let mut declared: HashMap<ParamTarget, String> = HashMap::new();
         for entry in &expanded.entries {
             let dimension = space.read_dimension(entry, model, file)?;
             let label = dimension_label(entry);
             match dimension.kind {
-                DimensionKind::Path(target) => {
-                    check_unique(&declared, target, &label, file)?;
-                    declared.push((target, label));
-                }
+                DimensionKind::Path(target) => declare(&mut declared, target, label, file)?,
                 DimensionKind::Group(g) => {
                     for member in &space.groups[g].members {
-                        check_unique(&declared, member.target, &label, file)?;
-                        declared.push((member.target, label.clone()));
+                        declare(&mut declared, member.target, label.clone(), file)?;
                     }
                 }
                 DimensionKind::Symbol => {}
@@ -262,16 +261,17 @@ impl ParameterSpace {
         }
         for (key, value) in bind {
             let binding = space.read_binding(key, value, model, file)?;
-            check_unique(&declared, binding.target, &key_label("bind", key), file)?;
-            declared.push((binding.target, key_label("bind", key)));
+            declare(&mut declared, binding.target, key_label("bind", key), file)?;
             space.bindings.push(binding);
         }
+        let mut used = vec![false; space.dimensions.len()];
+        for binding in &space.bindings {
+            for &k in binding.expression.symbols() {
+                used[k] = true;
+            }
+        }
         for (k, dimension) in space.dimensions.iter().enumerate() {
-            let used = space
-                .bindings
-                .iter()
-                .any(|b| b.expression.symbols().contains(&k));
-            if dimension.kind == DimensionKind::Symbol && !used {
+            if dimension.kind == DimensionKind::Symbol && !used[k] {
                 space.warnings.push(format!(
                     "{file}: {}: the free symbol is used by no [bind] expression, so it changes nothing; bind a path to it or remove it",
                     key_label("parameters", &dimension.name)
@@ -679,19 +679,23 @@ pub(super) fn nominal_xi(dimensions: &[Dimension]) -> Vec<f64> {
         .collect()
 }
 
-fn check_unique(
-    declared: &[(ParamTarget, String)],
+/// Records that `label` declares `target`, refusing a target some key declared before.
+fn declare(
+    declared: &mut HashMap<ParamTarget, String>,
     target: ParamTarget,
-    label: &str,
+    label: String,
     file: &str,
 ) -> Result<(), UncertaintyError> {
-    match declared.iter().find(|(t, _)| *t == target) {
-        Some((_, other)) => Err(UncertaintyError::Duplicate {
+    match declared.entry(target) {
+        Entry::Occupied(other) => Err(UncertaintyError::Duplicate {
             file: file.to_string(),
-            key: label.to_string(),
-            other: other.clone(),
+            key: label,
+            other: other.get().clone(),
         }),
-        None => Ok(()),
+        Entry::Vacant(slot) => {
+            slot.insert(label);
+            Ok(())
+        }
     }
 }
 

@@ -651,3 +651,22 @@ fn limits_from_version_1_2() {
     let old = versioned("1.1", "", "<limit lower=\"-1\" upper=\"2\"/>");
     assert!(error(&old).starts_with("t.urdf:6: joint 'j' <limit> has no effort attribute"));
 }
+
+/// Lines come from a search of the line feeds, numbered as roxmltree's `text_pos_at` numbers them
+/// (CRLF, blank lines, elements spanning lines, several elements on a line).
+#[test]
+fn lines_are_counted_as_roxmltree_counts_them() {
+    let text = "<?xml version=\"1.0\"?>\r\n<robot name=\"t\">\r\n\r\n<link\n name=\"a\"><inertial><mass value=\"1\"/>\n<inertia ixx=\"1\" ixy=\"0\" ixz=\"0\" iyy=\"1\" iyz=\"0\" izz=\"1\"/></inertial></link><link name=\"b\"/>\n\n\n<joint name=\"j\" type=\"fixed\"><parent link=\"a\"/>\n<child link=\"b\"/></joint>\n</robot>\n";
+    let doc = xml::parse(text, "t.urdf").expect("parses");
+    let reader = xml::Reader::new(&doc, doc.root_element(), "t.urdf");
+    let mut checked = 0;
+    for node in doc.descendants() {
+        assert_eq!(
+            reader.line(node),
+            doc.text_pos_at(node.range().start).row,
+            "{node:?}"
+        );
+        checked += 1;
+    }
+    assert!(checked > 10, "{checked} nodes");
+}

@@ -324,7 +324,12 @@ fn declaration_end(bytes: &[u8], start: usize) -> (Option<usize>, Vec<(usize, us
 pub(super) struct Reader<'a, 'input> {
     /// The file, for messages.
     pub path: &'a str,
-    doc: &'a Document<'input>,
+    /// The document the nodes read belong to.
+    document: std::marker::PhantomData<&'a Document<'input>>,
+    /// Byte offsets of the document's line feeds, in order: a node's line is found by a binary
+    /// search (roxmltree's `text_pos_at` counts from the start of the text, which made reading a
+    /// file with one line per element quadratic in its length).
+    line_feeds: Vec<usize>,
     namespace: Option<&'a str>,
     /// Non-fatal findings, each naming file, line and element.
     pub notes: Vec<String>,
@@ -344,18 +349,28 @@ impl<'a, 'input> Reader<'a, 'input> {
     /// A reader of `doc`, whose URDF elements are those in the namespace of `root` (prefixed
     /// elements such as `<xacro:property>` are other vocabularies and are skipped).
     pub fn new(doc: &'a Document<'input>, root: Node<'a, 'input>, path: &'a str) -> Self {
+        let line_feeds = doc
+            .input_text()
+            .bytes()
+            .enumerate()
+            .filter_map(|(at, b)| (b == b'\n').then_some(at))
+            .collect();
         Self {
             path,
-            doc,
+            document: std::marker::PhantomData,
+            line_feeds,
             namespace: root.tag_name().namespace(),
             notes: Vec::new(),
             version: UrdfVersion::V1_0,
         }
     }
 
-    /// 1-based line where `node` starts.
+    /// 1-based line where `node` starts: one more than the line feeds before it (as roxmltree's
+    /// `text_pos_at` counts).
     pub fn line(&self, node: Node) -> u32 {
-        self.doc.text_pos_at(node.range().start).row
+        let start = node.range().start;
+        let before = self.line_feeds.partition_point(|&at| at < start);
+        u32::try_from(before + 1).unwrap_or(u32::MAX)
     }
 
     /// Whether `node` is the URDF element `name`.
