@@ -59,10 +59,15 @@ pub enum Error {
     #[error(transparent)]
     Shard(#[from] crate::distributed::ShardError),
     /// A study finished and wrote its results, but the a-posteriori check found the surrogate
-    /// untrustworthy for some outputs (exit 4): its envelopes were widened to every true run made,
-    /// yet may still be too narrow.
-    #[error("the results were written, but the surrogate cannot be trusted for {untrusted} of {total} outputs (worst: {worst}): their envelopes may be too narrow, so this run exits with status {UNTRUSTED_EXIT_CODE}; {advice}")]
+    /// untrustworthy for some outputs, or true runs outside an outer bound (exit 4): its envelopes
+    /// were widened to every true run made, yet may still be too narrow.
+    #[error("the results were written, but {finding} for {untrusted} of {total} outputs (worst: {worst}): {consequence}, so this run exits with status {UNTRUSTED_EXIT_CODE}; {advice}")]
     Untrusted {
+        /// What the check found, e.g. `the surrogate cannot be trusted` or `the outer bound of
+        /// the surrogate was broken by the true model`.
+        finding: &'static str,
+        /// What that means for the envelopes, e.g. `their envelopes may be too narrow`.
+        consequence: &'static str,
         /// Outputs the check did not trust.
         untrusted: usize,
         /// Outputs of the study.

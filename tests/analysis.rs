@@ -556,7 +556,15 @@ fn the_check_finds_nothing_on_a_smooth_response_and_can_be_turned_off() {
     }
     let unchecked = analyze(urdf, &sidecar, &["--check-runs", "0"], "check_off");
     assert_eq!(unchecked["samples"], 26);
-    assert!(unchecked["stats"]["check"].is_null());
+    // Turned off, and said so.
+    let skipped = &unchecked["stats"]["check"];
+    assert_eq!(skipped["runs"], 0, "{skipped}");
+    assert!(
+        skipped["skipped"]
+            .as_str()
+            .is_some_and(|reason| reason.starts_with("--check-runs 0")),
+        "{skipped}"
+    );
     // The check only ever widens.
     for name in output_names(&checked) {
         let (l0, u0) = (
@@ -845,10 +853,12 @@ fn bad_analysis_input_is_refused_with_exit_2() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read 'robots/nowhere.toml'"));
 }
 
+/// A spring so stiff at one end of its interval (gravity to 1e9 m/s² on a bar) that a 10 ms step
+/// cannot converge there: those samples fail at the fixed step and are re-run with the adaptive
+/// step, so the study completes and names them (a sample that fails both ways, named and
+/// excluded: `tests/fixed_step_retry.rs`).
 #[test]
-fn a_failing_sample_is_named_and_can_be_excluded() {
-    // A bar whose joint damping makes some samples diverge is hard to build; instead a spring so
-    // stiff at one end of its interval that a 10 ms step cannot converge there.
+fn a_sample_failing_at_the_fixed_step_is_retried_and_named() {
     let urdf = scratch_file("analysis", "stiff.urdf");
     std::fs::write(
         &urdf,
@@ -864,28 +874,6 @@ fn a_failing_sample_is_named_and_can_be_excluded() {
         "[parameters]\n\"scene.gravity.y\" = [-1e9, -9.81]\n[scene]\nduration = 0.2\nstep = 0.01\ngravity = [0.0, -9.81, 0.0]\ninitial.q = { hinge = 0.5 }\n",
     )
     .unwrap();
-    let out = ribbon_output(&[
-        "analyze",
-        urdf.to_str().unwrap(),
-        "--uncertainty",
-        sidecar.to_str().unwrap(),
-        "--method",
-        "scan",
-        "--grid",
-        "3",
-    ]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    println!("{stderr}");
-    if out.status.success() {
-        // Nothing diverged: the integrator is robust at these values; then the test has nothing to
-        // show and says so loudly rather than passing silently.
-        panic!("expected a failing sample; the box did not produce one: {stderr}");
-    }
-    assert_eq!(out.status.code(), Some(1));
-    assert!(
-        stderr.contains("failed at t =") && stderr.contains("parameter values"),
-        "{stderr}"
-    );
     let summary = scratch_file("analysis", "stiff.summary.json");
     let out = ribbon_output(&[
         "analyze",
@@ -896,19 +884,25 @@ fn a_failing_sample_is_named_and_can_be_excluded() {
         "scan",
         "--grid",
         "3",
-        "--keep-going",
         "--summary",
         summary.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!("{stderr}");
+    assert!(out.status.success(), "{stderr}");
     let summary: Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
-    let excluded = summary["excluded_samples"].as_array().unwrap();
-    assert!(!excluded.is_empty());
-    assert!(excluded[0]["values"].as_array().is_some() && excluded[0]["time"].as_f64().is_some());
+    assert!(summary["excluded_samples"].as_array().unwrap().is_empty());
+    let retried = summary["retried_samples"].as_array().unwrap();
+    // The two grid points at −1e9 and −5e8 m/s², each at its first step.
+    let runs: Vec<&str> = retried.iter().map(|r| r["run"].as_str().unwrap()).collect();
+    assert_eq!(runs, ["sample 1 of 3", "sample 2 of 3"], "{retried:?}");
+    for retry in retried {
+        assert_eq!(retry["time"].as_f64(), Some(0.01), "{retry}");
+        assert!(retry["values"].as_array().is_some(), "{retry}");
+        let error = retry["error"].as_str().unwrap();
+        assert!(error.contains("Newton did not converge"), "{error}");
+        assert!(stderr.contains(error), "{stderr}");
+    }
 }
 
 #[test]

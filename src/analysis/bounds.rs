@@ -6,6 +6,11 @@
 //! - `taylor`: first-order inclusion from the central differences;
 //! - `scan`, `monte-carlo`: min and max over the runs.
 //!
+//! Every method the a-posteriori check follows ([`Method::is_checked`]) also says where its
+//! approximation takes each output's extremes ([`Extremes`]): the scans where they found them;
+//! the outer methods by scanning the same surrogate beside their bound (the tensor [`Scanner`],
+//! the sparse design's [`BoxOptimizer`]); `taylor` at the sign vertices of its linearisation.
+//!
 //! Every envelope also contains every model run made at that time (the design points and the
 //! nominal run are true responses inside the box), so a surrogate's misfit never puts a real run
 //! outside its own envelope.
@@ -15,8 +20,8 @@ use super::sparse::SparseDesign;
 use super::Method;
 use crate::uq::{
     chebyshev_inclusion, interval_bound, BernsteinBounder, Bound, BoundKind, BoxBounds,
-    BoxOptimizer, CoefficientMatrix, Projector, RangeMode, ScanOptions, Scanner, SobolIndices,
-    SparseSurrogate, Surrogate, TaylorStencil, UqError,
+    BoxOptimizer, CoefficientMatrix, Projector, RangeMode, ScanOptions, ScanOutcome, Scanner,
+    SobolIndices, SparseSurrogate, Surrogate, TaylorStencil, UqError,
 };
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -46,15 +51,15 @@ impl EnvelopePoint {
     };
 }
 
-/// Where a surrogate predicts one output's extremes at one time (methods that locate them: the
-/// surrogate scans). The a-posteriori check runs the true model there.
+/// Where a surrogate (or `taylor`'s linearisation) predicts one output's extremes at one time. The
+/// a-posteriori check runs the true model there.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Extremes {
     /// Where the surrogate takes its minimum (standard coordinates, length d).
     pub argmin: Vec<f64>,
     /// Where it takes its maximum.
     pub argmax: Vec<f64>,
-    /// The surrogate's minimum (before the envelope takes in the model runs).
+    /// The surrogate's minimum there (before the envelope takes in the model runs).
     pub at_min: f64,
     /// The surrogate's maximum.
     pub at_max: f64,
@@ -104,17 +109,22 @@ pub struct Bounder {
     dim: usize,
     order: usize,
     sparse: Option<Arc<SparseDesign>>,
+    /// Locate the extremes for the check also where the bound does not need them (outer methods
+    /// and `taylor`); the scans always locate them.
+    locate_extremes: bool,
 }
 
 impl Bounder {
     /// A bounder for `method` with the study's `plan`; `scan_grid` overrides the surrogate scan's
-    /// points per dimension.
+    /// points per dimension; `locate_extremes` (a check will run) makes the outer methods and
+    /// `taylor` say where their approximation takes its extremes as well.
     pub fn new(
         method: Method,
         plan: &Plan,
         dim: usize,
         order: usize,
         scan_grid: Option<usize>,
+        locate_extremes: bool,
     ) -> Result<Bounder, UqError> {
         let mut scan_options = ScanOptions::for_dim(dim);
         if let Some(points) = scan_grid {
@@ -129,7 +139,8 @@ impl Bounder {
             Plan::Sparse(design) => Some(Arc::clone(design)),
             _ => None,
         };
-        if let (Some(projector), true) = (&projector, method.scans_surrogate()) {
+        let locate_extremes = locate_extremes && method.is_checked();
+        if let (Some(projector), true) = (&projector, method.scans_surrogate() || locate_extremes) {
             // Validate the scan options once, here, rather than in every worker.
             Scanner::new(projector.design().family(), dim, order, scan_options)?;
         }
@@ -141,6 +152,7 @@ impl Bounder {
             dim,
             order,
             sparse,
+            locate_extremes,
         })
     }
 
@@ -196,9 +208,7 @@ impl Bounder {
                 Workspace {
                     coefficients: Some(CoefficientMatrix::zeros(design.n_terms(), n_outputs)),
                     surrogate: Some(Surrogate::zeros(design)),
-                    scanner: self
-                        .method
-                        .scans_surrogate()
+                    scanner: (self.method.scans_surrogate() || self.locate_extremes)
                         .then(|| {
                             Scanner::new(design.family(), self.dim, self.order, self.scan_options)
                                 .ok()
@@ -267,28 +277,18 @@ impl Bounder {
                     let bound = match (self.method, &mut workspace.scanner) {
                         (Method::LegendreScan | Method::ChebyshevScan, Some(scanner)) => {
                             let outcome = scanner.scan(surrogate)?;
-                            *extreme = Some(Extremes {
-                                at_min: outcome.bound.lower,
-                                at_max: outcome.bound.upper,
-                                argmin: outcome.argmin,
-                                argmax: outcome.argmax,
-                            });
-                            outcome.bound
+                            let bound = outcome.bound;
+                            *extreme = Some(scanned_extremes(outcome));
+                            bound
                         }
-                        (Method::ChebyshevIa, _) => chebyshev_inclusion(surrogate)?,
-                        (Method::LegendreBernstein, _) => {
-                            let bernstein = workspace
-                                .bernstein
-                                .get_or_insert_with(BernsteinBounder::default);
-                            let b = bernstein.bound(surrogate)?;
-                            Bound {
-                                lower: b.lower,
-                                upper: b.upper,
-                                kind: BoundKind::Outer,
-                                error: surrogate.error_estimate(),
+                        (method, scanner) => {
+                            // An outer bound's check: the same surrogate scanned for where it
+                            // takes its extremes.
+                            if let Some(scanner) = scanner {
+                                *extreme = Some(scanned_extremes(scanner.scan(surrogate)?));
                             }
+                            outer_bound(method, surrogate, &mut workspace.bernstein)?
                         }
-                        _ => interval_bound(surrogate, RangeMode::Exact)?,
                     };
                     points.push(EnvelopePoint {
                         lower: bound.lower,
@@ -299,16 +299,29 @@ impl Bounder {
                 }
                 points
             }
-            (None, Some(stencil)) => stencil
-                .bounds(values, n_outputs)?
-                .into_iter()
-                .map(|b| EnvelopePoint {
-                    lower: b.lower,
-                    upper: b.upper,
-                    error: Some(b.error.top_order),
-                    outer: None,
-                })
-                .collect(),
+            (None, Some(stencil)) => {
+                let bounds = stencil.bounds(values, n_outputs)?;
+                if self.locate_extremes {
+                    for (o, (extreme, b)) in extremes.iter_mut().zip(&bounds).enumerate() {
+                        let (argmin, argmax) = stencil.linear_extremisers(values, n_outputs, o);
+                        *extreme = Some(Extremes {
+                            argmin,
+                            argmax,
+                            at_min: b.lower,
+                            at_max: b.upper,
+                        });
+                    }
+                }
+                bounds
+                    .into_iter()
+                    .map(|b| EnvelopePoint {
+                        lower: b.lower,
+                        upper: b.upper,
+                        error: Some(b.error.top_order),
+                        outer: None,
+                    })
+                    .collect()
+            }
             (None, None) => vec![EnvelopePoint::EMPTY; n_outputs],
         };
         // Every run made is a true response inside the box: include it.
@@ -366,15 +379,10 @@ impl Bounder {
                 ws.starts
                     .extend_from_slice(&design.points()[p * d..(p + 1) * d]);
             }
-            let bound = if self.method == Method::LegendreIa {
-                let (lower, upper) = ws.optimizer.outer_bound(&ws.surrogate);
-                EnvelopePoint {
-                    lower,
-                    upper,
-                    error: Some(ws.surrogate.top_order_magnitude()),
-                    outer: None,
-                }
-            } else {
+            let outer_only = self.method == Method::LegendreIa;
+            // The inner search is the bound of the scanning methods and, beside the outer
+            // bound of `legendre-ia`, where the check looks.
+            if !outer_only || self.locate_extremes {
                 ws.optimizer
                     .bound_into(&ws.surrogate, &ws.starts, &mut ws.bounds)?;
                 let b = &ws.bounds;
@@ -384,6 +392,17 @@ impl Bounder {
                     at_min: b.lower,
                     at_max: b.upper,
                 });
+            }
+            let bound = if outer_only {
+                let (lower, upper) = ws.optimizer.outer_bound(&ws.surrogate);
+                EnvelopePoint {
+                    lower,
+                    upper,
+                    error: Some(ws.surrogate.top_order_magnitude()),
+                    outer: None,
+                }
+            } else {
+                let b = &ws.bounds;
                 EnvelopePoint {
                     lower: b.lower,
                     upper: b.upper,
@@ -396,6 +415,41 @@ impl Bounder {
             sobol.push(indices);
         }
         Ok(points)
+    }
+}
+
+/// The extremes a scan of the surrogate found.
+fn scanned_extremes(outcome: ScanOutcome) -> Extremes {
+    Extremes {
+        at_min: outcome.bound.lower,
+        at_max: outcome.bound.upper,
+        argmin: outcome.argmin,
+        argmax: outcome.argmax,
+    }
+}
+
+/// The outer bound of a tensor surrogate by `method`: its Chebyshev inclusion, its Bernstein form
+/// (with the bounder in `bernstein`, made on first use), or interval arithmetic with exact `P_n`
+/// ranges.
+fn outer_bound(
+    method: Method,
+    surrogate: &Surrogate,
+    bernstein: &mut Option<BernsteinBounder>,
+) -> Result<Bound, UqError> {
+    match method {
+        Method::ChebyshevIa => chebyshev_inclusion(surrogate),
+        Method::LegendreBernstein => {
+            let b = bernstein
+                .get_or_insert_with(BernsteinBounder::default)
+                .bound(surrogate)?;
+            Ok(Bound {
+                lower: b.lower,
+                upper: b.upper,
+                kind: BoundKind::Outer,
+                error: surrogate.error_estimate(),
+            })
+        }
+        _ => interval_bound(surrogate, RangeMode::Exact),
     }
 }
 

@@ -8,9 +8,11 @@
 //! records in order of decreasing envelope width, so every output's widest time is checked first and
 //! the budget then spreads over the others. Points closer than [`CHECK_POINT_TOLERANCE`] (max-norm in
 //! ξ) are one run. The check never narrows anything: the study widens its envelopes to contain the
-//! check runs and reports the misfit `|true − predicted|` where a candidate was run.
+//! check runs and reports the misfit ([`super::CheckMisfit`]: `|true − predicted|` where a
+//! candidate of a scan was run, the excess past the envelope for outer and approximate methods).
 
 use super::lyapunov::LyapunovEstimate;
+use super::method::Method;
 use super::report::CheckReport;
 use std::collections::HashMap;
 
@@ -77,13 +79,15 @@ pub const SEPARATION_ADVICE_AMPLIFICATION: f64 = 1e2;
 /// the response kink in the parameters), whether the nominal motion separates nearby trajectories
 /// fast (`lyapunov`), and which method can replace the surrogate at `dimensions` parameters (a
 /// scan only up to [`super::auto::AUTO_TENSOR_MAX_DIM`]). A higher order is offered only when
-/// neither a stop nor the separation explains the miss.
+/// neither a stop nor the separation explains the miss, and only to a `method` that has one
+/// (not `taylor`).
 pub fn untrusted_advice(
     check: &CheckReport,
     times: &[f64],
     dimensions: usize,
     lyapunov: Option<&LyapunovEstimate>,
     at_stops: &[&str],
+    method: Method,
 ) -> String {
     let mut parts = Vec::new();
     // Times as a person reads and types them (`0.35`, not the grid's `0.35000000000000003`).
@@ -127,17 +131,17 @@ pub fn untrusted_advice(
             l.exponent_per_s, l.amplification, l.horizon_s
         ));
     }
-    let method = if dimensions <= super::auto::AUTO_TENSOR_MAX_DIM {
+    let replacement = if dimensions <= super::auto::AUTO_TENSOR_MAX_DIM {
         "use --method scan or monte-carlo".to_string()
     } else {
         format!("use --method monte-carlo (a scan is out of reach at d = {dimensions})")
     };
     let mut actions: Vec<String> = shorter.into_iter().collect();
-    if separating.is_none() && at_stops.is_empty() {
+    if separating.is_none() && at_stops.is_empty() && method.family().is_some() {
         actions.push("raise --order".to_string());
     }
     actions.push("narrow the box".to_string());
-    actions.push(method);
+    actions.push(replacement);
     let actions = match actions.split_last() {
         Some((last, [])) => last.clone(),
         Some((last, rest)) => format!("{}, or {last}", rest.join(", ")),
@@ -412,6 +416,7 @@ mod tests {
             38,
             Some(&separating),
             &[],
+            Method::LegendreScan,
         );
         assert_eq!(
             advice,
@@ -434,16 +439,37 @@ mod tests {
             2,
             Some(&calm),
             &[],
+            Method::LegendreScan,
         );
         assert_eq!(
             advice,
             "the first miss is at t = 0.1 s; raise --order, narrow the box, or use --method scan \
              or monte-carlo"
         );
-        let advice = untrusted_advice(&untrusted_check(None, 9, Some(3)), &times, 4, None, &[]);
+        let advice = untrusted_advice(
+            &untrusted_check(None, 9, Some(3)),
+            &times,
+            4,
+            None,
+            &[],
+            Method::LegendreIa,
+        );
         assert_eq!(
             advice,
             "raise --order, narrow the box, or use --method scan or monte-carlo"
+        );
+        // `taylor` has no order to raise.
+        let advice = untrusted_advice(
+            &untrusted_check(None, 9, Some(3)),
+            &times,
+            4,
+            None,
+            &[],
+            Method::Taylor,
+        );
+        assert_eq!(
+            advice,
+            "narrow the box, or use --method scan or monte-carlo"
         );
         // Outputs at a stop are named as the cause, with no higher order offered; one earlier
         // check is "the one check"; no passing prefix, no shorter duration.
@@ -453,6 +479,7 @@ mod tests {
             9,
             None,
             &["q.finger"],
+            Method::LegendreScan,
         );
         assert_eq!(
             advice,

@@ -1,9 +1,11 @@
 //! The a-posteriori check's phase (docs/method.md §7): the true-model runs of a [`CheckPlan`]
-//! over the whole horizon; each run widens the envelopes (a true response in the box), and each
-//! checked prediction gives a misfit `|true − predicted|` at its output and record. Then, per
-//! output, the largest misfit against the envelope's width and the output's resolution decides
-//! whether its surrogate is trusted ([`trust_verdict`]), when the first miss came, and up to when
-//! the same checks pass.
+//! over the whole horizon; each run widens the envelopes (a true response in the box) and gives
+//! misfits by the method's [`CheckMisfit`]: for the scans each checked prediction's
+//! `|true − predicted|` at its output and record; for outer and approximate methods every true
+//! value's excess past the envelope as it was before the check widened it. Then, per output, the
+//! largest misfit against the envelope's width and the output's resolution decides whether its
+//! surrogate is trusted ([`trust_verdict`]), when the first miss came, and up to when the same
+//! checks pass.
 //!
 //! Does not: choose the points (`check.rs`: [`super::CheckCandidates`]), or say what to do about
 //! an untrusted surrogate (`check.rs`: [`super::untrusted_advice`]).
@@ -14,6 +16,7 @@ use super::check::{
 };
 use super::elements::OutputScale;
 use super::error::StudyError;
+use super::method::CheckMisfit;
 use super::phase::PhaseContext;
 use super::report::CheckReport;
 use crate::simulate::hht_settings;
@@ -45,6 +48,17 @@ pub(super) fn check(
     }
     let mut checked: Vec<(usize, usize, f64)> = Vec::new();
     let mut misfit = vec![vec![0.0_f64; n_records]; n_outputs];
+    let rule = context.report.method.check_misfit();
+    // An outer bound is broken by a true value outside it as the method gave it (before the
+    // check's own runs widened it).
+    let before_check: Vec<(f64, f64)> = match rule {
+        CheckMisfit::Excess => accumulator
+            .points
+            .iter()
+            .map(|p| (p.lower, p.upper))
+            .collect(),
+        CheckMisfit::Prediction => Vec::new(),
+    };
     let policy = context.exclusion_policy("check run");
     context.report.runs += runs;
     let complete = context.run_phase(
@@ -59,7 +73,15 @@ pub(super) fn check(
                     if block.lockstep.failed(i) {
                         continue;
                     }
-                    accumulator.widen(record, block.record(i, r));
+                    let values = block.record(i, r);
+                    if rule == CheckMisfit::Excess {
+                        let row = &before_check[record * n_outputs..(record + 1) * n_outputs];
+                        for (o, (&truth, &(lower, upper))) in values.iter().zip(row).enumerate() {
+                            let m = &mut misfit[o][record];
+                            *m = m.max(excess(truth, lower, upper));
+                        }
+                    }
+                    accumulator.widen(record, values);
                 }
                 for &(run, output, predicted) in &by_record[record] {
                     if block.lockstep.failed(run) {
@@ -67,8 +89,10 @@ pub(super) fn check(
                     }
                     let truth = block.record(run, r)[output];
                     checked.push((output, record, truth));
-                    let m = &mut misfit[output][record];
-                    *m = m.max((truth - predicted).abs());
+                    if rule == CheckMisfit::Prediction {
+                        let m = &mut misfit[output][record];
+                        *m = m.max((truth - predicted).abs());
+                    }
                 }
             }
             Ok(())
@@ -221,5 +245,23 @@ pub(super) fn judge(
         first_miss_record,
         checks_before_first_miss,
         passes_until_record,
+    }
+}
+
+/// How far `value` lies outside `[lower, upper]` (0 inside).
+fn excess(value: f64, lower: f64, upper: f64) -> f64 {
+    (lower - value).max(value - upper).max(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::excess;
+
+    #[test]
+    fn the_excess_is_the_distance_outside_the_envelope() {
+        assert_eq!(excess(0.5, 0.0, 1.0), 0.0);
+        assert_eq!(excess(1.0, 0.0, 1.0), 0.0);
+        assert_eq!(excess(1.25, 0.0, 1.0), 0.25);
+        assert_eq!(excess(-2.0, 0.0, 1.0), 2.0);
     }
 }

@@ -91,12 +91,26 @@ impl Study<'_> {
             }
             Err(other) => return Err(other),
         };
+        // The nominal run after the whole design's samples, as in `analyze`.
+        let whole = |mut retry: SampleFailure| {
+            retry.index = if Some(retry.index) == nominal {
+                design_samples
+            } else {
+                retry.index + range.start
+            };
+            retry
+        };
         Ok(DesignPart {
             complete,
             failures: report
                 .excluded
                 .into_iter()
                 .map(|f| offset(f, nominal))
+                .collect(),
+            retried: report
+                .retried
+                .into_iter()
+                .map(|r| whole(r.fixed_step_failure))
                 .collect(),
             newton_iterations: report.newton_iterations,
             steps: report.steps,

@@ -45,7 +45,7 @@ pub(super) struct Bounded {
 }
 
 /// Bounds `design` into `accumulator` (module documentation) with `method`; `locates_extremes`
-/// collects the predicted extremes for the check. Sets the report's condition number (sparse
+/// (a check will run) locates and collects the predicted extremes for it. Sets the report's condition number (sparse
 /// designs), largest total indices (sparse designs) and Sobol' series (surrogate methods).
 pub(super) fn bound_design(
     context: &mut PhaseContext<'_>,
@@ -65,7 +65,7 @@ pub(super) fn bound_design(
     if let Plan::Sparse(design) = plan {
         context.report.condition_number = Some(design.condition_number());
     }
-    let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid)?;
+    let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?;
     let known_ranges = known_ranges(scene);
     let mut bounding = DesignBounding {
         bounder: &bounder,

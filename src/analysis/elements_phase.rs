@@ -416,6 +416,7 @@ fn run_round(
                 d,
                 design.order,
                 context.options.scan_grid,
+                true,
             )
         })
         .collect::<Result<Vec<_>, _>>()?;

@@ -16,6 +16,16 @@
 //!
 //! Interruption: every sample checks the study's interrupt flag before each step, so a signal takes
 //! effect after at most one step per worker thread, also inside a long block or a single long run.
+//!
+//! A sample whose step fails at the study's fixed step is re-run at once from t = 0 with the
+//! adaptive step on the same record grid (`step_control = "adaptive"`, docs/step-control.md §3):
+//! its records from the record the fixed step failed to reach on are the adaptive run's, and it
+//! steps adaptively (per sample, in the scalar path) to the end of the horizon. The switch is at
+//! that record, not at a block, so the records do not depend on how the horizon is cut into
+//! blocks (a shard of `ribbon run` cuts it differently from `analyze`), and the retry depends on
+//! the sample's parameters alone, so the results are the same for any thread count. The fixed
+//! step's failure is kept as the sample's retry note ([`RecordSource::retries`]). A sample that
+//! fails both ways fails with the fixed step's failure, as without the retry.
 
 mod batched;
 
@@ -26,6 +36,7 @@ use crate::dynamics::batch::LANES;
 use crate::effects::{ContactState, ContactStats};
 use crate::integrate::{
     HhtIntegrator, HhtSettings, HhtState, HhtTrajectory, IntegrateError, ReportedVelocity,
+    StepControl,
 };
 use crate::scene::Scene;
 use crate::simulate::{
@@ -73,6 +84,12 @@ pub trait RecordSource: Sync {
     /// Failures at or before the current block's last record, by sample index.
     fn failures(&self) -> Vec<SampleFailure>;
 
+    /// Samples that failed at the fixed step at or before the current block's last record and
+    /// were re-run with the adaptive step: the fixed step's failure of each, by sample index.
+    fn retries(&self) -> Vec<SampleFailure> {
+        Vec::new()
+    }
+
     /// Total Newton iterations and steps of the samples' runs so far.
     fn counters(&self) -> (u64, u64);
 
@@ -93,6 +110,9 @@ struct Sample {
     /// This block's configurations (`records × nq`), kept for the nominal run only.
     positions: Option<Vec<f64>>,
     failure: Option<SampleFailure>,
+    /// The fixed step's failure when the sample was re-run with the adaptive step (it then steps
+    /// adaptively to the end).
+    retry: Option<SampleFailure>,
     /// The sample's contact state (counters, touching pairs), swapped into the thread's system
     /// while the sample steps; `None` without contacts.
     contacts: Option<ContactState>,
@@ -108,14 +128,33 @@ impl Sample {
         record: usize,
         message: String,
     ) {
-        self.failure = Some(SampleFailure {
+        self.failure = Some(self.failure_at(index, space, time_s, record, message));
+    }
+
+    /// The failure of this sample (index `index` of the study) at `time_s`, heading for `record`.
+    fn failure_at(
+        &self,
+        index: usize,
+        space: &ParameterSpace,
+        time_s: f64,
+        record: usize,
+        message: String,
+    ) -> SampleFailure {
+        SampleFailure {
             index,
             xi: self.xi.clone(),
             values: space.values_at(&self.xi),
             time_s,
             record,
             message,
-        });
+        }
+    }
+
+    /// The sample's Newton iterations and steps so far (0 before its start).
+    fn counters(&self) -> (u64, u64) {
+        self.trajectory
+            .as_ref()
+            .map_or((0, 0), |t| (t.stats.newton_iterations, t.stats.steps))
     }
 }
 
@@ -146,6 +185,16 @@ pub struct LockStep<'a> {
     batched: bool,
 }
 
+/// The adaptive step on the grid of `settings` that a sample failing at the fixed step is re-run
+/// with: `step_control = "adaptive"` with the scene's tolerance and halvings, everything else
+/// as the study steps. `None` when the study already steps adaptively (nothing to retry with).
+fn retry_settings(settings: &HhtSettings) -> Option<HhtSettings> {
+    (settings.step_control == StepControl::Fixed).then_some(HhtSettings {
+        step_control: StepControl::Adaptive,
+        ..*settings
+    })
+}
+
 impl<'a> LockStep<'a> {
     /// Prepares the samples at `points` (row-major, `n × d`) and, when `nominal_xi` is given, the
     /// nominal run after them ([`LockStep::nominal_index`]), which also keeps its configurations.
@@ -168,6 +217,7 @@ impl<'a> LockStep<'a> {
                 block: Vec::new(),
                 positions: None,
                 failure: None,
+                retry: None,
                 contacts: contacts.clone(),
             })
             .collect();
@@ -179,6 +229,7 @@ impl<'a> LockStep<'a> {
                 block: Vec::new(),
                 positions: Some(Vec::new()),
                 failure: None,
+                retry: None,
                 contacts: contacts.clone(),
             });
             samples.len() - 1
@@ -256,6 +307,15 @@ impl<'a> LockStep<'a> {
         self.samples[i].failure.is_some()
     }
 
+    /// Samples re-run with the adaptive step so far: the fixed step's failure of each, by sample
+    /// index ([`RecordSource::retries`]).
+    pub fn retries(&self) -> Vec<SampleFailure> {
+        self.samples
+            .iter()
+            .filter_map(|s| s.retry.clone())
+            .collect()
+    }
+
     /// Simulates every live sample through the records `first..first + count` (record `r` is at
     /// step `min(r · record_every, n_steps)`), filling each sample's block. Checks `interrupt`
     /// before every step; once it is set, the block is abandoned ([`BlockOutcome::Interrupted`])
@@ -267,114 +327,54 @@ impl<'a> LockStep<'a> {
         threads: &rayon::ThreadPool,
         interrupt: &AtomicBool,
     ) -> BlockOutcome {
-        let n_outputs = self.scene.outputs.len();
-        let nq = self.template.model.nq;
-        let scene = self.scene;
-        let space = self.space;
-        let settings = self.settings;
-        let recorder = &self.recorder;
-        let template = &self.template;
-        let start_step = self.step;
-        let schedule = RecordSchedule::of(scene);
+        let context = SampleContext {
+            template: &self.template,
+            space: self.space,
+            scene: self.scene,
+            recorder: &self.recorder,
+            settings: self.settings,
+            retry_settings: retry_settings(&self.settings),
+        };
+        let schedule = RecordSchedule::of(self.scene);
         let record_step = |r: usize| schedule.step_of(r);
-        if self.batched {
-            let context = batched::GroupContext {
-                space,
-                settings,
-                scene,
-                recorder,
-            };
-            let block = SampleBlock {
-                start_step,
-                first_record,
-                count,
-                record_step: &record_step,
-                interrupt,
-            };
-            let counters: Vec<(u64, u64)> = threads.install(|| {
+        let block = SampleBlock {
+            start_step: self.step,
+            first_record,
+            count,
+            record_from: first_record,
+            record_step: &record_step,
+            interrupt,
+        };
+        let counters: Vec<(u64, u64)> = if self.batched {
+            threads.install(|| {
                 self.samples
                     .par_chunks_mut(LANES)
                     .enumerate()
                     .map_init(
-                        || batched::new_stepper(template),
-                        |stepper, (group_index, group)| {
-                            batched::advance_group(
-                                stepper,
-                                group,
-                                group_index * LANES,
-                                &context,
-                                &block,
-                            )
+                        || batched::GroupWorker::new(context.template),
+                        |worker, (group_index, group)| {
+                            worker.advance_group(group, group_index * LANES, &context, &block)
                         },
                     )
                     .collect()
-            });
-            return self.finish_block(counters, first_record, count, interrupt, &record_step);
-        }
-        let counters: Vec<(u64, u64)> = threads.install(|| {
-            self.samples
-                .par_iter_mut()
-                .enumerate()
-                .map_init(
-                    || (template.clone(), None::<HhtIntegrator>),
-                    |(system, integrator), (index, sample)| {
-                        if sample.failure.is_some() {
-                            return (0, 0);
-                        }
-                        sample.block.clear();
-                        sample.block.resize(count * n_outputs, 0.0);
-                        if let Some(positions) = &mut sample.positions {
-                            positions.clear();
-                            positions.resize(count * nq, 0.0);
-                        }
-                        space.apply(&mut system.model, &sample.xi);
-                        // A `[bind]` value no model can have is named with its expression and
-                        // symbol values, before the integrator meets it.
-                        if let Err(error) = space.check_bound_values(&system.model, &sample.xi) {
-                            let time_s = start_step as f64 * scene.step_s;
-                            sample.fail(index, space, time_s, first_record, error.to_string());
-                            return (0, 0);
-                        }
-                        let before = sample
-                            .trajectory
-                            .as_ref()
-                            .map(|t| (t.stats.newton_iterations, t.stats.steps));
-                        let result = run_sample(
-                            system,
-                            integrator,
-                            sample,
-                            settings,
-                            scene,
-                            recorder,
-                            SampleBlock {
-                                start_step,
-                                first_record,
-                                count,
-                                record_step: &record_step,
-                                interrupt,
-                            },
-                        );
-                        if let Err(SampleStop::Failed {
-                            time_s,
-                            record,
-                            message,
-                        }) = result
-                        {
-                            sample.fail(index, space, time_s, record, message);
-                        }
-                        let after = sample
-                            .trajectory
-                            .as_ref()
-                            .map(|t| (t.stats.newton_iterations, t.stats.steps));
-                        match (before, after) {
-                            (Some(b), Some(a)) => (a.0 - b.0, a.1 - b.1),
-                            (None, Some(a)) => a,
-                            _ => (0, 0),
-                        }
-                    },
-                )
-                .collect()
-        });
+            })
+        } else {
+            threads.install(|| {
+                self.samples
+                    .par_iter_mut()
+                    .enumerate()
+                    .map_init(
+                        || SampleWorker::new(context.template),
+                        |worker, (index, sample)| {
+                            if sample.failure.is_some() {
+                                return (0, 0);
+                            }
+                            worker.advance(sample, index, &context, &block)
+                        },
+                    )
+                    .collect()
+            })
+        };
         self.finish_block(counters, first_record, count, interrupt, &record_step)
     }
 
@@ -452,6 +452,10 @@ impl RecordSource for LockStep<'_> {
         LockStep::failures(self)
     }
 
+    fn retries(&self) -> Vec<SampleFailure> {
+        LockStep::retries(self)
+    }
+
     fn counters(&self) -> (u64, u64) {
         LockStep::counters(self)
     }
@@ -461,7 +465,22 @@ impl RecordSource for LockStep<'_> {
     }
 }
 
+/// What every sample of a block shares: the study's template system, box, scene, recorder and
+/// step settings.
+struct SampleContext<'a> {
+    /// The system every thread's copy is made from.
+    template: &'a RobotSystem,
+    space: &'a ParameterSpace,
+    scene: &'a Scene,
+    recorder: &'a Recorder,
+    /// The study's step settings.
+    settings: HhtSettings,
+    /// The adaptive step a sample failing at the fixed step is re-run with ([`retry_settings`]).
+    retry_settings: Option<HhtSettings>,
+}
+
 /// Which part of the horizon one call of [`run_sample`] covers.
+#[derive(Clone, Copy)]
 struct SampleBlock<'a> {
     /// The step the samples are at.
     start_step: usize,
@@ -469,6 +488,10 @@ struct SampleBlock<'a> {
     first_record: usize,
     /// Records in the block.
     count: usize,
+    /// The first record written into the sample's block (`first_record`, or for a retry from
+    /// t = 0 the record the fixed step failed to reach: the block's records before it are the
+    /// fixed step's). The steps into earlier records leave out the reported velocity.
+    record_from: usize,
     /// The step of record `r`.
     record_step: &'a (dyn Fn(usize) -> usize + Sync),
     /// Checked before every step.
@@ -478,22 +501,172 @@ struct SampleBlock<'a> {
 /// Why a sample stopped before the end of its block.
 enum SampleStop {
     /// The simulation failed at this time, s, heading for this record, for this reason (rows and
-    /// joints named).
+    /// joints named); `in_step` when a step failed (not the start, which a smaller step cannot
+    /// change).
     Failed {
         time_s: f64,
         record: usize,
         message: String,
+        in_step: bool,
     },
     /// The interrupt flag was raised.
     Interrupted,
 }
 
+/// A failure before the first step (the start, or the engine's own bookkeeping).
 fn failed(time_s: f64, record: usize, message: String) -> SampleStop {
     SampleStop::Failed {
         time_s,
         record,
         message,
+        in_step: false,
     }
+}
+
+/// One thread's scalar system and integrators: the fixed-step one of the study's settings and,
+/// made on first use, the adaptive one that retried samples step with.
+struct SampleWorker {
+    system: RobotSystem,
+    fixed: Option<HhtIntegrator>,
+    adaptive: Option<HhtIntegrator>,
+}
+
+impl SampleWorker {
+    fn new(template: &RobotSystem) -> SampleWorker {
+        SampleWorker {
+            system: template.clone(),
+            fixed: None,
+            adaptive: None,
+        }
+    }
+
+    /// Advances `sample` (index `index` of the study, not failed) through `block`: at the fixed
+    /// step, or adaptively once it was retried; a step that fails at the fixed step re-runs it
+    /// ([`SampleWorker::retry`]); a failure that stays marks it failed. Returns the Newton
+    /// iterations and steps taken.
+    fn advance(
+        &mut self,
+        sample: &mut Sample,
+        index: usize,
+        context: &SampleContext<'_>,
+        block: &SampleBlock<'_>,
+    ) -> (u64, u64) {
+        let n_outputs = context.recorder.outputs().len();
+        sample.block.clear();
+        sample.block.resize(block.count * n_outputs, 0.0);
+        if let Some(positions) = &mut sample.positions {
+            positions.clear();
+            positions.resize(block.count * self.system.model.nq, 0.0);
+        }
+        context.space.apply(&mut self.system.model, &sample.xi);
+        // A `[bind]` value no model can have is named with its expression and symbol values,
+        // before the integrator meets it.
+        if let Err(error) = context
+            .space
+            .check_bound_values(&self.system.model, &sample.xi)
+        {
+            let time_s = block.start_step as f64 * context.scene.step_s;
+            sample.fail(
+                index,
+                context.space,
+                time_s,
+                block.first_record,
+                error.to_string(),
+            );
+            return (0, 0);
+        }
+        let before = sample.counters();
+        let (integrator, settings) = match (&sample.retry, context.retry_settings) {
+            (Some(_), Some(adaptive)) => (&mut self.adaptive, adaptive),
+            _ => (&mut self.fixed, context.settings),
+        };
+        let result = run_sample(
+            &mut self.system,
+            integrator,
+            sample,
+            settings,
+            context.scene,
+            context.recorder,
+            *block,
+        );
+        let after = sample.counters();
+        let taken = (after.0 - before.0, after.1 - before.1);
+        match result {
+            Ok(()) | Err(SampleStop::Interrupted) => taken,
+            Err(SampleStop::Failed {
+                time_s,
+                record,
+                message,
+                in_step,
+            }) => {
+                let failure = sample.failure_at(index, context.space, time_s, record, message);
+                add(taken, self.retry(sample, failure, in_step, context, block))
+            }
+        }
+    }
+
+    /// After `failure` of `sample` in `block` (its parameters applied to the thread's system):
+    /// when the fixed step failed in a step (`in_step`) and the study steps at a fixed step, the
+    /// sample is re-run from t = 0 with the adaptive step through the block, its records from
+    /// the failure's record on replaced, and keeps the failure as its retry note; otherwise the
+    /// sample is marked failed with `failure`. When the adaptive run fails too, the sample fails
+    /// with the failure of the run whose records it stops at: the fixed step's when the adaptive
+    /// run failed before passing its record (today's failure, as without the retry), else the
+    /// adaptive run's, with the retry note kept — the same whichever block holds either record,
+    /// so that a shard and `analyze` say the same. Returns the retry's Newton iterations and
+    /// steps.
+    fn retry(
+        &mut self,
+        sample: &mut Sample,
+        failure: SampleFailure,
+        in_step: bool,
+        context: &SampleContext<'_>,
+        block: &SampleBlock<'_>,
+    ) -> (u64, u64) {
+        let adaptive = match context.retry_settings {
+            Some(adaptive) if in_step && sample.retry.is_none() => adaptive,
+            _ => {
+                sample.failure = Some(failure);
+                return (0, 0);
+            }
+        };
+        // A new run: its own trajectory, start and contact counters.
+        sample.trajectory = None;
+        sample.contacts = self.system.effects.fresh_contact_state();
+        let from_start = SampleBlock {
+            start_step: 0,
+            record_from: failure.record,
+            ..*block
+        };
+        let result = run_sample(
+            &mut self.system,
+            &mut self.adaptive,
+            sample,
+            adaptive,
+            context.scene,
+            context.recorder,
+            from_start,
+        );
+        match result {
+            Ok(()) | Err(SampleStop::Interrupted) => sample.retry = Some(failure),
+            Err(SampleStop::Failed {
+                time_s,
+                record,
+                message,
+                ..
+            }) if record > failure.record => {
+                sample.fail(failure.index, context.space, time_s, record, message);
+                sample.retry = Some(failure);
+            }
+            Err(SampleStop::Failed { .. }) => sample.failure = Some(failure),
+        }
+        sample.counters()
+    }
+}
+
+/// The sum of two `(Newton iterations, steps)` counters.
+fn add(a: (u64, u64), b: (u64, u64)) -> (u64, u64) {
+    (a.0 + b.0, a.1 + b.1)
 }
 
 /// Advances one sample through a block ([`step_sample`]) with the sample's contact state swapped
@@ -577,6 +750,7 @@ fn step_sample(
         start_step,
         first_record,
         count,
+        record_from,
         record_step,
         interrupt,
     } = block;
@@ -616,9 +790,11 @@ fn step_sample(
                 outcome = Err(SampleStop::Interrupted);
                 break 'records;
             }
-            // Only the step into a record computes the reported velocity (docs/method.md §5,
-            // "Velocity drift"), and every step with contacts (their bookkeeping reads it).
-            let report = if step + 1 == target || system.effects.has_contacts() {
+            // Only the step into a record written computes the reported velocity
+            // (docs/method.md §5, "Velocity drift"), and every step with contacts (their
+            // bookkeeping reads it).
+            let into_record = step + 1 == target && first_record + r >= record_from;
+            let report = if into_record || system.effects.has_contacts() {
                 ReportedVelocity::Computed
             } else {
                 ReportedVelocity::Skipped
@@ -627,7 +803,12 @@ fn step_sample(
                 // The step that failed was heading for t_n + h.
                 let time = hht.state().t + settings.step_s;
                 let q = hht.state().q.as_slice().to_vec();
-                outcome = Err(failed(time, first_record + r, describe(error, system, &q)));
+                outcome = Err(SampleStop::Failed {
+                    time_s: time,
+                    record: first_record + r,
+                    message: describe(error, system, &q),
+                    in_step: true,
+                });
                 break 'records;
             }
             step += 1;
@@ -642,7 +823,9 @@ fn step_sample(
                 );
             }
         }
-        record_sample(recorder, system, hht.state(), sample, r);
+        if first_record + r >= record_from {
+            record_sample(recorder, system, hht.state(), sample, r);
+        }
     }
     let Some(trajectory) = sample.trajectory.as_mut() else {
         return Err(failed(

@@ -84,9 +84,32 @@ impl Method {
         matches!(self, Method::LegendreScan | Method::ChebyshevScan)
     }
 
-    /// Whether the method locates where its surrogate takes its extremes, so that the
-    /// a-posteriori check can run the true model there.
-    pub fn locates_extremes(self) -> bool {
-        self.scans_surrogate()
+    /// Whether the a-posteriori check (docs/method.md §7) runs after the method: every method
+    /// whose envelope rests on a surrogate or on `taylor`'s linearisation locates where that
+    /// approximation takes its extremes, so that the true model can be run there. `scan` and
+    /// `monte-carlo` are made of true runs only: there is nothing to check.
+    pub fn is_checked(self) -> bool {
+        self.family().is_some() || self == Method::Taylor
     }
+
+    /// How the check measures a miss of this method's envelope ([`CheckMisfit`]).
+    pub fn check_misfit(self) -> CheckMisfit {
+        match self.bound_kind() {
+            "outer" | "approximate" => CheckMisfit::Excess,
+            _ => CheckMisfit::Prediction,
+        }
+    }
+}
+
+/// What the a-posteriori check counts as a miss at a checked point (docs/method.md §7).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CheckMisfit {
+    /// `|true − predicted|` at the surrogate's predicted extremes: an inner bound (a scan of the
+    /// surrogate) claims to reach the true extremes, so any difference there counts.
+    Prediction,
+    /// How far a true value lies outside the envelope as it was before the check widened it
+    /// (0 inside): an outer bound (interval arithmetic, Bernstein, Chebyshev inclusion) or
+    /// `taylor`'s linearised range may be loose without being wrong, but a true run outside it
+    /// breaks it.
+    Excess,
 }

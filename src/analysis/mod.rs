@@ -72,12 +72,13 @@ pub use lyapunov::{
     estimate_lyapunov, LyapunovEstimate, CHAOS_AMPLIFICATION, COLLAPSED_SEPARATION, MAX_PULL,
     RENORMALISATION_INTERVAL_S, SHADOW_SEPARATION, VELOCITY_TIME_SCALE_S,
 };
-pub use method::{Method, METHODS};
+pub use method::{CheckMisfit, Method, METHODS};
 pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
 pub use report::{
-    AdaptiveReport, BlockView, CheckReport, DesignPart, ElementSummary, ElementsReport,
-    PendingStage, Progress, RefinedExtreme, RefinementReport, SampleFailure, StudyReport,
+    AdaptiveReport, BlockView, CheckReport, CheckSkipped, DesignPart, ElementSummary,
+    ElementsReport, PendingStage, Progress, RefinedExtreme, RefinementReport, SampleFailure,
+    SampleRetry, StudyReport,
 };
 pub use schedule::{RecordSchedule, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS};
 pub use screening::{DimensionScreening, Screening};

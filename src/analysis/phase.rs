@@ -8,7 +8,7 @@
 //! run_stage:  the stage's records from where StageRecords says ─┐ (or simulated here:)
 //! run_phase:  LockStep of the points (and the nominal run) ─────┴─▶ run_source:
 //!             per block: advance ⇒ failure policy ⇒ on_block(block, report) ⇒ progress
-//!             at the end: counters, contacts and exclusions into the report
+//!             at the end: counters, contacts, exclusions and retries into the report
 //! ```
 //!
 //! A phase (`screening_phase.rs`, `adaptive_phase.rs`, `design_phase.rs`, `check_phase.rs`,
@@ -18,7 +18,7 @@
 use super::engine::{BlockOutcome, LockStep, RecordSource};
 use super::error::StudyError;
 use super::method::Method;
-use super::report::{Progress, StudyReport};
+use super::report::{Progress, SampleRetry, StudyReport};
 use super::schedule::RecordSchedule;
 use super::stages::StageCursor;
 use super::study_plan::StudyOptions;
@@ -235,6 +235,28 @@ impl<'a> PhaseContext<'a> {
                 .merge(&counters);
         }
         report.excluded.extend(lockstep.failures());
+        let nominal = lockstep.nominal_index();
+        let samples = runs - usize::from(nominal.is_some());
+        report
+            .retried
+            .extend(
+                lockstep
+                    .retries()
+                    .into_iter()
+                    .map(|fixed_step_failure| SampleRetry {
+                        phase,
+                        run: if Some(fixed_step_failure.index) == nominal {
+                            "the nominal run".to_string()
+                        } else {
+                            format!(
+                                "{} {} of {samples}",
+                                policy.noun,
+                                fixed_step_failure.index + 1
+                            )
+                        },
+                        fixed_step_failure,
+                    }),
+            );
         if !complete {
             report.partial = true;
         }

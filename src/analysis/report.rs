@@ -38,6 +38,20 @@ pub struct SampleFailure {
     pub message: String,
 }
 
+/// A run that failed at the study's fixed step and was re-run from t = 0 with the adaptive step
+/// on the same record grid (docs/step-control.md §3): its records from the record the fixed step
+/// failed to reach on are the adaptive run's.
+#[derive(Clone, Debug)]
+pub struct SampleRetry {
+    /// The phase whose run it is (`design`, `screening`, `adaptive`, `check`).
+    pub phase: &'static str,
+    /// The run as messages name it (`sample 3 of 17`, `check run 2 of 8`, `the nominal run`).
+    pub run: String,
+    /// The fixed step's failure: the sample (its index in the phase's runs, the nominal run
+    /// last), its ξ and parameter values, where and why the fixed step failed.
+    pub fixed_step_failure: SampleFailure,
+}
+
 /// A stage whose records do not exist yet, with the points the study chose for it
 /// (docs/distributed.md §7).
 #[derive(Clone, Debug, PartialEq)]
@@ -99,7 +113,9 @@ pub struct CheckReport {
     pub unique_candidates: usize,
     /// The points run, in standard coordinates (`runs × d`, row-major).
     pub points: Vec<f64>,
-    /// Per output: the largest `|true − predicted|` over its checked predictions, in its unit.
+    /// Per output: the largest misfit in its unit, by the method's [`super::CheckMisfit`]: the
+    /// largest `|true − predicted|` over its checked predictions (scans), or the largest excess of
+    /// a check run's value past the envelope as the method gave it (outer, approximate).
     pub max_misfit: Vec<f64>,
     /// Per output: `max_misfit` over the output's largest envelope width (0 where the width is 0).
     pub relative_misfit: Vec<f64>,
@@ -130,6 +146,24 @@ pub struct CheckReport {
     /// `0..=R`, trusts every output — what the check would say of a run that ended there (the last
     /// record exactly when every output is trusted; `None` when no prefix passes).
     pub passes_until_record: Option<usize>,
+}
+
+/// Why a study whose method the check follows made no check runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CheckSkipped {
+    /// `--check-runs 0`.
+    TurnedOff,
+}
+
+impl CheckSkipped {
+    /// The reason as the summary (`stats.check.skipped`) and the stdout table say it.
+    pub fn reason(self) -> &'static str {
+        match self {
+            CheckSkipped::TurnedOff => {
+                "--check-runs 0: the envelopes were not compared with the true model"
+            }
+        }
+    }
 }
 
 /// What the adaptive design did, for the summary.
@@ -268,6 +302,9 @@ pub struct StudyReport {
     pub runs: usize,
     /// Samples left out with `keep_going`.
     pub excluded: Vec<SampleFailure>,
+    /// Runs that failed at the fixed step and were re-run with the adaptive step, phase by
+    /// phase in the order they ran.
+    pub retried: Vec<SampleRetry>,
     /// Whether the study stopped early (interrupted): the envelopes cover the times done.
     pub partial: bool,
     /// Seconds spent simulating.
@@ -282,8 +319,11 @@ pub struct StudyReport {
     pub threads: usize,
     /// Record times per block of the design phase.
     pub block_records: usize,
-    /// The a-posteriori check, when the method has one.
+    /// The a-posteriori check, when the method has one and it ran.
     pub check: Option<CheckReport>,
+    /// Why a method that is checked ([`Method::is_checked`]) made no check (`None`: it made one,
+    /// or the method has none, or the study was interrupted before it).
+    pub check_skipped: Option<CheckSkipped>,
     /// The method that ran (`auto` resolved).
     pub method: Method,
     /// The design's name (see [`super::StudyPlan::design_name`]).
@@ -337,6 +377,7 @@ impl StudyReport {
             },
             runs: 0,
             excluded: Vec::new(),
+            retried: Vec::new(),
             partial: false,
             simulate_seconds: 0.0,
             bound_seconds: 0.0,
@@ -345,6 +386,7 @@ impl StudyReport {
             threads,
             block_records: 0,
             check: None,
+            check_skipped: None,
             lyapunov: None,
             contacts: None,
             method,
@@ -371,6 +413,9 @@ pub struct DesignPart {
     /// Samples left out under `--keep-going`, by their index in the whole design (the nominal
     /// run, which may not fail, never appears).
     pub failures: Vec<SampleFailure>,
+    /// Samples re-run with the adaptive step (the fixed step's failure of each), by their index
+    /// in the whole design (the nominal run after the design's samples).
+    pub retried: Vec<SampleFailure>,
     /// Newton iterations of the part's runs.
     pub newton_iterations: u64,
     /// Steps of the part's runs.

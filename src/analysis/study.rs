@@ -6,7 +6,8 @@
 //! design:  lock-step simulation of the design's samples and the nominal run, block by block
 //!          ⇒ fit and bound each block ⇒ envelopes (kept) and predicted extremisers (deduplicated)
 //! check:   true-model runs at a budgeted selection of the predicted extremisers
-//!          ⇒ envelopes widened to contain them, misfits |true − predicted| recorded
+//!          ⇒ envelopes widened to contain them, misfits recorded (|true − predicted| for the
+//!          scans, the excess past the envelope for outer and approximate methods)
 //! chaos:   the largest Lyapunov exponent of the nominal motion (two runs)
 //! sinks:   the finished envelopes, block by block
 //! ```
@@ -35,7 +36,7 @@ use super::lyapunov::estimate_lyapunov;
 use super::method::Method;
 use super::phase::{lockstep, PhaseContext};
 use super::plan::Plan;
-use super::report::{BlockView, Progress, StudyReport};
+use super::report::{BlockView, CheckSkipped, Progress, StudyReport};
 use super::schedule::RecordSchedule;
 use super::screening_phase::screen;
 use super::sparse::SparseDesign;
@@ -279,6 +280,8 @@ fn run_phases(
         if context.options.elements.enabled && study_plan.method == Method::LegendreScan {
             split_into_elements(context, stages, outcome.misfit, candidates, accumulator)?;
         }
+    } else if study_plan.method.is_checked() && context.options.check_runs == Some(0) {
+        context.report.check_skipped = Some(CheckSkipped::TurnedOff);
     }
     // Is the nominal motion chaotic? Two runs, after the design so that an interruption
     // still saves the envelopes.

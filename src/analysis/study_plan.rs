@@ -47,8 +47,9 @@ pub struct StudyOptions {
     /// Exclude failing samples instead of stopping (`scan` and `monte-carlo` samples, and check
     /// runs).
     pub keep_going: bool,
-    /// True-model runs of the a-posteriori check for methods that locate their extremes (`None`:
-    /// [`automatic_check_runs`] of the design; `Some(0)`: no check).
+    /// True-model runs of the a-posteriori check of the methods it follows
+    /// ([`Method::is_checked`]; `None`: [`automatic_check_runs`] of the design; `Some(0)`: no
+    /// check, said in the report as [`super::CheckSkipped::TurnedOff`]).
     pub check_runs: Option<usize>,
     /// Whether the box is split into elements where the first check fails, and into how many at
     /// most (docs/method.md §12; `legendre-scan` and `auto` only).
@@ -218,7 +219,7 @@ impl StudyPlan {
                 method.name()
             ))
         })?;
-        let check_runs = if method.locates_extremes() {
+        let check_runs = if method.is_checked() {
             check_for(runs)
         } else {
             0

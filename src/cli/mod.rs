@@ -215,8 +215,9 @@ pub struct AnalyzeArgs {
     /// screening and check; default 3000).
     #[arg(long, value_name = "N")]
     pub max_runs: Option<usize>,
-    /// True-model runs of the a-posteriori check at the surrogate's predicted extremes (methods
-    /// that scan a surrogate; default: 10 % of the design's runs, at least 8; 0 turns it off).
+    /// True-model runs of the a-posteriori check at the surrogate's predicted extremes (every
+    /// surrogate method and taylor; default: 10 % of the design's runs, at least 8; 0 turns it
+    /// off, which the summary and the table say).
     #[arg(long, value_name = "N")]
     pub check_runs: Option<usize>,
     /// Split the box into elements (sub-boxes with their own surrogates and checks) where the

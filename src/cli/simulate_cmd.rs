@@ -218,6 +218,7 @@ fn summary(
         sensitivities: None,
         samples: 1,
         excluded_samples: Vec::new(),
+        retried_samples: Vec::new(),
         wall_seconds,
         outputs: trajectory
             .outputs

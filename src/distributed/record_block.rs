@@ -8,8 +8,10 @@
 //! Channel  /records            one message per record time: samples × outputs f64, little-endian
 //! Channel  /nominal            (shard 0 only) per record time: outputs, then nq positions, f64 LE
 //! Message …                    record r at log_time = t_r in ns, sequence = r; /records then /nominal
-//! Metadata "ribbon.shard.end"  complete, failures (JSON), Newton iterations, steps, and fnv1a64:
-//!                              the FNV-1a 64 digest of every byte of the file before this record
+//! Metadata "ribbon.shard.end"  complete, failures (JSON), Newton iterations, steps, retried
+//!                              (JSON, only when a sample was re-run with the adaptive step), and
+//!                              fnv1a64: the FNV-1a 64 digest of every byte of the file before
+//!                              this record
 //! DataEnd, summary section, Footer, magic     the data section's and the summary's CRC-32
 //! ```
 //!
@@ -152,6 +154,9 @@ pub struct BlockTrailer {
     pub complete: bool,
     /// Samples left out under `--keep-going` (indices in the whole design).
     pub failures: Vec<SampleFailure>,
+    /// Samples re-run with the adaptive step, each with its fixed step's failure (indices in the
+    /// whole design; the `retried` entry, absent when there are none).
+    pub retried: Vec<SampleFailure>,
     /// Newton iterations of the shard's runs.
     pub newton_iterations: u64,
     /// Steps of the shard's runs.
@@ -163,25 +168,18 @@ pub struct BlockTrailer {
 
 impl BlockTrailer {
     fn to_metadata(&self) -> BTreeMap<String, String> {
-        let failures: Vec<serde_json::Value> = self
-            .failures
-            .iter()
-            .map(|f| {
-                serde_json::json!({
-                    "index": f.index, "xi": f.xi, "values": f.values, "time_s": f.time_s,
-                    "record": f.record, "message": f.message,
-                })
-            })
-            .collect();
         let mut map: BTreeMap<String, String> = [
             ("complete", self.complete.to_string()),
             ("newton_iterations", self.newton_iterations.to_string()),
             ("steps", self.steps.to_string()),
-            ("failures", serde_json::Value::Array(failures).to_string()),
+            ("failures", failures_json(&self.failures)),
         ]
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
         .collect();
+        if !self.retried.is_empty() {
+            map.insert("retried".to_string(), failures_json(&self.retried));
+        }
         if let Some(contacts) = &self.contacts {
             // Counts as integers; the depth's shortest round-trip text reads back to the same f64.
             let entry = serde_json::json!({
@@ -206,25 +204,11 @@ impl BlockTrailer {
                 .parse()
                 .map_err(|_| format!("ribbon.shard.end '{key}' is not a count"))
         };
-        let failures: Vec<serde_json::Value> = serde_json::from_str(text("failures")?)
-            .map_err(|e| format!("ribbon.shard.end 'failures' is not a JSON list: {e}"))?;
-        let failures = failures
-            .iter()
-            .map(|f| {
-                let floats = |key: &str| -> Option<Vec<f64>> {
-                    f.get(key)?.as_array()?.iter().map(|x| x.as_f64()).collect()
-                };
-                Some(SampleFailure {
-                    index: usize::try_from(f.get("index")?.as_u64()?).ok()?,
-                    xi: floats("xi")?,
-                    values: floats("values")?,
-                    time_s: f.get("time_s")?.as_f64()?,
-                    record: usize::try_from(f.get("record")?.as_u64()?).ok()?,
-                    message: f.get("message")?.as_str()?.to_string(),
-                })
-            })
-            .collect::<Option<Vec<_>>>()
-            .ok_or_else(|| "a failure in ribbon.shard.end lacks a field".to_string())?;
+        let failures = failures_from_json(text("failures")?, "failures")?;
+        let retried = match map.get("retried") {
+            Some(entry) => failures_from_json(entry, "retried")?,
+            None => Vec::new(),
+        };
         let contacts = match map.get("contacts") {
             None => None,
             Some(entry) => {
@@ -253,11 +237,49 @@ impl BlockTrailer {
         Ok(BlockTrailer {
             complete: flag(map, TRAILER_NAME, "complete")?,
             failures,
+            retried,
             newton_iterations: count("newton_iterations")?,
             steps: count("steps")?,
             contacts,
         })
     }
+}
+
+/// A list of sample failures as the trailer's JSON (`failures`, `retried`).
+fn failures_json(failures: &[SampleFailure]) -> String {
+    let entries: Vec<serde_json::Value> = failures
+        .iter()
+        .map(|f| {
+            serde_json::json!({
+                "index": f.index, "xi": f.xi, "values": f.values, "time_s": f.time_s,
+                "record": f.record, "message": f.message,
+            })
+        })
+        .collect();
+    serde_json::Value::Array(entries).to_string()
+}
+
+/// The trailer's list `key` of sample failures, read back from its JSON `text`.
+fn failures_from_json(text: &str, key: &str) -> Result<Vec<SampleFailure>, String> {
+    let entries: Vec<serde_json::Value> = serde_json::from_str(text)
+        .map_err(|e| format!("ribbon.shard.end '{key}' is not a JSON list: {e}"))?;
+    entries
+        .iter()
+        .map(|f| {
+            let floats = |key: &str| -> Option<Vec<f64>> {
+                f.get(key)?.as_array()?.iter().map(|x| x.as_f64()).collect()
+            };
+            Some(SampleFailure {
+                index: usize::try_from(f.get("index")?.as_u64()?).ok()?,
+                xi: floats("xi")?,
+                values: floats("values")?,
+                time_s: f.get("time_s")?.as_f64()?,
+                record: usize::try_from(f.get("record")?.as_u64()?).ok()?,
+                message: f.get("message")?.as_str()?.to_string(),
+            })
+        })
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| format!("an entry of '{key}' in ribbon.shard.end lacks a field"))
 }
 
 /// The entry `key` of the metadata `record` as a boolean: `true` or `false`, nothing else.
@@ -857,6 +879,7 @@ mod tests {
         BlockTrailer {
             complete: true,
             failures: Vec::new(),
+            retried: Vec::new(),
             newton_iterations: 7,
             steps: 5,
             contacts,

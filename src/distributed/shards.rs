@@ -136,6 +136,9 @@ pub struct ShardSet {
     positions: Vec<Vec<f64>>,
     /// Every shard's failures, by sample index.
     failures: Vec<SampleFailure>,
+    /// Every shard's samples re-run with the adaptive step (their fixed step's failures), by
+    /// sample index.
+    retried: Vec<SampleFailure>,
     /// One past the last record of the current block.
     end: usize,
     counters: (u64, u64),
@@ -235,6 +238,11 @@ impl ShardSet {
             .flat_map(|r| r.trailer().failures.iter().cloned())
             .collect();
         failures.sort_by_key(|f| f.index);
+        let mut retried: Vec<SampleFailure> = readers
+            .iter()
+            .flat_map(|r| r.trailer().retried.iter().cloned())
+            .collect();
+        retried.sort_by_key(|f| f.index);
         let counters = readers.iter().fold((0, 0), |(n, s), r| {
             (n + r.trailer().newton_iterations, s + r.trailer().steps)
         });
@@ -255,6 +263,7 @@ impl ShardSet {
             block: Vec::new(),
             positions: Vec::new(),
             failures,
+            retried,
             end: 0,
             counters,
             contacts,
@@ -409,11 +418,11 @@ impl RecordSource for ShardSet {
     }
 
     fn failures(&self) -> Vec<SampleFailure> {
-        self.failures
-            .iter()
-            .filter(|f| f.record < self.end)
-            .cloned()
-            .collect()
+        reached(&self.failures, self.end)
+    }
+
+    fn retries(&self) -> Vec<SampleFailure> {
+        reached(&self.retried, self.end)
     }
 
     fn counters(&self) -> (u64, u64) {
@@ -423,6 +432,11 @@ impl RecordSource for ShardSet {
     fn contact_counters(&self) -> Option<ContactStats> {
         self.contacts
     }
+}
+
+/// The entries of `list` whose record is before `end` (the records read so far).
+fn reached(list: &[SampleFailure], end: usize) -> Vec<SampleFailure> {
+    list.iter().filter(|f| f.record < end).cloned().collect()
 }
 
 #[cfg(test)]

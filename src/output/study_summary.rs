@@ -58,6 +58,18 @@ impl Summary {
             .iter()
             .map(|f| serde_json::json!({"index": f.index, "xi": f.xi, "values": f.values, "time": f.time_s, "error": f.message}))
             .collect(),
+        retried_samples: report
+            .retried
+            .iter()
+            .map(|retry| {
+                let f = &retry.fixed_step_failure;
+                serde_json::json!({
+                    "phase": retry.phase, "run": retry.run, "index": f.index, "xi": f.xi,
+                    "values": f.values, "time": f.time_s, "error": f.message,
+                    "adaptive_from_time": e.times.get(f.record),
+                })
+            })
+            .collect(),
         wall_seconds,
         outputs: e
             .outputs
@@ -86,7 +98,13 @@ impl Summary {
             "threads": report.threads,
             "block_records": report.block_records,
             "peak_memory_bytes": peak_memory(),
-            "check": report.check.as_ref().map(|c| check_json(report, c, space.len())),
+            "check": report.check.as_ref().map_or_else(
+                || report.check_skipped.map(|skipped| serde_json::json!({
+                    "runs": 0,
+                    "skipped": skipped.reason(),
+                })),
+                |c| Some(check_json(report, c, space.len())),
+            ),
             "auto": report.auto.as_ref().map(|a| serde_json::json!({
                 "requested": "auto",
                 "design": report.design,

@@ -205,6 +205,12 @@ pub struct Summary {
     pub samples: usize,
     /// Samples excluded with `--keep-going`.
     pub excluded_samples: Vec<serde_json::Value>,
+    /// Runs that failed at the fixed step and were re-run from t = 0 with the adaptive step
+    /// (docs/step-control.md §3): phase, run, index, ξ, parameter values, where (`time`) and why
+    /// (`error`) the fixed step failed, and the first record time that is the adaptive run's;
+    /// absent when there are none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub retried_samples: Vec<serde_json::Value>,
     /// Wall time, s.
     pub wall_seconds: f64,
     /// Envelopes.
@@ -313,6 +319,7 @@ mod tests {
             sensitivities: None,
             samples: 1,
             excluded_samples: Vec::new(),
+            retried_samples: Vec::new(),
             wall_seconds: 0.0,
             outputs: vec![series(f64::INFINITY)],
             stats: serde_json::Value::Null,

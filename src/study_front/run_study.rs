@@ -133,7 +133,6 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
     let kinematic_model = model;
     let mut data = Data::new(&kinematic_model);
     let mut reporter = ProgressReporter::new();
-    let scans_a_surrogate = plan.method.locates_extremes();
     let report = study.run_stages(
         plan,
         stages,
@@ -153,7 +152,7 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         warnings,
         excursions,
         advice,
-    } = warn(&report, &kinematic_model, &scene, &space, scans_a_surrogate);
+    } = warn(&report, &kinematic_model, &scene, &space);
 
     if let Some(path) = &outputs.summary {
         let order = order_of(report.method, &options);

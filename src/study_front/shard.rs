@@ -181,19 +181,26 @@ pub fn run_shard(args: &ShardRequest) -> Result<(), Error> {
         )));
     }
     let failures = part.failures.len();
+    let retried = part.retried.len();
     writer.finish(&BlockTrailer {
         complete: true,
         failures: part.failures,
+        retried: part.retried,
         newton_iterations: part.newton_iterations,
         steps: part.steps,
         contacts: part.contacts,
     })?;
     let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     eprintln!(
-        "run: wrote {} ({size} bytes): {} runs, {} steps, {failures} samples excluded; simulate {:.3} s, wall {:.3} s",
+        "run: wrote {} ({size} bytes): {} runs, {} steps, {failures} samples excluded{}; simulate {:.3} s, wall {:.3} s",
         path.display(),
         part_samples + usize::from(with_nominal),
         part.steps,
+        if retried > 0 {
+            format!(", {retried} re-run with the adaptive step")
+        } else {
+            String::new()
+        },
         part.simulate_seconds,
         started.elapsed().as_secs_f64()
     );

@@ -1,12 +1,14 @@
 //! The stdout table of a study: per output its largest envelope width with when and where, the
-//! line of the method, its design, runs and check, the adaptive design's rounds, the Sobol'
+//! line of the method, its design, runs and check (or why it was skipped), the adaptive design's rounds, the Sobol'
 //! contributors and the most influential parameters. The same text heads the report page.
 //!
 //! Does not: print it (the caller writes it after the outputs), or compute anything the report
 //! does not hold.
 
 use super::options::order_of;
-use crate::analysis::{StudyOptions, StudyReport, ADAPTIVE_TOLERANCE, TABLE_SOBOL_CONTRIBUTORS};
+use crate::analysis::{
+    CheckMisfit, Method, StudyOptions, StudyReport, ADAPTIVE_TOLERANCE, TABLE_SOBOL_CONTRIBUTORS,
+};
 use crate::output::SensitivitySummary;
 use crate::uncertainty::ParameterSpace;
 
@@ -53,7 +55,7 @@ pub fn table(
         order_of(report.method, options).map_or(String::new(), |k| format!(", order {k}")),
         report.design,
         report.runs,
-        report.check.as_ref().map_or(String::new(), |c| {
+        report.check.as_ref().map_or_else(|| check_skipped(report), |c| {
             // Outputs within the integrator's resolution are noise, not the surrogate's misfit.
             let worst = c
                 .relative_misfit
@@ -62,8 +64,13 @@ pub fn table(
                 .filter(|(o, _)| !c.below_resolution_outputs.contains(o))
                 .map(|(_, &m)| m)
                 .fold(0.0, f64::max);
+            let (subject, misfit) = match (report.method.check_misfit(), report.method) {
+                (CheckMisfit::Prediction, _) => ("surrogate", "misfit"),
+                (CheckMisfit::Excess, Method::Taylor) => ("linearisation", "excess over the bound"),
+                (CheckMisfit::Excess, _) => ("surrogate", "excess over the bound"),
+            };
             format!(
-                " ({} of them checking the surrogate's extremes: largest misfit {:.2e} of the width{}{})",
+                " ({} of them checking the {subject}'s extremes: largest {misfit} {:.2e} of the width{}{})",
                 c.runs,
                 worst,
                 if c.below_resolution_outputs.is_empty() {
@@ -156,6 +163,13 @@ pub fn table(
         }
     }
     text
+}
+
+/// The method line's words for a check that was skipped (empty when none was).
+fn check_skipped(report: &StudyReport) -> String {
+    report.check_skipped.map_or(String::new(), |skipped| {
+        format!(", check skipped ({})", skipped.reason())
+    })
 }
 
 /// Parameters listed in the stdout table's ranking.

@@ -2,7 +2,8 @@
 //! joints whose envelopes pass limits the scene does not enforce (and, where the surrogate is not
 //! trusted, how far true runs went there), outputs whose misfit is below the integrator's
 //! resolution, surrogates the check did not trust with what to do about them, an unchecked
-//! surrogate, and a chaotic nominal motion; and the exit-4 error of an untrusted study.
+//! surrogate, runs re-run with the adaptive step after the fixed step failed, and a chaotic
+//! nominal motion; and the exit-4 error of an untrusted study.
 //!
 //! ```text
 //! notes (`note: …`):        printed as they are found
@@ -13,8 +14,8 @@
 //! (`scene::limit_excursions`); it words what they found.
 
 use crate::analysis::{
-    untrusted_advice, widest_record, CheckReport, ElementsReport, Envelope, StudyReport,
-    TRUST_RELATIVE_MISFIT,
+    untrusted_advice, widest_record, CheckMisfit, CheckReport, ElementsReport, Envelope, Method,
+    StudyReport, TRUST_RELATIVE_MISFIT,
 };
 use crate::model::Model;
 use crate::scene::{
@@ -35,14 +36,12 @@ pub struct StudyWarnings {
 }
 
 /// Finds and prints the warnings and notes of a finished study of `report` (`model` and `scene`
-/// as it ran, the box `space`); `scans_a_surrogate` when its method locates extremes on a
-/// surrogate (which only `--check-runs 0` leaves unchecked).
+/// as it ran, the box `space`).
 pub fn warn(
     report: &StudyReport,
     model: &Model,
     scene: &Scene,
     space: &ParameterSpace,
-    scans_a_surrogate: bool,
 ) -> StudyWarnings {
     let dimensions = space.len();
     // What to do about untrusted outputs: said once, in the warning and in the exit-4 error.
@@ -76,6 +75,7 @@ pub fn warn(
         }
         warnings.push(warning);
     }
+    note_retries(report);
     if let Some(check) = &report.check {
         note_below_resolution(report, check);
         let elements = report
@@ -92,8 +92,8 @@ pub fn warn(
             }
             warnings.push(warning);
         }
-    } else if scans_a_surrogate {
-        // Only `--check-runs 0` leaves a scanned surrogate unchecked.
+    } else if report.check_skipped.is_some() {
+        // `--check-runs 0` left the surrogate unchecked.
         eprintln!(
             "note: the surrogate was not checked against the true model (--check-runs 0), so nothing here says whether its envelopes can be trusted; leave --check-runs at its default to check them"
         );
@@ -194,12 +194,56 @@ fn advice(
         dimensions,
         report.lyapunov.as_ref(),
         &names,
+        report.method,
     )
+}
+
+/// How the warning and the exit-4 error word what the check found, by the kind of bound the
+/// method gives: a scan's surrogate that missed, or an outer (or linearised) range that true runs
+/// broke.
+struct CheckWording {
+    /// What the check found, for "… for N of M outputs".
+    finding: &'static str,
+    /// How the true runs disagreed, for the warning.
+    evidence: &'static str,
+    /// What it means for the envelopes, for the exit-4 error.
+    consequence: &'static str,
+    /// What it means for the envelopes, for the warning (a sentence).
+    widened: &'static str,
+    /// How the worst output's misfit is said ("53.6 % of its width" + this).
+    worst_suffix: &'static str,
+}
+
+fn check_wording(method: Method) -> CheckWording {
+    match (method.check_misfit(), method) {
+        (CheckMisfit::Prediction, _) => CheckWording {
+            finding: "the surrogate cannot be trusted",
+            evidence: "true-model runs at its predicted extremes differ from it by more than",
+            consequence: "their envelopes may be too narrow",
+            widened: "The envelopes were widened to contain every true run, but they may still be too narrow",
+            worst_suffix: "",
+        },
+        (CheckMisfit::Excess, Method::Taylor) => CheckWording {
+            finding: "the range of the first-order Taylor linearisation was broken by the true model",
+            evidence: "true-model runs at the linearisation's extremes lie outside the envelope it gave by more than",
+            consequence: "it does not contain the true response, and the envelopes, widened to every true run, may still be too narrow",
+            widened: "It does not contain the true response: the envelopes were widened to contain every true run, but they may still be too narrow",
+            worst_suffix: " outside the bound",
+        },
+        (CheckMisfit::Excess, _) => CheckWording {
+            finding: "the outer bound of the surrogate was broken by the true model",
+            evidence: "true-model runs at the surrogate's extremes lie outside the envelope it gave by more than",
+            consequence: "it is not an enclosure of the true response, and the envelopes, widened to every true run, may still be too narrow",
+            widened: "It is not an enclosure of the true response: the envelopes were widened to contain every true run, but they may still be too narrow",
+            worst_suffix: " outside the bound",
+        },
+    }
 }
 
 /// The exit-4 error of a study whose check did not trust some outputs.
 pub fn untrusted(report: &StudyReport, check: &CheckReport, advice: String) -> Error {
     let outputs = &report.envelope.outputs;
+    let wording = check_wording(report.method);
     let worst = check
         .untrusted_outputs
         .iter()
@@ -207,16 +251,54 @@ pub fn untrusted(report: &StudyReport, check: &CheckReport, advice: String) -> E
         .max_by(|&a, &b| check.relative_misfit[a].total_cmp(&check.relative_misfit[b]))
         .map_or_else(String::new, |o| {
             format!(
-                "{}, {:.1} % of its width",
+                "{}, {:.1} % of its width{}",
                 outputs[o].name,
-                100.0 * check.relative_misfit[o]
+                100.0 * check.relative_misfit[o],
+                wording.worst_suffix
             )
         });
     Error::Untrusted {
+        finding: wording.finding,
+        consequence: wording.consequence,
         untrusted: check.untrusted_outputs.len(),
         total: outputs.len(),
         worst,
         advice,
+    }
+}
+
+/// Retried runs named on stderr, one line each; past this many, a count of the rest.
+const RETRIES_NAMED: usize = 3;
+
+/// Notes the runs that failed at the fixed step and were re-run with the adaptive step: one line
+/// per run for the first [`RETRIES_NAMED`], then how many more (all of them are in the summary).
+fn note_retries(report: &StudyReport) {
+    for retry in report.retried.iter().take(RETRIES_NAMED) {
+        let failure = &retry.fixed_step_failure;
+        let from = report
+            .envelope
+            .times
+            .get(failure.record)
+            .map_or(String::new(), |&t| {
+                format!(
+                    " (its records from t = {} s on are that run's)",
+                    crate::text::message_time(t)
+                )
+            });
+        eprintln!(
+            "note: {} of the {} phase failed at the fixed step at t = {} s and was re-run from t = 0 with the adaptive step on the same record grid{from}; the fixed step's failure: {}",
+            retry.run,
+            retry.phase,
+            crate::text::message_time(failure.time_s),
+            failure.message
+        );
+    }
+    if report.retried.len() > RETRIES_NAMED {
+        eprintln!(
+            "note: {} more runs failed at the fixed step and were re-run with the adaptive step ({} in all; the summary's retried_samples lists each)",
+            report.retried.len() - RETRIES_NAMED,
+            report.retried.len()
+        );
     }
 }
 
@@ -251,7 +333,7 @@ fn note_below_resolution(report: &StudyReport, check: &CheckReport) {
 }
 
 /// The warning naming the outputs whose surrogates missed the true model at their predicted
-/// extremes (some did), with what to do ([`advice`]).
+/// extremes, or whose outer bounds true runs broke (some did), with what to do ([`advice`]).
 fn untrusted_warning(report: &StudyReport, check: &CheckReport, advice: &str) -> String {
     let outputs = &report.envelope.outputs;
     let mut worst: Vec<usize> = check.untrusted_outputs.clone();
@@ -271,13 +353,17 @@ fn untrusted_warning(report: &StudyReport, check: &CheckReport, advice: &str) ->
         .first()
         .and_then(|&o| runs_spread_where_widest(&report.envelope, o))
         .unwrap_or_default();
+    let wording = check_wording(report.method);
     format!(
-        "the surrogate cannot be trusted for {} of {} outputs: true-model runs at its predicted extremes differ from it by more than {:.0} % of the envelope width: {}{}. The envelopes were widened to contain every true run, but they may still be too narrow{}; {}",
+        "{} for {} of {} outputs: {} {:.0} % of the envelope width: {}{}. {}{}; {}",
+        wording.finding,
         worst.len(),
         outputs.len(),
+        wording.evidence,
         100.0 * TRUST_RELATIVE_MISFIT,
         listed.join(", "),
         if worst.len() > 5 { ", …" } else { "" },
+        wording.widened,
         spread,
         advice,
     )

@@ -76,6 +76,34 @@ impl TaylorStencil {
             })
             .collect()
     }
+
+    /// Where output `output`'s linearisation `y(c) + Σ_r g_r ξ_r` takes its minimum and maximum
+    /// over the box: the vertices `−sign(g)` and `sign(g)` (a coordinate whose slope is exactly 0
+    /// stays at the centre), `(argmin, argmax)`, each of length d. `values` as in
+    /// [`TaylorStencil::bounds`]; the a-posteriori check runs the true model there.
+    pub fn linear_extremisers(
+        &self,
+        values: &[f64],
+        n_outputs: usize,
+        output: usize,
+    ) -> (Vec<f64>, Vec<f64>) {
+        let slope_sign = |r: usize| {
+            let plus = values[(1 + 2 * r) * n_outputs + output];
+            let minus = values[(2 + 2 * r) * n_outputs + output];
+            let slope = plus - minus;
+            if slope > 0.0 {
+                1.0
+            } else if slope < 0.0 {
+                -1.0
+            } else {
+                0.0
+            }
+        };
+        let argmax: Vec<f64> = (0..self.dim).map(slope_sign).collect();
+        // `0 − x`, not `−x`: a flat coordinate stays at +0, not −0.
+        let argmin = argmax.iter().map(|&x| 0.0 - x).collect();
+        (argmin, argmax)
+    }
 }
 
 fn check_step(step: f64) -> Result<(), UqError> {
@@ -175,6 +203,28 @@ mod tests {
         assert!((b[0].lower + 4.5).abs() < 1e-13 && (b[0].upper - 6.5).abs() < 1e-13);
         assert!((b[1].lower + 6.5).abs() < 1e-13 && (b[1].upper - 4.5).abs() < 1e-13);
         assert!(b[0].error.top_order < 1e-10);
+    }
+
+    #[test]
+    fn the_linearisations_extremes_are_at_the_sign_vertices_of_its_slopes() {
+        // y = 1 + 2ξ1 − 3ξ2 + 0·ξ3 over [-1,1]³: largest at (1, −1, 0), smallest at (−1, 1, 0);
+        // the second output (−y) the other way round.
+        let stencil = TaylorStencil::new(3, 0.1).unwrap();
+        let mut values = Vec::new();
+        for x in stencil.points().chunks_exact(3) {
+            let y = 1.0 + 2.0 * x[0] - 3.0 * x[1];
+            values.extend([y, -y]);
+        }
+        let (argmin, argmax) = stencil.linear_extremisers(&values, 2, 0);
+        assert_eq!(
+            (argmin, argmax),
+            (vec![-1.0, 1.0, 0.0], vec![1.0, -1.0, 0.0])
+        );
+        let (argmin, argmax) = stencil.linear_extremisers(&values, 2, 1);
+        assert_eq!(
+            (argmin, argmax),
+            (vec![1.0, -1.0, 0.0], vec![-1.0, 1.0, 0.0])
+        );
     }
 
     #[test]

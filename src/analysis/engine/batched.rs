@@ -2,45 +2,93 @@
 //! a block by one [`BatchStepper`] (the batched kernels, docs/batch.md §5). Every sample takes
 //! exactly the steps, records, counters and failures of the per-sample path ([`super::run_sample`]):
 //! the stepper's lanes are bitwise the scalar integrator, and everything around the steps here
-//! (starts, records, failure messages) is the per-sample path's, lane by lane.
+//! (starts, records, failure messages) is the per-sample path's, lane by lane. A lane that fails
+//! at the fixed step is retried, and a retried sample steps, by the per-sample path's
+//! [`SampleWorker`] (the adaptive step is per sample), so the retry is the same on both paths.
 
-use super::{describe_failure, record_sample, start_state, Sample, SampleBlock};
+use super::{
+    add, describe_failure, record_sample, start_state, Sample, SampleBlock, SampleContext,
+    SampleWorker,
+};
 use crate::dynamics::batch::LANES;
-use crate::integrate::{HhtSettings, IntegrateError, ReportedVelocity};
+use crate::integrate::{IntegrateError, ReportedVelocity};
 use crate::scene::Scene;
 use crate::simulate::{BatchStepper, Recorder, RobotSystem};
-use crate::uncertainty::ParameterSpace;
 use nalgebra::DVector;
 use std::sync::atomic::Ordering;
 
-/// What a group shares with every other group of a block.
-pub(super) struct GroupContext<'a> {
-    pub space: &'a ParameterSpace,
-    pub settings: HhtSettings,
-    pub scene: &'a Scene,
-    pub recorder: &'a Recorder,
+/// One thread's batched stepper and, made on first use, the scalar worker of the samples that
+/// failed at the fixed step.
+pub(super) struct GroupWorker {
+    stepper: Option<BatchStepper>,
+    scalar: Option<SampleWorker>,
 }
 
-/// A thread's stepper, made on the thread's first group from the study's template.
-pub(super) fn new_stepper(template: &RobotSystem) -> Option<BatchStepper> {
-    BatchStepper::new(template, LANES).ok()
+impl GroupWorker {
+    /// The thread's worker; its stepper is made from the study's template.
+    pub(super) fn new(template: &RobotSystem) -> GroupWorker {
+        GroupWorker {
+            stepper: BatchStepper::new(template, LANES).ok(),
+            scalar: None,
+        }
+    }
+
+    /// [`advance_group`], then the group's retried samples by the scalar worker: those that
+    /// failed at the fixed step in this block (re-run from t = 0) and those retried before
+    /// (stepped adaptively through the block).
+    pub(super) fn advance_group(
+        &mut self,
+        group: &mut [Sample],
+        first_index: usize,
+        context: &SampleContext<'_>,
+        block: &SampleBlock<'_>,
+    ) -> (u64, u64) {
+        let retried_before: Vec<bool> = group.iter().map(|s| s.retry.is_some()).collect();
+        let (mut counters, mut pending) =
+            advance_group(&mut self.stepper, group, first_index, context, block);
+        for (lane, sample) in group.iter_mut().enumerate() {
+            let retry = pending[lane].take();
+            if retry.is_none() && (!retried_before[lane] || sample.failure.is_some()) {
+                continue;
+            }
+            let scalar = self
+                .scalar
+                .get_or_insert_with(|| SampleWorker::new(context.template));
+            let taken = match retry {
+                Some((failure, in_step)) => {
+                    context.space.apply(&mut scalar.system.model, &sample.xi);
+                    scalar.retry(sample, failure, in_step, context, block)
+                }
+                None => scalar.advance(sample, first_index + lane, context, block),
+            };
+            counters = add(counters, taken);
+        }
+        counters
+    }
 }
+
+/// A lane's failure at the fixed step, for [`SampleWorker::retry`]: the failure and whether a
+/// step failed.
+type PendingRetry = Option<(crate::analysis::SampleFailure, bool)>;
 
 /// Advances the live samples of `group` (at most [`LANES`]; sample `first_index + lane` of the
-/// study) through `block` together; returns the Newton iterations and steps they took.
-pub(super) fn advance_group(
+/// study) through `block` together, except those already retried; returns the Newton iterations
+/// and steps they took, and per lane the failure that the per-sample path retries.
+fn advance_group(
     stepper: &mut Option<BatchStepper>,
     group: &mut [Sample],
     first_index: usize,
-    context: &GroupContext<'_>,
+    context: &SampleContext<'_>,
     block: &SampleBlock<'_>,
-) -> (u64, u64) {
-    let GroupContext {
+) -> ((u64, u64), [PendingRetry; LANES]) {
+    let SampleContext {
         space,
         settings,
         scene,
         recorder,
+        ..
     } = *context;
+    let mut pending: [PendingRetry; LANES] = Default::default();
     let first_record = block.first_record;
     // A failure before the first step of the block: at t = 0 (the per-sample path's convention).
     let fail_at_start = |sample: &mut Sample, lane: usize, message: String| {
@@ -53,7 +101,7 @@ pub(super) fn advance_group(
                 fail_at_start(sample, lane, message);
             }
         }
-        return (0, 0);
+        return ((0, 0), pending);
     };
     let n_outputs = recorder.outputs().len();
     let nq = stepper.system_mut(0).model.nq;
@@ -61,7 +109,7 @@ pub(super) fn advance_group(
     let mut active = [false; LANES];
     let mut before = [(0_u64, 0_u64); LANES];
     for (lane, sample) in group.iter_mut().enumerate() {
-        if sample.failure.is_some() {
+        if sample.failure.is_some() || sample.retry.is_some() {
             continue;
         }
         sample.block.clear();
@@ -108,11 +156,18 @@ pub(super) fn advance_group(
                 let Some(hht) = integrator else {
                     continue;
                 };
-                // The step that failed was heading for t_n + h.
+                // The step that failed was heading for t_n + h; the per-sample path retries it.
                 let time = hht.state().t + settings.step_s;
                 let q = hht.state().q.as_slice().to_vec();
                 let message = describe_failure(error, system, scene, &q);
-                group[lane].fail(first_index + lane, space, time, first_record + r, message);
+                let failure = group[lane].failure_at(
+                    first_index + lane,
+                    space,
+                    time,
+                    first_record + r,
+                    message,
+                );
+                pending[lane] = Some((failure, true));
             }
             step += 1;
         }
@@ -146,7 +201,7 @@ pub(super) fn advance_group(
         counters.0 += trajectory.stats.newton_iterations - before[lane].0;
         counters.1 += trajectory.stats.steps - before[lane].1;
     }
-    counters
+    (counters, pending)
 }
 
 /// Puts `sample` into lane `lane`: its parameter values into the lane's model, the lane's
@@ -157,7 +212,7 @@ fn load_lane(
     stepper: &mut BatchStepper,
     lane: usize,
     sample: &mut Sample,
-    context: &GroupContext<'_>,
+    context: &SampleContext<'_>,
     (q0, v0): (&DVector<f64>, &DVector<f64>),
 ) -> Result<(u64, u64), String> {
     let scene = context.scene;
