@@ -833,6 +833,176 @@ contact_forces = true
     assert!(force.iter().all(|f| f.is_finite() && *f >= 0.0));
 }
 
+/// A study records a contact pair apart as its signed force `−k·gap^e` (docs/contacts.md §7, "The
+/// signed force"): the ball's centre at height h above the ground reads `−k (h − r)^1.5`, touching
+/// it reads the force itself, and `max(0, ·)` of the study's value is `simulate`'s value.
+#[test]
+fn a_study_records_a_pair_apart_as_its_signed_force_whose_clamp_is_the_force() {
+    use ribbon::scene::OutputKind;
+    use ribbon::simulate::{Recorder, RobotSystem};
+    let urdf = slider_urdf(r#"<sphere radius="0.1"/>"#, false);
+    let sidecar = r#"[scene]
+duration = 0.5
+step = 1e-3
+gravity = [0.0, 0.0, -9.81]
+initial.q = { z = 0.3 }
+[scene.contact]
+pairs = [["body", "ground"]]
+stiffness = 2e5
+damping = 5.0
+[[scene.geometry]]
+name = "ground"
+type = "halfspace"
+[outputs]
+contact_forces = true
+"#;
+    let mut model = model_of(&urdf);
+    let scene = scene_of(&model, sidecar).expect("scene resolves");
+    scene.apply_gravity(&mut model);
+    let force_output = scene
+        .outputs
+        .iter()
+        .position(|o| o.name == "contact.body.ground.normal")
+        .expect("the force is an output");
+    let mut system = RobotSystem::new(model.clone(), &scene);
+    let simulation = Recorder::new(&scene.outputs);
+    let study = Recorder::for_study(&scene.outputs);
+    let n = scene.outputs.len();
+    let (mut reported, mut signed) = (vec![0.0; n], vec![0.0; n]);
+    let mut record = |recorder: &Recorder, z: f64, vz: f64, row: &mut Vec<f64>| {
+        let RobotSystem {
+            model,
+            data,
+            effects,
+            ..
+        } = &mut system;
+        recorder.record(model, data, effects, &[z], &[vz], &[0.0], &[], &[None], row);
+        row[force_output]
+    };
+    let (stiffness, exponent) = (2e5, 1.5);
+    for height in [0.3, 0.2, 0.15, 0.1001] {
+        let simulated = record(&simulation, height, -1.0, &mut reported);
+        let recorded = record(&study, height, -1.0, &mut signed);
+        let expected = -stiffness * f64::powf(height - 0.1, exponent);
+        assert_eq!(simulated, 0.0, "at {height} m simulate reads 0");
+        assert!(
+            ((recorded - expected) / expected).abs() < 1e-9,
+            "at {height} m: {recorded} N, expected {expected} N"
+        );
+        assert_eq!(scene.outputs[force_output].kind.reported(recorded), 0.0);
+    }
+    for (height, speed) in [(0.099, -1.0), (0.095, 0.0), (0.09, 0.1)] {
+        let simulated = record(&simulation, height, speed, &mut reported);
+        let recorded = record(&study, height, speed, &mut signed);
+        assert!(
+            simulated > 0.0,
+            "at {height} m the ball presses on the ground"
+        );
+        assert_eq!(
+            recorded, simulated,
+            "in contact the study records the force"
+        );
+    }
+    // Separating faster than 1/d: the law gives 0 while the ball still penetrates; so does the
+    // study (the pair touches).
+    let recorded = record(&study, 0.099, 1.0, &mut signed);
+    assert_eq!(recorded, 0.0);
+    assert!(matches!(
+        scene.outputs[force_output].kind,
+        OutputKind::ContactNormalForce { .. }
+    ));
+}
+
+/// A study of a drop whose touch-down moves with the ball's radius: the force's envelope, nominal
+/// and hull of true runs never go below 0 (the signed record is clamped wherever it is taken in),
+/// the nominal series is `simulate`'s to the last bit, and a scan's envelope is its runs' hull.
+#[test]
+fn a_studys_contact_force_is_reported_clamped_everywhere() {
+    let dir = common::fresh_test_scratch_dir("contacts", "signed_study");
+    let urdf = dir.join("ball.urdf");
+    std::fs::write(&urdf, slider_urdf(r#"<sphere radius="0.1"/>"#, false)).unwrap();
+    std::fs::write(
+        dir.join("ball.uncertainty.toml"),
+        r#"[parameters]
+"link.body.collision.0.radius" = [0.08, 0.12]
+"link.body.mass" = [0.8, 1.2]
+[scene]
+duration = 0.5
+step = 1e-3
+gravity = [0.0, 0.0, -9.81]
+initial.q = { z = 0.3 }
+[scene.contact]
+pairs = [["body", "ground"]]
+stiffness = 2e5
+damping = 5.0
+[[scene.geometry]]
+name = "ground"
+type = "halfspace"
+[outputs]
+contact_forces = true
+rate = 100
+"#,
+    )
+    .unwrap();
+    let urdf = urdf.to_str().unwrap();
+    let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let nominal = common::ribbon_outcome(&["simulate", urdf, "--csv", &path("nominal.csv")]);
+    assert_eq!(nominal.code, Some(0), "{}", nominal.stderr);
+    let simulated: Vec<f64> = std::fs::read_to_string(dir.join("nominal.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next_back().unwrap().parse().unwrap())
+        .collect();
+    for (method, extra) in [("auto", vec![]), ("scan", vec!["--grid", "9"])] {
+        let summary_path = path(&format!("{method}.json"));
+        let mut args = vec![
+            "analyze",
+            urdf,
+            "--method",
+            method,
+            "--summary",
+            &summary_path,
+        ];
+        args.extend(extra);
+        let study = common::ribbon_outcome(&args);
+        assert!(
+            matches!(study.code, Some(0) | Some(4)),
+            "{method}: {}",
+            study.stderr
+        );
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary_path).unwrap()).unwrap();
+        let series =
+            |key: &str| common::summary_series(&summary, "contact.body.ground.normal", key);
+        let (lower, upper, runs_lower, runs_upper) = (
+            series("lower"),
+            series("upper"),
+            series("runs_lower"),
+            series("runs_upper"),
+        );
+        for (name, values) in [("lower", &lower), ("runs_lower", &runs_lower)] {
+            assert!(
+                values.iter().all(|v| *v >= 0.0),
+                "{method}: {name} below 0: {values:?}"
+            );
+        }
+        // Some record has samples both in the air and pressing: the case the clamp is for.
+        assert!(
+            runs_lower
+                .iter()
+                .zip(&runs_upper)
+                .any(|(lo, hi)| *lo == 0.0 && *hi > 1.0),
+            "{method}: no record with runs both apart and touching"
+        );
+        assert_eq!(series("nominal"), simulated, "{method}: nominal");
+        if method == "scan" {
+            assert_eq!(lower, runs_lower);
+            assert_eq!(upper, runs_upper);
+        }
+    }
+}
+
 #[test]
 fn contact_force_outputs_without_contacts_are_refused_naming_the_key() {
     let urdf = slider_urdf(r#"<sphere radius="0.1"/>"#, false);

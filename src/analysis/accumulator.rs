@@ -25,6 +25,10 @@ pub(super) struct Accumulator {
     /// The hull of every true run, record-major `records × outputs` (`(lowest, highest)`;
     /// `(+∞, −∞)` before any run).
     runs: Vec<(f64, f64)>,
+    /// Each output's known range (`OutputKind::known_range`): every true value taken in is
+    /// clamped to it first, since a study records some outputs continued beyond it (a contact
+    /// pair apart records its signed force, docs/contacts.md §7). Empty: no output has one.
+    known_ranges: Vec<Option<(f64, f64)>>,
 }
 
 impl Accumulator {
@@ -37,6 +41,25 @@ impl Accumulator {
             nominal: Vec::with_capacity(n_records * n_outputs),
             nominal_positions: Vec::new(),
             runs: Vec::with_capacity(n_records * n_outputs),
+            known_ranges: Vec::new(),
+        }
+    }
+
+    /// The same, taking every true value in clamped to its output's known range
+    /// (`known_ranges[o]`, one per output; docs/contacts.md §7, "The signed force").
+    pub fn with_known_ranges(mut self, known_ranges: &[Option<(f64, f64)>]) -> Accumulator {
+        if known_ranges.iter().any(Option::is_some) {
+            self.known_ranges = known_ranges.to_vec();
+        }
+        self
+    }
+
+    /// A true value of output `o` as reported: clamped to its known range.
+    #[inline]
+    pub fn reported(&self, o: usize, value: f64) -> f64 {
+        match self.known_ranges.get(o).copied().flatten() {
+            Some((lowest, highest)) => value.clamp(lowest, highest),
+            None => value,
         }
     }
 
@@ -44,15 +67,26 @@ impl Accumulator {
     /// `positions` (the next record's envelope points come from the bounding).
     pub fn push_nominal(&mut self, time_s: f64, values: &[f64], positions: &[f64]) {
         self.times.push(time_s);
+        let first = self.nominal.len();
         self.nominal.extend_from_slice(values);
+        if !self.known_ranges.is_empty() {
+            for (o, value) in self.nominal[first..].iter_mut().enumerate() {
+                *value = match self.known_ranges[o] {
+                    Some((lowest, highest)) => value.clamp(lowest, highest),
+                    None => *value,
+                };
+            }
+        }
         self.nominal_positions.extend_from_slice(positions);
     }
 
     /// Widens the envelopes and the hull of true runs at `record` to contain `values`, a true
-    /// run's outputs (or the lowest or highest of several).
+    /// run's outputs (or the lowest or highest of several), as recorded (clamped here).
     pub fn widen(&mut self, record: usize, values: &[f64]) {
-        let row = &mut self.points[record * self.n_outputs..(record + 1) * self.n_outputs];
-        for (point, &value) in row.iter_mut().zip(values) {
+        let n_outputs = self.n_outputs;
+        for (o, &value) in values.iter().enumerate().take(n_outputs) {
+            let value = self.reported(o, value);
+            let point = &mut self.points[record * n_outputs + o];
             point.lower = point.lower.min(value);
             point.upper = point.upper.max(value);
         }
@@ -65,8 +99,9 @@ impl Accumulator {
         if self.runs.len() < needed {
             self.runs.resize(needed, (f64::INFINITY, f64::NEG_INFINITY));
         }
-        let row = &mut self.runs[record * self.n_outputs..needed];
-        for (hull, &value) in row.iter_mut().zip(values) {
+        for (o, &value) in values.iter().enumerate().take(self.n_outputs) {
+            let value = self.reported(o, value);
+            let hull = &mut self.runs[record * self.n_outputs + o];
             *hull = (hull.0.min(value), hull.1.max(value));
         }
     }

@@ -77,6 +77,7 @@ pub(super) fn check(
                     if rule == CheckMisfit::Excess {
                         let row = &before_check[record * n_outputs..(record + 1) * n_outputs];
                         for (o, (&truth, &(lower, upper))) in values.iter().zip(row).enumerate() {
+                            let truth = accumulator.reported(o, truth);
                             let m = &mut misfit[o][record];
                             *m = m.max(excess(truth, lower, upper));
                         }
@@ -87,7 +88,7 @@ pub(super) fn check(
                     if block.lockstep.failed(run) {
                         continue;
                     }
-                    let truth = block.record(run, r)[output];
+                    let truth = accumulator.reported(output, block.record(run, r)[output]);
                     checked.push((output, record, truth));
                     if rule == CheckMisfit::Prediction {
                         let m = &mut misfit[output][record];

@@ -440,7 +440,7 @@ fn run_round(
         .collect();
     let mut element_points: Vec<Accumulator> = children
         .iter()
-        .map(|_| Accumulator::new(n_outputs, n_records))
+        .map(|_| Accumulator::new(n_outputs, n_records).with_known_ranges(&ranges))
         .collect();
     context.report.runs += points.len() / d.max(1);
     let policy = context.design_failure_policy(Method::LegendreScan);
@@ -526,7 +526,7 @@ fn run_round(
                     if block.lockstep.failed(run) {
                         continue;
                     }
-                    let truth = block.record(run, r)[output];
+                    let truth = accumulator.reported(output, block.record(run, r)[output]);
                     checked.push((output, record, truth));
                     let m = &mut misfit[c][output][record];
                     *m = m.max((truth - predicted).abs());

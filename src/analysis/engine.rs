@@ -241,7 +241,7 @@ impl<'a> LockStep<'a> {
             space,
             scene,
             settings,
-            recorder: Recorder::new(&scene.outputs),
+            recorder: Recorder::for_study(&scene.outputs),
             samples,
             step: 0,
             newton_iterations: 0,

@@ -208,10 +208,13 @@ impl Study<'_> {
         envelope.nominal = vec![Vec::with_capacity(n_done); n_outputs];
         for r in 0..n_done {
             for o in 0..n_outputs {
+                // The runs' values as reported (a contact force clamped at 0; the clamp is
+                // monotone, so the hull's clamp is the clamped values' hull).
+                let kind = &scene.outputs[o].kind;
                 let point = hull.points[r * n_outputs + o];
-                envelope.lower[o].push(point.lower);
-                envelope.upper[o].push(point.upper);
-                envelope.nominal[o].push(nominal[r * n_outputs + o]);
+                envelope.lower[o].push(kind.reported(point.lower));
+                envelope.upper[o].push(kind.reported(point.upper));
+                envelope.nominal[o].push(kind.reported(nominal[r * n_outputs + o]));
             }
         }
         report.runs += 2 * d + 2;

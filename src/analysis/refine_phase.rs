@@ -125,6 +125,9 @@ pub(super) fn refine_extremes(
         .zip(&best)
         .zip(&before)
         .map(|((target, (xi, value)), &(lower, upper))| {
+            // The search ran on the recorded value; the clamp is monotone, so its best is the
+            // best of the output as reported.
+            let value = &accumulator.reported(target.output, *value);
             let excess = match target.side {
                 Side::Lower => lower - value,
                 Side::Upper => value - upper,

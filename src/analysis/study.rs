@@ -199,7 +199,8 @@ impl Study<'_> {
             auto: study_plan.auto.clone(),
             ..self.empty_report(&threads)
         };
-        let mut accumulator = Accumulator::new(n_outputs, schedule.len());
+        let mut accumulator = Accumulator::new(n_outputs, schedule.len())
+            .with_known_ranges(&super::design_phase::known_ranges(self.scene));
         let mut stages = StageCursor::new(stages, self.space.len());
         let mut context = self.phase_context(&threads, interrupt, started, &mut report, progress);
         run_phases(&mut context, study_plan, &mut stages, &mut accumulator)?;

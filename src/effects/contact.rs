@@ -137,6 +137,9 @@ pub struct Contacts {
     touching_now: Vec<bool>,
     /// The deepest penetration at the last force evaluation, m.
     deepest_now: f64,
+    /// Whether each pair has a contact point at the recorded state
+    /// ([`Contacts::signed_normal_forces`]'s buffer; not the step's [`Contacts::touching_now`]).
+    touching_recorded: Vec<bool>,
     /// Whether a force evaluation ran since the last [`Contacts::observe`] (else `observe` tests
     /// the pairs itself).
     evaluated: bool,
@@ -172,6 +175,7 @@ impl Contacts {
             stats: ContactStats::default(),
             touching: vec![false; n_pairs],
             touching_now: vec![false; n_pairs],
+            touching_recorded: vec![false; n_pairs],
             deepest_now: 0.0,
             evaluated: false,
             normal_forces: vec![0.0; n_pairs],
@@ -207,6 +211,63 @@ impl Contacts {
             false,
             |_, k, contact, _, force| normal_forces[k] += force.force.dot(&contact.normal),
         );
+        &self.normal_forces
+    }
+
+    /// [`Contacts::normal_forces`] continued below zero for the pairs that do not touch: a pair
+    /// with no contact point reads `−k·gap^e` (the force law of its material at the pair's
+    /// distance, with the sign turned), so that across the box the value passes smoothly through
+    /// the touch-down that the force itself only meets with a kink. `max(0, ·)` of it is the
+    /// normal force (docs/contacts.md §7, "The signed force"). A pair parry cannot measure a
+    /// distance for reads 0, as the force does.
+    pub(super) fn signed_normal_forces(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        q: &[f64],
+        v: &[f64],
+    ) -> &[f64] {
+        let Some(material) = model.contact else {
+            self.normal_forces.fill(0.0);
+            return &self.normal_forces;
+        };
+        let Self {
+            geometry,
+            normal_forces,
+            touching_recorded,
+            ..
+        } = self;
+        normal_forces.fill(0.0);
+        touching_recorded.fill(false);
+        let mut uncounted = ContactStats::default();
+        Self::for_each_contact(
+            geometry,
+            &mut uncounted,
+            model,
+            data,
+            q,
+            v,
+            false,
+            |_, k, contact, _, force| {
+                normal_forces[k] += force.force.dot(&contact.normal);
+                touching_recorded[k] = true;
+            },
+        );
+        for (k, pair) in geometry.pairs.iter().enumerate() {
+            if touching_recorded[k] {
+                continue;
+            }
+            let Ok([(shape_a, world_from_a), (shape_b, world_from_b)]) =
+                geometry.placed_pair(model, &data.world_from_body, pair)
+            else {
+                continue;
+            };
+            if let Some(gap) =
+                crate::geometry::separation(&shape_a, &world_from_a, &shape_b, &world_from_b)
+            {
+                normal_forces[k] = -material.stiffness * gap.powf(material.exponent);
+            }
+        }
         &self.normal_forces
     }
 

@@ -172,6 +172,22 @@ impl Effects {
         }
     }
 
+    /// [`Effects::contact_normal_forces`] continued below zero for the pairs apart: `−k·gap^e`
+    /// (docs/contacts.md §7, "The signed force"); `max(0, ·)` of each is the normal force.
+    /// Overwrites the kinematic buffers of `data`.
+    pub fn contact_signed_normal_forces(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        q: &[f64],
+        v: &[f64],
+    ) -> &[f64] {
+        match &mut self.contacts {
+            Some(c) => c.signed_normal_forces(model, data, q, v),
+            None => &[],
+        }
+    }
+
     /// The declared contact geometry (`None` without contacts).
     pub fn contact_geometry(&self) -> Option<&crate::geometry::GeometryModel> {
         self.contacts.as_ref().map(|c| c.geometry())

@@ -13,8 +13,8 @@ mod query;
 pub use mesh::{resolve_mesh_path, CONCAVITY_NOTE_RELATIVE};
 use query::bounding_radius;
 pub use query::{
-    contact_between, supported, ContactPoint, ContactPoints, ConvexHull, HeightGrid, PairTest,
-    DUPLICATE_POINT_M, MAX_CONTACT_POINTS,
+    contact_between, separation, supported, ContactPoint, ContactPoints, ConvexHull, HeightGrid,
+    PairTest, DUPLICATE_POINT_M, MAX_CONTACT_POINTS,
 };
 use std::sync::Arc;
 

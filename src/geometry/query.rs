@@ -450,6 +450,32 @@ fn narrow_phase(
     })
 }
 
+/// The distance between `a` at `world_from_a` and `b` at `world_from_b`, m: 0 when they touch,
+/// `None` when parry has no distance query for the two kinds of shape. What a separated pair's
+/// signed normal force continues through in a study (docs/contacts.md §7, "The signed force").
+pub fn separation(
+    a: &Shape,
+    world_from_a: &Transform,
+    b: &Shape,
+    world_from_b: &Transform,
+) -> Option<f64> {
+    // The half-space first, as in `narrow_phase` (the distance is symmetric).
+    let (first, world_from_first, second, world_from_second) = if matches!(b, Shape::HalfSpace) {
+        (b, world_from_b, a, world_from_a)
+    } else {
+        (a, world_from_a, b, world_from_b)
+    };
+    with_parry_shape(first, world_from_first, |shape1, pose1| {
+        with_parry_shape(second, world_from_second, |shape2, pose2| {
+            query::distance(&pose1, shape1, &pose2, shape2)
+                .ok()
+                .map(|d| d.distance)
+                .filter(|d| d.is_finite())
+                .map(|d| d.max(0.0))
+        })
+    })
+}
+
 /// Whether parry computes contacts between shapes of these two kinds (probed once per pair when a
 /// scene is resolved, so that an unsupported pair is refused instead of never touching).
 pub fn supported(a: &Shape, b: &Shape) -> bool {
@@ -500,6 +526,40 @@ mod tests {
 
     fn at(x: f64, y: f64, z: f64) -> Transform {
         Transform::new(crate::spatial::Mat3::identity(), Vec3::new(x, y, z))
+    }
+
+    #[test]
+    fn separation_of_a_sphere_above_the_ground_and_a_cylinder() {
+        let ball = Shape::Sphere { radius: 0.1 };
+        for height in [0.25, 1.0, 3.0] {
+            let gap = separation(
+                &ball,
+                &at(1.0, 2.0, height),
+                &Shape::HalfSpace,
+                &at(0.0, 0.0, 0.0),
+            )
+            .expect("parry measures a sphere against a half-space");
+            assert!((gap - (height - 0.1)).abs() < 1e-12, "{height}: {gap}");
+        }
+        let touching = separation(
+            &ball,
+            &at(0.0, 0.0, 0.05),
+            &Shape::HalfSpace,
+            &at(0.0, 0.0, 0.0),
+        );
+        assert_eq!(touching, Some(0.0));
+        // A cylinder of radius 0.05 along y at the origin (the URDF's z axis turned to y by the
+        // placement), the ball's centre 0.5 m above its axis.
+        let rod = Shape::Cylinder {
+            radius: 0.05,
+            half_length: 1.0,
+        };
+        let across = Transform::new(
+            crate::spatial::rotation_about_axis(&Vec3::x(), std::f64::consts::FRAC_PI_2),
+            Vec3::zeros(),
+        );
+        let gap = separation(&ball, &at(0.0, 0.0, 0.5), &rod, &across).expect("convex pair");
+        assert!((gap - 0.35).abs() < 1e-9, "{gap}");
     }
 
     #[test]

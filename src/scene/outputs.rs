@@ -76,6 +76,19 @@ impl OutputKind {
             _ => None,
         }
     }
+
+    /// The output's value for a value a study recorded (`Recorder::for_study`): the recorded
+    /// value clamped to [`OutputKind::known_range`]. A study's contact normal force is recorded
+    /// signed (`−k·gap^e` while the pair is apart), and `max(0, ·)` of it is the force; every
+    /// other output is recorded as it is reported. The clamp is monotone, so the clamp of a
+    /// bound of the recorded value bounds the output (docs/contacts.md §7, "The signed force").
+    #[inline]
+    pub fn reported(&self, recorded: f64) -> f64 {
+        match self.known_range() {
+            Some((lowest, highest)) => recorded.clamp(lowest, highest),
+            None => recorded,
+        }
+    }
 }
 
 /// One recorded scalar series.

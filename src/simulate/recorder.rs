@@ -14,6 +14,9 @@ pub struct Recorder {
     outputs: Vec<Output>,
     needs_kinematics: bool,
     needs_contact_forces: bool,
+    /// Whether contact normal forces are recorded signed (a study's records, which fit the
+    /// smooth continuation and report its clamp): see [`Recorder::for_study`].
+    signed_contact_forces: bool,
 }
 
 /// The initial orientation of each floating joint of a trajectory (`None` for other joints).
@@ -34,6 +37,19 @@ impl Recorder {
             needs_contact_forces: outputs
                 .iter()
                 .any(|o| matches!(o.kind, OutputKind::ContactNormalForce { .. })),
+            signed_contact_forces: false,
+        }
+    }
+
+    /// A recorder of `outputs` for a study's runs: as [`Recorder::new`], except that a contact
+    /// pair apart records its signed normal force `−k·gap^e` instead of 0
+    /// ([`Effects::contact_signed_normal_forces`]). Every output's recorded value is the
+    /// output's value after [`crate::scene::OutputKind::reported`]; a surrogate fits the
+    /// recorded value, which passes smoothly through touch-down (docs/contacts.md §7).
+    pub fn for_study(outputs: &[Output]) -> Self {
+        Self {
+            signed_contact_forces: true,
+            ..Self::new(outputs)
         }
     }
 
@@ -90,7 +106,9 @@ impl Recorder {
         initial: &[Option<UnitQuaternion<f64>>],
         row: &mut [f64],
     ) {
-        let contact_forces: &[f64] = if self.needs_contact_forces {
+        let contact_forces: &[f64] = if self.needs_contact_forces && self.signed_contact_forces {
+            effects.contact_signed_normal_forces(model, data, q, v)
+        } else if self.needs_contact_forces {
             effects.contact_normal_forces(model, data, q, v)
         } else {
             &[]
