@@ -439,3 +439,70 @@ fn a_missing_sidecar_is_refused_with_a_start_that_works() {
     let study = ribbon_outcome(&["analyze", urdf, "--duration", "0.2"]);
     assert_eq!(study.code, Some(0), "{}", study.stderr);
 }
+
+/// `[analysis] max_runs` is the study's budget unless `--max-runs` is given; a budget below 2 is
+/// refused naming where it came from.
+#[test]
+fn the_sidecar_sets_the_run_budget_and_the_flag_overrides_it() {
+    // d = 72: `--method auto` takes the dimension-adaptive design, which spends the budget.
+    let sidecar = std::fs::read_to_string(common::manifest(
+        "robots/ur5/ur5.all-values.uncertainty.toml",
+    ))
+    .expect("ur5 sidecar");
+    assert!(!sidecar.contains("[analysis]"));
+    let with_budget = |budget: &str| {
+        let text = format!("{sidecar}\n[analysis]\nmax_runs = {budget}\n");
+        temp_urdf(&format!("budget_{budget}.toml"), &text)
+    };
+    let small = with_budget("1");
+    let small = small.to_str().unwrap();
+    let out = ribbon_outcome(&["analyze", "robots/ur5/ur5.urdf", "--uncertainty", small]);
+    assert_input_error(&out, &["[analysis] max_runs", "give at least 2"]);
+    let out = ribbon_outcome(&[
+        "analyze",
+        "robots/ur5/ur5.urdf",
+        "--uncertainty",
+        small,
+        "--max-runs",
+        "1",
+    ]);
+    assert_input_error(&out, &["--max-runs", "give at least 2"]);
+    // `--method auto` plans within the sidecar's budget, and the flag's wins over it.
+    let runs_of = |extra: &[&str]| -> u64 {
+        let tight = with_budget("200");
+        let summary = tight.with_extension("json");
+        let mut args = vec![
+            "analyze",
+            "robots/ur5/ur5.urdf",
+            "--uncertainty",
+            tight.to_str().unwrap(),
+            "--method",
+            "auto",
+            "--duration",
+            "0.1",
+            "--summary",
+            summary.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let out = ribbon_outcome(&args);
+        assert!(matches!(out.code, Some(0) | Some(4)), "{}", out.stderr);
+        assert!(
+            !out.stderr.contains("over --max-runs 3000"),
+            "{}",
+            out.stderr
+        );
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        summary["samples"].as_u64().expect("samples")
+    };
+    let within_sidecar = runs_of(&[]);
+    assert!(
+        within_sidecar <= 200,
+        "{within_sidecar} runs for a budget of 200"
+    );
+    let with_flag = runs_of(&["--max-runs", "400"]);
+    assert!(
+        with_flag > 200 && with_flag <= 400,
+        "--max-runs 400 gave {with_flag} runs"
+    );
+}

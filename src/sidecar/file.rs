@@ -265,6 +265,9 @@ pub struct AnalysisSection {
     pub order: Option<usize>,
     /// `tensor` or `total`.
     pub design: Option<String>,
+    /// The study's budget of model runs (`--max-runs` overrides it): for a scene whose study is
+    /// known to need more than the default to be trusted.
+    pub max_runs: Option<usize>,
 }
 
 /// Parses sidecar text; the error is the TOML parser's message (with line and column).

@@ -273,7 +273,7 @@ pub fn compare(args: &CompareRequest) -> Result<(), Error> {
         keep_going: false,
         check_runs: None,
         design: DesignKind::Tensor,
-        max_runs: max_runs_of(args.max_runs)?,
+        max_runs: max_runs_of(args.max_runs, "--max-runs")?,
         elements: ElementsOptions::default(),
     };
     let interrupt = crate::interrupt::flag();

@@ -234,7 +234,10 @@ pub fn study_options(flags: &StudyFlags, section: &AnalysisSection) -> Result<St
             "--method auto chooses the design itself; name a method (e.g. --method legendre-scan) to choose a design".to_string(),
         ));
     }
-    let max_runs = max_runs_of(flags.max_runs)?;
+    let max_runs = match (flags.max_runs, section.max_runs) {
+        (None, Some(budget)) => max_runs_of(Some(budget), "[analysis] max_runs")?,
+        (flag, _) => max_runs_of(flag, "--max-runs")?,
+    };
     let threads = check_threads("--threads", flags.threads.unwrap_or(0))?;
     let elements = elements_of(flags, method)?;
     Ok(StudyOptions {
@@ -292,12 +295,13 @@ pub fn elements_of(flags: &StudyFlags, method: Method) -> Result<ElementsOptions
     })
 }
 
-/// `--max-runs` (default [`DEFAULT_MAX_RUNS`]), refused below 2: a design and its nominal run.
-pub fn max_runs_of(flag: Option<usize>) -> Result<usize, Error> {
+/// `--max-runs` or `[analysis] max_runs` (default [`DEFAULT_MAX_RUNS`]; `name` is where the
+/// value came from), refused below 2: a design and its nominal run.
+pub fn max_runs_of(flag: Option<usize>, name: &str) -> Result<usize, Error> {
     let max_runs = flag.unwrap_or(DEFAULT_MAX_RUNS);
     if max_runs < 2 {
         return Err(bad(
-            "--max-runs",
+            name,
             format!("{max_runs} runs cannot hold a design and its nominal run; give at least 2"),
         ));
     }
