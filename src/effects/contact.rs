@@ -194,24 +194,7 @@ impl Contacts {
         q: &[f64],
         v: &[f64],
     ) -> &[f64] {
-        let Self {
-            geometry,
-            normal_forces,
-            ..
-        } = self;
-        normal_forces.fill(0.0);
-        let mut uncounted = ContactStats::default();
-        Self::for_each_contact(
-            geometry,
-            &mut uncounted,
-            model,
-            data,
-            q,
-            v,
-            false,
-            |_, k, contact, _, force| normal_forces[k] += force.force.dot(&contact.normal),
-        );
-        &self.normal_forces
+        self.recorded_normal_forces(model, data, q, v, false)
     }
 
     /// [`Contacts::normal_forces`] continued below zero for the pairs that do not touch: a pair
@@ -227,10 +210,18 @@ impl Contacts {
         q: &[f64],
         v: &[f64],
     ) -> &[f64] {
-        let Some(material) = model.contact else {
-            self.normal_forces.fill(0.0);
-            return &self.normal_forces;
-        };
+        self.recorded_normal_forces(model, data, q, v, true)
+    }
+
+    /// [`Contacts::normal_forces`], or with `signed` [`Contacts::signed_normal_forces`].
+    fn recorded_normal_forces(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        q: &[f64],
+        v: &[f64],
+        signed: bool,
+    ) -> &[f64] {
         let Self {
             geometry,
             normal_forces,
@@ -253,6 +244,10 @@ impl Contacts {
                 touching_recorded[k] = true;
             },
         );
+        let material = match model.contact {
+            Some(material) if signed => material,
+            _ => return &self.normal_forces,
+        };
         for (k, pair) in geometry.pairs.iter().enumerate() {
             if touching_recorded[k] {
                 continue;
