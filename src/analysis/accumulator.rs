@@ -57,25 +57,16 @@ impl Accumulator {
     /// A true value of output `o` as reported: clamped to its known range.
     #[inline]
     pub fn reported(&self, o: usize, value: f64) -> f64 {
-        match self.known_ranges.get(o).copied().flatten() {
-            Some((lowest, highest)) => value.clamp(lowest, highest),
-            None => value,
-        }
+        crate::scene::clamp_to_range(value, self.known_ranges.get(o).copied().flatten())
     }
 
     /// Appends the nominal run's record at `time_s`: its outputs `values` and configuration
     /// `positions` (the next record's envelope points come from the bounding).
     pub fn push_nominal(&mut self, time_s: f64, values: &[f64], positions: &[f64]) {
         self.times.push(time_s);
-        let first = self.nominal.len();
-        self.nominal.extend_from_slice(values);
-        if !self.known_ranges.is_empty() {
-            for (o, value) in self.nominal[first..].iter_mut().enumerate() {
-                *value = match self.known_ranges[o] {
-                    Some((lowest, highest)) => value.clamp(lowest, highest),
-                    None => *value,
-                };
-            }
+        for (o, &value) in values.iter().enumerate() {
+            let value = self.reported(o, value);
+            self.nominal.push(value);
         }
         self.nominal_positions.extend_from_slice(positions);
     }

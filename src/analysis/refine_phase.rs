@@ -127,7 +127,7 @@ pub(super) fn refine_extremes(
         .map(|((target, (xi, value)), &(lower, upper))| {
             // The search ran on the recorded value; the clamp is monotone, so its best is the
             // best of the output as reported.
-            let value = &accumulator.reported(target.output, *value);
+            let value = accumulator.reported(target.output, *value);
             let excess = match target.side {
                 Side::Lower => lower - value,
                 Side::Upper => value - upper,
@@ -142,7 +142,7 @@ pub(super) fn refine_extremes(
                 side: target.side,
                 start_xi: target.start.clone(),
                 best_xi: xi.clone(),
-                value: *value,
+                value,
                 envelope: match target.side {
                     Side::Lower => lower,
                     Side::Upper => upper,

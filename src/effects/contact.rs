@@ -138,7 +138,7 @@ pub struct Contacts {
     /// The deepest penetration at the last force evaluation, m.
     deepest_now: f64,
     /// Whether each pair has a contact point at the recorded state
-    /// ([`Contacts::signed_normal_forces`]'s buffer; not the step's [`Contacts::touching_now`]).
+    /// ([`Contacts::normal_forces`]' buffer; not the step's [`Contacts::touching_now`]).
     touching_recorded: Vec<bool>,
     /// Whether a force evaluation ran since the last [`Contacts::observe`] (else `observe` tests
     /// the pairs itself).
@@ -185,36 +185,14 @@ impl Contacts {
     }
 
     /// The normal force `f · n ≥ 0` of every declared pair at `(q, v)`, N (0 while apart), in pair
-    /// order: what the `contact.A.B.normal` outputs record. Not counted in the stats (recording
-    /// is not simulating); overwrites the kinematic buffers of `data`.
+    /// order: what the `contact.A.B.normal` outputs record. With `signed`, continued below zero
+    /// for the pairs that do not touch: a pair with no contact point reads `−k·gap^e` (the force
+    /// law of its material at the pair's distance, with the sign turned), so that across the box
+    /// the value passes smoothly through the touch-down that the force itself only meets with a
+    /// kink; `max(0, ·)` of it is the normal force (docs/contacts.md §7, "The signed force"). A
+    /// pair parry cannot measure a distance for reads 0, as the force does. Not counted in the
+    /// stats (recording is not simulating); overwrites the kinematic buffers of `data`.
     pub(super) fn normal_forces(
-        &mut self,
-        model: &Model,
-        data: &mut Data,
-        q: &[f64],
-        v: &[f64],
-    ) -> &[f64] {
-        self.recorded_normal_forces(model, data, q, v, false)
-    }
-
-    /// [`Contacts::normal_forces`] continued below zero for the pairs that do not touch: a pair
-    /// with no contact point reads `−k·gap^e` (the force law of its material at the pair's
-    /// distance, with the sign turned), so that across the box the value passes smoothly through
-    /// the touch-down that the force itself only meets with a kink. `max(0, ·)` of it is the
-    /// normal force (docs/contacts.md §7, "The signed force"). A pair parry cannot measure a
-    /// distance for reads 0, as the force does.
-    pub(super) fn signed_normal_forces(
-        &mut self,
-        model: &Model,
-        data: &mut Data,
-        q: &[f64],
-        v: &[f64],
-    ) -> &[f64] {
-        self.recorded_normal_forces(model, data, q, v, true)
-    }
-
-    /// [`Contacts::normal_forces`], or with `signed` [`Contacts::signed_normal_forces`].
-    fn recorded_normal_forces(
         &mut self,
         model: &Model,
         data: &mut Data,

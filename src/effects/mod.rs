@@ -157,33 +157,19 @@ impl Effects {
     }
 
     /// The normal force of every declared contact pair at `(q, v)`, N, in pair order (empty without
-    /// contacts; docs/contacts.md). Not counted in [`Effects::contact_stats`]; overwrites the
-    /// kinematic buffers of `data`.
+    /// contacts; docs/contacts.md); with `signed`, a pair apart reads `−k·gap^e` instead of 0
+    /// (docs/contacts.md §7, "The signed force"; `max(0, ·)` of each is the normal force). Not
+    /// counted in [`Effects::contact_stats`]; overwrites the kinematic buffers of `data`.
     pub fn contact_normal_forces(
         &mut self,
         model: &Model,
         data: &mut Data,
         q: &[f64],
         v: &[f64],
+        signed: bool,
     ) -> &[f64] {
         match &mut self.contacts {
-            Some(c) => c.normal_forces(model, data, q, v),
-            None => &[],
-        }
-    }
-
-    /// [`Effects::contact_normal_forces`] continued below zero for the pairs apart: `−k·gap^e`
-    /// (docs/contacts.md §7, "The signed force"); `max(0, ·)` of each is the normal force.
-    /// Overwrites the kinematic buffers of `data`.
-    pub fn contact_signed_normal_forces(
-        &mut self,
-        model: &Model,
-        data: &mut Data,
-        q: &[f64],
-        v: &[f64],
-    ) -> &[f64] {
-        match &mut self.contacts {
-            Some(c) => c.signed_normal_forces(model, data, q, v),
+            Some(c) => c.normal_forces(model, data, q, v, signed),
             None => &[],
         }
     }

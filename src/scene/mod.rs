@@ -21,7 +21,7 @@ pub use limit_excursions::{
     describe_limit_excursions, limit_excursions, outputs_at_enforced_limits, LimitExcursion,
     LIMIT_CONTACT_TOLERANCE, LIMIT_EXCURSION_TOLERANCE,
 };
-pub use outputs::{Output, OutputKind};
+pub use outputs::{clamp_to_range, Output, OutputKind};
 // The file format lives in `crate::sidecar`; these re-exports keep `crate::scene::SidecarFile` and
 // friends working for the study commands, benches and examples. `constraints` and `outputs` read
 // their sections through `super::sidecar`.

@@ -84,10 +84,17 @@ impl OutputKind {
     /// bound of the recorded value bounds the output (docs/contacts.md §7, "The signed force").
     #[inline]
     pub fn reported(&self, recorded: f64) -> f64 {
-        match self.known_range() {
-            Some((lowest, highest)) => recorded.clamp(lowest, highest),
-            None => recorded,
-        }
+        clamp_to_range(recorded, self.known_range())
+    }
+}
+
+/// `value` clamped to `range` (`(lowest, highest)`; `None`: unchanged). A NaN stays NaN, for the
+/// finiteness checks downstream to catch.
+#[inline]
+pub fn clamp_to_range(value: f64, range: Option<(f64, f64)>) -> f64 {
+    match range {
+        Some((lowest, highest)) => value.clamp(lowest, highest),
+        None => value,
     }
 }
 

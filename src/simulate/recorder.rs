@@ -43,8 +43,8 @@ impl Recorder {
 
     /// A recorder of `outputs` for a study's runs: as [`Recorder::new`], except that a contact
     /// pair apart records its signed normal force `−k·gap^e` instead of 0
-    /// ([`Effects::contact_signed_normal_forces`]). Every output's recorded value is the
-    /// output's value after [`crate::scene::OutputKind::reported`]; a surrogate fits the
+    /// ([`Effects::contact_normal_forces`] with `signed`). An output's value is its
+    /// recorded value after [`crate::scene::OutputKind::reported`]; a surrogate fits the
     /// recorded value, which passes smoothly through touch-down (docs/contacts.md §7).
     pub fn for_study(outputs: &[Output]) -> Self {
         Self {
@@ -106,10 +106,8 @@ impl Recorder {
         initial: &[Option<UnitQuaternion<f64>>],
         row: &mut [f64],
     ) {
-        let contact_forces: &[f64] = if self.needs_contact_forces && self.signed_contact_forces {
-            effects.contact_signed_normal_forces(model, data, q, v)
-        } else if self.needs_contact_forces {
-            effects.contact_normal_forces(model, data, q, v)
+        let contact_forces: &[f64] = if self.needs_contact_forces {
+            effects.contact_normal_forces(model, data, q, v, self.signed_contact_forces)
         } else {
             &[]
         };
