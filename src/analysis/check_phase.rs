@@ -250,7 +250,7 @@ pub(super) fn judge(
 }
 
 /// How far `value` lies outside `[lower, upper]` (0 inside).
-fn excess(value: f64, lower: f64, upper: f64) -> f64 {
+pub(super) fn excess(value: f64, lower: f64, upper: f64) -> f64 {
     (lower - value).max(value - upper).max(0.0)
 }
 

@@ -48,6 +48,22 @@ pub const STALL_RATIO: f64 = 0.9;
 /// curvature; below it there is no surrogate worth checking).
 pub const MIN_ELEMENT_ORDER: usize = 2;
 
+/// Points per dimension of a stalled leaf's scan along the dimensions its ancestors were halved
+/// along (where the feature that stalled them lies), the finest the budget affords first: 33
+/// points put 32 cells across the leaf, so a jump's two sides are each seen within 1/32 of the
+/// leaf, and each count nests in the next finer one.
+pub const SCAN_FEATURE_POINTS: [usize; 4] = [33, 17, 9, 5];
+
+/// Most halvings of a scan's steepest cell in its check: 2⁻³² of a grid cell is below any
+/// parameter's meaningful resolution, and a jump (an impact that happens or not) keeps its step
+/// at every halving, while a response the grid missed (a fast oscillation squeezed against a face
+/// of the box) shows itself on the way down as values outside the grid's hull.
+pub const SCAN_BISECTIONS: usize = 32;
+
+/// Points per dimension of a stalled leaf's scan along the dimensions no split chose (the response
+/// varies smoothly there): both faces and the middle.
+pub const SCAN_OTHER_POINTS: usize = 3;
+
 /// Whether and how far a study splits its box into elements.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ElementsOptions {
@@ -95,6 +111,9 @@ pub(super) struct Element {
     pub sobol: Option<SobolSeries>,
     /// Where its surrogates put their extremes (whole-box coordinates).
     pub candidates: CheckCandidates,
+    /// Points per dimension when it is a scanned leaf (a stalled leaf whose envelope is the hull
+    /// of a grid of true runs, checked between them: docs/method.md §12); `None` for a surrogate.
+    pub scan_grid: Option<Vec<usize>>,
 }
 
 impl Element {
@@ -295,6 +314,20 @@ impl ElementTree {
             && worst(parent) >= STALL_RATIO * worst(grandparent)
     }
 
+    /// The dimensions `leaf`'s ancestors were halved along, ascending (where the features that
+    /// made them fail lie).
+    pub fn feature_dims(&self, leaf: usize) -> Vec<usize> {
+        let mut dims = Vec::new();
+        let mut at = self.elements[leaf].parent;
+        while let Some(e) = at {
+            dims.extend_from_slice(&self.elements[e].split_dims);
+            at = self.elements[e].parent;
+        }
+        dims.sort_unstable();
+        dims.dedup();
+        dims
+    }
+
     /// The dimensions to halve `leaf` along (at most `most`, each still wider than
     /// [`MIN_ELEMENT_HALF_WIDTH`]), ascending: for each of its failing `outputs`, at the record of
     /// its largest misfit, the total Sobol' indices of the leaf's surrogate, weighted by the
@@ -381,6 +414,7 @@ mod tests {
             design_runs: 1,
             check_runs: 1,
             order: 4,
+            scan_grid: None,
             points,
             misfit,
             sobol: None,

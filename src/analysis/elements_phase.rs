@@ -11,21 +11,28 @@
 //! at the end: the union into the accumulator ⇒ judge (the union's misfits) ⇒ CheckReport
 //! ```
 //!
+//! A stalled leaf becomes one scanned child (its own box): a grid of true runs whose hull is its
+//! envelope, checked by the excess of runs half a grid step from its extreme points and of a
+//! bisection of each output's steepest cell (`ScanGrid`, `Bisection`).
+//!
 //! Every run any element makes widens the hull of true runs, and the union contains that hull,
 //! so no bound is narrower than a true run. A round's designs are one stage, so `plan`/`run`/
 //! `merge` replay the same decisions (docs/distributed.md §7); the checks run where the study
 //! runs, like the first one. Does not: decide where to split (`elements.rs`).
 
 use super::accumulator::Accumulator;
-use super::bounds::Bounder;
-use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side};
-use super::check_phase::{judge, output_scales, CheckRuns};
+use super::bounds::{Bounder, EnvelopePoint};
+use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side, TRUST_RELATIVE_MISFIT};
+use super::check_phase::{excess, judge, output_scales, CheckRuns};
 use super::design_phase::{known_ranges, DesignBounding, ElementScope};
-use super::elements::{Element, ElementTree, OutputScale, MAX_SPLIT_DIMS, MIN_ELEMENT_ORDER};
+use super::elements::{
+    Element, ElementTree, OutputScale, MAX_SPLIT_DIMS, MIN_ELEMENT_ORDER, SCAN_BISECTIONS,
+    SCAN_FEATURE_POINTS, SCAN_OTHER_POINTS,
+};
 use super::error::StudyError;
 use super::method::Method;
 use super::phase::PhaseContext;
-use super::plan::Plan;
+use super::plan::{Plan, SplitMix64};
 use super::refine_phase::{refine_extremes, refine_reserve, RefineTarget};
 use super::report::{ElementSummary, ElementsReport};
 use super::sobol_indices::SobolSeries;
@@ -41,12 +48,84 @@ use std::time::Instant;
 /// (70 runs) missed by up to the whole union width, on the order-3 tensor grid (256) by 10–20 %.
 pub const ELEMENT_TENSOR_MAX_DIM: usize = super::auto::AUTO_TENSOR_MAX_DIM;
 
+/// Where an element's runs go: a surrogate's design, or a scanned leaf's grid.
+enum ElementPlan {
+    /// The design of the element's surrogates.
+    Surrogate(Plan),
+    /// A grid of this many points per dimension, faces included (a stalled leaf's scan).
+    Scan(Vec<usize>),
+}
+
 /// An element's design: its points in its own coordinates and the runs it and its check cost.
 struct ElementDesign {
-    plan: Plan,
+    plan: ElementPlan,
+    /// Its surrogates' order (0 for a scan).
     order: usize,
     runs: usize,
     check_runs: usize,
+}
+
+impl ElementDesign {
+    /// The points, in the element's own coordinates, row-major.
+    fn points(&self, dim: usize) -> Vec<f64> {
+        match &self.plan {
+            ElementPlan::Surrogate(plan) => plan.points(dim),
+            ElementPlan::Scan(counts) => (0..self.runs)
+                .flat_map(|index| grid_point(counts, index))
+                .collect(),
+        }
+    }
+}
+
+/// Point `index` of the grid of `counts[j]` points per dimension (row-major, the first dimension
+/// slowest), in the element's own coordinates.
+fn grid_point(counts: &[usize], index: usize) -> Vec<f64> {
+    let mut point = vec![0.0; counts.len()];
+    let mut rest = index;
+    for (x, &n) in point.iter_mut().zip(counts).rev() {
+        let i = rest % n;
+        rest /= n;
+        *x = grid_coordinate(i, n);
+    }
+    point
+}
+
+/// The `i`-th of `n` evenly spaced coordinates of [-1, 1], both ends included (0 when `n` is 1).
+fn grid_coordinate(i: usize, n: usize) -> f64 {
+    if n <= 1 {
+        0.0
+    } else {
+        -1.0 + 2.0 * i as f64 / (n - 1) as f64
+    }
+}
+
+/// The scan of a stalled `leaf` (docs/method.md §12): the finest of [`SCAN_FEATURE_POINTS`] along
+/// the dimensions its ancestors were halved along and [`SCAN_OTHER_POINTS`] along the others whose
+/// runs and check (the half steps and one bisection of [`SCAN_BISECTIONS`] runs per output the
+/// elements are for) fit `budget`; `None` when not even the coarsest does.
+fn scan_design(tree: &ElementTree, leaf: usize, budget: usize) -> Option<ElementDesign> {
+    let d = tree.elements[leaf].region.dim();
+    let features = tree.feature_dims(leaf);
+    let bisections = SCAN_BISECTIONS * tree.active.iter().filter(|&&a| a).count();
+    SCAN_FEATURE_POINTS.iter().find_map(|&n| {
+        let counts: Vec<usize> = (0..d)
+            .map(|j| {
+                if features.contains(&j) {
+                    n
+                } else {
+                    SCAN_OTHER_POINTS
+                }
+            })
+            .collect();
+        let runs = counts.iter().try_fold(1usize, |a, &c| a.checked_mul(c))?;
+        let check_runs = automatic_check_runs(runs) + bisections;
+        (runs.checked_add(check_runs)? <= budget).then_some(ElementDesign {
+            plan: ElementPlan::Scan(counts),
+            order: 0,
+            runs,
+            check_runs,
+        })
+    })
 }
 
 /// The design of an element of a `dim`-dimensional box: order `order` (the study's), lowered
@@ -63,7 +142,7 @@ fn element_design(dim: usize, order: usize, budget: usize) -> Option<ElementDesi
         let runs = plan.runs(dim)?;
         let check_runs = automatic_check_runs(runs);
         (runs.checked_add(check_runs)? <= budget).then_some(ElementDesign {
-            plan,
+            plan: ElementPlan::Surrogate(plan),
             order: k,
             runs,
             check_runs,
@@ -71,7 +150,8 @@ fn element_design(dim: usize, order: usize, budget: usize) -> Option<ElementDesi
     })
 }
 
-/// One failing leaf's split, as planned.
+/// One failing leaf's split, as planned (or its scan: no dimension halved, one child with the
+/// leaf's box and a grid).
 struct PlannedSplit {
     parent: usize,
     dims: Vec<usize>,
@@ -81,7 +161,8 @@ struct PlannedSplit {
 
 /// The splits of one round: the failing leaves, worst first, each halved along its split
 /// dimensions (or the first of them alone) while the leaves stay within `max_elements` and the
-/// children's designs and checks within `budget` runs; the reason when none fits.
+/// children's designs and checks within `budget` runs — a stalled leaf scanned instead (once: a
+/// scan that fails its check is final); the reason when none fits.
 fn planned_round(
     tree: &ElementTree,
     scales: &[OutputScale],
@@ -89,16 +170,31 @@ fn planned_round(
     budget: usize,
     max_elements: usize,
 ) -> Result<Vec<PlannedSplit>, &'static str> {
-    let failing = tree.failing_leaves(scales);
     let d = tree.elements[0].region.dim();
     let mut leaves = tree.leaves().len();
     let mut left = budget;
     let mut planned = Vec::new();
     let mut reason = "resolution";
-    for leaf in failing {
-        if tree.stalled(leaf.element, scales) {
-            if planned.is_empty() && reason == "resolution" {
-                reason = "stalled";
+    for leaf in tree.failing_leaves(scales) {
+        let element = &tree.elements[leaf.element];
+        if element.scan_grid.is_some() || tree.stalled(leaf.element, scales) {
+            let scan = element
+                .scan_grid
+                .is_none()
+                .then(|| scan_design(tree, leaf.element, left))
+                .flatten();
+            match scan {
+                Some(design) => {
+                    left -= design.runs + design.check_runs;
+                    planned.push(PlannedSplit {
+                        parent: leaf.element,
+                        dims: Vec::new(),
+                        children: vec![element.region.clone()],
+                        design,
+                    });
+                }
+                None if planned.is_empty() && reason == "resolution" => reason = "stalled",
+                None => {}
             }
             continue;
         }
@@ -132,10 +228,9 @@ fn planned_round(
         };
         left -= children * (design.runs + design.check_runs);
         leaves += children - 1;
-        let region = &tree.elements[leaf.element].region;
         planned.push(PlannedSplit {
             parent: leaf.element,
-            children: region.split(&dims),
+            children: element.region.split(&dims),
             dims,
             design,
         });
@@ -187,6 +282,7 @@ pub(super) fn split_into_elements(
         misfit: root_misfit,
         sobol: context.report.sobol.clone(),
         candidates: root_candidates,
+        scan_grid: None,
     };
     let mut tree = ElementTree::new(root, active);
     let mut runs = CheckRuns {
@@ -366,6 +462,7 @@ fn summarize(tree: &ElementTree, scales: &[OutputScale]) -> Vec<ElementSummary> 
                 design_runs: element.design_runs,
                 check_runs: element.check_runs,
                 order: element.order,
+                scan_grid: element.scan_grid.clone(),
                 leaf,
                 untrusted_outputs: failing
                     .iter()
@@ -404,43 +501,63 @@ fn run_round(
     let mut samples = Vec::with_capacity(children.len());
     for &(_, region, design) in &children {
         let first = points.len() / d.max(1);
-        points.extend(region.rows_to_whole(&design.plan.points(d)));
+        points.extend(region.rows_to_whole(&design.points(d)));
         samples.push(first..first + design.runs);
     }
+    // A surrogate child's bounder; `None` for a scan.
     let bounders = children
         .iter()
-        .map(|&(_, _, design)| {
-            Bounder::new(
+        .map(|&(_, _, design)| match &design.plan {
+            ElementPlan::Surrogate(plan) => Bounder::new(
                 Method::LegendreScan,
-                &design.plan,
+                plan,
                 d,
                 design.order,
                 context.options.scan_grid,
                 true,
             )
+            .map(Some),
+            ElementPlan::Scan(_) => Ok(None),
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let mut boundings: Vec<DesignBounding> = children
+    let mut boundings: Vec<Option<DesignBounding>> = children
         .iter()
         .zip(&bounders)
-        .map(|(&(_, region, _), bounder)| DesignBounding {
-            bounder,
-            threads: context.threads,
-            n_outputs,
-            locates_extremes: true,
-            candidates: CheckCandidates::new(d),
-            sobol: SobolSeries::new(d, n_outputs),
-            screen_hull: &[],
-            known_ranges: &ranges,
-            element: Some(ElementScope {
-                element: region,
-                checked_outputs: &active,
-            }),
+        .map(|(&(_, region, _), bounder)| {
+            Some(DesignBounding {
+                bounder: bounder.as_ref()?,
+                threads: context.threads,
+                n_outputs,
+                locates_extremes: true,
+                candidates: CheckCandidates::new(d),
+                sobol: SobolSeries::new(d, n_outputs),
+                screen_hull: &[],
+                known_ranges: &ranges,
+                element: Some(ElementScope {
+                    element: region,
+                    checked_outputs: &active,
+                }),
+            })
         })
         .collect();
     let mut element_points: Vec<Accumulator> = children
         .iter()
-        .map(|_| Accumulator::new(n_outputs, n_records).with_known_ranges(&ranges))
+        .zip(&bounders)
+        .map(|(_, bounder)| {
+            let mut hull = Accumulator::new(n_outputs, n_records).with_known_ranges(&ranges);
+            if bounder.is_none() {
+                hull.points = vec![EnvelopePoint::EMPTY; n_records * n_outputs];
+            }
+            hull
+        })
+        .collect();
+    // What a scan's check needs to know of its grid.
+    let mut scan_grids: Vec<Option<ScanGrid>> = children
+        .iter()
+        .map(|&(_, _, design)| match &design.plan {
+            ElementPlan::Scan(counts) => Some(ScanGrid::new(counts.clone(), &active, n_records)),
+            ElementPlan::Surrogate(_) => None,
+        })
         .collect();
     context.report.runs += points.len() / d.max(1);
     let policy = context.design_failure_policy(Method::LegendreScan);
@@ -457,11 +574,22 @@ fn run_round(
                     accumulator.widen_runs(block.first + r, block.record(i, r));
                 }
             }
-            for ((bounding, range), child) in boundings
+            for (((bounding, range), child), grid) in boundings
                 .iter_mut()
                 .zip(&samples)
                 .zip(element_points.iter_mut())
+                .zip(scan_grids.iter_mut())
             {
+                let Some(bounding) = bounding else {
+                    if let Some(grid) = grid {
+                        for r in 0..block.count {
+                            grid.absorb(child, block.first + r, &|i| {
+                                block.record(range.start + i, r)
+                            });
+                        }
+                    }
+                    continue;
+                };
                 let values = |r: usize| -> Vec<f64> {
                     let mut row = Vec::with_capacity(range.len() * n_outputs);
                     for i in range.clone() {
@@ -479,15 +607,34 @@ fn run_round(
         return Ok(false);
     }
 
-    // Every child's check in one phase.
+    // Every child's check in one phase: a surrogate's at its predicted extremes, a scan's
+    // between its grid's extreme points (their hull, before the check widens it, is what a scan's
+    // check judges).
     let plans: Vec<CheckPlan> = boundings
         .iter()
         .zip(&children)
-        .map(|(bounding, &(_, _, design))| bounding.candidates.select(design.check_runs))
+        .zip(&scan_grids)
+        .map(
+            |((bounding, &(_, region, design)), grid)| match (bounding, grid) {
+                (Some(bounding), _) => bounding.candidates.select(design.check_runs),
+                (None, Some(grid)) => {
+                    grid.half_steps(region, design.check_runs - grid.bisection_runs())
+                }
+                (None, None) => unreachable!("a child without a bounder is a scan"),
+            },
+        )
         .collect();
-    let (sobol, candidates): (Vec<SobolSeries>, Vec<CheckCandidates>) = boundings
+    let grid_hulls: Vec<Option<Vec<EnvelopePoint>>> = boundings
+        .iter()
+        .zip(&element_points)
+        .map(|(bounding, hull)| bounding.is_none().then(|| hull.points.clone()))
+        .collect();
+    let (sobol, candidates): (Vec<Option<SobolSeries>>, Vec<CheckCandidates>) = boundings
         .into_iter()
-        .map(|b| (b.sobol, b.candidates))
+        .map(|b| match b {
+            Some(b) => (Some(b.sobol), b.candidates),
+            None => (None, CheckCandidates::new(d)),
+        })
         .unzip();
     let mut check_points = Vec::new();
     let mut owner = Vec::new();
@@ -519,7 +666,19 @@ fn run_round(
                     if block.lockstep.failed(run) {
                         continue;
                     }
-                    element_points[c].widen(record, block.record(run, r));
+                    let values = block.record(run, r);
+                    if let Some(grid_hull) = &grid_hulls[c] {
+                        // A scan is judged by how far a true run between its grid points lies
+                        // outside the grid's hull.
+                        for o in (0..n_outputs).filter(|&o| active[o]) {
+                            let truth = accumulator.reported(o, values[o]);
+                            let hull = grid_hull[record * n_outputs + o];
+                            checked.push((o, record, truth));
+                            let m = &mut misfit[c][o][record];
+                            *m = m.max(excess(truth, hull.lower, hull.upper));
+                        }
+                    }
+                    element_points[c].widen(record, values);
                     accumulator.widen_runs(record, block.record(run, r));
                 }
                 for &(run, output, predicted, c) in &by_record[record] {
@@ -543,13 +702,81 @@ fn run_round(
     runs.points.extend_from_slice(&check_points);
     runs.checked.extend(checked);
 
+    // A scan's check goes on into its steepest cells, bisecting each down to where a jump is.
+    let mut bisection_runs = vec![0usize; children.len()];
+    for c in 0..children.len() {
+        let (Some(grid), Some(grid_hull)) = (&scan_grids[c], &grid_hulls[c]) else {
+            continue;
+        };
+        let region = children[c].1;
+        let mut bisections = grid.bisections(grid_hull);
+        for _ in 0..SCAN_BISECTIONS {
+            bisections.retain(|b| !b.resolved(grid_hull, n_outputs));
+            if bisections.is_empty() {
+                break;
+            }
+            let points: Vec<f64> = bisections
+                .iter()
+                .flat_map(|b| region.to_whole(&b.middle()))
+                .collect();
+            let mut middle_values = vec![f64::NAN; bisections.len()];
+            let mut checked = Vec::new();
+            context.report.runs += bisections.len();
+            let policy = context.exclusion_policy("check run");
+            let complete =
+                context.run_phase("check", &points, None, policy, &mut |block, _report| {
+                    for r in 0..block.count {
+                        let record = block.first + r;
+                        for (run, bisection) in bisections.iter().enumerate() {
+                            if block.lockstep.failed(run) {
+                                continue;
+                            }
+                            let values = block.record(run, r);
+                            for o in (0..n_outputs).filter(|&o| active[o]) {
+                                let truth = accumulator.reported(o, values[o]);
+                                let hull = grid_hull[record * n_outputs + o];
+                                checked.push((o, record, truth));
+                                let m = &mut misfit[c][o][record];
+                                *m = m.max(excess(truth, hull.lower, hull.upper));
+                            }
+                            if record == bisection.record {
+                                middle_values[run] = accumulator
+                                    .reported(bisection.output, values[bisection.output]);
+                            }
+                            element_points[c].widen(record, values);
+                            accumulator.widen_runs(record, values);
+                        }
+                    }
+                    Ok(())
+                })?;
+            if !complete {
+                return Ok(false);
+            }
+            runs.runs += bisections.len();
+            bisection_runs[c] += bisections.len();
+            runs.unique_candidates += bisections.len();
+            runs.points.extend_from_slice(&points);
+            runs.checked.extend(checked);
+            for (bisection, &value) in bisections.iter_mut().zip(&middle_values) {
+                bisection.halve(value);
+            }
+            // A failed run leaves no value to halve by: that bisection ends.
+            bisections.retain(|b| b.from_value.is_finite() && b.to_value.is_finite());
+        }
+    }
+
     // The children join the tree, split by split.
     let mut made = element_points
         .into_iter()
         .zip(misfit)
         .zip(sobol)
         .zip(candidates)
-        .zip(plans.iter().map(|p| p.checks.len()));
+        .zip(
+            plans
+                .iter()
+                .zip(&bisection_runs)
+                .map(|(p, bisected)| p.checks.len() + bisected),
+        );
     for split in planned {
         let depth = tree.elements[split.parent].depth + 1;
         let children: Vec<Element> = split
@@ -558,10 +785,19 @@ fn run_round(
             .map(|region| {
                 let ((((points, misfit), sobol), candidates), check_runs) =
                     made.next().expect("one made child per planned child");
+                let scan_grid = match &split.design.plan {
+                    ElementPlan::Scan(counts) => Some(counts.clone()),
+                    ElementPlan::Surrogate(_) => None,
+                };
                 Element {
                     region,
                     parent: Some(split.parent),
-                    depth,
+                    // A scan halves nothing: it is its parent's box.
+                    depth: if scan_grid.is_some() {
+                        depth - 1
+                    } else {
+                        depth
+                    },
                     children: Vec::new(),
                     split_dims: Vec::new(),
                     design_runs: split.design.runs,
@@ -569,8 +805,9 @@ fn run_round(
                     order: split.design.order,
                     points: points.points,
                     misfit,
-                    sobol: Some(sobol),
+                    sobol,
                     candidates,
+                    scan_grid,
                 }
             })
             .collect();
@@ -578,6 +815,212 @@ fn run_round(
     }
     Ok(true)
 }
+
+/// What a scanned child's check needs to know of its grid, gathered while its runs come in.
+struct ScanGrid {
+    /// Points per dimension.
+    counts: Vec<usize>,
+    /// Per output: whether the elements are made for it.
+    active: Vec<bool>,
+    /// Per record and output (record-major): the grid runs holding the lowest and highest value.
+    holders: Vec<(usize, usize)>,
+    /// Per output: its steepest cell, `None` before any.
+    steepest: Vec<Option<Bisection>>,
+}
+
+impl ScanGrid {
+    /// A grid of `counts[j]` points per dimension over `n_records` records of `active.len()`
+    /// outputs.
+    fn new(counts: Vec<usize>, active: &[bool], n_records: usize) -> ScanGrid {
+        ScanGrid {
+            counts,
+            active: active.to_vec(),
+            holders: vec![(0, 0); n_records * active.len()],
+            steepest: vec![None; active.len()],
+        }
+    }
+
+    /// Takes in every grid run's values at `record` (`values(i)`: run `i`'s outputs): widens
+    /// `child`'s hull, notes which runs hold its sides and the steepest step between neighbours.
+    fn absorb<'v>(
+        &mut self,
+        child: &mut Accumulator,
+        record: usize,
+        values: &dyn Fn(usize) -> &'v [f64],
+    ) {
+        let n_outputs = self.active.len();
+        let runs: usize = self.counts.iter().product();
+        let hull: &Accumulator = child;
+        let reported: Vec<f64> = (0..runs)
+            .flat_map(|i| {
+                let row = values(i);
+                (0..n_outputs).map(move |o| hull.reported(o, row[o]))
+            })
+            .collect();
+        for i in 0..runs {
+            let row = &reported[i * n_outputs..(i + 1) * n_outputs];
+            for (o, &value) in row.iter().enumerate() {
+                let k = record * n_outputs + o;
+                let point = child.points[k];
+                if value < point.lower {
+                    self.holders[k].0 = i;
+                }
+                if value > point.upper {
+                    self.holders[k].1 = i;
+                }
+            }
+            child.widen(record, values(i));
+        }
+        // Neighbours along each dimension: run i and i + stride (row-major, last dimension fastest).
+        let d = self.counts.len();
+        for o in (0..n_outputs).filter(|&o| self.active[o]) {
+            for j in 0..d {
+                let stride: usize = self.counts[j + 1..].iter().product();
+                for i in 0..runs {
+                    if (i / stride) % self.counts[j] + 1 == self.counts[j] {
+                        continue;
+                    }
+                    let (from_value, to_value) = (
+                        reported[i * n_outputs + o],
+                        reported[(i + stride) * n_outputs + o],
+                    );
+                    let step = (to_value - from_value).abs();
+                    if self.steepest[o].as_ref().is_none_or(|b| step > b.step()) {
+                        self.steepest[o] = Some(Bisection {
+                            output: o,
+                            record,
+                            from: grid_point(&self.counts, i),
+                            to: grid_point(&self.counts, i + stride),
+                            from_value,
+                            to_value,
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    /// Runs its bisections take at most.
+    fn bisection_runs(&self) -> usize {
+        SCAN_BISECTIONS * self.active.iter().filter(|&&a| a).count()
+    }
+
+    /// The first part of its check (`runs` runs in `region`): between the grid points that hold a
+    /// side of an active output at some record, the most often first — half a grid step from each
+    /// along each dimension — then seeded random points of the box if those run short. It predicts
+    /// nothing: the check phase measures each run's excess over the grid's hull.
+    fn half_steps(&self, region: &ElementBox, runs: usize) -> CheckPlan {
+        let d = self.counts.len();
+        let n_outputs = self.active.len().max(1);
+        let mut held = vec![0usize; self.counts.iter().product()];
+        for (k, &(low, high)) in self.holders.iter().enumerate() {
+            if self.active[k % n_outputs] {
+                held[low] += 1;
+                held[high] += 1;
+            }
+        }
+        let mut order: Vec<usize> = (0..held.len()).filter(|&i| held[i] > 0).collect();
+        order.sort_by(|&a, &b| held[b].cmp(&held[a]).then(a.cmp(&b)));
+        let mut chosen: Vec<Vec<f64>> = Vec::new();
+        let mut seen = std::collections::HashSet::new();
+        'grid: for index in order {
+            let centre = grid_point(&self.counts, index);
+            for (j, &n) in self.counts.iter().enumerate() {
+                let half_step = if n > 1 { 1.0 / (n - 1) as f64 } else { 1.0 };
+                for side in [-1.0, 1.0] {
+                    let mut point = centre.clone();
+                    point[j] += side * half_step;
+                    if point[j].abs() > 1.0 {
+                        continue;
+                    }
+                    if seen.insert(point.iter().map(|x| x.to_bits()).collect::<Vec<u64>>()) {
+                        chosen.push(point);
+                        if chosen.len() == runs {
+                            break 'grid;
+                        }
+                    }
+                }
+            }
+        }
+        let mut random = SplitMix64::new(SCAN_CHECK_SEED);
+        while chosen.len() < runs {
+            chosen.push((0..d).map(|_| random.next_symmetric()).collect());
+        }
+        let points: Vec<f64> = chosen.iter().flat_map(|p| region.to_whole(p)).collect();
+        CheckPlan {
+            checks: vec![Vec::new(); chosen.len()],
+            unique_candidates: chosen.len(),
+            points,
+        }
+    }
+
+    /// The second part: a bisection of each active output's steepest cell whose step is not
+    /// already within the trust test of the grid's hull (`grid_hull`).
+    fn bisections(&self, grid_hull: &[EnvelopePoint]) -> Vec<Bisection> {
+        let n_outputs = self.active.len();
+        self.steepest
+            .iter()
+            .flatten()
+            .filter(|b| !b.resolved(grid_hull, n_outputs))
+            .cloned()
+            .collect()
+    }
+}
+
+/// The bisection of one cell of a scan, for one output at one record: two points (the element's
+/// own coordinates) and the output's values there.
+#[derive(Clone, Debug)]
+struct Bisection {
+    output: usize,
+    record: usize,
+    from: Vec<f64>,
+    to: Vec<f64>,
+    from_value: f64,
+    to_value: f64,
+}
+
+impl Bisection {
+    /// How far the output steps across the cell.
+    fn step(&self) -> f64 {
+        (self.to_value - self.from_value).abs()
+    }
+
+    /// Whether the step is within the trust test's share of the output's widest grid hull (a
+    /// smooth response resolves as the cell shrinks; a jump never does).
+    fn resolved(&self, grid_hull: &[EnvelopePoint], n_outputs: usize) -> bool {
+        let width = grid_hull
+            .iter()
+            .skip(self.output)
+            .step_by(n_outputs.max(1))
+            .map(|p| p.upper - p.lower)
+            .fold(0.0, f64::max);
+        self.step() <= TRUST_RELATIVE_MISFIT * width
+    }
+
+    /// The cell's middle.
+    fn middle(&self) -> Vec<f64> {
+        self.from
+            .iter()
+            .zip(&self.to)
+            .map(|(a, b)| 0.5 * (a + b))
+            .collect()
+    }
+
+    /// Keeps the half across which the output steps further, `value` being the middle's.
+    fn halve(&mut self, value: f64) {
+        let middle = self.middle();
+        if (value - self.from_value).abs() >= (self.to_value - value).abs() {
+            self.to = middle;
+            self.to_value = value;
+        } else {
+            self.from = middle;
+            self.from_value = value;
+        }
+    }
+}
+
+/// Seed of the random points that fill a scan's check (fixed, so studies repeat).
+const SCAN_CHECK_SEED: u64 = 0x5ca0_c4ec;
 
 #[cfg(test)]
 mod tests {
@@ -590,7 +1033,10 @@ mod tests {
         assert_eq!((design.order, design.runs, design.check_runs), (4, 5, 8));
         // d = 4, k = 4: the tensor grid, 625 runs + 63 checks.
         let design = element_design(4, 4, 688).unwrap();
-        assert!(matches!(design.plan, Plan::Surrogate(_)));
+        assert!(matches!(
+            design.plan,
+            ElementPlan::Surrogate(Plan::Surrogate(_))
+        ));
         assert_eq!((design.order, design.runs, design.check_runs), (4, 625, 63));
         // 687 runs do not fit order 4; order 3 (256 + 26) does.
         let design = element_design(4, 4, 687).unwrap();
@@ -599,7 +1045,50 @@ mod tests {
         assert!(element_design(4, 4, 89).is_none());
         // d = 5: the total-degree Leja grid, C(9, 4) = 126 runs + 13 checks.
         let design = element_design(5, 4, 139).unwrap();
-        assert!(matches!(design.plan, Plan::Sparse(_)));
+        assert!(matches!(
+            design.plan,
+            ElementPlan::Surrogate(Plan::Sparse(_))
+        ));
         assert_eq!((design.order, design.runs, design.check_runs), (4, 126, 13));
+    }
+
+    #[test]
+    fn a_scan_grid_runs_row_major_with_both_faces() {
+        let counts = [3, 2];
+        let points: Vec<Vec<f64>> = (0..6).map(|i| grid_point(&counts, i)).collect();
+        assert_eq!(points[0], vec![-1.0, -1.0]);
+        assert_eq!(points[1], vec![-1.0, 1.0]);
+        assert_eq!(points[2], vec![0.0, -1.0]);
+        assert_eq!(points[5], vec![1.0, 1.0]);
+    }
+
+    #[test]
+    fn a_bisection_follows_the_jump_and_stops_on_a_smooth_step() {
+        // A jump at x = 0.3 between 0 (left) and 1 (right): the kept cell always holds it.
+        let jump = |x: f64| if x < 0.3 { 0.0 } else { 1.0 };
+        let mut bisection = Bisection {
+            output: 0,
+            record: 0,
+            from: vec![-1.0],
+            to: vec![1.0],
+            from_value: jump(-1.0),
+            to_value: jump(1.0),
+        };
+        for _ in 0..20 {
+            let middle = bisection.middle()[0];
+            bisection.halve(jump(middle));
+        }
+        assert!(bisection.from[0] < 0.3 && bisection.to[0] >= 0.3);
+        assert!(bisection.to[0] - bisection.from[0] < 1e-5);
+        assert_eq!(bisection.step(), 1.0);
+        // Resolved once the step is within 5 % of the hull's widest width (here 1).
+        let hull = vec![EnvelopePoint {
+            lower: 0.0,
+            upper: 1.0,
+            ..EnvelopePoint::EMPTY
+        }];
+        assert!(!bisection.resolved(&hull, 1));
+        bisection.to_value = 0.04;
+        assert!(bisection.resolved(&hull, 1));
     }
 }

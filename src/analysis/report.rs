@@ -202,8 +202,11 @@ pub struct ElementSummary {
     pub design_runs: usize,
     /// Its check's runs.
     pub check_runs: usize,
-    /// Its surrogates' order.
+    /// Its surrogates' order (0 for a scan).
     pub order: usize,
+    /// Points per dimension of its grid when it is a scanned leaf (docs/method.md §12); `None`
+    /// for a surrogate.
+    pub scan_grid: Option<Vec<usize>>,
     /// Whether it is a leaf (its bounds are in the union).
     pub leaf: bool,
     /// The outputs its check fails for, against the union's width (leaves only).
@@ -234,6 +237,14 @@ impl ElementsReport {
     /// The leaves (the elements whose bounds make the union).
     pub fn leaves(&self) -> usize {
         self.elements.iter().filter(|e| e.leaf).count()
+    }
+
+    /// The scanned leaves (stalled leaves whose envelope is the hull of a grid of true runs).
+    pub fn scanned_leaves(&self) -> usize {
+        self.elements
+            .iter()
+            .filter(|e| e.leaf && e.scan_grid.is_some())
+            .count()
     }
 
     /// The deepest leaf's depth.

@@ -193,7 +193,8 @@ pub fn elements_json(
         "untrusted_leaves": elements.untrusted_leaves(),
         "outputs": names(&elements.outputs),
         "splits": splits,
-        "elements": elements.elements.iter().map(|e| serde_json::json!({
+        "elements": elements.elements.iter().map(|e| {
+            let mut element = serde_json::json!({
             "parent": e.parent,
             "depth": e.depth,
             "leaf": e.leaf,
@@ -206,7 +207,12 @@ pub fn elements_json(
             "check_runs": e.check_runs,
             "order": e.order,
             "untrusted_outputs": names(&e.untrusted_outputs),
-        })).collect::<Vec<_>>(),
+            });
+            if let (Some(grid), Some(fields)) = (&e.scan_grid, element.as_object_mut()) {
+                fields.insert("scan_grid".to_string(), serde_json::json!(grid));
+            }
+            element
+        }).collect::<Vec<_>>(),
     })
 }
 

@@ -108,8 +108,12 @@ pub fn table(
     }
     if let Some(elements) = &report.elements {
         text.push_str(&format!(
-            "elements: {} leaves of {} elements, depth {}, {} round(s), {} runs ({}); split {}\n",
+            "elements: {} leaves{} of {} elements, depth {}, {} round(s), {} runs ({}); split {}\n",
             elements.leaves(),
+            match elements.scanned_leaves() {
+                0 => String::new(),
+                n => format!(" ({n} scanned)"),
+            },
             elements.elements.len(),
             elements.depth(),
             elements.rounds,
