@@ -27,6 +27,10 @@ const MAX_WIDER_THAN_SCAN: f64 = 0.05;
 /// on the nine-decade box, at a time where a 2001-point scan finds a slightly higher value).
 const MAX_MISSED_OF_SCAN: f64 = 1e-3;
 
+/// How far past an enforced limit a surrogate's bound of a joint position may reach
+/// (`ribbon::scene::ENFORCED_LIMIT_BOUND_MARGIN`: the penalty's depth at 1000 rad/s²).
+const ENFORCED_LIMIT_BOUND_MARGIN: f64 = 0.025;
+
 /// Points of the dense reference scan (odd, so the centre is on it).
 const SCAN_POINTS: &str = "401";
 
@@ -85,9 +89,29 @@ fn a_kink_one_surrogate_misses_is_trusted_once_split_and_contains_a_dense_scan()
     let urdf = urdf.to_str().unwrap();
     let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
 
-    // One surrogate: not trusted.
-    let single = ribbon_outcome(&["analyze", urdf, "--elements", "off"]);
+    // One surrogate: not trusted. Its bound overshoots the stop at 0.5 rad (measured: to 0.5266
+    // unclipped) and is clipped to the stop plus the penalty's margin (0.025 rad), while every
+    // true run stays within the penalty's depth of the stop.
+    let single = ribbon_outcome(&[
+        "analyze",
+        urdf,
+        "--elements",
+        "off",
+        "--summary",
+        &path("single.json"),
+    ]);
     assert_eq!(single.code, Some(4), "{}", single.stderr);
+    let single = summary(&dir.join("single.json"));
+    let hinge = &single["outputs"][0];
+    let upper = series(hinge, "upper");
+    let clipped = upper.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!(clipped, 0.5 + ENFORCED_LIMIT_BOUND_MARGIN, "{upper:?}");
+    let runs_upper = series(hinge, "runs_upper");
+    // Pressed into the stop by the spring (≈ 15 rad/s²), the runs rest a/ω² ≈ 5e-4 rad past it.
+    assert!(
+        runs_upper.iter().all(|&q| q <= 0.5 + 1e-3),
+        "{runs_upper:?}"
+    );
 
     // With elements (the default of --method auto): trusted, and the summary says how.
     let study = ribbon_outcome(&[

@@ -66,7 +66,7 @@ pub(super) fn bound_design(
         context.report.condition_number = Some(design.condition_number());
     }
     let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?;
-    let known_ranges = known_ranges(scene);
+    let surrogate_ranges = crate::scene::surrogate_ranges(context.model, scene);
     let mut bounding = DesignBounding {
         bounder: &bounder,
         threads: context.threads,
@@ -75,7 +75,7 @@ pub(super) fn bound_design(
         candidates: CheckCandidates::new(d),
         sobol: SobolSeries::new(d, n_outputs),
         screen_hull: &design.screen_hull,
-        known_ranges: &known_ranges,
+        surrogate_ranges: &surrogate_ranges,
         element: None,
     };
     let complete = match &design.adapted {
@@ -157,21 +157,22 @@ pub(super) fn known_ranges(scene: &crate::scene::Scene) -> Vec<Option<(f64, f64)
     scene.outputs.iter().map(|o| o.kind.known_range()).collect()
 }
 
-/// Clips a bounded block to the outputs' known ranges (docs/method.md §12, "known ranges"): the
-/// bounds and the predicted extremes, since no true value lies outside the range (a surrogate
-/// of a contact force that dips below 0 where the contact is open is closer to the truth clipped
-/// at 0). `n_outputs` outputs per record, record-major.
-fn clip_to_known_ranges(
+/// Clips a bounded block to the outputs' surrogate ranges (`crate::scene::surrogate_ranges`;
+/// docs/method.md §12, "Known ranges"): the bounds and the predicted extremes, since no true value
+/// lies outside the range (a surrogate of a contact force that dips below 0 where the contact is
+/// open is closer to the truth clipped at 0; a joint held by its stops stays within them, up to
+/// the penalty's depth). `n_outputs` outputs per record, record-major.
+fn clip_to_surrogate_ranges(
     block: &mut super::bounds::BoundedBlock,
-    known_ranges: &[Option<(f64, f64)>],
+    surrogate_ranges: &[Option<(f64, f64)>],
     n_outputs: usize,
 ) {
-    if known_ranges.iter().all(Option::is_none) {
+    if surrogate_ranges.iter().all(Option::is_none) {
         return;
     }
     let clip = |value: &mut f64, (low, high): (f64, f64)| *value = value.clamp(low, high);
     for (k, point) in block.points.iter_mut().enumerate() {
-        if let Some(range) = known_ranges[k % n_outputs.max(1)] {
+        if let Some(range) = surrogate_ranges[k % n_outputs.max(1)] {
             clip(&mut point.lower, range);
             clip(&mut point.upper, range);
             if let Some((lower, upper)) = &mut point.outer {
@@ -181,7 +182,8 @@ fn clip_to_known_ranges(
         }
     }
     for (k, extremes) in block.extremes.iter_mut().enumerate() {
-        if let (Some(extremes), Some(range)) = (extremes, known_ranges[k % n_outputs.max(1)]) {
+        if let (Some(extremes), Some(range)) = (extremes, surrogate_ranges[k % n_outputs.max(1)])
+        {
             clip(&mut extremes.at_min, range);
             clip(&mut extremes.at_max, range);
         }
@@ -210,8 +212,9 @@ pub(super) struct DesignBounding<'b> {
     pub sobol: SobolSeries,
     /// Min/max of the screening runs per record and output (empty without screening).
     pub screen_hull: &'b [EnvelopePoint],
-    /// Each output's known range: bounds and predictions are clipped to it.
-    pub known_ranges: &'b [Option<(f64, f64)>],
+    /// Each output's surrogate range (`crate::scene::surrogate_ranges`): bounds and predictions
+    /// are clipped to it.
+    pub surrogate_ranges: &'b [Option<(f64, f64)>],
     /// The element this design covers (`None`: the whole box). An element's envelopes do not take
     /// in the nominal run, which lies outside it in general; its candidates are mapped to the
     /// whole box's coordinates and kept for its checked outputs only.
@@ -234,7 +237,7 @@ impl DesignBounding<'_> {
         let mut bounded =
             self.bounder
                 .bound_records(count, n_outputs, values, excluded, self.threads)?;
-        clip_to_known_ranges(&mut bounded, self.known_ranges, n_outputs);
+        clip_to_surrogate_ranges(&mut bounded, self.surrogate_ranges, n_outputs);
         accumulator.points.extend_from_slice(&bounded.points);
         self.sobol.extend(&bounded);
         for r in 0..count {

@@ -490,6 +490,7 @@ fn run_round(
     let n_outputs = context.scene.outputs.len();
     let n_records = accumulator.times.len();
     let ranges = known_ranges(context.scene);
+    let surrogate_ranges = crate::scene::surrogate_ranges(context.model, context.scene);
     let active = tree.active.clone();
     // Every child in plan order, with the range of its samples in the stage.
     let children: Vec<(usize, &ElementBox, &ElementDesign)> = planned
@@ -532,7 +533,7 @@ fn run_round(
                 candidates: CheckCandidates::new(d),
                 sobol: SobolSeries::new(d, n_outputs),
                 screen_hull: &[],
-                known_ranges: &ranges,
+                surrogate_ranges: &surrogate_ranges,
                 element: Some(ElementScope {
                     element: region,
                     checked_outputs: &active,

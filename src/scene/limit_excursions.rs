@@ -137,6 +137,40 @@ pub fn outputs_at_enforced_limits(
         .collect()
 }
 
+/// How far past an enforced limit (rad or m) a surrogate's bounds and predictions of the joint's
+/// position may reach ([`surrogate_ranges`]): the depth at which the limit's penalty holds an
+/// acceleration of 1000 rad/s² or m/s² (`a / ω²`, ω = `JOINT_LIMIT_FREQUENCY` = 200 rad/s;
+/// docs/step-control.md §4), far beyond what a joint pressed into its stop by its own mechanism
+/// meets (2.5e-4 rad at 10 rad/s²). Impacts put a joint on its limit exactly; only slow crossings
+/// and resting loads go past it, by that penalty depth.
+pub const ENFORCED_LIMIT_BOUND_MARGIN: f64 = 1000.0
+    / (crate::effects::JOINT_LIMIT_FREQUENCY * crate::effects::JOINT_LIMIT_FREQUENCY);
+
+/// Per output of `scene`: the range a surrogate's bounds and predicted extremes are clipped to
+/// (docs/method.md §12, "Known ranges") — the output's own known range
+/// ([`OutputKind::known_range`]), or, for the position of a joint whose URDF limits the scene
+/// enforces (`joint_limits`), those limits widened by [`ENFORCED_LIMIT_BOUND_MARGIN`]. True values
+/// are not clamped to the latter: a run that goes deeper still widens the envelope and the check.
+pub fn surrogate_ranges(model: &Model, scene: &Scene) -> Vec<Option<(f64, f64)>> {
+    scene
+        .outputs
+        .iter()
+        .map(|output| {
+            output.kind.known_range().or_else(|| {
+                let (_, [lower, upper]) = scene
+                    .effects
+                    .joint_limits
+                    .then(|| limited_joint(model, output))
+                    .flatten()?;
+                Some((
+                    lower - ENFORCED_LIMIT_BOUND_MARGIN,
+                    upper + ENFORCED_LIMIT_BOUND_MARGIN,
+                ))
+            })
+        })
+        .collect()
+}
+
 /// The 1-dof joint whose position `output` is, with its finite URDF limits `[lower, upper]`
 /// (`lower < upper`), if it is one and has them.
 fn limited_joint<'m>(model: &'m Model, output: &Output) -> Option<(&'m Joint, [f64; 2])> {
