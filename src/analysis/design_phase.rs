@@ -182,8 +182,7 @@ fn clip_to_surrogate_ranges(
         }
     }
     for (k, extremes) in block.extremes.iter_mut().enumerate() {
-        if let (Some(extremes), Some(range)) = (extremes, surrogate_ranges[k % n_outputs.max(1)])
-        {
+        if let (Some(extremes), Some(range)) = (extremes, surrogate_ranges[k % n_outputs.max(1)]) {
             clip(&mut extremes.at_min, range);
             clip(&mut extremes.at_max, range);
         }

@@ -143,8 +143,8 @@ pub fn outputs_at_enforced_limits(
 /// docs/step-control.md §4), far beyond what a joint pressed into its stop by its own mechanism
 /// meets (2.5e-4 rad at 10 rad/s²). Impacts put a joint on its limit exactly; only slow crossings
 /// and resting loads go past it, by that penalty depth.
-pub const ENFORCED_LIMIT_BOUND_MARGIN: f64 = 1000.0
-    / (crate::effects::JOINT_LIMIT_FREQUENCY * crate::effects::JOINT_LIMIT_FREQUENCY);
+pub const ENFORCED_LIMIT_BOUND_MARGIN: f64 =
+    1000.0 / (crate::effects::JOINT_LIMIT_FREQUENCY * crate::effects::JOINT_LIMIT_FREQUENCY);
 
 /// Per output of `scene`: the range a surrogate's bounds and predicted extremes are clipped to
 /// (docs/method.md §12, "Known ranges") — the output's own known range

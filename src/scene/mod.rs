@@ -19,7 +19,8 @@ pub use budget::{
 pub use contacts::{SceneContacts, DEFAULT_MAX_PENETRATION_M};
 pub use limit_excursions::{
     describe_limit_excursions, limit_excursions, outputs_at_enforced_limits, surrogate_ranges,
-    LimitExcursion, ENFORCED_LIMIT_BOUND_MARGIN, LIMIT_CONTACT_TOLERANCE, LIMIT_EXCURSION_TOLERANCE,
+    LimitExcursion, ENFORCED_LIMIT_BOUND_MARGIN, LIMIT_CONTACT_TOLERANCE,
+    LIMIT_EXCURSION_TOLERANCE,
 };
 pub use outputs::{clamp_to_range, Output, OutputKind};
 // The file format lives in `crate::sidecar`; these re-exports keep `crate::scene::SidecarFile` and
