@@ -40,3 +40,23 @@ pub fn warn(py: Python<'_>, text: &str) -> PyResult<()> {
         .call1((text, category, 2))?;
     Ok(())
 }
+
+/// The library's setup messages of a run, kept while it runs on the worker thread and given to
+/// Python afterwards as warnings ([`SetupMessages::warn`]), before any error of the run.
+#[derive(Default)]
+pub struct SetupMessages(Vec<String>);
+
+impl SetupMessages {
+    /// Keeps one message (a note keeps its `note: ` prefix).
+    pub fn keep(&mut self, kind: ribbon::setup::SetupMessage, text: &str) {
+        self.0.push(match kind {
+            ribbon::setup::SetupMessage::Warning => text.to_string(),
+            ribbon::setup::SetupMessage::Note => format!("note: {text}"),
+        });
+    }
+
+    /// Every message kept, as a `RibbonWarning`.
+    pub fn warn(&self, py: Python<'_>) -> PyResult<()> {
+        self.0.iter().try_for_each(|text| warn(py, text))
+    }
+}

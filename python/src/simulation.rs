@@ -3,12 +3,11 @@
 
 use crate::background::run_in_background;
 use crate::convert::{array1, array2, set_flags};
-use crate::errors::{to_py, warn};
+use crate::errors::{to_py, warn, SetupMessages};
 use crate::options::{Keywords, SCENE_KEYWORDS};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use ribbon::nominal_run::{NominalCopies, NominalRun};
-use ribbon::setup::SetupMessage;
 use std::path::PathBuf;
 
 /// A nominal trajectory.
@@ -34,24 +33,17 @@ pub fn simulate(
     let inputs = keywords.scene_inputs(urdf.clone(), sidecar)?;
     keywords.finish()?;
     let flags = set_flags(set)?;
-    let mut messages: Vec<String> = Vec::new();
+    let mut messages = SetupMessages::default();
     let (outcome, stopped) = run_in_background(py, None, |stop, _progress| {
         NominalRun::run(
             &inputs.request(),
             &flags,
             NominalCopies::TrajectoryOnly,
             stop,
-            &mut |kind, text| {
-                messages.push(match kind {
-                    SetupMessage::Warning => text.to_string(),
-                    SetupMessage::Note => format!("note: {text}"),
-                })
-            },
+            &mut |kind, text| messages.keep(kind, text),
         )
     });
-    for message in &messages {
-        warn(py, message)?;
-    }
+    messages.warn(py)?;
     let run = outcome.map_err(to_py)?;
     run.check_finite().map_err(to_py)?;
     let excursions = run.limit_excursions();

@@ -9,7 +9,7 @@
 
 use crate::background::run_in_background;
 use crate::convert::{array1, array2, json_to_py};
-use crate::errors::{exception_class, to_py, warn};
+use crate::errors::{exception_class, to_py, SetupMessages};
 use crate::options::{Keywords, SCENE_KEYWORDS, STUDY_KEYWORDS};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -111,18 +111,13 @@ pub fn analyze(
         outputs: StudyOutputs::default(),
     };
     keywords.finish()?;
-    let mut messages: Vec<String> = Vec::new();
+    let mut messages = SetupMessages::default();
     let (outcome, stopped) = run_in_background(py, progress, |stop, progress| {
         run_study_here(&request, stop, progress, &mut |kind, text| {
-            messages.push(match kind {
-                SetupMessage::Warning => text.to_string(),
-                SetupMessage::Note => format!("note: {text}"),
-            })
+            messages.keep(kind, text)
         })
     });
-    for message in &messages {
-        warn(py, message)?;
-    }
+    messages.warn(py)?;
     let finished = outcome.map_err(to_py)?;
     let wall_seconds = started.elapsed().as_secs_f64();
     check_envelope_finite(&finished.report.envelope).map_err(to_py)?;

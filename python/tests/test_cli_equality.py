@@ -53,6 +53,28 @@ def test_analyze_arrays_equal_the_cli_csv(name, cli, tmp_path):
     assert (tmp_path / "py.csv").read_bytes() == (tmp_path / "cli.csv").read_bytes()
     study.write_mcap(tmp_path / "py.mcap")
     assert (tmp_path / "py.mcap").read_bytes() == (tmp_path / "cli.mcap").read_bytes()
+    # The summary file: the CLI's but for the timings.
+    study.write_summary(tmp_path / "py.json")
+    with open(tmp_path / "py.json") as f:
+        written = json.load(f)
+    assert written["outputs"] == summary["outputs"]
+    assert written["parameters"] == summary["parameters"]
+    assert written["stats"]["check"] == summary["stats"]["check"]
+
+
+def test_report_writes_the_cli_s_page(cli, tmp_path):
+    code, _, err = cli("analyze", robot("ur5"), "--report", tmp_path / "cli")
+    assert code == 0, err
+    study = ribbon.analyze(robot("ur5"))
+    study.report(tmp_path / "py")
+    cli_files = sorted(p.name for p in (tmp_path / "cli").iterdir())
+    assert sorted(p.name for p in (tmp_path / "py").iterdir()) == cli_files
+    page = (tmp_path / "py" / "report.md").read_text()
+    assert all(f"{o}" in page for o in study.outputs)
+    assert study.table().splitlines()[0] in page
+    # Refused like the CLI's outputs (never a directory, never an input).
+    with pytest.raises(ribbon.InputError, match="directory"):
+        study.write_csv(tmp_path)
 
 
 def test_simulate_arrays_equal_the_cli_csv(cli, tmp_path):

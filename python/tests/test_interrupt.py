@@ -67,3 +67,25 @@ def test_an_exception_in_the_progress_callback_stops_the_study():
     with pytest.raises(Enough) as caught:
         ribbon.analyze(robot("ur5"), duration=LONG_DURATION_S, progress=progress)
     assert caught.value.result.partial
+
+
+def test_the_gil_is_released_while_a_study_runs():
+    ticks = []
+    done = threading.Event()
+
+    def count():
+        while not done.is_set():
+            ticks.append(1)
+            done.wait(0.001)
+
+    thread = threading.Thread(target=count)
+    thread.start()
+    try:
+        study = ribbon.analyze(robot("ur5"), duration=6.0)
+    finally:
+        done.set()
+        thread.join()
+    assert study.runs > 100
+    # A thread that needs the GIL every millisecond ran all along (held for the study, it would
+    # get it only between the progress calls).
+    assert len(ticks) > 200, len(ticks)
