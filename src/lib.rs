@@ -19,6 +19,8 @@
 //! - [`output`] — CSV, summary JSON, MCAP and SVG writers, and the output-path rules;
 //! - [`study_front`] — what the study commands share: options, the driver, progress, warnings,
 //!   the stdout table;
+//! - [`nominal_run`] — one nominal trajectory as `simulate` runs it (also the Python package's);
+//! - [`state_dynamics`] — rigid-body dynamics at one given state, as `dynamics` computes it;
 //! - [`interrupt`] — SIGINT/SIGTERM: stop at the next step, or at once on a second signal;
 //! - [`cli`] — the `ribbon` command line.
 //!
@@ -40,6 +42,7 @@ pub mod integrate;
 pub mod interrupt;
 pub mod linalg;
 pub mod model;
+pub mod nominal_run;
 pub mod output;
 pub mod params;
 pub mod scene;
@@ -48,6 +51,7 @@ pub mod sidecar;
 pub mod simulate;
 pub mod spatial;
 pub mod starter;
+pub mod state_dynamics;
 pub mod study_front;
 #[cfg(test)]
 pub(crate) mod test_support;

@@ -3,17 +3,10 @@
 
 use super::{print_warnings, write_stdout, DynamicsArgs};
 use crate::cli::values::{apply_set_flags, parse_vector};
-use crate::dynamics::{
-    crba, forward_dynamics, forward_kinematics, nonlinear_effects, rnea, world_from_link, Data,
-};
-use crate::model::{JointKind, LoadOptions, Model};
-use crate::spatial::quaternion::xyzw_norm;
+use crate::model::{LoadOptions, Model};
+use crate::state_dynamics::{coordinate_names, StateDynamics, StateRequest};
 use crate::Error;
 use serde_json::{json, Map, Value};
-
-/// A quaternion whose norm is within this of 1 is normalised; further away it is refused (a typo,
-/// not rounding).
-pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-6;
 
 /// Runs `ribbon dynamics`.
 pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
@@ -24,81 +17,28 @@ pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
         },
     )?;
     print_warnings(&model);
-    crate::scene::check_dense_matrices("`ribbon dynamics`", &model)?;
     apply_set_flags(&mut model, &args.set)?;
     let (q_names, v_names) = coordinate_names(&model);
-    let mut q = match &args.q {
-        Some(text) => parse_vector("--q", text, model.nq, &q_names)?,
-        None => model.neutral_configuration(),
-    };
-    normalise_quaternions(&model, &mut q)?;
-    let velocity = |flag: &str, text: &Option<String>| -> Result<Option<Vec<f64>>, Error> {
+    let vector = |flag: &str, text: &Option<String>, n: usize, names: &str| {
         text.as_deref()
-            .map(|t| parse_vector(flag, t, model.nv, &v_names))
+            .map(|t| parse_vector(flag, t, n, names))
             .transpose()
     };
-    let v = velocity("--v", &args.v)?.unwrap_or_else(|| vec![0.0; model.nv]);
-    let tau = velocity("--tau", &args.tau)?;
-    let qdd = velocity("--qdd", &args.qdd)?;
-
-    let mut data = Data::new(&model);
-    let mass_matrix = crba(&model, &mut data, &q).clone();
-    let bias = nonlinear_effects(&model, &mut data, &q, &v).to_vec();
-    forward_kinematics(&model, &mut data, &q);
-    let frames: Vec<(String, crate::spatial::Transform)> = (0..model.description.links.len())
-        .map(|l| {
-            (
-                model.description.links[l].name.clone(),
-                world_from_link(&model, &data, l),
-            )
-        })
-        .collect();
-    let qdd_out = match &tau {
-        Some(tau) => Some(forward_dynamics(&model, &mut data, &q, &v, tau)?.to_vec()),
-        None => None,
+    let state = StateRequest {
+        q: vector("--q", &args.q, model.nq, &q_names)?,
+        v: vector("--v", &args.v, model.nv, &v_names)?,
+        tau: vector("--tau", &args.tau, model.nv, &v_names)?,
+        qdd: vector("--qdd", &args.qdd, model.nv, &v_names)?,
     };
-    let tau_out = qdd
-        .as_ref()
-        .map(|a| rnea(&model, &mut data, &q, &v, a).to_vec());
-
-    // A NaN or infinity is never printed: the given state overflows f64 arithmetic.
-    let mut results: Vec<(&str, &[f64])> = vec![
-        ("the mass matrix", mass_matrix.as_slice()),
-        ("the bias forces C(q, v) v + g(q)", &bias),
-    ];
-    if let Some(qdd) = &qdd_out {
-        results.push(("the accelerations qdd", qdd));
-    }
-    if let Some(tau) = &tau_out {
-        results.push(("the torques tau", tau));
-    }
-    for (quantity, values) in results {
-        if let Some(i) = values.iter().position(|x| !x.is_finite()) {
-            let coordinate = i % model.nv.max(1);
-            return Err(Error::BadArgument {
-                flag: "--q/--v/--tau/--qdd".to_string(),
-                message: format!(
-                    "{quantity}: {} at coordinate {coordinate} (joint '{}'); the given values overflow f64 arithmetic, give smaller ones",
-                    values[i],
-                    crate::dynamics::joint_of_velocity(&model, coordinate)
-                ),
-            });
-        }
-    }
-    if let Some((name, _)) = frames.iter().find(|(_, placement)| {
-        placement
-            .translation
-            .iter()
-            .chain(placement.rotation.iter())
-            .any(|x| !x.is_finite())
-    }) {
-        return Err(Error::BadArgument {
-            flag: "--q".to_string(),
-            message: format!(
-                "the placement of link '{name}' is not finite: the given positions overflow f64 arithmetic; give smaller ones"
-            ),
-        });
-    }
+    let StateDynamics {
+        q,
+        v,
+        mass_matrix,
+        bias,
+        qdd: qdd_out,
+        tau: tau_out,
+        frames,
+    } = StateDynamics::at(&model, &state)?;
 
     let joints: Vec<Value> = model
         .joints
@@ -148,45 +88,6 @@ pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
         readable_report(&model, &out)
     };
     write_stdout(&text)
-}
-
-/// Descriptions of the q and v coordinates for error messages.
-fn coordinate_names(model: &Model) -> (String, String) {
-    let describe = |floating: &str| {
-        model
-            .joints
-            .iter()
-            .map(|j| match j.kind {
-                JointKind::Floating => format!("{} ({floating})", j.name),
-                _ => j.name.clone(),
-            })
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    (describe("x y z qx qy qz qw"), describe("vx vy vz wx wy wz"))
-}
-
-/// Normalises each floating joint's quaternion when within [`QUATERNION_NORM_TOLERANCE`] of unit.
-fn normalise_quaternions(model: &Model, q: &mut [f64]) -> Result<(), Error> {
-    for joint in model
-        .joints
-        .iter()
-        .filter(|j| j.kind == JointKind::Floating)
-    {
-        let quaternion = &mut q[joint.q_index + 3..joint.q_index + 7];
-        let norm = xyzw_norm(quaternion);
-        if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
-            return Err(Error::BadArgument {
-                flag: "--q".to_string(),
-                message: format!(
-                    "the quaternion of '{}' (qx qy qz qw = {:?}) has norm {norm}; give a unit quaternion",
-                    joint.name, quaternion
-                ),
-            });
-        }
-        quaternion.iter_mut().for_each(|x| *x /= norm);
-    }
-    Ok(())
 }
 
 fn readable_report(model: &Model, out: &Map<String, Value>) -> String {

@@ -12,7 +12,7 @@ mod run_cmd;
 mod simulate_cmd;
 mod values;
 
-pub use values::{parse_set, parse_vector};
+pub use values::{apply_set_flags, apply_set_flags_with_symbols, parse_set, parse_vector};
 
 use crate::study_front::{install_interrupt, SceneInputs};
 use crate::Error;
@@ -377,25 +377,6 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Command::Merge(args) => merge_cmd::run(&args),
         Command::Init(args) => init_cmd::run(&args),
     }
-}
-
-/// Checks that the nominal model can start the scene (exit 2 naming the joints when it cannot)
-/// and prints what the start changed ([`crate::simulate::check_start`]).
-fn check_start(model: &crate::model::Model, scene: &crate::scene::Scene) -> Result<(), Error> {
-    for warning in crate::simulate::check_start(model, scene)? {
-        eprintln!("warning: {warning}");
-    }
-    Ok(())
-}
-
-/// Refuses to report a NaN or infinity ([`crate::output::check_finite`], exit 1).
-fn check_finite(
-    what: &str,
-    names: &[&str],
-    times: &[f64],
-    columns: &[&[f64]],
-) -> Result<(), Error> {
-    Ok(crate::output::check_finite(what, names, times, columns)?)
 }
 
 /// Prints the model's load warnings on stderr.

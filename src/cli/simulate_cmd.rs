@@ -4,15 +4,15 @@
 //! current step, write what was computed (marked partial) and exit 1; a second signal stops at
 //! once, removing the temporary files.
 
-use super::{check_finite, check_start, install_interrupt, write_stdout, SimulateArgs};
-use crate::cli::values::apply_set_flags_with_symbols;
+use super::{install_interrupt, write_stdout, SimulateArgs};
 use crate::dynamics::{forward_kinematics, Data};
 use crate::model::Model;
+use crate::nominal_run::{NominalCopies, NominalRun};
 use crate::output::mcap::McapMetadata;
 use crate::output::{write_csv, EnvelopeLog, EnvelopeSeries, Summary};
-use crate::scene::{describe_limit_excursions, limit_excursions, LimitExcursion, Scene};
-use crate::setup::{print_message, SceneSetup};
-use crate::simulate::{simulate_interruptible, Trajectory};
+use crate::scene::{describe_limit_excursions, LimitExcursion, Scene};
+use crate::setup::print_message;
+use crate::simulate::Trajectory;
 use crate::Error;
 use std::time::Instant;
 
@@ -34,41 +34,31 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
         ],
     )?;
     install_interrupt();
-    let SceneSetup {
-        mut model,
-        scene,
-        sidecar,
-        sidecar_path,
-    } = SceneSetup::load(&args.scene.request(), &mut print_message)?;
-    let sidecar_name = sidecar_path.as_ref().map(|p| p.display().to_string());
-    let symbols = sidecar_name.as_deref().map(|name| (&sidecar, name));
-    apply_set_flags_with_symbols(&mut model, &args.set, symbols)?;
-    // Kept per record time: the time, the configuration, every output, and the summary's four
-    // copies of each output (time, lower, upper, nominal).
-    let per_output = 1 + if args.summary.is_some() { 4 } else { 0 };
-    scene.check_memory(
-        "simulate",
-        (1 + model.nq + scene.outputs.len() * per_output) as u64,
-        0,
+    let copies = if args.summary.is_some() {
+        NominalCopies::WithSummary
+    } else {
+        NominalCopies::TrajectoryOnly
+    };
+    let run = NominalRun::run(
+        &args.scene.request(),
+        &args.set,
+        copies,
+        crate::interrupt::flag(),
+        &mut print_message,
     )?;
-    check_start(&model, &scene)?;
-    let robot = model.name().to_string();
-    let kinematic_model = model.clone();
-    let trajectory = simulate_interruptible(model, &scene, crate::interrupt::flag())?;
     let wall_seconds = started.elapsed().as_secs_f64();
-    print_statistics(&trajectory, &scene, wall_seconds);
-
+    print_statistics(&run.trajectory, &run.scene, wall_seconds);
+    run.check_finite()?;
+    let excursions = run.limit_excursions();
+    let NominalRun {
+        model: kinematic_model,
+        scene,
+        sidecar_path,
+        trajectory,
+    } = run;
+    let robot = kinematic_model.name().to_string();
     let names: Vec<&str> = trajectory.outputs.iter().map(|o| o.name.as_str()).collect();
     let columns: Vec<&[f64]> = trajectory.values.iter().map(Vec::as_slice).collect();
-    check_finite("simulate", &names, &trajectory.times, &columns)?;
-    let excursions = limit_excursions(
-        &kinematic_model,
-        &scene,
-        &trajectory.outputs,
-        &trajectory.times,
-        &trajectory.values,
-        &trajectory.values,
-    );
     if !excursions.is_empty() {
         eprintln!("warning: {}", describe_limit_excursions(&excursions, false));
     }

@@ -73,8 +73,8 @@ pub fn apply_set_flags(model: &mut crate::model::Model, flags: &[String]) -> Res
 /// [`apply_set_flags`] where a flag may also name a free symbol of `sidecar` (the file and its name
 /// in messages), `--set r_wheel=0.3`: the `[bind]` expressions that use the symbols given are
 /// evaluated again (the other symbols at their midpoints) and written, and checked as a study
-/// checks them ([`ParameterSpace::apply_symbol_values`]); path flags are written after them, so an
-/// explicit path wins. The box is expanded only when a flag names a symbol. An unknown name gets
+/// checks them ([`crate::uncertainty::ParameterSpace::apply_symbol_values`]); path flags are
+/// written after them, so an explicit path wins. The box is expanded only when a flag names a symbol. An unknown name gets
 /// the closest path or symbol as a suggestion.
 pub fn apply_set_flags_with_symbols(
     model: &mut crate::model::Model,

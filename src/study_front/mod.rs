@@ -11,7 +11,8 @@
 //! One file per job: [`options`] (flags → study options), [`progress`] (stderr progress),
 //! [`warnings`] (the warnings and advice a finished study prints, the exit-4 error), [`table`] (the
 //! stdout table), [`run_study`](mod@run_study) (the driver of `analyze` and `merge`),
-//! [`report_page`] (`--report DIR`), [`plan_match`] (a plan file against this ribbon's plan), and
+//! [`report_page`] (`--report DIR`), [`study_log`] (the MCAP log's header and close, the finished
+//! blocks kept to write a log later), [`plan_match`] (a plan file against this ribbon's plan), and
 //! one per command that is more than the driver: [`compare`](mod@compare) (with
 //! [`compare_report`]), [`plan`], [`shard`] (`run`), [`merge`](mod@merge).
 //!
@@ -31,6 +32,7 @@ pub mod progress;
 pub mod report_page;
 pub mod run_study;
 pub mod shard;
+pub mod study_log;
 pub mod table;
 pub mod warnings;
 

@@ -17,18 +17,17 @@ use super::options::{order_of, study_options, SceneInputs, StudyRequest};
 use super::plan_match::check_plan_matches;
 use super::progress::ProgressReporter;
 use super::report_page::{prepare_report, write_report, ReportText};
+use super::study_log::{close_log, LogHeader};
 use super::table::table;
 use super::warnings::{untrusted, warn, StudyWarnings};
 use crate::analysis::{
-    has_sobol_indices, sobol_values_per_record, Envelope, ForeignError, Method, SimulateHere,
-    StageRecords, Study, StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET,
+    sobol_values_per_record, Envelope, ForeignError, Method, SimulateHere, StageRecords, Study,
+    StudyOptions, StudyPlan, StudyReport, BLOCK_VALUE_BUDGET,
 };
 use crate::distributed::{PlanFile, ShardStages};
 use crate::dynamics::Data;
-use crate::output::mcap::McapMetadata;
 use crate::output::{
-    check_command_outputs, check_finite, peak_memory, write_csv, write_stdout, EnvelopeLog,
-    ParameterSummary, Summary,
+    check_command_outputs, check_finite, peak_memory, write_csv, write_stdout, EnvelopeLog, Summary,
 };
 use crate::scene::Scene;
 use crate::setup::{print_message, Setup};
@@ -74,22 +73,7 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
     } = prepare(&request.scene)?;
     let options = study_options(&request.flags, &sidecar.analysis)?;
     let report_stems = prepare_report(&request.scene.urdf, outputs, &sidecar_path, &scene)?;
-    // Kept per record time: the envelope (time; lower, upper, nominal and an error estimate per
-    // output) and, with --summary, its five copies per output; plus one block of samples.
-    // Surrogate studies also keep their Sobol' indices (and, with --summary, a copy).
-    let sobol = sobol_values_per_record(options.method, space.len());
-    let per_output = 4
-        + sobol
-        + if outputs.summary.is_some() {
-            5 + sobol
-        } else {
-            0
-        };
-    scene.check_memory(
-        "analyze",
-        (1 + scene.outputs.len() * per_output) as u64,
-        (BLOCK_VALUE_BUDGET * 8) as u64,
-    )?;
+    check_study_memory(&scene, &options, &space, outputs.summary.is_some())?;
     let robot = model.name().to_string();
     let study = Study::new(&model, &scene, &space, options.clone());
     let plan = study.plan()?;
@@ -107,29 +91,13 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
     announce(&plan, &options, &space, &scene);
 
     let interrupt = crate::interrupt::flag();
-    let metadata = McapMetadata {
-        robot: robot.clone(),
-        method: plan.method.name().to_string(),
-        order: order_of(plan.method, &options),
-        runs: plan.max_runs(),
-        parameters_json: serde_json::to_string(&ParameterSummary::of_space(&space))
-            .unwrap_or_else(|_| "[]".to_string()),
-    };
+    let header = LogHeader::of_plan(&robot, &plan, &options, &space);
     let mut log = match &outputs.out {
-        Some(path) => Some(EnvelopeLog::create(
-            path,
-            &request.scene.urdf,
-            Some(&sidecar_path),
-            metadata,
-            &scene.outputs,
-            plan.method.family().is_some() || plan.method == Method::Taylor,
-        )?),
+        Some(path) => {
+            Some(header.open(path, &request.scene.urdf, &sidecar_path, &scene.outputs)?)
+        }
         None => None,
     };
-    if let (Some(log), true) = (log.as_mut(), has_sobol_indices(plan.method)) {
-        let names: Vec<String> = space.dimensions().iter().map(|d| d.name.clone()).collect();
-        log.add_sobol_channels(&names)?;
-    }
     let kinematic_model = model;
     let mut data = Data::new(&kinematic_model);
     let mut reporter = ProgressReporter::new();
@@ -162,13 +130,8 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         write_envelope_csv(path, &report.envelope)?;
     }
     let foxglove_layout = log.as_ref().map(EnvelopeLog::foxglove_layout);
-    if let Some(mut log) = log.take() {
-        log.metadata_mut().runs = report.runs;
-        if let Some(elements) = &report.elements {
-            let json = crate::output::elements_json(elements, &space, &report.envelope);
-            log.add_metadata([("elements".to_string(), json.to_string())].into())?;
-        }
-        log.finish(report.partial)?;
+    if let Some(log) = log.take() {
+        close_log(log, &report, &space)?;
     }
     let table_text = table(&options, &space, &report, wall_seconds);
     if let (Some(dir), Some(stems)) = (&outputs.report, &report_stems) {
@@ -265,16 +228,36 @@ fn envelope_columns(e: &Envelope, with_error: bool) -> (Vec<String>, Vec<&[f64]>
     (names, columns)
 }
 
+/// Refuses a study whose memory would pass the budget (exit 2, before anything runs). Kept per
+/// record time: the envelope (time; lower, upper, nominal and an error estimate per output) and,
+/// `with_summary`, its five copies per output; plus one block of samples. Surrogate studies also
+/// keep their Sobol' indices (and, with a summary, a copy).
+pub fn check_study_memory(
+    scene: &Scene,
+    options: &StudyOptions,
+    space: &ParameterSpace,
+    with_summary: bool,
+) -> Result<(), Error> {
+    let sobol = sobol_values_per_record(options.method, space.len());
+    let per_output = 4 + sobol + if with_summary { 5 + sobol } else { 0 };
+    scene.check_memory(
+        "analyze",
+        (1 + scene.outputs.len() * per_output) as u64,
+        (BLOCK_VALUE_BUDGET * 8) as u64,
+    )?;
+    Ok(())
+}
+
 /// Refuses envelopes that hold a NaN or infinity (exit 1, naming the output and time) before
 /// anything is written or printed.
-fn check_envelope_finite(envelope: &Envelope) -> Result<(), Error> {
+pub fn check_envelope_finite(envelope: &Envelope) -> Result<(), Error> {
     let (names, columns) = envelope_columns(envelope, true);
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     Ok(check_finite("analyze", &names, &envelope.times, &columns)?)
 }
 
 /// `--csv`: `t`, then `NAME.lower`, `NAME.nominal`, `NAME.upper` per output.
-fn write_envelope_csv(path: &Path, envelope: &Envelope) -> Result<(), Error> {
+pub fn write_envelope_csv(path: &Path, envelope: &Envelope) -> Result<(), Error> {
     let (names, columns) = envelope_columns(envelope, false);
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     Ok(write_csv(path, &envelope.times, &names, &columns)?)
