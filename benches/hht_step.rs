@@ -29,7 +29,9 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, Criterion};
 use nalgebra::{DMatrix, DVector};
-use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings, StepControl, SystemError};
+use ribbon::integrate::{
+    DaeSystem, HhtIntegrator, HhtSettings, InverseDynamics, StepControl, SystemError,
+};
 use ribbon::model::{LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::{hht_settings, RobotSystem};
@@ -229,30 +231,12 @@ impl DaeSystem for Profiled<'_> {
     ) -> Result<(), SystemError> {
         self.timed(1, |s| s.forces(t, q, v, out))
     }
-    fn provides_dynamics_residual(&self) -> bool {
-        self.inner.provides_dynamics_residual()
-    }
-    fn dynamics_residual(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        self.timed(2, |s| s.dynamics_residual(t, q, v, qdd, out))
-    }
-    fn dynamics_residual_after_mass_matrix(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        self.timed(2, |s| {
-            s.dynamics_residual_after_mass_matrix(t, q, v, qdd, out)
-        })
+    fn as_inverse_dynamics(&mut self) -> Option<&mut dyn InverseDynamics> {
+        if self.inner.as_inverse_dynamics().is_some() {
+            Some(self)
+        } else {
+            None
+        }
     }
     fn newton_diagonal(
         &mut self,
@@ -307,6 +291,32 @@ impl DaeSystem for Profiled<'_> {
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
         self.inner.constraint_acceleration_bias(t, q, v, out)
+    }
+}
+
+impl InverseDynamics for Profiled<'_> {
+    fn dynamics_residual(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(2, |s| s.dynamics_residual(t, q, v, qdd, out))
+    }
+
+    fn dynamics_residual_after_mass_matrix(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(2, |s| {
+            s.dynamics_residual_after_mass_matrix(t, q, v, qdd, out)
+        })
     }
 }
 

@@ -28,7 +28,8 @@
 //! `SENS_BENCH_OUT` (directory of `sensitivities.json`, default `$CARGO_TARGET_DIR` or `target`).
 
 use ribbon::model::{LoadOptions, Model};
-use ribbon::scene::{read_sidecar, Scene, SceneOverrides};
+use ribbon::scene::{parse_sidecar, read_sidecar, Scene, SceneOverrides};
+use ribbon::sidecar::SidecarFile;
 use ribbon::simulate::{
     central_difference_run_with, central_difference_settings, hht_settings, sensitivity_run,
     simulate, CENTRAL_DIFFERENCE_STEP_XI,
@@ -59,7 +60,7 @@ const JOINTS: [&str; 6] = [
 ];
 
 /// The `[parameters]` table of the d-dimensional box (d = 10 or 60).
-fn parameters(d: usize) -> toml::Table {
+fn parameters(d: usize) -> SidecarFile {
     let mut lines = Vec::new();
     for link in LINKS {
         lines.push(format!("\"link.{link}.mass\" = {{ rel = 0.03 }}"));
@@ -92,7 +93,7 @@ fn parameters(d: usize) -> toml::Table {
             }
         }
     }
-    toml::from_str(&lines.join("\n")).expect("parameters parse")
+    parse_sidecar(&format!("[parameters]\n{}", lines.join("\n"))).expect("parameters parse")
 }
 
 /// The fastest of `repeats` timings of `f`, s.
@@ -160,9 +161,7 @@ fn main() {
             eprintln!("d = {d}: only 10 and 60 are built; skipped");
             continue;
         }
-        let space =
-            ParameterSpace::from_tables(&parameters(d), &toml::Table::new(), &model, "bench")
-                .expect("box");
+        let space = ParameterSpace::from_sidecar(&parameters(d), &model, "bench").expect("box");
         assert_eq!(space.len(), d);
         let xi = space.nominal_xi();
         let plain = fastest(repeats, || {

@@ -25,7 +25,10 @@ pub enum Error {
     /// The interval parameters of the sidecar are bad.
     #[error(transparent)]
     Uncertainty(#[from] crate::uncertainty::UncertaintyError),
-    /// The sidecar or a scene value is bad.
+    /// The sidecar could not be read or parsed.
+    #[error(transparent)]
+    Sidecar(#[from] crate::sidecar::SidecarError),
+    /// A scene value is bad.
     #[error(transparent)]
     Scene(#[from] SceneError),
     /// The integrator failed (names time, step and what diverged).
@@ -107,6 +110,7 @@ impl Error {
         match self {
             Error::Model(_)
             | Error::Param(_)
+            | Error::Sidecar(_)
             | Error::Scene(_)
             | Error::Uncertainty(_)
             | Error::BadArgument { .. } => 2,

@@ -7,7 +7,7 @@
 //!   `max_newton_iterations` iterations); the command then writes what was computed (marked
 //!   partial) and exits 1;
 //! - a **second** signal ends the process at once (exit 1) after removing every temporary output
-//!   file still on disk ([`crate::output::remove_live_temporaries`]): outputs keep their previous
+//!   file still on disk ([`crate::atomic_file::remove_live_temporaries`]): outputs keep their previous
 //!   contents, nothing half-written is left.
 //!
 //! Not done here: deciding what an interrupted command writes (the commands do).
@@ -34,7 +34,7 @@ pub fn install() -> Result<(), String> {
                 .spawn(move || {
                     for _ in signals.forever() {
                         if REQUESTED.swap(true, Ordering::SeqCst) {
-                            let removed = crate::output::remove_live_temporaries();
+                            let removed = crate::atomic_file::remove_live_temporaries();
                             eprintln!(
                                 "\nerror: interrupted twice: stopped at once; {removed} temporary file(s) removed, no output was written or replaced"
                             );

@@ -31,11 +31,13 @@
 #![warn(missing_docs)]
 
 pub mod analysis;
+pub mod atomic_file;
 pub mod cli;
 pub mod constraints;
 pub mod distributed;
 pub mod dynamics;
 pub mod effects;
+pub mod environment;
 mod error;
 pub mod geometry;
 pub mod integrate;

@@ -7,9 +7,8 @@
 //! callback as they arise, so a later error does not swallow them.
 
 use crate::model::{LoadOptions, Model};
-use crate::scene::{
-    default_sidecar_path, read_sidecar, wants_floating_base, Scene, SceneOverrides, SidecarFile,
-};
+use crate::scene::{default_sidecar_path, wants_floating_base, Scene, SceneOverrides};
+use crate::sidecar::{read_sidecar, SidecarFile};
 use crate::uncertainty::ParameterSpace;
 use crate::Error;
 use std::path::{Path, PathBuf};

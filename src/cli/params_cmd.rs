@@ -3,7 +3,8 @@
 
 use super::{print_warnings, write_stdout, ParamsArgs};
 use crate::model::{LoadOptions, Model};
-use crate::scene::{read_sidecar, wants_floating_base, Scene, SceneOverrides};
+use crate::scene::{wants_floating_base, Scene, SceneOverrides};
+use crate::sidecar::read_sidecar;
 use crate::uncertainty::{DimensionKind, ParameterSpace};
 use crate::{params, Error};
 use serde_json::json;

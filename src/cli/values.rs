@@ -84,8 +84,8 @@ pub fn apply_set_flags_with_symbols(
     let symbol_keys: Vec<&str> = sidecar
         .map(|(file, _)| {
             file.parameters
-                .keys()
-                .map(String::as_str)
+                .iter()
+                .map(|declaration| declaration.key.as_str())
                 .filter(|k| crate::uncertainty::is_symbol_name(k))
                 .collect()
         })

@@ -25,8 +25,8 @@ use super::integrity::{
     OP_DATA_END, RECORD_FRAME_BYTES,
 };
 use crate::analysis::SampleFailure;
+use crate::atomic_file::TemporaryFile;
 use crate::effects::ContactStats;
-use crate::output::paths::TemporaryFile;
 use ::mcap::records::{MessageHeader, Metadata, Record};
 use ::mcap::{WriteOptions, Writer};
 use std::collections::BTreeMap;

@@ -1,12 +1,12 @@
 //! Checked calls into a [`DaeSystem`]: each wrapper maps the system's error to
 //! [`IntegrateError::System`] with the time, step and method name, and checks the output for NaN/Inf
-//! where it arises ([`IntegrateError::NonFinite`]). Allocation-free on the success path.
+//! where it arises ([`IntegrateError::NonFinite`]), both through one helper ([`At::checked`]). Allocation-free on the success path.
 
 use nalgebra::{DMatrix, DVector};
 
 use super::dense_solver::{all_finite, first_non_finite};
 use super::error::IntegrateError;
-use super::system::DaeSystem;
+use super::system::{DaeSystem, InverseDynamics, ResidualJacobians};
 
 /// Where an evaluation happens: time and step number (0 = consistent start).
 #[derive(Debug, Clone, Copy)]
@@ -28,6 +28,22 @@ impl At {
             call,
             source,
         }
+    }
+
+    /// The result of the system's method `call` with its output checked where it arises: the
+    /// system's error as [`IntegrateError::System`] naming `call`, then `output` as
+    /// [`Self::check_finite`] under `quantity` (a method with a second output checks it after
+    /// this, with `check_finite`). Always inlined: each wrapper compiles to what its two lines were.
+    #[inline(always)]
+    pub fn checked(
+        self,
+        call: &'static str,
+        result: Result<(), super::error::SystemError>,
+        quantity: &'static str,
+        output: &[f64],
+    ) -> Result<(), IntegrateError> {
+        result.map_err(self.system_error(call))?;
+        self.check_finite(quantity, output)
     }
 
     /// `Err(NonFinite)` naming `quantity` if any entry of `x` is NaN or infinite.
@@ -61,9 +77,8 @@ pub(crate) fn mass_matrix<S: DaeSystem + ?Sized>(
     q: &DVector<f64>,
     out: &mut DMatrix<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.mass_matrix(at.t, q, out)
-        .map_err(at.system_error("mass_matrix"))?;
-    at.check_finite("mass_matrix", out.as_slice())
+    let result = sys.mass_matrix(at.t, q, out);
+    at.checked("mass_matrix", result, "mass_matrix", out.as_slice())
 }
 
 /// `out (nv) = Q(t, q, v)`.
@@ -74,17 +89,18 @@ pub(crate) fn forces<S: DaeSystem + ?Sized>(
     v: &DVector<f64>,
     out: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.forces(at.t, q, v, out)
-        .map_err(at.system_error("forces"))?;
-    at.check_finite("forces", out.as_slice())
+    let result = sys.forces(at.t, q, v, out);
+    at.checked("forces", result, "forces", out.as_slice())
 }
 
 /// `out (nv) = M q̈ − Q` through the system's inverse dynamics. `after_mass_matrix`: `q` is the
 /// configuration of the system's last `mass_matrix` call (the first residual after a
 /// factorisation at the same iterate), whose kinematics the system may reuse
-/// ([`DaeSystem::dynamics_residual_after_mass_matrix`]).
-pub(crate) fn dynamics_residual<S: DaeSystem + ?Sized>(
-    sys: &mut S,
+/// ([`InverseDynamics::dynamics_residual_after_mass_matrix`]). Inlined into the Newton iteration,
+/// as the generic wrappers are.
+#[inline]
+pub(crate) fn dynamics_residual(
+    sys: &mut dyn InverseDynamics,
     at: At,
     q: &DVector<f64>,
     v: &DVector<f64>,
@@ -92,13 +108,17 @@ pub(crate) fn dynamics_residual<S: DaeSystem + ?Sized>(
     after_mass_matrix: bool,
     out: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    if after_mass_matrix {
+    let result = if after_mass_matrix {
         sys.dynamics_residual_after_mass_matrix(at.t, q, v, qdd, out)
     } else {
         sys.dynamics_residual(at.t, q, v, qdd, out)
-    }
-    .map_err(at.system_error("dynamics_residual"))?;
-    at.check_finite("dynamics_residual", out.as_slice())
+    };
+    at.checked(
+        "dynamics_residual",
+        result,
+        "dynamics_residual",
+        out.as_slice(),
+    )
 }
 
 /// `stiffness (nv), damping (nv)` = diagonal spring and damper terms.
@@ -110,9 +130,13 @@ pub(crate) fn newton_diagonal<S: DaeSystem + ?Sized>(
     stiffness: &mut DVector<f64>,
     damping: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.newton_diagonal(at.t, q, v, stiffness, damping)
-        .map_err(at.system_error("newton_diagonal"))?;
-    at.check_finite("newton_diagonal.stiffness", stiffness.as_slice())?;
+    let result = sys.newton_diagonal(at.t, q, v, stiffness, damping);
+    at.checked(
+        "newton_diagonal",
+        result,
+        "newton_diagonal.stiffness",
+        stiffness.as_slice(),
+    )?;
     at.check_finite("newton_diagonal.damping", damping.as_slice())
 }
 
@@ -125,9 +149,13 @@ pub(crate) fn newton_coupling<S: DaeSystem + ?Sized>(
     stiffness: &mut DMatrix<f64>,
     damping: &mut DMatrix<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.newton_coupling(at.t, q, v, stiffness, damping)
-        .map_err(at.system_error("newton_coupling"))?;
-    at.check_finite("newton_coupling.stiffness", stiffness.as_slice())?;
+    let result = sys.newton_coupling(at.t, q, v, stiffness, damping);
+    at.checked(
+        "newton_coupling",
+        result,
+        "newton_coupling.stiffness",
+        stiffness.as_slice(),
+    )?;
     at.check_finite("newton_coupling.damping", damping.as_slice())
 }
 
@@ -138,9 +166,8 @@ pub(crate) fn constraints<S: DaeSystem + ?Sized>(
     q: &DVector<f64>,
     out: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.constraints(at.t, q, out)
-        .map_err(at.system_error("constraints"))?;
-    at.check_finite("constraints", out.as_slice())
+    let result = sys.constraints(at.t, q, out);
+    at.checked("constraints", result, "constraints", out.as_slice())
 }
 
 /// `out (m × nv) = Φ_q(q, t)`.
@@ -150,9 +177,13 @@ pub(crate) fn constraint_jacobian<S: DaeSystem + ?Sized>(
     q: &DVector<f64>,
     out: &mut DMatrix<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.constraint_jacobian(at.t, q, out)
-        .map_err(at.system_error("constraint_jacobian"))?;
-    at.check_finite("constraint_jacobian", out.as_slice())
+    let result = sys.constraint_jacobian(at.t, q, out);
+    at.checked(
+        "constraint_jacobian",
+        result,
+        "constraint_jacobian",
+        out.as_slice(),
+    )
 }
 
 /// `phi (m) = Φ(q, t)` and `phi_q (m × nv) = Φ_q(q, t)` in one call (the same bits as
@@ -164,9 +195,13 @@ pub(crate) fn constraints_and_jacobian<S: DaeSystem + ?Sized>(
     phi: &mut DVector<f64>,
     phi_q: &mut DMatrix<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.constraints_and_jacobian(at.t, q, phi, phi_q)
-        .map_err(at.system_error("constraints_and_jacobian"))?;
-    at.check_finite("constraints", phi.as_slice())?;
+    let result = sys.constraints_and_jacobian(at.t, q, phi, phi_q);
+    at.checked(
+        "constraints_and_jacobian",
+        result,
+        "constraints",
+        phi.as_slice(),
+    )?;
     at.check_finite("constraint_jacobian", phi_q.as_slice())
 }
 
@@ -177,9 +212,13 @@ pub(crate) fn constraint_time_derivative<S: DaeSystem + ?Sized>(
     q: &DVector<f64>,
     out: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.constraint_time_derivative(at.t, q, out)
-        .map_err(at.system_error("constraint_time_derivative"))?;
-    at.check_finite("constraint_time_derivative", out.as_slice())
+    let result = sys.constraint_time_derivative(at.t, q, out);
+    at.checked(
+        "constraint_time_derivative",
+        result,
+        "constraint_time_derivative",
+        out.as_slice(),
+    )
 }
 
 /// `out (m) = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt`.
@@ -190,9 +229,13 @@ pub(crate) fn constraint_acceleration_bias<S: DaeSystem + ?Sized>(
     v: &DVector<f64>,
     out: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.constraint_acceleration_bias(at.t, q, v, out)
-        .map_err(at.system_error("constraint_acceleration_bias"))?;
-    at.check_finite("constraint_acceleration_bias", out.as_slice())
+    let result = sys.constraint_acceleration_bias(at.t, q, v, out);
+    at.checked(
+        "constraint_acceleration_bias",
+        result,
+        "constraint_acceleration_bias",
+        out.as_slice(),
+    )
 }
 
 /// `out (nq) = q ⊕ dq`.
@@ -204,9 +247,13 @@ pub(crate) fn integrate_position<S: DaeSystem + ?Sized>(
     dq: &DVector<f64>,
     out: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.integrate_position(q, dq, out)
-        .map_err(at.system_error("integrate_position"))?;
-    at.check_finite("integrate_position", out.as_slice())
+    let result = sys.integrate_position(q, dq, out);
+    at.checked(
+        "integrate_position",
+        result,
+        "integrate_position",
+        out.as_slice(),
+    )
 }
 
 /// Checks the system's declared dimensions against the sizes the caller holds.
@@ -234,8 +281,8 @@ pub(crate) fn check_dimensions<S: DaeSystem + ?Sized>(
 
 /// `stiffness (nv × nv) = ∂r/∂q`, `damping (nv × nv) = ∂r/∂q̇` of `r = M q̈ + Φ_qᵀλ − Q`.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn residual_jacobians<S: DaeSystem + ?Sized>(
-    sys: &mut S,
+pub(crate) fn residual_jacobians(
+    sys: &mut dyn ResidualJacobians,
     at: At,
     q: &DVector<f64>,
     v: &DVector<f64>,
@@ -244,9 +291,13 @@ pub(crate) fn residual_jacobians<S: DaeSystem + ?Sized>(
     stiffness: &mut DMatrix<f64>,
     damping: &mut DMatrix<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.residual_jacobians(at.t, q, v, qdd, lambda, stiffness, damping)
-        .map_err(at.system_error("residual_jacobians"))?;
-    at.check_finite("residual_jacobians.stiffness", stiffness.as_slice())?;
+    let result = sys.residual_jacobians(at.t, q, v, qdd, lambda, stiffness, damping);
+    at.checked(
+        "residual_jacobians",
+        result,
+        "residual_jacobians.stiffness",
+        stiffness.as_slice(),
+    )?;
     at.check_finite("residual_jacobians.damping", damping.as_slice())
 }
 
@@ -259,9 +310,8 @@ pub(crate) fn event_gaps<S: DaeSystem + ?Sized>(
     gaps: &mut DVector<f64>,
     rates: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.event_gaps(at.t, q, v, gaps, rates)
-        .map_err(at.system_error("event_gaps"))?;
-    at.check_finite("event_gaps", gaps.as_slice())?;
+    let result = sys.event_gaps(at.t, q, v, gaps, rates);
+    at.checked("event_gaps", result, "event_gaps", gaps.as_slice())?;
     at.check_finite("event_gaps.rates", rates.as_slice())
 }
 
@@ -273,9 +323,8 @@ pub(crate) fn apply_impact<S: DaeSystem + ?Sized>(
     q: &mut DVector<f64>,
     v: &mut DVector<f64>,
 ) -> Result<(), IntegrateError> {
-    sys.apply_impact(at.t, event, q, v)
-        .map_err(at.system_error("apply_impact"))?;
-    at.check_finite("apply_impact.q", q.as_slice())?;
+    let result = sys.apply_impact(at.t, event, q, v);
+    at.checked("apply_impact", result, "apply_impact.q", q.as_slice())?;
     at.check_finite("apply_impact.v", v.as_slice())
 }
 

@@ -71,4 +71,4 @@ pub use start::{
     consistent_start, ConsistentStart, REDUNDANT_ROW_RELATIVE_SV, START_CONSTRAINT_TOL,
     START_MAX_ITERATIONS,
 };
-pub use system::DaeSystem;
+pub use system::{DaeSystem, InverseDynamics, ResidualJacobians};

@@ -117,7 +117,7 @@ pub struct SensitivityStats {
     /// Right-hand sides solved with `J` (`P` per step).
     pub solves: u64,
     /// Residual evaluations spent on central differences of `K_t` and `D_t` (`4 nv` per step when
-    /// the system does not provide [`DaeSystem::residual_jacobians`], else 0).
+    /// the system does not provide [`DaeSystem::as_residual_jacobians`], else 0).
     pub jacobian_residual_evaluations: u64,
     /// Consistent starts computed for the start's central difference (`4 P` with constraint rows,
     /// else 0).
@@ -244,7 +244,7 @@ impl Workspace {
 /// ```
 ///
 /// The system must implement [`DaeSystem::parameter_jacobians`] (and, with constraint rows,
-/// [`DaeSystem::set_parameter_offset`]); [`DaeSystem::residual_jacobians`] is used when provided,
+/// [`DaeSystem::set_parameter_offset`]); [`DaeSystem::as_residual_jacobians`] is used when provided,
 /// otherwise `K_t` and `D_t` come from central differences of the residual ([`JACOBIAN_FD_STEP`]).
 #[derive(Debug, Clone)]
 pub struct HhtSensitivity {
@@ -653,21 +653,18 @@ impl HhtSensitivity {
         if m > 0 {
             eval::constraint_jacobian(system, at, &state.q, &mut self.ws.phi_q)?;
         }
-        if system.provides_residual_jacobians() {
+        if let Some(jacobians) = system.as_residual_jacobians() {
             let ws = &mut self.ws;
-            system
-                .residual_jacobians(
-                    state.t,
-                    &state.q,
-                    v_newmark,
-                    &state.qdd,
-                    &state.lambda,
-                    &mut ws.stiffness,
-                    &mut ws.damping,
-                )
-                .map_err(at.system_error("residual_jacobians"))?;
-            at.check_finite("residual_jacobians.stiffness", ws.stiffness.as_slice())?;
-            at.check_finite("residual_jacobians.damping", ws.damping.as_slice())?;
+            eval::residual_jacobians(
+                jacobians,
+                at,
+                &state.q,
+                v_newmark,
+                &state.qdd,
+                &state.lambda,
+                &mut ws.stiffness,
+                &mut ws.damping,
+            )?;
         } else {
             self.residual_jacobians_by_differences(
                 system,
@@ -836,8 +833,8 @@ impl HhtSensitivity {
         phi_q: &mut DMatrix<f64>,
         out: &mut DVector<f64>,
     ) -> Result<(), IntegrateError> {
-        if system.provides_dynamics_residual() {
-            eval::dynamics_residual(system, at, q, v, qdd, false, out)?;
+        if let Some(inverse_dynamics) = system.as_inverse_dynamics() {
+            eval::dynamics_residual(inverse_dynamics, at, q, v, qdd, false, out)?;
         } else {
             eval::mass_matrix(system, at, q, mass)?;
             eval::forces(system, at, q, v, forces)?;

@@ -118,7 +118,7 @@ pub enum NewtonMatrix {
     #[default]
     Diagonal,
     /// The diagonal matrix first; when it fails, the refresh factorises the full matrix
-    /// `M + β'h² K_t + γ'h D_t` from [`DaeSystem::residual_jacobians`](super::DaeSystem::residual_jacobians)
+    /// `M + β'h² K_t + γ'h D_t` from [`DaeSystem::as_residual_jacobians`](super::DaeSystem::as_residual_jacobians)
     /// (when the system provides it) and keeps using it for [`FULL_NEWTON_HOLD_STEPS`] steps.
     /// Costs nothing on steps the diagonal matrix converges.
     Auto,

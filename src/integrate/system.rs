@@ -23,11 +23,16 @@
 //!   system detects itself) as an error rather than panicking. The integrator also checks every output
 //!   for NaN/Inf itself.
 //!
-//! Optional groups of methods, all default-implemented so that a system only writes what it uses:
-//! - **full residual Jacobians** ([`DaeSystem::residual_jacobians`]): `∂r/∂q` and `∂r/∂q̇` of the
-//!   dynamics residual `r = M q̈ + Φ_qᵀ λ − Q`, what a full Newton matrix and the forward
-//!   sensitivities need (docs/sensitivities.md §2); without them users form them by central
-//!   differences of the residual;
+//! Optional groups of methods, all default-implemented so that a system only writes what it uses.
+//! A capability whose methods have no sensible default is a sub-trait the system hands out through
+//! an `Option`-returning hook (`None` by default), so that a system cannot claim it without
+//! implementing it:
+//! - **inverse dynamics** ([`DaeSystem::as_inverse_dynamics`], the sub-trait [`InverseDynamics`]):
+//!   the residual `M q̈ − Q` in one pass, instead of `mass_matrix` and `forces`;
+//! - **full residual Jacobians** ([`DaeSystem::as_residual_jacobians`], the sub-trait
+//!   [`ResidualJacobians`]): `∂r/∂q` and `∂r/∂q̇` of the dynamics residual `r = M q̈ + Φ_qᵀ λ − Q`,
+//!   what a full Newton matrix and the forward sensitivities need (docs/sensitivities.md §2);
+//!   without them users form them by central differences of the residual;
 //! - **the position update on a group** ([`DaeSystem::position_update_is_additive`],
 //!   [`DaeSystem::integrate_position_jacobians`], [`DaeSystem::difference_position`]): how tangent
 //!   perturbations travel through `q ⊕ δ` (docs/sensitivities.md §4);
@@ -145,44 +150,13 @@ pub trait DaeSystem {
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError>;
 
-    /// Whether [`dynamics_residual`](Self::dynamics_residual) is implemented. Default `false`.
-    ///
-    /// When `true`, the Newton residual uses it (one inverse-dynamics pass, e.g. RNEA, O(nv)) instead
-    /// of `mass_matrix` + `forces` (CRBA, O(nv²)); `M` is then only evaluated when the iteration matrix
-    /// is factorised.
-    fn provides_dynamics_residual(&self) -> bool {
-        false
-    }
-
-    /// `out = M(q) q̈ − Q(t, q, q̇)` (the inverse-dynamics residual, without the constraint forces).
-    /// Only called when [`provides_dynamics_residual`](Self::provides_dynamics_residual) is `true`.
-    ///
-    /// - `t`: time, s; `q`: dim `nq`; `v`: dim `nv`; `qdd`: dim `nv`; `out`: dim `nv`, overwritten.
-    fn dynamics_residual(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, q, v, qdd, out);
-        Err("dynamics_residual is not implemented by this system".into())
-    }
-
-    /// [`dynamics_residual`](Self::dynamics_residual) at the configuration `q` of the last
-    /// [`mass_matrix`](Self::mass_matrix) call: the integrator calls it for the first residual
-    /// after it factorised at that iterate, so that a system may reuse the mass matrix's
-    /// kinematics. It must give the same bits as `dynamics_residual`. Default: that call.
-    fn dynamics_residual_after_mass_matrix(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        self.dynamics_residual(t, q, v, qdd, out)
+    /// The inverse-dynamics residual `M q̈ − Q`, when the system has one (one inverse-dynamics
+    /// pass, e.g. RNEA, O(nv), instead of `mass_matrix` + `forces`, CRBA, O(nv²)); the Newton
+    /// residual then uses it, and `M` is only evaluated when the iteration matrix is factorised.
+    /// Default `None`: the residual is formed from [`mass_matrix`](Self::mass_matrix) and
+    /// [`forces`](Self::forces).
+    fn as_inverse_dynamics(&mut self) -> Option<&mut dyn InverseDynamics> {
+        None
     }
 
     /// The cheap diagonal parts of `−∂Q/∂q` and `−∂Q/∂q̇`: per velocity coordinate, the stiffness
@@ -397,44 +371,13 @@ pub trait DaeSystem {
         Err("apply_impact is not implemented but n_events() > 0".into())
     }
 
-    /// Whether [`residual_jacobians`](Self::residual_jacobians) is implemented. Default `false`: a
-    /// user that needs the full Jacobians (the forward sensitivities of
-    /// [`HhtSensitivity`](super::HhtSensitivity)) then forms them by central differences of the
-    /// residual, `2 nv` evaluations each (docs/sensitivities.md §2).
-    fn provides_residual_jacobians(&self) -> bool {
-        false
-    }
-
-    /// The full Jacobians of the dynamics residual `r(q, q̇) = M(q) q̈ + Φ_q(q, t)ᵀ λ − Q(t, q, q̇)` at
-    /// fixed `q̈` and `λ` (docs/sensitivities.md §2):
-    ///
-    /// ```text
-    /// stiffness_out = ∂r/∂q  = ∂(M q̈)/∂q + ∂(Φ_qᵀ λ)/∂q − ∂Q/∂q     (the tangent stiffness K_t)
-    /// damping_out   = ∂r/∂q̇ = −∂Q/∂q̇                              (the tangent damping  D_t)
-    /// ```
-    ///
-    /// `∂/∂q` is taken along the tangent space (column `i`: the derivative along `q ⊕ ε e_i`). These
-    /// are what a full Newton matrix `M + β'h² K_t + γ'h D_t` needs; the diagonal of
-    /// [`newton_diagonal`](Self::newton_diagonal) is the cheap part of them.
-    ///
-    /// - `t`: time, s; `q`: dim `nq`; `v`, `qdd`: dim `nv`; `lambda`: dim `m`;
-    /// - `stiffness_out`: `nv × nv`, overwritten (N·m/rad or N/m per column);
-    /// - `damping_out`: `nv × nv`, overwritten (N·m·s/rad or N·s/m per column).
-    ///
-    /// Only called when [`provides_residual_jacobians`](Self::provides_residual_jacobians) is `true`.
-    #[allow(clippy::too_many_arguments)]
-    fn residual_jacobians(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
-        stiffness_out: &mut DMatrix<f64>,
-        damping_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, q, v, qdd, lambda, stiffness_out, damping_out);
-        Err("residual_jacobians is not implemented by this system".into())
+    /// The full Jacobians of the dynamics residual, when the system has them (what a full Newton
+    /// matrix and the forward sensitivities need). Default `None`: a user that needs them (the
+    /// forward sensitivities of [`HhtSensitivity`](super::HhtSensitivity)) then forms them by
+    /// central differences of the residual, `2 nv` evaluations each (docs/sensitivities.md §2), and
+    /// the integrator keeps to the diagonal Newton matrix.
+    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
+        None
     }
 
     /// Whether `q ⊕ δ` is plain vector addition (`nq == nv`, every coordinate additive), so that a
@@ -611,4 +554,66 @@ pub trait DaeSystem {
             Err("constraint_acceleration_bias() is not implemented but n_constraints() > 0".into())
         }
     }
+}
+
+/// The inverse-dynamics residual of a system that has one: a [`DaeSystem`] offers it through
+/// [`DaeSystem::as_inverse_dynamics`].
+pub trait InverseDynamics {
+    /// `out = M(q) q̈ − Q(t, q, q̇)` (the inverse-dynamics residual, without the constraint forces).
+    ///
+    /// - `t`: time, s; `q`: dim `nq`; `v`: dim `nv`; `qdd`: dim `nv`; `out`: dim `nv`, overwritten.
+    fn dynamics_residual(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError>;
+
+    /// [`dynamics_residual`](Self::dynamics_residual) at the configuration `q` of the last
+    /// [`DaeSystem::mass_matrix`] call: the integrator calls it for the first residual
+    /// after it factorised at that iterate, so that a system may reuse the mass matrix's
+    /// kinematics. It must give the same bits as `dynamics_residual`. Default: that call.
+    fn dynamics_residual_after_mass_matrix(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.dynamics_residual(t, q, v, qdd, out)
+    }
+}
+
+/// The full Jacobians of the dynamics residual of a system that has them: a [`DaeSystem`] offers
+/// them through [`DaeSystem::as_residual_jacobians`].
+pub trait ResidualJacobians {
+    /// The full Jacobians of the dynamics residual `r(q, q̇) = M(q) q̈ + Φ_q(q, t)ᵀ λ − Q(t, q, q̇)` at
+    /// fixed `q̈` and `λ` (docs/sensitivities.md §2):
+    ///
+    /// ```text
+    /// stiffness_out = ∂r/∂q  = ∂(M q̈)/∂q + ∂(Φ_qᵀ λ)/∂q − ∂Q/∂q     (the tangent stiffness K_t)
+    /// damping_out   = ∂r/∂q̇ = −∂Q/∂q̇                              (the tangent damping  D_t)
+    /// ```
+    ///
+    /// `∂/∂q` is taken along the tangent space (column `i`: the derivative along `q ⊕ ε e_i`). These
+    /// are what a full Newton matrix `M + β'h² K_t + γ'h D_t` needs; the diagonal of
+    /// [`DaeSystem::newton_diagonal`] is the cheap part of them.
+    ///
+    /// - `t`: time, s; `q`: dim `nq`; `v`, `qdd`: dim `nv`; `lambda`: dim `m`;
+    /// - `stiffness_out`: `nv × nv`, overwritten (N·m/rad or N/m per column);
+    /// - `damping_out`: `nv × nv`, overwritten (N·m·s/rad or N·s/m per column).
+    #[allow(clippy::too_many_arguments)]
+    fn residual_jacobians(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError>;
 }

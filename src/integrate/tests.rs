@@ -184,9 +184,16 @@ impl DaeSystem for Scalar {
         };
         Ok(())
     }
-    fn provides_dynamics_residual(&self) -> bool {
-        self.residual
+    fn as_inverse_dynamics(&mut self) -> Option<&mut dyn InverseDynamics> {
+        if self.residual {
+            Some(self)
+        } else {
+            None
+        }
     }
+}
+
+impl InverseDynamics for Scalar {
     fn dynamics_residual(
         &mut self,
         _t: f64,

@@ -142,7 +142,7 @@ pub struct Model {
     /// The contact material of the scene (`[scene.contact]`), `None` when the scene declares no
     /// contacts; set by [`crate::scene::Scene::apply_gravity`] like gravity, so that parameters
     /// (`scene.contact.*`) can override it.
-    pub contact: Option<crate::geometry::ContactMaterial>,
+    pub contact: Option<crate::environment::ContactMaterial>,
     /// Moving joints in coordinate order.
     pub joints: Vec<Joint>,
     /// The moving joints' names to their indices ([`Model::joint_index`]).

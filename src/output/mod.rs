@@ -25,8 +25,7 @@ pub use csv::{csv_field, write_csv};
 pub use envelope_log::EnvelopeLog;
 pub use error::OutputError;
 pub use paths::{
-    check_command_outputs, check_outputs, prepare_output_directory, remove_live_temporaries,
-    write_atomically, AtomicFile,
+    check_command_outputs, check_outputs, prepare_output_directory, write_atomically, AtomicFile,
 };
 pub use study_summary::{elements_json, peak_memory};
 pub use summary::{

@@ -446,7 +446,7 @@ pub fn get(model: &Model, target: ParamTarget) -> f64 {
 }
 
 /// Field `c` ([`CONTACT_FIELDS`]) of a contact material.
-fn contact_field(m: &crate::geometry::ContactMaterial, c: usize) -> f64 {
+fn contact_field(m: &crate::environment::ContactMaterial, c: usize) -> f64 {
     match c {
         0 => m.stiffness,
         1 => m.exponent,

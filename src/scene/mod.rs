@@ -27,7 +27,9 @@ pub use outputs::{clamp_to_range, Output, OutputKind};
 // friends working for the study commands, benches and examples. `constraints` and `outputs` read
 // their sections through `super::sidecar`.
 use crate::sidecar;
-pub use crate::sidecar::{parse_sidecar, AnalysisSection, JointSelection, SidecarFile};
+pub use crate::sidecar::{
+    parse_sidecar, read_sidecar, AnalysisSection, JointSelection, SidecarFile,
+};
 
 use crate::integrate::{check_alpha, ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS};
 use crate::model::{JointKind, Model};
@@ -61,22 +63,6 @@ pub const EFFECT_NAMES: [&str; 5] = [
 /// A bad sidecar or scene value. Names the file, the key and what to do.
 #[derive(Debug, Error)]
 pub enum SceneError {
-    /// The sidecar could not be read.
-    #[error("cannot read '{path}': {source}")]
-    Io {
-        /// The file.
-        path: String,
-        /// The operating system's reason.
-        source: std::io::Error,
-    },
-    /// Not valid TOML, or a key the sidecar format does not have.
-    #[error("{path}: {message}")]
-    Parse {
-        /// The file.
-        path: String,
-        /// The TOML parser's message, with line and column.
-        message: String,
-    },
     /// A value that does not fit the robot or the rules.
     #[error("{path}: {key}: {message}")]
     Invalid {
@@ -250,19 +236,6 @@ pub struct Scene {
 /// The sidecar beside a URDF: `robots/ur5/ur5.urdf` → `robots/ur5/ur5.uncertainty.toml`.
 pub fn default_sidecar_path(urdf: &Path) -> PathBuf {
     urdf.with_extension("uncertainty.toml")
-}
-
-/// Reads a sidecar file.
-pub fn read_sidecar(path: &Path) -> Result<(SidecarFile, String), SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        path: path.display().to_string(),
-        source,
-    })?;
-    let file = parse_sidecar(&text).map_err(|message| SceneError::Parse {
-        path: path.display().to_string(),
-        message,
-    })?;
-    Ok((file, text))
 }
 
 /// Whether the sidecar asks for a floating base (`[scene] base`).
@@ -649,8 +622,9 @@ mod tests {
     }
 
     fn resolve(text: &str) -> Result<Scene, SceneError> {
-        let file = parse_sidecar(text).map_err(|message| SceneError::Parse {
+        let file = parse_sidecar(text).map_err(|message| SceneError::Invalid {
             path: "s.toml".into(),
+            key: "(parse)".into(),
             message,
         })?;
         Scene::resolve(&file, &pendulum(), "s.toml", SceneOverrides::default())

@@ -1,11 +1,28 @@
-//! Why a sidecar's `[parameters]` keys or values were refused before any number was computed. Every
-//! message names the file, the key (`[parameters] "link.*.mass"`), and what to do.
+//! Why a sidecar could not be read, or its `[parameters]` keys or values were refused before any
+//! number was computed. Every message names the file, the key (`[parameters] "link.*.mass"`), and
+//! what to do.
 
 use thiserror::Error;
 
-/// A refused `[parameters]` key or value form.
+/// An unreadable sidecar, or a refused `[parameters]` key or value form.
 #[derive(Debug, Error)]
 pub enum SidecarError {
+    /// The sidecar could not be read.
+    #[error("cannot read '{path}': {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// Not valid TOML, or a key the sidecar format does not have.
+    #[error("{path}: {message}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// The TOML parser's message, with line and column.
+        message: String,
+    },
     /// A `[parameters]` key that is neither a parameter path, a pattern nor a symbol name.
     #[error("{file}: {key}: {reason}; a key is a parameter path, a pattern with '*' segments or a free symbol name (letters, digits and '_', not starting with a digit)")]
     UnknownKey {

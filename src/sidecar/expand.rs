@@ -26,7 +26,8 @@
 //! [`crate::uncertainty::ParameterSpace`], which builds the dimensions from these entries.
 
 use super::error::SidecarError;
-use super::interval::{read_interval, IntervalForm, IntervalSpec};
+use super::file::{BindDeclaration, ParameterDeclaration};
+use super::interval::{IntervalForm, IntervalSpec};
 use super::pattern::{PathPattern, PATTERN_KINDS};
 use crate::model::Model;
 use crate::params::{self, ParamInfo, ParamTarget};
@@ -145,15 +146,15 @@ struct PatternMatches {
 /// Expands `[parameters]` (patterns, ownership, skips) against `model`; `bind` is read only for
 /// its keys (bound paths are taken out of patterns' matches). `file` names the sidecar in messages.
 pub fn expand_parameters(
-    parameters: &toml::Table,
-    bind: &toml::Table,
+    parameters: &[ParameterDeclaration],
+    bind: &[BindDeclaration],
     model: &Model,
     file: &str,
 ) -> Result<ExpandedParameters, SidecarError> {
     let registry = params::list(model);
     let mut classes: Vec<(KeyClass<'_>, IntervalSpec)> = Vec::with_capacity(parameters.len());
-    for (key, value) in parameters {
-        classes.push(classify(key, value, model, file)?);
+    for declaration in parameters {
+        classes.push(classify(declaration, model, file)?);
     }
 
     // Ownership: explicit and bound paths first, then patterns in file order (later wins).
@@ -163,14 +164,14 @@ pub fn expand_parameters(
             owner.insert(*target, Owner::Explicit(k));
         }
     }
-    for (b, key) in bind.keys().enumerate() {
+    for (b, key) in bind.iter().map(|b| &b.key).enumerate() {
         // A key that is no path is reported when [bind] is resolved.
         if let Ok(target) = params::resolve_without_suggestion(model, key) {
             owner.entry(target).or_insert(Owner::Bound(b));
         }
     }
-    let keys: Vec<&String> = parameters.keys().collect();
-    let bind_keys: Vec<&String> = bind.keys().collect();
+    let keys: Vec<&String> = parameters.iter().map(|p| &p.key).collect();
+    let bind_keys: Vec<&String> = bind.iter().map(|b| &b.key).collect();
     let mut matches: Vec<Option<PatternMatches>> = Vec::with_capacity(classes.len());
     // (winner, loser) → paths the later pattern took from the earlier one.
     let mut taken: Vec<((usize, usize), Vec<String>)> = Vec::new();
@@ -211,7 +212,7 @@ pub fn expand_parameters(
     let mut entries = Vec::new();
     for (k, (class, interval)) in classes.iter().enumerate() {
         let key = keys[k];
-        let value = parameters[key.as_str()].to_string();
+        let value = parameters[k].value.clone();
         let entry = |kind| ParameterEntry {
             source: key.clone(),
             value: value.clone(),
@@ -363,13 +364,13 @@ fn unreachable_pattern(file: &str, key: &str) -> SidecarError {
     }
 }
 
-/// Classifies one key and reads its value, refusing forms that do not fit the key.
+/// Classifies one key and takes its interval, refusing forms that do not fit the key.
 fn classify<'k>(
-    key: &'k str,
-    value: &toml::Value,
+    declaration: &'k ParameterDeclaration,
     model: &Model,
     file: &str,
 ) -> Result<(KeyClass<'k>, IntervalSpec), SidecarError> {
+    let key = declaration.key.as_str();
     let label = key_label("parameters", key);
     let class = match params::resolve_without_suggestion(model, key) {
         Ok(target) => KeyClass::Path(target),
@@ -405,10 +406,10 @@ fn classify<'k>(
     let bad = |reason: String| SidecarError::BadInterval {
         file: file.to_string(),
         key: label.clone(),
-        value: value.to_string(),
+        value: declaration.value.clone(),
         reason,
     };
-    let interval = read_interval(value).map_err(bad)?;
+    let interval = declaration.interval.clone().map_err(bad)?;
     match (&class, interval.form, interval.shared) {
         (KeyClass::Symbol, IntervalForm::Relative(_) | IntervalForm::Absolute(_), _) => {
             return Err(bad(format!(

@@ -1,31 +1,117 @@
 //! The sidecar file `ROBOT.uncertainty.toml` as written (design contract), before it is checked
-//! against a robot. Unknown keys are errors, so a typo never silently does nothing.
+//! against a robot: read and parsed once ([`read_sidecar`], [`parse_sidecar`]) into typed values
+//! that [`crate::scene`] and [`crate::uncertainty`] consume. Unknown keys are errors, so a typo
+//! never silently does nothing.
 //!
-//! text ⇒ [`SidecarFile`] (serde; `[parameters]` and `[bind]` stay TOML tables in order of
-//! appearance and are expanded by [`super::expand_parameters`])
+//! text ⇒ [`SidecarFile`] (serde for the sections; `[parameters]` as [`ParameterDeclaration`]s
+//! with their intervals read, `[bind]` as [`BindDeclaration`]s, both in order of appearance and
+//! expanded against a model by [`super::expand_parameters`])
 
+use super::error::SidecarError;
+use super::interval::{read_interval, IntervalSpec};
 use serde::Deserialize;
 use std::collections::BTreeMap;
+use std::path::Path;
 
 /// The whole sidecar file.
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Default)]
 pub struct SidecarFile {
-    /// `[parameters]`: interval parameters (paths and free symbols) in order of appearance.
-    #[serde(default)]
-    pub parameters: toml::Table,
-    /// `[bind]`: model paths bound to expressions of the free symbols.
-    #[serde(default)]
-    pub bind: toml::Table,
+    /// `[parameters]`: interval parameters (paths, patterns and free symbols) in order of
+    /// appearance.
+    pub parameters: ParameterDeclarations,
+    /// `[bind]`: model paths bound to expressions of the free symbols, in order of appearance.
+    pub bind: Vec<BindDeclaration>,
     /// `[scene]`.
-    #[serde(default)]
     pub scene: SceneSection,
     /// `[outputs]`.
-    #[serde(default)]
     pub outputs: OutputsSection,
     /// `[analysis]`.
-    #[serde(default)]
     pub analysis: AnalysisSection,
+}
+
+/// One `[parameters]` key and its interval, as written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParameterDeclaration {
+    /// The key: a parameter path, a pattern with `*` segments or a free symbol name.
+    pub key: String,
+    /// The value as written (TOML), for messages.
+    pub value: String,
+    /// The interval read from the value, or why the value is no interval (a message without the
+    /// key: the key is judged against the robot first, so that the errors of a file come in its
+    /// order; see [`super::expand_parameters`]).
+    pub interval: Result<IntervalSpec, String>,
+}
+
+/// The `[parameters]` declarations in order of appearance (a slice of [`ParameterDeclaration`]s).
+/// More TOML key/value pairs can be added ([`Extend`]): each is read the way [`parse_sidecar`]
+/// reads the file's, and a key already declared keeps its place and takes the new value, as in a
+/// TOML table.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ParameterDeclarations(Vec<ParameterDeclaration>);
+
+impl ParameterDeclaration {
+    /// The declaration of `key = value`, its interval read.
+    fn read(key: String, value: &toml::Value) -> Self {
+        Self {
+            interval: read_interval(value),
+            value: value.to_string(),
+            key,
+        }
+    }
+}
+
+impl ParameterDeclarations {
+    /// Removes every declaration (a box built from scratch, e.g. by a test or a bench).
+    pub fn clear(&mut self) {
+        self.0.clear();
+    }
+}
+
+impl std::ops::Deref for ParameterDeclarations {
+    type Target = [ParameterDeclaration];
+
+    fn deref(&self) -> &[ParameterDeclaration] {
+        &self.0
+    }
+}
+
+impl Extend<(String, toml::Value)> for ParameterDeclarations {
+    fn extend<I: IntoIterator<Item = (String, toml::Value)>>(&mut self, pairs: I) {
+        for (key, value) in pairs {
+            let declaration = ParameterDeclaration::read(key, &value);
+            match self.0.iter_mut().find(|d| d.key == declaration.key) {
+                Some(existing) => *existing = declaration,
+                None => self.0.push(declaration),
+            }
+        }
+    }
+}
+
+/// One `[bind]` key and its expression, as written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BindDeclaration {
+    /// The bound parameter path.
+    pub key: String,
+    /// The expression's text, or the value as written (TOML) when it is not a string (refused
+    /// when `[bind]` is resolved against the robot, after `[parameters]`).
+    pub expression: Result<String, String>,
+}
+
+/// The file as serde reads it: `[parameters]` and `[bind]` as TOML tables, typed by
+/// [`parse_sidecar`].
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WrittenSidecar {
+    #[serde(default)]
+    parameters: toml::Table,
+    #[serde(default)]
+    bind: toml::Table,
+    #[serde(default)]
+    scene: SceneSection,
+    #[serde(default)]
+    outputs: OutputsSection,
+    #[serde(default)]
+    analysis: AnalysisSection,
 }
 
 /// `[scene]`: what is simulated. Every key is optional (defaults in [`crate::scene::Scene`]).
@@ -270,7 +356,41 @@ pub struct AnalysisSection {
     pub max_runs: Option<usize>,
 }
 
-/// Parses sidecar text; the error is the TOML parser's message (with line and column).
+/// Parses sidecar text; the error is the TOML parser's message (with line and column). Every
+/// `[parameters]` value is read as an interval here, once.
 pub fn parse_sidecar(text: &str) -> Result<SidecarFile, String> {
-    toml::from_str(text).map_err(|e| e.to_string())
+    let written: WrittenSidecar = toml::from_str(text).map_err(|e| e.to_string())?;
+    let mut parameters = ParameterDeclarations::default();
+    parameters.extend(written.parameters);
+    let bind = written
+        .bind
+        .into_iter()
+        .map(|(key, value)| BindDeclaration {
+            expression: match value {
+                toml::Value::String(text) => Ok(text),
+                other => Err(other.to_string()),
+            },
+            key,
+        })
+        .collect();
+    Ok(SidecarFile {
+        parameters,
+        bind,
+        scene: written.scene,
+        outputs: written.outputs,
+        analysis: written.analysis,
+    })
+}
+
+/// Reads and parses the sidecar file at `path`; also returns its text (attached to the outputs).
+pub fn read_sidecar(path: &Path) -> Result<(SidecarFile, String), SidecarError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SidecarError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    let file = parse_sidecar(&text).map_err(|message| SidecarError::Parse {
+        path: path.display().to_string(),
+        message,
+    })?;
+    Ok((file, text))
 }

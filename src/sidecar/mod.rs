@@ -3,8 +3,8 @@
 //! into the dimensions of a study. [`crate::scene`] reads the scene and outputs from it,
 //! [`crate::uncertainty`] builds the parameter box from the expansion.
 //!
-//! text ⇒ [`SidecarFile`] ([`parse_sidecar`]) ⇒ with a model: [`ExpandedParameters`]
-//! ([`expand_parameters`])
+//! file ⇒ [`SidecarFile`] ([`read_sidecar`], read and parsed once: [`parse_sidecar`]) ⇒ with a
+//! model: [`ExpandedParameters`] ([`expand_parameters`])
 //!
 //! ```toml
 //! [parameters]
@@ -29,9 +29,9 @@ pub use expand::{
     expand_parameters, is_symbol_name, key_label, EntryKind, ExpandedParameters, ParameterEntry,
 };
 pub use file::{
-    parse_sidecar, AnalysisSection, BaseSection, ContactSection, DriveSection, GeometrySection,
-    InitialSection, JointSelection, LoopSection, OutputsSection, SceneSection, SidecarFile,
-    SpringSection,
+    parse_sidecar, read_sidecar, AnalysisSection, BaseSection, BindDeclaration, ContactSection,
+    DriveSection, GeometrySection, InitialSection, JointSelection, LoopSection, OutputsSection,
+    ParameterDeclaration, ParameterDeclarations, SceneSection, SidecarFile, SpringSection,
 };
 pub use interval::{read_interval, IntervalForm, IntervalSpec, FORMS};
 pub use pattern::{PathPattern, PATTERN_KINDS};

@@ -8,7 +8,7 @@ use crate::dynamics::{
     crba, nonlinear_effects, rnea, rnea_at_placements, rnea_derivatives, Data, RneaDerivatives,
 };
 use crate::effects::Effects;
-use crate::integrate::{DaeSystem, SystemError};
+use crate::integrate::{DaeSystem, InverseDynamics, ResidualJacobians, SystemError};
 use crate::model::{JointKind, Model};
 use crate::params::ParamTarget;
 use crate::scene::Scene;
@@ -38,7 +38,7 @@ pub struct RobotSystem {
     /// The parameters `p_k` of the forward sensitivities (none unless
     /// [`RobotSystem::set_parameter_directions`] was called).
     parameters: ParameterDirections,
-    /// Work buffers of [`DaeSystem::residual_jacobians`], made on first use (taken out while in
+    /// Work buffers of [`ResidualJacobians::residual_jacobians`], made on first use (taken out while in
     /// use).
     jacobians: Option<Box<JacobianBuffers>>,
     /// What the last [`DaeSystem::mass_matrix`] call computed that the next residual may reuse.
@@ -46,7 +46,7 @@ pub struct RobotSystem {
 }
 
 /// The configuration of the last [`DaeSystem::mass_matrix`] call and the joint placements its
-/// CRBA computed there, held aside for [`DaeSystem::dynamics_residual_after_mass_matrix`] (other
+/// CRBA computed there, held aside for [`InverseDynamics::dynamics_residual_after_mass_matrix`] (other
 /// calls reuse `data`). The placements move by swapping buffers with `data.parent_from_body`, never
 /// by copying: while they are held here, `data.parent_from_body` holds an old set, which every
 /// kernel that reads it overwrites first (RNEA and CRBA from `q`, forward kinematics), except RNEA
@@ -179,7 +179,7 @@ impl RobotSystem {
     /// Completes the dynamics residual `M q̈ + C q̇ + g − Q_effects` from the inverse dynamics:
     /// `out` holds `τ_rnea(q, q̇, q̈)` on entry (dim nv) and the residual on return, computed as
     /// `−(−τ_rnea + Q_effects)`; without effects that is `τ_rnea` itself, bit for bit (negation is
-    /// exact), and `out` is left as it is. [`DaeSystem::dynamics_residual`] and the batched step
+    /// exact), and `out` is left as it is. [`InverseDynamics::dynamics_residual`] and the batched step
     /// (which computes `τ_rnea` for many samples at once, bitwise the same) share it.
     pub(crate) fn finish_dynamics_residual(&mut self, q: &[f64], v: &[f64], out: &mut [f64]) {
         if !self.effects.has_forces() {
@@ -547,38 +547,8 @@ impl DaeSystem for RobotSystem {
         Ok(())
     }
 
-    fn provides_dynamics_residual(&self) -> bool {
-        true
-    }
-
-    fn dynamics_residual(
-        &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        self.inverse_dynamics_residual(q, v, qdd, false, out);
-        Ok(())
-    }
-
-    /// Reuses the joint placements of the last `mass_matrix` call when `q` is bit for bit its
-    /// configuration (else the plain [`DaeSystem::dynamics_residual`]): the same bits, one
-    /// placement pass (a `sin_cos` and a 3 × 3 product per revolute joint) fewer.
-    fn dynamics_residual_after_mass_matrix(
-        &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        let reuse = self
-            .mass_matrix_kinematics
-            .give_back(q.as_slice(), &mut self.data.parent_from_body);
-        self.inverse_dynamics_residual(q, v, qdd, reuse, out);
-        Ok(())
+    fn as_inverse_dynamics(&mut self) -> Option<&mut dyn InverseDynamics> {
+        Some(self)
     }
 
     fn provides_newton_diagonal(&self) -> bool {
@@ -806,59 +776,12 @@ impl DaeSystem for RobotSystem {
     /// Not with contacts: their Jacobians here would leave out the geometric terms (the normal
     /// and the contact point move with `q`; docs/contacts.md §4), so users such as the forward
     /// sensitivities form the exact Jacobians by central differences of the residual instead.
-    fn provides_residual_jacobians(&self) -> bool {
-        !self.effects.has_contacts()
-    }
-
-    /// `∂r/∂q`, `∂r/∂q̇` of `r = M q̈ + Φ_qᵀ λ − Q` (docs/sensitivities.md §2): RNEA's analytic
-    /// Jacobians, plus the effects' (each acts on its own coordinate: the diagonal of
-    /// [`DaeSystem::newton_diagonal`], exact), plus `∂(Φ_qᵀ λ)/∂q` of loop closures by central
-    /// differences (step [`JACOBIAN_FD_STEP`](crate::integrate::JACOBIAN_FD_STEP); mimic and drive
-    /// rows have a constant `Φ_q`). Allocates once, on first use.
-    fn residual_jacobians(
-        &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
-        stiffness_out: &mut DMatrix<f64>,
-        damping_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        let mut buffers = match self.jacobians.take() {
-            Some(buffers) => buffers,
-            None => Box::new(JacobianBuffers::new(&self.model, self.constraints.len())),
-        };
-        rnea_derivatives(
-            &self.model,
-            &mut self.data,
-            &mut buffers.rnea,
-            q.as_slice(),
-            v.as_slice(),
-            qdd.as_slice(),
-            stiffness_out,
-            damping_out,
-        );
-        buffers.stiffness.fill(0.0);
-        buffers.damping.fill(0.0);
-        self.effects.add_newton_diagonal(
-            &self.model,
-            q.as_slice(),
-            v.as_slice(),
-            buffers.stiffness.as_mut_slice(),
-            buffers.damping.as_mut_slice(),
-        );
-        for j in 0..self.model.nv {
-            stiffness_out[(j, j)] += buffers.stiffness[j];
-            damping_out[(j, j)] += buffers.damping[j];
-        }
-        let result = if self.constraints.loops.is_empty() || lambda.is_empty() {
-            Ok(())
+    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
+        if !self.effects.has_contacts() {
+            Some(self)
         } else {
-            self.add_loop_stiffness(q, lambda, &mut buffers, stiffness_out)
-        };
-        self.jacobians = Some(buffers);
-        result
+            None
+        }
     }
 
     fn position_update_is_additive(&self) -> bool {
@@ -975,6 +898,91 @@ impl DaeSystem for RobotSystem {
         }
         self.parameters.set_offset(&mut self.model, k, offset);
         Ok(())
+    }
+}
+
+impl InverseDynamics for RobotSystem {
+    fn dynamics_residual(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.inverse_dynamics_residual(q, v, qdd, false, out);
+        Ok(())
+    }
+
+    /// Reuses the joint placements of the last `mass_matrix` call when `q` is bit for bit its
+    /// configuration (else the plain [`InverseDynamics::dynamics_residual`]): the same bits, one
+    /// placement pass (a `sin_cos` and a 3 × 3 product per revolute joint) fewer.
+    fn dynamics_residual_after_mass_matrix(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        let reuse = self
+            .mass_matrix_kinematics
+            .give_back(q.as_slice(), &mut self.data.parent_from_body);
+        self.inverse_dynamics_residual(q, v, qdd, reuse, out);
+        Ok(())
+    }
+}
+
+impl ResidualJacobians for RobotSystem {
+    /// `∂r/∂q`, `∂r/∂q̇` of `r = M q̈ + Φ_qᵀ λ − Q` (docs/sensitivities.md §2): RNEA's analytic
+    /// Jacobians, plus the effects' (each acts on its own coordinate: the diagonal of
+    /// [`DaeSystem::newton_diagonal`], exact), plus `∂(Φ_qᵀ λ)/∂q` of loop closures by central
+    /// differences (step [`JACOBIAN_FD_STEP`](crate::integrate::JACOBIAN_FD_STEP); mimic and drive
+    /// rows have a constant `Φ_q`). Allocates once, on first use.
+    fn residual_jacobians(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        let mut buffers = match self.jacobians.take() {
+            Some(buffers) => buffers,
+            None => Box::new(JacobianBuffers::new(&self.model, self.constraints.len())),
+        };
+        rnea_derivatives(
+            &self.model,
+            &mut self.data,
+            &mut buffers.rnea,
+            q.as_slice(),
+            v.as_slice(),
+            qdd.as_slice(),
+            stiffness_out,
+            damping_out,
+        );
+        buffers.stiffness.fill(0.0);
+        buffers.damping.fill(0.0);
+        self.effects.add_newton_diagonal(
+            &self.model,
+            q.as_slice(),
+            v.as_slice(),
+            buffers.stiffness.as_mut_slice(),
+            buffers.damping.as_mut_slice(),
+        );
+        for j in 0..self.model.nv {
+            stiffness_out[(j, j)] += buffers.stiffness[j];
+            damping_out[(j, j)] += buffers.damping[j];
+        }
+        let result = if self.constraints.loops.is_empty() || lambda.is_empty() {
+            Ok(())
+        } else {
+            self.add_loop_stiffness(q, lambda, &mut buffers, stiffness_out)
+        };
+        self.jacobians = Some(buffers);
+        result
     }
 }
 

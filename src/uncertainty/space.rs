@@ -9,7 +9,8 @@ use super::expression::{Expression, ExpressionError};
 use crate::model::Model;
 use crate::params::{self, ParamTarget};
 use crate::sidecar::{
-    expand_parameters, key_label, EntryKind, IntervalForm, ParameterEntry, SidecarFile,
+    expand_parameters, key_label, BindDeclaration, EntryKind, IntervalForm, ParameterEntry,
+    SidecarFile,
 };
 use crate::text::closest_suggestion;
 use std::collections::hash_map::Entry;
@@ -217,27 +218,18 @@ pub struct ParameterSpace {
 }
 
 impl ParameterSpace {
-    /// Resolves a parsed sidecar's `[parameters]` and `[bind]`; see [`ParameterSpace::from_tables`].
+    /// Expands the sidecar's `[parameters]` ([`crate::sidecar::expand_parameters`]: paths,
+    /// symbols, patterns), resolves its entries (dimensions, in that order) and `[bind]` (bound
+    /// paths) against `model` (its values are the URDF values), then checks the physical
+    /// consistency of the box ([`ParameterSpace::check_box`]). `file` names the sidecar in
+    /// messages. Non-fatal findings are in [`ParameterSpace::warnings`], the expansion's decisions
+    /// in [`ParameterSpace::notes`].
     pub fn from_sidecar(
         sidecar: &SidecarFile,
         model: &Model,
         file: &str,
     ) -> Result<ParameterSpace, UncertaintyError> {
-        Self::from_tables(&sidecar.parameters, &sidecar.bind, model, file)
-    }
-
-    /// Expands `[parameters]` ([`crate::sidecar::expand_parameters`]: paths, symbols, patterns),
-    /// resolves its entries (dimensions, in that order) and `[bind]` (bound paths) against `model`
-    /// (its values are the URDF values), then checks the physical consistency of the box
-    /// ([`ParameterSpace::check_box`]). `file` names the sidecar in messages. Non-fatal findings
-    /// are in [`ParameterSpace::warnings`], the expansion's decisions in
-    /// [`ParameterSpace::notes`].
-    pub fn from_tables(
-        parameters: &toml::Table,
-        bind: &toml::Table,
-        model: &Model,
-        file: &str,
-    ) -> Result<ParameterSpace, UncertaintyError> {
+        let (parameters, bind) = (&sidecar.parameters, &sidecar.bind);
         let expanded = expand_parameters(parameters, bind, model, file)?;
         let mut space = ParameterSpace {
             dimensions: Vec::with_capacity(expanded.entries.len()),
@@ -266,9 +258,14 @@ impl ParameterSpace {
             }
             space.dimensions.push(dimension);
         }
-        for (key, value) in bind {
-            let binding = space.read_binding(key, value, model, file)?;
-            declare(&mut declared, binding.target, key_label("bind", key), file)?;
+        for declaration in bind {
+            let binding = space.read_binding(declaration, model, file)?;
+            declare(
+                &mut declared,
+                binding.target,
+                key_label("bind", &declaration.key),
+                file,
+            )?;
             space.bindings.push(binding);
         }
         let mut used = vec![false; space.dimensions.len()];
@@ -300,11 +297,11 @@ impl ParameterSpace {
 
     fn read_binding(
         &mut self,
-        key: &str,
-        value: &toml::Value,
+        declaration: &BindDeclaration,
         model: &Model,
         file: &str,
     ) -> Result<Binding, UncertaintyError> {
+        let key = declaration.key.as_str();
         let label = key_label("bind", key);
         let target =
             params::resolve(model, key).map_err(|e| UncertaintyError::BindKeyNotAPath {
@@ -312,12 +309,15 @@ impl ParameterSpace {
                 key: label.clone(),
                 reason: e.to_string(),
             })?;
-        let Some(text) = value.as_str() else {
-            return Err(UncertaintyError::BindNotAString {
-                file: file.to_string(),
-                key: label,
-                value: value.to_string(),
-            });
+        let text = match &declaration.expression {
+            Ok(text) => text.as_str(),
+            Err(value) => {
+                return Err(UncertaintyError::BindNotAString {
+                    file: file.to_string(),
+                    key: label,
+                    value: value.clone(),
+                })
+            }
         };
         // Paths and pattern keys never parse as identifiers, so only symbols can match.
         let names: Vec<&str> = self.dimensions.iter().map(|d| d.name.as_str()).collect();

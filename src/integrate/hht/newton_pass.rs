@@ -4,7 +4,7 @@
 
 use super::super::error::WorstEntry;
 use super::super::settings::NEWTON_REUSE_MAX_RATE;
-use super::HhtStats;
+use super::stats::HhtStats;
 
 /// The rate-based convergence test trusts a contraction estimate only below this: a slowly
 /// contracting iteration (ρ near 1) says little about the remaining error.

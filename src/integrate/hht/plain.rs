@@ -15,11 +15,19 @@
 //! step control's state and the Newton memory's flags, which are restored) and the caller runs
 //! [`HhtIntegrator::step`], which repeats the same attempt bit for bit and goes on from there.
 
-use super::{
-    eval, AdaptiveVerdict, At, DaeSystem, HhtIntegrator, IntegrateError, NewtonFlags, NewtonMatrix,
-    NewtonPass, PassVerdict, ReportedVelocity, StepControl, StepControlState, ADAPTIVE_MAX_GROWTH,
-    END_OF_INTERVAL_FRACTION, IMPACT_LOCATE_FRACTION,
+use super::events::IMPACT_LOCATE_FRACTION;
+use super::newton::NewtonFlags;
+use super::newton_pass::{NewtonPass, PassVerdict};
+use super::state::ReportedVelocity;
+use super::step_size::{
+    AdaptiveVerdict, PlannedAttempt, StepControlState, ADAPTIVE_MAX_GROWTH,
+    END_OF_INTERVAL_FRACTION,
 };
+use super::HhtIntegrator;
+use crate::integrate::error::IntegrateError;
+use crate::integrate::eval::{self, At};
+use crate::integrate::settings::{NewtonMatrix, StepControl};
+use crate::integrate::system::DaeSystem;
 use crate::integrate::FactorKind;
 use nalgebra::DVector;
 
@@ -64,8 +72,8 @@ pub(crate) enum PlainProgress {
 
 impl HhtIntegrator {
     /// Whether `system` and the settings allow the next grid step to be driven as a plain step.
-    fn plain_step_allowed<S: DaeSystem + ?Sized>(&self, system: &S) -> bool {
-        let full_first = system.provides_residual_jacobians()
+    fn plain_step_allowed<S: DaeSystem + ?Sized>(&self, system: &mut S) -> bool {
+        let full_first = system.as_residual_jacobians().is_some()
             && match self.settings.newton_matrix {
                 NewtonMatrix::Diagonal => false,
                 NewtonMatrix::Auto => self.trajectory.control.full_newton_hold > 0,
@@ -73,7 +81,7 @@ impl HhtIntegrator {
             };
         !self.settings.reuse_newton_matrix
             && !full_first
-            && system.provides_dynamics_residual()
+            && system.as_inverse_dynamics().is_some()
             && !system.provides_newton_coupling()
             && !system.limits_newton_updates()
     }
@@ -357,7 +365,13 @@ impl HhtIntegrator {
         let At { t: t1, step } = plain.at;
         let h = self.grid_coeffs.h;
         self.report_velocity = plain.report_velocity;
-        let accepted = self.accept(system, t1, h, step, plain.growth, plain.planned, true);
+        let plan = PlannedAttempt {
+            planned: plain.planned,
+            h,
+            reaches_end: true,
+            t1,
+        };
+        let accepted = self.accept(system, plan, step, plain.growth);
         self.report_velocity = true;
         accepted?;
         self.end_grid_step(plain.t_end, step, true);

@@ -12,7 +12,7 @@
 
 use nalgebra::DVector;
 
-use super::{pull, StepControlState};
+use super::step_size::StepControlState;
 
 /// Highest order of the extrapolation on a run of equal steps: the predictor keeps the backward
 /// differences of `q̈` and `λ` up to this order (docs/step-control.md §2, where the Newton
@@ -453,6 +453,13 @@ fn extrapolate_linearly(out: &mut [f64], now: &[f64], before: &[f64], ratio: f64
         for ((x, now), before) in entries {
             *x = now + ratio * (now - before);
         }
+    }
+}
+
+/// `x ← r + scale (x − r)` entry by entry ([`HhtTrajectory::pull_towards`]).
+pub(super) fn pull(x: &mut DVector<f64>, reference: &DVector<f64>, scale: f64) {
+    for (x, r) in x.iter_mut().zip(reference.iter()) {
+        *x = r + scale * (*x - r);
     }
 }
 

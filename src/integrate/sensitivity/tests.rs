@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::*;
 use crate::integrate::tests::alloc_counter::allocations;
-use crate::integrate::{HhtSettings, SystemError};
+use crate::integrate::{HhtSettings, ResidualJacobians, SystemError};
 
 /// Agreement of direct differentiation with the central-difference reference, relative to
 /// `max(|reference|, floor)` with the floor at `REFERENCE_FLOOR` of the quantity's largest reference
@@ -105,24 +105,12 @@ impl DaeSystem for Oscillator {
         damping_out[0] = Self::DAMPING;
         Ok(())
     }
-    fn provides_residual_jacobians(&self) -> bool {
-        self.analytic_jacobians
-    }
-    fn residual_jacobians(
-        &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        _lambda: &DVector<f64>,
-        stiffness_out: &mut DMatrix<f64>,
-        damping_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        let (m, k) = (self.mass(), self.stiffness());
-        let (s, c) = q[0].sin_cos();
-        stiffness_out[(0, 0)] = -m * s * qdd[0] + k * c - 0.5 * m * c * v[0] * v[0];
-        damping_out[(0, 0)] = Self::DAMPING - m * s * v[0];
-        Ok(())
+    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
+        if self.analytic_jacobians {
+            Some(self)
+        } else {
+            None
+        }
     }
     fn n_parameters(&self) -> usize {
         2
@@ -145,6 +133,25 @@ impl DaeSystem for Oscillator {
     fn set_parameter_offset(&mut self, k: usize, offset: f64) -> Result<(), SystemError> {
         self.offset = [0.0; 2];
         self.offset[k] = offset;
+        Ok(())
+    }
+}
+
+impl ResidualJacobians for Oscillator {
+    fn residual_jacobians(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        qdd: &DVector<f64>,
+        _lambda: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        let (m, k) = (self.mass(), self.stiffness());
+        let (s, c) = q[0].sin_cos();
+        stiffness_out[(0, 0)] = -m * s * qdd[0] + k * c - 0.5 * m * c * v[0] * v[0];
+        damping_out[(0, 0)] = Self::DAMPING - m * s * v[0];
         Ok(())
     }
 }
@@ -231,24 +238,12 @@ impl DaeSystem for Pendulum {
         out[0] = -2.0 * (v[0] * v[0] + v[1] * v[1]);
         Ok(())
     }
-    fn provides_residual_jacobians(&self) -> bool {
-        self.analytic_jacobians
-    }
-    fn residual_jacobians(
-        &mut self,
-        _t: f64,
-        _q: &DVector<f64>,
-        _v: &DVector<f64>,
-        _qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
-        stiffness_out: &mut DMatrix<f64>,
-        damping_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        stiffness_out.fill_with_identity();
-        *stiffness_out *= 2.0 * lambda[0];
-        damping_out.fill_with_identity();
-        *damping_out *= Self::DAMPING;
-        Ok(())
+    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
+        if self.analytic_jacobians {
+            Some(self)
+        } else {
+            None
+        }
     }
     fn n_parameters(&self) -> usize {
         2
@@ -275,6 +270,25 @@ impl DaeSystem for Pendulum {
     fn set_parameter_offset(&mut self, k: usize, offset: f64) -> Result<(), SystemError> {
         self.offset = [0.0; 2];
         self.offset[k] = offset;
+        Ok(())
+    }
+}
+
+impl ResidualJacobians for Pendulum {
+    fn residual_jacobians(
+        &mut self,
+        _t: f64,
+        _q: &DVector<f64>,
+        _v: &DVector<f64>,
+        _qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        stiffness_out.fill_with_identity();
+        *stiffness_out *= 2.0 * lambda[0];
+        damping_out.fill_with_identity();
+        *damping_out *= Self::DAMPING;
         Ok(())
     }
 }

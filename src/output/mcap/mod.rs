@@ -38,7 +38,7 @@ mod ros2;
 pub use error::McapError;
 pub use name::OutputName;
 
-use crate::output::paths::TemporaryFile;
+use crate::atomic_file::TemporaryFile;
 use ::mcap::records::{MessageHeader, Metadata};
 use ::mcap::{Attachment, Compression, WriteOptions, Writer};
 use std::borrow::Cow;
