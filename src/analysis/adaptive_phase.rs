@@ -141,7 +141,9 @@ pub(super) fn adapt(
                 .fold(0.0, f64::max)
         });
         grid = Some((round_grid, rows));
-        context.report.bound_seconds += t_fit.elapsed().as_secs_f64();
+        let fit_seconds = t_fit.elapsed().as_secs_f64();
+        context.report.bound_seconds += fit_seconds;
+        context.report.phase_seconds.design_choice += fit_seconds;
         if set.len() >= budget {
             break ("budget", true);
         }

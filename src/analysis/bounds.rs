@@ -16,6 +16,7 @@
 //! outside its own envelope.
 
 use super::plan::Plan;
+use super::report::PhaseSeconds;
 use super::sparse::SparseDesign;
 use super::Method;
 use crate::uq::{
@@ -24,7 +25,9 @@ use crate::uq::{
     SobolIndices, SparseSurrogate, Surrogate, TaylorStencil, UqError,
 };
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+use std::time::Instant;
 
 /// One output's envelope at one time.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -112,6 +115,54 @@ pub struct Bounder {
     /// Locate the extremes for the check also where the bound does not need them (outer methods
     /// and `taylor`); the scans always locate them.
     locate_extremes: bool,
+    /// The time the workers spent per phase.
+    clock: BoundClock,
+}
+
+/// Nanoseconds the workers spent fitting, bounding (inner, outer) and computing Sobol' indices,
+/// summed over the threads.
+#[derive(Debug, Default)]
+struct BoundClock {
+    fit: AtomicU64,
+    inner: AtomicU64,
+    outer: AtomicU64,
+    sobol: AtomicU64,
+}
+
+/// Which phase a [`BoundClock`] reading belongs to.
+#[derive(Clone, Copy)]
+enum BoundPhase {
+    Fit,
+    Inner,
+    Outer,
+    Sobol,
+}
+
+impl BoundClock {
+    /// Adds the time since `since` to `phase` and returns now (the next phase's start).
+    fn lap(&self, phase: BoundPhase, since: Instant) -> Instant {
+        let now = Instant::now();
+        let nanos = u64::try_from(now.duration_since(since).as_nanos()).unwrap_or(u64::MAX);
+        let counter = match phase {
+            BoundPhase::Fit => &self.fit,
+            BoundPhase::Inner => &self.inner,
+            BoundPhase::Outer => &self.outer,
+            BoundPhase::Sobol => &self.sobol,
+        };
+        counter.fetch_add(nanos, Ordering::Relaxed);
+        now
+    }
+
+    fn seconds(&self) -> PhaseSeconds {
+        let seconds = |counter: &AtomicU64| counter.load(Ordering::Relaxed) as f64 * 1e-9;
+        PhaseSeconds {
+            fit: seconds(&self.fit),
+            inner_bound: seconds(&self.inner),
+            outer_bound: seconds(&self.outer),
+            sobol_indices: seconds(&self.sobol),
+            ..PhaseSeconds::default()
+        }
+    }
 }
 
 impl Bounder {
@@ -153,7 +204,14 @@ impl Bounder {
             order,
             sparse,
             locate_extremes,
+            clock: BoundClock::default(),
         })
+    }
+
+    /// The seconds the workers have spent so far fitting, bounding and computing Sobol' indices
+    /// with this bounder, summed over the threads ([`PhaseSeconds`]: only those four phases).
+    pub fn phase_seconds(&self) -> PhaseSeconds {
+        self.clock.seconds()
     }
 
     /// Envelopes of `n_outputs` outputs at each of `records` record times. `values(r)` gives record
@@ -267,18 +325,23 @@ impl Bounder {
                         what: "analysis workspace",
                     });
                 };
+                let clock = &self.clock;
+                let mut lap = Instant::now();
                 projector.fit_into(values, n_outputs, coefficients)?;
                 let design = projector.design();
                 let mut points = Vec::with_capacity(n_outputs);
                 for (o, extreme) in extremes.iter_mut().enumerate() {
                     surrogate.set_from_matrix(design, coefficients, o)?;
+                    lap = clock.lap(BoundPhase::Fit, lap);
                     surrogate.sobol_indices_into(&mut workspace.indices)?;
                     sobol.push(&workspace.indices);
+                    lap = clock.lap(BoundPhase::Sobol, lap);
                     let bound = match (self.method, &mut workspace.scanner) {
                         (Method::LegendreScan | Method::ChebyshevScan, Some(scanner)) => {
                             let outcome = scanner.scan(surrogate)?;
                             let bound = outcome.bound;
                             *extreme = Some(scanned_extremes(outcome));
+                            lap = clock.lap(BoundPhase::Inner, lap);
                             bound
                         }
                         (method, scanner) => {
@@ -286,8 +349,11 @@ impl Bounder {
                             // takes its extremes.
                             if let Some(scanner) = scanner {
                                 *extreme = Some(scanned_extremes(scanner.scan(surrogate)?));
+                                lap = clock.lap(BoundPhase::Inner, lap);
                             }
-                            outer_bound(method, surrogate, &mut workspace.bernstein)?
+                            let bound = outer_bound(method, surrogate, &mut workspace.bernstein)?;
+                            lap = clock.lap(BoundPhase::Outer, lap);
+                            bound
                         }
                     };
                     points.push(EnvelopePoint {
@@ -361,12 +427,15 @@ impl Bounder {
     ) -> Result<Vec<EnvelopePoint>, UqError> {
         let d = self.dim;
         let n_points = design.n_points();
+        let clock = &self.clock;
+        let mut lap = Instant::now();
         design
             .fit()
             .fit_into(values, n_outputs, &mut ws.coefficients)?;
         let mut points = Vec::with_capacity(n_outputs);
         for (o, extreme) in extremes.iter_mut().enumerate() {
             ws.surrogate.set_from_fit(&ws.coefficients, n_outputs, o)?;
+            lap = clock.lap(BoundPhase::Fit, lap);
             // The best design points for each side start the search.
             ws.order.clear();
             ws.order.extend(0..n_points);
@@ -384,7 +453,7 @@ impl Bounder {
             // bound of `legendre-ia`, where the check looks.
             if !outer_only || self.locate_extremes {
                 ws.optimizer
-                    .bound_into(&ws.surrogate, &ws.starts, &mut ws.bounds)?;
+                    .inner_bound_into(&ws.surrogate, &ws.starts, &mut ws.bounds)?;
                 let b = &ws.bounds;
                 *extreme = Some(Extremes {
                     argmin: b.argmin.clone(),
@@ -392,6 +461,7 @@ impl Bounder {
                     at_min: b.lower,
                     at_max: b.upper,
                 });
+                lap = clock.lap(BoundPhase::Inner, lap);
             }
             let bound = if outer_only {
                 let (lower, upper) = ws.optimizer.outer_bound(&ws.surrogate);
@@ -402,6 +472,7 @@ impl Bounder {
                     outer: None,
                 }
             } else {
+                ws.optimizer.enclose(&ws.surrogate, &mut ws.bounds);
                 let b = &ws.bounds;
                 EnvelopePoint {
                     lower: b.lower,
@@ -410,9 +481,11 @@ impl Bounder {
                     outer: Some((b.outer_lower, b.outer_upper)),
                 }
             };
+            lap = clock.lap(BoundPhase::Outer, lap);
             points.push(bound);
             ws.surrogate.sobol_indices_into(indices);
             sobol.push(indices);
+            lap = clock.lap(BoundPhase::Sobol, lap);
         }
         Ok(points)
     }

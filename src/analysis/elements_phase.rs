@@ -475,16 +475,24 @@ fn run_round(
             Ok(())
         },
     )?;
+    for bounder in &bounders {
+        context
+            .report
+            .phase_seconds
+            .add_bounding(&bounder.phase_seconds());
+    }
     if !complete {
         return Ok(false);
     }
 
     // Every child's check in one phase.
+    let t_select = Instant::now();
     let plans: Vec<CheckPlan> = boundings
         .iter()
         .zip(&children)
         .map(|(bounding, &(_, _, design))| bounding.candidates.select(design.check_runs))
         .collect();
+    context.report.phase_seconds.check_selection += t_select.elapsed().as_secs_f64();
     let (sobol, candidates): (Vec<SobolSeries>, Vec<CheckCandidates>) = boundings
         .into_iter()
         .map(|b| (b.sobol, b.candidates))

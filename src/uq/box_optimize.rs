@@ -168,6 +168,22 @@ impl BoxOptimizer {
         starts: &[f64],
         out: &mut BoxBounds,
     ) -> Result<(), UqError> {
+        self.inner_bound_into(s, starts, out)?;
+        self.enclose(s, out);
+        Ok(())
+    }
+
+    /// The inner half of [`BoxOptimizer::bound_into`]: `lower`, `upper`, `argmin`, `argmax` and
+    /// `iterations` of `out`; its outer fields are left as they were ([`BoxOptimizer::enclose`]
+    /// sets them).
+    ///
+    /// Errors: as [`BoxOptimizer::bound`].
+    pub fn inner_bound_into(
+        &mut self,
+        s: &SparseSurrogate,
+        starts: &[f64],
+        out: &mut BoxBounds,
+    ) -> Result<(), UqError> {
         let d = s.dim();
         if !starts.len().is_multiple_of(d) {
             return Err(UqError::WrongLength {
@@ -226,11 +242,16 @@ impl BoxOptimizer {
             }
             *best = sign * best_phi;
         }
+        Ok(())
+    }
+
+    /// The outer half of [`BoxOptimizer::bound_into`]: `outer_lower` and `outer_upper` of `out`
+    /// from the interval enclosure of `s`'s range, widened to the inner bounds already in `out`.
+    pub fn enclose(&mut self, s: &SparseSurrogate, out: &mut BoxBounds) {
         let (lo, hi) = self.outer(s);
         // Rounding must never put the enclosure inside an attained value.
         out.outer_lower = lo.min(out.lower);
         out.outer_upper = hi.max(out.upper);
-        Ok(())
     }
 
     /// The outer bound alone (module doc): `(lower, upper)` containing the surrogate's range.
