@@ -17,12 +17,12 @@
 
 use super::plan::Plan;
 use super::report::PhaseSeconds;
-use super::sparse::SparseDesign;
+use super::sparse_bounds::SparseBounds;
 use super::Method;
 use crate::uq::{
-    chebyshev_inclusion, interval_bound, BernsteinBounder, Bound, BoundKind, BoxBounds,
-    BoxOptimizer, CoefficientMatrix, Projector, RangeMode, ScanOptions, ScanOutcome, Scanner,
-    SobolIndices, SparseSurrogate, Surrogate, TaylorStencil, UqError,
+    chebyshev_inclusion, interval_bound, BernsteinBounder, Bound, BoundKind, CoefficientMatrix,
+    Projector, RangeMode, ScanOptions, ScanOutcome, Scanner, SobolIndices, Surrogate,
+    TaylorStencil, UqError,
 };
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -98,11 +98,6 @@ struct RecordBounds {
     variances: Vec<f64>,
 }
 
-/// How many of the best design points (per side) start the sparse surrogate's box search, besides
-/// the centre and the sign vertices of its linear part: the runs themselves are the best evidence
-/// of where the extremes are.
-pub const DESIGN_STARTS_PER_SIDE: usize = 2;
-
 /// Bounds record times for one method; cheap to share across threads.
 pub struct Bounder {
     method: Method,
@@ -111,7 +106,8 @@ pub struct Bounder {
     scan_options: ScanOptions,
     dim: usize,
     order: usize,
-    sparse: Option<Arc<SparseDesign>>,
+    /// The sparse design's bounds (`None` for other designs).
+    sparse: Option<SparseBounds>,
     /// Locate the extremes for the check also where the bound does not need them (outer methods
     /// and `taylor`); the scans always locate them.
     locate_extremes: bool,
@@ -122,7 +118,7 @@ pub struct Bounder {
 /// Nanoseconds the workers spent fitting, bounding (inner, outer) and computing Sobol' indices,
 /// summed over the threads.
 #[derive(Debug, Default)]
-struct BoundClock {
+pub(super) struct BoundClock {
     fit: AtomicU64,
     inner: AtomicU64,
     outer: AtomicU64,
@@ -131,7 +127,7 @@ struct BoundClock {
 
 /// Which phase a [`BoundClock`] reading belongs to.
 #[derive(Clone, Copy)]
-enum BoundPhase {
+pub(super) enum BoundPhase {
     Fit,
     Inner,
     Outer,
@@ -140,7 +136,7 @@ enum BoundPhase {
 
 impl BoundClock {
     /// Adds the time since `since` to `phase` and returns now (the next phase's start).
-    fn lap(&self, phase: BoundPhase, since: Instant) -> Instant {
+    pub(super) fn lap(&self, phase: BoundPhase, since: Instant) -> Instant {
         let now = Instant::now();
         let nanos = u64::try_from(now.duration_since(since).as_nanos()).unwrap_or(u64::MAX);
         let counter = match phase {
@@ -186,11 +182,15 @@ impl Bounder {
             Plan::Taylor(stencil) => (None, Some(*stencil)),
             _ => (None, None),
         };
+        let locate_extremes = locate_extremes && method.is_checked();
         let sparse = match plan {
-            Plan::Sparse(design) => Some(Arc::clone(design)),
+            Plan::Sparse(design) => Some(SparseBounds::new(
+                Arc::clone(design),
+                method == Method::LegendreIa,
+                locate_extremes,
+            )),
             _ => None,
         };
-        let locate_extremes = locate_extremes && method.is_checked();
         if let (Some(projector), true) = (&projector, method.scans_surrogate() || locate_extremes) {
             // Validate the scan options once, here, rather than in every worker.
             Scanner::new(projector.design().family(), dim, order, scan_options)?;
@@ -226,6 +226,19 @@ impl Bounder {
         excluded: &(dyn Fn(usize) -> bool + Sync),
         threads: &rayon::ThreadPool,
     ) -> Result<BoundedBlock, UqError> {
+        if let Some(sparse) = &self.sparse {
+            let record_values: Vec<Vec<f64>> =
+                threads.install(|| (0..records).into_par_iter().map(values).collect());
+            let mut block = sparse.bound(&record_values, n_outputs, &self.clock, threads)?;
+            for (points, values) in block
+                .points
+                .chunks_exact_mut(n_outputs.max(1))
+                .zip(&record_values)
+            {
+                include_runs(points, values, n_outputs, excluded);
+            }
+            return Ok(block);
+        }
         let per_record: Vec<Result<RecordBounds, UqError>> = threads.install(|| {
             (0..records)
                 .into_par_iter()
@@ -252,15 +265,7 @@ impl Bounder {
     }
 
     fn workspace(&self, n_outputs: usize) -> Workspace {
-        let sparse = self.sparse.as_ref().map(|design| SparseWorkspace {
-            coefficients: vec![0.0; design.set().len() * n_outputs],
-            surrogate: SparseSurrogate::zeros(Arc::clone(design.set())),
-            optimizer: BoxOptimizer::new(),
-            bounds: BoxBounds::default(),
-            starts: Vec::new(),
-            order: Vec::new(),
-        });
-        let mut workspace = match &self.projector {
+        match &self.projector {
             Some(projector) => {
                 let design = projector.design();
                 Workspace {
@@ -272,7 +277,6 @@ impl Bounder {
                                 .ok()
                         })
                         .flatten(),
-                    sparse: None,
                     indices: SobolIndices::zeros(self.dim),
                     bernstein: None,
                 }
@@ -281,13 +285,10 @@ impl Bounder {
                 coefficients: None,
                 surrogate: None,
                 scanner: None,
-                sparse: None,
                 indices: SobolIndices::zeros(self.dim),
                 bernstein: None,
             },
-        };
-        workspace.sparse = sparse;
-        workspace
+        }
     }
 
     fn bound_one(
@@ -297,26 +298,9 @@ impl Bounder {
         excluded: &(dyn Fn(usize) -> bool + Sync),
         workspace: &mut Workspace,
     ) -> Result<RecordBounds, UqError> {
-        let n_samples = values.len() / n_outputs.max(1);
         let mut extremes = vec![None; n_outputs];
         let mut sobol = SobolRows::default();
         let mut points: Vec<EnvelopePoint> = match (&self.projector, &self.stencil) {
-            (None, None) if self.sparse.is_some() => {
-                let (Some(design), Some(ws)) = (&self.sparse, &mut workspace.sparse) else {
-                    return Err(UqError::Empty {
-                        what: "analysis workspace",
-                    });
-                };
-                self.bound_sparse(
-                    design,
-                    values,
-                    n_outputs,
-                    ws,
-                    &mut workspace.indices,
-                    &mut extremes,
-                    &mut sobol,
-                )?
-            }
             (Some(projector), _) => {
                 let (Some(coefficients), Some(surrogate)) =
                     (&mut workspace.coefficients, &mut workspace.surrogate)
@@ -390,17 +374,7 @@ impl Bounder {
             }
             (None, None) => vec![EnvelopePoint::EMPTY; n_outputs],
         };
-        // Every run made is a true response inside the box: include it.
-        for sample in 0..n_samples {
-            if excluded(sample) {
-                continue;
-            }
-            for (o, point) in points.iter_mut().enumerate() {
-                let value = values[sample * n_outputs + o];
-                point.lower = point.lower.min(value);
-                point.upper = point.upper.max(value);
-            }
-        }
+        include_runs(&mut points, values, n_outputs, excluded);
         Ok(RecordBounds {
             points,
             extremes,
@@ -409,85 +383,24 @@ impl Bounder {
             variances: sobol.variance,
         })
     }
+}
 
-    /// Fits a sparse design's surrogates and bounds each: inner by multi-start projected Newton
-    /// (the centre, the sign vertices of the linear part, and the best design points), outer by
-    /// interval arithmetic (`legendre-ia` reports that one); each surrogate's Sobol' indices go to
-    /// `sobol` (through `indices`).
-    #[allow(clippy::too_many_arguments)]
-    fn bound_sparse(
-        &self,
-        design: &SparseDesign,
-        values: &[f64],
-        n_outputs: usize,
-        ws: &mut SparseWorkspace,
-        indices: &mut SobolIndices,
-        extremes: &mut [Option<Extremes>],
-        sobol: &mut SobolRows,
-    ) -> Result<Vec<EnvelopePoint>, UqError> {
-        let d = self.dim;
-        let n_points = design.n_points();
-        let clock = &self.clock;
-        let mut lap = Instant::now();
-        design
-            .fit()
-            .fit_into(values, n_outputs, &mut ws.coefficients)?;
-        let mut points = Vec::with_capacity(n_outputs);
-        for (o, extreme) in extremes.iter_mut().enumerate() {
-            ws.surrogate.set_from_fit(&ws.coefficients, n_outputs, o)?;
-            lap = clock.lap(BoundPhase::Fit, lap);
-            // The best design points for each side start the search.
-            ws.order.clear();
-            ws.order.extend(0..n_points);
-            let value = |p: usize| values[p * n_outputs + o];
-            ws.order
-                .sort_by(|&a, &b| value(a).total_cmp(&value(b)).then(a.cmp(&b)));
-            ws.starts.clear();
-            let take = DESIGN_STARTS_PER_SIDE.min(n_points);
-            for &p in ws.order[..take].iter().chain(&ws.order[n_points - take..]) {
-                ws.starts
-                    .extend_from_slice(&design.points()[p * d..(p + 1) * d]);
-            }
-            let outer_only = self.method == Method::LegendreIa;
-            // The inner search is the bound of the scanning methods and, beside the outer
-            // bound of `legendre-ia`, where the check looks.
-            if !outer_only || self.locate_extremes {
-                ws.optimizer
-                    .inner_bound_into(&ws.surrogate, &ws.starts, &mut ws.bounds)?;
-                let b = &ws.bounds;
-                *extreme = Some(Extremes {
-                    argmin: b.argmin.clone(),
-                    argmax: b.argmax.clone(),
-                    at_min: b.lower,
-                    at_max: b.upper,
-                });
-                lap = clock.lap(BoundPhase::Inner, lap);
-            }
-            let bound = if outer_only {
-                let (lower, upper) = ws.optimizer.outer_bound(&ws.surrogate);
-                EnvelopePoint {
-                    lower,
-                    upper,
-                    error: Some(ws.surrogate.top_order_magnitude()),
-                    outer: None,
-                }
-            } else {
-                ws.optimizer.enclose(&ws.surrogate, &mut ws.bounds);
-                let b = &ws.bounds;
-                EnvelopePoint {
-                    lower: b.lower,
-                    upper: b.upper,
-                    error: Some(ws.surrogate.top_order_magnitude()),
-                    outer: Some((b.outer_lower, b.outer_upper)),
-                }
-            };
-            lap = clock.lap(BoundPhase::Outer, lap);
-            points.push(bound);
-            ws.surrogate.sobol_indices_into(indices);
-            sobol.push(indices);
-            lap = clock.lap(BoundPhase::Sobol, lap);
+/// Widens `points` (one record's outputs) to every run made at that record that is not
+/// `excluded`: each is a true response inside the box. `values` is row-major `samples × outputs`.
+fn include_runs(
+    points: &mut [EnvelopePoint],
+    values: &[f64],
+    n_outputs: usize,
+    excluded: &(dyn Fn(usize) -> bool + Sync),
+) {
+    for (sample, run) in values.chunks_exact(n_outputs.max(1)).enumerate() {
+        if excluded(sample) {
+            continue;
         }
-        Ok(points)
+        for (point, &value) in points.iter_mut().zip(run) {
+            point.lower = point.lower.min(value);
+            point.upper = point.upper.max(value);
+        }
     }
 }
 
@@ -530,7 +443,6 @@ struct Workspace {
     coefficients: Option<CoefficientMatrix>,
     surrogate: Option<Surrogate>,
     scanner: Option<Scanner>,
-    sparse: Option<SparseWorkspace>,
     /// One surrogate's Sobol' indices.
     indices: SobolIndices,
     /// `legendre-bernstein`: the bounder (made on first use).
@@ -551,17 +463,4 @@ impl SobolRows {
         self.total.extend_from_slice(&indices.total);
         self.variance.push(indices.variance);
     }
-}
-
-/// Per-thread buffers of the sparse bounds.
-struct SparseWorkspace {
-    /// `terms × outputs`, row-major.
-    coefficients: Vec<f64>,
-    surrogate: SparseSurrogate,
-    optimizer: BoxOptimizer,
-    bounds: BoxBounds,
-    /// Start points, row-major.
-    starts: Vec<f64>,
-    /// Design points sorted by value.
-    order: Vec<usize>,
 }
