@@ -364,15 +364,23 @@ impl BoxOptimizer {
         (lower, upper)
     }
 
-    /// φ = sign·y and its derivatives at `self.x` into grad/hess (sign applied).
+    /// φ = sign·y and its gradient at `self.x` into grad (sign applied). The Hessian is left for
+    /// [`BoxOptimizer::evaluate_hessian`]: a descent that stops at this point (no free
+    /// coordinate, or converged) never needs it.
     fn evaluate(&mut self, s: &SparseSurrogate, sign: f64) -> f64 {
-        let y =
-            s.derivatives_unchecked(&self.x, &mut self.grad, Some(&mut self.hess), &mut self.ws);
+        let y = s.derivatives_unchecked(&self.x, &mut self.grad, None, &mut self.ws);
         if sign < 0.0 {
             self.grad.iter_mut().for_each(|g| *g = -*g);
-            self.hess.iter_mut().for_each(|h| *h = -*h);
         }
         sign * y
+    }
+
+    /// The Hessian of φ = sign·y at `self.x` into hess (sign applied).
+    fn evaluate_hessian(&mut self, s: &SparseSurrogate, sign: f64) {
+        s.hessian_unchecked(&self.x, &mut self.hess, &mut self.ws);
+        if sign < 0.0 {
+            self.hess.iter_mut().for_each(|h| *h = -*h);
+        }
     }
 
     fn phi_at_trial(&mut self, s: &SparseSurrogate, sign: f64) -> f64 {
@@ -397,6 +405,7 @@ impl BoxOptimizer {
             if nf == 0 {
                 break;
             }
+            self.evaluate_hessian(s, sign);
             let definite = self.newton_direction();
             let mut moved = false;
             if let Some(t) = self.line_search(s, sign, f, false, !definite) {
