@@ -25,6 +25,10 @@
 //! cargo bench --bench sparse_bounding [-- --rounds R]
 //! ```
 
+#[path = "support/split_mix64.rs"]
+mod split_mix64;
+use split_mix64::SplitMix64;
+
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -36,20 +40,6 @@ const RECORDS: usize = 50;
 /// The engine's design starts per side (analysis::DESIGN_STARTS_PER_SIDE after; 2 before).
 const STARTS_AFTER: usize = ribbon::analysis::DESIGN_STARTS_PER_SIDE;
 const STARTS_BEFORE: usize = 2;
-
-/// splitmix64, for a reproducible problem without a `rand` dependency.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        lo + (hi - lo) * ((z >> 11) as f64 / (1u64 << 53) as f64)
-    }
-}
 
 /// One output's response: slopes `a_r cos(ω_r t + φ_r)`, curvatures, a few products.
 struct Response {
