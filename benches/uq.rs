@@ -8,6 +8,10 @@
 //! and the inner + outer bound of one output ([`BoxOptimizer`], built-in starts only and with 3
 //! design points added); the large regression's one-time build is timed once and printed.
 
+#[path = "support/split_mix64.rs"]
+mod split_mix64;
+use split_mix64::SplitMix64;
+
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -22,20 +26,6 @@ use ribbon::uq::{
 
 const N_OUTPUTS: usize = 1_000;
 const ORDER: usize = 4;
-
-/// splitmix64, for reproducible test functions without a `rand` dependency.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        lo + (hi - lo) * ((z >> 11) as f64 / (1u64 << 53) as f64)
-    }
-}
 
 /// Values of N_OUTPUTS smooth random-ish functions at the design points, run-major
 /// (`n_points × N_OUTPUTS`): `Π_r cos(a_r ξ_r + b_r) + c ξ_1 ξ_d + e ξ_1²` with random a, b, c, e.

@@ -581,6 +581,49 @@ fn the_check_finds_nothing_on_a_smooth_response_and_can_be_turned_off() {
     }
 }
 
+/// The summary says where the study's time went (issue 40 item 4): every phase of
+/// `stats.phase_seconds` is there, finite and ≥ 0; a tensor design scanned has fit, inner bound,
+/// Sobol' indices and check selection but no design choice and no outer bound; and the worker
+/// phases, summed over threads, fit within the threads × the fit + bound wall they ran inside.
+#[test]
+fn the_summary_says_where_the_time_went() {
+    let sidecar = manifest("robots/double_pendulum/double_pendulum.uncertainty.toml");
+    let summary = analyze(
+        "robots/double_pendulum/double_pendulum.urdf",
+        &sidecar,
+        &["--duration", "0.2"],
+        "phase_seconds",
+    );
+    let stats = &summary["stats"];
+    let phases = &stats["phase_seconds"];
+    let seconds = |name: &str| -> f64 {
+        let value = phases[name]
+            .as_f64()
+            .unwrap_or_else(|| panic!("stats.phase_seconds.{name} missing: {phases}"));
+        assert!(value.is_finite() && value >= 0.0, "{name}: {value}");
+        value
+    };
+    for name in [
+        "fit",
+        "inner_bound",
+        "sobol_indices",
+        "check_selection",
+        "summary",
+    ] {
+        assert!(seconds(name) > 0.0, "{name} took no time: {phases}");
+    }
+    assert_eq!(seconds("design_choice"), 0.0, "{phases}");
+    assert_eq!(seconds("outer_bound"), 0.0, "{phases}");
+    let workers = seconds("fit") + seconds("inner_bound") + seconds("sobol_indices");
+    let threads = stats["threads"].as_f64().expect("threads");
+    let bound_wall = stats["bound_seconds"].as_f64().expect("bound_seconds");
+    // Clock reads of the workers and of the study's thread: 1 ms of slack for their granularity.
+    assert!(
+        workers <= threads * bound_wall + 1e-3,
+        "workers {workers} s > {threads} × {bound_wall} s"
+    );
+}
+
 /// Chaos is reported, regular motion is not: the double pendulum released upright (chaotic) against
 /// the shipped one released horizontally (regular over its 2 s).
 #[test]

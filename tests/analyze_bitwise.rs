@@ -3,8 +3,8 @@
 //! refactor must leave every number bitwise unchanged.
 //!
 //! Compared: the CSV byte for byte, the summary JSON with its machine-dependent fields masked
-//! (`wall_seconds`, `stats.simulate_seconds`, `stats.bound_seconds`, `stats.threads`,
-//! `stats.peak_memory_bytes`), the stdout table with its wall time masked, and the MCAP log by its
+//! (`wall_seconds`, `stats.simulate_seconds`, `stats.bound_seconds`, `stats.phase_seconds`,
+//! `stats.threads`, `stats.peak_memory_bytes`), the stdout table with its wall time masked, and the MCAP log by its
 //! FNV-1a 64 hash. The fixtures live in `tests/fixtures/analyze_reference/` (see its README).
 
 mod common;

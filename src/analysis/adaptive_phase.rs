@@ -131,17 +131,12 @@ pub(super) fn adapt(
             let Some(t) = mi.index_of(&factors) else {
                 return 0.0;
             };
-            coefficients
-                .iter()
-                .map(|record| {
-                    (0..n_outputs)
-                        .filter_map(|o| spread[o].map(|s| record[t * n_outputs + o].abs() / s))
-                        .fold(0.0, f64::max)
-                })
-                .fold(0.0, f64::max)
+            coefficients.largest_normalised(t, &spread)
         });
         grid = Some((round_grid, rows));
-        context.report.bound_seconds += t_fit.elapsed().as_secs_f64();
+        let fit_seconds = t_fit.elapsed().as_secs_f64();
+        context.report.bound_seconds += fit_seconds;
+        context.report.phase_seconds.design_choice += fit_seconds;
         if set.len() >= budget {
             break ("budget", true);
         }
@@ -204,46 +199,100 @@ fn gather_record(values: &[Vec<f64>], rows: &[usize], r: usize, n_outputs: usize
     record
 }
 
-/// The Legendre coefficients of every record: `[record][term · outputs + output]`, by the grid's
-/// term order; `rows` maps the grid's points to rows of `values` ([`rows_of_points`]).
+/// Records per chunk of the fit of every record at once: each chunk is one application of the
+/// fitting map to `16 × outputs` columns (long enough rows for the vector units, and enough
+/// chunks for the threads).
+const FIT_CHUNK_RECORDS: usize = 16;
+
+/// The Legendre coefficients of every output at every record, in chunks of records: chunk k
+/// holds records `k · FIT_CHUNK_RECORDS ..` as `terms × (records · outputs)`, row-major.
+struct RecordCoefficients {
+    chunks: Vec<Vec<f64>>,
+    n_terms: usize,
+}
+
+impl RecordCoefficients {
+    /// Term t's largest `|coefficient| / spread` over every record and every output with a
+    /// spread (`spread[o]`, [`output_spreads`]), or 0.
+    fn largest_normalised(&self, t: usize, spread: &[Option<f64>]) -> f64 {
+        let n_outputs = spread.len().max(1);
+        let mut largest = 0.0_f64;
+        for chunk in &self.chunks {
+            let width = chunk.len() / self.n_terms.max(1);
+            for record in chunk[t * width..(t + 1) * width].chunks_exact(n_outputs) {
+                for (value, spread) in record.iter().zip(spread) {
+                    if let Some(s) = spread {
+                        largest = largest.max(value.abs() / s);
+                    }
+                }
+            }
+        }
+        largest
+    }
+}
+
+/// The Legendre coefficients of every output at every record (docs/high-dimension.md §5: one
+/// multi-right-hand-side application of the grid's fitting map per chunk of records, read from
+/// the runs' rows in place); `rows` maps the grid's points to rows of `values`
+/// ([`rows_of_points`]). Each coefficient is the one a fit of its record alone gives, to the bit.
 fn fit_all_records(
     grid: &SparseGrid,
     rows: &[usize],
     values: &[Vec<f64>],
     n_outputs: usize,
     threads: &rayon::ThreadPool,
-) -> Result<Vec<Vec<f64>>, StudyError> {
+) -> Result<RecordCoefficients, StudyError> {
     let n_records = values.first().map_or(0, |v| v.len() / n_outputs.max(1));
-    threads.install(|| {
-        (0..n_records)
-            .into_par_iter()
-            .map(|r| {
-                let record = gather_record(values, rows, r, n_outputs);
-                grid.fit().fit(&record, n_outputs).map_err(StudyError::Uq)
+    let n_terms = grid.n_points();
+    let firsts: Vec<usize> = (0..n_records).step_by(FIT_CHUNK_RECORDS).collect();
+    let chunks = threads.install(|| {
+        firsts
+            .par_iter()
+            .map(|&first| {
+                let last = (first + FIT_CHUNK_RECORDS).min(n_records);
+                let columns = first * n_outputs..last * n_outputs;
+                let runs: Vec<&[f64]> = rows
+                    .iter()
+                    .map(|&row| &values[row][columns.clone()])
+                    .collect();
+                let mut out = vec![0.0; n_terms * columns.len()];
+                grid.fit()
+                    .fit_rows_into(&runs, &mut out)
+                    .map_err(StudyError::Uq)?;
+                Ok(out)
             })
-            .collect()
-    })
+            .collect::<Result<Vec<Vec<f64>>, StudyError>>()
+    })?;
+    Ok(RecordCoefficients { chunks, n_terms })
 }
 
 /// Per output: its largest spread (max − min over the runs) over the records, or `None` when that
 /// is below the noise floor ([`ADAPTIVE_NOISE_FLOOR`]).
 fn output_spreads(values: &[Vec<f64>], n_outputs: usize) -> Vec<Option<f64>> {
-    let n_records = values.first().map_or(0, |v| v.len() / n_outputs.max(1));
+    let width = n_outputs.max(1);
+    let stride = values.first().map_or(0, Vec::len);
+    // Run after run (each run's values are contiguous): min and max per record and output.
+    let mut lowest = vec![f64::INFINITY; stride];
+    let mut highest = vec![f64::NEG_INFINITY; stride];
+    let mut magnitude = vec![0.0_f64; width];
+    for run in values {
+        for (k, &v) in run.iter().enumerate() {
+            lowest[k] = lowest[k].min(v);
+            highest[k] = highest[k].max(v);
+        }
+        for record in run.chunks_exact(width) {
+            for (m, v) in magnitude.iter_mut().zip(record) {
+                *m = m.max(v.abs());
+            }
+        }
+    }
     (0..n_outputs)
         .map(|o| {
-            let mut spread = 0.0_f64;
-            let mut magnitude = 0.0_f64;
-            for r in 0..n_records {
-                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-                for run in values {
-                    let v = run[r * n_outputs + o];
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                    magnitude = magnitude.max(v.abs());
-                }
-                spread = spread.max(hi - lo);
-            }
-            (spread.is_finite() && spread > ADAPTIVE_NOISE_FLOOR * (1.0 + magnitude))
+            let spread = (o..stride)
+                .step_by(width)
+                .map(|k| highest[k] - lowest[k])
+                .fold(0.0_f64, f64::max);
+            (spread.is_finite() && spread > ADAPTIVE_NOISE_FLOOR * (1.0 + magnitude[o]))
                 .then_some(spread)
         })
         .collect()

@@ -16,15 +16,18 @@
 //! outside its own envelope.
 
 use super::plan::Plan;
-use super::sparse::SparseDesign;
+use super::report::PhaseSeconds;
+use super::sparse_bounds::SparseBounds;
 use super::Method;
 use crate::uq::{
-    chebyshev_inclusion, interval_bound, BernsteinBounder, Bound, BoundKind, BoxBounds,
-    BoxOptimizer, CoefficientMatrix, Projector, RangeMode, ScanOptions, ScanOutcome, Scanner,
-    SobolIndices, SparseSurrogate, Surrogate, TaylorStencil, UqError,
+    chebyshev_inclusion, interval_bound, BernsteinBounder, Bound, BoundKind, CoefficientMatrix,
+    Projector, RangeMode, ScanOptions, ScanOutcome, Scanner, SobolIndices, Surrogate,
+    TaylorStencil, UqError,
 };
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+use std::time::Instant;
 
 /// One output's envelope at one time.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -95,11 +98,6 @@ struct RecordBounds {
     variances: Vec<f64>,
 }
 
-/// How many of the best design points (per side) start the sparse surrogate's box search, besides
-/// the centre and the sign vertices of its linear part: the runs themselves are the best evidence
-/// of where the extremes are.
-pub const DESIGN_STARTS_PER_SIDE: usize = 2;
-
 /// Bounds record times for one method; cheap to share across threads.
 pub struct Bounder {
     method: Method,
@@ -108,10 +106,59 @@ pub struct Bounder {
     scan_options: ScanOptions,
     dim: usize,
     order: usize,
-    sparse: Option<Arc<SparseDesign>>,
+    /// The sparse design's bounds (`None` for other designs).
+    sparse: Option<SparseBounds>,
     /// Locate the extremes for the check also where the bound does not need them (outer methods
     /// and `taylor`); the scans always locate them.
     locate_extremes: bool,
+    /// The time the workers spent per phase.
+    clock: BoundClock,
+}
+
+/// Nanoseconds the workers spent fitting, bounding (inner, outer) and computing Sobol' indices,
+/// summed over the threads.
+#[derive(Debug, Default)]
+pub(super) struct BoundClock {
+    fit: AtomicU64,
+    inner: AtomicU64,
+    outer: AtomicU64,
+    sobol: AtomicU64,
+}
+
+/// Which phase a [`BoundClock`] reading belongs to.
+#[derive(Clone, Copy)]
+pub(super) enum BoundPhase {
+    Fit,
+    Inner,
+    Outer,
+    Sobol,
+}
+
+impl BoundClock {
+    /// Adds the time since `since` to `phase` and returns now (the next phase's start).
+    pub(super) fn lap(&self, phase: BoundPhase, since: Instant) -> Instant {
+        let now = Instant::now();
+        let nanos = u64::try_from(now.duration_since(since).as_nanos()).unwrap_or(u64::MAX);
+        let counter = match phase {
+            BoundPhase::Fit => &self.fit,
+            BoundPhase::Inner => &self.inner,
+            BoundPhase::Outer => &self.outer,
+            BoundPhase::Sobol => &self.sobol,
+        };
+        counter.fetch_add(nanos, Ordering::Relaxed);
+        now
+    }
+
+    fn seconds(&self) -> PhaseSeconds {
+        let seconds = |counter: &AtomicU64| counter.load(Ordering::Relaxed) as f64 * 1e-9;
+        PhaseSeconds {
+            fit: seconds(&self.fit),
+            inner_bound: seconds(&self.inner),
+            outer_bound: seconds(&self.outer),
+            sobol_indices: seconds(&self.sobol),
+            ..PhaseSeconds::default()
+        }
+    }
 }
 
 impl Bounder {
@@ -135,11 +182,15 @@ impl Bounder {
             Plan::Taylor(stencil) => (None, Some(*stencil)),
             _ => (None, None),
         };
+        let locate_extremes = locate_extremes && method.is_checked();
         let sparse = match plan {
-            Plan::Sparse(design) => Some(Arc::clone(design)),
+            Plan::Sparse(design) => Some(SparseBounds::new(
+                Arc::clone(design),
+                method == Method::LegendreIa,
+                locate_extremes,
+            )),
             _ => None,
         };
-        let locate_extremes = locate_extremes && method.is_checked();
         if let (Some(projector), true) = (&projector, method.scans_surrogate() || locate_extremes) {
             // Validate the scan options once, here, rather than in every worker.
             Scanner::new(projector.design().family(), dim, order, scan_options)?;
@@ -153,7 +204,14 @@ impl Bounder {
             order,
             sparse,
             locate_extremes,
+            clock: BoundClock::default(),
         })
+    }
+
+    /// The seconds the workers have spent so far fitting, bounding and computing Sobol' indices
+    /// with this bounder, summed over the threads ([`PhaseSeconds`]: only those four phases).
+    pub fn phase_seconds(&self) -> PhaseSeconds {
+        self.clock.seconds()
     }
 
     /// Envelopes of `n_outputs` outputs at each of `records` record times. `values(r)` gives record
@@ -168,6 +226,19 @@ impl Bounder {
         excluded: &(dyn Fn(usize) -> bool + Sync),
         threads: &rayon::ThreadPool,
     ) -> Result<BoundedBlock, UqError> {
+        if let Some(sparse) = &self.sparse {
+            let record_values: Vec<Vec<f64>> =
+                threads.install(|| (0..records).into_par_iter().map(values).collect());
+            let mut block = sparse.bound(&record_values, n_outputs, &self.clock, threads)?;
+            for (points, values) in block
+                .points
+                .chunks_exact_mut(n_outputs.max(1))
+                .zip(&record_values)
+            {
+                include_runs(points, values, n_outputs, excluded);
+            }
+            return Ok(block);
+        }
         let per_record: Vec<Result<RecordBounds, UqError>> = threads.install(|| {
             (0..records)
                 .into_par_iter()
@@ -194,15 +265,7 @@ impl Bounder {
     }
 
     fn workspace(&self, n_outputs: usize) -> Workspace {
-        let sparse = self.sparse.as_ref().map(|design| SparseWorkspace {
-            coefficients: vec![0.0; design.set().len() * n_outputs],
-            surrogate: SparseSurrogate::zeros(Arc::clone(design.set())),
-            optimizer: BoxOptimizer::new(),
-            bounds: BoxBounds::default(),
-            starts: Vec::new(),
-            order: Vec::new(),
-        });
-        let mut workspace = match &self.projector {
+        match &self.projector {
             Some(projector) => {
                 let design = projector.design();
                 Workspace {
@@ -214,7 +277,6 @@ impl Bounder {
                                 .ok()
                         })
                         .flatten(),
-                    sparse: None,
                     indices: SobolIndices::zeros(self.dim),
                     bernstein: None,
                 }
@@ -223,13 +285,10 @@ impl Bounder {
                 coefficients: None,
                 surrogate: None,
                 scanner: None,
-                sparse: None,
                 indices: SobolIndices::zeros(self.dim),
                 bernstein: None,
             },
-        };
-        workspace.sparse = sparse;
-        workspace
+        }
     }
 
     fn bound_one(
@@ -239,26 +298,9 @@ impl Bounder {
         excluded: &(dyn Fn(usize) -> bool + Sync),
         workspace: &mut Workspace,
     ) -> Result<RecordBounds, UqError> {
-        let n_samples = values.len() / n_outputs.max(1);
         let mut extremes = vec![None; n_outputs];
         let mut sobol = SobolRows::default();
         let mut points: Vec<EnvelopePoint> = match (&self.projector, &self.stencil) {
-            (None, None) if self.sparse.is_some() => {
-                let (Some(design), Some(ws)) = (&self.sparse, &mut workspace.sparse) else {
-                    return Err(UqError::Empty {
-                        what: "analysis workspace",
-                    });
-                };
-                self.bound_sparse(
-                    design,
-                    values,
-                    n_outputs,
-                    ws,
-                    &mut workspace.indices,
-                    &mut extremes,
-                    &mut sobol,
-                )?
-            }
             (Some(projector), _) => {
                 let (Some(coefficients), Some(surrogate)) =
                     (&mut workspace.coefficients, &mut workspace.surrogate)
@@ -267,18 +309,23 @@ impl Bounder {
                         what: "analysis workspace",
                     });
                 };
+                let clock = &self.clock;
+                let mut lap = Instant::now();
                 projector.fit_into(values, n_outputs, coefficients)?;
                 let design = projector.design();
                 let mut points = Vec::with_capacity(n_outputs);
                 for (o, extreme) in extremes.iter_mut().enumerate() {
                     surrogate.set_from_matrix(design, coefficients, o)?;
+                    lap = clock.lap(BoundPhase::Fit, lap);
                     surrogate.sobol_indices_into(&mut workspace.indices)?;
                     sobol.push(&workspace.indices);
+                    lap = clock.lap(BoundPhase::Sobol, lap);
                     let bound = match (self.method, &mut workspace.scanner) {
                         (Method::LegendreScan | Method::ChebyshevScan, Some(scanner)) => {
                             let outcome = scanner.scan(surrogate)?;
                             let bound = outcome.bound;
                             *extreme = Some(scanned_extremes(outcome));
+                            lap = clock.lap(BoundPhase::Inner, lap);
                             bound
                         }
                         (method, scanner) => {
@@ -286,8 +333,11 @@ impl Bounder {
                             // takes its extremes.
                             if let Some(scanner) = scanner {
                                 *extreme = Some(scanned_extremes(scanner.scan(surrogate)?));
+                                lap = clock.lap(BoundPhase::Inner, lap);
                             }
-                            outer_bound(method, surrogate, &mut workspace.bernstein)?
+                            let bound = outer_bound(method, surrogate, &mut workspace.bernstein)?;
+                            lap = clock.lap(BoundPhase::Outer, lap);
+                            bound
                         }
                     };
                     points.push(EnvelopePoint {
@@ -324,17 +374,7 @@ impl Bounder {
             }
             (None, None) => vec![EnvelopePoint::EMPTY; n_outputs],
         };
-        // Every run made is a true response inside the box: include it.
-        for sample in 0..n_samples {
-            if excluded(sample) {
-                continue;
-            }
-            for (o, point) in points.iter_mut().enumerate() {
-                let value = values[sample * n_outputs + o];
-                point.lower = point.lower.min(value);
-                point.upper = point.upper.max(value);
-            }
-        }
+        include_runs(&mut points, values, n_outputs, excluded);
         Ok(RecordBounds {
             points,
             extremes,
@@ -343,78 +383,24 @@ impl Bounder {
             variances: sobol.variance,
         })
     }
+}
 
-    /// Fits a sparse design's surrogates and bounds each: inner by multi-start projected Newton
-    /// (the centre, the sign vertices of the linear part, and the best design points), outer by
-    /// interval arithmetic (`legendre-ia` reports that one); each surrogate's Sobol' indices go to
-    /// `sobol` (through `indices`).
-    #[allow(clippy::too_many_arguments)]
-    fn bound_sparse(
-        &self,
-        design: &SparseDesign,
-        values: &[f64],
-        n_outputs: usize,
-        ws: &mut SparseWorkspace,
-        indices: &mut SobolIndices,
-        extremes: &mut [Option<Extremes>],
-        sobol: &mut SobolRows,
-    ) -> Result<Vec<EnvelopePoint>, UqError> {
-        let d = self.dim;
-        let n_points = design.n_points();
-        design
-            .fit()
-            .fit_into(values, n_outputs, &mut ws.coefficients)?;
-        let mut points = Vec::with_capacity(n_outputs);
-        for (o, extreme) in extremes.iter_mut().enumerate() {
-            ws.surrogate.set_from_fit(&ws.coefficients, n_outputs, o)?;
-            // The best design points for each side start the search.
-            ws.order.clear();
-            ws.order.extend(0..n_points);
-            let value = |p: usize| values[p * n_outputs + o];
-            ws.order
-                .sort_by(|&a, &b| value(a).total_cmp(&value(b)).then(a.cmp(&b)));
-            ws.starts.clear();
-            let take = DESIGN_STARTS_PER_SIDE.min(n_points);
-            for &p in ws.order[..take].iter().chain(&ws.order[n_points - take..]) {
-                ws.starts
-                    .extend_from_slice(&design.points()[p * d..(p + 1) * d]);
-            }
-            let outer_only = self.method == Method::LegendreIa;
-            // The inner search is the bound of the scanning methods and, beside the outer
-            // bound of `legendre-ia`, where the check looks.
-            if !outer_only || self.locate_extremes {
-                ws.optimizer
-                    .bound_into(&ws.surrogate, &ws.starts, &mut ws.bounds)?;
-                let b = &ws.bounds;
-                *extreme = Some(Extremes {
-                    argmin: b.argmin.clone(),
-                    argmax: b.argmax.clone(),
-                    at_min: b.lower,
-                    at_max: b.upper,
-                });
-            }
-            let bound = if outer_only {
-                let (lower, upper) = ws.optimizer.outer_bound(&ws.surrogate);
-                EnvelopePoint {
-                    lower,
-                    upper,
-                    error: Some(ws.surrogate.top_order_magnitude()),
-                    outer: None,
-                }
-            } else {
-                let b = &ws.bounds;
-                EnvelopePoint {
-                    lower: b.lower,
-                    upper: b.upper,
-                    error: Some(ws.surrogate.top_order_magnitude()),
-                    outer: Some((b.outer_lower, b.outer_upper)),
-                }
-            };
-            points.push(bound);
-            ws.surrogate.sobol_indices_into(indices);
-            sobol.push(indices);
+/// Widens `points` (one record's outputs) to every run made at that record that is not
+/// `excluded`: each is a true response inside the box. `values` is row-major `samples × outputs`.
+fn include_runs(
+    points: &mut [EnvelopePoint],
+    values: &[f64],
+    n_outputs: usize,
+    excluded: &(dyn Fn(usize) -> bool + Sync),
+) {
+    for (sample, run) in values.chunks_exact(n_outputs.max(1)).enumerate() {
+        if excluded(sample) {
+            continue;
         }
-        Ok(points)
+        for (point, &value) in points.iter_mut().zip(run) {
+            point.lower = point.lower.min(value);
+            point.upper = point.upper.max(value);
+        }
     }
 }
 
@@ -457,7 +443,6 @@ struct Workspace {
     coefficients: Option<CoefficientMatrix>,
     surrogate: Option<Surrogate>,
     scanner: Option<Scanner>,
-    sparse: Option<SparseWorkspace>,
     /// One surrogate's Sobol' indices.
     indices: SobolIndices,
     /// `legendre-bernstein`: the bounder (made on first use).
@@ -478,17 +463,4 @@ impl SobolRows {
         self.total.extend_from_slice(&indices.total);
         self.variance.push(indices.variance);
     }
-}
-
-/// Per-thread buffers of the sparse bounds.
-struct SparseWorkspace {
-    /// `terms × outputs`, row-major.
-    coefficients: Vec<f64>,
-    surrogate: SparseSurrogate,
-    optimizer: BoxOptimizer,
-    bounds: BoxBounds,
-    /// Start points, row-major.
-    starts: Vec<f64>,
-    /// Design points sorted by value.
-    order: Vec<usize>,
 }

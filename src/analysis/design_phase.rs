@@ -140,6 +140,10 @@ pub(super) fn bound_design(
             })?
         }
     };
+    context
+        .report
+        .phase_seconds
+        .add_bounding(&bounder.phase_seconds());
     if matches!(plan, Plan::Sparse(_)) {
         context.report.total_index_max = Some(bounding.sobol.total_index_max());
     }

@@ -604,6 +604,12 @@ fn run_round(
             Ok(())
         },
     )?;
+    for bounder in &bounders {
+        context
+            .report
+            .phase_seconds
+            .add_bounding(&bounder.phase_seconds());
+    }
     if !complete {
         return Ok(false);
     }
@@ -611,6 +617,7 @@ fn run_round(
     // Every child's check in one phase: a surrogate's at its predicted extremes, a scan's
     // between its grid's extreme points (their hull, before the check widens it, is what a scan's
     // check judges).
+    let t_select = Instant::now();
     let plans: Vec<CheckPlan> = boundings
         .iter()
         .zip(&children)
@@ -630,6 +637,7 @@ fn run_round(
         .zip(&element_points)
         .map(|(bounding, hull)| bounding.is_none().then(|| hull.points.clone()))
         .collect();
+    context.report.phase_seconds.check_selection += t_select.elapsed().as_secs_f64();
     let (sobol, candidates): (Vec<Option<SobolSeries>>, Vec<CheckCandidates>) = boundings
         .into_iter()
         .map(|b| match b {

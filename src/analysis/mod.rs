@@ -39,6 +39,7 @@ mod screening;
 mod screening_phase;
 mod sobol_indices;
 mod sparse;
+mod sparse_bounds;
 mod stages;
 mod study;
 mod study_plan;
@@ -53,7 +54,7 @@ pub use auto::{
     total_degree_terms, AutoChoice, AutoDesign, ADAPTIVE_VALUE_BUDGET, AUTO_TENSOR_MAX_DIM,
     BASE_ORDER, DEFAULT_MAX_RUNS,
 };
-pub use bounds::{BoundedBlock, EnvelopePoint, Extremes, DESIGN_STARTS_PER_SIDE};
+pub use bounds::{BoundedBlock, EnvelopePoint, Extremes};
 pub use check::{
     automatic_check_runs, output_resolution, trust_verdict, untrusted_advice, CheckCandidates,
     CheckPlan, Side, TrustVerdict, CHECK_POINT_TOLERANCE, CHECK_RUNS_FRACTION, MIN_CHECK_RUNS,
@@ -77,8 +78,8 @@ pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
 pub use report::{
     AdaptiveReport, BlockView, CheckReport, CheckSkipped, DesignPart, ElementSummary,
-    ElementsReport, PendingStage, Progress, RefinedExtreme, RefinementReport, SampleFailure,
-    SampleRetry, StudyReport,
+    ElementsReport, PendingStage, PhaseSeconds, Progress, RefinedExtreme, RefinementReport,
+    SampleFailure, SampleRetry, StudyReport,
 };
 pub use schedule::{RecordSchedule, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS};
 pub use screening::{DimensionScreening, Screening};
@@ -86,6 +87,7 @@ pub use sobol_indices::{
     has_sobol_indices, sobol_values_per_record, SobolBlock, SobolSeries, TABLE_SOBOL_CONTRIBUTORS,
 };
 pub use sparse::{screened_set, SparseDesign, REGRESSION_OVERSAMPLING, REGRESSION_SEED};
+pub use sparse_bounds::DESIGN_STARTS_PER_SIDE;
 pub use stages::{FirstStage, SimulateHere, StageRecords, StageRequest, StageSource};
 pub use study::Study;
 pub use study_plan::{DesignKind, StudyOptions, StudyPlan};

@@ -304,6 +304,39 @@ pub struct RefinementReport {
     pub extremes: Vec<RefinedExtreme>,
 }
 
+/// Where a study's time went besides simulating, phase by phase, in seconds. The phases that run
+/// on the worker threads (`fit`, `inner_bound`, `outer_bound`, `sobol_indices`) are summed over
+/// the threads: on `n` threads they may add up to `n` times the wall they took. The others are
+/// wall time on the study's thread.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PhaseSeconds {
+    /// Choosing the design: the adaptive rounds' fits and term indicators (their runs are
+    /// simulation), or the screening's ranking and the screened set.
+    pub design_choice: f64,
+    /// Fitting the surrogates of the design (and of the elements) at every record time.
+    pub fit: f64,
+    /// The inner bounds: scanning the surrogates, or the box search from its starts.
+    pub inner_bound: f64,
+    /// The outer bounds (interval arithmetic, Chebyshev, Bernstein), where the method has one.
+    pub outer_bound: f64,
+    /// The surrogates' main and total Sobol' indices.
+    pub sobol_indices: f64,
+    /// Selecting the check's points among the predicted extremes.
+    pub check_selection: f64,
+    /// Building the summary (set by the front end that writes it; 0 in the study's report).
+    pub summary: f64,
+}
+
+impl PhaseSeconds {
+    /// Adds the bounding phases' seconds (fit, inner and outer bound, Sobol' indices) of `other`.
+    pub fn add_bounding(&mut self, other: &PhaseSeconds) {
+        self.fit += other.fit;
+        self.inner_bound += other.inner_bound;
+        self.outer_bound += other.outer_bound;
+        self.sobol_indices += other.sobol_indices;
+    }
+}
+
 /// What a study did.
 #[derive(Clone, Debug)]
 pub struct StudyReport {
@@ -322,6 +355,8 @@ pub struct StudyReport {
     pub simulate_seconds: f64,
     /// Seconds spent fitting and bounding.
     pub bound_seconds: f64,
+    /// Where the arithmetic time went, phase by phase ([`PhaseSeconds`]).
+    pub phase_seconds: PhaseSeconds,
     /// Newton iterations of all samples.
     pub newton_iterations: u64,
     /// Steps of all samples.
@@ -392,6 +427,7 @@ impl StudyReport {
             partial: false,
             simulate_seconds: 0.0,
             bound_seconds: 0.0,
+            phase_seconds: PhaseSeconds::default(),
             newton_iterations: 0,
             steps: 0,
             threads,

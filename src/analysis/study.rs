@@ -274,7 +274,9 @@ fn run_phases(
         _ => study_plan.check_runs,
     };
     if complete && locates_extremes {
+        let t_select = Instant::now();
         let check_plan = candidates.select(check_budget);
+        context.report.phase_seconds.check_selection += t_select.elapsed().as_secs_f64();
         let outcome = check(context, &check_plan, accumulator)?;
         context.report.check = Some(outcome.report);
         // Where the surrogate is not trusted: elements (sub-boxes with their own surrogates).
@@ -337,6 +339,7 @@ fn design_of(
                 // Screening (auto above the budget of a full total-degree set): the star design
                 // ranks the parameters, and the design is built from the ranking.
                 let (screening, complete) = screen(context, stages, &mut screen_hull)?;
+                let t_choice = Instant::now();
                 let ranking = screening.ranking();
                 context.report.screening = Some(screening);
                 context.report.ranking = Some(ranking.clone());
@@ -344,11 +347,9 @@ fn design_of(
                     return Ok(None);
                 }
                 context.report.runs += design_runs;
-                Plan::Sparse(Arc::new(SparseDesign::screened(
-                    d,
-                    &choice.design,
-                    &ranking,
-                )?))
+                let design = SparseDesign::screened(d, &choice.design, &ranking)?;
+                context.report.phase_seconds.design_choice += t_choice.elapsed().as_secs_f64();
+                Plan::Sparse(Arc::new(design))
             }
         }
     };

@@ -7,8 +7,8 @@
 
 use super::summary::{EnvelopeSeries, ParameterSummary, SensitivitySummary, SobolSummary, Summary};
 use crate::analysis::{
-    CheckReport, ElementsReport, StudyReport, ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION,
-    TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
+    CheckReport, ElementsReport, PhaseSeconds, StudyReport, ADAPTIVE_TOLERANCE,
+    CHAOS_AMPLIFICATION, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
 use crate::scene::LimitExcursion;
 use crate::uncertainty::ParameterSpace;
@@ -95,6 +95,7 @@ impl Summary {
             "newton_iterations": report.newton_iterations,
             "simulate_seconds": report.simulate_seconds,
             "bound_seconds": report.bound_seconds,
+            "phase_seconds": phase_seconds_json(&report.phase_seconds),
             "threads": report.threads,
             "block_records": report.block_records,
             "peak_memory_bytes": peak_memory(),
@@ -150,6 +151,29 @@ impl Summary {
             );
         }
         summary
+    }
+}
+
+/// The per-phase seconds of a study ([`PhaseSeconds`]: the worker phases summed over threads).
+fn phase_seconds_json(p: &PhaseSeconds) -> serde_json::Value {
+    serde_json::json!({
+        "design_choice": p.design_choice,
+        "fit": p.fit,
+        "inner_bound": p.inner_bound,
+        "outer_bound": p.outer_bound,
+        "sobol_indices": p.sobol_indices,
+        "check_selection": p.check_selection,
+        "summary": p.summary,
+    })
+}
+
+impl Summary {
+    /// Sets `stats.phase_seconds.summary`: the seconds building this summary took (the front end
+    /// measures them around [`Summary::of_study`]).
+    pub fn set_summary_seconds(&mut self, seconds: f64) {
+        if let Some(phases) = self.stats.get_mut("phase_seconds") {
+            phases["summary"] = serde_json::json!(seconds);
+        }
     }
 }
 

@@ -124,7 +124,11 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
 
     if let Some(path) = &outputs.summary {
         let order = order_of(report.method, &options);
-        Summary::of_study(&robot, order, &space, &report, excursions, wall_seconds).write(path)?;
+        let t_summary = Instant::now();
+        let mut summary =
+            Summary::of_study(&robot, order, &space, &report, excursions, wall_seconds);
+        summary.set_summary_seconds(t_summary.elapsed().as_secs_f64());
+        summary.write(path)?;
     }
     if let Some(path) = &outputs.csv {
         write_envelope_csv(path, &report.envelope)?;

@@ -3,7 +3,8 @@
 //!
 //! - **inner**: the smallest and largest surrogate values found by projected Newton with an active
 //!   set, from several starts — the centre, the sign vertex of the linear part and its negative,
-//!   and caller-given points (the best design points). Every reported value is attained at the
+//!   and caller-given points (the best design points); or each side from its own starts only
+//!   ([`BoxOptimizer::inner_bound_per_side_into`], docs/high-dimension.md §7a). Every reported value is attained at the
 //!   reported point, so `[lower, upper]` lies inside the surrogate's range;
 //! - **outer**: interval arithmetic with exact ranges — each dimension's univariate part
 //!   `Σ_n c_{n e_r} P_n(ξ_r)` by its exact range ([`legendre_series_range`]), every interaction
@@ -168,69 +169,136 @@ impl BoxOptimizer {
         starts: &[f64],
         out: &mut BoxBounds,
     ) -> Result<(), UqError> {
+        self.inner_bound_into(s, starts, out)?;
+        self.enclose(s, out);
+        Ok(())
+    }
+
+    /// The inner half of [`BoxOptimizer::bound_into`]: `lower`, `upper`, `argmin`, `argmax` and
+    /// `iterations` of `out`; its outer fields are left as they were ([`BoxOptimizer::enclose`]
+    /// sets them).
+    ///
+    /// Errors: as [`BoxOptimizer::bound`].
+    pub fn inner_bound_into(
+        &mut self,
+        s: &SparseSurrogate,
+        starts: &[f64],
+        out: &mut BoxBounds,
+    ) -> Result<(), UqError> {
         let d = s.dim();
-        if !starts.len().is_multiple_of(d) {
-            return Err(UqError::WrongLength {
-                what: "box bound: start points (k × d)",
-                expected: (starts.len() / d + 1) * d,
-                got: starts.len(),
-            });
-        }
-        if let Some(index) = starts.iter().position(|v| !v.is_finite()) {
-            return Err(UqError::NonFinite {
-                what: "box bound: start points",
-                index,
-                value: starts[index],
-            });
-        }
-        if let Some(index) = starts.iter().position(|v| v.abs() > 1.0) {
-            return Err(UqError::InvalidInterval {
-                index,
-                lo: starts[index],
-                hi: starts[index],
-            });
-        }
+        check_starts(starts, d)?;
         self.resize(d);
         // Built-in starts: centre, sign vertex of the linear part, its negative.
         s.linear_part(&mut self.linear)?;
         self.starts.clear();
         self.starts.resize(d, 0.0);
-        let has_slope = self.linear.iter().any(|&c| c != 0.0);
-        if has_slope {
+        if self.linear.iter().any(|&c| c != 0.0) {
             for sign in [1.0, -1.0] {
-                for &c in &self.linear {
-                    self.starts
-                        .push(if c == 0.0 { 0.0 } else { sign * c.signum() });
-                }
+                self.push_sign_vertex(sign);
             }
         }
         self.starts.extend_from_slice(starts);
-
         out.argmin.resize(d, 0.0);
         out.argmax.resize(d, 0.0);
         out.iterations = 0;
-        for (sign, best, arg) in [
-            (1.0, &mut out.lower, &mut out.argmin),
-            (-1.0, &mut out.upper, &mut out.argmax),
-        ] {
-            let mut best_phi = f64::INFINITY;
-            let n_starts = self.starts.len() / d;
-            for i in 0..n_starts {
-                self.x.copy_from_slice(&self.starts[i * d..(i + 1) * d]);
-                let (phi, iterations) = self.descend(s, sign);
-                out.iterations += iterations;
-                if phi < best_phi {
-                    best_phi = phi;
-                    arg.copy_from_slice(&self.x);
+        let all = std::mem::take(&mut self.starts);
+        out.lower = self.search_side(s, 1.0, &all, &mut out.argmin, &mut out.iterations);
+        out.upper = -self.search_side(s, -1.0, &all, &mut out.argmax, &mut out.iterations);
+        self.starts = all;
+        Ok(())
+    }
+
+    /// As [`BoxOptimizer::inner_bound_into`], but each side searched only from its own starts
+    /// (docs/high-dimension.md §7, "Starts per side"): the minimum from the vertex where the linear
+    /// part is smallest and `lower_starts`, the maximum from the opposite vertex and
+    /// `upper_starts` (both `k × d` row-major in [−1, 1]^d; the centre instead of the vertex when
+    /// the surrogate has no linear part). A start equal to an earlier one of its side is skipped:
+    /// the descent from it would repeat the earlier one.
+    ///
+    /// Errors: as [`BoxOptimizer::bound`], for either list of starts.
+    pub fn inner_bound_per_side_into(
+        &mut self,
+        s: &SparseSurrogate,
+        lower_starts: &[f64],
+        upper_starts: &[f64],
+        out: &mut BoxBounds,
+    ) -> Result<(), UqError> {
+        let d = s.dim();
+        check_starts(lower_starts, d)?;
+        check_starts(upper_starts, d)?;
+        self.resize(d);
+        s.linear_part(&mut self.linear)?;
+        let has_slope = self.linear.iter().any(|&c| c != 0.0);
+        out.argmin.resize(d, 0.0);
+        out.argmax.resize(d, 0.0);
+        out.iterations = 0;
+        let mut starts = std::mem::take(&mut self.starts);
+        for (sign, given) in [(1.0, lower_starts), (-1.0, upper_starts)] {
+            self.starts.clear();
+            if has_slope {
+                // φ = sign·y falls along −sign·c: the vertex −sign·sgn(c).
+                self.push_sign_vertex(-sign);
+            } else {
+                self.starts.resize(d, 0.0);
+            }
+            for start in given.chunks_exact(d) {
+                if !self.starts.chunks_exact(d).any(|earlier| earlier == start) {
+                    self.starts.extend_from_slice(start);
                 }
             }
-            *best = sign * best_phi;
+            std::mem::swap(&mut starts, &mut self.starts);
+            if sign > 0.0 {
+                out.lower =
+                    self.search_side(s, sign, &starts, &mut out.argmin, &mut out.iterations);
+            } else {
+                out.upper =
+                    -self.search_side(s, sign, &starts, &mut out.argmax, &mut out.iterations);
+            }
+            std::mem::swap(&mut starts, &mut self.starts);
         }
+        Ok(())
+    }
+
+    /// Appends the vertex `sign · sgn(c_r)` of the linear part `c` (0 where `c_r = 0`) to the
+    /// starts.
+    fn push_sign_vertex(&mut self, sign: f64) {
+        for &c in &self.linear {
+            self.starts
+                .push(if c == 0.0 { 0.0 } else { sign * c.signum() });
+        }
+    }
+
+    /// The smallest `φ = sign·y` the descents from `starts` (`k × d`) reach, with its point in
+    /// `arg` (the first of equal ones); the descents' iterations are added to `iterations`.
+    fn search_side(
+        &mut self,
+        s: &SparseSurrogate,
+        sign: f64,
+        starts: &[f64],
+        arg: &mut [f64],
+        iterations: &mut usize,
+    ) -> f64 {
+        let d = arg.len();
+        let mut best_phi = f64::INFINITY;
+        for start in starts.chunks_exact(d) {
+            self.x.copy_from_slice(start);
+            let (phi, spent) = self.descend(s, sign);
+            *iterations += spent;
+            if phi < best_phi {
+                best_phi = phi;
+                arg.copy_from_slice(&self.x);
+            }
+        }
+        best_phi
+    }
+
+    /// The outer half of [`BoxOptimizer::bound_into`]: `outer_lower` and `outer_upper` of `out`
+    /// from the interval enclosure of `s`'s range, widened to the inner bounds already in `out`.
+    pub fn enclose(&mut self, s: &SparseSurrogate, out: &mut BoxBounds) {
         let (lo, hi) = self.outer(s);
         // Rounding must never put the enclosure inside an attained value.
         out.outer_lower = lo.min(out.lower);
         out.outer_upper = hi.max(out.upper);
-        Ok(())
     }
 
     /// The outer bound alone (module doc): `(lower, upper)` containing the surrogate's range.
@@ -296,15 +364,23 @@ impl BoxOptimizer {
         (lower, upper)
     }
 
-    /// φ = sign·y and its derivatives at `self.x` into grad/hess (sign applied).
+    /// φ = sign·y and its gradient at `self.x` into grad (sign applied). The Hessian is left for
+    /// [`BoxOptimizer::evaluate_hessian`]: a descent that stops at this point (no free
+    /// coordinate, or converged) never needs it.
     fn evaluate(&mut self, s: &SparseSurrogate, sign: f64) -> f64 {
-        let y =
-            s.derivatives_unchecked(&self.x, &mut self.grad, Some(&mut self.hess), &mut self.ws);
+        let y = s.derivatives_unchecked(&self.x, &mut self.grad, None, &mut self.ws);
         if sign < 0.0 {
             self.grad.iter_mut().for_each(|g| *g = -*g);
-            self.hess.iter_mut().for_each(|h| *h = -*h);
         }
         sign * y
+    }
+
+    /// The Hessian of φ = sign·y at `self.x` into hess (sign applied).
+    fn evaluate_hessian(&mut self, s: &SparseSurrogate, sign: f64) {
+        s.hessian_unchecked(&self.x, &mut self.hess, &mut self.ws);
+        if sign < 0.0 {
+            self.hess.iter_mut().for_each(|h| *h = -*h);
+        }
     }
 
     fn phi_at_trial(&mut self, s: &SparseSurrogate, sign: f64) -> f64 {
@@ -329,6 +405,7 @@ impl BoxOptimizer {
             if nf == 0 {
                 break;
             }
+            self.evaluate_hessian(s, sign);
             let definite = self.newton_direction();
             let mut moved = false;
             if let Some(t) = self.line_search(s, sign, f, false, !definite) {
@@ -575,6 +652,32 @@ impl BoxOptimizer {
         }
         Some(f_best)
     }
+}
+
+/// Refuses start points that are not `k × d`, not finite or outside [−1, 1].
+fn check_starts(starts: &[f64], d: usize) -> Result<(), UqError> {
+    if !starts.len().is_multiple_of(d) {
+        return Err(UqError::WrongLength {
+            what: "box bound: start points (k × d)",
+            expected: (starts.len() / d + 1) * d,
+            got: starts.len(),
+        });
+    }
+    if let Some(index) = starts.iter().position(|v| !v.is_finite()) {
+        return Err(UqError::NonFinite {
+            what: "box bound: start points",
+            index,
+            value: starts[index],
+        });
+    }
+    if let Some(index) = starts.iter().position(|v| v.abs() > 1.0) {
+        return Err(UqError::InvalidInterval {
+            index,
+            lo: starts[index],
+            hi: starts[index],
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]

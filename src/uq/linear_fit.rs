@@ -158,6 +158,64 @@ impl LinearFit {
         Ok(())
     }
 
+    /// As [`LinearFit::fit_into`] with the values given row by row: `rows[p]` holds point p's
+    /// values of every column (all of the same length `width`), so that a caller whose runs are
+    /// stored apart fits every column at once without gathering them (one multi-right-hand-side
+    /// application of the map: e.g. every output at every record time of a design). Each column's
+    /// coefficients are those [`LinearFit::fit_into`] gives that column alone, to the bit.
+    ///
+    /// Errors: no rows or `width == 0`, a count or length that disagrees, a non-finite value (its
+    /// flat index `p · width + column`).
+    pub fn fit_rows_into(&self, rows: &[&[f64]], out: &mut [f64]) -> Result<(), UqError> {
+        let width = rows.first().map_or(0, |row| row.len());
+        if width == 0 {
+            return Err(UqError::Empty {
+                what: "fit: columns",
+            });
+        }
+        if rows.len() != self.n_points {
+            return Err(UqError::WrongLength {
+                what: "fit: rows (one per point)",
+                expected: self.n_points,
+                got: rows.len(),
+            });
+        }
+        if let Some(row) = rows.iter().find(|row| row.len() != width) {
+            return Err(UqError::WrongLength {
+                what: "fit: row (as long as the first)",
+                expected: width,
+                got: row.len(),
+            });
+        }
+        if out.len() != self.n_terms * width {
+            return Err(UqError::WrongLength {
+                what: "fit: out (n_terms × columns)",
+                expected: self.n_terms * width,
+                got: out.len(),
+            });
+        }
+        for (p, row) in rows.iter().enumerate() {
+            if let Some(column) = row.iter().position(|v| !v.is_finite()) {
+                return Err(UqError::NonFinite {
+                    what: "fit: values",
+                    index: p * width + column,
+                    value: row[column],
+                });
+            }
+        }
+        match &self.map {
+            Map::Dense(_) => {
+                let gathered: Vec<f64> = rows.iter().flat_map(|row| row.iter().copied()).collect();
+                self.fit_into(&gathered, width, out)?;
+            }
+            Map::Triangular { lower, upper } => {
+                apply_sparse_rows(lower, |j| rows[j], width, out);
+                apply_upper_in_place(upper, width, out);
+            }
+        }
+        Ok(())
+    }
+
     /// As [`LinearFit::fit_into`], into a new vector.
     pub fn fit(&self, values: &[f64], n_outputs: usize) -> Result<Vec<f64>, UqError> {
         let mut out = vec![0.0; self.n_terms * n_outputs];
@@ -227,12 +285,21 @@ impl LinearFit {
 
 /// `out[i, :] = Σ_j a[i, j] · x[j, :]` for sparse `a`, row-major blocks of `width` columns.
 fn apply_sparse(a: &SparseRows, x: &[f64], width: usize, out: &mut [f64]) {
+    apply_sparse_rows(a, |j| &x[j * width..(j + 1) * width], width, out);
+}
+
+/// As [`apply_sparse`] with row j of `x` given by `x_row(j)` (each `width` long).
+fn apply_sparse_rows<'x>(
+    a: &SparseRows,
+    x_row: impl Fn(usize) -> &'x [f64],
+    width: usize,
+    out: &mut [f64],
+) {
     for (i, dst) in out.chunks_exact_mut(width).enumerate() {
         dst.fill(0.0);
         let (cols, vals) = a.row(i);
         for (&j, &v) in cols.iter().zip(vals) {
-            let src = &x[j as usize * width..(j as usize + 1) * width];
-            for (d, &s) in dst.iter_mut().zip(src) {
+            for (d, &s) in dst.iter_mut().zip(x_row(j as usize)) {
                 *d += v * s;
             }
         }
@@ -270,6 +337,44 @@ fn apply_upper_in_place(u: &SparseRows, width: usize, y: &mut [f64]) {
 mod tests {
     use super::*;
     use crate::test_support::SplitMix64;
+
+    #[test]
+    fn fitting_rows_at_once_gives_each_column_to_the_bit() {
+        use crate::uq::{MultiIndexSet, SparseGrid};
+        use std::sync::Arc;
+        let grid = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(6, 3).unwrap())).unwrap();
+        let fit = grid.fit();
+        let (n, width) = (fit.n_points(), 37);
+        let mut rng = SplitMix64::new(41);
+        let stored: Vec<Vec<f64>> = (0..n)
+            .map(|_| (0..width).map(|_| rng.uniform(-3.0, 3.0)).collect())
+            .collect();
+        let rows: Vec<&[f64]> = stored.iter().map(Vec::as_slice).collect();
+        let mut all = vec![0.0; fit.n_terms() * width];
+        fit.fit_rows_into(&rows, &mut all).unwrap();
+        for column in [0, 1, 17, width - 1] {
+            let alone: Vec<f64> = stored.iter().map(|row| row[column]).collect();
+            let want = fit.fit(&alone, 1).unwrap();
+            for (t, &w) in want.iter().enumerate() {
+                assert_eq!(all[t * width + column].to_bits(), w.to_bits(), "term {t}");
+            }
+        }
+        // Bad input is refused, naming what.
+        assert!(fit.fit_rows_into(&rows[1..], &mut all).is_err());
+        let mut short = stored[3].clone();
+        short.pop();
+        let mut bad = rows.clone();
+        bad[3] = &short;
+        assert!(fit.fit_rows_into(&bad, &mut all).is_err());
+        let mut nan = stored[2].clone();
+        nan[5] = f64::NAN;
+        let mut bad = rows.clone();
+        bad[2] = &nan;
+        assert!(matches!(
+            fit.fit_rows_into(&bad, &mut all),
+            Err(UqError::NonFinite { index, .. }) if index == 2 * width + 5
+        ));
+    }
 
     #[test]
     fn dense_fit_is_a_matrix_product() {

@@ -270,19 +270,37 @@ impl SparseSurrogate {
         &self,
         xi: &[f64],
         grad: &mut [f64],
-        mut hess: Option<&mut [f64]>,
+        hess: Option<&mut [f64]>,
         ws: &mut SurrogateWorkspace,
     ) -> f64 {
-        let d = self.dim();
         ws.load(&self.set, xi, true);
+        let sum = self.value_and_gradient_from_tables(grad, ws);
+        if let Some(hess) = hess {
+            self.hessian_from_tables(hess, ws);
+        }
+        sum
+    }
+
+    /// The Hessian alone at `xi` into `hess` (d × d, overwritten), the same values as
+    /// [`SparseSurrogate::hessian`] gives; lengths already checked. A search that needs the
+    /// Hessian only where a Newton step follows asks for it apart.
+    pub(crate) fn hessian_unchecked(
+        &self,
+        xi: &[f64],
+        hess: &mut [f64],
+        ws: &mut SurrogateWorkspace,
+    ) {
+        ws.load(&self.set, xi, true);
+        self.hessian_from_tables(hess, ws);
+    }
+
+    /// Value and gradient from the tables `ws` holds (loaded with derivatives).
+    fn value_and_gradient_from_tables(&self, grad: &mut [f64], ws: &SurrogateWorkspace) -> f64 {
         let stride = self.set.max_degree() + 1;
-        let (v, g, h) = (&ws.values, &ws.first, &ws.second);
+        let (v, g) = (&ws.values, &ws.first);
         let c = &self.coefficients;
         let plan = self.set.plan();
         grad.fill(0.0);
-        if let Some(hess) = hess.as_deref_mut() {
-            hess.fill(0.0);
-        }
         let mut sum = c[0];
         for s in &plan.singles {
             let (ct, i, r) = (c[s.term as usize], s.index as usize, s.dim as usize);
@@ -297,29 +315,54 @@ impl SparseSurrogate {
             grad[ra] += ct * g[ia] * v[ib];
             grad[rb] += ct * v[ia] * g[ib];
         }
-        if let Some(hess) = hess.as_deref_mut() {
-            // Upper triangle (ra < rb: factors are sorted by dimension), mirrored below at the end.
-            for s in &plan.singles {
-                let (ct, i, r) = (c[s.term as usize], s.index as usize, s.dim as usize);
-                hess[r * d + r] += ct * h[i];
-            }
-            for p in &plan.pairs {
-                let ct = c[p.term as usize];
-                let (ia, ib) = (p.index_a as usize, p.index_b as usize);
-                let (ra, rb) = (p.dim_a as usize, p.dim_b as usize);
-                hess[ra * d + ra] += ct * h[ia] * v[ib];
-                hess[rb * d + rb] += ct * v[ia] * h[ib];
-                hess[ra * d + rb] += ct * g[ia] * g[ib];
-            }
-        }
         for &t in &plan.general {
             let t = t as usize;
             let ct = c[t];
             let idx = self.set.table_indices(t);
             let product: f64 = idx.iter().map(|&i| v[i as usize]).product();
             sum += ct * product;
-            // Products leaving out one or two factors, by direct multiplication (supports are
-            // at most the total degree).
+            // Products leaving out one factor, by direct multiplication (supports are at most
+            // the total degree).
+            for (a, &ia) in idx.iter().enumerate() {
+                let ia = ia as usize;
+                let others: f64 = idx
+                    .iter()
+                    .enumerate()
+                    .filter(|&(b, _)| b != a)
+                    .map(|(_, &i)| v[i as usize])
+                    .product();
+                grad[ia / stride] += ct * g[ia] * others;
+            }
+        }
+        sum
+    }
+
+    /// The Hessian from the tables `ws` holds (loaded with derivatives): the upper triangle term
+    /// by term (factors are sorted by dimension), mirrored below at the end.
+    fn hessian_from_tables(&self, hess: &mut [f64], ws: &SurrogateWorkspace) {
+        let d = self.dim();
+        let stride = self.set.max_degree() + 1;
+        let (v, g, h) = (&ws.values, &ws.first, &ws.second);
+        let c = &self.coefficients;
+        let plan = self.set.plan();
+        hess.fill(0.0);
+        for s in &plan.singles {
+            let (ct, i, r) = (c[s.term as usize], s.index as usize, s.dim as usize);
+            hess[r * d + r] += ct * h[i];
+        }
+        for p in &plan.pairs {
+            let ct = c[p.term as usize];
+            let (ia, ib) = (p.index_a as usize, p.index_b as usize);
+            let (ra, rb) = (p.dim_a as usize, p.dim_b as usize);
+            hess[ra * d + ra] += ct * h[ia] * v[ib];
+            hess[rb * d + rb] += ct * v[ia] * h[ib];
+            hess[ra * d + rb] += ct * g[ia] * g[ib];
+        }
+        for &t in &plan.general {
+            let t = t as usize;
+            let ct = c[t];
+            let idx = self.set.table_indices(t);
+            // Products leaving out one or two factors, by direct multiplication.
             for (a, &ia) in idx.iter().enumerate() {
                 let ia = ia as usize;
                 let others: f64 = idx
@@ -329,31 +372,25 @@ impl SparseSurrogate {
                     .map(|(_, &i)| v[i as usize])
                     .product();
                 let ra = ia / stride;
-                grad[ra] += ct * g[ia] * others;
-                if let Some(hess) = hess.as_deref_mut() {
-                    hess[ra * d + ra] += ct * h[ia] * others;
-                    for (b, &ib) in idx.iter().enumerate().skip(a + 1) {
-                        let ib = ib as usize;
-                        let rest: f64 = idx
-                            .iter()
-                            .enumerate()
-                            .filter(|&(e, _)| e != a && e != b)
-                            .map(|(_, &i)| v[i as usize])
-                            .product();
-                        let rb = ib / stride;
-                        hess[ra * d + rb] += ct * g[ia] * g[ib] * rest;
-                    }
+                hess[ra * d + ra] += ct * h[ia] * others;
+                for (b, &ib) in idx.iter().enumerate().skip(a + 1) {
+                    let ib = ib as usize;
+                    let rest: f64 = idx
+                        .iter()
+                        .enumerate()
+                        .filter(|&(e, _)| e != a && e != b)
+                        .map(|(_, &i)| v[i as usize])
+                        .product();
+                    let rb = ib / stride;
+                    hess[ra * d + rb] += ct * g[ia] * g[ib] * rest;
                 }
             }
         }
-        if let Some(hess) = hess {
-            for r in 0..d {
-                for q in r + 1..d {
-                    hess[q * d + r] = hess[r * d + q];
-                }
+        for r in 0..d {
+            for q in r + 1..d {
+                hess[q * d + r] = hess[r * d + q];
             }
         }
-        sum
     }
 
     /// The constant coefficient `c_0` (the mean of the surrogate under uniform ξ).

@@ -414,9 +414,10 @@ pub fn summary_series(summary: &serde_json::Value, output: &str, key: &str) -> V
 }
 
 /// The summary fields that depend on the machine and the moment, not on the study.
-pub const TIMING_FIELDS: [&str; 4] = [
+pub const TIMING_FIELDS: [&str; 5] = [
     "simulate_seconds",
     "bound_seconds",
+    "phase_seconds",
     "threads",
     "peak_memory_bytes",
 ];
