@@ -604,7 +604,7 @@ fn run_round(
             Ok(())
         },
     )?;
-    for bounder in &bounders {
+    for bounder in bounders.iter().flatten() {
         context
             .report
             .phase_seconds
