@@ -75,12 +75,13 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
     let options = study_options(&request.flags, &sidecar.analysis)?;
     let report_stems = prepare_report(&request.scene.urdf, outputs, &sidecar_path, &scene)?;
     // Kept per record time: the envelope (time; lower, upper, nominal and an error estimate per
-    // output) and, with --summary, its five copies per output; plus one block of samples.
-    // Surrogate studies also keep their Sobol' indices (and, with --summary, a copy).
+    // output) and, with --summary or --report, the summary's five copies per output; plus one
+    // block of samples. Surrogate studies also keep their Sobol' indices (and a copy in the
+    // summary).
     let sobol = sobol_values_per_record(options.method, space.len());
     let per_output = 4
         + sobol
-        + if outputs.summary.is_some() {
+        + if outputs.summary.is_some() || outputs.report.is_some() {
             5 + sobol
         } else {
             0
@@ -154,9 +155,13 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         advice,
     } = warn(&report, &kinematic_model, &scene, &space);
 
-    if let Some(path) = &outputs.summary {
+    // The summary JSON's contents, also the numbers of the report's browser page.
+    let summary = (outputs.summary.is_some() || outputs.report.is_some()).then(|| {
         let order = order_of(report.method, &options);
-        Summary::of_study(&robot, order, &space, &report, excursions, wall_seconds).write(path)?;
+        Summary::of_study(&robot, order, &space, &report, excursions, wall_seconds)
+    });
+    if let (Some(path), Some(summary)) = (&outputs.summary, &summary) {
+        summary.write(path)?;
     }
     if let Some(path) = &outputs.csv {
         write_envelope_csv(path, &report.envelope)?;
@@ -171,7 +176,7 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         log.finish(report.partial)?;
     }
     let table_text = table(&options, &space, &report, wall_seconds);
-    if let (Some(dir), Some(stems)) = (&outputs.report, &report_stems) {
+    if let (Some(dir), Some(stems), Some(summary)) = (&outputs.report, &report_stems, &summary) {
         write_report(
             dir,
             &robot,
@@ -179,6 +184,8 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
             &ReportText {
                 table: &table_text,
                 warnings: &warnings,
+                summary,
+                log: outputs.out.as_deref(),
             },
             stems,
             foxglove_layout,
