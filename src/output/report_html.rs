@@ -106,8 +106,8 @@ fn check_of(summary: &Summary, name: &str) -> Option<(f64, bool)> {
 }
 
 /// The sensitivity plot of output `o`: the total Sobol' index over time of each parameter
-/// [`plotted_dimensions`] picks; `None` when the study has no Sobol' indices for it or no
-/// parameter reaches the floor.
+/// `plotted_dimensions` picks (the parameters the log's layout plots); `None` when the study has
+/// no Sobol' indices for it or no parameter reaches the floor.
 pub fn sensitivity_svg(summary: &Summary, o: usize) -> Option<Result<String, PlotError>> {
     let sobol = summary.sobol_indices.as_ref()?;
     let output = sobol.outputs.get(o)?;
