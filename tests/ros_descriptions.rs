@@ -59,39 +59,6 @@ fn one_link_urdf(mesh_uri: &str) -> String {
     )
 }
 
-/// A closed cube of side 0.1 m as ASCII STL (12 triangles).
-fn cube_stl() -> String {
-    let h = 0.05;
-    let corners = |i: usize| {
-        [
-            if i & 1 == 0 { -h } else { h },
-            if i & 2 == 0 { -h } else { h },
-            if i & 4 == 0 { -h } else { h },
-        ]
-    };
-    let faces = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let mut stl = String::from("solid cube\n");
-    for f in faces {
-        for tri in [[f[0], f[1], f[2]], [f[0], f[2], f[3]]] {
-            stl.push_str("facet normal 0 0 0\nouter loop\n");
-            for v in tri {
-                let p = corners(v);
-                stl.push_str(&format!("vertex {} {} {}\n", p[0], p[1], p[2]));
-            }
-            stl.push_str("endloop\nendfacet\n");
-        }
-    }
-    stl.push_str("endsolid cube\n");
-    stl
-}
-
 /// A sidecar whose scene asks for contacts of `arm` with a ground far below (the mesh is loaded,
 /// nothing touches).
 const CONTACT_SIDECAR: &str = "[scene]\nduration = 0.01\n\n[scene.contact]\n\
@@ -188,7 +155,11 @@ fn a_urdf_that_only_declares_xacro_loads_and_its_package_meshes_resolve() {
     let repo = ws.join("src").join("Tiny_Robot_Description");
     package(&repo, "tiny_description");
     fs::create_dir_all(repo.join("meshes")).unwrap();
-    fs::write(repo.join("meshes").join("cube.stl"), cube_stl()).unwrap();
+    fs::write(
+        repo.join("meshes").join("cube.stl"),
+        common::binary_stl(&common::cube(0.05)),
+    )
+    .unwrap();
     // The expanded URDF beside the workspace's src/: the package is one level below an ancestor.
     let urdf = ws.join("tiny.urdf");
     fs::write(
