@@ -6,6 +6,7 @@
 //!
 //! Modules, in data-flow order:
 //! - [`model`] — URDF → kinematic tree ([`model::Model`]);
+//! - [`ros`] — ROS packages on disk (`package://` URIs) and xacro files refused with their command;
 //! - [`params`] — the parameter registry (dotted paths such as `link.forearm_link.mass`);
 //! - [`sidecar`] — the sidecar file as written, and the expansion of its `[parameters]` patterns;
 //! - [`spatial`] — 6D spatial algebra;
@@ -47,6 +48,7 @@ pub mod model;
 pub mod nominal_run;
 pub mod output;
 pub mod params;
+pub mod ros;
 pub mod scene;
 pub mod setup;
 pub mod sidecar;

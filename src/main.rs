@@ -17,7 +17,8 @@ fn main() -> ExitCode {
             if code == ribbon::distributed::NEXT_STAGE_EXIT_CODE {
                 eprintln!("{error}");
             } else {
-                eprintln!("error: {error}");
+                // A long message: a headline, then its details and what to do, indented.
+                eprintln!("error: {}", ribbon::text::laid_out(&error.to_string()));
             }
             ExitCode::from(code)
         }

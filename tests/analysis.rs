@@ -665,10 +665,7 @@ fn a_chaotic_motion_is_reported_and_a_regular_one_is_not() {
     assert!(stderr.contains("the nominal motion is chaotic"), "{stderr}");
     assert!(stderr.contains("cannot be trusted"), "{stderr}");
     // The exit-4 advice names the separation as the cause instead of a higher order.
-    let error = stderr
-        .lines()
-        .find(|l| l.starts_with("error:"))
-        .unwrap_or_default();
+    let error = common::error_block(&stderr);
     assert!(
         error.contains("the nominal motion separates nearby trajectories at")
             && !error.contains("raise --order"),

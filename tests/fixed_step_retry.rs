@@ -146,8 +146,9 @@ fn a_study_completes_when_samples_fail_only_at_the_fixed_step() {
         // The same failure by `ribbon simulate` at that value, and no failure adaptively.
         let fixed = simulate(&urdf, value, false);
         assert_eq!(fixed.code, Some(1), "{}", fixed.stderr);
+        // On stderr the long message is laid out: a headline, then its clauses indented.
         assert!(
-            fixed.stderr.contains(error),
+            fixed.stderr.contains(&ribbon::text::laid_out(error)),
             "{}\nnot in\n{}",
             error,
             fixed.stderr
@@ -390,11 +391,12 @@ fn a_sample_failing_both_ways_fails_the_study_with_the_fixed_steps_message() {
         .lines()
         .find(|l| l.starts_with("error: "))
         .unwrap_or_else(|| panic!("{}", out.stderr));
+    // A one-line headline, then the details (the values it failed at among them), indented.
     assert!(
         error.starts_with(
-            "error: sample 1 of 27 failed at t = 0.179 s, at parameter values [0.09992254033307585, 0.08989638954425744,"
-        ) && error.contains(
-            "simulation failed: Newton did not converge at t = 0.179 s (step 179) after 9 iterations"
+            "error: sample 1 of 27 failed at t = 0.179 s: simulation failed: Newton did not converge at t = 0.179 s (step 179) after 9 iterations"
+        ) && out.stderr.contains(
+            "\n  at parameter values [0.09992254033307585, 0.08989638954425744,"
         ),
         "{error}"
     );

@@ -2,6 +2,9 @@
 //! the convex hull of its scaled vertices, rests like the primitive it hulls, and bad mesh files
 //! are refused naming the URDF, the link, the collision index and the resolved path.
 
+mod common;
+
+use common::{binary_stl, cube};
 use ribbon::model::{parse_description, LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::simulate;
@@ -34,22 +37,6 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-/// A binary STL of `triangles`.
-fn binary_stl(triangles: &[[[f32; 3]; 3]]) -> Vec<u8> {
-    let mut bytes = vec![0u8; 80];
-    bytes.extend_from_slice(&(triangles.len() as u32).to_le_bytes());
-    for triangle in triangles {
-        bytes.extend_from_slice(&[0u8; 12]); // normal: recomputed by readers
-        for vertex in triangle {
-            for x in vertex {
-                bytes.extend_from_slice(&x.to_le_bytes());
-            }
-        }
-        bytes.extend_from_slice(&[0u8; 2]);
-    }
-    bytes
-}
-
 /// An ASCII STL of `triangles`.
 fn ascii_stl(triangles: &[[[f32; 3]; 3]]) -> String {
     let mut text = String::from("solid test\n");
@@ -62,29 +49,6 @@ fn ascii_stl(triangles: &[[[f32; 3]; 3]]) -> String {
     }
     text.push_str("endsolid test\n");
     text
-}
-
-/// The 12 outward triangles of the cube `[-h, h]³`.
-fn cube(h: f32) -> Vec<[[f32; 3]; 3]> {
-    let c = |i: usize| {
-        [
-            if i & 1 == 0 { -h } else { h },
-            if i & 2 == 0 { -h } else { h },
-            if i & 4 == 0 { -h } else { h },
-        ]
-    };
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    quads
-        .iter()
-        .flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]])
-        .collect()
 }
 
 /// A tetrahedron whose base lies at z = `-base` (m) below its origin and whose apex is above.

@@ -5,7 +5,8 @@
 //! study (a screened design, two stages) through `examples/slurm/stages.sh`, the same way.
 //!
 //! When Slurm is absent the test installs Debian's `slurm-wlm` (`apt-get install -y slurm-wlm`,
-//! as root); when it cannot, it fails with the command to run. It never skips.
+//! as root) on CI (`CI` set) or when the person running it opted in (`RIBBON_TEST_INSTALL=1`);
+//! otherwise, or when it cannot, it fails with the command to run. It never skips.
 
 mod common;
 
@@ -23,15 +24,6 @@ fn manifest() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn have(program: &str) -> bool {
-    Command::new("sh")
-        .arg("-c")
-        .arg(format!("command -v {program}"))
-        .stdout(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
-}
-
 fn run(command: &mut Command, what: &str) -> Output {
     let out = command
         .output()
@@ -46,19 +38,14 @@ fn run(command: &mut Command, what: &str) -> Output {
     out
 }
 
-/// Installs `slurm-wlm` when `slurmctld`, `slurmd` or `sbatch` is missing.
+/// Installs `slurm-wlm` when `slurmctld`, `slurmd`, `sbatch` or `sinfo` is missing — on CI or when
+/// the person running the tests opted in (`RIBBON_TEST_INSTALL=1`); otherwise fails naming the
+/// command ([`common::ensure_system_programs`]).
 fn ensure_slurm() {
-    if ["slurmctld", "slurmd", "sbatch", "sinfo"]
-        .iter()
-        .all(|p| have(p))
-    {
-        return;
-    }
-    let install = "apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y slurm-wlm";
-    let status = Command::new("sh").arg("-c").arg(install).status();
-    assert!(
-        status.is_ok_and(|s| s.success()) && have("slurmctld") && have("slurmd"),
-        "Slurm is not installed and could not be installed here; run as root:\n    {install}\nthen run `cargo test --release --test slurm` again"
+    common::ensure_system_programs(
+        "slurm",
+        &["slurmctld", "slurmd", "sbatch", "sinfo"],
+        &["slurm-wlm"],
     );
 }
 

@@ -72,9 +72,9 @@ const REFUSALS: &[(&str, &str, Pinocchio)] = &[
         Pinocchio::Refuses,
     ),
     (
-        // Unexpanded xacro: $(optenv …).
+        // Unexpanded xacro: $(optenv …), refused as xacro with the command (docs/ros.md §1).
         "bullet3/husky/husky.urdf",
-        "97: joint 'imu_joint' <origin>: xyz=\"$(optenv HUSKY_IMU_XYZ 0.19 0 0.149)\" is not three numbers",
+        "97: this is a xacro file, not a URDF (<origin rpy=\"$(optenv HUSKY_IMU_RPY 0 -1.5708 3.1416)\">); ribbon reads URDF only\n  expand it with xacro, then run ribbon on husky.expanded.urdf:",
         Pinocchio::Refuses,
     ),
     (

@@ -420,7 +420,7 @@ impl StudyResult {
     }
 
     /// Writes the report of `ribbon analyze --report DIR` into `dir` (created if missing): the
-    /// table, a band plot per output, the warnings.
+    /// table, a band plot per output, the warnings, the page for the browser (`index.html`).
     fn report(&self, py: Python<'_>, dir: PathBuf) -> PyResult<()> {
         py.detach(|| -> Result<(), ribbon::Error> {
             let outputs = StudyOutputs {
@@ -430,6 +430,7 @@ impl StudyResult {
             let stems = prepare_report(&self.urdf, &outputs, &self.sidecar_path, &self.scene)?
                 .unwrap_or_default();
             let table_text = table(&self.options, &self.space, &self.report, self.wall_seconds);
+            let summary = self.summary_of_study();
             write_report(
                 &dir,
                 self.model.name(),
@@ -437,6 +438,8 @@ impl StudyResult {
                 &ReportText {
                     table: &table_text,
                     warnings: &self.warnings,
+                    summary: &summary,
+                    log: None,
                 },
                 &stems,
                 None,

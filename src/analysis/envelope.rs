@@ -41,7 +41,11 @@ pub type OuterBounds = (Vec<Vec<f64>>, Vec<Vec<f64>>);
 /// The record where output `o`'s envelope is widest (the first of equal widths); `None` without
 /// records.
 pub fn widest_record(envelope: &Envelope, o: usize) -> Option<usize> {
-    let (lower, upper) = (envelope.lower.get(o)?, envelope.upper.get(o)?);
+    widest_index(envelope.lower.get(o)?, envelope.upper.get(o)?)
+}
+
+/// The index where `upper − lower` is largest (the first of equal widths); `None` when empty.
+pub fn widest_index(lower: &[f64], upper: &[f64]) -> Option<usize> {
     lower
         .iter()
         .zip(upper)

@@ -18,8 +18,8 @@ pub enum StudyError {
     #[error("interval mathematics: {0}")]
     Uq(#[from] UqError),
     /// A sample failed and the study cannot go on.
-    #[error("{} failed at t = {} s, at parameter values {:?} (ξ = {:?}): {}. {hint}",
-        .run, crate::text::message_time(.failure.time_s), .failure.values, .failure.xi, .failure.message)]
+    #[error("{} failed at t = {} s: {}; at parameter values {:?} (ξ = {:?}). {hint}",
+        .run, crate::text::message_time(.failure.time_s), .failure.message, .failure.values, .failure.xi)]
     SampleFailed {
         /// Which run: "the nominal run", "sample 3 of 25", "check run 2 of 8".
         run: String,

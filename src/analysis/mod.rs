@@ -67,7 +67,7 @@ pub use elements::{
 };
 pub use elements_phase::ELEMENT_TENSOR_MAX_DIM;
 pub use engine::{BlockOutcome, LockStep, RecordSource};
-pub use envelope::{widest_record, Envelope, OuterBounds};
+pub use envelope::{widest_index, widest_record, Envelope, OuterBounds};
 pub use error::{ForeignError, StudyError};
 pub use lyapunov::{
     estimate_lyapunov, LyapunovEstimate, CHAOS_AMPLIFICATION, COLLAPSED_SEPARATION, MAX_PULL,

@@ -32,9 +32,10 @@ pub(super) struct LoadedMesh {
 
 /// Where `filename` (as written in the URDF at `urdf_path`) is on disk: `file://` and absolute
 /// paths as they are, relative ones against the URDF's directory; `package://PKG/REST` as
-/// `DIR/PKG/REST` for `DIR` in `ROS_PACKAGE_PATH`, then for the URDF's directory and each of its
-/// ancestors (also `DIR/REST` when `DIR` itself is named `PKG`). The first existing file wins;
-/// when none exists, the first candidate is returned (and loading it reports it missing).
+/// `REST` inside the directory of package `PKG` that [`crate::ros::find_package`] finds
+/// (`ROS_PACKAGE_PATH`, `AMENT_PREFIX_PATH`, the URDF's ancestors and their `package.xml`;
+/// docs/ros.md §2). A package that is not found leaves the URI as it is (and loading it reports
+/// it missing).
 pub fn resolve_mesh_path(urdf_path: &str, filename: &str) -> PathBuf {
     let urdf_dir = Path::new(urdf_path)
         .parent()
@@ -42,30 +43,8 @@ pub fn resolve_mesh_path(urdf_path: &str, filename: &str) -> PathBuf {
         .unwrap_or_default();
     if let Some(rest) = filename.strip_prefix("package://") {
         let (package, inside) = rest.split_once('/').unwrap_or((rest, ""));
-        let mut candidates = Vec::new();
-        if let Some(paths) = std::env::var_os("ROS_PACKAGE_PATH") {
-            for dir in std::env::split_paths(&paths) {
-                candidates.push(dir.join(package).join(inside));
-            }
-        }
-        let absolute_dir = std::fs::canonicalize(if urdf_dir.as_os_str().is_empty() {
-            Path::new(".")
-        } else {
-            &urdf_dir
-        })
-        .unwrap_or_else(|_| urdf_dir.clone());
-        for dir in absolute_dir.ancestors() {
-            if dir.file_name().is_some_and(|n| n == package) {
-                candidates.push(dir.join(inside));
-            }
-            candidates.push(dir.join(package).join(inside));
-        }
-        return candidates
-            .iter()
-            .find(|c| c.is_file())
-            .or(candidates.first())
-            .cloned()
-            .unwrap_or_else(|| PathBuf::from(filename));
+        return crate::ros::find_package(package, Path::new(urdf_path))
+            .map_or_else(|| PathBuf::from(filename), |dir| dir.join(inside));
     }
     let plain = filename.strip_prefix("file://").unwrap_or(filename);
     let path = Path::new(plain);
@@ -101,7 +80,7 @@ pub(super) fn load_mesh(
     }
     let bytes = std::fs::read(&resolved).map_err(|e| {
         problem(format!(
-            "cannot read the file ({e}); check the path (relative names are resolved against the URDF's directory, package:// through ROS_PACKAGE_PATH and the URDF's ancestors)"
+            "cannot read the file ({e}); check the path (relative names are resolved against the URDF's directory; package://PKG/… inside package PKG: {})", crate::ros::package_search_note()
         ))
     })?;
     let scene = mesh_loader::Loader::default()

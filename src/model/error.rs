@@ -42,6 +42,19 @@ pub enum ModelError {
         /// Levels of markup inside DOCTYPE entity values, counted on top of the document's own.
         entities: usize,
     },
+    /// A xacro file (named `*.xacro`, or with xacro markup outside comments): refused with the
+    /// command that expands it (`crate::ros::xacro`).
+    #[error("{path}:{line}: this is a xacro file, not a URDF ({what}); ribbon reads URDF only{}", details.iter().map(|l| format!("\n  {l}")).collect::<String>())]
+    Xacro {
+        /// The file.
+        path: String,
+        /// Line of the first markup (1 when the name alone tells).
+        line: u32,
+        /// The first markup, or the file name.
+        what: String,
+        /// What to do: the commands that expand it and the packages they need, one per line.
+        details: Vec<String>,
+    },
     /// The root element is not `<robot>`.
     #[error("{path}:{line}: the root element is <{found}>, expected <robot>; is this a URDF file (an SDF or MJCF file is not)?")]
     NotRobot {

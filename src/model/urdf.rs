@@ -10,9 +10,13 @@
 //!   without a name, a second `<material>` in one `<visual>`), a top-level `<material>` without a
 //!   name, extra elements in a `<geometry>`, whitespace before the `<?xml?>` declaration, NUL
 //!   bytes after the document, bytes that are not UTF-8. `<texture>`,
-//!   `<calibration>`, `<safety_controller>`, transmissions, Gazebo tags and prefixed elements
-//!   (`<xacro:…>`) are ignored; a prefix used without its `xmlns:` declaration (`<sensor:camera>`
-//!   in older ROS files) loads with a note, as tinyxml2 does not check namespaces.
+//!   `<calibration>`, `<safety_controller>`, transmissions, Gazebo tags and other prefixed
+//!   elements are ignored; a prefix used without its `xmlns:` declaration (`<sensor:camera>` in
+//!   older ROS files) loads with a note, as tinyxml2 does not check namespaces.
+//! - **Xacro is refused** (`crate::ros::xacro`, docs/ros.md §1): a file named `*.xacro`, or with an
+//!   element in a xacro namespace or a `${…}` / `$(…)` attribute outside comments, is an error
+//!   naming the line and the `xacro` command that expands it (Pinocchio reads such a file as
+//!   URDF and ignores the macros).
 //! - **An element repeated identically** (two equal `<axis>`) loads with a note; **repeated with
 //!   different contents** it is an error naming both lines (Pinocchio silently reads the first).
 //! - **Values that dynamics depend on are never guessed**: a missing `<mass>` or `<inertia>`
@@ -70,6 +74,13 @@ fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description
     let text = xml::cut_trailing_nul(text, path, &mut notes);
     let text = xml::blank_late_declaration(text, path, &mut notes);
     let declared: String;
+    let named_xacro = path.ends_with(".xacro");
+    let xacro = |line: u32, what: String| ModelError::Xacro {
+        path: path.to_string(),
+        line,
+        what,
+        details: crate::ros::xacro_command(Path::new(path), &text),
+    };
     let doc = match xml::parse(&text, path) {
         Ok(doc) => doc,
         Err(error) => match xml::declare_undeclared_prefixes(&text, path, &mut notes) {
@@ -77,11 +88,21 @@ fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description
                 declared = text;
                 xml::parse(&declared, path)?
             }
+            None if named_xacro => {
+                return Err(xacro(1, "the file name ends in .xacro".to_string()))
+            }
             None => return Err(error),
         },
     };
     let root = doc.root_element();
     let mut reader = xml::Reader::new(&doc, root, path);
+    // Xacro markup (or the name): refused with the command that expands it (docs/ros.md §1).
+    if let Some((node, markup)) = crate::ros::xacro::first_markup(&doc) {
+        return Err(xacro(reader.line(node), markup.what));
+    }
+    if named_xacro {
+        return Err(xacro(1, "the file name ends in .xacro".to_string()));
+    }
     reader.notes = notes;
     if root.tag_name().name() != "robot" {
         return Err(ModelError::NotRobot {

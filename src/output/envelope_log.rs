@@ -25,6 +25,19 @@ use std::path::Path;
 /// crowds the plot.
 pub const SENSITIVITY_PLOT_FLOOR: f64 = 0.01;
 
+/// The dimensions an output's sensitivity plot shows, from each dimension's peak total Sobol'
+/// index over the record times: those reaching [`SENSITIVITY_PLOT_FLOOR`], largest peak first
+/// (ties by dimension order), at most as many as there are sensitivity colours. The log's layout
+/// and the report page plot the same ones.
+pub fn plotted_dimensions(peaks: &[f64]) -> Vec<usize> {
+    let mut ranked: Vec<usize> = (0..peaks.len())
+        .filter(|&j| peaks[j] >= SENSITIVITY_PLOT_FLOOR)
+        .collect();
+    ranked.sort_by(|&a, &b| peaks[b].total_cmp(&peaks[a]).then(a.cmp(&b)));
+    ranked.truncate(SENSITIVITY_COLOURS.len());
+    ranked
+}
+
 /// An open envelope log.
 pub struct EnvelopeLog {
     sink: McapSink,
@@ -350,11 +363,7 @@ impl EnvelopeLog {
     /// order), at most as many as there are sensitivity colours; `None` without Sobol' channels.
     fn sensitivity(&self, o: usize, output: &LayoutOutput) -> Option<LayoutSensitivity> {
         let peaks = self.sobol_peaks.get(o)?;
-        let mut ranked: Vec<usize> = (0..peaks.len())
-            .filter(|&j| peaks[j] >= SENSITIVITY_PLOT_FLOOR)
-            .collect();
-        ranked.sort_by(|&a, &b| peaks[b].total_cmp(&peaks[a]).then(a.cmp(&b)));
-        ranked.truncate(SENSITIVITY_COLOURS.len());
+        let ranked = plotted_dimensions(peaks);
         Some(LayoutSensitivity {
             topic: format!(
                 "{SOBOL_PREFIX}{}/{}",

@@ -1,6 +1,7 @@
 //! Sinks for results: CSV series, the summary JSON of the design contract, MCAP logs for Foxglove and
 //! rerun ([`mcap`]) with what the viewers need to show them ([`viewer`]), band and scatter plots
-//! ([`plot`]) and the report directory of `analyze --report` ([`report`]).
+//! ([`plot`]) and the report directory of `analyze --report` ([`report`], its browser page
+//! [`report_html`]).
 //!
 //! Every output goes through [`paths`]: checked before any simulation ([`check_outputs`]: never an
 //! input, a directory, a special file or a symlink; never two outputs on one file), written to a
@@ -17,6 +18,7 @@ pub mod mcap;
 pub mod paths;
 pub mod plot;
 pub mod report;
+pub mod report_html;
 mod study_summary;
 mod summary;
 pub mod viewer;

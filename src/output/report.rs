@@ -1,6 +1,7 @@
-//! The report directory of `ribbon analyze --report DIR` (docs/mcap.md §7): `report.md` with the
-//! study's table, one band plot per output as `<output>.svg` and `<output>.png`, and, when the study
-//! also wrote a log, the log's Foxglove layout as `foxglove-layout.json`.
+//! The report directory of `ribbon analyze --report DIR` (docs/mcap.md §7): `index.html`, the
+//! self-contained page for the browser (`report_html`), `report.md` with the study's table, one
+//! band plot per output as `<output>.svg` and `<output>.png`, and, when the study also wrote a log
+//! (`--out`), the log's Foxglove layout as `foxglove-layout.json`.
 //!
 //! A band plot shades the region between the lower and upper bound (labelled with the bound's
 //! kind: inner, outer, reference), draws the nominal run as a solid line and, where a sparse
@@ -9,6 +10,8 @@
 
 use super::error::OutputError;
 use super::plot::{Layer, PlotError, TimePlot};
+use super::report_html::{html_page, HtmlReport, REPORT_HTML};
+use super::summary::Summary;
 use super::viewer::FOXGLOVE_LAYOUT_NAME;
 use super::write_atomically;
 use std::collections::HashSet;
@@ -163,7 +166,7 @@ pub fn file_stems<'a>(names: impl IntoIterator<Item = &'a str>) -> Vec<String> {
 
 /// Every file `--report DIR` writes, for checking before the study runs.
 pub fn report_files(stems: &[String], with_layout: bool) -> Vec<String> {
-    let mut files = vec![REPORT_PAGE.to_string()];
+    let mut files = vec![REPORT_HTML.to_string(), REPORT_PAGE.to_string()];
     for stem in stems {
         files.push(format!("{stem}.svg"));
         files.push(format!("{stem}.png"));
@@ -216,10 +219,14 @@ pub struct AnalyzeReport<'a> {
     pub bound_kind: &'a str,
     /// The log's Foxglove layout, when the study wrote a log.
     pub foxglove_layout: Option<serde_json::Value>,
+    /// The study's summary (every number of `index.html`).
+    pub summary: &'a Summary,
+    /// The log the study wrote (`--out`), named on the page with how to open it.
+    pub log: Option<&'a Path>,
 }
 
 /// Writes the report into `dir` (which [`crate::output::prepare_output_directory`] has checked
-/// for [`report_files`]): the plots, the layout, then `report.md`.
+/// for [`report_files`]): the plots, the layout, `report.md`, then `index.html`.
 pub fn write_analyze_report(dir: &Path, report: &AnalyzeReport<'_>) -> Result<(), OutputError> {
     let warnings: String = report
         .warnings
@@ -266,16 +273,31 @@ pub fn write_analyze_report(dir: &Path, report: &AnalyzeReport<'_>) -> Result<()
              (*Layouts → Import from file…*).\n\n"
         ));
     }
+    let mut band_svgs = Vec::with_capacity(report.outputs.len());
     for (output, stem) in report.outputs.iter().zip(report.stems) {
         let plot = band_plot(report.times, output, report.bound_kind);
-        write_plot(dir, stem, plot.svg(), plot.png())?;
+        let svg_path = dir.join(format!("{stem}.svg"));
+        let svg = plot.svg().map_err(|e| plot_error(&svg_path, e))?;
+        write_plot(dir, stem, Ok(svg.clone()), plot.png())?;
+        band_svgs.push(svg);
         page.push_str(&format!(
             "## {}\n\n![{}]({stem}.svg)\n\n",
             axis_label(output.name, output.unit),
             output.name
         ));
     }
-    write_atomically(&dir.join(REPORT_PAGE), "report", page.as_bytes())
+    write_atomically(&dir.join(REPORT_PAGE), "report", page.as_bytes())?;
+    let html_path = dir.join(REPORT_HTML);
+    let html = html_page(&HtmlReport {
+        title: &report.title,
+        warnings: report.warnings,
+        table: report.table,
+        summary: report.summary,
+        band_svgs: &band_svgs,
+        log: report.log,
+    })
+    .map_err(|e| plot_error(&html_path, e))?;
+    write_atomically(&html_path, "report page", html.as_bytes())
 }
 
 #[cfg(test)]
@@ -306,6 +328,7 @@ mod tests {
         assert_eq!(
             report_files(&stems[..1], true),
             [
+                "index.html",
                 "report.md",
                 "q.elbow_joint.svg",
                 "q.elbow_joint.png",

@@ -1,7 +1,7 @@
 //! The report directory of a study (`--report DIR`, docs/mcap.md §7): checked and created before
 //! the study runs (every file it will hold a valid output), then written from the study's report —
 //! the table and the warnings, a band plot per output with a few of the check's true runs on it,
-//! and the log's Foxglove layout.
+//! the page for the browser (`index.html`, from the study's summary) and the log's Foxglove layout.
 //!
 //! Does not: draw or format (`output::report`, `output::plot`).
 
@@ -10,7 +10,7 @@ use crate::analysis::StudyReport;
 use crate::output::report::{
     file_stems, report_files, write_analyze_report, AnalyzeReport, ReportOutput,
 };
-use crate::output::{check_outputs, prepare_output_directory};
+use crate::output::{check_outputs, prepare_output_directory, Summary};
 use crate::scene::Scene;
 use crate::Error;
 use std::path::{Path, PathBuf};
@@ -46,15 +46,20 @@ pub fn prepare_report(
 /// Most dots of true-model runs in one report plot.
 const REPORT_TRUE_RUN_DOTS: usize = 40;
 
-/// The text a study printed, for its report page.
+/// What a study printed and wrote, for its report pages.
 pub struct ReportText<'a> {
     /// The stdout table.
     pub table: &'a str,
     /// The warnings printed on stderr (without the `warning: ` prefix).
     pub warnings: &'a [String],
+    /// The study's summary (the numbers of `index.html`; the same as `--summary`'s).
+    pub summary: &'a Summary,
+    /// The MCAP log the study wrote (`--out`), if any.
+    pub log: Option<&'a Path>,
 }
 
-/// Writes `--report DIR` (docs/mcap.md §7): the table, a band plot per output, the log's layout.
+/// Writes `--report DIR` (docs/mcap.md §7): the table, a band plot per output, the browser page,
+/// the log's layout.
 pub fn write_report(
     dir: &Path,
     robot: &str,
@@ -130,6 +135,8 @@ pub fn write_report(
             stems,
             bound_kind: report.method.bound_kind(),
             foxglove_layout,
+            summary: text.summary,
+            log: text.log,
         },
     )?;
     eprintln!("report written to {}", dir.display());

@@ -73,7 +73,13 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
     } = prepare(&request.scene)?;
     let options = study_options(&request.flags, &sidecar.analysis)?;
     let report_stems = prepare_report(&request.scene.urdf, outputs, &sidecar_path, &scene)?;
-    check_study_memory(&scene, &options, &space, outputs.summary.is_some())?;
+    // The summary is built with --summary or --report (the report's browser page reads it).
+    check_study_memory(
+        &scene,
+        &options,
+        &space,
+        outputs.summary.is_some() || outputs.report.is_some(),
+    )?;
     let robot = model.name().to_string();
     let study = Study::new(&model, &scene, &space, options.clone());
     let plan = study.plan()?;
@@ -122,12 +128,16 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         advice,
     } = warn(&report, &kinematic_model, &scene, &space);
 
-    if let Some(path) = &outputs.summary {
+    // The summary JSON's contents, also the numbers of the report's browser page.
+    let summary = (outputs.summary.is_some() || outputs.report.is_some()).then(|| {
         let order = order_of(report.method, &options);
         let t_summary = Instant::now();
         let mut summary =
             Summary::of_study(&robot, order, &space, &report, excursions, wall_seconds);
         summary.set_summary_seconds(t_summary.elapsed().as_secs_f64());
+        summary
+    });
+    if let (Some(path), Some(summary)) = (&outputs.summary, &summary) {
         summary.write(path)?;
     }
     if let Some(path) = &outputs.csv {
@@ -138,7 +148,7 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         close_log(log, &report, &space)?;
     }
     let table_text = table(&options, &space, &report, wall_seconds);
-    if let (Some(dir), Some(stems)) = (&outputs.report, &report_stems) {
+    if let (Some(dir), Some(stems), Some(summary)) = (&outputs.report, &report_stems, &summary) {
         write_report(
             dir,
             &robot,
@@ -146,6 +156,8 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
             &ReportText {
                 table: &table_text,
                 warnings: &warnings,
+                summary,
+                log: outputs.out.as_deref(),
             },
             stems,
             foxglove_layout,

@@ -108,7 +108,7 @@ pub fn warn(
         ));
     }
     for warning in &warnings {
-        eprintln!("warning: {warning}");
+        eprintln!("warning: {}", crate::text::laid_out(warning));
     }
     StudyWarnings {
         warnings,

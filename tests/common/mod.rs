@@ -534,3 +534,121 @@ fn emptied(dir: PathBuf) -> PathBuf {
     fs::create_dir_all(&dir).expect("create the scratch directory");
     dir
 }
+
+/// The variable by which a person lets the tests change this machine (install Debian packages
+/// with apt-get, as root) outside CI: `RIBBON_TEST_INSTALL=1`.
+pub const INSTALL_OPT_IN: &str = "RIBBON_TEST_INSTALL";
+
+/// Whether a test may install system packages: on a CI machine (`CI` set, as `.ci/run` and CI
+/// services set it, and not `false` or `0`) or when the person running the tests opted in
+/// ([`INSTALL_OPT_IN`]`=1`). Otherwise a test that lacks a system program fails, naming the
+/// command that opts in: system-changing set-up never happens in a default `cargo test`.
+pub fn system_install_allowed() -> bool {
+    let set =
+        |name: &str| std::env::var(name).is_ok_and(|v| !v.is_empty() && v != "0" && v != "false");
+    set("CI") || set(INSTALL_OPT_IN)
+}
+
+/// Whether `program` is on `PATH`.
+pub fn have_program(program: &str) -> bool {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("command -v {program}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// Makes sure every one of `programs` is on `PATH`: when one is missing and
+/// [`system_install_allowed`], installs the Debian `packages` (`apt-get install -y`, as root);
+/// when it is not allowed, or the install fails, panics with the exact commands: the one that
+/// opts in to the install, and the install itself. `test` is the test file's name (`slurm`).
+pub fn ensure_system_programs(test: &str, programs: &[&str], packages: &[&str]) {
+    let missing: Vec<&str> = programs
+        .iter()
+        .copied()
+        .filter(|p| !have_program(p))
+        .collect();
+    if missing.is_empty() {
+        return;
+    }
+    let install = format!(
+        "apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y {}",
+        packages.join(" ")
+    );
+    if !system_install_allowed() {
+        panic!(
+            "{test}: {} not installed, and this test installs system packages only on CI (CI=1) \
+             or when you opt in. Either run\n    {INSTALL_OPT_IN}=1 cargo test --release --test \
+             {test}\n(it runs `{install}` as root), or install them yourself:\n    sudo sh -c \
+             '{install}'",
+            missing.join(", ")
+        );
+    }
+    eprintln!("{test}: installing {} ({install})", packages.join(" "));
+    let status = Command::new("sh").arg("-c").arg(&install).status();
+    let still_missing: Vec<&str> = programs
+        .iter()
+        .copied()
+        .filter(|p| !have_program(p))
+        .collect();
+    assert!(
+        status.is_ok_and(|s| s.success()) && still_missing.is_empty(),
+        "{test}: {} could not be installed here (not root?); run as root:\n    {install}\nthen \
+         run `cargo test --release --test {test}` again",
+        missing.join(", ")
+    );
+}
+
+/// The error a command printed: its `error:` headline and the indented lines of details under it
+/// (`ribbon::text::laid_out`), joined by newlines; empty when there is none.
+pub fn error_block(stderr: &str) -> String {
+    let mut lines = stderr.lines().skip_while(|l| !l.starts_with("error:"));
+    let Some(headline) = lines.next() else {
+        return String::new();
+    };
+    std::iter::once(headline)
+        .chain(lines.take_while(|l| l.starts_with("  ")))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// A binary STL of `triangles`.
+pub fn binary_stl(triangles: &[[[f32; 3]; 3]]) -> Vec<u8> {
+    let mut bytes = vec![0u8; 80];
+    bytes.extend_from_slice(&(triangles.len() as u32).to_le_bytes());
+    for triangle in triangles {
+        bytes.extend_from_slice(&[0u8; 12]); // normal: recomputed by readers
+        for vertex in triangle {
+            for x in vertex {
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        bytes.extend_from_slice(&[0u8; 2]);
+    }
+    bytes
+}
+
+/// The 12 outward triangles of the cube `[-h, h]³`.
+pub fn cube(h: f32) -> Vec<[[f32; 3]; 3]> {
+    let c = |i: usize| {
+        [
+            if i & 1 == 0 { -h } else { h },
+            if i & 2 == 0 { -h } else { h },
+            if i & 4 == 0 { -h } else { h },
+        ]
+    };
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    quads
+        .iter()
+        .flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]])
+        .collect()
+}
