@@ -146,7 +146,7 @@ pub fn describe_elements(
         .collect();
     let scanned = match elements.scanned_leaves() {
         0 => String::new(),
-        n => format!("; {n} of them, where halving stalled, scanned on a grid of true runs and checked by bisecting their steepest cells"),
+        n => format!("; {n} of them, where halving stalled, scanned on a grid of true runs and checked by bisecting its steepest cells"),
     };
     let stopped = match elements.stop {
         "trusted" => String::new(),
@@ -158,7 +158,7 @@ pub fn describe_elements(
         other => format!(" (stopped: {other})"),
     };
     format!(
-        "the first surrogate was not trusted for {} output(s) ({}{}), so the box was split into {} elements with their own surrogates and checks (depth {}, {} round(s), {} more runs; split along {}){scanned}{stopped}",
+        "the first surrogate was not trusted for {} output(s) ({}{}), so the box was split into {} elements with their own surrogates and checks (depth {}, {} round(s), {} more runs; split along {}{scanned}){stopped}",
         elements.outputs.len(),
         outputs.join(", "),
         if elements.outputs.len() > 4 { ", …" } else { "" },
