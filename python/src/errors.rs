@@ -16,7 +16,9 @@ pub fn to_py(error: ribbon::Error) -> PyErr {
             2 => "InputError",
             _ => "RunError",
         };
-        match exception_class(py, class).and_then(|c| c.call1((error.to_string(),))) {
+        // The CLI's text: a long message laid out as a headline and indented clauses.
+        let message = ribbon::text::laid_out(&error.to_string());
+        match exception_class(py, class).and_then(|c| c.call1((message,))) {
             Ok(exception) => PyErr::from_value(exception),
             Err(import_failed) => import_failed,
         }

@@ -149,9 +149,9 @@ pub fn analyze(
         wall_seconds,
     };
     let untrusted_error = match (&result.report.check, &result.advice) {
-        (Some(check), Some(advice)) if !result.report.partial => {
-            Some(untrusted(&result.report, check, advice.clone()).to_string())
-        }
+        (Some(check), Some(advice)) if !result.report.partial => Some(ribbon::text::laid_out(
+            &untrusted(&result.report, check, advice.clone()).to_string(),
+        )),
         _ => None,
     };
     let result = Py::new(py, result)?;

@@ -9,10 +9,17 @@ from conftest import robot
 
 
 def cli_message(stderr):
-    """The CLI's error message without its `error: ` prefix."""
-    line = [l for l in stderr.splitlines() if l.startswith("error: ")]
-    assert line, stderr
-    return line[-1][len("error: "):]
+    """The CLI's error message without its `error: ` prefix: the last `error: ` line and the
+    indented lines that follow it (a long message is laid out as a headline and its clauses)."""
+    lines = stderr.splitlines()
+    starts = [i for i, l in enumerate(lines) if l.startswith("error: ")]
+    assert starts, stderr
+    block = [lines[starts[-1]][len("error: "):]]
+    for l in lines[starts[-1] + 1:]:
+        if not l.startswith("  "):
+            break
+        block.append(l)
+    return "\n".join(block)
 
 
 @pytest.mark.parametrize(
