@@ -32,7 +32,7 @@ use super::elements::{
 use super::error::StudyError;
 use super::method::Method;
 use super::phase::PhaseContext;
-use super::plan::{Plan, SplitMix64};
+use super::plan::{grid_point, Plan, SplitMix64};
 use super::refine_phase::{refine_extremes, refine_reserve, RefineTarget};
 use super::report::{ElementSummary, ElementsReport};
 use super::sobol_indices::SobolSeries;
@@ -74,28 +74,6 @@ impl ElementDesign {
                 .flat_map(|index| grid_point(counts, index))
                 .collect(),
         }
-    }
-}
-
-/// Point `index` of the grid of `counts[j]` points per dimension (row-major, the first dimension
-/// slowest), in the element's own coordinates.
-fn grid_point(counts: &[usize], index: usize) -> Vec<f64> {
-    let mut point = vec![0.0; counts.len()];
-    let mut rest = index;
-    for (x, &n) in point.iter_mut().zip(counts).rev() {
-        let i = rest % n;
-        rest /= n;
-        *x = grid_coordinate(i, n);
-    }
-    point
-}
-
-/// The `i`-th of `n` evenly spaced coordinates of [-1, 1], both ends included (0 when `n` is 1).
-fn grid_coordinate(i: usize, n: usize) -> f64 {
-    if n <= 1 {
-        0.0
-    } else {
-        -1.0 + 2.0 * i as f64 / (n - 1) as f64
     }
 }
 
@@ -677,15 +655,15 @@ fn run_round(
                     }
                     let values = block.record(run, r);
                     if let Some(grid_hull) = &grid_hulls[c] {
-                        // A scan is judged by how far a true run between its grid points lies
-                        // outside the grid's hull.
-                        for o in (0..n_outputs).filter(|&o| active[o]) {
-                            let truth = accumulator.reported(o, values[o]);
-                            let hull = grid_hull[record * n_outputs + o];
-                            checked.push((o, record, truth));
-                            let m = &mut misfit[c][o][record];
-                            *m = m.max(excess(truth, hull.lower, hull.upper));
-                        }
+                        judge_scan_run(
+                            accumulator,
+                            grid_hull,
+                            &active,
+                            record,
+                            values,
+                            &mut misfit[c],
+                            &mut checked,
+                        );
                     }
                     element_points[c].widen(record, values);
                     accumulator.widen_runs(record, block.record(run, r));
@@ -741,13 +719,15 @@ fn run_round(
                                 continue;
                             }
                             let values = block.record(run, r);
-                            for o in (0..n_outputs).filter(|&o| active[o]) {
-                                let truth = accumulator.reported(o, values[o]);
-                                let hull = grid_hull[record * n_outputs + o];
-                                checked.push((o, record, truth));
-                                let m = &mut misfit[c][o][record];
-                                *m = m.max(excess(truth, hull.lower, hull.upper));
-                            }
+                            judge_scan_run(
+                                accumulator,
+                                grid_hull,
+                                &active,
+                                record,
+                                values,
+                                &mut misfit[c],
+                                &mut checked,
+                            );
                             if record == bisection.record {
                                 middle_values[run] = accumulator
                                     .reported(bisection.output, values[bisection.output]);
@@ -823,6 +803,29 @@ fn run_round(
         tree.split(split.parent, split.dims, children);
     }
     Ok(true)
+}
+
+/// A scan's check of one true run at `record` (`values`, every output): for each `active` output,
+/// how far it lies outside the grid's hull (`grid_hull`, record-major) raises `misfit[o][record]`,
+/// and the value joins `checked`.
+#[allow(clippy::too_many_arguments)]
+fn judge_scan_run(
+    accumulator: &Accumulator,
+    grid_hull: &[EnvelopePoint],
+    active: &[bool],
+    record: usize,
+    values: &[f64],
+    misfit: &mut [Vec<f64>],
+    checked: &mut Vec<(usize, usize, f64)>,
+) {
+    let n_outputs = active.len();
+    for o in (0..n_outputs).filter(|&o| active[o]) {
+        let truth = accumulator.reported(o, values[o]);
+        let hull = grid_hull[record * n_outputs + o];
+        checked.push((o, record, truth));
+        let m = &mut misfit[o][record];
+        *m = m.max(excess(truth, hull.lower, hull.upper));
+    }
 }
 
 /// What a scanned child's check needs to know of its grid, gathered while its runs come in.

@@ -66,6 +66,24 @@ impl SplitMix64 {
     }
 }
 
+/// Point `index` of the grid of `counts[j]` evenly spaced points per dimension over [-1, 1], both
+/// ends included (0 where a count is 1), row-major with the first dimension slowest: the scan's
+/// grid (`counts` all equal) and a scanned element's (docs/method.md §12).
+pub fn grid_point(counts: &[usize], index: usize) -> Vec<f64> {
+    let mut point = vec![0.0; counts.len()];
+    let mut rest = index;
+    for (x, &n) in point.iter_mut().zip(counts).rev() {
+        let i = rest % n;
+        rest /= n;
+        *x = if n <= 1 {
+            0.0
+        } else {
+            -1.0 + 2.0 * i as f64 / (n - 1) as f64
+        };
+    }
+    point
+}
+
 impl Plan {
     /// The plan of `method` for `dim` parameters.
     pub fn new(
@@ -106,22 +124,10 @@ impl Plan {
             Plan::Sparse(design) => design.points().to_vec(),
             Plan::Taylor(stencil) => stencil.points(),
             Plan::Grid(n) => {
-                let n = *n;
-                let runs = self.runs(dim).unwrap_or(0);
-                let mut out = vec![0.0; runs * dim];
-                for (p, row) in out.chunks_exact_mut(dim).enumerate() {
-                    let mut rest = p;
-                    for r in (0..dim).rev() {
-                        let i = rest % n;
-                        rest /= n;
-                        row[r] = if n == 1 {
-                            0.0
-                        } else {
-                            -1.0 + 2.0 * i as f64 / (n - 1) as f64
-                        };
-                    }
-                }
-                out
+                let counts = vec![*n; dim];
+                (0..self.runs(dim).unwrap_or(0))
+                    .flat_map(|index| grid_point(&counts, index))
+                    .collect()
             }
             Plan::Random { samples, seed } => {
                 let mut generator = SplitMix64::new(*seed);
