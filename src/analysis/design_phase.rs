@@ -16,9 +16,11 @@ use super::accumulator::Accumulator;
 use super::adaptive_phase::AdaptiveOutcome;
 use super::bounds::{Bounder, EnvelopePoint};
 use super::check::{CheckCandidates, Side};
+use super::elements_phase::ELEMENT_TENSOR_MAX_DIM;
 use super::engine::RecordSource;
 use super::error::StudyError;
 use super::method::Method;
+use super::nested_design::{ElementRuns, MAX_KEPT_ELEMENT_VALUES};
 use super::phase::PhaseContext;
 use super::plan::Plan;
 use super::schedule::RecordSchedule;
@@ -42,6 +44,31 @@ pub(super) struct Bounded {
     pub complete: bool,
     /// The surrogates' predicted extremes (empty unless the method locates them).
     pub candidates: CheckCandidates,
+    /// The design's runs, every output, kept for elements to nest in (docs/method.md §12,
+    /// "Nested elements"): only for a tensor Legendre design an element could reuse
+    /// ([`keeps_design_runs`]) whose runs all succeeded.
+    pub runs: Option<ElementRuns>,
+}
+
+/// Whether the design phase keeps the runs of `plan` for elements: elements are on, the plan is
+/// a tensor Legendre design on Gauss nodes of at most [`ELEMENT_TENSOR_MAX_DIM`] dimensions (what a
+/// child nests in), and its values fit [`MAX_KEPT_ELEMENT_VALUES`].
+fn keeps_design_runs(context: &PhaseContext<'_>, plan: &Plan, n_records: usize) -> bool {
+    let n_outputs = context.scene.outputs.len();
+    match plan {
+        Plan::Surrogate(design) => {
+            context.options.elements.enabled
+                && design.family() == crate::uq::Family::Legendre
+                && design.has_gauss_nodes()
+                && design.dim() <= ELEMENT_TENSOR_MAX_DIM
+                && design
+                    .n_points()
+                    .checked_mul(n_records)
+                    .and_then(|v| v.checked_mul(n_outputs))
+                    .is_some_and(|v| v <= MAX_KEPT_ELEMENT_VALUES)
+        }
+        _ => false,
+    }
 }
 
 /// Bounds `design` into `accumulator` (module documentation) with `method`; `locates_extremes`
@@ -78,6 +105,7 @@ pub(super) fn bound_design(
         surrogate_ranges: &surrogate_ranges,
         element: None,
     };
+    let mut kept = None;
     let complete = match &design.adapted {
         Some(outcome) => {
             let t_bound = Instant::now();
@@ -116,7 +144,13 @@ pub(super) fn bound_design(
             let plan_samples: Vec<usize> =
                 (0..source.len()).filter(|&i| i != nominal_index).collect();
             let policy = context.design_failure_policy(method);
-            context.run_source("design", source, policy, &mut |block, report| {
+            if keeps_design_runs(context, plan, n_records) {
+                kept = Some(ElementRuns::new(
+                    (0..n_outputs).collect(),
+                    plan_samples.len(),
+                ));
+            }
+            let complete = context.run_source("design", source, policy, &mut |block, report| {
                 let t_bound = Instant::now();
                 let lockstep = block.lockstep;
                 for r in 0..block.count {
@@ -135,9 +169,18 @@ pub(super) fn bound_design(
                 };
                 let excluded = |i: usize| lockstep.failed(i);
                 bounding.absorb(block.first, block.count, &values, &excluded, accumulator)?;
+                if (0..plan_samples.len()).any(|i| lockstep.failed(plan_samples[i])) {
+                    kept = None;
+                }
+                if let Some(kept) = &mut kept {
+                    for r in 0..block.count {
+                        kept.push_record(&values(r), n_outputs);
+                    }
+                }
                 report.bound_seconds += t_bound.elapsed().as_secs_f64();
                 Ok(())
-            })?
+            })?;
+            complete
         }
     };
     context
@@ -153,6 +196,7 @@ pub(super) fn bound_design(
     Ok(Bounded {
         complete,
         candidates: bounding.candidates,
+        runs: kept.filter(|_| complete),
     })
 }
 

@@ -20,6 +20,7 @@
 
 use super::bounds::EnvelopePoint;
 use super::check::{CheckCandidates, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR};
+use super::nested_design::ElementRuns;
 use super::sobol_indices::SobolSeries;
 use crate::uq::ElementBox;
 
@@ -96,14 +97,19 @@ pub(super) struct Element {
     pub children: Vec<usize>,
     /// The dimensions its split halved.
     pub split_dims: Vec<usize>,
-    /// Runs of its design (the root's: the study's design and nominal run).
+    /// Runs made for its design (the root's: the study's design and nominal run); a nested
+    /// child's design also holds `reused_runs` of its parent's.
     pub design_runs: usize,
+    /// Its design's points that are its parent's runs (docs/method.md §12, "Nested elements").
+    pub reused_runs: usize,
     /// Runs of its check.
     pub check_runs: usize,
     /// Its surrogates' order.
     pub order: usize,
     /// Its envelope points, record-major `records × outputs` (its own bounds, widened by its own
-    /// runs).
+    /// runs), for the outputs the elements are made for ([`ElementTree::active`]); a child's
+    /// points of the other outputs are empty ([`EnvelopePoint::EMPTY`]; the root's are the
+    /// study's).
     pub points: Vec<EnvelopePoint>,
     /// `misfit[o][r]`: its check's largest `|true − predicted|` for output `o` at record `r`.
     pub misfit: Vec<Vec<f64>>,
@@ -114,6 +120,11 @@ pub(super) struct Element {
     /// Points per dimension when it is a scanned leaf (a stalled leaf whose envelope is the hull
     /// of a grid of true runs, checked between them: docs/method.md §12); `None` for a surrogate.
     pub scan_grid: Option<Vec<usize>>,
+    /// Its design's 1-D nodes per dimension (its own coordinates) when the design is a tensor grid
+    /// a child can nest in; `None` otherwise (a sparse design, a scan).
+    pub axis_nodes: Option<Vec<Vec<f64>>>,
+    /// Its design's runs, kept for its children to reuse while it is a leaf (`None`: not kept).
+    pub runs: Option<ElementRuns>,
 }
 
 impl Element {
@@ -395,7 +406,19 @@ impl ElementTree {
         let element = &mut self.elements[parent];
         element.children = indices.clone();
         element.split_dims = dims;
+        // Its children have taken what they reuse.
+        element.runs = None;
         indices
+    }
+
+    /// Values the elements keep for their children
+    /// ([`super::nested_design::MAX_KEPT_ELEMENT_VALUES`] bounds them).
+    pub fn kept_values(&self) -> usize {
+        self.elements
+            .iter()
+            .filter_map(|e| e.runs.as_ref())
+            .map(ElementRuns::len)
+            .sum()
     }
 }
 
@@ -415,6 +438,9 @@ mod tests {
             check_runs: 1,
             order: 4,
             scan_grid: None,
+            axis_nodes: None,
+            runs: None,
+            reused_runs: 0,
             points,
             misfit,
             sobol: None,

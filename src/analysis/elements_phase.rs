@@ -31,6 +31,7 @@ use super::elements::{
 };
 use super::error::StudyError;
 use super::method::Method;
+use super::nested_design::{nested_design, ElementRuns, NestedDesign, MAX_KEPT_ELEMENT_VALUES};
 use super::phase::PhaseContext;
 use super::plan::{grid_point, Plan, SplitMix64};
 use super::refine_phase::{refine_extremes, refine_reserve, RefineTarget};
@@ -61,19 +62,47 @@ struct ElementDesign {
     plan: ElementPlan,
     /// Its surrogates' order (0 for a scan).
     order: usize,
+    /// New runs (a nested design's points that are not its parent's).
     runs: usize,
     check_runs: usize,
+    /// Which of its points are its parent's runs (`None`: every point is a new run).
+    nested: Option<NestedDesign>,
 }
 
 impl ElementDesign {
-    /// The points, in the element's own coordinates, row-major.
+    /// The points of its new runs, in the element's own coordinates, row-major.
     fn points(&self, dim: usize) -> Vec<f64> {
-        match &self.plan {
-            ElementPlan::Surrogate(plan) => plan.points(dim),
-            ElementPlan::Scan(counts) => (0..self.runs)
+        match (&self.plan, &self.nested) {
+            (ElementPlan::Surrogate(plan), None) => plan.points(dim),
+            (ElementPlan::Surrogate(plan), Some(nested)) => plan
+                .points(dim)
+                .chunks_exact(dim.max(1))
+                .zip(&nested.sources)
+                .filter(|(_, source)| source.is_none())
+                .flat_map(|(point, _)| point.to_vec())
+                .collect(),
+            (ElementPlan::Scan(counts), _) => (0..self.runs)
                 .flat_map(|index| grid_point(counts, index))
                 .collect(),
         }
+    }
+
+    /// Its design's points per dimension when it is a tensor grid its own children can nest in.
+    fn axis_nodes(&self, dim: usize) -> Option<Vec<Vec<f64>>> {
+        match (&self.plan, &self.nested) {
+            (_, Some(nested)) => Some(nested.axis_nodes.clone()),
+            (ElementPlan::Surrogate(Plan::Surrogate(design)), None) => {
+                Some((0..dim).map(|r| design.axis_nodes(r).to_vec()).collect())
+            }
+            _ => None,
+        }
+    }
+
+    /// Design points in all (reused and new): the values each record's fit reads.
+    fn n_points(&self) -> usize {
+        self.nested
+            .as_ref()
+            .map_or(self.runs, |nested| nested.sources.len())
     }
 }
 
@@ -102,30 +131,66 @@ fn scan_design(tree: &ElementTree, leaf: usize, budget: usize) -> Option<Element
             order: 0,
             runs,
             check_runs,
+            nested: None,
         })
     })
 }
 
-/// The design of an element of a `dim`-dimensional box: order `order` (the study's), lowered
-/// down to [`MIN_ELEMENT_ORDER`] until the design and its check fit `budget` runs; `None` when
-/// even that does not.
-fn element_design(dim: usize, order: usize, budget: usize) -> Option<ElementDesign> {
-    let lowest = MIN_ELEMENT_ORDER.min(order);
-    (lowest..=order).rev().find_map(|k| {
-        let plan = if dim <= ELEMENT_TENSOR_MAX_DIM {
-            Plan::Surrogate(Design::new(Family::Legendre, dim, k, Truncation::Tensor).ok()?)
-        } else {
-            Plan::Sparse(Arc::new(SparseDesign::total_degree(dim, k).ok()?))
-        };
-        let runs = plan.runs(dim)?;
-        let check_runs = automatic_check_runs(runs);
-        (runs.checked_add(check_runs)? <= budget).then_some(ElementDesign {
-            plan: ElementPlan::Surrogate(plan),
-            order: k,
-            runs,
-            check_runs,
-        })
+/// A fresh design of an element of a `dim`-dimensional box at order `order`: the tensor Gauss
+/// grid up to [`ELEMENT_TENSOR_MAX_DIM`], the Leja sparse grid above.
+fn fresh_design(dim: usize, order: usize) -> Option<ElementDesign> {
+    let plan = if dim <= ELEMENT_TENSOR_MAX_DIM {
+        Plan::Surrogate(Design::new(Family::Legendre, dim, order, Truncation::Tensor).ok()?)
+    } else {
+        Plan::Sparse(Arc::new(SparseDesign::total_degree(dim, order).ok()?))
+    };
+    let runs = plan.runs(dim)?;
+    Some(ElementDesign {
+        plan: ElementPlan::Surrogate(plan),
+        order,
+        runs,
+        check_runs: automatic_check_runs(runs),
+        nested: None,
     })
+}
+
+/// The designs of `children`, parts of element `parent`'s box, at order `k`, if they and their
+/// checks fit `budget` runs together. A child whose parent kept its runs (at an order at least
+/// `k`) nests in its parent's grid ([`nested_design`]): only its new points are runs, and its
+/// check is as large as a fresh design's.
+fn child_designs(
+    tree: &ElementTree,
+    parent: usize,
+    children: &[ElementBox],
+    k: usize,
+    budget: usize,
+) -> Option<Vec<ElementDesign>> {
+    let element = &tree.elements[parent];
+    let dim = element.region.dim();
+    let nodes = element
+        .axis_nodes
+        .as_ref()
+        .filter(|_| element.runs.is_some() && element.order >= k);
+    let designs: Vec<ElementDesign> = children
+        .iter()
+        .map(|child| {
+            let nested = nodes.and_then(|nodes| nested_design(&element.region, nodes, child, k));
+            match nested {
+                Some(nested) => Some(ElementDesign {
+                    check_runs: automatic_check_runs(nested.sources.len()),
+                    runs: nested.new_runs(),
+                    plan: ElementPlan::Surrogate(Plan::Surrogate(nested.design.clone())),
+                    order: k,
+                    nested: Some(nested),
+                }),
+                None => fresh_design(dim, k),
+            }
+        })
+        .collect::<Option<_>>()?;
+    let cost = designs.iter().try_fold(0usize, |sum, x| {
+        sum.checked_add(x.runs)?.checked_add(x.check_runs)
+    })?;
+    (cost <= budget).then_some(designs)
 }
 
 /// One failing leaf's split, as planned (or its scan: no dimension halved, one child with the
@@ -134,7 +199,8 @@ struct PlannedSplit {
     parent: usize,
     dims: Vec<usize>,
     children: Vec<ElementBox>,
-    design: ElementDesign,
+    /// One per child.
+    designs: Vec<ElementDesign>,
 }
 
 /// The splits of one round: the failing leaves, worst first, each halved along its split
@@ -148,7 +214,6 @@ fn planned_round(
     budget: usize,
     max_elements: usize,
 ) -> Result<Vec<PlannedSplit>, &'static str> {
-    let d = tree.elements[0].region.dim();
     let mut leaves = tree.leaves().len();
     let mut left = budget;
     let mut planned = Vec::new();
@@ -168,7 +233,7 @@ fn planned_round(
                         parent: leaf.element,
                         dims: Vec::new(),
                         children: vec![element.region.clone()],
-                        design,
+                        designs: vec![design],
                     });
                 }
                 None if planned.is_empty() && reason == "resolution" => reason = "stalled",
@@ -186,31 +251,37 @@ fn planned_round(
         } else {
             vec![dims]
         };
+        // The study's order first, halving fewer dimensions before lowering it (a lower order
+        // needs more halvings: measured on the vehicle, order-3 children of a two-dimensional
+        // split left 10.6 % misses where order-4 children of one-dimensional splits were
+        // trusted); down to MIN_ELEMENT_ORDER.
         let mut chosen = None;
-        for dims in options {
-            let children = 1usize << dims.len();
-            if leaves + children - 1 > max_elements {
-                reason = "max-elements";
-                continue;
-            }
-            match element_design(d, order, left / children) {
-                Some(design) => {
-                    chosen = Some((dims, children, design));
-                    break;
+        'orders: for k in (MIN_ELEMENT_ORDER.min(order)..=order).rev() {
+            for dims in &options {
+                let children = element.region.split(dims);
+                if leaves + children.len() - 1 > max_elements {
+                    reason = "max-elements";
+                    continue;
                 }
-                None => reason = "budget",
+                match child_designs(tree, leaf.element, &children, k, left) {
+                    Some(designs) => {
+                        chosen = Some((dims.clone(), children, designs));
+                        break 'orders;
+                    }
+                    None => reason = "budget",
+                }
             }
         }
-        let Some((dims, children, design)) = chosen else {
+        let Some((dims, children, designs)) = chosen else {
             continue;
         };
-        left -= children * (design.runs + design.check_runs);
-        leaves += children - 1;
+        left -= designs.iter().map(|x| x.runs + x.check_runs).sum::<usize>();
+        leaves += children.len() - 1;
         planned.push(PlannedSplit {
             parent: leaf.element,
-            children: element.region.split(&dims),
+            children,
             dims,
-            design,
+            designs,
         });
     }
     if planned.is_empty() {
@@ -220,16 +291,28 @@ fn planned_round(
     }
 }
 
+/// What the elements start from: the study's design, its kept runs, its check's misfits and its
+/// surrogates' predicted extremes.
+pub(super) struct RootDesign<'p> {
+    /// The study's design.
+    pub plan: &'p Plan,
+    /// Its runs, every output (`None`: not kept; its children get fresh designs).
+    pub runs: Option<ElementRuns>,
+    /// `misfit[o][r]` of the first check.
+    pub misfit: Vec<Vec<f64>>,
+    /// Where its surrogates put their extremes.
+    pub candidates: CheckCandidates,
+}
+
 /// Splits the box into elements where the first check (`context.report.check`, whose misfits
-/// are `root_misfit[o][r]`) did not trust the surrogate, until every output is trusted or the
+/// are `root.misfit[o][r]`) did not trust the surrogate, until every output is trusted or the
 /// budget (`--max-runs`, `--max-elements`) is spent; then the union into `accumulator` and the
 /// union's check into the report, with the elements' account (`report.elements`). Does nothing
 /// when the first check trusted every output or did not finish.
 pub(super) fn split_into_elements(
     context: &mut PhaseContext<'_>,
     stages: &mut StageCursor,
-    root_misfit: Vec<Vec<f64>>,
-    root_candidates: CheckCandidates,
+    root: RootDesign<'_>,
     accumulator: &mut Accumulator,
 ) -> Result<(), StudyError> {
     let Some(first_check) = context.report.check.clone() else {
@@ -247,6 +330,22 @@ pub(super) fn split_into_elements(
     for &o in &first_check.untrusted_outputs {
         active[o] = true;
     }
+    // The root's runs of the outputs the elements are for, and its grid, for children to nest in.
+    let active_outputs: Vec<usize> = (0..n_outputs).filter(|&o| active[o]).collect();
+    let root_runs = root.runs.map(|all| {
+        let mut kept = ElementRuns::new(active_outputs.clone(), all.n_samples);
+        let row = all.n_samples * n_outputs;
+        for record in all.values.chunks_exact(row.max(1)) {
+            kept.push_record(record, n_outputs);
+        }
+        kept
+    });
+    let root_nodes = match root.plan {
+        Plan::Surrogate(design) if root_runs.is_some() => {
+            Some((0..d).map(|r| design.axis_nodes(r).to_vec()).collect())
+        }
+        _ => None,
+    };
     let root = Element {
         region: ElementBox::whole(d),
         parent: None,
@@ -257,10 +356,13 @@ pub(super) fn split_into_elements(
         check_runs: first_check.runs,
         order,
         points: accumulator.points[..n_records * n_outputs].to_vec(),
-        misfit: root_misfit,
+        misfit: root.misfit,
         sobol: context.report.sobol.clone(),
-        candidates: root_candidates,
+        candidates: root.candidates,
         scan_grid: None,
+        axis_nodes: root_nodes,
+        runs: root_runs,
+        reused_runs: 0,
     };
     let mut tree = ElementTree::new(root, active);
     let mut runs = CheckRuns {
@@ -438,6 +540,7 @@ fn summarize(tree: &ElementTree, scales: &[OutputScale]) -> Vec<ElementSummary> 
                     .collect(),
                 split_dims: element.split_dims.clone(),
                 design_runs: element.design_runs,
+                reused_runs: element.reused_runs,
                 check_runs: element.check_runs,
                 order: element.order,
                 scan_grid: element.scan_grid.clone(),
@@ -474,8 +577,36 @@ fn run_round(
     let children: Vec<(usize, &ElementBox, &ElementDesign)> = planned
         .iter()
         .enumerate()
-        .flat_map(|(s, split)| split.children.iter().map(move |c| (s, c, &split.design)))
+        .flat_map(|(s, split)| {
+            split
+                .children
+                .iter()
+                .zip(&split.designs)
+                .map(move |(c, design)| (s, c, design))
+        })
         .collect();
+    // What a nested child reuses: its parent's kept runs.
+    let parent_runs: Vec<Option<&ElementRuns>> = children
+        .iter()
+        .map(|&(s, _, design)| {
+            design.nested.as_ref()?;
+            tree.elements[planned[s].parent].runs.as_ref()
+        })
+        .collect();
+    // Which surrogate children keep their runs for their own children, within the memory bound.
+    let active_outputs: Vec<usize> = (0..n_outputs).filter(|&o| tree.active[o]).collect();
+    let mut kept_values = tree.kept_values();
+    let mut kept_runs: Vec<Option<ElementRuns>> = children
+        .iter()
+        .map(|&(_, _, design)| {
+            design.axis_nodes(d)?;
+            let values = design.n_points() * n_records * active_outputs.len();
+            kept_values = kept_values.checked_add(values)?;
+            (kept_values <= MAX_KEPT_ELEMENT_VALUES)
+                .then(|| ElementRuns::new(active_outputs.clone(), design.n_points()))
+        })
+        .collect();
+    let design_of: Vec<&ElementDesign> = children.iter().map(|&(_, _, design)| design).collect();
     let mut points = Vec::new();
     let mut samples = Vec::with_capacity(children.len());
     for &(_, region, design) in &children {
@@ -553,11 +684,12 @@ fn run_round(
                     accumulator.widen_runs(block.first + r, block.record(i, r));
                 }
             }
-            for (((bounding, range), child), grid) in boundings
+            for (c, (((bounding, range), child), grid)) in boundings
                 .iter_mut()
                 .zip(&samples)
                 .zip(element_points.iter_mut())
                 .zip(scan_grids.iter_mut())
+                .enumerate()
             {
                 let Some(bounding) = bounding else {
                     if let Some(grid) = grid {
@@ -570,13 +702,21 @@ fn run_round(
                     continue;
                 };
                 let values = |r: usize| -> Vec<f64> {
-                    let mut row = Vec::with_capacity(range.len() * n_outputs);
-                    for i in range.clone() {
-                        row.extend_from_slice(block.record(i, r));
-                    }
-                    row
+                    child_row(
+                        design_of[c],
+                        parent_runs[c],
+                        range,
+                        block.first + r,
+                        n_outputs,
+                        &|i| block.record(i, r),
+                    )
                 };
                 bounding.absorb(block.first, block.count, &values, &|_| false, child)?;
+                if let Some(kept) = &mut kept_runs[c] {
+                    for r in 0..block.count {
+                        kept.push_record(&values(r), n_outputs);
+                    }
+                }
             }
             report.bound_seconds += t_bound.elapsed().as_secs_f64();
             Ok(())
@@ -754,12 +894,15 @@ fn run_round(
         }
     }
 
-    // The children join the tree, split by split.
+    // The children join the tree, split by split. A child's points of the outputs it was not made
+    // for are emptied: a nested child's reused runs carry no values for them.
+    let active = tree.active.clone();
     let mut made = element_points
         .into_iter()
         .zip(misfit)
         .zip(sobol)
         .zip(candidates)
+        .zip(kept_runs)
         .zip(
             plans
                 .iter()
@@ -771,13 +914,21 @@ fn run_round(
         let children: Vec<Element> = split
             .children
             .into_iter()
-            .map(|region| {
-                let ((((points, misfit), sobol), candidates), check_runs) =
+            .zip(split.designs)
+            .map(|(region, design)| {
+                let (((((mut points, misfit), sobol), candidates), runs), check_runs) =
                     made.next().expect("one made child per planned child");
-                let scan_grid = match &split.design.plan {
+                let scan_grid = match &design.plan {
                     ElementPlan::Scan(counts) => Some(counts.clone()),
                     ElementPlan::Surrogate(_) => None,
                 };
+                if scan_grid.is_none() {
+                    for (k, point) in points.points.iter_mut().enumerate() {
+                        if !active[k % n_outputs.max(1)] {
+                            *point = EnvelopePoint::EMPTY;
+                        }
+                    }
+                }
                 Element {
                     region,
                     parent: Some(split.parent),
@@ -789,20 +940,58 @@ fn run_round(
                     },
                     children: Vec::new(),
                     split_dims: Vec::new(),
-                    design_runs: split.design.runs,
+                    design_runs: design.runs,
+                    reused_runs: design.n_points() - design.runs,
                     check_runs,
-                    order: split.design.order,
+                    order: design.order,
                     points: points.points,
                     misfit,
                     sobol,
                     candidates,
                     scan_grid,
+                    axis_nodes: design.axis_nodes(d),
+                    runs,
                 }
             })
             .collect();
         tree.split(split.parent, split.dims, children);
     }
     Ok(true)
+}
+
+/// One record's row of a child's design (`n_points × n_outputs`, row-major, design point order):
+/// a new run's values from the stage (`stage_record(i)` for stage sample `i`, the child's new
+/// runs being `range`, in design point order), a reused point's from its parent's kept runs at
+/// `record` (0 for the outputs the parent did not keep).
+fn child_row<'v>(
+    design: &ElementDesign,
+    parent_runs: Option<&ElementRuns>,
+    range: &std::ops::Range<usize>,
+    record: usize,
+    n_outputs: usize,
+    stage_record: &dyn Fn(usize) -> &'v [f64],
+) -> Vec<f64> {
+    let mut row = Vec::with_capacity(design.n_points() * n_outputs);
+    match (&design.nested, parent_runs) {
+        (Some(nested), Some(parent)) => {
+            let mut next = range.start;
+            for source in &nested.sources {
+                match source {
+                    Some(sample) => parent.extend_run(record, *sample, n_outputs, &mut row),
+                    None => {
+                        row.extend_from_slice(stage_record(next));
+                        next += 1;
+                    }
+                }
+            }
+        }
+        _ => {
+            for i in range.clone() {
+                row.extend_from_slice(stage_record(i));
+            }
+        }
+    }
+    row
 }
 
 /// A scan's check of one true run at `record` (`values`, every output): for each `active` output,
@@ -1038,30 +1227,85 @@ const SCAN_CHECK_SEED: u64 = 0x5ca0_c4ec;
 mod tests {
     use super::*;
 
+    /// An element tree of the whole `d`-dimensional box on the order-4 Gauss grid, with its runs
+    /// kept for its children or not.
+    fn gauss_root(d: usize, kept: bool) -> ElementTree {
+        let gauss = Design::new(Family::Legendre, d, 4, Truncation::Tensor).unwrap();
+        let root = Element {
+            region: ElementBox::whole(d),
+            parent: None,
+            depth: 0,
+            children: Vec::new(),
+            split_dims: Vec::new(),
+            design_runs: gauss.n_points(),
+            reused_runs: 0,
+            check_runs: 0,
+            order: 4,
+            points: Vec::new(),
+            misfit: Vec::new(),
+            sobol: None,
+            candidates: CheckCandidates::new(d),
+            scan_grid: None,
+            axis_nodes: Some(vec![gauss.nodes().to_vec(); d]),
+            runs: kept.then(|| ElementRuns::new(vec![0], gauss.n_points())),
+        };
+        ElementTree::new(root, vec![true])
+    }
+
     #[test]
     fn element_designs_fit_the_budget_by_lowering_the_order() {
+        let one = |d: usize, budget: usize| {
+            let tree = gauss_root(d, false);
+            (MIN_ELEMENT_ORDER..=4).rev().find_map(|k| {
+                child_designs(&tree, 0, &[ElementBox::whole(d)], k, budget).map(|mut v| v.remove(0))
+            })
+        };
         // d = 1: the tensor grid of k + 1 points, its check at least 8 runs.
-        let design = element_design(1, 4, 100).unwrap();
+        let design = one(1, 100).unwrap();
         assert_eq!((design.order, design.runs, design.check_runs), (4, 5, 8));
         // d = 4, k = 4: the tensor grid, 625 runs + 63 checks.
-        let design = element_design(4, 4, 688).unwrap();
+        let design = one(4, 688).unwrap();
         assert!(matches!(
             design.plan,
             ElementPlan::Surrogate(Plan::Surrogate(_))
         ));
         assert_eq!((design.order, design.runs, design.check_runs), (4, 625, 63));
         // 687 runs do not fit order 4; order 3 (256 + 26) does.
-        let design = element_design(4, 4, 687).unwrap();
+        let design = one(4, 687).unwrap();
         assert_eq!((design.order, design.runs), (3, 256));
         // Not even order 2 (81 + 9).
-        assert!(element_design(4, 4, 89).is_none());
+        assert!(one(4, 89).is_none());
         // d = 5: the total-degree Leja grid, C(9, 4) = 126 runs + 13 checks.
-        let design = element_design(5, 4, 139).unwrap();
+        let design = one(5, 139).unwrap();
         assert!(matches!(
             design.plan,
             ElementPlan::Surrogate(Plan::Sparse(_))
         ));
         assert_eq!((design.order, design.runs, design.check_runs), (4, 126, 13));
+    }
+
+    #[test]
+    fn halves_of_a_kept_grid_nest_in_it_and_cost_their_new_runs() {
+        let tree = gauss_root(4, true);
+        let halves = ElementBox::whole(4).split(&[0]);
+        // Each half: 3 of the 5 nodes along the halved dimension are the parent's, so 2 · 5³ new
+        // runs, and a check as large as a fresh design's (63).
+        let budget = 2 * (250 + 63);
+        let designs = child_designs(&tree, 0, &halves, 4, budget).unwrap();
+        assert!(child_designs(&tree, 0, &halves, 4, budget - 1).is_none());
+        for design in &designs {
+            assert_eq!((design.order, design.runs, design.check_runs), (4, 250, 63));
+            assert_eq!(design.n_points(), 625);
+            assert_eq!(design.points(4).len(), 250 * 4);
+        }
+        // Without the parent's runs, each half is a fresh grid: 2 · (625 + 63) do not fit.
+        assert!(child_designs(&gauss_root(4, false), 0, &halves, 4, budget).is_none());
+        let fresh = child_designs(&gauss_root(4, false), 0, &halves, 3, budget).unwrap();
+        assert!(fresh.iter().all(|d| d.nested.is_none() && d.runs == 256));
+        // At order 3 a half nests too: 4 of the 5 nodes along each other dimension, and along
+        // the halved one its 3 and 1 new: 4³ new runs.
+        let lower = child_designs(&tree, 0, &halves, 3, usize::MAX).unwrap();
+        assert!(lower.iter().all(|d| d.nested.is_some() && d.runs == 64));
     }
 
     #[test]

@@ -29,6 +29,7 @@ mod envelope;
 mod error;
 mod lyapunov;
 mod method;
+mod nested_design;
 mod phase;
 mod plan;
 mod reference;

@@ -198,8 +198,11 @@ pub struct ElementSummary {
     pub upper_xi: Vec<f64>,
     /// The dimensions its split halved (empty for a leaf).
     pub split_dims: Vec<usize>,
-    /// Its design's runs (the root's: the study's design with the nominal run).
+    /// Runs made for its design (the root's: the study's design with the nominal run).
     pub design_runs: usize,
+    /// Its design's points that are its parent's runs, reused (docs/method.md §12, "Nested
+    /// elements").
+    pub reused_runs: usize,
     /// Its check's runs.
     pub check_runs: usize,
     /// Its surrogates' order (0 for a scan).

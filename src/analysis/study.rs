@@ -29,7 +29,7 @@ use super::bounds::EnvelopePoint;
 use super::check::automatic_check_runs;
 use super::check_phase::check;
 use super::design_phase::{bound_design, Bounded, Design};
-use super::elements_phase::split_into_elements;
+use super::elements_phase::{split_into_elements, RootDesign};
 use super::engine::LockStep;
 use super::error::{ForeignError, StudyError};
 use super::lyapunov::estimate_lyapunov;
@@ -258,6 +258,7 @@ fn run_phases(
     let Bounded {
         complete,
         candidates,
+        runs,
     } = bound_design(
         context,
         stages,
@@ -281,7 +282,13 @@ fn run_phases(
         context.report.check = Some(outcome.report);
         // Where the surrogate is not trusted: elements (sub-boxes with their own surrogates).
         if context.options.elements.enabled && study_plan.method == Method::LegendreScan {
-            split_into_elements(context, stages, outcome.misfit, candidates, accumulator)?;
+            let root = RootDesign {
+                plan: &design.plan,
+                runs,
+                misfit: outcome.misfit,
+                candidates,
+            };
+            split_into_elements(context, stages, root, accumulator)?;
         }
     } else if study_plan.method.is_checked() && context.options.check_runs == Some(0) {
         context.report.check_skipped = Some(CheckSkipped::TurnedOff);

@@ -228,6 +228,7 @@ pub fn elements_json(
             "upper": e.upper_xi.iter().enumerate().map(|(j, &x)| value(j, x)).collect::<Vec<f64>>(),
             "split": e.split_dims.iter().map(|&j| dimensions[j].name.clone()).collect::<Vec<String>>(),
             "design_runs": e.design_runs,
+            "reused_runs": e.reused_runs,
             "check_runs": e.check_runs,
             "order": e.order,
             "untrusted_outputs": names(&e.untrusted_outputs),

@@ -94,6 +94,10 @@ pub struct Design {
     order: usize,
     truncation: Truncation,
     nodes: Vec<f64>,
+    /// Nodes per dimension when they are not the family's Gauss nodes (a nested element's
+    /// design, docs/method.md §12): `axis_nodes[r]` holds k + 1 distinct ascending nodes in
+    /// [-1, 1]; `None` means `nodes` along every dimension.
+    axis_nodes: Option<Vec<Vec<f64>>>,
     n_points: usize,
     kept: Vec<usize>,
 }
@@ -146,9 +150,51 @@ impl Design {
             order,
             truncation,
             nodes,
+            axis_nodes: None,
             n_points,
             kept,
         })
+    }
+
+    /// A Legendre design on a tensor grid of given 1-D nodes, `axis_nodes[r]` along dimension r
+    /// (each k + 1 distinct nodes in [-1, 1], ascending): the points of a nested element, some of
+    /// them its parent's runs (docs/method.md §12). Its projector interpolates at these nodes.
+    ///
+    /// Errors: as [`Design::new`], and nodes that are not k + 1 distinct ascending values in
+    /// [-1, 1] per dimension ([`UqError::BadNodes`]).
+    pub fn with_axis_nodes(
+        order: usize,
+        truncation: Truncation,
+        axis_nodes: Vec<Vec<f64>>,
+    ) -> Result<Design, UqError> {
+        let mut design = Design::new(Family::Legendre, axis_nodes.len(), order, truncation)?;
+        for (dimension, nodes) in axis_nodes.iter().enumerate() {
+            let ascending = nodes.windows(2).all(|w| w[0] < w[1]);
+            let inside = nodes.iter().all(|x| (-1.0..=1.0).contains(x));
+            if nodes.len() != order + 1 || !ascending || !inside {
+                return Err(UqError::BadNodes {
+                    dimension,
+                    expected: order + 1,
+                    got: nodes.len(),
+                });
+            }
+        }
+        design.axis_nodes = Some(axis_nodes);
+        Ok(design)
+    }
+
+    /// The 1-D nodes along dimension `r` (ascending, k + 1): the family's Gauss nodes unless the
+    /// design was made [`Design::with_axis_nodes`].
+    pub fn axis_nodes(&self, r: usize) -> &[f64] {
+        match &self.axis_nodes {
+            Some(axes) => &axes[r],
+            None => &self.nodes,
+        }
+    }
+
+    /// Whether every dimension uses the family's Gauss nodes.
+    pub fn has_gauss_nodes(&self) -> bool {
+        self.axis_nodes.is_none()
     }
 
     /// Polynomial family (and so which Gauss nodes).
@@ -191,7 +237,8 @@ impl Design {
         self.n_points
     }
 
-    /// The 1-D Gauss nodes (ascending), length k + 1.
+    /// The family's 1-D Gauss nodes (ascending), length k + 1 (see [`Design::axis_nodes`] for a
+    /// design on other nodes).
     pub fn nodes(&self) -> &[f64] {
         &self.nodes
     }
@@ -208,8 +255,8 @@ impl Design {
         let mut idx = vec![0; self.dim];
         for (p, row) in out.chunks_exact_mut(self.dim).enumerate() {
             decode_multi_index(p, self.points_per_dim(), &mut idx);
-            for (x, &j) in row.iter_mut().zip(&idx) {
-                *x = self.nodes[j];
+            for (r, (x, &j)) in row.iter_mut().zip(&idx).enumerate() {
+                *x = self.axis_nodes(r)[j];
             }
         }
         out
@@ -227,8 +274,8 @@ impl Design {
         }
         let mut idx = vec![0; self.dim];
         decode_multi_index(p, self.points_per_dim(), &mut idx);
-        for (x, &j) in xi.iter_mut().zip(&idx) {
-            *x = self.nodes[j];
+        for (r, (x, &j)) in xi.iter_mut().zip(&idx).enumerate() {
+            *x = self.axis_nodes(r)[j];
         }
         Ok(())
     }

@@ -28,6 +28,18 @@ pub enum UqError {
         max: usize,
     },
 
+    /// A design's 1-D nodes along one dimension are not order + 1 distinct ascending values in
+    /// [-1, 1], or they interpolate too badly to fit from.
+    #[error("design nodes along dimension {dimension}: expected {expected} distinct ascending nodes in [-1, 1] that interpolate well, got {got} nodes")]
+    BadNodes {
+        /// The dimension.
+        dimension: usize,
+        /// order + 1.
+        expected: usize,
+        /// Nodes given.
+        got: usize,
+    },
+
     /// A design or scan with zero parameters.
     #[error("the number of parameters (dimension) must be at least 1")]
     ZeroDimension,

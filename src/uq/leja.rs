@@ -114,6 +114,29 @@ fn critical_point(lo: f64, hi: f64, nodes: &[f64]) -> f64 {
     0.5 * (a + b)
 }
 
+/// The Lebesgue constant of interpolation at `nodes` on [−1, 1] — the largest sum of the Lagrange
+/// basis polynomials' magnitudes, the factor by which interpolation can exceed the best
+/// polynomial approximation's error (plus one) — sampled at `samples` equally spaced points.
+pub fn lebesgue_constant(nodes: &[f64], samples: usize) -> f64 {
+    let last = samples.max(2) - 1;
+    (0..=last)
+        .map(|i| {
+            let x = -1.0 + 2.0 * i as f64 / last as f64;
+            (0..nodes.len())
+                .map(|j| {
+                    nodes
+                        .iter()
+                        .enumerate()
+                        .filter(|&(m, _)| m != j)
+                        .map(|(_, &z)| (x - z) / (nodes[j] - z))
+                        .product::<f64>()
+                        .abs()
+                })
+                .sum::<f64>()
+        })
+        .fold(0.0, f64::max)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -188,25 +211,7 @@ mod tests {
         // Lebesgue constant of interpolation at the first n points, on a fine grid: documented in
         // docs/high-dimension.md §2 (n = 3: 1.25, 5: 1.72, 10: 4.49, 15: 4.62, 20: 8.75, 21: 4.17).
         let p = leja_points(21).unwrap();
-        let lebesgue = |n: usize| -> f64 {
-            let nodes = &p[..n];
-            (0..=20_000)
-                .map(|i| {
-                    let x = -1.0 + 2.0 * i as f64 / 20_000.0;
-                    (0..n)
-                        .map(|j| {
-                            nodes
-                                .iter()
-                                .enumerate()
-                                .filter(|&(m, _)| m != j)
-                                .map(|(_, &z)| (x - z) / (nodes[j] - z))
-                                .product::<f64>()
-                                .abs()
-                        })
-                        .sum::<f64>()
-                })
-                .fold(0.0, f64::max)
-        };
+        let lebesgue = |n: usize| lebesgue_constant(&p[..n], 20_001);
         let l: Vec<f64> = [3, 5, 10, 15, 20, 21]
             .iter()
             .map(|&n| lebesgue(n))

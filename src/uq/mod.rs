@@ -77,7 +77,7 @@ pub use error::UqError;
 pub use error_measure::{envelope_error, EnvelopeError};
 pub use extreme_search::{ExtremeSearch, ExtremeSearchSettings, Probe, SearchSide, SearchTarget};
 pub use interval_map::{IntervalMap, ParameterBox};
-pub use leja::{leja_points, MAX_LEJA_POINTS};
+pub use leja::{lebesgue_constant, leja_points, MAX_LEJA_POINTS};
 pub use linear_fit::LinearFit;
 pub use multi_index::{Factor, MultiIndexSet, MAX_TERMS};
 pub use projection::{CoefficientMatrix, Projector};

@@ -82,9 +82,16 @@ impl CoefficientMatrix {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Projector {
     design: Design,
-    /// 1-D transform `A` (m × m, row-major): `coef_i = Σ_j A[i, j] · y(ξ_j)`.
-    transform: Vec<f64>,
+    /// 1-D transforms `A` (m × m, row-major): `coef_i = Σ_j A[i, j] · y(ξ_j)`; one for every
+    /// dimension, or one per dimension for a design on its own nodes ([`Design::axis_nodes`]).
+    transforms: Vec<Vec<f64>>,
 }
+
+/// Largest entry of the inverse Vandermonde matrix of a design's own 1-D nodes
+/// ([`Design::with_axis_nodes`]) that the projector accepts: the 1-D interpolation's coefficients
+/// are at most this many times the values' size. Gauss–Legendre nodes at k = 4 give ≈ 4.6 (the
+/// degree-4 coefficient of a unit spike); nodes this far past them interpolate badly.
+pub const MAX_NODAL_TRANSFORM_ENTRY: f64 = 50.0;
 
 impl Projector {
     /// Precomputes the 1-D transform of `design`'s family (`m = k + 1`):
@@ -94,10 +101,21 @@ impl Projector {
     ///   Gauss nodes.
     /// - Chebyshev (docs/method.md §4): `A[i, j] = (2/m) cos(i θ_j)`, halved for `i = 0`, so that the
     ///   tensor product carries ½ per zero index and the surrogate is `Σ c_i Π_r T_{i_r}`.
+    /// - A Legendre design on its own nodes: `A = V⁻¹`, `V[j, i] = P_i(ξ_j)`, per dimension — the
+    ///   interpolant at those nodes (docs/method.md §12, "Nested elements").
     ///
     /// The d-dimensional map is `A ⊗ … ⊗ A`, applied one dimension at a time.
+    ///
+    /// Errors: a design on its own nodes whose inverse Vandermonde matrix is singular or has an
+    /// entry above [`MAX_NODAL_TRANSFORM_ENTRY`] ([`UqError::BadNodes`]).
     pub fn new(design: Design) -> Result<Projector, UqError> {
         let m = design.points_per_dim();
+        if !design.has_gauss_nodes() {
+            let transforms = (0..design.dim())
+                .map(|r| nodal_transform(design.axis_nodes(r), r))
+                .collect::<Result<Vec<_>, _>>()?;
+            return Ok(Projector { design, transforms });
+        }
         let mut transform = vec![0.0; m * m];
         match design.family() {
             Family::Legendre => {
@@ -120,7 +138,10 @@ impl Projector {
                 }
             }
         }
-        Ok(Projector { design, transform })
+        Ok(Projector {
+            design,
+            transforms: vec![transform],
+        })
     }
 
     /// The design this projector fits.
@@ -198,7 +219,8 @@ impl Projector {
             for r in 0..d {
                 let outer = m.pow(r as u32);
                 let inner = m.pow((d - 1 - r) as u32) * c;
-                apply_axis(a, outer, m, inner, &self.transform, m, b);
+                let transform = &self.transforms[r.min(self.transforms.len() - 1)];
+                apply_axis(a, outer, m, inner, transform, m, b);
                 std::mem::swap(&mut a, &mut b);
             }
             // Transpose the chunk (dense term × output) into output-major kept terms.
@@ -212,6 +234,36 @@ impl Projector {
         }
         Ok(())
     }
+}
+
+/// The inverse of the Legendre Vandermonde matrix `V[j, i] = P_i(nodes[j])` (row-major m × m):
+/// the interpolation transform of a design's own nodes along `dimension`.
+fn nodal_transform(nodes: &[f64], dimension: usize) -> Result<Vec<f64>, UqError> {
+    let m = nodes.len();
+    let bad = UqError::BadNodes {
+        dimension,
+        expected: m,
+        got: m,
+    };
+    let mut p = vec![0.0; m];
+    let vandermonde = nalgebra::DMatrix::from_fn(m, m, |j, i| {
+        Family::Legendre.values(nodes[j], &mut p);
+        p[i]
+    });
+    let inverse = vandermonde.try_inverse().ok_or(bad.clone())?;
+    let mut transform = vec![0.0; m * m];
+    for i in 0..m {
+        for j in 0..m {
+            transform[i * m + j] = inverse[(i, j)];
+        }
+    }
+    if transform
+        .iter()
+        .any(|a| !a.is_finite() || a.abs() > MAX_NODAL_TRANSFORM_ENTRY)
+    {
+        return Err(bad);
+    }
+    Ok(transform)
 }
 
 #[cfg(test)]
