@@ -54,10 +54,10 @@ pub fn crba_at_placements<'a>(model: &Model, data: &'a mut Data) -> &'a nalgebra
     mass.fill(0.0);
     for (i, joint) in model.joints.iter().enumerate().rev() {
         // Depth-first coordinates (crate::model): the subtree's columns are the joint's own and
-        // then its descendants', one contiguous range.
-        let own_end = joint.v_index + joint.nv();
+        // then its descendants', one contiguous range. The descendants' entries of this joint's
+        // rows were written when their forces came up (below, as the child's parent).
         let subtree_end = subtree_velocity_end[i];
-        for column in joint.v_index..own_end {
+        for column in joint.v_index..joint.v_index + joint.nv() {
             let force = apply_to_subspace_column(
                 &composite[i],
                 joint.kind,
@@ -66,19 +66,20 @@ pub fn crba_at_placements<'a>(model: &Model, data: &'a mut Data) -> &'a nalgebra
             for_each_projection(joint, &force, |row, value| mass[row + column * n] = value);
             column_force[column] = force;
         }
-        for (column, force) in (own_end..subtree_end).zip(&column_force[own_end..subtree_end]) {
-            for_each_projection(joint, force, |row, value| {
-                mass[row + column * n] = value;
-                mass[column + row * n] = value;
-            });
-        }
         if let Some(p) = joint.parent {
             debug_assert!(p < i, "joints come after their parents");
+            let parent = &model.joints[p];
             let parent_from_joint = &parent_from_body[i];
             let in_parent = parent_from_joint.act_inertia(&composite[i]);
             composite[p] += in_parent;
-            for force in &mut column_force[joint.v_index..subtree_end] {
+            for (column, force) in
+                (joint.v_index..subtree_end).zip(&mut column_force[joint.v_index..subtree_end])
+            {
                 *force = parent_from_joint.act_force(force);
+                for_each_projection(parent, force, |row, value| {
+                    mass[row + column * n] = value;
+                    mass[column + row * n] = value;
+                });
             }
             subtree_velocity_end[p] = subtree_velocity_end[p].max(subtree_end);
         }

@@ -227,7 +227,10 @@ impl Transform {
     ///
     /// With `h_r = R h` and `p` the translation: `h' = h_r + m p` and
     /// `I' = R I Rᵀ + (2 h_r·p + m|p|²) 1 − (h_r pᵀ + p h_rᵀ + m p pᵀ)`.
-    #[inline]
+    ///
+    /// Always inlined: in the CRBA's sweep it is the chain every composite inertia waits on, and a
+    /// call returns its 13 values through memory.
+    #[inline(always)]
     pub fn act_inertia(&self, inertia: &Inertia) -> Inertia {
         let r = &self.rotation;
         let p = &self.translation;
