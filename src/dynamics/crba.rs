@@ -69,17 +69,39 @@ pub fn crba_at_placements<'a>(model: &Model, data: &'a mut Data) -> &'a nalgebra
         if let Some(p) = joint.parent {
             debug_assert!(p < i, "joints come after their parents");
             let parent = &model.joints[p];
-            let parent_from_joint = &parent_from_body[i];
+            // A copy: the transform stays in registers while the loop below stores forces and
+            // entries of `M` (which the compiler cannot tell apart from `parent_from_body`).
+            let parent_from_joint = parent_from_body[i];
             let in_parent = parent_from_joint.act_inertia(&composite[i]);
             composite[p] += in_parent;
-            for (column, force) in
-                (joint.v_index..subtree_end).zip(&mut column_force[joint.v_index..subtree_end])
-            {
-                *force = parent_from_joint.act_force(force);
-                for_each_projection(parent, force, |row, value| {
-                    mass[row + column * n] = value;
-                    mass[column + row * n] = value;
-                });
+            let forces = &mut column_force[joint.v_index..subtree_end];
+            let columns = joint.v_index..subtree_end;
+            // One loop per kind of parent joint, so that the loop does not ask again per column.
+            match parent.kind {
+                JointKind::Revolute | JointKind::Prismatic => {
+                    let (row, axis) = (parent.v_index, *parent.axis());
+                    let revolute = parent.kind == JointKind::Revolute;
+                    for (column, force) in columns.zip(forces) {
+                        *force = parent_from_joint.act_force(force);
+                        // `Sᵀ f` as `for_each_projection` computes it.
+                        let value = if revolute {
+                            axis.dot(&force.angular)
+                        } else {
+                            axis.dot(&force.linear)
+                        };
+                        mass[row + column * n] = value;
+                        mass[column + row * n] = value;
+                    }
+                }
+                JointKind::Floating => {
+                    for (column, force) in columns.zip(forces) {
+                        *force = parent_from_joint.act_force(force);
+                        for_each_projection(parent, force, |row, value| {
+                            mass[row + column * n] = value;
+                            mass[column + row * n] = value;
+                        });
+                    }
+                }
             }
             subtree_velocity_end[p] = subtree_velocity_end[p].max(subtree_end);
         }
