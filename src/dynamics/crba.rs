@@ -24,12 +24,13 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::D
 ///
 /// One sweep from the leaves to the root (the order of Featherstone's Table 6.2 and of Pinocchio's
 /// CRBA): at joint `i` its composite inertia is complete, so its own columns start there
-/// (`F = I^c_i S_i`), every column of its subtree (whose forces have come up to body `i`) is
-/// projected onto `S_i`, and then the composite inertia and all those forces move on to the
-/// parent. Each column's force goes through the same transforms in the same order as a walk up
-/// from its own joint, and the composite inertias are summed in the same order as a separate pass,
-/// so the bits do not depend on the interleaving; what the interleaving buys is independent work
-/// beside the composite inertias' chain of dependent transforms (docs/speed-history.md).
+/// (`F = I^c_i S_i`); then the composite inertia and the forces of every column of its subtree
+/// move on to the parent, each force projected onto the parent's `S` as it arrives. Each column's
+/// force goes through the same transforms in the same order as a walk up from its own joint, and
+/// the composite inertias are summed in the same order as a separate pass, so the bits do not
+/// depend on the interleaving; what the interleaving buys is independent work beside the
+/// composite inertias' chain of dependent transforms (measured in benches/README.md, "The CRBA in
+/// one sweep").
 ///
 /// Overwrites `data.composite`, `data.column_force`, `data.subtree_velocity_end` and
 /// `data.mass_matrix`; returns `data.mass_matrix`.
