@@ -33,6 +33,11 @@ What it does:
    batch". With `--callgrind` their instructions are per sample: (I(3000 samples) − I(1000
    samples)) over the samples of the whole batch calls between them.
 
+6. `--before PATH`: a `kernel_timing` executable built from an earlier commit (copy
+   `target/release/deps/kernel_timing-*` aside before changing a kernel) runs in the same rounds as
+   a fourth program; its ratios (and with `--callgrind` its instruction ratios) are reported beside
+   the current ones, so that a change is measured before and after in one run, under one load.
+
 Prints a JSON document on stdout and a Markdown table on stderr.
 """
 
@@ -155,9 +160,18 @@ def main():
     parser.add_argument("--batch", type=int, default=32,
                         help="samples per call of ribbon's batched kernels (default 32)")
     parser.add_argument("--callgrind", action="store_true")
+    parser.add_argument("--before", metavar="PATH",
+                        help="a kernel_timing executable of an earlier commit, timed alongside")
     options = parser.parse_args()
+    if options.before and not os.access(options.before, os.X_OK):
+        sys.exit(f"pinocchio_cpp.py: --before {options.before}: not an executable file; pass a "
+                 "kernel_timing binary copied from target/release/deps/ before the change")
     prefix = cmeel_prefix()
     programs = {"ribbon": build_ribbon(), **build_pinocchio(prefix)}
+    if options.before:
+        programs["ribbon-before"] = options.before
+    ribbons = [name for name in programs if name.startswith("ribbon")]
+    references = [name for name in programs if name not in ribbons]
     with open("/proc/loadavg") as handle:
         load_before = handle.read().split()[0]
     if options.batch < 1:
@@ -173,7 +187,7 @@ def main():
         for round_index in range(options.rounds):
             order = names[round_index % len(names):] + names[:round_index % len(names)]
             for name in order:
-                extra = ["all", str(options.batch)] if name == "ribbon" else []
+                extra = ["all", str(options.batch)] if name in ribbons else []
                 result = run_json(programs[name], urdf, options.calls, 3, extra)
                 if name == "ribbon":
                     report["batch_isa"] = result.get("isa")
@@ -183,31 +197,35 @@ def main():
                     best[key] = min(best.get(key, float("inf")), us)
         entry = {"robot": label, "urdf": urdf, "us": {f"{n}/{k}": v for (n, k), v in best.items()},
                  "ratio": {}}
-        for kernel, references in PAIRS.items():
-            anchor = min(best[(n, r)] for n in programs if n != "ribbon" for r in references)
-            entry["ratio"][kernel] = best[("ribbon", RIBBON_KERNEL.get(kernel, kernel))] / anchor
+        for kernel, pinocchio_kernels in PAIRS.items():
+            anchor = min(best[(n, r)] for n in references for r in pinocchio_kernels)
+            for ribbon in ribbons:
+                key = "ratio" if ribbon == "ribbon" else "ratio_before"
+                entry.setdefault(key, {})[kernel] = best[
+                    (ribbon, RIBBON_KERNEL.get(kernel, kernel))] / anchor
         if options.callgrind:
             counts = {}
-            for kernel, references in PAIRS.items():
-                if kernel in BATCHED:
-                    counts[f"ribbon/{kernel}"] = per_sample_instructions(
-                        programs["ribbon"], urdf, kernel, options.batch)
-                elif kernel in RIBBON_KERNEL:
-                    counts[f"ribbon/{kernel}"] = counts[f"ribbon/{RIBBON_KERNEL[kernel]}"]
-                else:
-                    counts[f"ribbon/{kernel}"] = per_call_instructions(
-                        programs["ribbon"], urdf, kernel)
-                for name in programs:
-                    if name != "ribbon":
-                        for reference in references:
-                            key = f"{name}/{reference}"
-                            if key not in counts:
-                                counts[key] = per_call_instructions(programs[name], urdf, reference)
+            for kernel, pinocchio_kernels in PAIRS.items():
+                for ribbon in ribbons:
+                    if kernel in BATCHED:
+                        counts[f"{ribbon}/{kernel}"] = per_sample_instructions(
+                            programs[ribbon], urdf, kernel, options.batch)
+                    elif kernel in RIBBON_KERNEL:
+                        counts[f"{ribbon}/{kernel}"] = counts[f"{ribbon}/{RIBBON_KERNEL[kernel]}"]
+                    else:
+                        counts[f"{ribbon}/{kernel}"] = per_call_instructions(
+                            programs[ribbon], urdf, kernel)
+                for name in references:
+                    for reference in pinocchio_kernels:
+                        key = f"{name}/{reference}"
+                        if key not in counts:
+                            counts[key] = per_call_instructions(programs[name], urdf, reference)
             entry["instructions_per_call"] = counts
-            entry["instruction_ratio"] = {
-                kernel: counts[f"ribbon/{kernel}"] / min(
-                    counts[f"{n}/{r}"] for n in programs if n != "ribbon" for r in references)
-                for kernel, references in PAIRS.items()}
+            for ribbon in ribbons:
+                entry["instruction_ratio" if ribbon == "ribbon" else "instruction_ratio_before"] = {
+                    kernel: counts[f"{ribbon}/{kernel}"] / min(
+                        counts[f"{n}/{r}"] for n in references for r in pinocchio_kernels)
+                    for kernel, pinocchio_kernels in PAIRS.items()}
         report["robots"].append(entry)
     with open("/proc/loadavg") as handle:
         report["load_after"] = handle.read().split()[0]
@@ -215,18 +233,26 @@ def main():
     print(f"batch_* rows: ribbon µs **per sample** in a batch of {options.batch} "
           f"({report.get('batch_lanes')} lanes, {report.get('batch_isa')}), against Pinocchio per call",
           file=sys.stderr)
+    before = options.before is not None
     print("| robot | kernel | ribbon µs | Pinocchio C++ µs (fastest variant) | ratio |"
-          + (" instr. ratio |" if options.callgrind else ""), file=sys.stderr)
-    print("| --- | --- | --- | --- | --- |" + (" --- |" if options.callgrind else ""), file=sys.stderr)
+          + (" instr. ratio |" if options.callgrind else "")
+          + (" before: ratio |" + (" instr. ratio |" if options.callgrind else "") if before else ""),
+          file=sys.stderr)
+    columns = 5 + options.callgrind + before * (1 + options.callgrind)
+    print("|" + " --- |" * columns, file=sys.stderr)
     for entry in report["robots"]:
-        for kernel, references in PAIRS.items():
-            anchor = min((entry["us"][f"{n}/{r}"], f"{n}/{r}") for n in programs if n != "ribbon"
-                         for r in references)
+        for kernel, pinocchio_kernels in PAIRS.items():
+            anchor = min((entry["us"][f"{n}/{r}"], f"{n}/{r}") for n in references
+                         for r in pinocchio_kernels)
             ribbon_us = entry["us"][f"ribbon/{RIBBON_KERNEL.get(kernel, kernel)}"]
             row = (f"| {entry['robot']} | {kernel} | {ribbon_us:.3f} | "
                    f"{anchor[0]:.3f} ({anchor[1]}) | {entry['ratio'][kernel]:.2f} |")
             if options.callgrind:
                 row += f" {entry['instruction_ratio'][kernel]:.2f} |"
+            if before:
+                row += f" {entry['ratio_before'][kernel]:.2f} |"
+                if options.callgrind:
+                    row += f" {entry['instruction_ratio_before'][kernel]:.2f} |"
             print(row, file=sys.stderr)
 
 

@@ -9,8 +9,8 @@ use crate::spatial::{Force, Inertia, Motion};
 
 /// Joint-space mass matrix: `data.mass_matrix = M(q)` (full, symmetric).
 ///
-/// `q: dim nq`. Overwrites `data.parent_from_body`, `data.composite` and `data.mass_matrix` (not
-/// `data.world_from_body`, which the algorithm does not need: call
+/// `q: dim nq`. Overwrites `data.parent_from_body`, `data.mass_matrix` and the work buffers of
+/// [`crba_at_placements`] (not `data.world_from_body`, which the algorithm does not need: call
 /// [`forward_kinematics`](super::forward_kinematics) for placements, as after [`rnea`](super::rnea));
 /// returns `data.mass_matrix`.
 pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::DMatrix<f64> {
@@ -22,42 +22,89 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::D
 /// [`nonlinear_effects`](super::nonlinear_effects) and [`crba`] leave them for their `q`): the same
 /// bits as `crba` at that `q`, without computing the placements again.
 ///
-/// Overwrites `data.composite` and `data.mass_matrix`; returns `data.mass_matrix`.
+/// One sweep from the leaves to the root (the order of Featherstone's Table 6.2 and of Pinocchio's
+/// CRBA): at joint `i` its composite inertia is complete, so its own columns start there
+/// (`F = I^c_i S_i`); then the composite inertia and the forces of every column of its subtree
+/// move on to the parent, each force projected onto the parent's `S` as it arrives. Each column's
+/// force goes through the same transforms in the same order as a walk up from its own joint, and
+/// the composite inertias are summed in the same order as a separate pass, so the bits do not
+/// depend on the interleaving; what the interleaving buys is independent work beside the
+/// composite inertias' chain of dependent transforms (measured in benches/README.md, "The CRBA in
+/// one sweep").
+///
+/// Overwrites `data.composite`, `data.column_force`, `data.subtree_velocity_end` and
+/// `data.mass_matrix`; returns `data.mass_matrix`.
 pub fn crba_at_placements<'a>(model: &Model, data: &'a mut Data) -> &'a nalgebra::DMatrix<f64> {
-    for (composite, body) in data.composite.iter_mut().zip(&model.bodies) {
-        *composite = body.inertia;
-    }
-    for (i, joint) in model.joints.iter().enumerate().rev() {
-        if let Some(p) = joint.parent {
-            let in_parent = data.parent_from_body[i].act_inertia(&data.composite[i]);
-            data.composite[p] += in_parent;
-        }
-    }
     let n = model.nv;
     let Data {
         parent_from_body,
         composite,
+        column_force,
+        subtree_velocity_end,
         mass_matrix,
         ..
     } = data;
+    for (composite, body) in composite.iter_mut().zip(&model.bodies) {
+        *composite = body.inertia;
+    }
+    for (end, joint) in subtree_velocity_end.iter_mut().zip(&model.joints) {
+        *end = joint.v_index + joint.nv();
+    }
     // Column-major storage: entry (row, column) at `row + column · n`.
     let mass = mass_matrix.as_mut_slice();
     mass.fill(0.0);
-    for (i, joint) in model.joints.iter().enumerate() {
-        for k in 0..joint.nv() {
-            let column = joint.v_index + k;
-            let mut force =
-                apply_to_subspace_column(&composite[i], joint.kind, &joint.subspace_column(k));
+    for (i, joint) in model.joints.iter().enumerate().rev() {
+        // Depth-first coordinates (crate::model): the subtree's columns are the joint's own and
+        // then its descendants', one contiguous range. The descendants' entries of this joint's
+        // rows were written when their forces came up (below, as the child's parent).
+        let subtree_end = subtree_velocity_end[i];
+        for column in joint.v_index..joint.v_index + joint.nv() {
+            let force = apply_to_subspace_column(
+                &composite[i],
+                joint.kind,
+                &joint.subspace_column(column - joint.v_index),
+            );
             for_each_projection(joint, &force, |row, value| mass[row + column * n] = value);
-            let mut child = i;
-            while let Some(ancestor) = model.joints[child].parent {
-                force = parent_from_body[child].act_force(&force);
-                for_each_projection(&model.joints[ancestor], &force, |row, value| {
-                    mass[row + column * n] = value;
-                    mass[column + row * n] = value;
-                });
-                child = ancestor;
+            column_force[column] = force;
+        }
+        if let Some(p) = joint.parent {
+            debug_assert!(p < i, "joints come after their parents");
+            let parent = &model.joints[p];
+            // A copy: the transform stays in registers while the loop below stores forces and
+            // entries of `M` (which the compiler cannot tell apart from `parent_from_body`).
+            let parent_from_joint = parent_from_body[i];
+            let in_parent = parent_from_joint.act_inertia(&composite[i]);
+            composite[p] += in_parent;
+            let forces = &mut column_force[joint.v_index..subtree_end];
+            let columns = joint.v_index..subtree_end;
+            // One loop per kind of parent joint, so that the loop does not ask again per column.
+            match parent.kind {
+                JointKind::Revolute | JointKind::Prismatic => {
+                    let (row, axis) = (parent.v_index, *parent.axis());
+                    let revolute = parent.kind == JointKind::Revolute;
+                    for (column, force) in columns.zip(forces) {
+                        *force = parent_from_joint.act_force(force);
+                        // `Sᵀ f` as `for_each_projection` computes it.
+                        let value = if revolute {
+                            axis.dot(&force.angular)
+                        } else {
+                            axis.dot(&force.linear)
+                        };
+                        mass[row + column * n] = value;
+                        mass[column + row * n] = value;
+                    }
+                }
+                JointKind::Floating => {
+                    for (column, force) in columns.zip(forces) {
+                        *force = parent_from_joint.act_force(force);
+                        for_each_projection(parent, force, |row, value| {
+                            mass[row + column * n] = value;
+                            mass[column + row * n] = value;
+                        });
+                    }
+                }
             }
+            subtree_velocity_end[p] = subtree_velocity_end[p].max(subtree_end);
         }
     }
     &data.mass_matrix

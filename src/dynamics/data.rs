@@ -21,6 +21,10 @@ pub struct Data {
     pub force: Vec<Force>,
     /// Composite inertias (CRBA).
     pub composite: Vec<Inertia>,
+    /// Each mass-matrix column's force `I^c S` on its way to the root (CRBA; `nv`).
+    pub column_force: Vec<Force>,
+    /// One past the last velocity coordinate of each joint's subtree (CRBA; per body).
+    pub subtree_velocity_end: Vec<usize>,
     /// Joint-space mass matrix `M(q)` (`nv × nv`), written by [`crba`](super::crba).
     pub mass_matrix: DMatrix<f64>,
     /// Bias `C(q, v) v + g(q)` (`nv`), written by [`nonlinear_effects`](super::nonlinear_effects).
@@ -43,6 +47,8 @@ impl Data {
             acceleration: vec![Motion::zero(); nb],
             force: vec![Force::zero(); nb],
             composite: vec![Inertia::zero(); nb],
+            column_force: vec![Force::zero(); nv],
+            subtree_velocity_end: vec![0; nb],
             mass_matrix: DMatrix::zeros(nv, nv),
             bias: DVector::zeros(nv),
             tau: DVector::zeros(nv),

@@ -227,19 +227,52 @@ impl Transform {
     ///
     /// With `h_r = R h` and `p` the translation: `h' = h_r + m p` and
     /// `I' = R I Rᵀ + (2 h_r·p + m|p|²) 1 − (h_r pᵀ + p h_rᵀ + m p pᵀ)`.
-    #[inline]
+    ///
+    /// Written out entry by entry in the order nalgebra's products sum them (`(a₀b₀ + a₁b₁) +
+    /// a₂b₂` for a row times a column, `|p|² = 0 + p·p`), which is the order the batched
+    /// kernels' lanes follow (src/dynamics/batch/lanes.rs, compared bit for bit). Always inlined:
+    /// in the CRBA's sweep it is the chain every composite inertia waits on.
+    #[inline(always)]
     pub fn act_inertia(&self, inertia: &Inertia) -> Inertia {
         let r = &self.rotation;
         let p = &self.translation;
         let m = inertia.mass;
-        let h_r = r * inertia.first_moment;
-        let outer = h_r * p.transpose() + p * h_r.transpose() + (p * p.transpose()) * m;
-        let diag = 2.0 * h_r.dot(p) + m * p.norm_squared();
+        let h = &inertia.first_moment;
+        let inertia_in_child = &inertia.rotational;
+        let row_dot = |a: [f64; 3], b: [f64; 3]| (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2];
+        let r_row = |i: usize| [r[(i, 0)], r[(i, 1)], r[(i, 2)]];
+        let h_r = [
+            row_dot(r_row(0), [h.x, h.y, h.z]),
+            row_dot(r_row(1), [h.x, h.y, h.z]),
+            row_dot(r_row(2), [h.x, h.y, h.z]),
+        ];
+        let p = [p.x, p.y, p.z];
+        let diag = 2.0 * row_dot(h_r, p) + m * (0.0 + row_dot(p, p));
+        // `R I`, then `(R I) Rᵀ`.
+        let mut r_i = [[0.0; 3]; 3];
+        for (i, row) in r_i.iter_mut().enumerate() {
+            for (j, entry) in row.iter_mut().enumerate() {
+                let column = [
+                    inertia_in_child[(0, j)],
+                    inertia_in_child[(1, j)],
+                    inertia_in_child[(2, j)],
+                ];
+                *entry = row_dot(r_row(i), column);
+            }
+        }
+        let mut rotational = Mat3::zeros();
+        for i in 0..3 {
+            for j in 0..3 {
+                let rotated = row_dot(r_i[i], r_row(j));
+                let outer = (h_r[i] * p[j] + p[i] * h_r[j]) + (p[i] * p[j]) * m;
+                let diagonal = if i == j { diag } else { 0.0 };
+                rotational[(i, j)] = (rotated + diagonal) - outer;
+            }
+        }
         Inertia {
             mass: m,
-            first_moment: h_r + p * m,
-            rotational: r * inertia.rotational * r.transpose() + Mat3::from_diagonal_element(diag)
-                - outer,
+            first_moment: Vec3::new(h_r[0] + p[0] * m, h_r[1] + p[1] * m, h_r[2] + p[2] * m),
+            rotational,
         }
     }
 }
