@@ -632,8 +632,8 @@ fn check_staged_study(name: &str, study: &[&str]) -> (usize, PathBuf, PathBuf) {
     (stages[0], plan, dir.join("shards-2"))
 }
 
-/// `--method auto` at d = 19 chooses the dimension-adaptive design; each round is a stage, and
-/// the staged merges give analyze's bytes. A record block of one stage in another stage's
+/// `--method auto` at d = 19 chooses the dimension-adaptive design; each stage runs several of its
+/// rounds, and the staged merges give analyze's bytes. A record block of one stage in another stage's
 /// directory, an edited stage plan and a stage that was not planned are refused, named.
 #[test]
 fn adaptive_d19_stages_merge_to_the_single_machine_bytes() {

@@ -1,14 +1,16 @@
 //! The rounds of a dimension-adaptive study (docs/method.md §11):
 //!
 //! ```text
-//! round 0: the centre and one Leja point per parameter (d + 1 runs) and the nominal run
-//! round i: fit every output at every record time on the runs so far (Leja interpolation)
+//! stage 1: round 0 — the centre and one Leja point per parameter (d + 1 runs) and the nominal run
+//! stage s: fit every output at every record time on the runs so far (Leja interpolation)
 //!          ⇒ each candidate term's indicator: its largest |coefficient| over records, relative
-//!            to the output's spread ⇒ AdaptiveSet::refine picks the next terms ⇒ run their points
+//!            to the output's spread ⇒ AdaptiveSet::refine picks the next terms, then up to
+//!            ADAPTIVE_ROUNDS_PER_STAGE − 1 more rounds (ADAPTIVE_FIRST_STAGE_ROUNDS − 1 in stage 2)
+//!            on predicted indicators ⇒ run their points
 //! stop:    the budget is spent, or every candidate's indicator is below ADAPTIVE_TOLERANCE
 //! ```
 //!
-//! Every round is a lock-step phase over the whole horizon (and a stage of a distributed study:
+//! Every stage is a lock-step phase over the whole horizon (and a stage of a distributed study:
 //! docs/distributed.md §7), and every run's values are kept (the
 //! next round's fit needs them): `runs × outputs × records` values, which `auto` checks against
 //! [`super::auto::ADAPTIVE_VALUE_BUDGET`] before choosing this design. The study then bounds the
@@ -16,7 +18,8 @@
 
 use super::accumulator::Accumulator;
 use super::adaptive::{
-    AdaptiveSet, ADAPTIVE_BATCH_FRACTION, ADAPTIVE_MIN_BATCH, ADAPTIVE_TOLERANCE,
+    AdaptiveSet, Term, ADAPTIVE_BATCH_FRACTION, ADAPTIVE_FIRST_STAGE_ROUNDS, ADAPTIVE_MIN_BATCH,
+    ADAPTIVE_ROUNDS_PER_STAGE, ADAPTIVE_TOLERANCE,
 };
 use super::error::StudyError;
 use super::method::Method;
@@ -73,18 +76,20 @@ pub(super) fn adapt(
     let mut set = AdaptiveSet::new(d);
     let mut values: Vec<Vec<f64>> = Vec::new();
     let mut new_terms = set.evaluated().to_vec();
-    // The last complete round's grid and, per grid point, its row of `values`.
+    // The last complete stage's grid and, per grid point, its row of `values`.
     let mut grid: Option<(SparseGrid, Vec<usize>)> = None;
-    let mut rounds = 0;
+    // Round 0 is proposed with the set; `propose_stage` counts the rest.
+    let mut rounds = 1;
+    let mut stages_run = 0;
     let policy = context.design_failure_policy(Method::LegendreScan);
     let (stop, complete) = loop {
-        // Run this round's points.
+        // Run this stage's points.
         let points = set.points(&new_terms)?;
         let first_row = values.len();
         values.resize_with(first_row + new_terms.len(), || vec![0.0; stride]);
-        let with_nominal = rounds == 0;
+        let with_nominal = stages_run == 0;
         context.report.runs += new_terms.len() + usize::from(with_nominal);
-        let round_complete = context.run_stage(
+        let stage_complete = context.run_stage(
             stages,
             "adaptive",
             &points,
@@ -110,8 +115,8 @@ pub(super) fn adapt(
                 Ok(())
             },
         )?;
-        rounds += 1;
-        if !round_complete {
+        stages_run += 1;
+        if !stage_complete {
             if grid.is_none() {
                 return Ok(None);
             }
@@ -120,20 +125,12 @@ pub(super) fn adapt(
         }
         // Fit the set evaluated so far and measure the candidates.
         let t_fit = Instant::now();
-        let round_grid = SparseGrid::new(Arc::new(set.multi_index_set()?))?;
-        let rows = rows_of_points(&round_grid, &set)?;
-        let coefficients =
-            fit_all_records(&round_grid, &rows, &values, n_outputs, context.threads)?;
-        let spread = output_spreads(&values, n_outputs);
-        let mi = round_grid.set().clone();
-        set.measure(|term| {
-            let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
-            let Some(t) = mi.index_of(&factors) else {
-                return 0.0;
-            };
-            coefficients.largest_normalised(t, &spread)
-        });
-        grid = Some((round_grid, rows));
+        grid = Some(fit_and_measure(
+            &mut set,
+            &values,
+            n_outputs,
+            context.threads,
+        )?);
         let fit_seconds = t_fit.elapsed().as_secs_f64();
         context.report.bound_seconds += fit_seconds;
         context.report.phase_seconds.design_choice += fit_seconds;
@@ -143,8 +140,12 @@ pub(super) fn adapt(
         if set.largest_indicator() < ADAPTIVE_TOLERANCE {
             break ("converged", true);
         }
-        let batch = ADAPTIVE_MIN_BATCH.max((ADAPTIVE_BATCH_FRACTION * set.len() as f64) as usize);
-        new_terms = set.refine(batch, budget, ADAPTIVE_TOLERANCE);
+        let per_stage = if stages_run == 1 {
+            ADAPTIVE_FIRST_STAGE_ROUNDS
+        } else {
+            ADAPTIVE_ROUNDS_PER_STAGE
+        };
+        new_terms = propose_stage(&mut set, per_stage, budget, &mut rounds);
         if new_terms.is_empty() {
             break ("converged", true);
         }
@@ -159,6 +160,7 @@ pub(super) fn adapt(
         AdaptiveOutcome {
             report: AdaptiveReport {
                 rounds,
+                stages: stages_run,
                 runs: set_of_grid.len(),
                 budget,
                 max_degree: set_of_grid.max_degree(),
@@ -171,6 +173,61 @@ pub(super) fn adapt(
             complete,
         },
     )))
+}
+
+/// Fits every output at every record on the runs of `set`'s evaluated terms and measures the
+/// active candidates' indicators; returns the grid and, per grid point, its row of `values`.
+fn fit_and_measure(
+    set: &mut AdaptiveSet,
+    values: &[Vec<f64>],
+    n_outputs: usize,
+    threads: &rayon::ThreadPool,
+) -> Result<(SparseGrid, Vec<usize>), StudyError> {
+    let grid = SparseGrid::new(Arc::new(set.multi_index_set()?))?;
+    let rows = rows_of_points(&grid, set)?;
+    let coefficients = fit_all_records(&grid, &rows, values, n_outputs, threads)?;
+    let spread = output_spreads(values, n_outputs);
+    let mi = grid.set().clone();
+    set.measure(|term| {
+        let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
+        let Some(t) = mi.index_of(&factors) else {
+            return 0.0;
+        };
+        coefficients.largest_normalised(t, &spread)
+    });
+    Ok((grid, rows))
+}
+
+/// A round's batch: [`ADAPTIVE_BATCH_FRACTION`] of the terms so far, at least
+/// [`ADAPTIVE_MIN_BATCH`].
+fn round_batch(set: &AdaptiveSet) -> usize {
+    ADAPTIVE_MIN_BATCH.max((ADAPTIVE_BATCH_FRACTION * set.len() as f64) as usize)
+}
+
+/// The terms of the next stage (docs/method.md §11, several rounds per stage): `per_stage` rounds
+/// of refinement, the first ranked by the indicators just measured, each later one after the terms
+/// proposed before it were given predicted indicators ([`AdaptiveSet::predict_unmeasured`]).
+/// `rounds` counts the rounds that proposed terms. Empty when no candidate is left above the
+/// tolerance.
+fn propose_stage(
+    set: &mut AdaptiveSet,
+    per_stage: usize,
+    budget: usize,
+    rounds: &mut usize,
+) -> Vec<Term> {
+    let mut terms = Vec::new();
+    for round in 0..per_stage {
+        if round > 0 {
+            set.predict_unmeasured();
+        }
+        let proposed = set.refine(round_batch(set), budget, ADAPTIVE_TOLERANCE);
+        if proposed.is_empty() {
+            break;
+        }
+        *rounds += 1;
+        terms.extend(proposed);
+    }
+    terms
 }
 
 /// Per point of `grid` (built on `set`'s evaluated terms), the row of its run in the values.

@@ -169,8 +169,11 @@ impl CheckSkipped {
 /// What the adaptive design did, for the summary.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AdaptiveReport {
-    /// Rounds run (round 0, the start, included).
+    /// Rounds of refinement proposed (round 0, the start, included); several per stage.
     pub rounds: usize,
+    /// Stages run: lock-step phases of the rounds' points (each a scheduling round trip of a
+    /// distributed study, docs/distributed.md §7).
+    pub stages: usize,
     /// Design runs (terms), the nominal run not included.
     pub runs: usize,
     /// The budget of design runs.

@@ -115,6 +115,7 @@ impl Summary {
             })),
             "adaptive": report.adaptive.as_ref().map(|a| serde_json::json!({
                 "rounds": a.rounds,
+                "stages": a.stages,
                 "runs": a.runs,
                 "budget": a.budget,
                 "max_degree": a.max_degree,

@@ -164,10 +164,7 @@ fn next_stage(plan: &PlanFile, args: &MergeRequest, pending: &PendingStage) -> R
         _ => String::new(),
     };
     let phase = match pending.phase {
-        "adaptive" => format!(
-            "adaptive round {} (rounds go on until the design converges or spends its --max-runs budget)",
-            pending.stage - 1
-        ),
+        "adaptive" => "the next rounds of the adaptive design (stages go on until the design converges or spends its --max-runs budget)".to_string(),
         "design" => "the design built on the screening".to_string(),
         "elements" => "a round of elements (sub-boxes with their own surrogates where the check did not trust one, docs/method.md §12)".to_string(),
         other => other.to_string(),

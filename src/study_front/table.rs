@@ -93,9 +93,10 @@ pub fn table(
     ));
     if let Some(a) = &report.adaptive {
         text.push_str(&format!(
-            "adaptive design: {} runs in {} rounds ({}), {} interaction terms, degree up to {}, largest term left {:.1e} of an output's spread\n",
+            "adaptive design: {} runs in {} rounds, {} stages ({}), {} interaction terms, degree up to {}, largest term left {:.1e} of an output's spread\n",
             a.runs,
             a.rounds,
+            a.stages,
             match a.stop {
                 "converged" => format!("converged below {ADAPTIVE_TOLERANCE:e}"),
                 "budget" => format!("stopped by the budget of {} runs", a.budget),
