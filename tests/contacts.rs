@@ -3,6 +3,7 @@
 
 mod common;
 
+use ribbon::environment::Environment;
 use ribbon::model::{parse_description, LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
 use ribbon::simulate::{simulate, Trajectory};
@@ -51,10 +52,10 @@ fn scene_of(model: &Model, sidecar: &str) -> Result<Scene, String> {
 }
 
 fn run(urdf: &str, sidecar: &str) -> Trajectory {
-    let mut model = model_of(urdf);
+    let model = model_of(urdf);
     let scene = scene_of(&model, sidecar).expect("scene resolves");
-    scene.apply_gravity(&mut model);
-    simulate(model, &scene).expect("simulation runs")
+    let environment = scene.environment();
+    simulate(model, environment, &scene).expect("simulation runs")
 }
 
 fn column<'a>(trajectory: &'a Trajectory, name: &str) -> &'a [f64] {
@@ -387,7 +388,7 @@ const SETTLED_TILT: f64 = 1e-5;
 
 /// Runs `sidecar` on [`FREE_BOX`] with its floating base.
 fn run_free_box(sidecar: &str) -> Trajectory {
-    let mut model = Model::from_description(
+    let model = Model::from_description(
         parse_description(FREE_BOX, "free_box.urdf").expect("URDF parses"),
         LoadOptions {
             floating_base: true,
@@ -396,8 +397,8 @@ fn run_free_box(sidecar: &str) -> Trajectory {
     )
     .expect("model builds");
     let scene = scene_of(&model, sidecar).expect("scene resolves");
-    scene.apply_gravity(&mut model);
-    simulate(model, &scene).expect("simulation runs")
+    let environment = scene.environment();
+    simulate(model, environment, &scene).expect("simulation runs")
 }
 
 /// The free box dropped 2 cm onto the ground, tilted by (0.03, −0.02) rad: a corner lands first,
@@ -696,17 +697,18 @@ fn bad_contact_input_is_refused_naming_the_key() {
         }
     }
     // A negative friction inside the parameter box is refused the same way as a negative mass.
-    let mut model = model_of(&ball);
+    let model = model_of(&ball);
     let file = parse_sidecar(&format!(
         "[parameters]\n\"scene.contact.friction\" = [-0.1, 0.7]\n{pair}{ground}"
     ))
     .unwrap();
     let scene = Scene::resolve(&file, &model, "test.toml", SceneOverrides::default()).unwrap();
-    scene.apply_gravity(&mut model);
-    let message = ribbon::uncertainty::ParameterSpace::from_sidecar(&file, &model, "test.toml")
-        .map(|_| ())
-        .expect_err("a negative friction must be refused")
-        .to_string();
+    let environment = scene.environment();
+    let message =
+        ribbon::uncertainty::ParameterSpace::from_sidecar(&file, &model, &environment, "test.toml")
+            .map(|_| ())
+            .expect_err("a negative friction must be refused")
+            .to_string();
     assert!(
         message.contains("scene.contact.friction")
             && message.contains("friction coefficient must be ≥ 0"),
@@ -717,20 +719,22 @@ fn bad_contact_input_is_refused_naming_the_key() {
 #[test]
 fn contact_sizes_and_material_are_parameters() {
     let mut model = model_of(&slider_urdf(r#"<sphere radius="0.1"/>"#, false));
-    let listed = |m: &Model| -> Vec<String> {
-        ribbon::params::list(m)
+    let listed = |m: &Model, e: &Environment| -> Vec<String> {
+        ribbon::params::list(m, e)
             .into_iter()
             .map(|p| p.path)
             .collect()
     };
-    assert!(!listed(&model).iter().any(|p| p.contains("collision")));
+    assert!(!listed(&model, &Environment::default())
+        .iter()
+        .any(|p| p.contains("collision")));
     let scene = scene_of(
         &model,
         "[scene.contact]\npairs = [[\"body\", \"ground\"]]\n[[scene.geometry]]\nname = \"ground\"\ntype = \"halfspace\"\n",
     )
     .unwrap();
-    scene.apply_gravity(&mut model);
-    let paths = listed(&model);
+    let mut environment = scene.environment();
+    let paths = listed(&model, &environment);
     for expected in [
         "link.body.collision.0.radius",
         "scene.contact.stiffness",
@@ -741,14 +745,15 @@ fn contact_sizes_and_material_are_parameters() {
             paths.iter().any(|p| p == expected),
             "{expected} not in {paths:?}"
         );
-        let target = ribbon::params::resolve(&model, expected).unwrap();
+        let target = ribbon::params::resolve(&model, &environment, expected).unwrap();
         assert_eq!(ribbon::params::path_of(&model, target), expected);
     }
-    let radius = ribbon::params::resolve(&model, "link.body.collision.0.radius").unwrap();
-    assert_eq!(ribbon::params::get(&model, radius), 0.1);
-    ribbon::params::apply(&mut model, &[radius], &[0.12]);
-    assert_eq!(ribbon::params::get(&model, radius), 0.12);
-    let message = ribbon::params::resolve(&model, "link.body.collision.0.length")
+    let radius =
+        ribbon::params::resolve(&model, &environment, "link.body.collision.0.radius").unwrap();
+    assert_eq!(ribbon::params::get(&model, &environment, radius), 0.1);
+    ribbon::params::apply(&mut model, &mut environment, &[radius], &[0.12]);
+    assert_eq!(ribbon::params::get(&model, &environment, radius), 0.12);
+    let message = ribbon::params::resolve(&model, &environment, "link.body.collision.0.length")
         .unwrap_err()
         .to_string();
     assert!(message.contains("has no length"), "{message}");
@@ -856,15 +861,15 @@ type = "halfspace"
 [outputs]
 contact_forces = true
 "#;
-    let mut model = model_of(&urdf);
+    let model = model_of(&urdf);
     let scene = scene_of(&model, sidecar).expect("scene resolves");
-    scene.apply_gravity(&mut model);
+    let environment = scene.environment();
     let force_output = scene
         .outputs
         .iter()
         .position(|o| o.name == "contact.body.ground.normal")
         .expect("the force is an output");
-    let mut system = RobotSystem::new(model.clone(), &scene);
+    let mut system = RobotSystem::new(model.clone(), environment, &scene);
     let simulation = Recorder::new(&scene.outputs);
     let study = Recorder::for_study(&scene.outputs);
     let n = scene.outputs.len();
@@ -872,11 +877,23 @@ contact_forces = true
     let mut record = |recorder: &Recorder, z: f64, vz: f64, row: &mut Vec<f64>| {
         let RobotSystem {
             model,
+            environment,
             data,
             effects,
             ..
         } = &mut system;
-        recorder.record(model, data, effects, &[z], &[vz], &[0.0], &[], &[None], row);
+        recorder.record(
+            model,
+            environment,
+            data,
+            effects,
+            &[z],
+            &[vz],
+            &[0.0],
+            &[],
+            &[None],
+            row,
+        );
         row[force_output]
     };
     let (stiffness, exponent) = (2e5, 1.5);
@@ -1307,7 +1324,7 @@ fn bad_height_fields_are_refused_naming_the_key() {
 /// (docs/contacts.md §6), and the error says what to do about it.
 #[test]
 fn a_fixed_step_newton_failure_with_contacts_advises_the_adaptive_step() {
-    let mut model = Model::from_description(
+    let model = Model::from_description(
         parse_description(FREE_BOX, "free_box.urdf").expect("URDF parses"),
         LoadOptions {
             floating_base: true,
@@ -1331,8 +1348,8 @@ type = "halfspace"
         0.1 - resting_depth_on(1e6, 1.0, 4)
     );
     let scene = scene_of(&model, &sidecar).expect("scene resolves");
-    scene.apply_gravity(&mut model);
-    let message = simulate(model, &scene)
+    let environment = scene.environment();
+    let message = simulate(model, environment, &scene)
         .map(|_| ())
         .expect_err("the fixed step fails where the box sticks")
         .to_string();

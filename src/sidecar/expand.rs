@@ -29,6 +29,7 @@ use super::error::SidecarError;
 use super::file::{BindDeclaration, ParameterDeclaration};
 use super::interval::{IntervalForm, IntervalSpec};
 use super::pattern::{PathPattern, PATTERN_KINDS};
+use crate::environment::Environment;
 use crate::model::Model;
 use crate::params::{self, ParamInfo, ParamTarget};
 use crate::text::closest_suggestion;
@@ -143,18 +144,19 @@ struct PatternMatches {
     zero: Vec<String>,
 }
 
-/// Expands `[parameters]` (patterns, ownership, skips) against `model`; `bind` is read only for
+/// Expands `[parameters]` (patterns, ownership, skips) against `model` and `environment`; `bind` is read only for
 /// its keys (bound paths are taken out of patterns' matches). `file` names the sidecar in messages.
 pub fn expand_parameters(
     parameters: &[ParameterDeclaration],
     bind: &[BindDeclaration],
     model: &Model,
+    environment: &Environment,
     file: &str,
 ) -> Result<ExpandedParameters, SidecarError> {
-    let registry = params::list(model);
+    let registry = params::list(model, environment);
     let mut classes: Vec<(KeyClass<'_>, IntervalSpec)> = Vec::with_capacity(parameters.len());
     for declaration in parameters {
-        classes.push(classify(declaration, model, file)?);
+        classes.push(classify(declaration, model, environment, file)?);
     }
 
     // Ownership: explicit and bound paths first, then patterns in file order (later wins).
@@ -166,7 +168,7 @@ pub fn expand_parameters(
     }
     for (b, key) in bind.iter().map(|b| &b.key).enumerate() {
         // A key that is no path is reported when [bind] is resolved.
-        if let Ok(target) = params::resolve_without_suggestion(model, key) {
+        if let Ok(target) = params::resolve_without_suggestion(model, environment, key) {
             owner.entry(target).or_insert(Owner::Bound(b));
         }
     }
@@ -181,7 +183,7 @@ pub fn expand_parameters(
             matches.push(None);
             continue;
         };
-        let found = pattern_matches(pattern, interval, &registry, model);
+        let found = pattern_matches(pattern, interval, &registry, model, environment);
         if found.matched == 0 {
             return Err(SidecarError::PatternMatchesNothing {
                 file: file.to_string(),
@@ -368,11 +370,12 @@ fn unreachable_pattern(file: &str, key: &str) -> SidecarError {
 fn classify<'k>(
     declaration: &'k ParameterDeclaration,
     model: &Model,
+    environment: &Environment,
     file: &str,
 ) -> Result<(KeyClass<'k>, IntervalSpec), SidecarError> {
     let key = declaration.key.as_str();
     let label = key_label("parameters", key);
-    let class = match params::resolve_without_suggestion(model, key) {
+    let class = match params::resolve_without_suggestion(model, environment, key) {
         Ok(target) => KeyClass::Path(target),
         Err(error) => match PathPattern::parse(key) {
             Err(reason) => {
@@ -394,7 +397,9 @@ fn classify<'k>(
             }
             Ok(None) => {
                 // The message with its suggestion, searched only now that it is needed.
-                let reason = params::resolve(model, key).err().unwrap_or(error);
+                let reason = params::resolve(model, environment, key)
+                    .err()
+                    .unwrap_or(error);
                 return Err(SidecarError::UnknownKey {
                     file: file.to_string(),
                     key: label,
@@ -470,6 +475,7 @@ fn pattern_matches(
     interval: &IntervalSpec,
     registry: &[ParamInfo],
     model: &Model,
+    environment: &Environment,
 ) -> PatternMatches {
     let mut found = PatternMatches {
         matched: 0,
@@ -493,7 +499,7 @@ fn pattern_matches(
             }
         }
         if matches!(interval.form, IntervalForm::Relative(_))
-            && params::get(model, info.target) == 0.0
+            && params::get(model, environment, info.target) == 0.0
         {
             found.zero.push(info.path.clone());
             continue;
