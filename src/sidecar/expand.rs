@@ -26,7 +26,7 @@
 //! [`crate::uncertainty::ParameterSpace`], which builds the dimensions from these entries.
 
 use super::error::SidecarError;
-use super::file::{BindDeclaration, ParameterDeclaration};
+use super::file::{located, BindDeclaration, ParameterDeclaration};
 use super::interval::{IntervalForm, IntervalSpec};
 use super::pattern::{PathPattern, PATTERN_KINDS};
 use crate::environment::Environment;
@@ -63,6 +63,8 @@ const RESERVED_SYMBOL: &str = "sqrt";
 pub struct ParameterEntry {
     /// The key it comes from, as written: the path or symbol itself, or the pattern key.
     pub source: String,
+    /// The line of that key in the sidecar, when read from a file.
+    pub line: Option<usize>,
     /// The key's value as written (TOML), for messages.
     pub value: String,
     /// The interval as written.
@@ -183,6 +185,8 @@ pub fn expand_parameters(
             matches.push(None);
             continue;
         };
+        let at = located(file, parameters[k].line);
+        let file = at.as_str();
         let found = pattern_matches(pattern, interval, &registry, model, environment);
         if found.matched == 0 {
             return Err(SidecarError::PatternMatchesNothing {
@@ -215,8 +219,12 @@ pub fn expand_parameters(
     for (k, (class, interval)) in classes.iter().enumerate() {
         let key = keys[k];
         let value = parameters[k].value.clone();
+        let line = parameters[k].line;
+        // Errors about the key point at its line (notes keep the file's name alone).
+        let at = located(file, line);
         let entry = |kind| ParameterEntry {
             source: key.clone(),
+            line,
             value: value.clone(),
             interval: *interval,
             kind,
@@ -236,7 +244,7 @@ pub fn expand_parameters(
             }
             KeyClass::Pattern(_) => matches[k]
                 .as_ref()
-                .ok_or_else(|| unreachable_pattern(file, key))?,
+                .ok_or_else(|| unreachable_pattern(&at, key))?,
         };
         let label = key_label("parameters", key);
         let mut own = Vec::new();
@@ -311,7 +319,7 @@ pub fn expand_parameters(
                 reasons.push(format!("{later} taken by later patterns"));
             }
             return Err(SidecarError::PatternGivesNothing {
-                file: file.to_string(),
+                file: at.clone(),
                 key: label,
                 matched: found.matched,
                 reason: reasons.join(", "),
@@ -325,7 +333,7 @@ pub fn expand_parameters(
             let unit = match interval.form {
                 IntervalForm::Absolute(_) => common_unit(&own, &registry).map_err(|units| {
                     SidecarError::SharedMixedUnits {
-                        file: file.to_string(),
+                        file: at.clone(),
                         key: label.clone(),
                         value: value.clone(),
                         units,
@@ -373,6 +381,8 @@ fn classify<'k>(
     environment: &Environment,
     file: &str,
 ) -> Result<(KeyClass<'k>, IntervalSpec), SidecarError> {
+    let at = located(file, declaration.line);
+    let file = at.as_str();
     let key = declaration.key.as_str();
     let label = key_label("parameters", key);
     let class = match params::resolve_without_suggestion(model, environment, key) {

@@ -10,8 +10,8 @@ use crate::environment::Environment;
 use crate::model::Model;
 use crate::params::{self, ParamTarget};
 use crate::sidecar::{
-    expand_parameters, key_label, BindDeclaration, EntryKind, IntervalForm, ParameterEntry,
-    SidecarFile,
+    expand_parameters, key_label, located, BindDeclaration, EntryKind, IntervalForm,
+    ParameterEntry, SidecarFile,
 };
 use crate::text::closest_suggestion;
 use std::collections::hash_map::Entry;
@@ -247,13 +247,15 @@ impl ParameterSpace {
         // twice (a map: a list searched per key made a box of every link quadratic).
         let mut declared: HashMap<ParamTarget, String> = HashMap::new();
         for entry in &expanded.entries {
-            let dimension = space.read_dimension(entry, model, environment, file)?;
+            // Messages about the entry point at its key's line.
+            let at = located(file, entry.line);
+            let dimension = space.read_dimension(entry, model, environment, &at)?;
             let label = dimension_label(entry);
             match dimension.kind {
-                DimensionKind::Path(target) => declare(&mut declared, target, label, file)?,
+                DimensionKind::Path(target) => declare(&mut declared, target, label, &at)?,
                 DimensionKind::Group(g) => {
                     for member in &space.groups[g].members {
-                        declare(&mut declared, member.target, label.clone(), file)?;
+                        declare(&mut declared, member.target, label.clone(), &at)?;
                     }
                 }
                 DimensionKind::Symbol => {}
@@ -261,12 +263,13 @@ impl ParameterSpace {
             space.dimensions.push(dimension);
         }
         for declaration in bind {
+            let at = located(file, declaration.line);
             let binding = space.read_binding(declaration, model, environment, file)?;
             declare(
                 &mut declared,
                 binding.target,
                 key_label("bind", &declaration.key),
-                file,
+                &at,
             )?;
             space.bindings.push(binding);
         }
@@ -306,9 +309,11 @@ impl ParameterSpace {
     ) -> Result<Binding, UncertaintyError> {
         let key = declaration.key.as_str();
         let label = key_label("bind", key);
+        // Errors about the key point at its line (the warning below names the file alone).
+        let at = located(file, declaration.line);
         let target = params::resolve(model, environment, key).map_err(|e| {
             UncertaintyError::BindKeyNotAPath {
-                file: file.to_string(),
+                file: at.clone(),
                 key: label.clone(),
                 reason: e.to_string(),
             }
@@ -317,7 +322,7 @@ impl ParameterSpace {
             Ok(text) => text.as_str(),
             Err(value) => {
                 return Err(UncertaintyError::BindNotAString {
-                    file: file.to_string(),
+                    file: at.clone(),
                     key: label,
                     value: value.clone(),
                 })
@@ -340,7 +345,7 @@ impl ParameterSpace {
                     symbols.join(", ")
                 };
                 UncertaintyError::UnknownSymbol {
-                    file: file.to_string(),
+                    file: at.clone(),
                     key: key_and_text.clone(),
                     hint: format!(
                         "{} (declared symbols: {declared})",
@@ -350,7 +355,7 @@ impl ParameterSpace {
                 }
             }
             source => UncertaintyError::BadExpression {
-                file: file.to_string(),
+                file: at.clone(),
                 key: key_and_text.clone(),
                 source,
             },
