@@ -86,7 +86,8 @@ fn parameter_tables(d: usize) -> String {
     text
 }
 
-/// The problem of dimension `d`: model (gravity applied), scene, parameter space.
+/// The problem of dimension `d`: model, scene (its environment: [`Scene::environment`]), parameter
+/// space.
 struct Problem {
     d: usize,
     model: Model,
@@ -104,7 +105,7 @@ fn problem(root: &Path, d: usize) -> Problem {
         .expect("[scene] in the shipped sidecar")..];
     let sidecar = format!("{}\n{scene_part}", parameter_tables(d));
     let file = parse_sidecar(&sidecar).expect("parse the bench sidecar");
-    let mut model = Model::from_urdf_file(
+    let model = Model::from_urdf_file(
         &root.join("robots/ur5/ur5.urdf"),
         LoadOptions {
             floating_base: false,
@@ -118,8 +119,9 @@ fn problem(root: &Path, d: usize) -> Problem {
     };
     let name = format!("bench sidecar d = {d}");
     let scene = Scene::resolve(&file, &model, &name, overrides).expect("resolve the scene");
-    scene.apply_gravity(&mut model);
-    let space = ParameterSpace::from_sidecar(&file, &model, &name).expect("parameter space");
+    let environment = scene.environment();
+    let space =
+        ParameterSpace::from_sidecar(&file, &model, &environment, &name).expect("parameter space");
     assert_eq!(space.len(), d);
     Problem {
         d,
@@ -179,6 +181,7 @@ impl Config {
 fn run(p: &Problem, c: Config) -> (StudyReport, f64) {
     let study = Study {
         model: p.model.clone(),
+        environment: p.scene.environment(),
         scene: &p.scene,
         space: &p.space,
         options: StudyOptions {

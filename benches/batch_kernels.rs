@@ -20,6 +20,7 @@ mod reference_venv;
 use criterion::{criterion_group, criterion_main, Criterion};
 use ribbon::dynamics::batch::{self, BatchData, Isa};
 use ribbon::dynamics::{crba, rnea, Data};
+use ribbon::environment::Environment;
 use ribbon::model::{LoadOptions, Model};
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -90,6 +91,7 @@ fn batch_kernels(c: &mut Criterion) {
                 .warm_up_time(Duration::from_millis(500))
                 .measurement_time(Duration::from_millis(1500));
             let mut data = Data::new(&base);
+            let gravity = Environment::default().gravity;
             let q = batch_samples::sample_ramp(base.nq, 0.3, 0.1, 0);
             let v = batch_samples::sample_ramp(base.nv, 0.5, -0.2, 0);
             let a = batch_samples::sample_ramp(base.nv, -0.4, 0.15, 0);
@@ -101,6 +103,7 @@ fn batch_kernels(c: &mut Criterion) {
                     Kernel::Rnea => {
                         black_box(rnea(
                             &base,
+                            &gravity,
                             &mut data,
                             black_box(&q),
                             black_box(&v),

@@ -17,6 +17,7 @@
 #[path = "support/chain.rs"]
 mod chain;
 
+use ribbon::environment::Environment;
 use ribbon::model::{LoadOptions, Model};
 use ribbon::params;
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
@@ -66,6 +67,8 @@ fn main() {
     let dir = std::env::temp_dir().join(format!("ribbon-chain-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch directory");
     let sidecar = parse_sidecar(chain::CHAIN_SIDECAR).expect("the chain sidecar parses");
+    // The registry and the box read the default environment (the chain's scene sets none).
+    let environment = Environment::default();
 
     println!("chain loading, best of {rounds} (s)");
     println!(
@@ -83,8 +86,11 @@ fn main() {
         assert_eq!(model.nv, n);
         let t_load = best_of(rounds, load);
         let t_params = best_of(rounds, || {
-            let listed = params::list(&model);
-            let sum: f64 = listed.iter().map(|p| params::get(&model, p.target)).sum();
+            let listed = params::list(&model, &environment);
+            let sum: f64 = listed
+                .iter()
+                .map(|p| params::get(&model, &environment, p.target))
+                .sum();
             (listed.len(), sum)
         });
         let t_scene = best_of(rounds, || {
@@ -92,7 +98,7 @@ fn main() {
                 .expect("the scene resolves")
         });
         let t_box = best_of(rounds, || {
-            let space = ParameterSpace::from_sidecar(&sidecar, &model, "chain.toml")
+            let space = ParameterSpace::from_sidecar(&sidecar, &model, &environment, "chain.toml")
                 .expect("the box expands");
             assert_eq!(space.len(), 3 * n);
             space

@@ -71,11 +71,10 @@ fn ball() -> (Model, String, String) {
 
 /// Mean seconds of one run of `scene`, over `repeats` runs.
 fn time_runs(model: &Model, scene: &Scene, repeats: u32) -> f64 {
-    let mut prepared = model.clone();
-    scene.apply_gravity(&mut prepared);
+    let environment = scene.environment();
     let start = Instant::now();
     for _ in 0..repeats {
-        let trajectory = simulate(prepared.clone(), scene).expect("bench run");
+        let trajectory = simulate(model.clone(), environment, scene).expect("bench run");
         std::hint::black_box(trajectory);
     }
     start.elapsed().as_secs_f64() / f64::from(repeats)
@@ -89,10 +88,9 @@ fn bench(c: &mut Criterion) {
         group.measurement_time(Duration::from_secs(3));
         group.sample_size(20);
         for (label, s) in [("none", &without), ("declared", &with)] {
-            let mut prepared = model.clone();
-            s.apply_gravity(&mut prepared);
+            let environment = s.environment();
             group.bench_function(label, |b| {
-                b.iter(|| simulate(prepared.clone(), s).expect("bench run"))
+                b.iter(|| simulate(model.clone(), environment, s).expect("bench run"))
             });
         }
         group.finish();

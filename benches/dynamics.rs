@@ -8,6 +8,7 @@ mod reference_venv;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ribbon::dynamics::{crba, forward_dynamics, rnea, Data};
+use ribbon::environment::Environment;
 use ribbon::model::{LoadOptions, Model};
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -25,6 +26,7 @@ fn dynamics(c: &mut Criterion) {
     for (name, path) in robots() {
         let model = Model::from_urdf_file(&path, LoadOptions::default()).expect("robot loads");
         let mut data = Data::new(&model);
+        let gravity = Environment::default().gravity;
         let q = state(model.nq, 0.3, 0.1);
         let v = state(model.nv, 0.5, -0.2);
         let a = state(model.nv, -0.4, 0.15);
@@ -38,6 +40,7 @@ fn dynamics(c: &mut Criterion) {
             b.iter(|| {
                 rnea(
                     &model,
+                    &gravity,
                     &mut data,
                     black_box(&q),
                     black_box(&v),
@@ -49,6 +52,7 @@ fn dynamics(c: &mut Criterion) {
             b.iter(|| {
                 forward_dynamics(
                     &model,
+                    &gravity,
                     &mut data,
                     black_box(&q),
                     black_box(&v),

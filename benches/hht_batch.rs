@@ -68,8 +68,11 @@ impl Batch {
             for lane in 0..lanes {
                 let sample = group * LANES + lane;
                 let system = stepper.system_mut(lane);
-                *system =
-                    RobotSystem::new(batch_samples::sample_model(&template.model, sample), scene);
+                *system = RobotSystem::new(
+                    batch_samples::sample_model(&template.model, sample),
+                    template.environment,
+                    scene,
+                );
                 stepper.sync_lane(lane).expect("same tree");
                 stepper
                     .start_lane(lane, settings, q0, v0)
@@ -161,7 +164,11 @@ fn scalar_end_state(
     (q0, v0): (&DVector<f64>, &DVector<f64>),
     sample: usize,
 ) -> Vec<u64> {
-    let mut system = RobotSystem::new(batch_samples::sample_model(&template.model, sample), scene);
+    let mut system = RobotSystem::new(
+        batch_samples::sample_model(&template.model, sample),
+        template.environment,
+        scene,
+    );
     let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, q0, v0).expect("consistent start");
     for _ in 0..STEPS_PER_FALL {
         hht.step(&mut system).expect("step converges");
@@ -370,7 +377,8 @@ fn main() {
         let bitwise = (0..largest)
             .all(|s| ends[s] == scalar_end_state(&template, &scene, settings, (&q0, &v0), s));
         let counts = batch.counts();
-        let mut scalar_system = RobotSystem::new(template.model.clone(), &scene);
+        let mut scalar_system =
+            RobotSystem::new(template.model.clone(), template.environment, &scene);
         let mut scalar = HhtIntegrator::new(&mut scalar_system, settings, 0.0, &q0, &v0)
             .expect("consistent start");
         let mut best_scalar = Duration::MAX;

@@ -550,8 +550,7 @@ fn compare_step_control() {
         let file = parse_sidecar(&text).expect("sidecar parses");
         let scene =
             Scene::resolve(&file, &model, name, SceneOverrides::default()).expect("scene resolves");
-        let mut model = model;
-        scene.apply_gravity(&mut model);
+        let environment = scene.environment();
         let q0 = DVector::from_column_slice(&scene.initial_q);
         let v0 = DVector::from_column_slice(&scene.initial_v);
         for tolerance in [hht_settings(&scene).tolerance, 1e-6] {
@@ -562,7 +561,7 @@ fn compare_step_control() {
                     .into_iter()
                     .enumerate()
                 {
-                    let mut system = RobotSystem::new(model.clone(), &scene);
+                    let mut system = RobotSystem::new(model.clone(), environment, &scene);
                     let settings = HhtSettings {
                         step_control: control,
                         tolerance,

@@ -18,6 +18,7 @@ mod batch_samples;
 
 use ribbon::dynamics::batch::{self, BatchData, Isa, LANES};
 use ribbon::dynamics::{crba, forward_dynamics, rnea, Data};
+use ribbon::environment::Environment;
 use ribbon::model::{LoadOptions, Model};
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -92,6 +93,7 @@ fn main() {
         }
     };
     let mut data = Data::new(&model);
+    let gravity = Environment::default().gravity;
     let q = ramp(model.nq, 0.3, 0.1);
     let v = ramp(model.nv, 0.5, -0.2);
     let a = ramp(model.nv, -0.4, 0.15);
@@ -111,6 +113,7 @@ fn main() {
         || {
             black_box(rnea(
                 &model,
+                &gravity,
                 &mut data,
                 black_box(&q),
                 black_box(&v),
@@ -126,6 +129,7 @@ fn main() {
         || {
             let qdd = forward_dynamics(
                 &model,
+                &gravity,
                 &mut data,
                 black_box(&q),
                 black_box(&v),

@@ -138,8 +138,7 @@ fn main() {
     let model =
         Model::from_urdf_file(&root.join("ur5.urdf"), LoadOptions::default()).expect("ur5 loads");
     let scene = Scene::resolve(&file, &model, "ur5", SceneOverrides::default()).expect("scene");
-    let mut model = model;
-    scene.apply_gravity(&mut model);
+    let environment = scene.environment();
     println!(
         "# ur5 sensitivities: {} s at h = {} s, {} outputs at {} Hz; fastest of {repeats}; load \
          average before: {}",
@@ -161,22 +160,25 @@ fn main() {
             eprintln!("d = {d}: only 10 and 60 are built; skipped");
             continue;
         }
-        let space = ParameterSpace::from_sidecar(&parameters(d), &model, "bench").expect("box");
+        let space = ParameterSpace::from_sidecar(&parameters(d), &model, &environment, "bench")
+            .expect("box");
         assert_eq!(space.len(), d);
         let xi = space.nominal_xi();
         let plain = fastest(repeats, || {
-            let run = simulate(model.clone(), &scene).expect("plain run");
+            let run = simulate(model.clone(), environment, &scene).expect("plain run");
             std::hint::black_box(run);
         });
         let mut stats = None;
         let direct = fastest(repeats, || {
-            let run = sensitivity_run(model.clone(), &scene, &space, &xi).expect("sensitivity run");
+            let run = sensitivity_run(model.clone(), environment, &scene, &space, &xi)
+                .expect("sensitivity run");
             stats = run.stats.sensitivity;
             std::hint::black_box(run);
         });
         let central = fastest(repeats, || {
             let run = central_difference_run_with(
                 model.clone(),
+                environment,
                 &scene,
                 &space,
                 &xi,
@@ -189,6 +191,7 @@ fn main() {
         let checked = fastest(repeats, || {
             let run = central_difference_run_with(
                 model.clone(),
+                environment,
                 &scene,
                 &space,
                 &xi,

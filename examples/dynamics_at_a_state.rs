@@ -4,6 +4,7 @@
 //! `cargo run --release --example dynamics_at_a_state -- robots/ur5/ur5.urdf`
 
 use ribbon::dynamics::{crba, nonlinear_effects, Data};
+use ribbon::environment::Environment;
 use ribbon::model::{LoadOptions, Model};
 use ribbon::params;
 use std::path::PathBuf;
@@ -28,9 +29,12 @@ fn run(path: &std::path::Path) -> Result<(), ribbon::Error> {
     let mut data = Data::new(&model);
     let q: Vec<f64> = (0..model.nq).map(|i| 0.2 * i as f64 - 0.4).collect();
     let v = vec![0.0; model.nv];
+    // Standard gravity and no contacts: the environment a scene without `gravity` gives.
+    let mut environment = Environment::default();
+    let gravity = environment.gravity;
 
     let nominal_mass = crba(&model, &mut data, &q).clone();
-    let nominal_gravity = nonlinear_effects(&model, &mut data, &q, &v).to_vec();
+    let nominal_gravity = nonlinear_effects(&model, &gravity, &mut data, &q, &v).to_vec();
 
     // The heaviest link gets 5 % more mass, addressed by its parameter path.
     let heaviest = model
@@ -40,12 +44,12 @@ fn run(path: &std::path::Path) -> Result<(), ribbon::Error> {
         .max_by(|a, b| a.inertial.mass.total_cmp(&b.inertial.mass))
         .map(|l| l.name.clone())
         .unwrap_or_default();
-    let target = params::resolve(&model, &format!("link.{heaviest}.mass"))?;
-    let nominal = params::get(&model, target);
-    params::apply(&mut model, &[target], &[nominal * 1.05]);
+    let target = params::resolve(&model, &environment, &format!("link.{heaviest}.mass"))?;
+    let nominal = params::get(&model, &environment, target);
+    params::apply(&mut model, &mut environment, &[target], &[nominal * 1.05]);
 
     let perturbed_mass = crba(&model, &mut data, &q).clone();
-    let perturbed_gravity = nonlinear_effects(&model, &mut data, &q, &v).to_vec();
+    let perturbed_gravity = nonlinear_effects(&model, &gravity, &mut data, &q, &v).to_vec();
     println!("robot '{}': {} coordinates", model.name(), model.nv);
     println!(
         "link.{heaviest}.mass: {nominal} kg -> {} kg",

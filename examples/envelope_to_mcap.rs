@@ -48,6 +48,7 @@ fn run(out: &Path) -> Result<usize, ribbon::Error> {
     };
     let Setup {
         model,
+        environment,
         scene,
         space,
         ..
@@ -69,6 +70,7 @@ fn run(out: &Path) -> Result<usize, ribbon::Error> {
     };
     let study = Study {
         model: model.clone(),
+        environment,
         scene: &scene,
         space: &space,
         options,

@@ -1,8 +1,35 @@
-//! The environment a scene puts its robot in, beside the robot itself: the contact material of
-//! its declared contacts ([`ContactMaterial`], docs/contacts.md §2–§3) with its defaults. Gravity
-//! is the model's (`Model::gravity`, as in Pinocchio: the dynamics read it). A ground-floor module:
-//! `model` holds a scene's material for parameters to override (`Model::contact`), `geometry`
-//! and `effects` compute with it, and neither depends on the other for it.
+//! The environment a scene puts its robot in, beside the robot itself ([`Environment`]): gravity
+//! and the contact material of its declared contacts ([`ContactMaterial`], docs/contacts.md §2–§3)
+//! with their defaults. A ground-floor module: the scene makes an environment
+//! (`Scene::environment`), parameters (`scene.gravity.*`, `scene.contact.*`) override its values
+//! per sample, the dynamics take its gravity and the effects its material as arguments, and
+//! `model/` (the robot alone) knows nothing of it.
+
+use crate::spatial::Vec3;
+
+/// Standard gravity used when nothing else is said (m/s², along −z).
+pub const DEFAULT_GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
+
+/// What surrounds the robot in a scene: the values a scene (and parameters) set that are not the
+/// robot's own.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Environment {
+    /// Gravity in the world frame (m/s²); zero when the scene does not declare the gravity effect.
+    pub gravity: Vec3,
+    /// The contact material of the scene (`[scene.contact]`), `None` when the scene declares no
+    /// contacts.
+    pub contact: Option<ContactMaterial>,
+}
+
+impl Default for Environment {
+    /// [`DEFAULT_GRAVITY`] and no contacts.
+    fn default() -> Self {
+        Self {
+            gravity: Vec3::from(DEFAULT_GRAVITY),
+            contact: None,
+        }
+    }
+}
 
 /// Contact material of a scene: Hunt–Crossley normal force and regularised Coulomb friction
 /// (docs/contacts.md §2–§3). One material for every declared pair.

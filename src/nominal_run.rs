@@ -12,6 +12,7 @@
 //! callers do).
 
 use crate::cli::apply_set_flags_with_symbols;
+use crate::environment::Environment;
 use crate::model::Model;
 use crate::scene::{limit_excursions, LimitExcursion, Scene};
 use crate::setup::{SceneSetup, SetupMessage, SetupRequest};
@@ -22,8 +23,10 @@ use std::sync::atomic::AtomicBool;
 
 /// A nominal run and what it ran on.
 pub struct NominalRun {
-    /// The model the run started from (`--set` applied, scene gravity applied).
+    /// The model the run started from (`--set` applied).
     pub model: Model,
+    /// The environment the run started from (the scene's, `--set` applied).
+    pub environment: Environment,
     /// The scene.
     pub scene: Scene,
     /// The sidecar read, when there was one.
@@ -54,13 +57,14 @@ impl NominalRun {
     ) -> Result<NominalRun, Error> {
         let SceneSetup {
             mut model,
+            mut environment,
             scene,
             sidecar,
             sidecar_path,
         } = SceneSetup::load(request, message)?;
         let sidecar_name = sidecar_path.as_ref().map(|p| p.display().to_string());
         let symbols = sidecar_name.as_deref().map(|name| (&sidecar, name));
-        apply_set_flags_with_symbols(&mut model, set, symbols)?;
+        apply_set_flags_with_symbols(&mut model, &mut environment, set, symbols)?;
         // Kept per record time: the time, the configuration, every output, and the summary's four
         // copies of each output (time, lower, upper, nominal).
         let per_output = 1 + match copies {
@@ -72,12 +76,13 @@ impl NominalRun {
             (1 + model.nq + scene.outputs.len() * per_output) as u64,
             0,
         )?;
-        for warning in crate::simulate::check_start(&model, &scene)? {
+        for warning in crate::simulate::check_start(&model, &environment, &scene)? {
             message(SetupMessage::Warning, &warning);
         }
-        let trajectory = simulate_interruptible(model.clone(), &scene, interrupt)?;
+        let trajectory = simulate_interruptible(model.clone(), environment, &scene, interrupt)?;
         Ok(NominalRun {
             model,
+            environment,
             scene,
             sidecar_path,
             trajectory,

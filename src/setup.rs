@@ -1,11 +1,13 @@
 //! Loading what every command that simulates needs, in one order: the sidecar, the URDF (on a
-//! floating base when the sidecar or the flag asks), the scene (gravity applied to the model), and —
-//! for studies — the expanded parameter box and a check that the nominal model can start the scene.
+//! floating base when the sidecar or the flag asks), the scene and its environment (gravity,
+//! contact material), and — for studies — the expanded parameter box and a check that the nominal
+//! model can start the scene.
 //!
 //! `simulate` uses [`SceneSetup::load`] (a sidecar is optional there); `analyze`, `compare`, `plan`,
 //! `run`, `merge` and the library examples use [`Setup::load`]. Warnings and notes are handed to a
 //! callback as they arise, so a later error does not swallow them.
 
+use crate::environment::Environment;
 use crate::model::{LoadOptions, Model};
 use crate::scene::{default_sidecar_path, wants_floating_base, Scene, SceneOverrides};
 use crate::sidecar::{read_sidecar, SidecarFile};
@@ -50,8 +52,10 @@ pub struct SceneSetup {
     pub sidecar_path: Option<PathBuf>,
     /// Its contents (the defaults without a sidecar).
     pub sidecar: SidecarFile,
-    /// The nominal model (scene gravity applied).
+    /// The nominal model.
     pub model: Model,
+    /// The scene's environment (gravity, contact material; [`Scene::environment`]).
+    pub environment: Environment,
     /// The scene.
     pub scene: Scene,
 }
@@ -76,6 +80,7 @@ impl SceneSetup {
             sidecar_path,
             sidecar,
             model,
+            environment: scene.environment(),
             scene,
         })
     }
@@ -87,8 +92,10 @@ pub struct Setup {
     pub sidecar_path: PathBuf,
     /// Its contents.
     pub sidecar: SidecarFile,
-    /// The nominal model (scene gravity applied).
+    /// The nominal model.
     pub model: Model,
+    /// The scene's environment (gravity, contact material; [`Scene::environment`]).
+    pub environment: Environment,
     /// The scene.
     pub scene: Scene,
     /// The interval parameters (the sidecar's `[parameters]` expanded, `[bind]` resolved).
@@ -118,20 +125,22 @@ impl Setup {
         let sidecar_name = sidecar_path.display().to_string();
         let (sidecar, _) = read_sidecar(&sidecar_path)?;
         let (model, scene) = load_model_and_scene(request, &sidecar, &sidecar_name, message)?;
-        let space = ParameterSpace::from_sidecar(&sidecar, &model, &sidecar_name)?;
+        let environment = scene.environment();
+        let space = ParameterSpace::from_sidecar(&sidecar, &model, &environment, &sidecar_name)?;
         for warning in space.warnings() {
             message(SetupMessage::Warning, warning);
         }
         for note in space.notes() {
             message(SetupMessage::Note, note);
         }
-        for warning in crate::simulate::check_start(&model, &scene)? {
+        for warning in crate::simulate::check_start(&model, &environment, &scene)? {
             message(SetupMessage::Warning, &warning);
         }
         Ok(Setup {
             sidecar_path,
             sidecar,
             model,
+            environment,
             scene,
             space,
         })
@@ -146,7 +155,7 @@ pub fn print_message(kind: SetupMessage, text: &str) {
     }
 }
 
-/// The model on the base the sidecar or flag asks for, and the resolved scene (gravity applied).
+/// The model on the base the sidecar or flag asks for, and the resolved scene.
 fn load_model_and_scene(
     request: &SetupRequest,
     sidecar: &SidecarFile,
@@ -154,7 +163,7 @@ fn load_model_and_scene(
     message: &mut dyn FnMut(SetupMessage, &str),
 ) -> Result<(Model, Scene), Error> {
     let floating_base = request.floating || wants_floating_base(sidecar, sidecar_name)?;
-    let mut model = Model::from_urdf_file(request.urdf, LoadOptions { floating_base })?;
+    let model = Model::from_urdf_file(request.urdf, LoadOptions { floating_base })?;
     for warning in &model.warnings {
         message(SetupMessage::Warning, warning);
     }
@@ -165,6 +174,5 @@ fn load_model_and_scene(
             message(SetupMessage::Note, note);
         }
     }
-    scene.apply_gravity(&mut model);
     Ok((model, scene))
 }

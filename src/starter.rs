@@ -19,7 +19,9 @@
 //! scene is, so that a user edits it rather than trusts it blindly.
 
 use crate::dynamics::{crba, nonlinear_effects, Data};
+use crate::environment::DEFAULT_GRAVITY;
 use crate::model::{JointKind, Model};
+use crate::spatial::Vec3;
 use std::fmt::Write as _;
 
 /// Each joint's controller is tuned to this natural frequency about the held pose, Hz: stiff
@@ -131,7 +133,8 @@ fn round_significant(value: f64) -> f64 {
 }
 
 impl StarterScene {
-    /// The starter scene of `model` (gravity as the model has it): every independent 1-dof
+    /// The starter scene of `model` (under [`DEFAULT_GRAVITY`], which the scene it writes keeps:
+    /// it sets no `gravity`): every independent 1-dof
     /// joint at [`starting_position`], held there by [`pd_gains`] from the model's mass matrix
     /// and gravity torques at that pose.
     pub fn of(model: &Model) -> StarterScene {
@@ -156,7 +159,8 @@ impl StarterScene {
             (0..model.nv).map(|i| m[(i, i)]).collect()
         };
         let v = vec![0.0; model.nv];
-        let gravity_torques = nonlinear_effects(model, &mut data, &q, &v).to_vec();
+        let gravity = Vec3::from(DEFAULT_GRAVITY);
+        let gravity_torques = nonlinear_effects(model, &gravity, &mut data, &q, &v).to_vec();
         let controllers = held
             .iter()
             .map(|&j| {

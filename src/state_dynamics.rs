@@ -10,7 +10,7 @@ use crate::dynamics::{
 };
 use crate::model::{JointKind, Model};
 use crate::spatial::quaternion::xyzw_norm;
-use crate::spatial::Transform;
+use crate::spatial::{Transform, Vec3};
 use crate::Error;
 use nalgebra::DMatrix;
 
@@ -114,8 +114,9 @@ fn normalise_quaternions(model: &Model, q: &mut [f64]) -> Result<(), Error> {
 
 impl StateDynamics {
     /// Checks `state` against `model` (each vector named by its flag) and computes the dynamics
-    /// there; a result that overflows f64 is refused naming the quantity and joint.
-    pub fn at(model: &Model, state: &StateRequest) -> Result<StateDynamics, Error> {
+    /// there under `gravity` (m/s², world frame); a result that overflows f64 is refused naming the
+    /// quantity and joint.
+    pub fn at(model: &Model, gravity: &Vec3, state: &StateRequest) -> Result<StateDynamics, Error> {
         crate::scene::check_dense_matrices("`ribbon dynamics`", model)?;
         let (q_names, v_names) = coordinate_names(model);
         let mut q = match &state.q {
@@ -139,7 +140,7 @@ impl StateDynamics {
 
         let mut data = Data::new(model);
         let mass_matrix = crba(model, &mut data, &q).clone();
-        let bias = nonlinear_effects(model, &mut data, &q, &v).to_vec();
+        let bias = nonlinear_effects(model, gravity, &mut data, &q, &v).to_vec();
         forward_kinematics(model, &mut data, &q);
         let frames: Vec<(String, Transform)> = (0..model.description.links.len())
             .map(|l| {
@@ -150,13 +151,13 @@ impl StateDynamics {
             })
             .collect();
         let qdd = match &state.tau {
-            Some(tau) => Some(forward_dynamics(model, &mut data, &q, &v, tau)?.to_vec()),
+            Some(tau) => Some(forward_dynamics(model, gravity, &mut data, &q, &v, tau)?.to_vec()),
             None => None,
         };
         let tau = state
             .qdd
             .as_ref()
-            .map(|a| rnea(model, &mut data, &q, &v, a).to_vec());
+            .map(|a| rnea(model, gravity, &mut data, &q, &v, a).to_vec());
         let dynamics = StateDynamics {
             q,
             v,

@@ -41,11 +41,12 @@ fn study_parts(test: &str) -> (Model, Scene, ParameterSpace) {
     std::fs::write(&path, SIDECAR).unwrap();
     let urdf = Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5/ur5.urdf");
     let (sidecar, _) = read_sidecar(&path).unwrap();
-    let mut model = Model::from_urdf_file(&urdf, LoadOptions::default()).unwrap();
+    let model = Model::from_urdf_file(&urdf, LoadOptions::default()).unwrap();
     let scene =
         Scene::resolve(&sidecar, &model, "test sidecar", SceneOverrides::default()).unwrap();
-    scene.apply_gravity(&mut model);
-    let space = ParameterSpace::from_sidecar(&sidecar, &model, "test sidecar").unwrap();
+    let environment = scene.environment();
+    let space =
+        ParameterSpace::from_sidecar(&sidecar, &model, &environment, "test sidecar").unwrap();
     (model, scene, space)
 }
 
@@ -80,6 +81,7 @@ fn auto_chooses_the_adaptive_design_and_its_envelopes_do_not_depend_on_threads()
     for threads in [1, 2] {
         let study = Study {
             model: model.clone(),
+            environment: scene.environment(),
             scene: &scene,
             space: &space,
             options: options(threads, MAX_RUNS),
@@ -118,6 +120,7 @@ fn an_interrupted_adaptive_study_keeps_the_rounds_it_finished() {
     let (model, scene, space) = study_parts("interrupted");
     let study = Study {
         model,
+        environment: scene.environment(),
         scene: &scene,
         space: &space,
         options: options(0, MAX_RUNS),
@@ -157,6 +160,7 @@ fn a_budget_too_small_for_the_rounds_still_runs_the_start() {
     let (model, scene, space) = study_parts("tiny_budget");
     let study = Study {
         model,
+        environment: scene.environment(),
         scene: &scene,
         space: &space,
         options: options(0, 12),

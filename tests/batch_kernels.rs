@@ -36,8 +36,8 @@ fn wiggle(sample: usize, k: usize, salt: f64) -> f64 {
 }
 
 /// `base` with sample `sample`'s values: every link's mass ±5 %, centre of mass ±1 cm, inertia
-/// diagonal ±3 %, every joint origin ±1 cm and ±0.01 rad, every moving axis tilted by ~0.02, gravity
-/// tilted and scaled by ±1 %.
+/// diagonal ±3 %, every joint origin ±1 cm and ±0.01 rad, every moving axis tilted by ~0.02 (its
+/// gravity is [`sample_gravity`]).
 fn sample_model(base: &Model, sample: usize) -> Model {
     sample_model_with_axes(base, sample, true)
 }
@@ -72,13 +72,17 @@ fn sample_model_with_axes(base: &Model, sample: usize, tilt_axes: bool) -> Model
             }
         }
     }
-    model.gravity = Vec3::new(
+    model.refresh();
+    model
+}
+
+/// Sample `sample`'s gravity: tilted and scaled by ±1 %.
+fn sample_gravity(sample: usize) -> Vec3 {
+    Vec3::new(
         0.1 * wiggle(sample, 0, 0.6),
         0.1 * wiggle(sample, 1, 0.6),
         -9.81 * (1.0 + 0.01 * wiggle(sample, 2, 0.6)),
-    );
-    model.refresh();
-    model
+    )
 }
 
 /// Sample `sample`'s state `(q, v, q̈)`: angles within ±3 rad (every quadrant, so that sines and
@@ -129,7 +133,8 @@ fn transform_entries(t: &Transform) -> Vec<f64> {
 /// Runs every batched kernel on `models` (one per sample) and compares every lane with the scalar
 /// kernels on that sample's model; returns a description of the first difference.
 fn compare<const W: usize>(models: &[Model], isa: Isa) -> Result<(), String> {
-    let refs: Vec<&Model> = models.iter().collect();
+    let gravities: Vec<Vec3> = (0..models.len()).map(sample_gravity).collect();
+    let refs: Vec<(&Model, &Vec3)> = models.iter().zip(&gravities).collect();
     let mut batch_model = BatchModel::<W>::from_models(&refs).map_err(|e| e.to_string())?;
     batch_model.isa = isa;
     let size = models.len();
@@ -195,11 +200,11 @@ fn compare<const W: usize>(models: &[Model], isa: Isa) -> Result<(), String> {
     for (s, model) in models.iter().enumerate() {
         let (qs, vs, qdds) = &states[s];
         let mut scalar = Data::new(model);
-        let tau = rnea(model, &mut scalar, qs, vs, qdds).to_vec();
+        let tau = rnea(model, &gravities[s], &mut scalar, qs, vs, qdds).to_vec();
         if let Some((k, a, b)) = first_bit_difference(&data.tau.sample(s), &tau) {
             return Err(label(s, "rnea tau", k, a, b));
         }
-        let bias = nonlinear_effects(model, &mut scalar, qs, vs).to_vec();
+        let bias = nonlinear_effects(model, &gravities[s], &mut scalar, qs, vs).to_vec();
         if let Some((k, a, b)) = first_bit_difference(&data.bias.sample(s), &bias) {
             return Err(label(s, "nonlinear_effects bias", k, a, b));
         }
@@ -230,7 +235,7 @@ fn compare<const W: usize>(models: &[Model], isa: Isa) -> Result<(), String> {
     for (s, model) in models.iter().enumerate() {
         let (qs, vs, taus) = &states[s];
         let mut scalar = Data::new(model);
-        let qdd = forward_dynamics(model, &mut scalar, qs, vs, taus)
+        let qdd = forward_dynamics(model, &gravities[s], &mut scalar, qs, vs, taus)
             .map_err(|e| e.to_string())?
             .to_vec();
         if let Some((k, a, b)) = first_bit_difference(&rhs.sample(s), &qdd) {
@@ -446,7 +451,8 @@ fn lanes_with_their_own_minimum_pivots_match_the_scalar_factorisation() {
 #[test]
 fn the_default_instruction_set_is_the_best_available() {
     let model = load(&common::manifest("robots/ur5/ur5.urdf"), false);
-    let batch = BatchModel::<4>::from_models(&[&model]).unwrap();
+    let gravity = sample_gravity(0);
+    let batch = BatchModel::<4>::from_models(&[(&model, &gravity)]).unwrap();
     assert_eq!(batch.isa, Isa::best());
     assert_eq!(Isa::best() == Isa::baseline(), Isa::avx2().is_none());
 }
@@ -455,20 +461,23 @@ fn the_default_instruction_set_is_the_best_available() {
 fn set_sample_replaces_one_lane_only() {
     let base = load(&common::manifest("robots/ur5/ur5.urdf"), false);
     let models: Vec<Model> = (0..5).map(|s| sample_model(&base, s)).collect();
-    let refs: Vec<&Model> = models.iter().collect();
+    let gravities: Vec<Vec3> = (0..5).map(sample_gravity).collect();
+    let refs: Vec<(&Model, &Vec3)> = models.iter().zip(&gravities).collect();
     let mut batch = BatchModel::<4>::from_models(&refs).unwrap();
-    let replacement = sample_model(&base, 17);
-    batch.set_sample(4, &replacement).unwrap();
+    let replacement = (sample_model(&base, 17), sample_gravity(17));
+    batch.set_sample(4, &replacement.0, &replacement.1).unwrap();
     let mut expected = models.clone();
-    expected[4] = replacement;
-    let refs: Vec<&Model> = expected.iter().collect();
+    let mut expected_gravities = gravities.clone();
+    expected[4] = replacement.0;
+    expected_gravities[4] = replacement.1;
+    let refs: Vec<(&Model, &Vec3)> = expected.iter().zip(&expected_gravities).collect();
     let fresh = BatchModel::<4>::from_models(&refs).unwrap();
     // Lane 4 is lane 0 of chunk 1; the tail lanes 1–3 of chunk 1 hold sample 0's values in both.
     for (a, b) in batch.chunks.iter().zip(&fresh.chunks) {
         assert_eq!(format!("{a:?}"), format!("{b:?}"));
     }
     assert_eq!(
-        batch.set_sample(5, &base).unwrap_err(),
+        batch.set_sample(5, &base, &gravities[0]).unwrap_err(),
         BatchError::NoSuchSample { sample: 5, size: 5 }
     );
 }
@@ -480,7 +489,8 @@ fn models_of_different_trees_are_refused_with_the_joint_named() {
         &common::manifest("robots/double_pendulum/double_pendulum.urdf"),
         false,
     );
-    let error = BatchModel::<4>::from_models(&[&ur5, &pendulum]).unwrap_err();
+    let g = sample_gravity(0);
+    let error = BatchModel::<4>::from_models(&[(&ur5, &g), (&pendulum, &g)]).unwrap_err();
     assert!(
         matches!(error, BatchError::DifferentTree { sample: 1, .. }),
         "{error}"
@@ -491,7 +501,7 @@ fn models_of_different_trees_are_refused_with_the_joint_named() {
     );
     let mut other = ur5.clone();
     other.joints[2].parent = Some(0);
-    let error = BatchModel::<4>::from_models(&[&ur5, &other]).unwrap_err();
+    let error = BatchModel::<4>::from_models(&[(&ur5, &g), (&other, &g)]).unwrap_err();
     let name = &ur5.joints[2].name;
     assert!(
         error.to_string().contains(&format!("joint '{name}'")),

@@ -71,7 +71,7 @@ fn run_both(
     report: fn(usize) -> ReportedVelocity,
 ) -> (Vec<Run>, Vec<Run>, ribbon::simulate::BatchStepCounts) {
     let scene = &setup.scene;
-    let template = RobotSystem::new(setup.model.clone(), scene);
+    let template = RobotSystem::new(setup.model.clone(), setup.environment, scene);
     let q0 = DVector::from_column_slice(&scene.initial_q);
     let v0 = DVector::from_column_slice(&scene.initial_v);
     let lanes = settings.len();
@@ -80,7 +80,9 @@ fn run_both(
     let mut scalar_runs = Vec::new();
     for (xi, lane_settings) in points.iter().zip(settings) {
         let mut system = template.clone();
-        setup.space.apply(&mut system.model, xi);
+        setup
+            .space
+            .apply(&mut system.model, &mut system.environment, xi);
         let mut hht = HhtIntegrator::new(&mut system, *lane_settings, 0.0, &q0, &v0)
             .expect("the scalar start succeeds");
         let mut run = Run {
@@ -105,7 +107,10 @@ fn run_both(
 
     let mut stepper = BatchStepper::new(&template, lanes).expect("a stepper of 1–4 lanes");
     for (lane, xi) in points.iter().enumerate() {
-        setup.space.apply(&mut stepper.system_mut(lane).model, xi);
+        let system = stepper.system_mut(lane);
+        setup
+            .space
+            .apply(&mut system.model, &mut system.environment, xi);
         stepper.sync_lane(lane).expect("same tree");
         stepper
             .start_lane(lane, settings[lane], &q0, &v0)
@@ -458,7 +463,7 @@ fn study_records(
     batched: bool,
     threads: usize,
 ) -> (Vec<u64>, String, (u64, u64)) {
-    let template = RobotSystem::new(setup.model.clone(), &setup.scene);
+    let template = RobotSystem::new(setup.model.clone(), setup.environment, &setup.scene);
     let nominal = vec![0.0; setup.space.len()];
     let mut lockstep = LockStep::new(
         template,

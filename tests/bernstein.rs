@@ -24,6 +24,7 @@ fn run(method: Method) -> StudyReport {
     let (model, scene, space) = (setup.model, setup.scene, setup.space);
     let study = Study {
         model,
+        environment: scene.environment(),
         scene: &scene,
         space: &space,
         options: StudyOptions {

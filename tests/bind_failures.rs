@@ -266,3 +266,46 @@ fn simulate_set_takes_the_sidecars_symbols() {
         );
     }
 }
+
+/// Issue 41: an error about one `[bind]` entry names the sidecar's line of its key
+/// (`FILE:LINE: [bind] "KEY" …`): a key that is no path, a value that is no expression, an
+/// expression with an unknown symbol, and a path declared in `[parameters]` too.
+#[test]
+fn errors_about_a_bind_entry_name_its_line() {
+    let dir = fresh_scratch_dir("bind_failures", "lines");
+    let urdf = common::manifest("robots/ur5/ur5.urdf");
+    let head = "[parameters]\nk = [-1.0, 1.0]\n\n# bound values\n[bind]\n";
+    let cases: [(&str, String, &str); 4] = [
+        (
+            "no_path",
+            format!("{head}\"link.forearm_link.mas\" = \"2 + k\"\n"),
+            "no_path.toml:6: [bind] \"link.forearm_link.mas\": ",
+        ),
+        (
+            "no_string",
+            format!("{head}\"link.forearm_link.com.x\" = \"0.1 * k\"\n\"link.forearm_link.mass\" = 2.0\n"),
+            "no_string.toml:7: [bind] \"link.forearm_link.mass\" = 2.0: ",
+        ),
+        (
+            "unknown_symbol",
+            format!("{head}\n\"link.forearm_link.mass\" = \"2 + j\"\n"),
+            "unknown_symbol.toml:7: [bind] \"link.forearm_link.mass\" = \"2 + j\": unknown symbol 'j'",
+        ),
+        (
+            "twice",
+            "[parameters]\n\"link.forearm_link.mass\" = { rel = 0.05 }\nk = [-1.0, 1.0]\n\n[bind]\n\"link.forearm_link.mass\" = \"2 + k\"\n".to_string(),
+            "twice.toml:6: [bind] \"link.forearm_link.mass\": ",
+        ),
+    ];
+    for (name, text, fragment) in cases {
+        let sidecar = dir.join(format!("{name}.toml"));
+        std::fs::write(&sidecar, text).expect("write sidecar");
+        let out = ribbon_outcome(&["params", s(&urdf), "--uncertainty", s(&sidecar)]);
+        assert_eq!(out.code, Some(2), "{name}: {}", out.stderr);
+        assert!(
+            out.stderr.contains(fragment),
+            "{name}: expected '{fragment}' in: {}",
+            out.stderr
+        );
+    }
+}

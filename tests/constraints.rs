@@ -5,6 +5,7 @@
 mod common;
 
 use nalgebra::DVector;
+use ribbon::environment::Environment;
 use ribbon::integrate::{iteration_matrix, ConstraintRowScaling, HhtIntegrator, HhtSettings};
 use ribbon::model::{parse_description, LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, read_sidecar, Scene, SceneOverrides};
@@ -31,9 +32,8 @@ fn run(model: &Model, sidecar: &str, step: f64, alpha: f64) -> Trajectory {
         ..SceneOverrides::default()
     };
     let scene = Scene::resolve(&file, model, "test", overrides).expect("scene resolves");
-    let mut model = model.clone();
-    scene.apply_gravity(&mut model);
-    simulate(model, &scene).expect("simulation runs")
+    let environment = scene.environment();
+    simulate(model.clone(), environment, &scene).expect("simulation runs")
 }
 
 fn column<'a>(trajectory: &'a Trajectory, name: &str) -> &'a [f64] {
@@ -344,8 +344,7 @@ fn mimic_pair_moves_as_declared_and_reports_its_force() {
     // (M q̈ − Q)_follower + λ = 0 ⇒ λ = −τ_rnea,follower.
     let lambda = column(&trajectory, "lambda.mimic.follower");
     let mut data = ribbon::dynamics::Data::new(&model);
-    let mut gravity_model = model.clone();
-    gravity_model.gravity = nalgebra::Vector3::new(0.0, -9.81, 0.0);
+    let gravity = nalgebra::Vector3::new(0.0, -9.81, 0.0);
     let mut worst: f64 = 0.0;
     let mut scale: f64 = 0.0;
     for k in 0..trajectory.times.len() {
@@ -358,7 +357,7 @@ fn mimic_pair_moves_as_declared_and_reports_its_force() {
             column(&trajectory, "qdd.leader")[k],
             column(&trajectory, "qdd.follower")[k],
         ];
-        let tau = ribbon::dynamics::rnea(&gravity_model, &mut data, &q, &v, &a);
+        let tau = ribbon::dynamics::rnea(&model, &gravity, &mut data, &q, &v, &a);
         worst = worst.max((lambda[k] + tau[1]).abs());
         scale = scale.max(tau[1].abs());
     }
@@ -373,9 +372,8 @@ fn scaled_rows_keep_the_newton_matrix_conditioned() {
     let model = load("robots/four_bar/four_bar.urdf");
     let (file, _) = read_sidecar(&manifest("robots/four_bar/four_bar.uncertainty.toml")).unwrap();
     let scene = Scene::resolve(&file, &model, "four_bar", SceneOverrides::default()).unwrap();
-    let mut model = model;
-    scene.apply_gravity(&mut model);
-    let mut system = RobotSystem::new(model, &scene);
+    let environment = scene.environment();
+    let mut system = RobotSystem::new(model, environment, &scene);
     let q = DVector::from_column_slice(&scene.initial_q);
     let v = DVector::from_column_slice(&scene.initial_v);
     let condition = |system: &mut RobotSystem, h: f64, scaling| {
@@ -506,7 +504,7 @@ fn constraints_and_jacobian_in_one_call_equal_the_separate_calls_bitwise() {
         let (file, _) = read_sidecar(&manifest(sidecar)).expect("sidecar");
         let scene = Scene::resolve(&file, &model, "test", SceneOverrides::default())
             .expect("scene resolves");
-        let mut system = RobotSystem::new(model.clone(), &scene);
+        let mut system = RobotSystem::new(model.clone(), Environment::default(), &scene);
         let (nv, m) = (system.nv(), system.n_constraints());
         assert!(m >= 2, "{urdf}: the scene has loop rows");
         for k in 0..5 {
@@ -561,7 +559,7 @@ fn scleronomic_constraints_have_a_zero_time_derivative() {
         let (file, _) = read_sidecar(&manifest(sidecar)).expect("sidecar");
         let scene = Scene::resolve(&file, &model, "test", SceneOverrides::default())
             .expect("scene resolves");
-        let mut system = RobotSystem::new(model.clone(), &scene);
+        let mut system = RobotSystem::new(model.clone(), Environment::default(), &scene);
         assert_eq!(system.constraints_are_scleronomic(), scleronomic, "{urdf}");
         let q = DVector::from_vec(scene.initial_q.clone());
         let mut phi_t = DVector::from_element(system.n_constraints(), f64::NAN);

@@ -79,9 +79,8 @@ fn example_robot_data_robots_fall_onto_their_joint_limits_at_the_fixed_step() {
         let file = parse_sidecar(&sidecar).expect("the test's sidecar parses");
         let scene = Scene::resolve(&file, &model, "limits.toml", SceneOverrides::default())
             .unwrap_or_else(|e| panic!("{name}: the scene with every joint inside resolves: {e}"));
-        let mut model = model;
-        scene.apply_gravity(&mut model);
-        let mut system = RobotSystem::new(model, &scene);
+        let environment = scene.environment();
+        let mut system = RobotSystem::new(model, environment, &scene);
         let q0 = DVector::from_column_slice(&scene.initial_q);
         let v0 = DVector::from_column_slice(&scene.initial_v);
         let Ok(mut hht) = HhtIntegrator::new(&mut system, hht_settings(&scene), 0.0, &q0, &v0)

@@ -256,7 +256,7 @@ fn lockstep_records(
         sidecar.to_str().unwrap(),
         duration_s,
     );
-    let template = RobotSystem::new(setup.model.clone(), &setup.scene);
+    let template = RobotSystem::new(setup.model.clone(), setup.environment, &setup.scene);
     let mut lockstep = LockStep::new(
         template,
         &setup.space,

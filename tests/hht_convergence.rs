@@ -64,9 +64,8 @@ fn error_against_fixture(urdf: &str, fixture: &str, gravity: &str, step: f64, al
     let model = load(urdf);
     let sidecar = format!("[scene]\nduration = 1.0\ngravity = {gravity}\n[outputs]\nrate = 100");
     let scene = scene(&model, &sidecar, step, alpha);
-    let mut model = model;
-    scene.apply_gravity(&mut model);
-    let trajectory = simulate(model, &scene).expect("simulation runs");
+    let environment = scene.environment();
+    let trajectory = simulate(model, environment, &scene).expect("simulation runs");
     let mut worst: f64 = 0.0;
     for record in reference["records"].as_array().expect("records") {
         let t = record["t"].as_f64().unwrap();
@@ -139,7 +138,7 @@ fn energy(system: &mut RobotSystem, q: &DVector<f64>, v: &DVector<f64>) -> f64 {
         .map(|(b, body)| {
             let com = body.inertia.com().unwrap_or_default();
             let world_com = system.data.world_from_body[b].transform_point(&com);
-            -body.inertia.mass * model.gravity.dot(&world_com)
+            -body.inertia.mass * system.environment.gravity.dot(&world_com)
         })
         .sum();
     kinetic + potential
@@ -149,9 +148,8 @@ fn energy_series(alpha: f64, step: f64, duration: f64) -> Vec<f64> {
     let model = load("robots/double_pendulum/double_pendulum.urdf");
     let sidecar = format!("[scene]\nduration = {duration}\ngravity = [0.0, -9.81, 0.0]");
     let scene = scene(&model, &sidecar, step, alpha);
-    let mut model = model;
-    scene.apply_gravity(&mut model);
-    let mut system = RobotSystem::new(model, &scene);
+    let environment = scene.environment();
+    let mut system = RobotSystem::new(model, environment, &scene);
     let settings = HhtSettings {
         alpha,
         step_s: step,
@@ -255,7 +253,7 @@ fn spring_damper_pendulum_matches_closed_form() {
     let mut errors = Vec::new();
     for h in [2e-3, 1e-3, 5e-4] {
         let scene = scene(&model, &sidecar, h, -0.1);
-        let trajectory = simulate(model.clone(), &scene).expect("runs");
+        let trajectory = simulate(model.clone(), scene.environment(), &scene).expect("runs");
         let error = trajectory
             .times
             .iter()
@@ -293,6 +291,7 @@ fn com_and_velocity(
 ) -> (nalgebra::Vector3<f64>, nalgebra::Vector3<f64>) {
     ribbon::dynamics::nonlinear_effects(
         &system.model,
+        &system.environment.gravity,
         &mut system.data,
         q.as_slice(),
         v.as_slice(),
@@ -326,9 +325,8 @@ fn floating_fall_com_error(step: f64) -> f64 {
                    initial.base = { xyz = [0.0, 0.0, 1.0], rpy = [0.1, 0.2, 0.3], v = [0.3, 0.0, 0.1], w = [0.5, -0.2, 0.1] }\n\
                    initial.v = { elbow_joint = 1.0 }";
     let scene = scene(&model, sidecar, step, -0.1);
-    let mut model = model;
-    scene.apply_gravity(&mut model);
-    let mut system = RobotSystem::new(model, &scene);
+    let environment = scene.environment();
+    let mut system = RobotSystem::new(model, environment, &scene);
     let settings = HhtSettings {
         alpha: -0.1,
         step_s: step,

@@ -262,7 +262,7 @@ fn a_negative_mass_at_the_start_is_named_as_such() {
         SceneOverrides::default(),
     )
     .expect("scene");
-    let message = ribbon::simulate::check_start(&model, &scene)
+    let message = ribbon::simulate::check_start(&model, &scene.environment(), &scene)
         .expect_err("a negative mass cannot start")
         .to_string();
     assert!(

@@ -9,6 +9,7 @@
 mod chain;
 mod common;
 
+use ribbon::environment::Environment;
 use ribbon::model::{LoadOptions, Model};
 use ribbon::params;
 use ribbon::scene::parse_sidecar;
@@ -35,16 +36,19 @@ fn a_chain_of_50000_links_loads_lists_and_expands() {
     let spec = &model.description.joints[LINKS - 1];
     assert_eq!(spec.line as usize, 2 * LINKS + 2);
 
-    let listed = params::list(&model);
+    // A chain loaded without a scene: the default environment (standard gravity, no contacts).
+    let environment = Environment::default();
+    let listed = params::list(&model, &environment);
     // 11 values per link (base included), 11 per revolute joint, 3 of gravity.
     assert_eq!(listed.len(), 11 * (LINKS + 1) + 11 * LINKS + 3);
     assert_eq!(
-        params::resolve(&model, "link.l31415.mass").ok(),
+        params::resolve(&model, &environment, "link.l31415.mass").ok(),
         Some(listed[11 * 31_416].target)
     );
 
     let sidecar = parse_sidecar(chain::CHAIN_SIDECAR).expect("the sidecar parses");
-    let space = ParameterSpace::from_sidecar(&sidecar, &model, "chain.toml").expect("the box");
+    let space = ParameterSpace::from_sidecar(&sidecar, &model, &environment, "chain.toml")
+        .expect("the box");
     assert_eq!(space.len(), 3 * LINKS);
     assert_eq!(space.box_check().links, LINKS);
 }

@@ -49,9 +49,8 @@ fn ribbon_run(step: f64) -> Trajectory {
         ..SceneOverrides::default()
     };
     let scene = Scene::resolve(&file, &model, "four_bar", overrides).expect("scene resolves");
-    let mut model = model;
-    scene.apply_gravity(&mut model);
-    simulate(model, &scene).expect("simulation runs")
+    let environment = scene.environment();
+    simulate(model, environment, &scene).expect("simulation runs")
 }
 
 /// The reference run from the initial state and gravity of the shipped scene, as ribbon resolves

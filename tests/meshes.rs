@@ -122,10 +122,10 @@ fn resolve(model: &Model, sidecar: &str) -> Result<Scene, String> {
 
 /// Final height of the joint and final normal force of a damped drop.
 fn rest(dir: &Path, collision: &str, z0: f64) -> (f64, f64) {
-    let mut model = model_in(dir, &slider_urdf(collision));
+    let model = model_in(dir, &slider_urdf(collision));
     let scene = resolve(&model, &resting_scene(z0)).expect("scene resolves");
-    scene.apply_gravity(&mut model);
-    let trajectory = simulate(model, &scene).expect("simulation runs");
+    let environment = scene.environment();
+    let trajectory = simulate(model, environment, &scene).expect("simulation runs");
     let column = |name: &str| {
         let i = trajectory
             .outputs

@@ -17,9 +17,15 @@
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 use ribbon::dynamics::{crba, forward_dynamics, forward_kinematics, nonlinear_effects, rnea, Data};
+use ribbon::environment::DEFAULT_GRAVITY;
 use ribbon::model::{LoadOptions, Model};
 use ribbon::spatial::{rotation_from_rpy, Force, Inertia, Mat3, Motion, Transform, Vec3};
 use ribbon::uncertainty::Expression;
+
+/// The gravity every dynamics property here is checked under (m/s²).
+fn standard_gravity() -> Vec3 {
+    Vec3::from(DEFAULT_GRAVITY)
+}
 
 /// Identities of the spatial algebra hold to round-off: a few operations on values of order 1–10.
 const SPATIAL_TOLERANCE: f64 = 1e-11;
@@ -301,14 +307,14 @@ proptest! {
     #[test]
     fn inverse_dynamics_inverts_forward_dynamics((model, q, v, tau, qdd) in robot_and_state()) {
         let mut data = Data::new(&model);
-        let accelerations = forward_dynamics(&model, &mut data, &q, &v, &tau).unwrap().to_vec();
-        let torques = rnea(&model, &mut data, &q, &v, &accelerations).to_vec();
+        let accelerations = forward_dynamics(&model, &standard_gravity(), &mut data, &q, &v, &tau).unwrap().to_vec();
+        let torques = rnea(&model, &standard_gravity(), &mut data, &q, &v, &accelerations).to_vec();
         prop_assert!(close(&torques, &tau, DYNAMICS_TOLERANCE), "{torques:?} vs {tau:?}");
         // M q̈ + b = RNEA(q, v, q̈) for any q̈.
         let m = crba(&model, &mut data, &q).clone();
-        let b = DVector::from_column_slice(nonlinear_effects(&model, &mut data, &q, &v));
+        let b = DVector::from_column_slice(nonlinear_effects(&model, &standard_gravity(), &mut data, &q, &v));
         let expected = &m * DVector::from_column_slice(&qdd) + b;
-        let torques = rnea(&model, &mut data, &q, &v, &qdd).to_vec();
+        let torques = rnea(&model, &standard_gravity(), &mut data, &q, &v, &qdd).to_vec();
         prop_assert!(close(&torques, expected.as_slice(), DYNAMICS_TOLERANCE));
     }
 }
@@ -326,7 +332,7 @@ fn energy(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> f64 {
         .map(|(body, world_from_body)| {
             let h = world_from_body.rotation * body.inertia.first_moment
                 + world_from_body.translation * body.inertia.mass;
-            -model.gravity.dot(&h)
+            -standard_gravity().dot(&h)
         })
         .sum();
     kinetic + potential
@@ -343,7 +349,9 @@ fn passive(
     let tau: Vec<f64> = damping.iter().zip(v).map(|(d, v)| -d * v).collect();
     let power = tau.iter().zip(v).map(|(t, v)| t * v).sum();
     (
-        forward_dynamics(model, data, q, v, &tau).unwrap().to_vec(),
+        forward_dynamics(model, &standard_gravity(), data, q, v, &tau)
+            .unwrap()
+            .to_vec(),
         power,
     )
 }

@@ -22,6 +22,7 @@ fn the_vertex_reference_is_inside_the_legendre_envelope_and_contains_the_nominal
     let (model, scene, space) = (setup.model, setup.scene, setup.space);
     let study = Study {
         model,
+        environment: scene.environment(),
         scene: &scene,
         space: &space,
         options: StudyOptions {

@@ -27,6 +27,7 @@
 
 mod common;
 
+use ribbon::environment::Environment;
 use ribbon::model::{LoadOptions, Model};
 use ribbon::scene::{read_sidecar, wants_floating_base, OutputKind, Scene, SceneOverrides};
 use ribbon::simulate::{
@@ -79,9 +80,8 @@ fn load(
     let floating_base = wants_floating_base(&file, "test").expect("base");
     let model = Model::from_urdf_file(&urdf, LoadOptions { floating_base }).expect("robot loads");
     let scene = Scene::resolve(&file, &model, "test", overrides).expect("scene resolves");
-    let space = ParameterSpace::from_sidecar(&file, &model, "test").expect("box");
-    let mut model = model;
-    scene.apply_gravity(&mut model);
+    let space =
+        ParameterSpace::from_sidecar(&file, &model, &scene.environment(), "test").expect("box");
     (model, scene, space)
 }
 
@@ -101,8 +101,16 @@ fn settings(scene: &Scene) -> ribbon::integrate::HhtSettings {
 fn reference(model: &Model, scene: &Scene, space: &ParameterSpace, xi: &[f64]) -> SensitivityRun {
     let settings = settings(scene);
     let run = |step: f64| {
-        central_difference_run_with(model.clone(), scene, space, xi, step, settings)
-            .expect("reference runs")
+        central_difference_run_with(
+            model.clone(),
+            scene.environment(),
+            scene,
+            space,
+            xi,
+            step,
+            settings,
+        )
+        .expect("reference runs")
     };
     let (fine, coarse) = (run(REFERENCE_STEP), run(2.0 * REFERENCE_STEP));
     let mut combined = fine.clone();
@@ -195,8 +203,15 @@ fn check(
     xi: &[f64],
 ) -> SensitivityRun {
     // The reference's tolerances (see the module documentation).
-    let direct = sensitivity_run_with(model.clone(), scene, space, xi, settings(scene))
-        .expect("sensitivity run");
+    let direct = sensitivity_run_with(
+        model.clone(),
+        scene.environment(),
+        scene,
+        space,
+        xi,
+        settings(scene),
+    )
+    .expect("sensitivity run");
     let reference = reference(model, scene, space, xi);
     for (a, b) in direct.values.iter().zip(&reference.values) {
         assert_eq!(a, b, "{label}: the values are not those of a plain run");
@@ -381,7 +396,8 @@ fn spring_mass_against_its_closed_form() {
     )
     .unwrap();
     let file = ribbon::scene::parse_sidecar(sidecar).unwrap();
-    let space = ParameterSpace::from_sidecar(&file, &model, "s.toml").unwrap();
+    let space =
+        ParameterSpace::from_sidecar(&file, &model, &Environment::default(), "s.toml").unwrap();
     let (x0, k, m, radius): (f64, f64, f64, f64) = (0.1, 50.0, 2.0, 0.2);
     let mut errors = Vec::new();
     for step in [4e-4, 2e-4, 1e-4] {
@@ -390,7 +406,14 @@ fn spring_mass_against_its_closed_form() {
             ..SceneOverrides::default()
         };
         let scene = Scene::resolve(&file, &model, "s.toml", overrides).unwrap();
-        let run = sensitivity_run(model.clone(), &scene, &space, &space.nominal_xi()).unwrap();
+        let run = sensitivity_run(
+            model.clone(),
+            scene.environment(),
+            &scene,
+            &space,
+            &space.nominal_xi(),
+        )
+        .unwrap();
         let omega: f64 = (k / m).sqrt();
         let mut worst: f64 = 0.0;
         for (r, t) in run.times.iter().enumerate() {
@@ -427,9 +450,16 @@ fn defaults_agree_and_bad_input_is_refused() {
     const FALLBACK_AGREEMENT: f64 = 1e-5;
     let (model, scene, space) = load("double_pendulum", duration(0.5), |_| {});
     let xi = space.nominal_xi();
-    let direct = sensitivity_run(model.clone(), &scene, &space, &xi).expect("sensitivity run");
-    let fallback =
-        ribbon::simulate::central_difference_run(model.clone(), &scene, &space, &xi).expect("runs");
+    let direct = sensitivity_run(model.clone(), scene.environment(), &scene, &space, &xi)
+        .expect("sensitivity run");
+    let fallback = ribbon::simulate::central_difference_run(
+        model.clone(),
+        scene.environment(),
+        &scene,
+        &space,
+        &xi,
+    )
+    .expect("runs");
     assert_eq!(fallback.stats.runs, 2 * space.len() + 1);
     assert_eq!(direct.stats.runs, 1);
     let worst = errors(&direct, &fallback, &scene)
@@ -439,19 +469,26 @@ fn defaults_agree_and_bad_input_is_refused() {
     eprintln!("double pendulum, 0.5 s: checked fallback vs direct, worst relative {worst:.2e}");
     assert!(worst < FALLBACK_AGREEMENT, "{worst:e}");
 
-    let message = sensitivity_run(model.clone(), &scene, &space, &[0.0])
+    let message = sensitivity_run(model.clone(), scene.environment(), &scene, &space, &[0.0])
         .unwrap_err()
         .to_string();
     assert!(
         message.contains("1 coordinates but the box has 2 dimensions"),
         "{message}"
     );
-    let message = sensitivity_run(model.clone(), &scene, &space, &[0.0, f64::NAN])
-        .unwrap_err()
-        .to_string();
+    let message = sensitivity_run(
+        model.clone(),
+        scene.environment(),
+        &scene,
+        &space,
+        &[0.0, f64::NAN],
+    )
+    .unwrap_err()
+    .to_string();
     assert!(message.contains("coordinate 1 (l2) is NaN"), "{message}");
     let message = central_difference_run_with(
         model,
+        scene.environment(),
         &scene,
         &space,
         &xi,

@@ -266,7 +266,7 @@ fn bad_patterns_are_named_errors() {
             "nothing.toml",
             "[parameters]\n\"link.*.mas\" = { rel = 0.05 }\n",
             &[
-                "nothing.toml: [parameters] \"link.*.mas\": the pattern matches no parameter of robot 'ur5'",
+                "nothing.toml:2: [parameters] \"link.*.mas\": the pattern matches no parameter of robot 'ur5'",
                 "did you mean 'link.*.mass'?",
             ],
         ),
@@ -274,7 +274,7 @@ fn bad_patterns_are_named_errors() {
             "mixed.toml",
             "[parameters]\n\"joint.*.origin.*\" = { abs = 0.0005, shared = true }\n",
             &[
-                "mixed.toml: [parameters] \"joint.*.origin.*\" = { abs = 0.0005, shared = true }",
+                "mixed.toml:2: [parameters] \"joint.*.origin.*\" = { abs = 0.0005, shared = true }",
                 "different units (m: joint.shoulder_pan_joint.origin.x; rad: joint.shoulder_pan_joint.origin.roll)",
             ],
         ),
@@ -358,4 +358,35 @@ fn a_rel_pattern_on_a_robot_with_massless_links_gives_a_counted_note() {
         "{}",
         out.stdout
     );
+}
+
+/// Issue 41: an error about one `[parameters]` entry names the sidecar's line of its key
+/// (`FILE:LINE: [parameters] "KEY" …`), counted through comments and blank lines, for a key that
+/// is no path, an interval that is not one, and a path whose URDF value the interval leaves out.
+#[test]
+fn errors_about_a_parameters_entry_name_its_line() {
+    let cases: [(&str, &str, &str); 3] = [
+        (
+            "unknown_key.toml",
+            "# a comment\n[parameters]\n\"link.forearm_link.mass\" = { rel = 0.05 }\n\"link.forearm_link.mas\" = { rel = 0.05 }\n",
+            "unknown_key.toml:4: [parameters] \"link.forearm_link.mas\": ",
+        ),
+        (
+            "bad_interval.toml",
+            "[parameters]\n\n\"link.forearm_link.mass\" = [3, 1]\n",
+            "bad_interval.toml:3: [parameters] \"link.forearm_link.mass\" = [3, 1]: ",
+        ),
+        (
+            "outside.toml",
+            "[parameters]\n\"link.forearm_link.mass\" = { rel = 0.05 }\n\"link.upper_arm_link.mass\" = [100.0, 200.0]\n",
+            "outside.toml:3: [parameters] \"link.upper_arm_link.mass\" = [100, 200] does not contain",
+        ),
+    ];
+    for (name, text, fragment) in cases {
+        let path = temp_file(name, text);
+        for command in ["params", "analyze"] {
+            let out = ribbon_outcome(&[command, UR5, "--uncertainty", &path]);
+            assert_input_error(&out, &[fragment]);
+        }
+    }
 }

@@ -40,6 +40,7 @@ fn ur5_study_indices_match_a_refit_and_a_monte_carlo_estimate() {
 
     let study = Study {
         model: model.clone(),
+        environment: scene.environment(),
         scene: &scene,
         space: &space,
         options: StudyOptions {
@@ -97,9 +98,9 @@ fn ur5_study_indices_match_a_refit_and_a_monte_carlo_estimate() {
     let runs: Vec<_> = points
         .chunks_exact(d)
         .map(|xi| {
-            let mut m = model.clone();
-            space.apply(&mut m, xi);
-            simulate(m, &scene).unwrap()
+            let (mut m, mut environment) = (model.clone(), scene.environment());
+            space.apply(&mut m, &mut environment, xi);
+            simulate(m, environment, &scene).unwrap()
         })
         .collect();
     let projector = Projector::new(design.clone()).unwrap();

@@ -63,9 +63,8 @@ fn setup(model: Model, sidecar: &str) -> (RobotSystem, HhtSettings, DVector<f64>
     let file = parse_sidecar(sidecar).expect("sidecar parses");
     let scene = Scene::resolve(&file, &model, "test.toml", SceneOverrides::default())
         .expect("scene resolves");
-    let mut model = model;
-    scene.apply_gravity(&mut model);
-    let system = RobotSystem::new(model, &scene);
+    let environment = scene.environment();
+    let system = RobotSystem::new(model, environment, &scene);
     (
         system,
         hht_settings(&scene),
@@ -79,7 +78,7 @@ fn energy(system: &mut RobotSystem, q: &DVector<f64>, v: &DVector<f64>) -> f64 {
     let mass = crba(&system.model, &mut system.data, q.as_slice()).clone();
     let kinetic = 0.5 * v.dot(&(&mass * v));
     ribbon::dynamics::forward_kinematics(&system.model, &mut system.data, q.as_slice());
-    let gravity = system.model.gravity;
+    let gravity = system.environment.gravity;
     let mut potential = 0.0;
     for (b, body) in system.model.bodies.iter().enumerate() {
         let c = body.inertia.com().unwrap_or_default();

@@ -544,6 +544,8 @@ fn compare_dynamics(
     };
     let mut worst: BTreeMap<&str, f64> = QUANTITIES.iter().map(|q| (*q, 0.0)).collect();
     let mut data = Data::new(model);
+    // Pinocchio's model gravity, the default one: (0, 0, −9.81) m/s².
+    let gravity = ribbon::spatial::Vec3::from(ribbon::environment::DEFAULT_GRAVITY);
     let mut singular_message = None;
     let mut near_singular_accepted = 0;
     let links: Vec<&str> = entry["links"]
@@ -580,7 +582,7 @@ fn compare_dynamics(
             }
         };
         record("mass_matrix", metric(&m, &m_ref));
-        let bias = nonlinear_effects(model, &mut data, &q, &v).to_vec();
+        let bias = nonlinear_effects(model, &gravity, &mut data, &q, &v).to_vec();
         record(
             "bias",
             metric(&bias, &to_ribbon_v(&floats(&expected["bias"]))),
@@ -589,7 +591,7 @@ fn compare_dynamics(
             .as_f64()
             .unwrap_or(1.0);
         let near_singular = ratio <= NEAR_SINGULAR_EIGENVALUE_RATIO || expected["qdd"].is_null();
-        match forward_dynamics(model, &mut data, &q, &v, &tau) {
+        match forward_dynamics(model, &gravity, &mut data, &q, &v, &tau) {
             Ok(a) if !near_singular => {
                 record("qdd", metric(a, &to_ribbon_v(&floats(&expected["qdd"]))));
             }
@@ -604,7 +606,7 @@ fn compare_dynamics(
                 "{label}: ribbon's forward dynamics failed where Pinocchio's mass matrix has eigenvalue ratio {ratio:e}: {e}"
             )),
         }
-        let tau_out = rnea(model, &mut data, &q, &v, &qdd).to_vec();
+        let tau_out = rnea(model, &gravity, &mut data, &q, &v, &qdd).to_vec();
         record(
             "tau",
             metric(&tau_out, &to_ribbon_v(&floats(&expected["tau"]))),

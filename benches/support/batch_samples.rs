@@ -6,7 +6,9 @@
 #![allow(dead_code)]
 
 use ribbon::dynamics::batch::{BatchModel, BatchVectors};
+use ribbon::environment::Environment;
 use ribbon::model::Model;
+use ribbon::spatial::Vec3;
 
 /// `base` with every link mass scaled by `1 + 0.01 · sample`.
 pub fn sample_model(base: &Model, sample: usize) -> Model {
@@ -25,7 +27,7 @@ pub fn sample_ramp(n: usize, offset: f64, step: f64, sample: usize) -> Vec<f64> 
         .collect()
 }
 
-/// A batch of `size` samples of `base` and its states `(q, v, a)`.
+/// A batch of `size` samples of `base` under the default gravity and its states `(q, v, a)`.
 pub fn batch<const W: usize>(
     base: &Model,
     size: usize,
@@ -36,7 +38,8 @@ pub fn batch<const W: usize>(
     BatchVectors<W>,
 ) {
     let models: Vec<Model> = (0..size).map(|s| sample_model(base, s)).collect();
-    let refs: Vec<&Model> = models.iter().collect();
+    let gravity = Environment::default().gravity;
+    let refs: Vec<(&Model, &Vec3)> = models.iter().map(|m| (m, &gravity)).collect();
     let model = BatchModel::<W>::from_models(&refs).expect("samples of one robot");
     let mut q = BatchVectors::zeros(base.nq, size);
     let mut v = BatchVectors::zeros(base.nv, size);

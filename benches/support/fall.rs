@@ -97,8 +97,7 @@ pub fn fall_problem(path: &Path) -> (RobotSystem, Scene, DVector<f64>, DVector<f
         },
     )
     .expect("scene resolves");
-    let mut model = model;
-    scene.apply_gravity(&mut model);
+    let environment = scene.environment();
     let mut q0 = DVector::from_column_slice(&scene.initial_q);
     // The four-bar starts where its sidecar closes the loop; every other robot at REVOLUTE_Q0.
     if !is_four_bar(path) {
@@ -115,6 +114,6 @@ pub fn fall_problem(path: &Path) -> (RobotSystem, Scene, DVector<f64>, DVector<f
         }
     }
     let v0 = DVector::from_column_slice(&scene.initial_v);
-    let system = RobotSystem::new(model, &scene);
+    let system = RobotSystem::new(model, environment, &scene);
     (system, scene, q0, v0)
 }

@@ -36,9 +36,9 @@ fuzz_target!(|data: &[u8]| {
     let Ok(scene) = Scene::resolve(&sidecar, &model, "fuzz.toml", SceneOverrides::default()) else {
         return;
     };
-    scene.apply_gravity(&mut model);
-    if let Ok(space) = ParameterSpace::from_sidecar(&sidecar, &model, "fuzz.toml") {
+    let mut environment = scene.environment();
+    if let Ok(space) = ParameterSpace::from_sidecar(&sidecar, &model, &environment, "fuzz.toml") {
         let xi = space.nominal_xi();
-        space.apply(&mut model, &xi);
+        space.apply(&mut model, &mut environment, &xi);
     }
 });

@@ -6,6 +6,7 @@ use crate::convert::{array1, array2, homogeneous, set_flags, vector_arg};
 use crate::errors::{to_py, warn};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use ribbon::environment::Environment;
 use ribbon::model::{LoadOptions, Model};
 use ribbon::state_dynamics::{StateDynamics, StateRequest};
 use std::path::PathBuf;
@@ -76,10 +77,12 @@ impl Robot {
     /// Every value that can be declared uncertain (`ribbon params`): `{"paths": [...],
     /// "values": ndarray, "units": [...]}`, one entry per parameter.
     fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let listed = ribbon::params::list(&self.model);
+        // A robot without a scene: the default environment, as `ribbon params` without a sidecar.
+        let environment = Environment::default();
+        let listed = ribbon::params::list(&self.model, &environment);
         let values: Vec<f64> = listed
             .iter()
-            .map(|p| ribbon::params::get(&self.model, p.target))
+            .map(|p| ribbon::params::get(&self.model, &environment, p.target))
             .collect();
         let dict = PyDict::new(py);
         dict.set_item(
@@ -113,15 +116,16 @@ impl Robot {
         };
         let flags = set_flags(set)?;
         let edited;
+        let mut environment = Environment::default();
         let model = if flags.is_empty() {
             &self.model
         } else {
             let mut copy = self.model.clone();
-            ribbon::cli::apply_set_flags(&mut copy, &flags).map_err(to_py)?;
+            ribbon::cli::apply_set_flags(&mut copy, &mut environment, &flags).map_err(to_py)?;
             edited = copy;
             &edited
         };
-        let result = StateDynamics::at(model, &state).map_err(to_py)?;
+        let result = StateDynamics::at(model, &environment.gravity, &state).map_err(to_py)?;
         let nv = model.nv;
         let dict = PyDict::new(py);
         dict.set_item("q", array1(py, &result.q))?;

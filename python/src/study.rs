@@ -67,7 +67,13 @@ fn run_study_here(
     let setup = Setup::load(&request.scene.request(), message)?;
     let options = study_options(&request.flags, &setup.sidecar.analysis)?;
     check_study_memory(&setup.scene, &options, &setup.space, false)?;
-    let study = Study::new(&setup.model, &setup.scene, &setup.space, options.clone());
+    let study = Study::new(
+        &setup.model,
+        &setup.environment,
+        &setup.scene,
+        &setup.space,
+        options.clone(),
+    );
     let plan = study.plan()?;
     let header = LogHeader::of_plan(setup.model.name(), &plan, &options, &setup.space);
     let mut blocks = RecordedBlocks::default();

@@ -558,7 +558,11 @@ impl SampleWorker {
             positions.clear();
             positions.resize(block.count * self.system.model.nq, 0.0);
         }
-        context.space.apply(&mut self.system.model, &sample.xi);
+        context.space.apply(
+            &mut self.system.model,
+            &mut self.system.environment,
+            &sample.xi,
+        );
         // A `[bind]` value no model can have is named with its expression and symbol values,
         // before the integrator meets it.
         if let Err(error) = context
@@ -850,9 +854,7 @@ fn record_sample(
 ) {
     let (n_outputs, nq) = (recorder.outputs().len(), system.model.nq);
     recorder.record_state(
-        &system.model,
-        &mut system.data,
-        &mut system.effects,
+        system,
         state,
         &sample.initial,
         &mut sample.block[r * n_outputs..(r + 1) * n_outputs],

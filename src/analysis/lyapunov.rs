@@ -13,6 +13,7 @@
 //! as a consistent HHT trajectory. The initial separation leaves a floating base's quaternion alone
 //! (it would no longer be a unit quaternion). Cost: two runs, whatever the number of parameters.
 
+use crate::environment::Environment;
 use crate::integrate::HhtIntegrator;
 use crate::model::{JointKind, Model};
 use crate::scene::Scene;
@@ -73,17 +74,19 @@ impl LyapunovEstimate {
     }
 }
 
-/// Estimates the largest Lyapunov exponent of `model` (the nominal parameters) in `scene`. Returns
+/// Estimates the largest Lyapunov exponent of `model` in `environment` (the nominal parameters)
+/// in `scene`. Returns
 /// `None` when either run fails or is interrupted (the study reports the nominal run's failure
 /// itself).
 pub fn estimate_lyapunov(
     model: &Model,
+    environment: &Environment,
     scene: &Scene,
     interrupt: &AtomicBool,
 ) -> Option<LyapunovEstimate> {
     let settings = hht_settings(scene);
-    let mut reference_system = RobotSystem::new(model.clone(), scene);
-    let mut shadow_system = RobotSystem::new(model.clone(), scene);
+    let mut reference_system = RobotSystem::new(model.clone(), *environment, scene);
+    let mut shadow_system = RobotSystem::new(model.clone(), *environment, scene);
     let q0 = DVector::from_column_slice(&scene.initial_q);
     let v0 = DVector::from_column_slice(&scene.initial_v);
     let mut reference = HhtIntegrator::new(&mut reference_system, settings, 0.0, &q0, &v0).ok()?;

@@ -23,6 +23,7 @@ use super::schedule::RecordSchedule;
 use super::stages::StageCursor;
 use super::study_plan::StudyOptions;
 use crate::effects::ContactStats;
+use crate::environment::Environment;
 use crate::model::Model;
 use crate::scene::Scene;
 use crate::simulate::{hht_settings, RobotSystem};
@@ -33,8 +34,10 @@ use std::time::Instant;
 /// What every phase of one study run shares: the study (model, scene, box, options) and the run
 /// (threads, interrupt, start time, the report the phases add to, the progress callback).
 pub(super) struct PhaseContext<'a> {
-    /// The nominal model (scene gravity applied): every run's template.
+    /// The nominal model: every run's template.
     pub model: &'a Model,
+    /// The scene's environment: every run's template.
+    pub environment: &'a Environment,
     /// The scene.
     pub scene: &'a Scene,
     /// The interval parameters.
@@ -116,7 +119,14 @@ impl<'a> PhaseContext<'a> {
     /// The lock-step simulation of `points` (row-major `n × d`) and, when given, the nominal run
     /// after them, with the study's model, scene and box.
     pub fn lockstep(&self, points: &[f64], nominal_xi: Option<&[f64]>) -> LockStep<'a> {
-        lockstep(self.model, self.scene, self.space, points, nominal_xi)
+        lockstep(
+            self.model,
+            self.environment,
+            self.scene,
+            self.space,
+            points,
+            nominal_xi,
+        )
     }
 
     /// [`PhaseContext::run_phase`] of the next stage: its records read from where `stages` says,
@@ -265,15 +275,17 @@ impl<'a> PhaseContext<'a> {
 }
 
 /// The lock-step simulation of `points` (row-major `n × d`) and, when given, the nominal run
-/// after them, with `model` (the template of every run), `scene` and the box `space`.
+/// after them, with `model` in `environment` (the template of every run), `scene` and the box
+/// `space`.
 pub(super) fn lockstep<'a>(
     model: &Model,
+    environment: &Environment,
     scene: &'a Scene,
     space: &'a ParameterSpace,
     points: &[f64],
     nominal_xi: Option<&[f64]>,
 ) -> LockStep<'a> {
-    let template = RobotSystem::new(model.clone(), scene);
+    let template = RobotSystem::new(model.clone(), *environment, scene);
     LockStep::new(
         template,
         space,

@@ -42,6 +42,7 @@ use super::screening_phase::screen;
 use super::sparse::SparseDesign;
 use super::stages::{SimulateHere, StageCursor, StageRecords};
 use super::study_plan::{StudyOptions, StudyPlan};
+use crate::environment::Environment;
 use crate::model::Model;
 use crate::scene::Scene;
 use crate::uncertainty::ParameterSpace;
@@ -51,8 +52,10 @@ use std::time::Instant;
 
 /// A study ready to run.
 pub struct Study<'a> {
-    /// The nominal model (scene gravity applied).
+    /// The nominal model.
     pub model: Model,
+    /// The scene's environment (gravity, contact material; [`Scene::environment`]).
+    pub environment: Environment,
     /// The scene.
     pub scene: &'a Scene,
     /// The interval parameters.
@@ -62,16 +65,19 @@ pub struct Study<'a> {
 }
 
 impl<'a> Study<'a> {
-    /// The study of `space` on `scene` with a copy of the nominal `model` (scene gravity applied):
-    /// the one way every command (`plan`, `run`, `merge`, `analyze`, `compare`) builds it.
+    /// The study of `space` on `scene` with a copy of the nominal `model` in `environment` (the
+    /// scene's): the one way every command (`plan`, `run`, `merge`, `analyze`, `compare`) builds
+    /// it.
     pub fn new(
         model: &Model,
+        environment: &Environment,
         scene: &'a Scene,
         space: &'a ParameterSpace,
         options: StudyOptions,
     ) -> Self {
         Study {
             model: model.clone(),
+            environment: *environment,
             scene,
             space,
             options,
@@ -119,6 +125,7 @@ impl Study<'_> {
     ) -> PhaseContext<'c> {
         PhaseContext {
             model: &self.model,
+            environment: &self.environment,
             scene: self.scene,
             space: self.space,
             options: &self.options,
@@ -133,7 +140,14 @@ impl Study<'_> {
     /// The lock-step simulation of `points` (row-major `n × d`) and, when given, the nominal run
     /// after them, with this study's model, scene and box.
     pub fn lockstep(&self, points: &[f64], nominal_xi: Option<&[f64]>) -> LockStep<'_> {
-        lockstep(&self.model, self.scene, self.space, points, nominal_xi)
+        lockstep(
+            &self.model,
+            &self.environment,
+            self.scene,
+            self.space,
+            points,
+            nominal_xi,
+        )
     }
 
     /// The design's sample points (row-major `runs × d`, the nominal run not included) when the
@@ -371,10 +385,18 @@ fn design_of(
 /// nominal parameters and a shadow with a perturbed state).
 fn chaos(context: &mut PhaseContext<'_>) {
     let mut nominal_model = context.model.clone();
-    context
-        .space
-        .apply(&mut nominal_model, &context.space.nominal_xi());
+    let mut nominal_environment = *context.environment;
+    context.space.apply(
+        &mut nominal_model,
+        &mut nominal_environment,
+        &context.space.nominal_xi(),
+    );
     let t_lyapunov = Instant::now();
-    context.report.lyapunov = estimate_lyapunov(&nominal_model, context.scene, context.interrupt);
+    context.report.lyapunov = estimate_lyapunov(
+        &nominal_model,
+        &nominal_environment,
+        context.scene,
+        context.interrupt,
+    );
     context.report.simulate_seconds += t_lyapunov.elapsed().as_secs_f64();
 }

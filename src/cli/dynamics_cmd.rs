@@ -3,6 +3,7 @@
 
 use super::{print_warnings, write_stdout, DynamicsArgs};
 use crate::cli::values::{apply_set_flags, parse_vector};
+use crate::environment::Environment;
 use crate::model::{LoadOptions, Model};
 use crate::state_dynamics::{coordinate_names, StateDynamics, StateRequest};
 use crate::Error;
@@ -17,7 +18,8 @@ pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
         },
     )?;
     print_warnings(&model);
-    apply_set_flags(&mut model, &args.set)?;
+    let mut environment = Environment::default();
+    apply_set_flags(&mut model, &mut environment, &args.set)?;
     let (q_names, v_names) = coordinate_names(&model);
     let vector = |flag: &str, text: &Option<String>, n: usize, names: &str| {
         text.as_deref()
@@ -38,7 +40,7 @@ pub fn run(args: &DynamicsArgs) -> Result<(), Error> {
         qdd: qdd_out,
         tau: tau_out,
         frames,
-    } = StateDynamics::at(&model, &state)?;
+    } = StateDynamics::at(&model, &environment.gravity, &state)?;
 
     let joints: Vec<Value> = model
         .joints

@@ -2,6 +2,7 @@
 //! nominal; or, with `--uncertainty`, the box a sidecar declares (patterns expanded).
 
 use super::{print_warnings, write_stdout, ParamsArgs};
+use crate::environment::Environment;
 use crate::model::{LoadOptions, Model};
 use crate::scene::{wants_floating_base, Scene, SceneOverrides};
 use crate::sidecar::read_sidecar;
@@ -22,14 +23,15 @@ pub fn run(args: &ParamsArgs) -> Result<(), Error> {
         },
     )?;
     print_warnings(&model);
-    let listed = params::list(&model);
+    let environment = Environment::default();
+    let listed = params::list(&model, &environment);
     let text = if args.json {
         let rows: Vec<serde_json::Value> = listed
             .iter()
             .map(|p| {
                 json!({
                     "path": p.path,
-                    "nominal": params::get(&model, p.target),
+                    "nominal": params::get(&model, &environment, p.target),
                     "unit": p.unit,
                 })
             })
@@ -46,7 +48,7 @@ pub fn run(args: &ParamsArgs) -> Result<(), Error> {
             out.push_str(&format!(
                 "{:<width$}  {:>14}  {}\n",
                 p.path,
-                format_number(params::get(&model, p.target)),
+                format_number(params::get(&model, &environment, p.target)),
                 p.unit
             ));
         }
@@ -67,11 +69,10 @@ fn print_box(args: &ParamsArgs, sidecar_path: &Path) -> Result<(), Error> {
     let name = sidecar_path.display().to_string();
     let (sidecar, _) = read_sidecar(sidecar_path)?;
     let floating_base = args.floating || wants_floating_base(&sidecar, &name)?;
-    let mut model = Model::from_urdf_file(&args.urdf, LoadOptions { floating_base })?;
+    let model = Model::from_urdf_file(&args.urdf, LoadOptions { floating_base })?;
     print_warnings(&model);
     let scene = Scene::resolve(&sidecar, &model, &name, SceneOverrides::default())?;
-    scene.apply_gravity(&mut model);
-    let space = ParameterSpace::from_sidecar(&sidecar, &model, &name)?;
+    let space = ParameterSpace::from_sidecar(&sidecar, &model, &scene.environment(), &name)?;
     for warning in space.warnings() {
         eprintln!("warning: {warning}");
     }

@@ -53,6 +53,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), Error> {
     let NominalRun {
         model: kinematic_model,
         scene,
+        environment: _,
         sidecar_path,
         trajectory,
     } = run;

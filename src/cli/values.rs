@@ -65,9 +65,13 @@ pub fn parse_set(text: &str) -> Result<(String, f64), Error> {
     Ok((path.trim().to_string(), value))
 }
 
-/// Applies `--set PATH=VALUE` flags to a model (validated, then one refresh).
-pub fn apply_set_flags(model: &mut crate::model::Model, flags: &[String]) -> Result<(), Error> {
-    apply_set_flags_with_symbols(model, flags, None)
+/// Applies `--set PATH=VALUE` flags to a model and its environment (validated, then one refresh).
+pub fn apply_set_flags(
+    model: &mut crate::model::Model,
+    environment: &mut crate::environment::Environment,
+    flags: &[String],
+) -> Result<(), Error> {
+    apply_set_flags_with_symbols(model, environment, flags, None)
 }
 
 /// [`apply_set_flags`] where a flag may also name a free symbol of `sidecar` (the file and its name
@@ -78,6 +82,7 @@ pub fn apply_set_flags(model: &mut crate::model::Model, flags: &[String]) -> Res
 /// the closest path or symbol as a suggestion.
 pub fn apply_set_flags_with_symbols(
     model: &mut crate::model::Model,
+    environment: &mut crate::environment::Environment,
     flags: &[String],
     sidecar: Option<(&crate::sidecar::SidecarFile, &str)>,
 ) -> Result<(), Error> {
@@ -94,7 +99,7 @@ pub fn apply_set_flags_with_symbols(
     let mut symbols: Vec<(String, f64)> = Vec::new();
     for flag in flags {
         let (name, value) = parse_set(flag)?;
-        match crate::params::resolve_without_suggestion(model, &name) {
+        match crate::params::resolve_without_suggestion(model, environment, &name) {
             Ok(target) => {
                 crate::params::validate_value(model, target, value)?;
                 paths.push((target, value));
@@ -105,7 +110,7 @@ pub fn apply_set_flags_with_symbols(
                 symbols.push((name, value));
             }
             Err(crate::params::ParamError::Unknown { path, .. }) => {
-                let listed = crate::params::list(model);
+                let listed = crate::params::list(model, environment);
                 let names = listed
                     .iter()
                     .map(|p| p.path.as_str())
@@ -120,15 +125,16 @@ pub fn apply_set_flags_with_symbols(
         }
     }
     if let (Some((file, name)), false) = (sidecar, symbols.is_empty()) {
-        let space = crate::uncertainty::ParameterSpace::from_sidecar(file, model, name)?;
+        let space =
+            crate::uncertainty::ParameterSpace::from_sidecar(file, model, environment, name)?;
         let values: Vec<(usize, f64)> = symbols
             .iter()
             .filter_map(|(symbol, value)| space.symbol_index(symbol).map(|k| (k, *value)))
             .collect();
-        space.apply_symbol_values(model, &values)?;
+        space.apply_symbol_values(model, environment, &values)?;
     }
     for (target, value) in paths {
-        crate::params::set(model, target, value);
+        crate::params::set(model, environment, target, value);
     }
     if let Some(joint) = model
         .description

@@ -169,7 +169,8 @@ mod tests {
             let mut data = Data::new(&model);
             let full = crba(&model, &mut data, &q).clone();
             let mut other = Data::new(&model);
-            nonlinear_effects(&model, &mut other, &q, &v);
+            let gravity = crate::spatial::Vec3::from(crate::environment::DEFAULT_GRAVITY);
+            nonlinear_effects(&model, &gravity, &mut other, &q, &v);
             let given = crba_at_placements(&model, &mut other);
             let bits =
                 |m: &nalgebra::DMatrix<f64>| m.iter().map(|x| x.to_bits()).collect::<Vec<_>>();

@@ -237,6 +237,7 @@ impl RneaDerivatives {
 #[allow(clippy::too_many_arguments)]
 pub fn rnea_derivatives(
     model: &Model,
+    gravity: &Vec3,
     data: &mut Data,
     work: &mut RneaDerivatives,
     q: &[f64],
@@ -245,7 +246,7 @@ pub fn rnea_derivatives(
     dq_out: &mut DMatrix<f64>,
     dv_out: &mut DMatrix<f64>,
 ) {
-    rnea(model, data, q, v, qdd);
+    rnea(model, gravity, data, q, v, qdd);
     forward_kinematics(model, data, q);
     let nb = model.bodies.len();
     for i in 0..nb {
@@ -263,7 +264,7 @@ pub fn rnea_derivatives(
                 data.world_from_body[i].act_motion(&joint.subspace_column(k));
         }
     }
-    let gravity = Motion::new(-model.gravity, Vec3::zeros());
+    let gravity = Motion::new(-gravity, Vec3::zeros());
     dq_out.fill(0.0);
     dv_out.fill(0.0);
     for c in 0..model.nv {
@@ -406,13 +407,13 @@ mod tests {
     #[test]
     fn rnea_inertia_derivative_matches_central_differences() {
         let mut model = arm();
-        model.gravity = Vec3::new(0.3, -1.0, -9.81);
+        let gravity = Vec3::new(0.3, -1.0, -9.81);
         let mut data = Data::new(&model);
         let (q, v, qdd) = ([0.4, -0.9], [1.3, -0.7], [0.5, 2.0]);
         let h = 1e-6;
         for link in 1..model.description.links.len() {
             for field in fields() {
-                rnea(&model, &mut data, &q, &v, &qdd);
+                rnea(&model, &gravity, &mut data, &q, &v, &qdd);
                 let body = model.links[link].body.unwrap();
                 let d_link =
                     link_inertia_derivative(&model.description.links[link].inertial, field);
@@ -428,7 +429,7 @@ mod tests {
                         value + sign * h,
                     );
                     model.refresh();
-                    tau.copy_from_slice(rnea(&model, &mut data, &q, &v, &qdd));
+                    tau.copy_from_slice(rnea(&model, &gravity, &mut data, &q, &v, &qdd));
                 }
                 set(&mut model.description.links[link].inertial, field, value);
                 model.refresh();
@@ -456,9 +457,9 @@ mod tests {
             },
         )
         .unwrap();
-        let mut arm = arm();
-        arm.gravity = Vec3::new(0.3, -1.0, -9.81);
-        for model in [arm, floating] {
+        let tilted_gravity = Vec3::new(0.3, -1.0, -9.81);
+        let default_gravity = Vec3::from(crate::environment::DEFAULT_GRAVITY);
+        for (model, gravity) in [(arm(), tilted_gravity), (floating, default_gravity)] {
             let (nq, nv) = (model.nq, model.nv);
             let mut q: Vec<f64> = (0..nq).map(|i| 0.3 + 0.41 * i as f64).collect();
             if model.floating_base {
@@ -472,7 +473,9 @@ mod tests {
             let mut data = Data::new(&model);
             let mut work = RneaDerivatives::new(&model);
             let (mut dq, mut dv) = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
-            rnea_derivatives(&model, &mut data, &mut work, &q, &v, &qdd, &mut dq, &mut dv);
+            rnea_derivatives(
+                &model, &gravity, &mut data, &mut work, &q, &v, &qdd, &mut dq, &mut dv,
+            );
             let h = 1e-6;
             let mut system_q = nalgebra::DVector::from_column_slice(&q);
             for c in 0..nv {
@@ -481,10 +484,17 @@ mod tests {
                     let mut tangent = nalgebra::DVector::zeros(nv);
                     tangent[c] = sign * h;
                     let moved = integrate(&model, &system_q, &tangent);
-                    taus[n].copy_from_slice(rnea(&model, &mut data, moved.as_slice(), &v, &qdd));
+                    taus[n].copy_from_slice(rnea(
+                        &model,
+                        &gravity,
+                        &mut data,
+                        moved.as_slice(),
+                        &v,
+                        &qdd,
+                    ));
                     let mut vv = v.clone();
                     vv[c] += sign * h;
-                    taus[2 + n].copy_from_slice(rnea(&model, &mut data, &q, &vv, &qdd));
+                    taus[2 + n].copy_from_slice(rnea(&model, &gravity, &mut data, &q, &vv, &qdd));
                 }
                 for r in 0..nv {
                     let numeric_q = (taus[0][r] - taus[1][r]) / (2.0 * h);

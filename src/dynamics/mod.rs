@@ -37,6 +37,7 @@ pub use rnea::{
 };
 
 use crate::model::Model;
+use crate::spatial::Vec3;
 use thiserror::Error;
 
 /// Why a dynamics computation failed.
@@ -116,12 +117,13 @@ pub fn singular_mass_cause(model: &Model, data: &mut Data, q: &[f64], coordinate
 /// in the lower triangle), `data.bias` and `data.qdd`; returns `data.qdd`.
 pub fn forward_dynamics<'a>(
     model: &Model,
+    gravity: &Vec3,
     data: &'a mut Data,
     q: &[f64],
     v: &[f64],
     tau: &[f64],
 ) -> Result<&'a [f64], DynamicsError> {
-    nonlinear_effects(model, data, q, v);
+    nonlinear_effects(model, gravity, data, q, v);
     // The RNEA has just left the placements at `q` in `data`.
     crba_at_placements(model, data);
     for ((qdd, tau), bias) in data.qdd.iter_mut().zip(tau).zip(data.bias.iter()) {

@@ -5,6 +5,9 @@
 //!   `v_i = X⁻¹ v_p + S q̇_i`,   `a_i = X⁻¹ a_p + S q̈_i + v_i ×ₘ (S q̇_i)`,   `a_world = −g`
 //!   `f_i = I_i a_i + v_i ×* (I_i v_i)`
 //! backward pass: `τ_i = Sᵀ f_i`, `f_p += X f_i`.
+//!
+//! Gravity `g` (world frame, m/s²) is an argument: it is the environment's
+//! ([`crate::environment::Environment::gravity`]), not the robot's.
 
 use super::{joint_placements, Data};
 use crate::model::Model;
@@ -12,12 +15,20 @@ use crate::spatial::{Motion, Transform, Vec3};
 
 /// Inverse dynamics: `data.tau = M(q) q̈ + C(q, v) v + g(q)`, rigid-body terms only.
 ///
-/// `q: dim nq`, `v, qdd: dim nv`. Overwrites `data.parent_from_body`, `data.velocity`,
-/// `data.acceleration`, `data.force` and `data.tau` (not `data.world_from_body`: call
-/// [`forward_kinematics`](super::forward_kinematics) for placements); returns `data.tau`.
-pub fn rnea<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64], qdd: &[f64]) -> &'a [f64] {
+/// `gravity` in the world frame (m/s²), `q: dim nq`, `v, qdd: dim nv`. Overwrites
+/// `data.parent_from_body`, `data.velocity`, `data.acceleration`, `data.force` and `data.tau` (not
+/// `data.world_from_body`: call [`forward_kinematics`](super::forward_kinematics) for placements);
+/// returns `data.tau`.
+pub fn rnea<'a>(
+    model: &Model,
+    gravity: &Vec3,
+    data: &'a mut Data,
+    q: &[f64],
+    v: &[f64],
+    qdd: &[f64],
+) -> &'a [f64] {
     joint_placements(model, data, q);
-    rnea_at_placements(model, data, v, qdd)
+    rnea_at_placements(model, gravity, data, v, qdd)
 }
 
 /// [`rnea`] with the joint placements already in `data.parent_from_body` (a [`crba`] or
@@ -28,11 +39,12 @@ pub fn rnea<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64], qdd: &[
 /// [`joint_placements`]: super::joint_placements
 pub fn rnea_at_placements<'a>(
     model: &Model,
+    gravity: &Vec3,
     data: &'a mut Data,
     v: &[f64],
     qdd: &[f64],
 ) -> &'a [f64] {
-    run(model, data, v, Some(qdd));
+    run(model, gravity, data, v, Some(qdd));
     let Data {
         parent_from_body,
         force,
@@ -45,10 +57,17 @@ pub fn rnea_at_placements<'a>(
 
 /// Bias forces: `data.bias = C(q, v) v + g(q)` (Pinocchio's `nle`).
 ///
-/// `q: dim nq`, `v: dim nv`. Overwrites the same kinematic buffers as [`rnea`] and `data.bias`.
-pub fn nonlinear_effects<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[f64]) -> &'a [f64] {
+/// `gravity` in the world frame (m/s²), `q: dim nq`, `v: dim nv`. Overwrites the same kinematic
+/// buffers as [`rnea`] and `data.bias`.
+pub fn nonlinear_effects<'a>(
+    model: &Model,
+    gravity: &Vec3,
+    data: &'a mut Data,
+    q: &[f64],
+    v: &[f64],
+) -> &'a [f64] {
     joint_placements(model, data, q);
-    run(model, data, v, None);
+    run(model, gravity, data, v, None);
     let Data {
         parent_from_body,
         force,
@@ -60,8 +79,8 @@ pub fn nonlinear_effects<'a>(model: &Model, data: &'a mut Data, q: &[f64], v: &[
 }
 
 /// The forward pass at the joint placements in `data.parent_from_body`.
-fn run(model: &Model, data: &mut Data, v: &[f64], qdd: Option<&[f64]>) {
-    let base_acceleration = Motion::new(-model.gravity, Vec3::zeros());
+fn run(model: &Model, gravity: &Vec3, data: &mut Data, v: &[f64], qdd: Option<&[f64]>) {
+    let base_acceleration = Motion::new(-gravity, Vec3::zeros());
     for (i, joint) in model.joints.iter().enumerate() {
         let vi = joint.v_index;
         let parent_from_body = data.parent_from_body[i];
@@ -167,6 +186,7 @@ fn backward(
 /// [`rnea`]; returns `data.tau`. With every external wrench zero the result is [`rnea`]'s.
 pub fn rnea_with_external<'a>(
     model: &Model,
+    gravity: &Vec3,
     data: &'a mut Data,
     q: &[f64],
     v: &[f64],
@@ -174,7 +194,7 @@ pub fn rnea_with_external<'a>(
     external: &[crate::spatial::Force],
 ) -> &'a [f64] {
     joint_placements(model, data, q);
-    run(model, data, v, Some(qdd));
+    run(model, gravity, data, v, Some(qdd));
     for (f, e) in data.force.iter_mut().zip(external) {
         *f = *f - *e;
     }

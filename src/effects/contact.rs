@@ -4,12 +4,14 @@
 //! bodies and turned into generalised forces by RNEA's backward pass
 //! ([`crate::dynamics::add_external_forces`]).
 //!
-//! The material is read from `model.contact` at every evaluation (parameters `scene.contact.*`),
+//! The material is read from the environment (`Environment::contact`, an argument) at every
+//! evaluation (parameters `scene.contact.*`),
 //! the sizes from `model.description` (parameters `link.NAME.collision.K.*`). Only the declared
 //! pairs are tested, each first by bounding spheres; the counters say how many tests and parry
 //! queries ran.
 
 use crate::dynamics::{add_external_forces, drift_kinematics, Data};
+use crate::environment::Environment;
 use crate::geometry::{
     contact_between, ContactMaterial, ContactPoint, ContactPoints, GeometryModel, PairTest,
 };
@@ -195,6 +197,7 @@ impl Contacts {
     pub(super) fn normal_forces(
         &mut self,
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
         q: &[f64],
         v: &[f64],
@@ -213,6 +216,7 @@ impl Contacts {
             geometry,
             &mut uncounted,
             model,
+            environment,
             data,
             q,
             v,
@@ -222,7 +226,7 @@ impl Contacts {
                 touching_recorded[k] = true;
             },
         );
-        let material = match model.contact {
+        let material = match environment.contact {
             Some(material) if signed => material,
             _ => return &self.normal_forces,
         };
@@ -340,13 +344,14 @@ impl Contacts {
         geometry: &GeometryModel,
         stats: &mut ContactStats,
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
         q: &[f64],
         v: &[f64],
         from_rnea: bool,
         mut visit: impl FnMut(&Data, usize, &ContactPoint, &Vec3, &ContactForce),
     ) {
-        let Some(material) = model.contact else {
+        let Some(material) = environment.contact else {
             return;
         };
         if from_rnea {
@@ -381,6 +386,7 @@ impl Contacts {
     pub(super) fn add_forces(
         &mut self,
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
         q: &[f64],
         v: &[f64],
@@ -403,12 +409,13 @@ impl Contacts {
         *deepest_now = 0.0;
         *evaluated = true;
         let mut any = false;
-        let with_friction = model.contact.is_some_and(|m| m.friction > 0.0);
+        let with_friction = environment.contact.is_some_and(|m| m.friction > 0.0);
         sliding.begin(q, v);
         Self::for_each_contact(
             geometry,
             stats,
             model,
+            environment,
             data,
             q,
             v,
@@ -483,9 +490,9 @@ impl Contacts {
     pub(super) fn add_newton_matrices(
         &mut self,
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
-        q: &[f64],
-        v: &[f64],
+        (q, v): (&[f64], &[f64]),
         stiffness: &mut DMatrix<f64>,
         damping: &mut DMatrix<f64>,
     ) {
@@ -505,6 +512,7 @@ impl Contacts {
             geometry,
             stats,
             model,
+            environment,
             data,
             q,
             v,
@@ -556,13 +564,13 @@ impl Contacts {
     /// the last force evaluation was not at this iterate.
     pub(super) fn newton_update_fraction(
         &self,
-        model: &Model,
+        environment: &Environment,
         q: &[f64],
         v: &[f64],
         dv: &[f64],
     ) -> f64 {
         let sliding = &self.sliding;
-        let Some(material) = model.contact else {
+        let Some(material) = environment.contact else {
             return 1.0;
         };
         if sliding.q != q || sliding.v != v {

@@ -5,9 +5,10 @@
 //! modified Newton matrix of the integrator needs (docs/method.md §5: `+β'h² k_j`, `+γ'h c_j`).
 //!
 //! Gravity is not here: it enters the rigid-body bias as a base acceleration in RNEA through the
-//! model's gravity ([`crate::scene::Scene::apply_gravity`]; zero when the scene does not declare it).
-//! Values that parameters can change (URDF damping, friction, limits) are read from the model at each
-//! evaluation, so a sample's parameter values take effect without re-assembly. The joint limits'
+//! environment's gravity ([`crate::environment::Environment`], an argument of the dynamics; zero
+//! when the scene does not declare it). Values that parameters can change (URDF damping, friction,
+//! limits; the contact material) are read from the model (and the environment, for the material,
+//! an argument of the calls that reach contacts) at each evaluation, so a sample's parameter values take effect without re-assembly. The joint limits'
 //! penalty constants are the exception: they are tuned once, at assembly, to the joints' inertias
 //! of the model assembled with (a study's nominal model), and every sample shares them.
 
@@ -25,6 +26,7 @@ pub use limits::{
 };
 
 use crate::dynamics::Data;
+use crate::environment::Environment;
 use crate::model::{JointKind, Model};
 use crate::scene::Scene;
 use nalgebra::DMatrix;
@@ -145,10 +147,16 @@ impl Effects {
     /// The fraction in `(0, 1]` of a Newton correction to apply at `(q, v)`, whose full correction
     /// changes the joint velocities by `dv`: below 1 when it would carry a sliding contact's
     /// tangential velocity across the stiction band (docs/contacts.md §4). 1 without contacts.
-    pub fn newton_update_fraction(&self, model: &Model, q: &[f64], v: &[f64], dv: &[f64]) -> f64 {
+    pub fn newton_update_fraction(
+        &self,
+        environment: &Environment,
+        q: &[f64],
+        v: &[f64],
+        dv: &[f64],
+    ) -> f64 {
         self.contacts
             .as_ref()
-            .map_or(1.0, |c| c.newton_update_fraction(model, q, v, dv))
+            .map_or(1.0, |c| c.newton_update_fraction(environment, q, v, dv))
     }
 
     /// The contact counters so far (`None` without contacts).
@@ -163,13 +171,14 @@ impl Effects {
     pub fn contact_normal_forces(
         &mut self,
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
         q: &[f64],
         v: &[f64],
         signed: bool,
     ) -> &[f64] {
         match &mut self.contacts {
-            Some(c) => c.normal_forces(model, data, q, v, signed),
+            Some(c) => c.normal_forces(model, environment, data, q, v, signed),
             None => &[],
         }
     }
@@ -206,14 +215,14 @@ impl Effects {
     pub fn add_newton_matrices(
         &mut self,
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
-        q: &[f64],
-        v: &[f64],
+        (q, v): (&[f64], &[f64]),
         stiffness: &mut DMatrix<f64>,
         damping: &mut DMatrix<f64>,
     ) {
         if let Some(c) = &mut self.contacts {
-            c.add_newton_matrices(model, data, q, v, stiffness, damping);
+            c.add_newton_matrices(model, environment, data, (q, v), stiffness, damping);
         }
     }
 
@@ -260,13 +269,14 @@ impl Effects {
     pub fn add_forces(
         &mut self,
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
         q: &[f64],
         v: &[f64],
         out: &mut [f64],
     ) {
         if self.has_forces() {
-            self.add_declared_forces(model, data, q, v, out);
+            self.add_declared_forces(model, environment, data, q, v, out);
         }
     }
 
@@ -274,6 +284,7 @@ impl Effects {
     fn add_declared_forces(
         &mut self,
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
         q: &[f64],
         v: &[f64],
@@ -292,7 +303,7 @@ impl Effects {
             e.add_forces(model, q, v, out);
         }
         if let Some(e) = &mut self.contacts {
-            e.add_forces(model, data, q, v, out);
+            e.add_forces(model, environment, data, q, v, out);
         }
     }
 
@@ -377,7 +388,14 @@ mod tests {
         let mut eval = |dq: f64, dv: f64| {
             let mut out = [0.0];
             let mut data = Data::new(model);
-            effects.add_forces(model, &mut data, &[q + dq], &[v + dv], &mut out);
+            effects.add_forces(
+                model,
+                &Environment::default(),
+                &mut data,
+                &[q + dq],
+                &[v + dv],
+                &mut out,
+            );
             out[0]
         };
         if of_velocity {

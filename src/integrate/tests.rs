@@ -1637,7 +1637,7 @@ fn reused_newton_matrix_travels_with_the_trajectory() {
     assert_eq!(shared.stats().factorisations, alone.stats().factorisations);
 }
 
-/// A shipped robot with its own scene (gravity applied), for runs of the integrator alone.
+/// A shipped robot in its own scene's environment, for runs of the integrator alone.
 fn shipped_scene(dir: &str) -> (crate::simulate::RobotSystem, crate::scene::Scene) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("robots")
@@ -1652,9 +1652,10 @@ fn shipped_scene(dir: &str) -> (crate::simulate::RobotSystem, crate::scene::Scen
     let scene =
         crate::scene::Scene::resolve(&file, &model, dir, crate::scene::SceneOverrides::default())
             .expect("scene resolves");
-    let mut model = model;
-    scene.apply_gravity(&mut model);
-    (crate::simulate::RobotSystem::new(model, &scene), scene)
+    (
+        crate::simulate::RobotSystem::new(model, scene.environment(), &scene),
+        scene,
+    )
 }
 
 /// How much tighter the reference runs of the first-correction test converge.

@@ -43,9 +43,6 @@ use std::path::Path;
 /// Name of the 6-dof joint that `--floating` puts between the world and the root link.
 pub const ROOT_JOINT_NAME: &str = "root_joint";
 
-/// Standard gravity used when nothing else is said (m/s², along −z).
-pub const DEFAULT_GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
-
 /// How to turn a URDF into a model.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LoadOptions {
@@ -137,12 +134,6 @@ pub struct Model {
     /// mass or inertia value multiply. Kept beside the description because the URDF has no such
     /// value.
     pub inertial_scales: Vec<f64>,
-    /// Gravity in the world frame (m/s²).
-    pub gravity: Vec3,
-    /// The contact material of the scene (`[scene.contact]`), `None` when the scene declares no
-    /// contacts; set by [`crate::scene::Scene::apply_gravity`] like gravity, so that parameters
-    /// (`scene.contact.*`) can override it.
-    pub contact: Option<crate::environment::ContactMaterial>,
     /// Moving joints in coordinate order.
     pub joints: Vec<Joint>,
     /// The moving joints' names to their indices ([`Model::joint_index`]).
@@ -440,8 +431,6 @@ impl Model {
         let mut model = Model {
             description,
             inertial_scales: vec![1.0; n_links],
-            gravity: Vec3::from(DEFAULT_GRAVITY),
-            contact: None,
             joints: Vec::new(),
             joint_names: NameIndex::default(),
             bodies: Vec::new(),

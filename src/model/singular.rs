@@ -125,7 +125,8 @@ mod tests {
         let mut data = Data::new(&model);
         let q = model.neutral_configuration();
         let zeros = vec![0.0; model.nv];
-        match forward_dynamics(&model, &mut data, &q, &zeros, &zeros) {
+        let gravity = crate::spatial::Vec3::from(crate::environment::DEFAULT_GRAVITY);
+        match forward_dynamics(&model, &gravity, &mut data, &q, &zeros, &zeros) {
             Err(e @ DynamicsError::SingularMassMatrix { .. }) => (e.to_string(), model.warnings),
             other => panic!("expected a singular mass matrix, got {other:?}"),
         }

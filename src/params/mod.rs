@@ -17,7 +17,11 @@
 //! `NAME` is everything between the kind prefix and a known field suffix, so names containing dots
 //! or slashes (`joint_0.0`, `iris__/imu_link`) work. A path resolves once to a [`ParamTarget`];
 //! writing values through targets ([`apply`]) allocates nothing.
+//!
+//! The `scene.*` paths address the scene's [`Environment`], the others the [`Model`]: every
+//! function that reads or writes values takes both.
 
+use crate::environment::Environment;
 use crate::model::{Model, UrdfJointType};
 use crate::text::closest_suggestion;
 use thiserror::Error;
@@ -226,7 +230,7 @@ pub fn unit_of(model: &Model, target: ParamTarget) -> &'static str {
 ///
 /// Links without `<inertial>` are listed too (nominal 0, scale 1): declaring their mass is how a
 /// payload is added to a frame such as `tool0`.
-pub fn list(model: &Model) -> Vec<ParamInfo> {
+pub fn list(model: &Model, environment: &Environment) -> Vec<ParamInfo> {
     let mut targets = Vec::new();
     for l in 0..model.description.links.len() {
         targets.push(ParamTarget::LinkMass(l));
@@ -243,7 +247,7 @@ pub fn list(model: &Model) -> Vec<ParamInfo> {
         }
     }
     targets.extend((0..3).map(ParamTarget::Gravity));
-    if model.contact.is_some() {
+    if environment.contact.is_some() {
         targets.extend((0..CONTACT_FIELDS.len()).map(ParamTarget::Contact));
         for (l, link) in model.description.links.iter().enumerate() {
             for k in 0..link.collisions.len() {
@@ -266,12 +270,16 @@ pub fn list(model: &Model) -> Vec<ParamInfo> {
 }
 
 /// Resolves a dotted path; an unknown one gets the closest path of the registry as a suggestion.
-pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
-    resolve_without_suggestion(model, path).map_err(|error| match error {
+pub fn resolve(
+    model: &Model,
+    environment: &Environment,
+    path: &str,
+) -> Result<ParamTarget, ParamError> {
+    resolve_without_suggestion(model, environment, path).map_err(|error| match error {
         ParamError::Unknown { path, .. } => ParamError::Unknown {
             suggestion: closest_suggestion(
                 &path,
-                list(model)
+                list(model, environment)
                     .iter()
                     .map(|p| p.path.as_str())
                     .collect::<Vec<_>>(),
@@ -285,7 +293,11 @@ pub fn resolve(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
 /// [`resolve`] without the suggestion for an unknown path (its search of the whole registry costs
 /// as much as listing it), for callers that try a key as a path and read it otherwise when it is
 /// none.
-pub fn resolve_without_suggestion(model: &Model, path: &str) -> Result<ParamTarget, ParamError> {
+pub fn resolve_without_suggestion(
+    model: &Model,
+    environment: &Environment,
+    path: &str,
+) -> Result<ParamTarget, ParamError> {
     let unknown = || ParamError::Unknown {
         path: path.to_string(),
         suggestion: String::new(),
@@ -302,7 +314,7 @@ pub fn resolve_without_suggestion(model: &Model, path: &str) -> Result<ParamTarg
             .iter()
             .position(|f| *f == field)
             .ok_or_else(unknown)?;
-        if model.contact.is_none() {
+        if environment.contact.is_none() {
             return Err(ParamError::NotApplicable {
                 path: path.to_string(),
                 reason: "the scene declares no contacts; add a [scene.contact] table".to_string(),
@@ -426,7 +438,7 @@ fn name_before<'a>(rest: &'a str, field: &str) -> Option<&'a str> {
 }
 
 /// The current value of a target.
-pub fn get(model: &Model, target: ParamTarget) -> f64 {
+pub fn get(model: &Model, environment: &Environment, target: ParamTarget) -> f64 {
     let d = &model.description;
     match target {
         ParamTarget::LinkMass(l) => d.links[l].inertial.mass,
@@ -437,8 +449,8 @@ pub fn get(model: &Model, target: ParamTarget) -> f64 {
         ParamTarget::JointAxis(j, c) => d.joints[j].axis[c],
         ParamTarget::JointDamping(j) => d.joints[j].damping,
         ParamTarget::JointFriction(j) => d.joints[j].friction,
-        ParamTarget::Gravity(c) => model.gravity[c],
-        ParamTarget::Contact(c) => model.contact.map_or(0.0, |m| contact_field(&m, c)),
+        ParamTarget::Gravity(c) => environment.gravity[c],
+        ParamTarget::Contact(c) => environment.contact.map_or(0.0, |m| contact_field(&m, c)),
         ParamTarget::CollisionSize(l, k, c) => {
             *collision_value(&mut d.links[l].collisions[k].shape.clone(), c)
         }
@@ -473,10 +485,10 @@ fn collision_value(shape: &mut crate::model::CollisionShape, c: usize) -> &mut f
     }
 }
 
-/// Writes one value into the model's description (not yet into the derived tree: call
-/// [`Model::refresh`] after the last write, or use [`apply`]).
+/// Writes one value into the model's description or the environment (not yet into the model's
+/// derived tree: call [`Model::refresh`] after the last write, or use [`apply`]).
 #[inline]
-pub fn set(model: &mut Model, target: ParamTarget, value: f64) {
+pub fn set(model: &mut Model, environment: &mut Environment, target: ParamTarget, value: f64) {
     let d = &mut model.description;
     match target {
         ParamTarget::LinkMass(l) => d.links[l].inertial.mass = value,
@@ -487,9 +499,9 @@ pub fn set(model: &mut Model, target: ParamTarget, value: f64) {
         ParamTarget::JointAxis(j, c) => d.joints[j].axis[c] = value,
         ParamTarget::JointDamping(j) => d.joints[j].damping = value,
         ParamTarget::JointFriction(j) => d.joints[j].friction = value,
-        ParamTarget::Gravity(c) => model.gravity[c] = value,
+        ParamTarget::Gravity(c) => environment.gravity[c] = value,
         ParamTarget::Contact(c) => {
-            if let Some(m) = model.contact.as_mut() {
+            if let Some(m) = environment.contact.as_mut() {
                 *match c {
                     0 => &mut m.stiffness,
                     1 => &mut m.exponent,
@@ -506,9 +518,14 @@ pub fn set(model: &mut Model, target: ParamTarget, value: f64) {
 }
 
 /// Writes `values[i]` into `targets[i]` for all `i`, then refreshes the tree. Allocates nothing.
-pub fn apply(model: &mut Model, targets: &[ParamTarget], values: &[f64]) {
+pub fn apply(
+    model: &mut Model,
+    environment: &mut Environment,
+    targets: &[ParamTarget],
+    values: &[f64],
+) {
     for (target, value) in targets.iter().zip(values) {
-        set(model, *target, *value);
+        set(model, environment, *target, *value);
     }
     model.refresh();
 }
@@ -571,28 +588,29 @@ mod tests {
     #[test]
     fn names_with_dots_and_slashes_resolve() {
         let m = model();
+        let e = Environment::default();
         assert_eq!(
-            resolve(&m, "link.iris__/imu_link.mass").unwrap(),
+            resolve(&m, &e, "link.iris__/imu_link.mass").unwrap(),
             ParamTarget::LinkMass(1)
         );
         assert_eq!(
-            resolve(&m, "link.iris__/imu_link.com.x").unwrap(),
+            resolve(&m, &e, "link.iris__/imu_link.com.x").unwrap(),
             ParamTarget::LinkCom(1, 0)
         );
         assert_eq!(
-            resolve(&m, "link.iris__/imu_link.inertia.iyz").unwrap(),
+            resolve(&m, &e, "link.iris__/imu_link.inertia.iyz").unwrap(),
             ParamTarget::LinkInertia(1, 4)
         );
         assert_eq!(
-            resolve(&m, "joint.joint_0.0.origin.z").unwrap(),
+            resolve(&m, &e, "joint.joint_0.0.origin.z").unwrap(),
             ParamTarget::JointOrigin(0, 2)
         );
         assert_eq!(
-            resolve(&m, "joint.joint_0.0.damping").unwrap(),
+            resolve(&m, &e, "joint.joint_0.0.damping").unwrap(),
             ParamTarget::JointDamping(0)
         );
         assert_eq!(
-            resolve(&m, "scene.gravity.z").unwrap(),
+            resolve(&m, &e, "scene.gravity.z").unwrap(),
             ParamTarget::Gravity(2)
         );
     }
@@ -600,9 +618,10 @@ mod tests {
     #[test]
     fn every_listed_path_resolves_to_itself() {
         let m = model();
-        let listed = list(&m);
+        let e = Environment::default();
+        let listed = list(&m, &e);
         for p in &listed {
-            assert_eq!(resolve(&m, &p.path).unwrap(), p.target, "{}", p.path);
+            assert_eq!(resolve(&m, &e, &p.path).unwrap(), p.target, "{}", p.path);
         }
         // Not vacuous: every kind of target is listed, every path once.
         let kinds = [
@@ -631,32 +650,34 @@ mod tests {
     #[test]
     fn unknown_paths_get_suggestions() {
         let m = model();
-        let msg = resolve(&m, "joint.joint_0.0.orgin.z")
+        let e = Environment::default();
+        let msg = resolve(&m, &e, "joint.joint_0.0.orgin.z")
             .unwrap_err()
             .to_string();
         assert!(
             msg.contains("did you mean 'joint.joint_0.0.origin.z'"),
             "{msg}"
         );
-        let msg = resolve(&m, "joint.fix.axis.x").unwrap_err().to_string();
+        let msg = resolve(&m, &e, "joint.fix.axis.x").unwrap_err().to_string();
         assert!(msg.contains("joint 'fix' is fixed"), "{msg}");
     }
 
     #[test]
     fn scale_is_a_parameter_like_any_other() {
         let mut m = model();
-        let target = resolve(&m, "link.iris__/imu_link.scale").unwrap();
+        let mut e = Environment::default();
+        let target = resolve(&m, &e, "link.iris__/imu_link.scale").unwrap();
         assert_eq!(target, ParamTarget::LinkScale(1));
         assert_eq!(path_of(&m, target), "link.iris__/imu_link.scale");
-        assert_eq!((get(&m, target), unit_of(&m, target)), (1.0, ""));
-        let listed: Vec<String> = list(&m).into_iter().map(|p| p.path).collect();
+        assert_eq!((get(&m, &e, target), unit_of(&m, target)), (1.0, ""));
+        let listed: Vec<String> = list(&m, &e).into_iter().map(|p| p.path).collect();
         let mass = listed.iter().position(|p| p == "link.iris__/imu_link.mass");
         let scale = listed
             .iter()
             .position(|p| p == "link.iris__/imu_link.scale");
         // Registry order within a link: mass, com, inertia, scale.
         assert_eq!(scale, mass.map(|m| m + 10));
-        apply(&mut m, &[target], &[1.5]);
+        apply(&mut m, &mut e, &[target], &[1.5]);
         assert_eq!(m.bodies[0].inertia.mass, 3.0);
         assert_eq!(m.description.links[1].inertial.mass, 2.0);
         for bad in [0.0, -1.0, f64::NAN] {
@@ -672,11 +693,12 @@ mod tests {
     #[test]
     fn apply_changes_the_tree() {
         let mut m = model();
+        let mut e = Environment::default();
         let targets = [
-            resolve(&m, "link.iris__/imu_link.mass").unwrap(),
-            resolve(&m, "joint.joint_0.0.origin.z").unwrap(),
+            resolve(&m, &e, "link.iris__/imu_link.mass").unwrap(),
+            resolve(&m, &e, "joint.joint_0.0.origin.z").unwrap(),
         ];
-        apply(&mut m, &targets, &[3.0, 2.0]);
+        apply(&mut m, &mut e, &targets, &[3.0, 2.0]);
         assert_eq!(m.bodies[0].inertia.mass, 3.0);
         assert_eq!(m.joints[0].parent_from_joint.translation.z, 2.0);
         assert!(validate_value(&m, targets[0], -1.0).is_err());

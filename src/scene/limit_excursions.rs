@@ -277,9 +277,7 @@ mod tests {
     fn a_swing_past_an_unenforced_limit_is_found_at_its_deepest_and_described() {
         let model = hinged_bars();
         let free = scene(&model, "");
-        let mut moving = model.clone();
-        free.apply_gravity(&mut moving);
-        let run = crate::simulate::simulate(moving, &free).unwrap();
+        let run = crate::simulate::simulate(model.clone(), free.environment(), &free).unwrap();
         let found = limit_excursions(
             &model,
             &free,

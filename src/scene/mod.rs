@@ -31,6 +31,7 @@ pub use crate::sidecar::{
     parse_sidecar, read_sidecar, AnalysisSection, JointSelection, SidecarFile,
 };
 
+use crate::environment::Environment;
 use crate::integrate::{check_alpha, ALPHA_MIN_MAGNITUDE_WITH_CONSTRAINTS};
 use crate::model::{JointKind, Model};
 use crate::spatial::quaternion::write_xyzw;
@@ -335,7 +336,7 @@ impl Scene {
                 ),
             ));
         }
-        let gravity = s.gravity.unwrap_or(crate::model::DEFAULT_GRAVITY);
+        let gravity = s.gravity.unwrap_or(crate::environment::DEFAULT_GRAVITY);
         if gravity.iter().any(|g| !g.is_finite()) {
             return Err(invalid(
                 "[scene] gravity",
@@ -527,11 +528,14 @@ impl Scene {
         })
     }
 
-    /// Gives the model the scene's gravity and contact material (before parameters, which may
-    /// override them).
-    pub fn apply_gravity(&self, model: &mut Model) {
-        model.gravity = crate::spatial::Vec3::from(self.gravity);
-        model.contact = self.contact.as_ref().map(|c| c.material);
+    /// The environment the scene puts its robot in: its gravity (even when the `gravity` effect is
+    /// not declared: [`crate::simulate::RobotSystem::new`] zeroes it then) and its contact
+    /// material. Parameters (`scene.gravity.*`, `scene.contact.*`) override these values.
+    pub fn environment(&self) -> Environment {
+        Environment {
+            gravity: crate::spatial::Vec3::from(self.gravity),
+            contact: self.contact.as_ref().map(|c| c.material),
+        }
     }
 
     /// Whether step `k` (0 ..= n_steps) is recorded: every `record_every` steps, plus the last.

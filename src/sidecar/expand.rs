@@ -26,9 +26,10 @@
 //! [`crate::uncertainty::ParameterSpace`], which builds the dimensions from these entries.
 
 use super::error::SidecarError;
-use super::file::{BindDeclaration, ParameterDeclaration};
+use super::file::{located, BindDeclaration, ParameterDeclaration};
 use super::interval::{IntervalForm, IntervalSpec};
 use super::pattern::{PathPattern, PATTERN_KINDS};
+use crate::environment::Environment;
 use crate::model::Model;
 use crate::params::{self, ParamInfo, ParamTarget};
 use crate::text::closest_suggestion;
@@ -62,6 +63,8 @@ const RESERVED_SYMBOL: &str = "sqrt";
 pub struct ParameterEntry {
     /// The key it comes from, as written: the path or symbol itself, or the pattern key.
     pub source: String,
+    /// The line of that key in the sidecar, when read from a file.
+    pub line: Option<usize>,
     /// The key's value as written (TOML), for messages.
     pub value: String,
     /// The interval as written.
@@ -143,18 +146,19 @@ struct PatternMatches {
     zero: Vec<String>,
 }
 
-/// Expands `[parameters]` (patterns, ownership, skips) against `model`; `bind` is read only for
+/// Expands `[parameters]` (patterns, ownership, skips) against `model` and `environment`; `bind` is read only for
 /// its keys (bound paths are taken out of patterns' matches). `file` names the sidecar in messages.
 pub fn expand_parameters(
     parameters: &[ParameterDeclaration],
     bind: &[BindDeclaration],
     model: &Model,
+    environment: &Environment,
     file: &str,
 ) -> Result<ExpandedParameters, SidecarError> {
-    let registry = params::list(model);
+    let registry = params::list(model, environment);
     let mut classes: Vec<(KeyClass<'_>, IntervalSpec)> = Vec::with_capacity(parameters.len());
     for declaration in parameters {
-        classes.push(classify(declaration, model, file)?);
+        classes.push(classify(declaration, model, environment, file)?);
     }
 
     // Ownership: explicit and bound paths first, then patterns in file order (later wins).
@@ -166,7 +170,7 @@ pub fn expand_parameters(
     }
     for (b, key) in bind.iter().map(|b| &b.key).enumerate() {
         // A key that is no path is reported when [bind] is resolved.
-        if let Ok(target) = params::resolve_without_suggestion(model, key) {
+        if let Ok(target) = params::resolve_without_suggestion(model, environment, key) {
             owner.entry(target).or_insert(Owner::Bound(b));
         }
     }
@@ -181,7 +185,9 @@ pub fn expand_parameters(
             matches.push(None);
             continue;
         };
-        let found = pattern_matches(pattern, interval, &registry, model);
+        let at = located(file, parameters[k].line);
+        let file = at.as_str();
+        let found = pattern_matches(pattern, interval, &registry, model, environment);
         if found.matched == 0 {
             return Err(SidecarError::PatternMatchesNothing {
                 file: file.to_string(),
@@ -213,8 +219,12 @@ pub fn expand_parameters(
     for (k, (class, interval)) in classes.iter().enumerate() {
         let key = keys[k];
         let value = parameters[k].value.clone();
+        let line = parameters[k].line;
+        // Errors about the key point at its line (notes keep the file's name alone).
+        let at = located(file, line);
         let entry = |kind| ParameterEntry {
             source: key.clone(),
+            line,
             value: value.clone(),
             interval: *interval,
             kind,
@@ -234,7 +244,7 @@ pub fn expand_parameters(
             }
             KeyClass::Pattern(_) => matches[k]
                 .as_ref()
-                .ok_or_else(|| unreachable_pattern(file, key))?,
+                .ok_or_else(|| unreachable_pattern(&at, key))?,
         };
         let label = key_label("parameters", key);
         let mut own = Vec::new();
@@ -309,7 +319,7 @@ pub fn expand_parameters(
                 reasons.push(format!("{later} taken by later patterns"));
             }
             return Err(SidecarError::PatternGivesNothing {
-                file: file.to_string(),
+                file: at.clone(),
                 key: label,
                 matched: found.matched,
                 reason: reasons.join(", "),
@@ -323,7 +333,7 @@ pub fn expand_parameters(
             let unit = match interval.form {
                 IntervalForm::Absolute(_) => common_unit(&own, &registry).map_err(|units| {
                     SidecarError::SharedMixedUnits {
-                        file: file.to_string(),
+                        file: at.clone(),
                         key: label.clone(),
                         value: value.clone(),
                         units,
@@ -368,11 +378,14 @@ fn unreachable_pattern(file: &str, key: &str) -> SidecarError {
 fn classify<'k>(
     declaration: &'k ParameterDeclaration,
     model: &Model,
+    environment: &Environment,
     file: &str,
 ) -> Result<(KeyClass<'k>, IntervalSpec), SidecarError> {
+    let at = located(file, declaration.line);
+    let file = at.as_str();
     let key = declaration.key.as_str();
     let label = key_label("parameters", key);
-    let class = match params::resolve_without_suggestion(model, key) {
+    let class = match params::resolve_without_suggestion(model, environment, key) {
         Ok(target) => KeyClass::Path(target),
         Err(error) => match PathPattern::parse(key) {
             Err(reason) => {
@@ -394,7 +407,9 @@ fn classify<'k>(
             }
             Ok(None) => {
                 // The message with its suggestion, searched only now that it is needed.
-                let reason = params::resolve(model, key).err().unwrap_or(error);
+                let reason = params::resolve(model, environment, key)
+                    .err()
+                    .unwrap_or(error);
                 return Err(SidecarError::UnknownKey {
                     file: file.to_string(),
                     key: label,
@@ -470,6 +485,7 @@ fn pattern_matches(
     interval: &IntervalSpec,
     registry: &[ParamInfo],
     model: &Model,
+    environment: &Environment,
 ) -> PatternMatches {
     let mut found = PatternMatches {
         matched: 0,
@@ -493,7 +509,7 @@ fn pattern_matches(
             }
         }
         if matches!(interval.form, IntervalForm::Relative(_))
-            && params::get(model, info.target) == 0.0
+            && params::get(model, environment, info.target) == 0.0
         {
             found.zero.push(info.path.clone());
             continue;

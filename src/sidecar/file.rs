@@ -34,6 +34,9 @@ pub struct SidecarFile {
 pub struct ParameterDeclaration {
     /// The key: a parameter path, a pattern with `*` segments or a free symbol name.
     pub key: String,
+    /// The line of the key in the sidecar (from 1), `None` for a declaration not read from a
+    /// file ([`Extend`]): messages about the key name it ([`located`]).
+    pub line: Option<usize>,
     /// The value as written (TOML), for messages.
     pub value: String,
     /// The interval read from the value, or why the value is no interval (a message without the
@@ -50,12 +53,13 @@ pub struct ParameterDeclaration {
 pub struct ParameterDeclarations(Vec<ParameterDeclaration>);
 
 impl ParameterDeclaration {
-    /// The declaration of `key = value`, its interval read.
-    fn read(key: String, value: &toml::Value) -> Self {
+    /// The declaration of `key = value` (on `line`), its interval read.
+    fn read(key: String, line: Option<usize>, value: &toml::Value) -> Self {
         Self {
             interval: read_interval(value),
             value: value.to_string(),
             key,
+            line,
         }
     }
 }
@@ -78,11 +82,17 @@ impl std::ops::Deref for ParameterDeclarations {
 impl Extend<(String, toml::Value)> for ParameterDeclarations {
     fn extend<I: IntoIterator<Item = (String, toml::Value)>>(&mut self, pairs: I) {
         for (key, value) in pairs {
-            let declaration = ParameterDeclaration::read(key, &value);
-            match self.0.iter_mut().find(|d| d.key == declaration.key) {
-                Some(existing) => *existing = declaration,
-                None => self.0.push(declaration),
-            }
+            self.insert(ParameterDeclaration::read(key, None, &value));
+        }
+    }
+}
+
+impl ParameterDeclarations {
+    /// Adds `declaration`, or replaces the one with its key in place.
+    fn insert(&mut self, declaration: ParameterDeclaration) {
+        match self.0.iter_mut().find(|d| d.key == declaration.key) {
+            Some(existing) => *existing = declaration,
+            None => self.0.push(declaration),
         }
     }
 }
@@ -92,20 +102,22 @@ impl Extend<(String, toml::Value)> for ParameterDeclarations {
 pub struct BindDeclaration {
     /// The bound parameter path.
     pub key: String,
+    /// The line of the key in the sidecar (from 1), `None` when not read from a file.
+    pub line: Option<usize>,
     /// The expression's text, or the value as written (TOML) when it is not a string (refused
     /// when `[bind]` is resolved against the robot, after `[parameters]`).
     pub expression: Result<String, String>,
 }
 
-/// The file as serde reads it: `[parameters]` and `[bind]` as TOML tables, typed by
-/// [`parse_sidecar`].
+/// The file as serde reads it: `[parameters]` and `[bind]` as TOML tables whose keys keep their
+/// place in the text, typed by [`parse_sidecar`].
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct WrittenSidecar {
     #[serde(default)]
-    parameters: toml::Table,
+    parameters: SpannedTable,
     #[serde(default)]
-    bind: toml::Table,
+    bind: SpannedTable,
     #[serde(default)]
     scene: SceneSection,
     #[serde(default)]
@@ -356,21 +368,74 @@ pub struct AnalysisSection {
     pub max_runs: Option<usize>,
 }
 
+/// A TOML table's entries in file order, each key with its byte range in the text.
+#[derive(Debug, Default)]
+struct SpannedTable(Vec<(toml::Spanned<String>, toml::Value)>);
+
+impl<'de> Deserialize<'de> for SpannedTable {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Entries;
+        impl<'de> serde::de::Visitor<'de> for Entries {
+            type Value = SpannedTable;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a table")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<SpannedTable, A::Error> {
+                let mut entries = Vec::new();
+                while let Some(entry) = map.next_entry()? {
+                    entries.push(entry);
+                }
+                Ok(SpannedTable(entries))
+            }
+        }
+        deserializer.deserialize_map(Entries)
+    }
+}
+
+/// The line (from 1) of byte `offset` of `text`.
+fn line_of(text: &str, offset: usize) -> usize {
+    1 + text.as_bytes()[..offset.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+}
+
+/// `file:line` when the line is known, else `file`: where a message about one sidecar key points.
+pub fn located(file: &str, line: Option<usize>) -> String {
+    match line {
+        Some(line) => format!("{file}:{line}"),
+        None => file.to_string(),
+    }
+}
+
 /// Parses sidecar text; the error is the TOML parser's message (with line and column). Every
-/// `[parameters]` value is read as an interval here, once.
+/// `[parameters]` value is read as an interval here, once; every `[parameters]` and `[bind]` key
+/// keeps its line for messages.
 pub fn parse_sidecar(text: &str) -> Result<SidecarFile, String> {
     let written: WrittenSidecar = toml::from_str(text).map_err(|e| e.to_string())?;
+    let line = |key: &toml::Spanned<String>| Some(line_of(text, key.span().start));
     let mut parameters = ParameterDeclarations::default();
-    parameters.extend(written.parameters);
+    for (key, value) in &written.parameters.0 {
+        parameters.insert(ParameterDeclaration::read(
+            key.get_ref().clone(),
+            line(key),
+            value,
+        ));
+    }
     let bind = written
         .bind
+        .0
         .into_iter()
         .map(|(key, value)| BindDeclaration {
             expression: match value {
                 toml::Value::String(text) => Ok(text),
                 other => Err(other.to_string()),
             },
-            key,
+            line: line(&key),
+            key: key.into_inner(),
         })
         .collect();
     Ok(SidecarFile {

@@ -29,9 +29,10 @@ pub use expand::{
     expand_parameters, is_symbol_name, key_label, EntryKind, ExpandedParameters, ParameterEntry,
 };
 pub use file::{
-    parse_sidecar, read_sidecar, AnalysisSection, BaseSection, BindDeclaration, ContactSection,
-    DriveSection, GeometrySection, InitialSection, JointSelection, LoopSection, OutputsSection,
-    ParameterDeclaration, ParameterDeclarations, SceneSection, SidecarFile, SpringSection,
+    located, parse_sidecar, read_sidecar, AnalysisSection, BaseSection, BindDeclaration,
+    ContactSection, DriveSection, GeometrySection, InitialSection, JointSelection, LoopSection,
+    OutputsSection, ParameterDeclaration, ParameterDeclarations, SceneSection, SidecarFile,
+    SpringSection,
 };
 pub use interval::{read_interval, IntervalForm, IntervalSpec, FORMS};
 pub use pattern::{PathPattern, PATTERN_KINDS};

@@ -13,7 +13,13 @@ fn ur5() -> Model {
 
 fn expand(model: &Model, text: &str) -> Result<ExpandedParameters, SidecarError> {
     let file = parse_sidecar(text).unwrap();
-    expand_parameters(&file.parameters, &file.bind, model, FILE)
+    expand_parameters(
+        &file.parameters,
+        &file.bind,
+        model,
+        &crate::environment::Environment::default(),
+        FILE,
+    )
 }
 
 fn names(expanded: &ExpandedParameters) -> Vec<&str> {

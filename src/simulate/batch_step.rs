@@ -100,8 +100,10 @@ impl BatchStepper {
                 size: LANES,
             });
         }
-        let models: Vec<&crate::model::Model> = (0..lanes).map(|_| &template.model).collect();
-        let batch_model = BatchModel::from_models(&models)?;
+        let samples: Vec<(&crate::model::Model, &crate::spatial::Vec3)> = (0..lanes)
+            .map(|_| (&template.model, &template.environment.gravity))
+            .collect();
+        let batch_model = BatchModel::from_models(&samples)?;
         let batch_data = BatchData::new(&batch_model);
         let (nq, nv) = (template.model.nq, template.model.nv);
         Ok(Self {
@@ -126,7 +128,7 @@ impl BatchStepper {
         self.systems.len()
     }
 
-    /// Lane `lane`'s system, to write a sample's parameter values into its model; call
+    /// Lane `lane`'s system, to write a sample's parameter values into its model and environment; call
     /// [`BatchStepper::sync_lane`] afterwards.
     pub fn system_mut(&mut self, lane: usize) -> &mut RobotSystem {
         &mut self.systems[lane]
@@ -137,9 +139,11 @@ impl BatchStepper {
         (&mut self.systems[lane], self.integrators[lane].as_mut())
     }
 
-    /// Copies lane `lane`'s model values into the batch (after its model changed).
+    /// Copies lane `lane`'s model and gravity values into the batch (after they changed).
     pub fn sync_lane(&mut self, lane: usize) -> Result<(), BatchError> {
-        self.batch_model.set_sample(lane, &self.systems[lane].model)
+        let system = &self.systems[lane];
+        self.batch_model
+            .set_sample(lane, &system.model, &system.environment.gravity)
     }
 
     /// Makes lane `lane`'s integrator, if it has none, with a consistent start of its system from

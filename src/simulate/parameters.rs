@@ -23,6 +23,7 @@ use crate::dynamics::{
     link_inertia_derivative, rnea, rnea_inertia_derivative, Data, InertialField,
 };
 use crate::effects::Effects;
+use crate::environment::Environment;
 use crate::model::{joint_origin, Model};
 use crate::params::{self, ParamTarget};
 use crate::spatial::Inertia;
@@ -263,12 +264,17 @@ pub struct ParameterDirections {
 
 impl ParameterDirections {
     /// Prepares `directions` (direction `k`: the targets it moves and `∂θ_t/∂p_k`) at `model`'s
-    /// current values, for a system with `m` constraint rows. Zero derivatives are dropped; a target
+    /// and `environment`'s current values, for a system with `m` constraint rows. Zero derivatives are dropped; a target
     /// listed twice in one direction has its derivatives added.
-    pub fn new(model: &Model, m: usize, directions: &[Vec<(ParamTarget, f64)>]) -> Self {
+    pub fn new(
+        model: &Model,
+        environment: &Environment,
+        m: usize,
+        directions: &[Vec<(ParamTarget, f64)>],
+    ) -> Self {
         let prepared = directions
             .iter()
-            .map(|list| Self::prepare(model, m > 0, list))
+            .map(|list| Self::prepare(model, environment, m > 0, list))
             .collect();
         Self {
             directions: prepared,
@@ -280,7 +286,12 @@ impl ParameterDirections {
         }
     }
 
-    fn prepare(model: &Model, constrained: bool, list: &[(ParamTarget, f64)]) -> Direction {
+    fn prepare(
+        model: &Model,
+        environment: &Environment,
+        constrained: bool,
+        list: &[(ParamTarget, f64)],
+    ) -> Direction {
         let mut moves: Vec<TargetMove> = Vec::new();
         for &(target, derivative) in list {
             match moves.iter_mut().find(|m| m.target == target) {
@@ -288,7 +299,7 @@ impl ParameterDirections {
                 None => moves.push(TargetMove {
                     target,
                     derivative,
-                    base: params::get(model, target),
+                    base: params::get(model, environment, target),
                 }),
             }
         }
@@ -378,7 +389,14 @@ impl ParameterDirections {
 
     /// Writes `base + scale · derivative` into every target of direction `k` (`differenced_only`:
     /// only its differenced targets), then recomputes what they change in the model.
-    fn move_targets(&self, model: &mut Model, k: usize, scale: f64, differenced_only: bool) {
+    fn move_targets(
+        &self,
+        model: &mut Model,
+        environment: &mut Environment,
+        k: usize,
+        scale: f64,
+        differenced_only: bool,
+    ) {
         let direction = &self.directions[k];
         let (moves, refresh) = if differenced_only {
             (&direction.differenced, &direction.refresh_differenced)
@@ -386,21 +404,27 @@ impl ParameterDirections {
             (&direction.moves, &direction.refresh_all)
         };
         for m in moves {
-            params::set(model, m.target, m.base + scale * m.derivative);
+            params::set(model, environment, m.target, m.base + scale * m.derivative);
         }
         refresh.apply(model);
     }
 
-    /// Moves `model` to `p = offset · e_k` (see [`DaeSystem::set_parameter_offset`]); `offset = 0`
+    /// Moves `model` and `environment` to `p = offset · e_k` (see [`DaeSystem::set_parameter_offset`]); `offset = 0`
     /// restores the values exactly. Each call first undoes the previous offset.
     ///
     /// [`DaeSystem::set_parameter_offset`]: crate::integrate::DaeSystem::set_parameter_offset
-    pub fn set_offset(&mut self, model: &mut Model, k: usize, offset: f64) {
+    pub fn set_offset(
+        &mut self,
+        model: &mut Model,
+        environment: &mut Environment,
+        k: usize,
+        offset: f64,
+    ) {
         if let Some(previous) = self.offset.take() {
-            self.move_targets(model, previous, 0.0, false);
+            self.move_targets(model, environment, previous, 0.0, false);
         }
         if offset != 0.0 {
-            self.move_targets(model, k, offset, false);
+            self.move_targets(model, environment, k, offset, false);
             self.offset = Some(k);
         }
     }
@@ -409,6 +433,7 @@ impl ParameterDirections {
     #[allow(clippy::too_many_arguments)]
     fn residual(
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
         effects: &mut Effects,
         constraints: &ConstraintSet,
@@ -419,11 +444,11 @@ impl ParameterDirections {
         phi_q: &mut DMatrix<f64>,
         out: &mut DVector<f64>,
     ) {
-        let tau = rnea(model, data, q, v, qdd);
+        let tau = rnea(model, &environment.gravity, data, q, v, qdd);
         for (o, t) in out.iter_mut().zip(tau) {
             *o = -t;
         }
-        effects.add_forces(model, data, q, v, out.as_mut_slice());
+        effects.add_forces(model, environment, data, q, v, out.as_mut_slice());
         out.neg_mut();
         if !lambda.is_empty() {
             constraints.jacobian(model, data, q, phi_q);
@@ -438,6 +463,7 @@ impl ParameterDirections {
     pub fn jacobians(
         &mut self,
         model: &mut Model,
+        environment: &mut Environment,
         data: &mut Data,
         effects: &mut Effects,
         constraints: &ConstraintSet,
@@ -454,7 +480,7 @@ impl ParameterDirections {
         constraints_out.fill(0.0);
         if self.directions.iter().any(|d| !d.inertial.is_empty()) {
             // The kinematics (velocities, accelerations with gravity) every regressor column reads.
-            rnea(model, data, q, v, qdd);
+            rnea(model, &environment.gravity, data, q, v, qdd);
             for (k, direction) in self.directions.iter().enumerate() {
                 let column = &mut dynamics_out.as_mut_slice()[k * nv..(k + 1) * nv];
                 for (body, d_inertia) in &direction.inertial {
@@ -473,9 +499,10 @@ impl ParameterDirections {
                 &STENCIL_2
             };
             for &(offset, weight) in stencil {
-                self.move_targets(model, k, offset * step, true);
+                self.move_targets(model, environment, k, offset * step, true);
                 Self::residual(
                     model,
+                    environment,
                     data,
                     effects,
                     constraints,
@@ -497,7 +524,7 @@ impl ParameterDirections {
                     }
                 }
             }
-            self.move_targets(model, k, 0.0, true);
+            self.move_targets(model, environment, k, 0.0, true);
         }
     }
 }
@@ -513,6 +540,7 @@ mod tests {
     fn joint_refresh_is_the_full_refresh() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5/ur5.urdf");
         let base = Model::from_urdf_file(&path, LoadOptions::default()).unwrap();
+        let mut environment = Environment::default();
         for (k, joint) in base.joints.iter().enumerate() {
             let source = joint.source.unwrap();
             let targets = (0..6)
@@ -522,14 +550,14 @@ mod tests {
                 let moves = [TargetMove {
                     target,
                     derivative: 1.0,
-                    base: params::get(&base, target),
+                    base: params::get(&base, &environment, target),
                 }];
                 assert_eq!(Refresh::of(&base, &moves), Refresh::Joints(vec![k]));
-                let value = params::get(&base, target) + 0.0123;
+                let value = params::get(&base, &environment, target) + 0.0123;
                 let (mut local, mut full) = (base.clone(), base.clone());
-                params::set(&mut local, target, value);
+                params::set(&mut local, &mut environment, target, value);
                 refresh_joint(&mut local, k);
-                params::set(&mut full, target, value);
+                params::set(&mut full, &mut environment, target, value);
                 full.refresh();
                 for (a, b) in local.joints.iter().zip(&full.joints) {
                     assert_eq!(a.parent_from_joint, b.parent_from_joint, "{target:?}");

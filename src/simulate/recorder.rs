@@ -2,6 +2,7 @@
 
 use crate::dynamics::{forward_kinematics, world_from_link, Data};
 use crate::effects::Effects;
+use crate::environment::Environment;
 use crate::model::Model;
 use crate::scene::{Output, OutputKind};
 use crate::spatial::quaternion::unit_quaternion_from_xyzw;
@@ -67,20 +68,19 @@ impl Recorder {
         &self.outputs
     }
 
-    /// [`Recorder::record`] at an integrator state.
+    /// [`Recorder::record`] of `system` at an integrator state.
     pub fn record_state(
         &self,
-        model: &Model,
-        data: &mut Data,
-        effects: &mut Effects,
+        system: &mut super::RobotSystem,
         state: &crate::integrate::HhtState,
         initial: &[Option<UnitQuaternion<f64>>],
         row: &mut [f64],
     ) {
         self.record(
-            model,
-            data,
-            effects,
+            &system.model,
+            &system.environment,
+            &mut system.data,
+            &mut system.effects,
             state.q.as_slice(),
             state.v.as_slice(),
             state.qdd.as_slice(),
@@ -97,6 +97,7 @@ impl Recorder {
     pub fn record(
         &self,
         model: &Model,
+        environment: &Environment,
         data: &mut Data,
         effects: &mut Effects,
         q: &[f64],
@@ -107,7 +108,14 @@ impl Recorder {
         row: &mut [f64],
     ) {
         let contact_forces: &[f64] = if self.needs_contact_forces {
-            effects.contact_normal_forces(model, data, q, v, self.signed_contact_forces)
+            effects.contact_normal_forces(
+                model,
+                environment,
+                data,
+                q,
+                v,
+                self.signed_contact_forces,
+            )
         } else {
             &[]
         };

@@ -3,6 +3,7 @@
 
 use super::error::FailureContext;
 use super::{Recorder, RobotSystem, SimulationError};
+use crate::environment::Environment;
 use crate::integrate::{HhtIntegrator, HhtSettings, HhtStats, IntegrateError};
 use crate::model::Model;
 use crate::scene::{Output, Scene};
@@ -41,14 +42,7 @@ pub(super) fn record_current_state(
     row: &mut [f64],
 ) -> f64 {
     let state = integrator.state();
-    recorder.record_state(
-        &system.model,
-        &mut system.data,
-        &mut system.effects,
-        state,
-        initial,
-        row,
-    );
+    recorder.record_state(system, state, initial, row);
     state.t
 }
 
@@ -95,8 +89,12 @@ pub const VELOCITY_PROJECTION_NOTE: f64 = 1e-9;
 ///
 /// Errors: a start that fails (a singular mass matrix, constraints that cannot close, …) is a
 /// [`SimulationError`] naming the joints and the likely cause (exit 2).
-pub fn check_start(model: &Model, scene: &Scene) -> Result<Vec<String>, SimulationError> {
-    let mut system = RobotSystem::new(model.clone(), scene);
+pub fn check_start(
+    model: &Model,
+    environment: &Environment,
+    scene: &Scene,
+) -> Result<Vec<String>, SimulationError> {
+    let mut system = RobotSystem::new(model.clone(), *environment, scene);
     let violation = initial_violation(&mut system, scene);
     let q0 = DVector::from_column_slice(&scene.initial_q);
     let v0 = DVector::from_column_slice(&scene.initial_v);
@@ -192,9 +190,14 @@ fn keep_given_velocities(
     Some(free.into_iter().zip(solution.iter().copied()).collect())
 }
 
-/// Simulates `model` through `scene` from `t = 0` and records every output (never interrupted).
-pub fn simulate(model: Model, scene: &Scene) -> Result<Trajectory, SimulationError> {
-    simulate_interruptible(model, scene, &AtomicBool::new(false))
+/// Simulates `model` in `environment` through `scene` from `t = 0` and records every output
+/// (never interrupted).
+pub fn simulate(
+    model: Model,
+    environment: Environment,
+    scene: &Scene,
+) -> Result<Trajectory, SimulationError> {
+    simulate_interruptible(model, environment, scene, &AtomicBool::new(false))
 }
 
 /// Like [`simulate`], but checks `stop` once per step: when it is set, the run ends after the
@@ -203,10 +206,11 @@ pub fn simulate(model: Model, scene: &Scene) -> Result<Trajectory, SimulationErr
 /// ([`SimulationError::from_failure`]).
 pub fn simulate_interruptible(
     model: Model,
+    environment: Environment,
     scene: &Scene,
     stop: &AtomicBool,
 ) -> Result<Trajectory, SimulationError> {
-    let mut system = RobotSystem::new(model, scene);
+    let mut system = RobotSystem::new(model, environment, scene);
     let violation = initial_violation(&mut system, scene);
     let mut last_q = scene.initial_q.clone();
     simulate_system(&mut system, scene, stop, &mut last_q).map_err(|e| {

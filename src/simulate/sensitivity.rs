@@ -21,6 +21,7 @@ use super::run::{hht_settings, initial_violation, record_current_state};
 use super::SimulationError;
 use super::{Recorder, RobotSystem};
 use crate::dynamics::{forward_kinematics, link_origin_jacobian, world_from_link};
+use crate::environment::Environment;
 use crate::integrate::{
     DaeSystem, HhtIntegrator, HhtSensitivity, HhtSettings, HhtStats, SensitivityError,
     SensitivityStats,
@@ -212,10 +213,16 @@ fn check_point(space: &ParameterSpace, xi: &[f64]) -> Result<(), SensitivityRunE
 
 /// The robot system of `scene` with the point `xi` written into its model (the study engine's
 /// order: effects assembled, then the point applied).
-fn system_at(model: Model, scene: &Scene, space: &ParameterSpace, xi: &[f64]) -> RobotSystem {
-    let mut system = RobotSystem::new(model, scene);
+fn system_at(
+    model: Model,
+    environment: Environment,
+    scene: &Scene,
+    space: &ParameterSpace,
+    xi: &[f64],
+) -> RobotSystem {
+    let mut system = RobotSystem::new(model, environment, scene);
     if !space.is_empty() {
-        space.apply(&mut system.model, xi);
+        space.apply(&mut system.model, &mut system.environment, xi);
     }
     system
 }
@@ -223,17 +230,18 @@ fn system_at(model: Model, scene: &Scene, space: &ParameterSpace, xi: &[f64]) ->
 /// [`sensitivity_run_with`] at the scene's integrator settings.
 pub fn sensitivity_run(
     model: Model,
+    environment: Environment,
     scene: &Scene,
     space: &ParameterSpace,
     xi: &[f64],
 ) -> Result<SensitivityRun, SensitivityRunError> {
-    sensitivity_run_with(model, scene, space, xi, hht_settings(scene))
+    sensitivity_run_with(model, environment, scene, space, xi, hht_settings(scene))
 }
 
 /// One trajectory of `scene` at the point `xi` of `space` (dim d) with the derivatives of every
 /// output with respect to every ξ_j, by direct differentiation of each HHT-I3 step
-/// (docs/sensitivities.md). `model` is prepared as for [`super::simulate`] (the scene's gravity
-/// applied); `settings` are the integrator's (the scene's: [`hht_settings`]), with
+/// (docs/sensitivities.md). `model` and `environment` are prepared as for [`super::simulate`] (the
+/// scene's environment); `settings` are the integrator's (the scene's: [`hht_settings`]), with
 /// [`HhtSettings::projection_keeps_newton_mass`] off: the derivative of the reported velocity is
 /// that of the projection with `M(q_{n+1})` (the values are a plain run's with that setting off).
 ///
@@ -247,6 +255,7 @@ pub fn sensitivity_run(
 /// [`super::simulate`] reports them).
 pub fn sensitivity_run_with(
     model: Model,
+    environment: Environment,
     scene: &Scene,
     space: &ParameterSpace,
     xi: &[f64],
@@ -258,7 +267,7 @@ pub fn sensitivity_run_with(
         ..settings
     };
     let d = space.len();
-    let mut system = system_at(model, scene, space, xi);
+    let mut system = system_at(model, environment, scene, space, xi);
     let mut list = Vec::new();
     let directions: Vec<_> = (0..d)
         .map(|j| {
@@ -553,12 +562,14 @@ impl OutputDerivatives {
 /// [`central_difference_settings`].
 pub fn central_difference_run(
     model: Model,
+    environment: Environment,
     scene: &Scene,
     space: &ParameterSpace,
     xi: &[f64],
 ) -> Result<SensitivityRun, SensitivityRunError> {
     central_difference_run_with(
         model,
+        environment,
         scene,
         space,
         xi,
@@ -575,6 +586,7 @@ pub fn central_difference_run(
 /// Errors: a bad point or step; the first failing run, named.
 pub fn central_difference_run_with(
     model: Model,
+    environment: Environment,
     scene: &Scene,
     space: &ParameterSpace,
     xi: &[f64],
@@ -586,12 +598,10 @@ pub fn central_difference_run_with(
         return Err(SensitivityRunError::InvalidStep { step: step_xi });
     }
     let d = space.len();
-    let (times, values, nominal) =
-        plain_run(&model, scene, space, xi, settings).map_err(|source| {
-            SensitivityRunError::Simulation {
-                run: "the run at ξ".to_string(),
-                source,
-            }
+    let (times, values, nominal) = plain_run(&model, &environment, scene, space, xi, settings)
+        .map_err(|source| SensitivityRunError::Simulation {
+            run: "the run at ξ".to_string(),
+            source,
         })?;
     let n_outputs = scene.outputs.len();
     let mut jacobian = vec![0.0; values.len() * d];
@@ -601,17 +611,15 @@ pub fn central_difference_run_with(
         let mut runs = Vec::with_capacity(2);
         for sign in [1.0, -1.0] {
             point[j] = xi[j] + sign * step_xi;
-            let (_, run, stats) =
-                plain_run(&model, scene, space, &point, settings).map_err(|source| {
-                    SensitivityRunError::Simulation {
-                        run: format!(
-                            "the run at ξ {} {step_xi} e_{j} ({})",
-                            if sign > 0.0 { "+" } else { "-" },
-                            space.dimensions()[j].name
-                        ),
-                        source,
-                    }
-                })?;
+            let (_, run, stats) = plain_run(&model, &environment, scene, space, &point, settings)
+                .map_err(|source| SensitivityRunError::Simulation {
+                run: format!(
+                    "the run at ξ {} {step_xi} e_{j} ({})",
+                    if sign > 0.0 { "+" } else { "-" },
+                    space.dimensions()[j].name
+                ),
+                source,
+            })?;
             newton_iterations += stats.newton_iterations;
             runs.push(run);
         }
@@ -640,12 +648,13 @@ pub fn central_difference_run_with(
 /// One plain run at `point`: record times, values (record-major) and statistics.
 fn plain_run(
     model: &Model,
+    environment: &Environment,
     scene: &Scene,
     space: &ParameterSpace,
     point: &[f64],
     settings: HhtSettings,
 ) -> Result<(Vec<f64>, Vec<f64>, HhtStats), SimulationError> {
-    let mut system = system_at(model.clone(), scene, space, point);
+    let mut system = system_at(model.clone(), *environment, scene, space, point);
     let violation = initial_violation(&mut system, scene);
     let constraints = system.constraints.clone();
     let failed = |e| SimulationError::from_integrate(e, &constraints, violation);

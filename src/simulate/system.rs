@@ -8,6 +8,7 @@ use crate::dynamics::{
     crba, nonlinear_effects, rnea, rnea_at_placements, rnea_derivatives, Data, RneaDerivatives,
 };
 use crate::effects::Effects;
+use crate::environment::Environment;
 use crate::integrate::{DaeSystem, InverseDynamics, ResidualJacobians, SystemError};
 use crate::model::{JointKind, Model};
 use crate::params::ParamTarget;
@@ -20,8 +21,11 @@ use nalgebra::{DMatrix, DVector};
 /// `M(q) q̈ + Φ_qᵀ λ = Q(t, q, q̇)`, `Φ(q, t) = 0`.
 #[derive(Clone, Debug)]
 pub struct RobotSystem {
-    /// The model (its gravity is the scene's, or zero when gravity is not declared).
+    /// The model.
     pub model: Model,
+    /// The environment the model is simulated in: the scene's gravity (zero when the scene does
+    /// not declare it) and contact material, with parameters' values written in.
+    pub environment: Environment,
     /// Work buffers of the dynamics algorithms.
     pub data: Data,
     /// The scene's assembled effects.
@@ -128,12 +132,12 @@ impl JacobianBuffers {
 }
 
 impl RobotSystem {
-    /// Assembles `model` with the effects `scene` declares. The model keeps its gravity (set it from
-    /// the scene with [`Scene::apply_gravity`], then let parameters override it) unless the scene does
-    /// not declare the `gravity` effect: then it is zero.
-    pub fn new(mut model: Model, scene: &Scene) -> Self {
+    /// Assembles `model` in `environment` with the effects `scene` declares. The environment keeps
+    /// its gravity (the scene's, [`Scene::environment`], which parameters may override) unless the
+    /// scene does not declare the `gravity` effect: then it is zero.
+    pub fn new(model: Model, mut environment: Environment, scene: &Scene) -> Self {
         if !scene.effects.gravity {
-            model.gravity = Vec3::zeros();
+            environment.gravity = Vec3::zeros();
         }
         let data = Data::new(&model);
         let data_bodies = data.parent_from_body.len();
@@ -145,6 +149,7 @@ impl RobotSystem {
             .any(|j| matches!(j.kind, JointKind::Floating | JointKind::Prismatic));
         Self {
             model,
+            environment,
             data,
             effects,
             constraints: scene.constraints.clone(),
@@ -162,13 +167,19 @@ impl RobotSystem {
 
     /// Declares the parameters `p_k` the system is differentiated by (docs/sensitivities.md §3):
     /// direction `k` moves each listed model value `θ_t` by `∂θ_t/∂p_k` per unit `p_k`, from the
-    /// model's **current** values (call it after writing the parameter point into `self.model`).
+    /// model's and environment's **current** values (call it after writing the parameter point into
+    /// `self.model` and `self.environment`).
     /// For a study, `p_k = ξ_k` and the list is [`ParameterSpace`]'s chain from dimension `k` to the
     /// model values (see [`crate::uncertainty::ParameterSpace::target_derivatives`]). Replaces any previous declaration.
     ///
     /// [`ParameterSpace`]: crate::uncertainty::ParameterSpace
     pub fn set_parameter_directions(&mut self, directions: &[Vec<(ParamTarget, f64)>]) {
-        self.parameters = ParameterDirections::new(&self.model, self.constraints.len(), directions);
+        self.parameters = ParameterDirections::new(
+            &self.model,
+            &self.environment,
+            self.constraints.len(),
+            directions,
+        );
     }
 
     /// The declared parameter directions.
@@ -189,7 +200,7 @@ impl RobotSystem {
             *o = -*o;
         }
         self.effects
-            .add_forces(&self.model, &mut self.data, q, v, out);
+            .add_forces(&self.model, &self.environment, &mut self.data, q, v, out);
         for o in out.iter_mut() {
             *o = -*o;
         }
@@ -232,10 +243,17 @@ impl RobotSystem {
         out: &mut DVector<f64>,
     ) {
         let tau = if placements_given {
-            rnea_at_placements(&self.model, &mut self.data, v.as_slice(), qdd.as_slice())
+            rnea_at_placements(
+                &self.model,
+                &self.environment.gravity,
+                &mut self.data,
+                v.as_slice(),
+                qdd.as_slice(),
+            )
         } else {
             rnea(
                 &self.model,
+                &self.environment.gravity,
                 &mut self.data,
                 q.as_slice(),
                 v.as_slice(),
@@ -533,12 +551,19 @@ impl DaeSystem for RobotSystem {
         v: &DVector<f64>,
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
-        let bias = nonlinear_effects(&self.model, &mut self.data, q.as_slice(), v.as_slice());
+        let bias = nonlinear_effects(
+            &self.model,
+            &self.environment.gravity,
+            &mut self.data,
+            q.as_slice(),
+            v.as_slice(),
+        );
         for (o, b) in out.iter_mut().zip(bias) {
             *o = -b;
         }
         self.effects.add_forces(
             &self.model,
+            &self.environment,
             &mut self.data,
             q.as_slice(),
             v.as_slice(),
@@ -604,9 +629,9 @@ impl DaeSystem for RobotSystem {
         damping_out.fill(0.0);
         self.effects.add_newton_matrices(
             &self.model,
+            &self.environment,
             &mut self.data,
-            q.as_slice(),
-            v.as_slice(),
+            (q.as_slice(), v.as_slice()),
             stiffness_out,
             damping_out,
         );
@@ -627,7 +652,7 @@ impl DaeSystem for RobotSystem {
         dv: &DVector<f64>,
     ) -> Result<f64, SystemError> {
         Ok(self.effects.newton_update_fraction(
-            &self.model,
+            &self.environment,
             q.as_slice(),
             v.as_slice(),
             dv.as_slice(),
@@ -868,6 +893,7 @@ impl DaeSystem for RobotSystem {
     ) -> Result<(), SystemError> {
         self.parameters.jacobians(
             &mut self.model,
+            &mut self.environment,
             &mut self.data,
             &mut self.effects,
             &self.constraints,
@@ -896,7 +922,8 @@ impl DaeSystem for RobotSystem {
             )
             .into());
         }
-        self.parameters.set_offset(&mut self.model, k, offset);
+        self.parameters
+            .set_offset(&mut self.model, &mut self.environment, k, offset);
         Ok(())
     }
 }
@@ -955,6 +982,7 @@ impl ResidualJacobians for RobotSystem {
         };
         rnea_derivatives(
             &self.model,
+            &self.environment.gravity,
             &mut self.data,
             &mut buffers.rnea,
             q.as_slice(),
@@ -1004,9 +1032,7 @@ mod tests {
                 .unwrap();
         let (file, _) = read_sidecar(&root.join(format!("{name}.uncertainty.toml"))).unwrap();
         let scene = Scene::resolve(&file, &model, name, SceneOverrides::default()).unwrap();
-        let mut model = model;
-        scene.apply_gravity(&mut model);
-        (RobotSystem::new(model, &scene), scene)
+        (RobotSystem::new(model, scene.environment(), &scene), scene)
     }
 
     /// The residual after a mass matrix reuses its placements only at its configuration, and gives
@@ -1074,8 +1100,21 @@ mod tests {
                 hht.step(&mut system).unwrap();
             }
             crba(&system.model, &mut system.data, &q);
-            rnea(&system.model, &mut system.data, &q, &v, &v);
-            nonlinear_effects(&system.model, &mut system.data, &q, &v);
+            rnea(
+                &system.model,
+                &system.environment.gravity,
+                &mut system.data,
+                &q,
+                &v,
+                &v,
+            );
+            nonlinear_effects(
+                &system.model,
+                &system.environment.gravity,
+                &mut system.data,
+                &q,
+                &v,
+            );
             let used = allocations() - before;
             assert_eq!(
                 used, 0,
@@ -1085,11 +1124,16 @@ mod tests {
         let (mut system, _) = robot("double_pendulum");
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/double_pendulum");
         let (file, _) = read_sidecar(&root.join("double_pendulum.uncertainty.toml")).unwrap();
-        let space =
-            crate::uncertainty::ParameterSpace::from_sidecar(&file, &system.model, "dp").unwrap();
+        let space = crate::uncertainty::ParameterSpace::from_sidecar(
+            &file,
+            &system.model,
+            &system.environment,
+            "dp",
+        )
+        .unwrap();
         let xi = [0.3, -0.7];
         let before = allocations();
-        space.apply(&mut system.model, &xi);
+        space.apply(&mut system.model, &mut system.environment, &xi);
         assert_eq!(allocations() - before, 0, "ParameterSpace::apply allocated");
     }
 
@@ -1105,11 +1149,15 @@ mod tests {
                 .join("robots")
                 .join(name);
             let (file, _) = read_sidecar(&root.join(format!("{name}.uncertainty.toml"))).unwrap();
-            let space =
-                crate::uncertainty::ParameterSpace::from_sidecar(&file, &system.model, name)
-                    .unwrap();
+            let space = crate::uncertainty::ParameterSpace::from_sidecar(
+                &file,
+                &system.model,
+                &system.environment,
+                name,
+            )
+            .unwrap();
             let xi = space.nominal_xi();
-            space.apply(&mut system.model, &xi);
+            space.apply(&mut system.model, &mut system.environment, &xi);
             let mut list = Vec::new();
             let directions: Vec<_> = (0..space.len())
                 .map(|j| {

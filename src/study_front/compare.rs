@@ -241,6 +241,7 @@ pub fn compare(args: &CompareRequest) -> Result<(), Error> {
     let threads = check_threads("--threads", args.threads.unwrap_or(0))?;
     let Setup {
         model,
+        environment,
         scene,
         space,
         ..
@@ -278,7 +279,7 @@ pub fn compare(args: &CompareRequest) -> Result<(), Error> {
     };
     let interrupt = crate::interrupt::flag();
     let run_study = |options: StudyOptions| -> Result<(StudyReport, f64), Error> {
-        let study = Study::new(&model, &scene, &space, options);
+        let study = Study::new(&model, &environment, &scene, &space, options);
         let started = Instant::now();
         let report = study.run(interrupt, &mut |_| {}, &mut |_| Ok(()))?;
         if report.partial {
@@ -300,7 +301,7 @@ pub fn compare(args: &CompareRequest) -> Result<(), Error> {
             ..base.clone()
         })?,
         ReferenceKind::Vertex => {
-            let study = Study::new(&model, &scene, &space, base.clone());
+            let study = Study::new(&model, &environment, &scene, &space, base.clone());
             let started = Instant::now();
             let report = study.vertex_reference(
                 VertexReferenceOptions::default(),

@@ -55,7 +55,13 @@ pub fn plan_study(request: &StudyRequest, plan_path: &Path) -> Result<(), Error>
     )?;
     let setup = prepare(&request.scene)?;
     let options = study_options(&request.flags, &setup.sidecar.analysis)?;
-    let study = Study::new(&setup.model, &setup.scene, &setup.space, options);
+    let study = Study::new(
+        &setup.model,
+        &setup.environment,
+        &setup.scene,
+        &setup.space,
+        options,
+    );
     let study_plan = study.plan()?;
     // A design that chooses runs from earlier runs (screened, adaptive) runs in stages: the plan
     // holds stage 1, as far as the study gets without any record (docs/distributed.md §7).

@@ -68,6 +68,7 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         sidecar_path,
         sidecar,
         model,
+        environment,
         scene,
         space,
     } = prepare(&request.scene)?;
@@ -81,7 +82,7 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         outputs.summary.is_some() || outputs.report.is_some(),
     )?;
     let robot = model.name().to_string();
-    let study = Study::new(&model, &scene, &space, options.clone());
+    let study = Study::new(&model, &environment, &scene, &space, options.clone());
     let plan = study.plan()?;
     // Where the records of each stage come from: simulated here, or the shards' record blocks.
     let mut simulate_here = SimulateHere;

@@ -100,7 +100,13 @@ pub fn run_shard(args: &ShardRequest) -> Result<(), Error> {
     install_interrupt();
     let setup = prepare(&request.scene)?;
     let options = study_options(&request.flags, &setup.sidecar.analysis)?;
-    let study = Study::new(&setup.model, &setup.scene, &setup.space, options);
+    let study = Study::new(
+        &setup.model,
+        &setup.environment,
+        &setup.scene,
+        &setup.space,
+        options,
+    );
     let study_plan = study.plan()?;
     check_plan_matches(&plan, &args.plan, &study, &study_plan)?;
     let points = &stage.points;

@@ -8,6 +8,7 @@
 use super::consistency::inertia_about_com_in_link;
 use super::error::{BoundValueSource, UncertaintyError};
 use super::space::{quoted_excerpt, Binding, DimensionKind, ParameterSpace};
+use crate::environment::Environment;
 use crate::model::{check_inertia, Model};
 use crate::params::{self, ParamTarget};
 use crate::sidecar::key_label;
@@ -34,7 +35,7 @@ impl ParameterSpace {
             .position(|d| d.kind == DimensionKind::Symbol && d.name == name)
     }
 
-    /// Writes into `model` every binding that uses a symbol of `values` (`(dimension, value)`, the
+    /// Writes into `model` and `environment` every binding that uses a symbol of `values` (`(dimension, value)`, the
     /// symbols' own values, not ξ), with the other symbols at their nominal (midpoint), and
     /// refreshes it; the values are checked as [`ParameterSpace::check_bound_values`] checks a
     /// sample's, and `model` changes only when they pass. Returns the paths written. Bindings that
@@ -42,6 +43,7 @@ impl ParameterSpace {
     pub fn apply_symbol_values(
         &self,
         model: &mut Model,
+        environment: &mut Environment,
         values: &[(usize, f64)],
     ) -> Result<Vec<String>, UncertaintyError> {
         let dimensions = self.dimensions();
@@ -59,9 +61,11 @@ impl ParameterSpace {
                 .any(|k| values.iter().any(|(j, _)| j == k))
         };
         let mut trial = model.clone();
+        let mut trial_environment = *environment;
         for binding in self.bindings().iter().filter(uses_set) {
             params::set(
                 &mut trial,
+                &mut trial_environment,
                 binding.target,
                 binding.expression.eval(&value_of),
             );
@@ -69,6 +73,7 @@ impl ParameterSpace {
         trial.refresh();
         self.check_bindings(&trial, &value_of, BoundValueSource::SetFlags)?;
         *model = trial;
+        *environment = trial_environment;
         Ok(self
             .bindings()
             .iter()

@@ -6,11 +6,12 @@
 use super::consistency::{check_box, inertia_about_com_in_link};
 use super::error::UncertaintyError;
 use super::expression::{Expression, ExpressionError};
+use crate::environment::Environment;
 use crate::model::Model;
 use crate::params::{self, ParamTarget};
 use crate::sidecar::{
-    expand_parameters, key_label, BindDeclaration, EntryKind, IntervalForm, ParameterEntry,
-    SidecarFile,
+    expand_parameters, key_label, located, BindDeclaration, EntryKind, IntervalForm,
+    ParameterEntry, SidecarFile,
 };
 use crate::text::closest_suggestion;
 use std::collections::hash_map::Entry;
@@ -220,17 +221,18 @@ pub struct ParameterSpace {
 impl ParameterSpace {
     /// Expands the sidecar's `[parameters]` ([`crate::sidecar::expand_parameters`]: paths,
     /// symbols, patterns), resolves its entries (dimensions, in that order) and `[bind]` (bound
-    /// paths) against `model` (its values are the URDF values), then checks the physical
+    /// paths) against `model` and `environment` (their values are the URDF's and the scene's), then checks the physical
     /// consistency of the box ([`ParameterSpace::check_box`]). `file` names the sidecar in
     /// messages. Non-fatal findings are in [`ParameterSpace::warnings`], the expansion's decisions
     /// in [`ParameterSpace::notes`].
     pub fn from_sidecar(
         sidecar: &SidecarFile,
         model: &Model,
+        environment: &Environment,
         file: &str,
     ) -> Result<ParameterSpace, UncertaintyError> {
         let (parameters, bind) = (&sidecar.parameters, &sidecar.bind);
-        let expanded = expand_parameters(parameters, bind, model, file)?;
+        let expanded = expand_parameters(parameters, bind, model, environment, file)?;
         let mut space = ParameterSpace {
             dimensions: Vec::with_capacity(expanded.entries.len()),
             groups: Vec::new(),
@@ -245,13 +247,15 @@ impl ParameterSpace {
         // twice (a map: a list searched per key made a box of every link quadratic).
         let mut declared: HashMap<ParamTarget, String> = HashMap::new();
         for entry in &expanded.entries {
-            let dimension = space.read_dimension(entry, model, file)?;
+            // Messages about the entry point at its key's line.
+            let at = located(file, entry.line);
+            let dimension = space.read_dimension(entry, model, environment, &at)?;
             let label = dimension_label(entry);
             match dimension.kind {
-                DimensionKind::Path(target) => declare(&mut declared, target, label, file)?,
+                DimensionKind::Path(target) => declare(&mut declared, target, label, &at)?,
                 DimensionKind::Group(g) => {
                     for member in &space.groups[g].members {
-                        declare(&mut declared, member.target, label.clone(), file)?;
+                        declare(&mut declared, member.target, label.clone(), &at)?;
                     }
                 }
                 DimensionKind::Symbol => {}
@@ -259,12 +263,13 @@ impl ParameterSpace {
             space.dimensions.push(dimension);
         }
         for declaration in bind {
-            let binding = space.read_binding(declaration, model, file)?;
+            let at = located(file, declaration.line);
+            let binding = space.read_binding(declaration, model, environment, file)?;
             declare(
                 &mut declared,
                 binding.target,
                 key_label("bind", &declaration.key),
-                file,
+                &at,
             )?;
             space.bindings.push(binding);
         }
@@ -299,21 +304,25 @@ impl ParameterSpace {
         &mut self,
         declaration: &BindDeclaration,
         model: &Model,
+        environment: &Environment,
         file: &str,
     ) -> Result<Binding, UncertaintyError> {
         let key = declaration.key.as_str();
         let label = key_label("bind", key);
-        let target =
-            params::resolve(model, key).map_err(|e| UncertaintyError::BindKeyNotAPath {
-                file: file.to_string(),
+        // Errors about the key point at its line (the warning below names the file alone).
+        let at = located(file, declaration.line);
+        let target = params::resolve(model, environment, key).map_err(|e| {
+            UncertaintyError::BindKeyNotAPath {
+                file: at.clone(),
                 key: label.clone(),
                 reason: e.to_string(),
-            })?;
+            }
+        })?;
         let text = match &declaration.expression {
             Ok(text) => text.as_str(),
             Err(value) => {
                 return Err(UncertaintyError::BindNotAString {
-                    file: file.to_string(),
+                    file: at.clone(),
                     key: label,
                     value: value.clone(),
                 })
@@ -336,7 +345,7 @@ impl ParameterSpace {
                     symbols.join(", ")
                 };
                 UncertaintyError::UnknownSymbol {
-                    file: file.to_string(),
+                    file: at.clone(),
                     key: key_and_text.clone(),
                     hint: format!(
                         "{} (declared symbols: {declared})",
@@ -346,7 +355,7 @@ impl ParameterSpace {
                 }
             }
             source => UncertaintyError::BadExpression {
-                file: file.to_string(),
+                file: at.clone(),
                 key: key_and_text.clone(),
                 source,
             },
@@ -360,7 +369,7 @@ impl ParameterSpace {
         let at_midpoints = binding
             .expression
             .eval(&|k: usize| self.dimensions[k].nominal);
-        let urdf_value = params::get(model, target);
+        let urdf_value = params::get(model, environment, target);
         let scale = urdf_value.abs().max(at_midpoints.abs());
         // Written so that a NaN counts as a mismatch.
         let reproduces =
@@ -378,6 +387,7 @@ impl ParameterSpace {
         &mut self,
         entry: &ParameterEntry,
         model: &Model,
+        environment: &Environment,
         file: &str,
     ) -> Result<Dimension, UncertaintyError> {
         let label = dimension_label(entry);
@@ -431,7 +441,7 @@ impl ParameterSpace {
                         .map(|(path, target)| GroupMember {
                             path: path.clone(),
                             target: *target,
-                            urdf_value: params::get(model, *target),
+                            urdf_value: params::get(model, environment, *target),
                         })
                         .collect(),
                 };
@@ -459,7 +469,7 @@ impl ParameterSpace {
             }
             EntryKind::Path { target, .. } => *target,
         };
-        let u = params::get(model, target);
+        let u = params::get(model, environment, target);
         let (lower, upper) = match entry.interval.form {
             IntervalForm::Bounds(lower, upper) => (lower, upper),
             IntervalForm::Relative(rel) => {
@@ -575,14 +585,14 @@ impl ParameterSpace {
             .collect()
     }
 
-    /// Writes the point `xi` (`dim d`, each in [-1, 1]) into `model`: each path dimension's value,
+    /// Writes the point `xi` (`dim d`, each in [-1, 1]) into `model` and `environment`: each path dimension's value,
     /// each group member's value and each binding's expression value, through [`params::set`];
     /// then [`Model::refresh`]. Overwrites exactly the declared values. Allocates nothing; the cost
     /// is linear in the number of values written.
     ///
     /// # Panics
     /// When `xi.len()` is not `d` (a caller's bug).
-    pub fn apply(&self, model: &mut Model, xi: &[f64]) {
+    pub fn apply(&self, model: &mut Model, environment: &mut Environment, xi: &[f64]) {
         assert_eq!(
             xi.len(),
             self.dimensions.len(),
@@ -592,11 +602,18 @@ impl ParameterSpace {
         );
         for (dimension, &x) in self.dimensions.iter().zip(xi) {
             match dimension.kind {
-                DimensionKind::Path(target) => params::set(model, target, dimension.value_at(x)),
+                DimensionKind::Path(target) => {
+                    params::set(model, environment, target, dimension.value_at(x))
+                }
                 DimensionKind::Group(g) => {
                     let group = &self.groups[g];
                     for member in &group.members {
-                        params::set(model, member.target, group.member_value(member, x));
+                        params::set(
+                            model,
+                            environment,
+                            member.target,
+                            group.member_value(member, x),
+                        );
                     }
                 }
                 DimensionKind::Symbol => {}
@@ -605,6 +622,7 @@ impl ParameterSpace {
         for binding in &self.bindings {
             params::set(
                 model,
+                environment,
                 binding.target,
                 binding.value_at(&self.dimensions, xi),
             );

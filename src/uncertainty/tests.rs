@@ -1,6 +1,7 @@
 //! Tests of the parameter space and the box check on small inline robots.
 
 use super::*;
+use crate::environment::Environment;
 use crate::model::{parse_description, LoadOptions, Model};
 use crate::params::{self, ParamTarget};
 use crate::sidecar::parse_sidecar;
@@ -34,7 +35,7 @@ fn model() -> Model {
 
 fn space(sidecar: &str) -> Result<ParameterSpace, UncertaintyError> {
     let file = parse_sidecar(sidecar).unwrap();
-    ParameterSpace::from_sidecar(&file, &model(), FILE)
+    ParameterSpace::from_sidecar(&file, &model(), &Environment::default(), FILE)
 }
 
 fn error(sidecar: &str) -> String {
@@ -109,8 +110,14 @@ fn nominal_xi_and_values_at() {
 fn apply_writes_direct_and_bound_values() {
     let s = space(ALL_FORMS).unwrap();
     let mut m = model();
-    s.apply(&mut m, &[1.0, -1.0, 0.5, 1.0]);
-    let get = |m: &Model, path: &str| params::get(m, params::resolve(m, path).unwrap());
+    s.apply(&mut m, &mut Environment::default(), &[1.0, -1.0, 0.5, 1.0]);
+    let get = |m: &Model, path: &str| {
+        params::get(
+            m,
+            &Environment::default(),
+            params::resolve(m, &Environment::default(), path).unwrap(),
+        )
+    };
     assert_eq!(get(&m, "link.bar1.mass"), 2.5);
     assert!((get(&m, "joint.j1.origin.z") - 0.45).abs() < 1e-15);
     assert!((get(&m, "link.bar2.com.y") - 0.001).abs() < 1e-15);
@@ -123,7 +130,7 @@ fn apply_writes_direct_and_bound_values() {
     assert!((m.joints[1].parent_from_joint.translation.x - 1.01).abs() < 1e-15);
     assert!((m.joints[0].parent_from_joint.translation.z - 0.45).abs() < 1e-15);
     // Back to the nominal point: the URDF values again.
-    s.apply(&mut m, &s.nominal_xi());
+    s.apply(&mut m, &mut Environment::default(), &s.nominal_xi());
     assert!((get(&m, "link.bar1.mass") - 2.0).abs() < 1e-15);
     assert!((get(&m, "joint.j2.origin.x") - 1.0).abs() < 1e-15);
 }
@@ -136,7 +143,7 @@ fn inertia_values_written_by_apply_reach_the_body() {
     )
     .unwrap();
     let mut m = model();
-    s.apply(&mut m, &[1.0]);
+    s.apply(&mut m, &mut Environment::default(), &[1.0]);
     let about_com = m.bodies[1].inertia.inertia_about_com().unwrap();
     // bar2 merges no fixed child, and `bad` is on its own moving joint.
     assert!((about_com[(2, 2)] - 0.22).abs() < 1e-15);
@@ -379,7 +386,7 @@ fn no_parameters_is_an_empty_space() {
     let s = space("").unwrap();
     assert!(s.is_empty() && s.nominal_xi().is_empty() && s.warnings().is_empty());
     let mut m = model();
-    s.apply(&mut m, &[]);
+    s.apply(&mut m, &mut Environment::default(), &[]);
     assert_eq!(m.bodies[0].inertia.mass, 2.0);
 }
 
@@ -414,11 +421,15 @@ fn ur5() -> Model {
 
 fn ur5_space(sidecar: &str) -> Result<ParameterSpace, UncertaintyError> {
     let file = parse_sidecar(sidecar).unwrap();
-    ParameterSpace::from_sidecar(&file, &ur5(), "ur5.test.toml")
+    ParameterSpace::from_sidecar(&file, &ur5(), &Environment::default(), "ur5.test.toml")
 }
 
 fn value(m: &Model, path: &str) -> f64 {
-    params::get(m, params::resolve(m, path).unwrap())
+    params::get(
+        m,
+        &Environment::default(),
+        params::resolve(m, &Environment::default(), path).unwrap(),
+    )
 }
 
 #[test]
@@ -473,7 +484,7 @@ fn a_shared_group_moves_every_match_together() {
     let nominal = ur5();
     let mut m = ur5();
     for xi in [-1.0, 1.0, 0.0, 0.25] {
-        s.apply(&mut m, &[xi, xi]);
+        s.apply(&mut m, &mut Environment::default(), &[xi, xi]);
         for link in MOVING_LINKS {
             let path = format!("link.{link}.mass");
             let expected = value(&nominal, &path) * (1.0 + 0.1 * xi);
@@ -491,7 +502,7 @@ fn a_shared_group_moves_every_match_together() {
         );
     }
     // ξ = 0 gives the URDF values bitwise, so the nominal run is the URDF robot.
-    s.apply(&mut m, &[0.0, 0.0]);
+    s.apply(&mut m, &mut Environment::default(), &[0.0, 0.0]);
     assert_eq!(
         m.description, nominal.description,
         "the nominal point must reproduce the URDF"
@@ -544,7 +555,7 @@ fn scale_multiplies_mass_and_inertia_and_combines_with_a_mass_interval() {
     assert_eq!(s.dimensions()[1].unit, "");
     let mut m = model();
     let com_before = m.bodies[0].inertia.com().unwrap();
-    s.apply(&mut m, &[1.0, 1.0]);
+    s.apply(&mut m, &mut Environment::default(), &[1.0, 1.0]);
     let body = &m.bodies[0].inertia;
     assert_eq!(body.mass, 2.5 * 1.1);
     // COM unchanged; the rotational inertia about the COM scaled by the same factor.
@@ -565,21 +576,22 @@ fn scale_multiplies_mass_and_inertia_and_combines_with_a_mass_interval() {
 fn check_target_derivatives(s: &ParameterSpace, m0: &Model, xi: &[f64], tolerance: f64) {
     // Step of the check's own central difference (in ξ); the values are affine or smooth.
     const STEP: f64 = 1e-4;
-    let registry = params::list(m0);
+    let registry = params::list(m0, &Environment::default());
     let mut derivatives = Vec::new();
     for j in 0..s.len() {
         s.target_derivatives(xi, j, &mut derivatives);
         assert!(!derivatives.is_empty(), "dimension {j} moves nothing");
-        let mut plus = m0.clone();
-        let mut minus = m0.clone();
+        let mut plus = (m0.clone(), Environment::default());
+        let mut minus = (m0.clone(), Environment::default());
         let mut at = xi.to_vec();
         at[j] = xi[j] + STEP;
-        s.apply(&mut plus, &at);
+        s.apply(&mut plus.0, &mut plus.1, &at);
         at[j] = xi[j] - STEP;
-        s.apply(&mut minus, &at);
+        s.apply(&mut minus.0, &mut minus.1, &at);
         for info in &registry {
-            let difference =
-                (params::get(&plus, info.target) - params::get(&minus, info.target)) / (2.0 * STEP);
+            let difference = (params::get(&plus.0, &plus.1, info.target)
+                - params::get(&minus.0, &minus.1, info.target))
+                / (2.0 * STEP);
             let claimed = derivatives
                 .iter()
                 .find(|(t, _)| *t == info.target)
@@ -631,7 +643,10 @@ fn target_derivatives_match_central_differences_of_apply() {
     // "c * c * 0.11336": ∂/∂ξ = 2 c r 0.11336 with c = 1.1 and r = 0.1.
     let (_, com_z) = derivatives
         .iter()
-        .find(|(t, _)| *t == params::resolve(&m0, "link.upper_arm_link.com.z").unwrap())
+        .find(|(t, _)| {
+            *t == params::resolve(&m0, &Environment::default(), "link.upper_arm_link.com.z")
+                .unwrap()
+        })
         .copied()
         .unwrap();
     let exact = 2.0 * 1.1 * 0.1 * 0.11336;
@@ -656,7 +671,8 @@ fn a_box_of_more_than_100_dimensions_is_checked_link_by_link() {
     let file = parse_sidecar(sidecar).unwrap();
     let m0 = ur5();
     let start = std::time::Instant::now();
-    let s = ParameterSpace::from_sidecar(&file, &m0, "ur5.test.toml").unwrap();
+    let s =
+        ParameterSpace::from_sidecar(&file, &m0, &Environment::default(), "ur5.test.toml").unwrap();
     let elapsed = start.elapsed();
     // 6 masses, 18 COM, 6 × 5 own inertia entries + 1 shared ixx, 6 scales, 7 × 6 origins.
     assert_eq!(s.len(), 6 + 18 + 30 + 1 + 6 + 42);
@@ -679,7 +695,11 @@ fn a_box_of_more_than_100_dimensions_is_checked_link_by_link() {
     const APPLIES: u32 = 10_000;
     let start = std::time::Instant::now();
     for _ in 0..APPLIES {
-        s.apply(&mut m, std::hint::black_box(&xi));
+        s.apply(
+            &mut m,
+            &mut Environment::default(),
+            std::hint::black_box(&xi),
+        );
     }
     let per_apply = start.elapsed() / APPLIES;
     println!(
@@ -736,7 +756,7 @@ fn apply_allocates_nothing_with_groups_scales_and_bindings() {
     let mut derivatives = Vec::with_capacity(16);
     s.target_derivatives(&xi, 0, &mut derivatives);
     let before = allocations();
-    s.apply(&mut m, &xi);
+    s.apply(&mut m, &mut Environment::default(), &xi);
     let checked = s.check_bound_values(&m, &xi);
     for j in 0..s.len() {
         s.target_derivatives(&xi, j, &mut derivatives);

@@ -56,7 +56,11 @@ impl GroupWorker {
                 .get_or_insert_with(|| SampleWorker::new(context.template));
             let taken = match retry {
                 Some((failure, in_step)) => {
-                    context.space.apply(&mut scalar.system.model, &sample.xi);
+                    context.space.apply(
+                        &mut scalar.system.model,
+                        &mut scalar.system.environment,
+                        &sample.xi,
+                    );
                     scalar.retry(sample, failure, in_step, context, block)
                 }
                 None => scalar.advance(sample, first_index + lane, context, block),
@@ -216,9 +220,10 @@ fn load_lane(
     (q0, v0): (&DVector<f64>, &DVector<f64>),
 ) -> Result<(u64, u64), String> {
     let scene = context.scene;
+    let system = stepper.system_mut(lane);
     context
         .space
-        .apply(&mut stepper.system_mut(lane).model, &sample.xi);
+        .apply(&mut system.model, &mut system.environment, &sample.xi);
     // A `[bind]` value no model can have is named with its expression and symbol values.
     context
         .space

@@ -116,10 +116,11 @@ pub struct BatchModel<const W: usize> {
 }
 
 impl<const W: usize> BatchModel<W> {
-    /// Batches `models` (one per sample, in sample order): their trees must be identical; their
-    /// values may differ. Allocates once.
-    pub fn from_models(models: &[&Model]) -> Result<Self, BatchError> {
-        let first = models.first().ok_or(BatchError::Empty)?;
+    /// Batches `samples` (one model and the gravity it is simulated in, m/s² in the world frame,
+    /// per sample, in sample order): the models' trees must be identical; their values may differ.
+    /// Allocates once.
+    pub fn from_models(samples: &[(&Model, &Vec3)]) -> Result<Self, BatchError> {
+        let &(first, first_gravity) = samples.first().ok_or(BatchError::Empty)?;
         let joints: Vec<BatchJoint> = first
             .joints
             .iter()
@@ -130,7 +131,7 @@ impl<const W: usize> BatchModel<W> {
                 v_index: j.v_index,
             })
             .collect();
-        let chunk_count = models.len().div_ceil(W);
+        let chunk_count = samples.len().div_ceil(W);
         let nb = joints.len();
         let mass_matrix_zeros = decoupled_entries(&joints, first.nv);
         let blank = ChunkValues {
@@ -144,24 +145,30 @@ impl<const W: usize> BatchModel<W> {
             joints,
             nq: first.nq,
             nv: first.nv,
-            size: models.len(),
+            size: samples.len(),
             chunks: vec![blank; chunk_count],
             isa: Isa::best(),
             mass_matrix_zeros,
         };
-        for (sample, model) in models.iter().enumerate() {
+        for (sample, (model, _)) in samples.iter().enumerate() {
             batch.check_tree(sample, model)?;
         }
         for lane in 0..chunk_count * W {
             // Tail lanes take sample 0's values.
-            let model = models.get(lane).unwrap_or(first);
-            batch.write_lane(lane, model);
+            let (model, gravity) = samples.get(lane).copied().unwrap_or((first, first_gravity));
+            batch.write_lane(lane, model, gravity);
         }
         Ok(batch)
     }
 
-    /// Replaces sample `sample`'s values with `model`'s (same tree). Allocates nothing.
-    pub fn set_sample(&mut self, sample: usize, model: &Model) -> Result<(), BatchError> {
+    /// Replaces sample `sample`'s values with `model`'s (same tree) and its gravity with `gravity`
+    /// (m/s², world frame). Allocates nothing.
+    pub fn set_sample(
+        &mut self,
+        sample: usize,
+        model: &Model,
+        gravity: &Vec3,
+    ) -> Result<(), BatchError> {
         if sample >= self.size {
             return Err(BatchError::NoSuchSample {
                 sample,
@@ -169,7 +176,7 @@ impl<const W: usize> BatchModel<W> {
             });
         }
         self.check_tree(sample, model)?;
-        self.write_lane(sample, model);
+        self.write_lane(sample, model, gravity);
         Ok(())
     }
 
@@ -202,8 +209,8 @@ impl<const W: usize> BatchModel<W> {
         Ok(())
     }
 
-    /// Writes one lane's values from `model` (tree already checked).
-    fn write_lane(&mut self, lane: usize, model: &Model) {
+    /// Writes one lane's values from `model` and `gravity` (tree already checked).
+    fn write_lane(&mut self, lane: usize, model: &Model, gravity: &Vec3) {
         let (chunk, l) = (&mut self.chunks[lane / W], lane % W);
         for (i, joint) in model.joints.iter().enumerate() {
             set_transform(&mut chunk.parent_from_joint[i], l, &joint.parent_from_joint);
@@ -214,7 +221,7 @@ impl<const W: usize> BatchModel<W> {
         for (i, body) in model.bodies.iter().enumerate() {
             set_inertia(&mut chunk.inertia[i], l, &body.inertia);
         }
-        set_v3(&mut chunk.gravity, l, &model.gravity);
+        set_v3(&mut chunk.gravity, l, gravity);
     }
 }
 
