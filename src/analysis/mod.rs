@@ -35,6 +35,7 @@ mod plan;
 mod reference;
 mod refine_phase;
 mod report;
+mod scanned_leaf;
 mod schedule;
 mod screening;
 mod screening_phase;
