@@ -104,8 +104,8 @@ pub(super) fn bound_design(
         screen_hull: &design.screen_hull,
         surrogate_ranges: &surrogate_ranges,
         element: None,
+        kept: None,
     };
-    let mut kept = None;
     let complete = match &design.adapted {
         Some(outcome) => {
             let t_bound = Instant::now();
@@ -145,7 +145,7 @@ pub(super) fn bound_design(
                 (0..source.len()).filter(|&i| i != nominal_index).collect();
             let policy = context.design_failure_policy(method);
             if keeps_design_runs(context, plan, n_records) {
-                kept = Some(ElementRuns::new(
+                bounding.kept = Some(ElementRuns::new(
                     (0..n_outputs).collect(),
                     plan_samples.len(),
                 ));
@@ -169,14 +169,6 @@ pub(super) fn bound_design(
                 };
                 let excluded = |i: usize| lockstep.failed(i);
                 bounding.absorb(block.first, block.count, &values, &excluded, accumulator)?;
-                if (0..plan_samples.len()).any(|i| lockstep.failed(plan_samples[i])) {
-                    kept = None;
-                }
-                if let Some(kept) = &mut kept {
-                    for r in 0..block.count {
-                        kept.push_record(&values(r), n_outputs);
-                    }
-                }
                 report.bound_seconds += t_bound.elapsed().as_secs_f64();
                 Ok(())
             })?;
@@ -196,7 +188,7 @@ pub(super) fn bound_design(
     Ok(Bounded {
         complete,
         candidates: bounding.candidates,
-        runs: kept.filter(|_| complete),
+        runs: bounding.kept.filter(|_| complete),
     })
 }
 
@@ -266,6 +258,9 @@ pub(super) struct DesignBounding<'b> {
     /// in the nominal run, which lies outside it in general; its candidates are mapped to the
     /// whole box's coordinates and kept for its checked outputs only.
     pub element: Option<ElementScope<'b>>,
+    /// The design's runs, record after record, kept for elements to nest in (docs/method.md §12,
+    /// "Nested elements"); `None`: not kept, or dropped once a sample was left out.
+    pub kept: Option<ElementRuns>,
 }
 
 impl DesignBounding<'_> {
@@ -291,10 +286,19 @@ impl DesignBounding<'_> {
             let record = first + r;
             // The design's runs (the bounds already contain them) into the hull of true runs.
             let record_values = values(r);
+            let mut complete_row = true;
             for (sample, run) in record_values.chunks_exact(n_outputs.max(1)).enumerate() {
-                if !excluded(sample) {
+                if excluded(sample) {
+                    complete_row = false;
+                } else {
                     accumulator.widen_runs(record, run);
                 }
+            }
+            if !complete_row {
+                self.kept = None;
+            }
+            if let Some(kept) = &mut self.kept {
+                kept.push_record(&record_values, n_outputs);
             }
             // The nominal run is a true response inside the box: the envelope contains it.
             if self.element.is_none() {

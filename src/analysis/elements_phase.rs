@@ -598,7 +598,7 @@ fn run_round(
     // Which surrogate children keep their runs for their own children, within the memory bound.
     let active_outputs: Vec<usize> = (0..n_outputs).filter(|&o| tree.active[o]).collect();
     let mut kept_values = tree.kept_values();
-    let mut kept_runs: Vec<Option<ElementRuns>> = children
+    let kept_runs: Vec<Option<ElementRuns>> = children
         .iter()
         .map(|&(_, _, design)| {
             design.axis_nodes(d)?;
@@ -635,7 +635,8 @@ fn run_round(
     let mut boundings: Vec<Option<DesignBounding>> = children
         .iter()
         .zip(&bounders)
-        .map(|(&(_, region, _), bounder)| {
+        .zip(kept_runs)
+        .map(|((&(_, region, _), bounder), kept)| {
             Some(DesignBounding {
                 bounder: bounder.as_ref()?,
                 threads: context.threads,
@@ -649,6 +650,7 @@ fn run_round(
                     element: region,
                     checked_outputs: &active,
                 }),
+                kept,
             })
         })
         .collect();
@@ -714,11 +716,6 @@ fn run_round(
                     )
                 };
                 bounding.absorb(block.first, block.count, &values, &|_| false, child)?;
-                if let Some(kept) = &mut kept_runs[c] {
-                    for r in 0..block.count {
-                        kept.push_record(&values(r), n_outputs);
-                    }
-                }
             }
             report.bound_seconds += t_bound.elapsed().as_secs_f64();
             Ok(())
@@ -758,13 +755,23 @@ fn run_round(
         .map(|(bounding, hull)| bounding.is_none().then(|| hull.points.clone()))
         .collect();
     context.report.phase_seconds.check_selection += t_select.elapsed().as_secs_f64();
-    let (sobol, candidates): (Vec<Option<SobolSeries>>, Vec<CheckCandidates>) = boundings
-        .into_iter()
-        .map(|b| match b {
-            Some(b) => (Some(b.sobol), b.candidates),
-            None => (None, CheckCandidates::new(d)),
-        })
-        .unzip();
+    let mut sobol: Vec<Option<SobolSeries>> = Vec::with_capacity(children.len());
+    let mut candidates = Vec::with_capacity(children.len());
+    let mut kept_runs: Vec<Option<ElementRuns>> = Vec::with_capacity(children.len());
+    for bounding in boundings {
+        match bounding {
+            Some(b) => {
+                sobol.push(Some(b.sobol));
+                candidates.push(b.candidates);
+                kept_runs.push(b.kept);
+            }
+            None => {
+                sobol.push(None);
+                candidates.push(CheckCandidates::new(d));
+                kept_runs.push(None);
+            }
+        }
+    }
     let mut check_points = Vec::new();
     let mut owner = Vec::new();
     let mut by_record: Vec<Vec<(usize, usize, f64, usize)>> = vec![Vec::new(); n_records];
