@@ -27,6 +27,16 @@ const MAX_WIDER_THAN_SCAN: f64 = 0.05;
 /// on the nine-decade box, at a time where a 2001-point scan finds a slightly higher value).
 const MAX_MISSED_OF_SCAN: f64 = 1e-3;
 
+/// An output whose scan spreads less than this (m, rad, N) is rounding: the vehicle's sideways
+/// motion, which its mirror symmetry keeps at zero, spreads 1e-14 m.
+const ROUNDING_WIDTH: f64 = 1e-9;
+
+/// The vehicle's union may be wider than a scan of its box's corners, faces' middles and centre
+/// by at most this share of the width (issue 38's goal for the showcase robots; measured when
+/// written: 8.7 % on the rear wheels' ground force, 18.7 % before trusted outputs' overshoots were
+/// checked, docs/method.md §12).
+const VEHICLE_MAX_WIDER_THAN_SCAN: f64 = 0.10;
+
 /// How far past an enforced limit a surrogate's bound of a joint position may reach
 /// (`ribbon::scene::ENFORCED_LIMIT_BOUND_MARGIN`: the penalty's depth at 1000 rad/s²).
 const ENFORCED_LIMIT_BOUND_MARGIN: f64 = 0.025;
@@ -185,6 +195,20 @@ fn assert_contains_dense_scan(
     dir: &Path,
     points: &str,
 ) {
+    assert_contains_scan(urdf, sidecar, ours, dir, points, MAX_WIDER_THAN_SCAN);
+}
+
+/// [`assert_contains_dense_scan`] with `max_wider` for [`MAX_WIDER_THAN_SCAN`]; outputs whose
+/// scan width stays below [`ROUNDING_WIDTH`] (a motion that symmetry keeps at zero) are judged by
+/// the runs inside only.
+fn assert_contains_scan(
+    urdf: &str,
+    sidecar: Option<&str>,
+    ours: &Value,
+    dir: &Path,
+    points: &str,
+    max_wider: f64,
+) {
     let scan_path = dir.join("scan.json");
     let mut args = vec!["analyze", urdf];
     if let Some(sidecar) = sidecar {
@@ -218,6 +242,9 @@ fn assert_contains_dense_scan(
         let mut wider = 0.0_f64;
         let slack = MAX_MISSED_OF_SCAN * width;
         for k in 0..lower.len() {
+            if width < ROUNDING_WIDTH {
+                break;
+            }
             assert!(
                 lower[k] <= scan_lower[k] + slack && upper[k] >= scan_upper[k] - slack,
                 "{name}, record {k}: [{}, {}] misses the scan's [{}, {}]",
@@ -229,7 +256,7 @@ fn assert_contains_dense_scan(
             wider = wider.max((scan_lower[k] - lower[k]).max(upper[k] - scan_upper[k]));
         }
         assert!(
-            wider <= MAX_WIDER_THAN_SCAN * width,
+            wider <= max_wider * width,
             "{name}: wider than the scan by {} of the width",
             wider / width
         );
@@ -529,4 +556,36 @@ fn a_two_parameter_kink_nests_its_children_in_the_first_grid() {
         "81",
     );
     assert_plan_run_merge_is_analyze(urdf, &dir);
+}
+
+/// `robots/vehicle` (d = 4, wheels over a bump): one surrogate misses the wheels' ground forces,
+/// the elements make it trusted within the default `--max-runs` (3 000), and the union contains a
+/// 3⁴ scan (every corner, face middle and the centre) and is at most 10 % of the width wider. The
+/// rear wheels' ground force is trusted by the first check, whose runs go to each output's widest
+/// records; its first surrogate overshoots the rear landing (2 000 N where true runs give 1 480 N
+/// at t = 0.74 s) until the overshoot check runs there and the output gets elements too.
+#[test]
+fn the_vehicle_is_trusted_within_the_default_budget_and_close_to_a_corner_scan() {
+    let dir = fresh_test_scratch_dir("elements", "vehicle");
+    let urdf = common::manifest("robots/vehicle/vehicle.urdf");
+    let urdf = urdf.to_str().unwrap();
+    let summary_path = dir.join("vehicle.json");
+    let study = ribbon_outcome(&["analyze", urdf, "--summary", summary_path.to_str().unwrap()]);
+    assert_eq!(study.code, Some(0), "{}", study.stderr);
+    let ours = summary(&summary_path);
+    let runs = ours["samples"].as_u64().unwrap();
+    assert!(runs <= 3000, "{runs} runs");
+    let elements = &ours["stats"]["elements"];
+    assert_eq!(elements["stop"], "trusted", "{elements}");
+    let outputs: Vec<&str> = elements["outputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o.as_str().unwrap())
+        .collect();
+    assert!(
+        outputs.contains(&"contact.wheel_rl.ground.normal"),
+        "the rear wheels' overshoot was not checked: elements for {outputs:?}"
+    );
+    assert_contains_scan(urdf, None, &ours, &dir, "3", VEHICLE_MAX_WIDER_THAN_SCAN);
 }

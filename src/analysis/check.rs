@@ -298,6 +298,26 @@ impl CheckCandidates {
 
     /// Chooses at most `budget` distinct points (see the module documentation).
     pub fn select(&self, budget: usize) -> CheckPlan {
+        self.select_after(Vec::new(), budget)
+    }
+
+    /// Chooses at most `budget` distinct points: first, for each of `outputs` and side, the
+    /// prediction furthest past what true runs showed ([`Self::select_overshoots`]), then the
+    /// others as [`Self::select`] does. An element's check (docs/method.md §12, "Overshoots").
+    pub fn select_with_overshoots(
+        &self,
+        budget: usize,
+        outputs: &[usize],
+        hull: &dyn Fn(usize, usize) -> (f64, f64),
+        min_excess: &[f64],
+    ) -> CheckPlan {
+        let mut first = self.overshoots(outputs, hull, min_excess, &[]);
+        first.truncate(budget);
+        self.select_after(first, budget)
+    }
+
+    /// [`Self::select`] after the points `chosen` (indices into `points`, run first).
+    fn select_after(&self, mut chosen: Vec<usize>, budget: usize) -> CheckPlan {
         let unique_candidates = self.unique_points();
         // Per (output, side): candidates by decreasing width (ties: earlier record first).
         let mut queues: HashMap<(usize, bool), Vec<usize>> = HashMap::new();
@@ -315,8 +335,11 @@ impl CheckCandidates {
                 b.width.total_cmp(&a.width).then(a.record.cmp(&b.record))
             });
         }
-        let mut chosen: Vec<usize> = Vec::new();
-        let mut chosen_slot: HashMap<usize, usize> = HashMap::new();
+        let mut chosen_slot: HashMap<usize, usize> = chosen
+            .iter()
+            .enumerate()
+            .map(|(slot, &p)| (p, slot))
+            .collect();
         let mut cursor = vec![0usize; keys.len()];
         while chosen.len() < budget.min(unique_candidates) {
             let mut advanced = false;
@@ -340,11 +363,92 @@ impl CheckCandidates {
                 break;
             }
         }
+        self.plan_of(&chosen, unique_candidates)
+    }
+
+    /// The predictions furthest past what true runs showed (docs/method.md §12, "Overshoots"):
+    /// for each of `outputs` and each side, the candidate whose prediction lies furthest beyond
+    /// `hull(record, output)` on its side, when that is more than `min_excess[output]` and its
+    /// point is not one of `ran` (row-major, already run: its misfits are known). One run per
+    /// point, in the order outputs × (lower, upper); every candidate at a chosen point is checked.
+    pub fn select_overshoots(
+        &self,
+        outputs: &[usize],
+        hull: &dyn Fn(usize, usize) -> (f64, f64),
+        min_excess: &[f64],
+        ran: &[f64],
+    ) -> CheckPlan {
+        let chosen = self.overshoots(outputs, hull, min_excess, ran);
+        self.plan_of(&chosen, self.unique_points())
+    }
+
+    /// The points of [`Self::select_overshoots`], in run order.
+    fn overshoots(
+        &self,
+        outputs: &[usize],
+        hull: &dyn Fn(usize, usize) -> (f64, f64),
+        min_excess: &[f64],
+        ran: &[f64],
+    ) -> Vec<usize> {
+        let d = self.dim.max(1);
+        let ran: std::collections::HashSet<usize> = ran
+            .chunks_exact(d)
+            .filter_map(|point| self.index_of(point))
+            .collect();
+        let mut chosen: Vec<usize> = Vec::new();
+        for &o in outputs {
+            for side in [Side::Lower, Side::Upper] {
+                let furthest = self
+                    .candidates
+                    .iter()
+                    .filter(|c| c.output == o && c.side == side && !ran.contains(&c.point))
+                    .map(|c| {
+                        let (lowest, highest) = hull(c.record, o);
+                        let past = match side {
+                            Side::Lower => lowest - c.predicted,
+                            Side::Upper => c.predicted - highest,
+                        };
+                        (past, c.point)
+                    })
+                    .filter(|(past, _)| past.is_finite() && *past > min_excess[o])
+                    .fold(
+                        None,
+                        |best: Option<(f64, usize)>, (past, point)| match best {
+                            Some((b, _)) if b >= past => best,
+                            _ => Some((past, point)),
+                        },
+                    );
+                if let Some((_, point)) = furthest {
+                    if !chosen.contains(&point) {
+                        chosen.push(point);
+                    }
+                }
+            }
+        }
+        chosen
+    }
+
+    /// The index of the candidate point within [`CHECK_POINT_TOLERANCE`] of `point`, if any.
+    fn index_of(&self, point: &[f64]) -> Option<usize> {
+        let key: Vec<i64> = point
+            .iter()
+            .map(|&x| (x.clamp(-1.0, 1.0) / CHECK_POINT_TOLERANCE).round() as i64)
+            .collect();
+        self.index.get(&key).copied()
+    }
+
+    /// The plan that runs the candidate points `chosen` (indices into `points`, in run order).
+    fn plan_of(&self, chosen: &[usize], unique_candidates: usize) -> CheckPlan {
         let d = self.dim;
         let mut points = Vec::with_capacity(chosen.len() * d);
-        for &p in &chosen {
+        for &p in chosen {
             points.extend_from_slice(&self.points[p * d..(p + 1) * d]);
         }
+        let chosen_slot: HashMap<usize, usize> = chosen
+            .iter()
+            .enumerate()
+            .map(|(slot, &p)| (p, slot))
+            .collect();
         let mut checks = vec![Vec::new(); chosen.len()];
         for candidate in &self.candidates {
             if let Some(&slot) = chosen_slot.get(&candidate.point) {
@@ -553,6 +657,43 @@ mod tests {
             all.points.len(),
             4,
             "the budget is capped by the candidates"
+        );
+    }
+
+    #[test]
+    fn overshoots_are_the_predictions_furthest_past_the_runs_on_each_side() {
+        let mut c = CheckCandidates::new(1);
+        // Output 0's maximum: 0.5 past the runs at record 1 (point 0.7), 0.2 at record 0.
+        c.add(0, 0, Side::Upper, &[0.1], 1.2, 5.0);
+        c.add(1, 0, Side::Upper, &[0.7], 1.5, 1.0);
+        // Its minimum: inside the runs (no overshoot).
+        c.add(1, 0, Side::Lower, &[-0.4], 0.5, 1.0);
+        // Output 1: 0.05 past the runs, under the smallest overshoot worth a run.
+        c.add(0, 1, Side::Upper, &[-0.9], 1.05, 1.0);
+        let hull = |_: usize, _: usize| (0.0, 1.0);
+        let plan = c.select_overshoots(&[0, 1], &hull, &[0.1, 0.1], &[]);
+        assert_eq!(plan.points, vec![0.7]);
+        assert_eq!(plan.checks[0], vec![(1, 0, Side::Upper, 1.5)]);
+        // A point already run is not run again: the next furthest is.
+        let plan = c.select_overshoots(&[0, 1], &hull, &[0.1, 0.1], &[0.7]);
+        assert_eq!(plan.points, vec![0.1]);
+        // Outputs not asked for are not looked at.
+        assert!(c
+            .select_overshoots(&[1], &hull, &[0.1, 0.1], &[])
+            .points
+            .is_empty());
+        // In an element's check the overshoot comes first, then the widest records round-robin
+        // (output 0's minimum first).
+        let plan = c.select_with_overshoots(2, &[0], &hull, &[0.1, 0.1]);
+        assert_eq!(plan.points, vec![0.7, -0.4]);
+        assert_eq!(
+            c.select_with_overshoots(1, &[0], &hull, &[0.1, 0.1]).points,
+            vec![0.7]
+        );
+        assert_eq!(
+            c.select_with_overshoots(2, &[], &hull, &[0.1, 0.1]).points,
+            c.select(2).points,
+            "without outputs to look at, the selection is the plain one"
         );
     }
 

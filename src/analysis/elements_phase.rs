@@ -24,7 +24,7 @@
 use super::accumulator::Accumulator;
 use super::bounds::{Bounder, EnvelopePoint};
 use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side};
-use super::check_phase::{judge, output_scales, CheckRuns};
+use super::check_phase::{check, judge, output_scales, CheckOutcome, CheckRuns};
 use super::design_phase::{known_ranges, DesignBounding, ElementScope};
 use super::elements::{
     Element, ElementTree, OutputScale, MAX_SPLIT_DIMS, MIN_ELEMENT_ORDER, SCAN_BISECTIONS,
@@ -50,6 +50,11 @@ use std::time::Instant;
 /// grow polynomially in d. Measured on the vehicle (d = 4): children on the total-degree-4 grid
 /// (70 runs) missed by up to the whole union width, on the order-3 tensor grid (256) by 10–20 %.
 pub const ELEMENT_TENSOR_MAX_DIM: usize = super::auto::AUTO_TENSOR_MAX_DIM;
+
+/// A trusted output's predicted extreme is checked again when it lies more than this fraction
+/// of the output's width past the hull of true runs (`check_overshoots`): below it, the envelope
+/// there is at most that much wider than the runs show, and no run is spent on it.
+pub const MIN_OVERSHOOT: f64 = 0.01;
 
 /// Where an element's runs go: a surrogate's design, or a scanned leaf's grid.
 enum ElementPlan {
@@ -328,8 +333,42 @@ pub(super) fn split_into_elements(
     let n_records = accumulator.times.len();
     let d = context.space.len();
     let order = context.options.order;
+    let mut runs = CheckRuns {
+        runs: first_check.runs,
+        unique_candidates: first_check.unique_candidates,
+        points: first_check.points.clone(),
+        checked: first_check.checked.clone(),
+        complete: first_check.complete,
+    };
+    let mut root_misfit = root.misfit;
+    let mut untrusted = first_check.untrusted_outputs.clone();
+    // The outputs the first check trusted, checked once more where their surrogates overshoot
+    // the true runs most: those that fail it get elements too.
+    if let Some(overshot) = check_overshoots(context, &root.candidates, &untrusted, accumulator)? {
+        // Only the trusted outputs' misfits are new evidence: the others are split anyway, and
+        // by the first check's misfits.
+        for (o, (worst, probed)) in root_misfit.iter_mut().zip(&overshot.misfit).enumerate() {
+            if !untrusted.contains(&o) {
+                for (w, &m) in worst.iter_mut().zip(probed) {
+                    *w = w.max(m);
+                }
+            }
+        }
+        let probe = overshot.report;
+        runs.runs += probe.runs;
+        runs.points.extend_from_slice(&probe.points);
+        runs.checked.extend_from_slice(&probe.checked);
+        if !probe.complete {
+            runs.complete = false;
+            context.report.check = Some(judge(scene, runs, &root_misfit, accumulator));
+            return Ok(());
+        }
+        untrusted.extend(probe.untrusted_outputs);
+        untrusted.sort_unstable();
+        untrusted.dedup();
+    }
     let mut active = vec![false; n_outputs];
-    for &o in &first_check.untrusted_outputs {
+    for &o in &untrusted {
         active[o] = true;
     }
     // The root's runs of the outputs the elements are for, and its grid, for children to nest in.
@@ -354,11 +393,11 @@ pub(super) fn split_into_elements(
         depth: 0,
         children: Vec::new(),
         split_dims: Vec::new(),
-        design_runs: context.report.runs - first_check.runs,
-        check_runs: first_check.runs,
+        design_runs: context.report.runs - runs.runs,
+        check_runs: runs.runs,
         order,
         points: accumulator.points[..n_records * n_outputs].to_vec(),
-        misfit: root.misfit,
+        misfit: root_misfit,
         sobol: context.report.sobol.clone(),
         candidates: root.candidates,
         scan_grid: None,
@@ -367,15 +406,10 @@ pub(super) fn split_into_elements(
         reused_runs: 0,
     };
     let mut tree = ElementTree::new(root, active);
-    let mut runs = CheckRuns {
-        runs: first_check.runs,
-        unique_candidates: first_check.unique_candidates,
-        points: first_check.points.clone(),
-        checked: first_check.checked.clone(),
-        complete: first_check.complete,
-    };
     let runs_before = context.report.runs;
-    // Runs set aside for refining the extremes of what stays untrusted.
+    // Runs set aside for refining the extremes of what stays untrusted, sized by the outputs the
+    // first check did not trust: those the overshoot check adds share it (the refinement runs
+    // what fits in the runs left, whatever was set aside).
     let reserve = refine_reserve(
         d,
         first_check.untrusted_outputs.len(),
@@ -436,11 +470,48 @@ pub(super) fn split_into_elements(
             rounds,
             runs: element_runs,
             stop,
-            outputs: first_check.untrusted_outputs.clone(),
+            outputs: untrusted,
             elements,
         });
     }
     Ok(())
+}
+
+/// Checks the outputs the first check trusted (all but `untrusted`) where their surrogates'
+/// predicted extremes lie furthest past the hull of true runs (`CheckCandidates::
+/// select_overshoots`): the first check runs each output's widest records, and a surrogate that
+/// overshoots a narrower record (a landing it rounds into a peak) would keep its envelope there
+/// far wider than the true response. A prediction less than [`MIN_OVERSHOOT`] of the output's
+/// width past the runs is not worth a run. `None` when there was nothing to check or no budget.
+fn check_overshoots(
+    context: &mut PhaseContext<'_>,
+    candidates: &CheckCandidates,
+    untrusted: &[usize],
+    accumulator: &mut Accumulator,
+) -> Result<Option<CheckOutcome>, StudyError> {
+    let n_outputs = accumulator.n_outputs;
+    let n_records = accumulator.times.len();
+    let trusted: Vec<usize> = (0..n_outputs).filter(|o| !untrusted.contains(o)).collect();
+    let scales = output_scales(context.scene, &accumulator.points[..n_records * n_outputs]);
+    let min_excess: Vec<f64> = scales.iter().map(|s| MIN_OVERSHOOT * s.width).collect();
+    let ran = context
+        .report
+        .check
+        .as_ref()
+        .map_or(Vec::new(), |c| c.points.clone());
+    let t_select = Instant::now();
+    let plan = candidates.select_overshoots(
+        &trusted,
+        &|r, o| accumulator.run_hull(r, o),
+        &min_excess,
+        &ran,
+    );
+    context.report.phase_seconds.check_selection += t_select.elapsed().as_secs_f64();
+    let room = context.options.max_runs.saturating_sub(context.report.runs);
+    if plan.checks.is_empty() || plan.checks.len() > room {
+        return Ok(None);
+    }
+    check(context, &plan, accumulator).map(Some)
 }
 
 /// The extremes to refine: for each of `outputs`, at its widest record of the union, both sides,
@@ -735,13 +806,24 @@ fn run_round(
     // between its grid's extreme points (their hull, before the check widens it, is what a scan's
     // check judges).
     let t_select = Instant::now();
+    let union = tree.union(&|r, o| accumulator.run_hull(r, o));
+    let min_excess: Vec<f64> = output_scales(context.scene, &union)
+        .iter()
+        .map(|s| MIN_OVERSHOOT * s.width)
+        .collect();
+    let hull = |r: usize, o: usize| accumulator.run_hull(r, o);
     let plans: Vec<CheckPlan> = boundings
         .iter()
         .zip(&children)
         .zip(&scan_grids)
         .map(
             |((bounding, &(_, region, design)), grid)| match (bounding, grid) {
-                (Some(bounding), _) => bounding.candidates.select(design.check_runs),
+                (Some(bounding), _) => bounding.candidates.select_with_overshoots(
+                    design.check_runs,
+                    &active_outputs,
+                    &hull,
+                    &min_excess,
+                ),
                 (None, Some(grid)) => {
                     grid.half_steps(region, design.check_runs - grid.bisection_runs())
                 }
