@@ -15,9 +15,10 @@
 //! DataEnd, summary section, Footer, magic     the data section's and the summary's CRC-32
 //! ```
 //!
-//! Every byte is checked each time a block is read (`integrity.rs`): the CRC-32s first, before
-//! any record is interpreted, then the structure and the digest, and the digest again while the
-//! records stream.
+//! Written and read through the MCAP layer ([`crate::mcap_io`]); the header and trailer metadata
+//! are `block_metadata.rs`'s, the digest `integrity.rs`'s. Every byte is checked each time a block
+//! is read: the CRC-32s first (`mcap_io::verify_checksums`), before any record is interpreted,
+//! then the structure and the digest, and the digest again while the records stream.
 
 use super::block_metadata::{BlockHeader, BlockTrailer, HEADER_NAME, TRAILER_NAME};
 use super::error::ShardError;

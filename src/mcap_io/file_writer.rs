@@ -71,8 +71,8 @@ impl McapWriteError {
     }
 }
 
-/// An MCAP file being written through a temporary file beside its target; see the
-/// [module docs](self).
+/// An MCAP file being written through a temporary file beside its target, renamed onto it by
+/// [`finish`](Self::finish); dropped unfinished, it removes the temporary (see [`crate::mcap_io`]).
 pub struct McapFileWriter<S: FileStream> {
     /// The target path.
     path: PathBuf,
@@ -281,5 +281,106 @@ impl<S: FileStream> std::fmt::Debug for McapFileWriter<S> {
             .field("temporary", &self.temporary_path)
             .field("topics", &self.topics)
             .finish_non_exhaustive()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("ribbon-mcap-io-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("mkdir");
+        dir
+    }
+
+    fn unchunked() -> WriteOptions {
+        WriteOptions::new().use_chunks(false).compression(None)
+    }
+
+    /// Files in `dir` (the target and any temporary left behind).
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .expect("list")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn a_finished_file_is_renamed_into_place_and_reads_back() {
+        let dir = scratch("finished");
+        let path = dir.join("a.mcap");
+        let mut file = McapFileWriter::create(&path, unchunked(), |b| b).expect("create");
+        assert_ne!(file.temporary_path(), path.as_path());
+        let channel = file
+            .add_channel(0, "/x", "raw", &BTreeMap::new())
+            .expect("channel");
+        for sequence in 0..3u32 {
+            let header = MessageHeader {
+                channel_id: channel,
+                sequence,
+                log_time: u64::from(sequence),
+                publish_time: u64::from(sequence),
+            };
+            file.write_message(&header, &[sequence as u8; 4])
+                .expect("message");
+        }
+        file.write_metadata("m", BTreeMap::from([("k".into(), "v".into())]))
+            .expect("metadata");
+        file.attach("a.txt", "text/plain", b"hello")
+            .expect("attach");
+        file.finish().expect("finish");
+        assert_eq!(entries(&dir), ["a.mcap"]);
+        let bytes = std::fs::read(&path).expect("read");
+        let messages: Vec<Vec<u8>> = ::mcap::MessageStream::new(&bytes)
+            .expect("stream")
+            .map(|m| m.expect("message").data.into_owned())
+            .collect();
+        assert_eq!(messages, [[0u8; 4], [1; 4], [2; 4]]);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_writer_dropped_unfinished_leaves_nothing() {
+        let dir = scratch("dropped");
+        let path = dir.join("b.mcap");
+        let mut file = McapFileWriter::create(&path, unchunked(), |b| b).expect("create");
+        file.add_channel(0, "/x", "raw", &BTreeMap::new())
+            .expect("channel");
+        assert_eq!(entries(&dir).len(), 1, "the temporary exists while writing");
+        drop(file);
+        assert!(entries(&dir).is_empty(), "{:?}", entries(&dir));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_refused_record_names_the_file_and_the_step() {
+        let dir = scratch("refused");
+        let path = dir.join("c.mcap");
+        let mut file = McapFileWriter::create(&path, unchunked(), |b| b).expect("create");
+        // Schema 7 was never added.
+        let error = file
+            .add_channel(7, "/y", "raw", &BTreeMap::new())
+            .expect_err("unknown schema");
+        let message = error.to_string();
+        assert!(
+            message.starts_with(&format!("{}: cannot add the channel /y: ", path.display())),
+            "{message}"
+        );
+        assert!(matches!(error, McapWriteError::Mcap { .. }));
+        let error = McapFileWriter::create(&dir.join("no/such/dir/d.mcap"), unchunked(), |b| b)
+            .expect_err("no directory");
+        assert!(
+            error
+                .to_string()
+                .contains("cannot create a temporary file beside"),
+            "{error}"
+        );
+        assert_eq!(error.into_io_error().kind(), io::ErrorKind::NotFound);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
