@@ -13,6 +13,7 @@
 //! - [`dynamics`] — CRBA, RNEA, forward dynamics and frame placements on a per-thread
 //!   [`dynamics::Data`];
 //! - [`linalg`] — the one in-place Cholesky, shared by dynamics, integrator and bound optimisers;
+//! - [`mcap_io`] — the one MCAP layer: a file written whole, its checksums and records read back;
 //! - [`integrate`] — the second-order HHT-I3 integrator for index-3 DAEs;
 //! - [`uq`] — quadrature, Legendre/Chebyshev surrogates and their bounds (pure mathematics);
 //! - [`setup`] — URDF, sidecar, scene and parameter box loaded and checked in one place;
@@ -44,6 +45,7 @@ pub mod geometry;
 pub mod integrate;
 pub mod interrupt;
 pub mod linalg;
+pub mod mcap_io;
 pub mod model;
 pub mod nominal_run;
 pub mod output;

@@ -8,6 +8,7 @@
 //! runs from earlier runs (screened, adaptive) run in stages: each `merge` replays the stages
 //! whose records exist and plans the next one, until the last merge writes the outputs.
 
+mod block_metadata;
 mod error;
 mod hash;
 mod integrity;
@@ -17,14 +18,15 @@ mod shards;
 mod stage_plan;
 mod stage_records;
 
+pub use block_metadata::{BlockHeader, BlockTrailer, RECORD_BLOCK_VERSION};
 pub use error::ShardError;
 pub use hash::{fnv1a64, fnv1a64_file, Fnv1a64};
 pub use plan_file::{
     InputFile, PlanBody, PlanFile, PlanOptions, StagedDesign, PLAN_FORMAT, PLAN_VERSION,
 };
 pub use record_block::{
-    BlockHeader, BlockTrailer, RecordBlockReader, RecordBlockWriter, NOMINAL_TOPIC,
-    RECORDS_ENCODING, RECORDS_TOPIC, RECORD_BLOCK_PROFILE, RECORD_BLOCK_VERSION,
+    RecordBlockReader, RecordBlockWriter, NOMINAL_TOPIC, RECORDS_ENCODING, RECORDS_TOPIC,
+    RECORD_BLOCK_PROFILE,
 };
 pub use shards::{shard_file_name, ShardSet, ShardSpec, SHARD_INDEX_VARIABLES};
 pub use stage_plan::{

@@ -15,20 +15,21 @@
 //! DataEnd, summary section, Footer, magic     the data section's and the summary's CRC-32
 //! ```
 //!
-//! Every byte is checked each time a block is read (`integrity.rs`): the CRC-32s first, before
-//! any record is interpreted, then the structure and the digest, and the digest again while the
-//! records stream.
+//! Written and read through the MCAP layer ([`crate::mcap_io`]); the header and trailer metadata
+//! are `block_metadata.rs`'s, the digest `integrity.rs`'s. Every byte is checked each time a block
+//! is read: the CRC-32s first (`mcap_io::verify_checksums`), before any record is interpreted,
+//! then the structure and the digest, and the digest again while the records stream.
 
+use super::block_metadata::{BlockHeader, BlockTrailer, HEADER_NAME, TRAILER_NAME};
 use super::error::ShardError;
-use super::integrity::{
-    frame, verify_checksums, BlockSource, Damage, DigestHandle, DigestReader, DigestWriter,
-    OP_DATA_END, RECORD_FRAME_BYTES,
+use super::integrity::{DigestHandle, DigestReader, DigestWriter};
+use crate::mcap_io::{
+    magic_bytes, verify_checksums, ByteSource, Damage, Frame, McapFileWriter, McapWriteError,
+    MessageId, MESSAGE_HEADER_BYTES, MESSAGE_ID_BYTES, OP_CHANNEL, OP_DATA_END, OP_MESSAGE,
+    OP_METADATA,
 };
-use crate::analysis::SampleFailure;
-use crate::atomic_file::TemporaryFile;
-use crate::effects::ContactStats;
-use ::mcap::records::{MessageHeader, Metadata, Record};
-use ::mcap::{WriteOptions, Writer};
+use ::mcap::records::{MessageHeader, Record};
+use ::mcap::WriteOptions;
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
@@ -36,271 +37,25 @@ use std::path::{Path, PathBuf};
 
 /// The MCAP profile of a record block.
 pub const RECORD_BLOCK_PROFILE: &str = "ribbon-records";
-/// The version of the record block layout (the `format_version` metadata entry): 2 since the
-/// trailer carries the digest of the bytes before it (version 1 had none).
-pub const RECORD_BLOCK_VERSION: u32 = 2;
 /// Topic of the samples' recorded outputs.
 pub const RECORDS_TOPIC: &str = "/records";
 /// Topic of the nominal run's outputs and configuration.
 pub const NOMINAL_TOPIC: &str = "/nominal";
 /// Message encoding of both topics: raw little-endian IEEE-754 doubles, no schema.
 pub const RECORDS_ENCODING: &str = "ribbon.f64le";
-/// Name of the metadata record at the start.
-const HEADER_NAME: &str = "ribbon.shard";
-/// Name of the metadata record at the end.
-const TRAILER_NAME: &str = "ribbon.shard.end";
 /// The trailer entry holding the FNV-1a 64 of the file's bytes before the trailer record, 16
 /// lowercase hex digits.
 const DIGEST_KEY: &str = "fnv1a64";
 /// Largest metadata record read (the failures list of a shard), bytes.
 const MAX_METADATA_BYTES: u64 = 256 << 20;
 
-const OP_CHANNEL: u8 = 0x04;
-const OP_MESSAGE: u8 = 0x05;
-const OP_METADATA: u8 = 0x0C;
-/// Channel id, sequence, log time, publish time.
-const MESSAGE_HEADER_BYTES: u64 = 2 + 4 + 8 + 8;
-
-/// What a record block holds, written before the data.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct BlockHeader {
-    /// The plan's hash.
-    pub plan_hash: String,
-    /// The shard's index, from 0.
-    pub shard: usize,
-    /// Shards in all.
-    pub shards: usize,
-    /// First design sample held.
-    pub first_sample: usize,
-    /// One past the last design sample held.
-    pub end_sample: usize,
-    /// Whether the block holds the nominal run (`/nominal`).
-    pub nominal: bool,
-    /// Outputs per record.
-    pub outputs: usize,
-    /// Record times.
-    pub records: usize,
-    /// Configuration coordinates (of the nominal run's positions).
-    pub nq: usize,
-}
-
-impl BlockHeader {
-    /// Design samples held.
-    pub fn samples(&self) -> usize {
-        self.end_sample - self.first_sample
-    }
-
-    fn to_metadata(&self) -> BTreeMap<String, String> {
-        [
-            ("format_version", RECORD_BLOCK_VERSION.to_string()),
-            ("plan_hash", self.plan_hash.clone()),
-            ("shard", self.shard.to_string()),
-            ("shards", self.shards.to_string()),
-            ("first_sample", self.first_sample.to_string()),
-            ("end_sample", self.end_sample.to_string()),
-            ("nominal", self.nominal.to_string()),
-            ("outputs", self.outputs.to_string()),
-            ("records", self.records.to_string()),
-            ("nq", self.nq.to_string()),
-            (
-                "layout",
-                "/records: samples first_sample..end_sample × outputs; /nominal: outputs then nq positions; f64 little-endian, one message per record time".to_string(),
-            ),
-        ]
-        .into_iter()
-        .map(|(k, v)| (k.to_string(), v))
-        .collect()
-    }
-
-    fn from_metadata(map: &BTreeMap<String, String>) -> Result<BlockHeader, String> {
-        let text = |key: &str| {
-            map.get(key)
-                .cloned()
-                .ok_or_else(|| format!("the ribbon.shard metadata has no '{key}'"))
-        };
-        let number = |key: &str| -> Result<usize, String> {
-            text(key)?
-                .parse()
-                .map_err(|_| format!("ribbon.shard '{key}' is not a count"))
-        };
-        let version = number("format_version")?;
-        if version != RECORD_BLOCK_VERSION as usize {
-            return Err(format!(
-                "record block version {version}, this ribbon reads version {RECORD_BLOCK_VERSION}"
-            ));
-        }
-        let header = BlockHeader {
-            plan_hash: text("plan_hash")?,
-            shard: number("shard")?,
-            shards: number("shards")?,
-            first_sample: number("first_sample")?,
-            end_sample: number("end_sample")?,
-            nominal: flag(map, HEADER_NAME, "nominal")?,
-            outputs: number("outputs")?,
-            records: number("records")?,
-            nq: number("nq")?,
-        };
-        if header.end_sample < header.first_sample {
-            return Err("end_sample before first_sample".to_string());
-        }
-        Ok(header)
-    }
-}
-
-/// What a record block says after the data.
-#[derive(Clone, Debug)]
-pub struct BlockTrailer {
-    /// Whether every record time was written.
-    pub complete: bool,
-    /// Samples left out under `--keep-going` (indices in the whole design).
-    pub failures: Vec<SampleFailure>,
-    /// Samples re-run with the adaptive step, each with its fixed step's failure (indices in the
-    /// whole design; the `retried` entry, absent when there are none).
-    pub retried: Vec<SampleFailure>,
-    /// Newton iterations of the shard's runs.
-    pub newton_iterations: u64,
-    /// Steps of the shard's runs.
-    pub steps: u64,
-    /// Contact counters of the shard's runs, summed (the `contacts` entry, absent when the scene
-    /// declares no contacts), so that a merge reports what `analyze` reports.
-    pub contacts: Option<ContactStats>,
-}
-
-impl BlockTrailer {
-    fn to_metadata(&self) -> BTreeMap<String, String> {
-        let mut map: BTreeMap<String, String> = [
-            ("complete", self.complete.to_string()),
-            ("newton_iterations", self.newton_iterations.to_string()),
-            ("steps", self.steps.to_string()),
-            ("failures", failures_json(&self.failures)),
-        ]
-        .into_iter()
-        .map(|(k, v)| (k.to_string(), v))
-        .collect();
-        if !self.retried.is_empty() {
-            map.insert("retried".to_string(), failures_json(&self.retried));
-        }
-        if let Some(contacts) = &self.contacts {
-            // Counts as integers; the depth's shortest round-trip text reads back to the same f64.
-            let entry = serde_json::json!({
-                "pair_tests": contacts.pair_tests,
-                "narrow_queries": contacts.narrow_queries,
-                "made": contacts.made,
-                "broken": contacts.broken,
-                "max_depth_m": contacts.max_depth_m,
-            });
-            map.insert("contacts".to_string(), entry.to_string());
-        }
-        map
-    }
-
-    fn from_metadata(map: &BTreeMap<String, String>) -> Result<BlockTrailer, String> {
-        let text = |key: &str| {
-            map.get(key)
-                .ok_or_else(|| format!("the ribbon.shard.end metadata has no '{key}'"))
-        };
-        let count = |key: &str| -> Result<u64, String> {
-            text(key)?
-                .parse()
-                .map_err(|_| format!("ribbon.shard.end '{key}' is not a count"))
-        };
-        let failures = failures_from_json(text("failures")?, "failures")?;
-        let retried = match map.get("retried") {
-            Some(entry) => failures_from_json(entry, "retried")?,
-            None => Vec::new(),
-        };
-        let contacts = match map.get("contacts") {
-            None => None,
-            Some(entry) => {
-                let value: serde_json::Value = serde_json::from_str(entry)
-                    .map_err(|e| format!("ribbon.shard.end 'contacts' is not JSON: {e}"))?;
-                let count = |key: &str| {
-                    value
-                        .get(key)
-                        .and_then(serde_json::Value::as_u64)
-                        .ok_or_else(|| {
-                            format!("ribbon.shard.end 'contacts' lacks the count '{key}'")
-                        })
-                };
-                Some(ContactStats {
-                    pair_tests: count("pair_tests")?,
-                    narrow_queries: count("narrow_queries")?,
-                    made: count("made")?,
-                    broken: count("broken")?,
-                    max_depth_m: value
-                        .get("max_depth_m")
-                        .and_then(serde_json::Value::as_f64)
-                        .ok_or("ribbon.shard.end 'contacts' lacks 'max_depth_m'")?,
-                })
-            }
-        };
-        Ok(BlockTrailer {
-            complete: flag(map, TRAILER_NAME, "complete")?,
-            failures,
-            retried,
-            newton_iterations: count("newton_iterations")?,
-            steps: count("steps")?,
-            contacts,
-        })
-    }
-}
-
-/// A list of sample failures as the trailer's JSON (`failures`, `retried`).
-fn failures_json(failures: &[SampleFailure]) -> String {
-    let entries: Vec<serde_json::Value> = failures
-        .iter()
-        .map(|f| {
-            serde_json::json!({
-                "index": f.index, "xi": f.xi, "values": f.values, "time_s": f.time_s,
-                "record": f.record, "message": f.message,
-            })
-        })
-        .collect();
-    serde_json::Value::Array(entries).to_string()
-}
-
-/// The trailer's list `key` of sample failures, read back from its JSON `text`.
-fn failures_from_json(text: &str, key: &str) -> Result<Vec<SampleFailure>, String> {
-    let entries: Vec<serde_json::Value> = serde_json::from_str(text)
-        .map_err(|e| format!("ribbon.shard.end '{key}' is not a JSON list: {e}"))?;
-    entries
-        .iter()
-        .map(|f| {
-            let floats = |key: &str| -> Option<Vec<f64>> {
-                f.get(key)?.as_array()?.iter().map(|x| x.as_f64()).collect()
-            };
-            Some(SampleFailure {
-                index: usize::try_from(f.get("index")?.as_u64()?).ok()?,
-                xi: floats("xi")?,
-                values: floats("values")?,
-                time_s: f.get("time_s")?.as_f64()?,
-                record: usize::try_from(f.get("record")?.as_u64()?).ok()?,
-                message: f.get("message")?.as_str()?.to_string(),
-            })
-        })
-        .collect::<Option<Vec<_>>>()
-        .ok_or_else(|| format!("an entry of '{key}' in ribbon.shard.end lacks a field"))
-}
-
-/// The entry `key` of the metadata `record` as a boolean: `true` or `false`, nothing else.
-fn flag(map: &BTreeMap<String, String>, record: &str, key: &str) -> Result<bool, String> {
-    match map.get(key).map(String::as_str) {
-        Some("true") => Ok(true),
-        Some("false") => Ok(false),
-        Some(other) => Err(format!("{record} '{key}' is '{other}', not true or false")),
-        None => Err(format!("the {record} metadata has no '{key}'")),
-    }
-}
-
 /// Writes a record block through a temporary file beside its target, renamed into place by
 /// [`RecordBlockWriter::finish`]; dropped unfinished, nothing changes at the target.
 pub struct RecordBlockWriter {
-    path: PathBuf,
     header: BlockHeader,
-    writer: Writer<DigestWriter<BufWriter<File>>>,
+    file: McapFileWriter<DigestWriter<BufWriter<File>>>,
     /// The digest of the bytes written so far (the trailer records it).
     digest: DigestHandle,
-    temporary: TemporaryFile,
     records: u16,
     nominal: Option<u16>,
     written: usize,
@@ -310,57 +65,38 @@ pub struct RecordBlockWriter {
 impl RecordBlockWriter {
     /// Starts the record block `path` with `header`.
     pub fn create(path: &Path, header: BlockHeader) -> Result<RecordBlockWriter, ShardError> {
-        let io = |source| ShardError::Io {
-            what: "write the record block",
-            path: path.to_path_buf(),
-            source,
-        };
-        let (file, temporary) = TemporaryFile::create_beside(path).map_err(io)?;
         let options = WriteOptions::new()
             .use_chunks(false)
             .compression(None)
             .profile(RECORD_BLOCK_PROFILE)
             .library(format!("ribbon {}", env!("CARGO_PKG_VERSION")));
-        let mcap = |e: ::mcap::McapError| io(std::io::Error::other(e.to_string()));
-        let (sink, digest) = DigestWriter::new(BufWriter::new(file));
-        let mut writer = Writer::with_options(sink, options).map_err(mcap)?;
-        writer
-            .write_metadata(&Metadata {
-                name: HEADER_NAME.to_string(),
-                metadata: header.to_metadata(),
-            })
-            .map_err(mcap)?;
-        let records = writer
-            .add_channel(0, RECORDS_TOPIC, RECORDS_ENCODING, &BTreeMap::new())
-            .map_err(mcap)?;
+        let digest = DigestHandle::new();
+        let write = |error| write_error(path, error);
+        let mut file = McapFileWriter::create(path, options, |buffered| {
+            DigestWriter::with_handle(buffered, &digest)
+        })
+        .map_err(write)?;
+        file.write_metadata(HEADER_NAME, header.to_metadata())
+            .map_err(write)?;
+        let no_metadata = BTreeMap::new();
+        let records = file
+            .add_channel(0, RECORDS_TOPIC, RECORDS_ENCODING, &no_metadata)
+            .map_err(write)?;
         let nominal = if header.nominal {
-            Some(
-                writer
-                    .add_channel(0, NOMINAL_TOPIC, RECORDS_ENCODING, &BTreeMap::new())
-                    .map_err(mcap)?,
-            )
+            let channel = file.add_channel(0, NOMINAL_TOPIC, RECORDS_ENCODING, &no_metadata);
+            Some(channel.map_err(write)?)
         } else {
             None
         };
         Ok(RecordBlockWriter {
-            path: path.to_path_buf(),
             header,
-            writer,
+            file,
             digest,
-            temporary,
             records,
             nominal,
             written: 0,
             row: Vec::new(),
         })
-    }
-
-    fn mcap_error(&self, e: ::mcap::McapError) -> ShardError {
-        ShardError::Io {
-            what: "write the record block",
-            path: self.path.clone(),
-            source: std::io::Error::other(e.to_string()),
-        }
     }
 
     /// Writes the next record (at `time_s`): the samples' values (`samples × outputs`) and, in
@@ -380,16 +116,16 @@ impl RecordBlockWriter {
             publish_time: (time_s * 1e9).round() as u64,
         };
         encode(&mut self.row, &[samples]);
-        let result = self.writer.write_to_known_channel(&header, &self.row);
-        result.map_err(|e| self.mcap_error(e))?;
+        let result = self.file.write_message(&header, &self.row);
+        result.map_err(|e| write_error(self.file.path(), e))?;
         if let (Some(channel), Some((outputs, positions))) = (self.nominal, nominal) {
             encode(&mut self.row, &[outputs, positions]);
             let header = MessageHeader {
                 channel_id: channel,
                 ..header
             };
-            let result = self.writer.write_to_known_channel(&header, &self.row);
-            result.map_err(|e| self.mcap_error(e))?;
+            let result = self.file.write_message(&header, &self.row);
+            result.map_err(|e| write_error(self.file.path(), e))?;
         }
         self.written += 1;
         Ok(())
@@ -398,9 +134,10 @@ impl RecordBlockWriter {
     /// Writes the trailer (with the digest of every byte before it), finishes the MCAP file (its
     /// CRC-32s), syncs it and renames it into place.
     pub fn finish(mut self, trailer: &BlockTrailer) -> Result<(), ShardError> {
+        let path = self.file.path().to_path_buf();
         if self.written != self.header.records && trailer.complete {
             return Err(ShardError::Malformed {
-                path: self.path.clone(),
+                path,
                 message: format!(
                     "internal: {} of {} records written",
                     self.written, self.header.records
@@ -409,28 +146,18 @@ impl RecordBlockWriter {
         }
         let mut entries = trailer.to_metadata();
         entries.insert(DIGEST_KEY.to_string(), self.digest.digest().hex());
-        let metadata = Metadata {
-            name: TRAILER_NAME.to_string(),
-            metadata: entries,
-        };
-        let result = self.writer.write_metadata(&metadata);
-        result.map_err(|e| self.mcap_error(e))?;
-        let result = self.writer.finish();
-        result.map_err(|e| self.mcap_error(e))?;
-        let io = |source| ShardError::Io {
-            what: "write the record block",
-            path: self.path.clone(),
-            source,
-        };
-        let file = self
-            .writer
-            .into_inner()
-            .into_inner()
-            .into_inner()
-            .map_err(|e| io(e.into_error()))?;
-        file.sync_all().map_err(io)?;
-        drop(file);
-        self.temporary.commit().map_err(io)
+        let result = self.file.write_metadata(TRAILER_NAME, entries);
+        result.map_err(|e| write_error(&path, e))?;
+        self.file.finish().map_err(|e| write_error(&path, e))
+    }
+}
+
+/// A failure writing the record block `path`, as every step of it is reported.
+fn write_error(path: &Path, error: McapWriteError) -> ShardError {
+    ShardError::Io {
+        what: "write the record block",
+        path: path.to_path_buf(),
+        source: error.into_io_error(),
     }
 }
 
@@ -487,7 +214,7 @@ impl Blame {
         match damage {
             Damage::NotMcap(message) => ShardError::Malformed {
                 path: self.path.clone(),
-                message,
+                message: format!("{message}; record blocks are written by `ribbon run`"),
             },
             Damage::Truncated(message) => self.truncated(message),
             Damage::Corrupted(message) => self.corrupted(message),
@@ -560,7 +287,7 @@ impl RecordBlockReader {
 
     fn from_source(
         blame: Blame,
-        mut source: Box<dyn BlockSource>,
+        mut source: Box<dyn ByteSource>,
         length: u64,
     ) -> Result<RecordBlockReader, ShardError> {
         let data_end = verify_checksums(source.as_mut(), length).map_err(|d| blame.damage(d))?;
@@ -645,18 +372,15 @@ impl RecordBlockReader {
             ))
         };
         if self.reader.position() == 0 {
-            let skipped = self.reader.skip(::mcap::MAGIC.len() as u64);
+            let skipped = self.reader.skip(magic_bytes());
             skipped.map_err(|e| self.blame.io(e))?;
         }
         let nominal_values = self.header.outputs + self.header.nq;
         let mut want_records = true;
         let mut want_nominal = self.nominal.is_some();
         while want_records || want_nominal {
-            let at = self.reader.position();
-            let mut op_len = [0u8; RECORD_FRAME_BYTES as usize];
-            let read = self.reader.read_exact(&mut op_len);
-            read.map_err(|e| self.blame.io(e))?;
-            let (op, len) = frame(&op_len);
+            let read = Frame::read(&mut self.reader);
+            let Frame { at, op, len } = read.map_err(|e| self.blame.io(e))?;
             if len > self.trailer_at.saturating_sub(self.reader.position()) {
                 let what = format!("a record at byte {at} runs past the trailer");
                 return Err(changed(&self.blame, what));
@@ -674,8 +398,8 @@ impl RecordBlockReader {
             let mut bytes = std::mem::take(&mut self.bytes);
             let read = self.reader.read_exact(&mut bytes);
             read.map_err(|e| self.blame.io(e))?;
-            let channel = u16::from_le_bytes([bytes[0], bytes[1]]);
-            let sequence = u32::from_le_bytes([bytes[2], bytes[3], bytes[4], bytes[5]]) as usize;
+            let MessageId { channel, sequence } = MessageId::parse(&bytes);
+            let sequence = sequence as usize;
             let data = &bytes[MESSAGE_HEADER_BYTES as usize..];
             let (target, expected): (Option<&mut [f64]>, usize) = if channel == self.records {
                 want_records = false;
@@ -725,9 +449,7 @@ impl RecordBlockReader {
 /// one message of the right size per record time and topic, in order, the trailer last, and the
 /// trailer's digest against the bytes before it.
 fn walk(reader: &mut DigestReader, data_end: u64, blame: &Blame) -> Result<Walked, ShardError> {
-    reader
-        .skip(::mcap::MAGIC.len() as u64)
-        .map_err(|e| blame.io(e))?;
+    reader.skip(magic_bytes()).map_err(|e| blame.io(e))?;
     let mut header: Option<BlockHeader> = None;
     let mut trailer: Option<(BlockTrailer, u64, String, Option<String>)> = None;
     let mut channels: BTreeMap<u16, String> = BTreeMap::new();
@@ -735,11 +457,8 @@ fn walk(reader: &mut DigestReader, data_end: u64, blame: &Blame) -> Result<Walke
     // Message sizes of /records and /nominal, in bytes, once the header is read.
     let mut sizes = (0u64, 0u64);
     while reader.position() < data_end {
-        let at = reader.position();
         let before = reader.digest();
-        let mut op_len = [0u8; RECORD_FRAME_BYTES as usize];
-        reader.read_exact(&mut op_len).map_err(|e| blame.io(e))?;
-        let (op, len) = frame(&op_len);
+        let Frame { at, op, len } = Frame::read(reader).map_err(|e| blame.io(e))?;
         if len > data_end - reader.position() {
             return Err(blame.malformed(format!(
                 "a record at byte {at} claims {len} bytes, past the end of the data section at byte {data_end}"
@@ -760,13 +479,13 @@ fn walk(reader: &mut DigestReader, data_end: u64, blame: &Blame) -> Result<Walke
                 if header.is_none() {
                     return Err(blame.malformed("a message before the ribbon.shard metadata"));
                 }
-                if len < 6 {
+                if len < MESSAGE_ID_BYTES as u64 {
                     return Err(blame.malformed(format!("a message of {len} bytes at byte {at}")));
                 }
-                let mut id = [0u8; 6];
+                let mut id = [0u8; MESSAGE_ID_BYTES];
                 reader.read_exact(&mut id).map_err(|e| blame.io(e))?;
-                let channel = u16::from_le_bytes([id[0], id[1]]);
-                let sequence = u32::from_le_bytes([id[2], id[3], id[4], id[5]]) as usize;
+                let MessageId { channel, sequence } = MessageId::parse(&id);
+                let sequence = sequence as usize;
                 let topic = channels.get(&channel).map(String::as_str);
                 let (count, size) = match topic {
                     Some(RECORDS_TOPIC) => (&mut counts.0, sizes.0),
@@ -780,7 +499,7 @@ fn walk(reader: &mut DigestReader, data_end: u64, blame: &Blame) -> Result<Walke
                     )));
                 }
                 *count += 1;
-                reader.skip(len - 6).map_err(|e| blame.io(e))?;
+                reader.skip(len - MESSAGE_ID_BYTES as u64).map_err(|e| blame.io(e))?;
             }
             OP_METADATA | OP_CHANNEL => {
                 if len > MAX_METADATA_BYTES {
@@ -873,18 +592,8 @@ fn message_sizes(header: &BlockHeader) -> Option<(u64, u64)> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::block_metadata::tests::trailer;
     use super::*;
-
-    fn trailer(contacts: Option<ContactStats>) -> BlockTrailer {
-        BlockTrailer {
-            complete: true,
-            failures: Vec::new(),
-            retried: Vec::new(),
-            newton_iterations: 7,
-            steps: 5,
-            contacts,
-        }
-    }
 
     /// A small block (2 samples, 2 outputs, 3 record times, the nominal run with nq = 1) written
     /// to `dir`, and its bytes.
@@ -982,37 +691,5 @@ mod tests {
             "{error}"
         );
         let _ = std::fs::remove_dir_all(&dir);
-    }
-
-    #[test]
-    fn contact_counters_round_trip_through_the_trailer() {
-        let counters = ContactStats {
-            pair_tests: 956_864,
-            narrow_queries: 606_088,
-            made: 910,
-            broken: 546,
-            max_depth_m: 0.004_642_133_472_520_491,
-        };
-        let map = trailer(Some(counters)).to_metadata();
-        let read = BlockTrailer::from_metadata(&map).unwrap();
-        assert_eq!(read.contacts, Some(counters));
-        // Without contacts the entry is absent, and reads back as none.
-        let map = trailer(None).to_metadata();
-        assert!(!map.contains_key("contacts"));
-        assert_eq!(BlockTrailer::from_metadata(&map).unwrap().contacts, None);
-    }
-
-    #[test]
-    fn a_malformed_contacts_entry_is_named() {
-        let mut map = trailer(None).to_metadata();
-        map.insert("contacts".to_string(), "{not json".to_string());
-        let message = BlockTrailer::from_metadata(&map).unwrap_err();
-        assert!(message.contains("'contacts' is not JSON"), "{message}");
-        map.insert(
-            "contacts".to_string(),
-            r#"{"pair_tests": 1, "narrow_queries": 1, "made": 1, "max_depth_m": 0.0}"#.to_string(),
-        );
-        let message = BlockTrailer::from_metadata(&map).unwrap_err();
-        assert!(message.contains("lacks the count 'broken'"), "{message}");
     }
 }

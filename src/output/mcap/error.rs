@@ -1,5 +1,6 @@
 //! The one error type of the MCAP sink: every variant names the output file and what failed.
 
+use crate::mcap_io::McapWriteError;
 use std::path::PathBuf;
 
 /// Why writing an MCAP file failed. `path` is always the final output path the caller asked for
@@ -104,4 +105,14 @@ pub enum McapError {
         /// Values given.
         got: usize,
     },
+}
+
+impl From<McapWriteError> for McapError {
+    /// The MCAP layer's failures keep their text: the file, the step and the cause.
+    fn from(error: McapWriteError) -> McapError {
+        match error {
+            McapWriteError::Io { path, what, source } => McapError::Io { path, what, source },
+            McapWriteError::Mcap { path, what, source } => McapError::Write { path, what, source },
+        }
+    }
 }

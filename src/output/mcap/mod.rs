@@ -20,7 +20,7 @@
 //! nanoseconds (rounded to the nearest).
 //!
 //! Crash safety: the bytes go to a unique temporary file beside `path`
-//! (`<path>.ribbon-<pid>-<n>.tmp`, see [`crate::output::paths`]), renamed to `path` by
+//! (`<path>.ribbon-<pid>-<n>.tmp`, see [`crate::mcap_io::McapFileWriter`]), renamed to `path` by
 //! [`McapSink::finish`] (only onto a regular file or nothing); a sink dropped without `finish` (an
 //! error, a panic) removes its temporary file, so `path` never holds a half-written file. An interrupted study calls `finish(true)`: a complete, valid file of what was
 //! computed, marked `partial = "true"`.
@@ -38,14 +38,13 @@ mod ros2;
 pub use error::McapError;
 pub use name::OutputName;
 
-use crate::atomic_file::TemporaryFile;
-use ::mcap::records::{MessageHeader, Metadata};
-use ::mcap::{Attachment, Compression, WriteOptions, Writer};
-use std::borrow::Cow;
+use crate::mcap_io::McapFileWriter;
+use ::mcap::records::MessageHeader;
+use ::mcap::{Compression, WriteOptions};
 use std::collections::{BTreeMap, HashSet};
 use std::fs::File;
 use std::io::BufWriter;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Topic prefix of the envelope channels.
 pub const ENVELOPE_PREFIX: &str = "/ribbon/envelope/";
@@ -194,14 +193,8 @@ struct Channel {
 /// # Ok(()) }
 /// ```
 pub struct McapSink {
-    /// The final path.
-    path: PathBuf,
-    /// The temporary file beside `path` where the bytes go until `finish`; `None` once renamed.
-    temporary: Option<TemporaryFile>,
-    /// Its path (kept for messages).
-    temporary_path: PathBuf,
-    /// `None` once finished or dropped.
-    writer: Option<Writer<BufWriter<File>>>,
+    /// The file being written: a temporary beside the final path until `finish` renames it.
+    file: McapFileWriter<BufWriter<File>>,
     metadata: McapMetadata,
     /// Entries added to the `ribbon` record besides the study description.
     extra_metadata: BTreeMap<String, String>,
@@ -212,8 +205,6 @@ pub struct McapSink {
     /// [`add_sobol_channel`](McapSink::add_sobol_channel)).
     sobol_dimensions: Vec<String>,
     topics: HashSet<String>,
-    /// Set when `finish` has renamed the file: nothing left to clean up.
-    finished: bool,
 }
 
 impl McapSink {
@@ -229,13 +220,6 @@ impl McapSink {
         metadata: McapMetadata,
     ) -> Result<Self, McapError> {
         check_parameters(path, &metadata.parameters_json)?;
-        let (file, temporary) =
-            TemporaryFile::create_beside(path).map_err(|source| McapError::Io {
-                path: path.to_path_buf(),
-                what: format!("create a temporary file beside {}", path.display()),
-                source,
-            })?;
-        let temporary_path = temporary.path().to_path_buf();
         let options = WriteOptions::new()
             .compression(Some(Compression::Lz4))
             .chunk_size(Some(CHUNK_SIZE_BYTES))
@@ -244,24 +228,16 @@ impl McapSink {
                 env!("CARGO_PKG_VERSION"),
                 ::mcap::LIBRARY_IDENTIFIER
             ));
-        // From here on a failure drops `sink`, which removes the temporary file.
-        let writer = Writer::with_options(BufWriter::new(file), options);
+        // From here on a failure drops `sink`, whose file removes its temporary.
         let mut sink = Self {
-            path: path.to_path_buf(),
-            temporary: Some(temporary),
-            temporary_path,
-            writer: None,
+            file: McapFileWriter::create(path, options, |buffered| buffered)?,
             metadata,
             extra_metadata: BTreeMap::new(),
             joint_state_schema: 0,
             channels: Vec::new(),
             sobol_dimensions: Vec::new(),
             topics: HashSet::new(),
-            finished: false,
         };
-        sink.writer =
-            Some(writer.map_err(|source| sink.mcap_error("write the MCAP header", source))?);
-
         sink.joint_state_schema = sink.add_schema(
             ros2::JOINT_STATE_NAME,
             "ros2msg",
@@ -302,27 +278,19 @@ impl McapSink {
             attachments.push((name, text, "application/toml"));
         }
         for (name, text, media_type) in attachments {
-            let attachment = Attachment {
-                log_time: 0,
-                create_time: 0,
-                name: name.to_string(),
-                media_type: media_type.to_string(),
-                data: Cow::Borrowed(text.as_bytes()),
-            };
-            let result = sink.writer_mut().attach(&attachment);
-            result.map_err(|source| sink.mcap_error(&format!("attach {name}"), source))?;
+            sink.attach(name, media_type, text.as_bytes())?;
         }
         Ok(sink)
     }
 
     /// The final path (where [`finish`](Self::finish) puts the file).
     pub fn path(&self) -> &Path {
-        &self.path
+        self.file.path()
     }
 
     /// The temporary path the bytes go to until [`finish`](Self::finish).
     pub fn temporary_path(&self) -> &Path {
-        &self.temporary_path
+        self.file.temporary_path()
     }
 
     /// The study description written by [`finish`](Self::finish); change it before then when a
@@ -378,7 +346,7 @@ impl McapSink {
             self.sobol_dimensions = dimensions.to_vec();
         } else if self.sobol_dimensions != dimensions {
             return Err(McapError::SobolLength {
-                path: self.path.clone(),
+                path: self.path().to_path_buf(),
                 topic: format!("{prefix}{}", name.topic_suffix()),
                 expected: self.sobol_dimensions.len(),
                 got: dimensions.len(),
@@ -405,7 +373,7 @@ impl McapSink {
         self.check_handle(channel.0, ChannelKind::Sobol)?;
         if indices.len() != self.sobol_dimensions.len() {
             return Err(McapError::SobolLength {
-                path: self.path.clone(),
+                path: self.path().to_path_buf(),
                 topic: self.channels[channel.0].topic.clone(),
                 expected: self.sobol_dimensions.len(),
                 got: indices.len(),
@@ -489,15 +457,7 @@ impl McapSink {
     /// Attaches a file (`name`, IANA `media_type`, its bytes) at log time 0, e.g. the Foxglove
     /// layout of docs/mcap.md §4.
     pub fn attach(&mut self, name: &str, media_type: &str, data: &[u8]) -> Result<(), McapError> {
-        let attachment = Attachment {
-            log_time: 0,
-            create_time: 0,
-            name: name.to_string(),
-            media_type: media_type.to_string(),
-            data: Cow::Borrowed(data),
-        };
-        let result = self.writer_mut().attach(&attachment);
-        result.map_err(|source| self.mcap_error(&format!("attach {name}"), source))
+        Ok(self.file.attach(name, media_type, data)?)
     }
 
     /// Adds entries to the `ribbon` metadata record written by [`finish`](Self::finish) (e.g. the
@@ -513,7 +473,7 @@ impl McapSink {
             .find(|k| STUDY_METADATA_KEYS.contains(&k.as_str()))
         {
             return Err(McapError::ReservedMetadataName {
-                path: self.path.clone(),
+                path: self.path().to_path_buf(),
                 name: key.clone(),
             });
         }
@@ -528,10 +488,10 @@ impl McapSink {
     ///
     /// `partial = true` is for a study stopped early (SIGINT, SIGTERM): the file is complete and
     /// valid, holding the envelopes written so far.
-    pub fn finish(mut self, partial: bool) -> Result<(), McapError> {
-        check_parameters(&self.path, &self.metadata.parameters_json)?;
+    pub fn finish(self, partial: bool) -> Result<(), McapError> {
+        check_parameters(self.path(), &self.metadata.parameters_json)?;
         let m = &self.metadata;
-        let mut entries = self.extra_metadata.clone();
+        let mut entries = self.extra_metadata;
         entries.extend([
             ("robot".to_string(), m.robot.clone()),
             ("method".to_string(), m.method.clone()),
@@ -548,79 +508,23 @@ impl McapSink {
             ("partial".to_string(), partial.to_string()),
             ("parameters".to_string(), m.parameters_json.clone()),
         ]);
-        let record = Metadata {
-            name: METADATA_NAME.to_string(),
-            metadata: entries,
-        };
-        let result = self.writer_mut().write_metadata(&record);
-        result.map_err(|source| self.mcap_error("write the `ribbon` metadata record", source))?;
-        let result = self.writer_mut().finish();
-        result.map_err(|source| self.mcap_error("write the summary and footer", source))?;
-        let writer = self
-            .writer
-            .take()
-            .expect("a sink holds its writer until finished");
-        let file = writer
-            .into_inner()
-            .into_inner()
-            .map_err(|e| McapError::Io {
-                path: self.path.clone(),
-                what: format!("flush {}", self.temporary_path.display()),
-                source: e.into_error(),
-            })?;
-        file.sync_all()
-            .map_err(|source| self.io_error("sync", source))?;
-        drop(file);
-        if let Some(temporary) = self.temporary.take() {
-            temporary.commit().map_err(|source| McapError::Io {
-                path: self.path.clone(),
-                what: format!(
-                    "rename {} to {}",
-                    self.temporary_path.display(),
-                    self.path.display()
-                ),
-                source,
-            })?;
-        }
-        self.finished = true;
-        Ok(())
+        let mut file = self.file;
+        file.write_metadata(METADATA_NAME, entries)?;
+        Ok(file.finish()?)
     }
 
     // ---- helpers ----
 
-    fn writer_mut(&mut self) -> &mut Writer<BufWriter<File>> {
-        self.writer
-            .as_mut()
-            .expect("a sink holds its writer until finished")
-    }
-
-    fn mcap_error(&self, what: &str, source: ::mcap::McapError) -> McapError {
-        McapError::Write {
-            path: self.path.clone(),
-            what: what.to_string(),
-            source,
-        }
-    }
-
-    fn io_error(&self, verb: &str, source: std::io::Error) -> McapError {
-        McapError::Io {
-            path: self.path.clone(),
-            what: format!("{verb} {}", self.temporary_path.display()),
-            source,
-        }
-    }
-
     fn cdr<T: serde::Serialize>(&self, message: &T, what: &str) -> Result<Vec<u8>, McapError> {
         ros2::encode(message).map_err(|source| McapError::Cdr {
-            path: self.path.clone(),
+            path: self.path().to_path_buf(),
             what: what.to_string(),
             source,
         })
     }
 
     fn add_schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> Result<u16, McapError> {
-        let result = self.writer_mut().add_schema(name, encoding, data);
-        result.map_err(|source| self.mcap_error(&format!("add the schema {name}"), source))
+        Ok(self.file.add_schema(name, encoding, data)?)
     }
 
     /// Adds a channel; returns its index in `channels`.
@@ -634,15 +538,11 @@ impl McapSink {
     ) -> Result<usize, McapError> {
         if !self.topics.insert(topic.to_string()) {
             return Err(McapError::DuplicateTopic {
-                path: self.path.clone(),
+                path: self.path().to_path_buf(),
                 topic: topic.to_string(),
             });
         }
-        let result = self
-            .writer_mut()
-            .add_channel(schema, topic, encoding, &metadata);
-        let id = result
-            .map_err(|source| self.mcap_error(&format!("add the channel {topic}"), source))?;
+        let id = self.file.add_channel(schema, topic, encoding, &metadata)?;
         self.channels.push(Channel {
             kind,
             id,
@@ -673,7 +573,7 @@ impl McapSink {
     ) -> Result<usize, McapError> {
         if name.has_empty_part() {
             return Err(McapError::BadOutputName {
-                path: self.path.clone(),
+                path: self.path().to_path_buf(),
                 name: name.name(),
             });
         }
@@ -697,7 +597,7 @@ impl McapSink {
         match self.channels.get(index) {
             Some(channel) if channel.kind == kind => Ok(()),
             _ => Err(McapError::UnknownChannel {
-                path: self.path.clone(),
+                path: self.path().to_path_buf(),
                 index,
             }),
         }
@@ -707,7 +607,7 @@ impl McapSink {
     fn nanos(&self, time_s: f64, topic: &str) -> Result<u64, McapError> {
         if !(time_s.is_finite() && (0.0..MAX_TIME_S).contains(&time_s)) {
             return Err(McapError::BadTime {
-                path: self.path.clone(),
+                path: self.path().to_path_buf(),
                 topic: topic.to_string(),
                 time_s,
             });
@@ -725,7 +625,7 @@ impl McapSink {
         let topic = &self.channels[channel].topic;
         let nanos = self.nanos(time_s, topic)?;
         let stamp = ros2::Time::from_nanos(nanos).ok_or_else(|| McapError::BadTime {
-            path: self.path.clone(),
+            path: self.path().to_path_buf(),
             topic: topic.clone(),
             time_s,
         })?;
@@ -758,13 +658,7 @@ impl McapSink {
             publish_time: nanos,
         };
         entry.sequence = entry.sequence.wrapping_add(1);
-        let result = self.writer_mut().write_to_known_channel(&header, payload);
-        result.map_err(|source| {
-            self.mcap_error(
-                &format!("write a message on {}", self.channels[channel].topic),
-                source,
-            )
-        })
+        Ok(self.file.write_message(&header, payload)?)
     }
 }
 
@@ -781,25 +675,11 @@ fn check_parameters(path: &Path, parameters_json: &str) -> Result<(), McapError>
     })
 }
 
-impl Drop for McapSink {
-    /// An unfinished sink removes its temporary file: `path` is never left half-written.
-    fn drop(&mut self) {
-        if let Some(writer) = self.writer.take() {
-            // `into_inner` skips the summary that dropping a `Writer` would write.
-            drop(writer.into_inner());
-        }
-        // An unfinished temporary removes itself when dropped (and leaves the registry).
-        drop(self.temporary.take());
-    }
-}
-
 impl std::fmt::Debug for McapSink {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("McapSink")
-            .field("path", &self.path)
-            .field("temporary", &self.temporary_path)
+            .field("file", &self.file)
             .field("channels", &self.channels)
-            .field("finished", &self.finished)
             .finish_non_exhaustive()
     }
 }
