@@ -40,11 +40,6 @@ use super::system::DaeSystem;
 /// (ε/v_s)²/3 ≈ 3e-9 relative on its term.
 pub const JACOBIAN_FD_STEP: f64 = 1e-6;
 
-/// The default of [`DaeSystem::parameter_difference_step`]: a step of 1e-3 in a parameter of natural
-/// scale 1. The 4-point central differences of whole computations (the consistent start, the
-/// velocity projection) then have a truncation error of ~ε⁴/30 ≈ 3e-14 relative.
-pub const PARAMETER_FD_STEP: f64 = 1e-3;
-
 /// Largest tangent step, rad or m, of the directional 4-point central difference of the velocity
 /// projection (docs/sensitivities.md §6): the parameter step is the smaller of the system's
 /// [`DaeSystem::parameter_difference_step`] and this over `max(1, ‖S_q[:, k]‖∞)`. Configurations are
