@@ -10,8 +10,9 @@
 //!
 //! Where things are: what a study is asked and will do in `study_plan.rs`; the phase driver in
 //! `study.rs`, each phase in its own `*_phase.rs` over the `PhaseContext` of `phase.rs`; what a
-//! study hands back in `report.rs` and `envelope.rs`; its errors in `error.rs`. No file here
-//! imports one that imports it.
+//! study hands back in `report.rs` and `envelope.rs` (with `bounded_block.rs`, what bounding a
+//! block hands back); its errors in `error.rs`. No file here imports one that imports it, except
+//! `design_phase.rs` and `elements_phase.rs` (`ELEMENT_TENSOR_MAX_DIM`).
 
 mod accumulator;
 mod adaptive;
