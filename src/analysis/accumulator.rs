@@ -7,8 +7,8 @@
 //! Record-major `records × outputs` throughout: one block of records is a contiguous slice.
 //! Does not: bound anything (the phases hand it their bounds and runs).
 
-use super::bounds::EnvelopePoint;
 use super::envelope::Envelope;
+use super::envelope::EnvelopePoint;
 
 /// The envelopes under construction, and the hull of every true run.
 pub(super) struct Accumulator {

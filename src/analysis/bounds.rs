@@ -15,6 +15,10 @@
 //! nominal run are true responses inside the box), so a surrogate's misfit never puts a real run
 //! outside its own envelope.
 
+use super::bound_clock::{BoundClock, BoundPhase};
+use super::bounded_block::{BoundedBlock, Extremes};
+// Re-exported: the path by which elements_phase.rs, scanned_leaf.rs and check_phase.rs name it.
+pub(super) use super::envelope::EnvelopePoint;
 use super::plan::Plan;
 use super::report::PhaseSeconds;
 use super::sparse_bounds::SparseBounds;
@@ -25,67 +29,8 @@ use crate::uq::{
     TaylorStencil, UqError,
 };
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
-
-/// One output's envelope at one time.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EnvelopePoint {
-    /// Lower bound.
-    pub lower: f64,
-    /// Upper bound.
-    pub upper: f64,
-    /// Error estimate, where the method has one.
-    pub error: Option<f64>,
-    /// An outer bound of the surrogate's range beside an inner one (sparse designs: interval
-    /// arithmetic with exact `P_n` ranges), so that the gap between them can be reported.
-    pub outer: Option<(f64, f64)>,
-}
-
-impl EnvelopePoint {
-    /// The empty envelope (`lower = +∞`, `upper = −∞`), which the first value widened into it
-    /// replaces.
-    pub const EMPTY: EnvelopePoint = EnvelopePoint {
-        lower: f64::INFINITY,
-        upper: f64::NEG_INFINITY,
-        error: None,
-        outer: None,
-    };
-}
-
-/// Where a surrogate (or `taylor`'s linearisation) predicts one output's extremes at one time. The
-/// a-posteriori check runs the true model there.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Extremes {
-    /// Where the surrogate takes its minimum (standard coordinates, length d).
-    pub argmin: Vec<f64>,
-    /// Where it takes its maximum.
-    pub argmax: Vec<f64>,
-    /// The surrogate's minimum there (before the envelope takes in the model runs).
-    pub at_min: f64,
-    /// The surrogate's maximum.
-    pub at_max: f64,
-}
-
-/// The envelopes of one block: `records × outputs` points, record-major, and beside each the
-/// predicted extremes where the method locates them.
-#[derive(Clone, Debug, Default)]
-pub struct BoundedBlock {
-    /// Envelope points, record-major.
-    pub points: Vec<EnvelopePoint>,
-    /// Predicted extremes, record-major (`None` where the method does not locate them).
-    pub extremes: Vec<Option<Extremes>>,
-    /// Surrogate methods: the main Sobol' index of every dimension for every output, from the
-    /// surrogate's coefficients (record-major `records × outputs × d`, docs/sobol-indices.md);
-    /// empty otherwise.
-    pub main_indices: Vec<f64>,
-    /// Surrogate methods: the total Sobol' indices, laid out as `main_indices`; empty otherwise.
-    pub total_indices: Vec<f64>,
-    /// Surrogate methods: each surrogate's variance under uniform ξ (record-major `records ×
-    /// outputs`, the output's unit squared); empty otherwise.
-    pub variances: Vec<f64>,
-}
 
 /// One record's bounds, as a worker computes them.
 struct RecordBounds {
@@ -113,52 +58,6 @@ pub struct Bounder {
     locate_extremes: bool,
     /// The time the workers spent per phase.
     clock: BoundClock,
-}
-
-/// Nanoseconds the workers spent fitting, bounding (inner, outer) and computing Sobol' indices,
-/// summed over the threads.
-#[derive(Debug, Default)]
-pub(super) struct BoundClock {
-    fit: AtomicU64,
-    inner: AtomicU64,
-    outer: AtomicU64,
-    sobol: AtomicU64,
-}
-
-/// Which phase a [`BoundClock`] reading belongs to.
-#[derive(Clone, Copy)]
-pub(super) enum BoundPhase {
-    Fit,
-    Inner,
-    Outer,
-    Sobol,
-}
-
-impl BoundClock {
-    /// Adds the time since `since` to `phase` and returns now (the next phase's start).
-    pub(super) fn lap(&self, phase: BoundPhase, since: Instant) -> Instant {
-        let now = Instant::now();
-        let nanos = u64::try_from(now.duration_since(since).as_nanos()).unwrap_or(u64::MAX);
-        let counter = match phase {
-            BoundPhase::Fit => &self.fit,
-            BoundPhase::Inner => &self.inner,
-            BoundPhase::Outer => &self.outer,
-            BoundPhase::Sobol => &self.sobol,
-        };
-        counter.fetch_add(nanos, Ordering::Relaxed);
-        now
-    }
-
-    fn seconds(&self) -> PhaseSeconds {
-        let seconds = |counter: &AtomicU64| counter.load(Ordering::Relaxed) as f64 * 1e-9;
-        PhaseSeconds {
-            fit: seconds(&self.fit),
-            inner_bound: seconds(&self.inner),
-            outer_bound: seconds(&self.outer),
-            sobol_indices: seconds(&self.sobol),
-            ..PhaseSeconds::default()
-        }
-    }
 }
 
 impl Bounder {

@@ -14,6 +14,8 @@
 use super::lyapunov::LyapunovEstimate;
 use super::method::Method;
 use super::report::CheckReport;
+// Re-exported: the path by which elements_phase.rs and refine_phase.rs name it.
+pub(super) use super::envelope::Side;
 use std::collections::HashMap;
 
 /// Two predicted extremisers closer than this in every coordinate of ξ are checked by one run: a
@@ -191,15 +193,6 @@ pub fn output_resolution(
 /// The automatic number of check runs for a design of `design_runs` runs.
 pub fn automatic_check_runs(design_runs: usize) -> usize {
     MIN_CHECK_RUNS.max((CHECK_RUNS_FRACTION * design_runs as f64).ceil() as usize)
-}
-
-/// Which extreme a candidate predicts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Side {
-    /// The surrogate's minimum.
-    Lower,
-    /// The surrogate's maximum.
-    Upper,
 }
 
 /// One predicted extreme: output `output` at record `record` takes `predicted` at point `point`.

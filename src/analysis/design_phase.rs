@@ -14,10 +14,12 @@
 
 use super::accumulator::Accumulator;
 use super::adaptive_phase::AdaptiveOutcome;
-use super::bounds::{Bounder, EnvelopePoint};
-use super::check::{CheckCandidates, Side};
+use super::bounded_block::BoundedBlock;
+use super::bounds::Bounder;
+use super::check::CheckCandidates;
 use super::elements_phase::ELEMENT_TENSOR_MAX_DIM;
 use super::engine::RecordSource;
+use super::envelope::{EnvelopePoint, Side};
 use super::error::StudyError;
 use super::method::Method;
 use super::nested_design::{ElementRuns, MAX_KEPT_ELEMENT_VALUES};
@@ -203,7 +205,7 @@ pub(super) fn known_ranges(scene: &crate::scene::Scene) -> Vec<Option<(f64, f64)
 /// open is closer to the truth clipped at 0; a joint held by its stops stays within them, up to
 /// the penalty's depth). `n_outputs` outputs per record, record-major.
 fn clip_to_surrogate_ranges(
-    block: &mut super::bounds::BoundedBlock,
+    block: &mut BoundedBlock,
     surrogate_ranges: &[Option<(f64, f64)>],
     n_outputs: usize,
 ) {

@@ -18,8 +18,8 @@
 //!
 //! Does not: run anything; choose where in a dimension to split (always the middle).
 
-use super::bounds::EnvelopePoint;
 use super::check::{CheckCandidates, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR};
+use super::envelope::EnvelopePoint;
 use super::nested_design::ElementRuns;
 use super::sobol_indices::SobolSeries;
 use crate::uq::ElementBox;

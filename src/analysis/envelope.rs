@@ -1,5 +1,7 @@
 //! The envelopes of a study: per output and record time, the lower and upper bound, the nominal
-//! run, and what the method adds (an error estimate, an outer bound, the hull of true runs).
+//! run, and what the method adds (an error estimate, an outer bound, the hull of true runs); one
+//! output's envelope at one time as the phases build it (`EnvelopePoint`) and its two sides
+//! (`Side`).
 //!
 //! Kept whole for the study's outputs (a few numbers per output per record time). Does not: build
 //! them (the phases widen an `Accumulator`, which fills this at the end) or write them (`output/`).
@@ -37,6 +39,40 @@ pub struct Envelope {
 
 /// `(outer_lower[o][k], outer_upper[o][k])`.
 pub type OuterBounds = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
+/// One output's envelope at one time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnvelopePoint {
+    /// Lower bound.
+    pub lower: f64,
+    /// Upper bound.
+    pub upper: f64,
+    /// Error estimate, where the method has one.
+    pub error: Option<f64>,
+    /// An outer bound of the surrogate's range beside an inner one (sparse designs: interval
+    /// arithmetic with exact `P_n` ranges), so that the gap between them can be reported.
+    pub outer: Option<(f64, f64)>,
+}
+
+impl EnvelopePoint {
+    /// The empty envelope (`lower = +∞`, `upper = −∞`), which the first value widened into it
+    /// replaces.
+    pub const EMPTY: EnvelopePoint = EnvelopePoint {
+        lower: f64::INFINITY,
+        upper: f64::NEG_INFINITY,
+        error: None,
+        outer: None,
+    };
+}
+
+/// A side of an envelope: which extreme a candidate predicts, which bound a refinement moved.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    /// The surrogate's minimum.
+    Lower,
+    /// The surrogate's maximum.
+    Upper,
+}
 
 /// The record where output `o`'s envelope is widest (the first of equal widths); `None` without
 /// records.

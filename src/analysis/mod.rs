@@ -10,13 +10,16 @@
 //!
 //! Where things are: what a study is asked and will do in `study_plan.rs`; the phase driver in
 //! `study.rs`, each phase in its own `*_phase.rs` over the `PhaseContext` of `phase.rs`; what a
-//! study hands back in `report.rs` and `envelope.rs`; its errors in `error.rs`. No file here
-//! imports one that imports it.
+//! study hands back in `report.rs` and `envelope.rs` (with `bounded_block.rs`, what bounding a
+//! block hands back); its errors in `error.rs`. No file here imports one that imports it, except
+//! `design_phase.rs` and `elements_phase.rs` (`ELEMENT_TENSOR_MAX_DIM`).
 
 mod accumulator;
 mod adaptive;
 mod adaptive_phase;
 mod auto;
+mod bound_clock;
+mod bounded_block;
 mod bounds;
 mod check;
 mod check_phase;
@@ -56,10 +59,10 @@ pub use auto::{
     total_degree_terms, AutoChoice, AutoDesign, ADAPTIVE_VALUE_BUDGET, AUTO_TENSOR_MAX_DIM,
     BASE_ORDER, DEFAULT_MAX_RUNS,
 };
-pub use bounds::{BoundedBlock, EnvelopePoint, Extremes};
+pub use bounded_block::{BoundedBlock, Extremes};
 pub use check::{
     automatic_check_runs, output_resolution, trust_verdict, untrusted_advice, CheckCandidates,
-    CheckPlan, Side, TrustVerdict, CHECK_POINT_TOLERANCE, CHECK_RUNS_FRACTION, MIN_CHECK_RUNS,
+    CheckPlan, TrustVerdict, CHECK_POINT_TOLERANCE, CHECK_RUNS_FRACTION, MIN_CHECK_RUNS,
     SEPARATION_ADVICE_AMPLIFICATION, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
 pub use design_part::{DesignPartRequest, PartSink};
@@ -69,7 +72,7 @@ pub use elements::{
 };
 pub use elements_phase::ELEMENT_TENSOR_MAX_DIM;
 pub use engine::{BlockOutcome, LockStep, RecordSource};
-pub use envelope::{widest_index, widest_record, Envelope, OuterBounds};
+pub use envelope::{widest_index, widest_record, Envelope, EnvelopePoint, OuterBounds, Side};
 pub use error::{ForeignError, StudyError};
 pub use lyapunov::{
     estimate_lyapunov, LyapunovEstimate, CHAOS_AMPLIFICATION, COLLAPSED_SEPARATION, MAX_PULL,

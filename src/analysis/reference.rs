@@ -15,8 +15,8 @@
 //! (a stationary point) or at a vertex the greedy search does not reach is missed — which is why
 //! `compare` also offers Monte Carlo, and why no method may assume extremes lie on vertices.
 
-use super::bounds::EnvelopePoint;
-use super::check::{CheckCandidates, Side};
+use super::check::CheckCandidates;
+use super::envelope::{EnvelopePoint, Side};
 use super::error::StudyError;
 use super::phase::{PhaseBlock, PhaseContext};
 use super::plan::TAYLOR_STEP;

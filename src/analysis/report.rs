@@ -11,8 +11,7 @@
 //! Plain data: nothing here runs a model or computes a bound.
 
 use super::auto::AutoChoice;
-use super::bounds::EnvelopePoint;
-use super::envelope::Envelope;
+use super::envelope::{Envelope, EnvelopePoint, Side};
 use super::lyapunov::LyapunovEstimate;
 use super::method::Method;
 use super::screening::Screening;
@@ -288,7 +287,7 @@ pub struct RefinedExtreme {
     /// The record time it was refined at (the output's widest).
     pub record: usize,
     /// Which side.
-    pub side: super::check::Side,
+    pub side: Side,
     /// Where the search started (the surrogates' predicted extreme), ξ.
     pub start_xi: Vec<f64>,
     /// Where the best true value was found, ξ.

@@ -5,7 +5,7 @@
 //!
 //! Does not: rank (`screening.rs`) or build the design from the ranking (`sparse.rs`).
 
-use super::bounds::EnvelopePoint;
+use super::envelope::EnvelopePoint;
 use super::error::StudyError;
 use super::phase::{FailurePolicy, PhaseContext};
 use super::screening::Screening;

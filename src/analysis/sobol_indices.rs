@@ -11,7 +11,7 @@
 //!
 //! Does not: compute indices from coefficients (see [`crate::uq::sobol_indices`]).
 
-use super::bounds::BoundedBlock;
+use super::bounded_block::BoundedBlock;
 use super::envelope::{widest_record, Envelope};
 use super::Method;
 

@@ -16,7 +16,9 @@
 //!
 //! Does not: fit or bound tensor designs, `taylor` or the runs-only methods (`bounds.rs`).
 
-use super::bounds::{BoundClock, BoundPhase, BoundedBlock, EnvelopePoint, Extremes};
+use super::bound_clock::{BoundClock, BoundPhase};
+use super::bounded_block::{BoundedBlock, Extremes};
+use super::envelope::EnvelopePoint;
 use super::sparse::SparseDesign;
 use crate::uq::{BoxBounds, BoxOptimizer, SobolIndices, SparseSurrogate, UqError};
 use rayon::prelude::*;

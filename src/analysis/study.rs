@@ -25,12 +25,12 @@
 use super::accumulator::Accumulator;
 use super::adaptive_phase::adapt;
 use super::auto::AutoDesign;
-use super::bounds::EnvelopePoint;
 use super::check::automatic_check_runs;
 use super::check_phase::check;
 use super::design_phase::{bound_design, Bounded, Design};
 use super::elements_phase::{split_into_elements, RootDesign};
 use super::engine::LockStep;
+use super::envelope::EnvelopePoint;
 use super::error::{ForeignError, StudyError};
 use super::lyapunov::estimate_lyapunov;
 use super::method::Method;

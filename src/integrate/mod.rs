@@ -59,8 +59,7 @@ pub use hht::{
 };
 pub(crate) use hht::{PlainProgress, PlainStep};
 pub use sensitivity::{
-    HhtSensitivity, SensitivityError, SensitivityStats, JACOBIAN_FD_STEP, PARAMETER_FD_STEP,
-    PROJECTION_FD_STEP,
+    HhtSensitivity, SensitivityError, SensitivityStats, JACOBIAN_FD_STEP, PROJECTION_FD_STEP,
 };
 pub use settings::{
     check_alpha, AlphaRefusal, HhtCoefficients, HhtSettings, NewtonMatrix, StepControl, ALPHA_MIN,
@@ -71,4 +70,5 @@ pub use start::{
     consistent_start, ConsistentStart, REDUNDANT_ROW_RELATIVE_SV, START_CONSTRAINT_TOL,
     START_MAX_ITERATIONS,
 };
+pub use system::PARAMETER_FD_STEP;
 pub use system::{DaeSystem, InverseDynamics, ResidualJacobians};

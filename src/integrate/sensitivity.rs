@@ -15,22 +15,28 @@
 //!
 //! The start (§5): without constraint rows `q_0`, `q̇_0` do not depend on the parameters and
 //! `∂q̈_0/∂p = −M⁻¹ ∂r/∂p` exactly; with rows, the consistent start is differenced along each
-//! parameter (a 4-point central difference of [`consistent_start`]). The reported velocity of a
+//! parameter (a 4-point central difference of
+//! [`consistent_start`](crate::integrate::consistent_start)). The reported velocity of a
 //! constrained run is projected; its sensitivity is a directional central difference of the
 //! projection at record times only (§6).
 //!
 //! What it does not do: second-order sensitivities, adjoints, adaptive steps. Per step it allocates
-//! nothing; the start allocates (it runs [`consistent_start`]).
+//! nothing; the start allocates (it runs [`consistent_start`](crate::integrate::consistent_start)).
+//!
+//! Files: this one holds the state, the step and its differentiation; `sensitivity/at_start.rs` the
+//! start's sensitivities (§5), `sensitivity/projection.rs` the reported velocity's (§6).
 
 use nalgebra::{DMatrix, DVector};
 
 use super::dense_solver::{DenseSolver, FactorKind};
 use super::error::IntegrateError;
 use super::eval::{self, At};
-use super::hht::{assemble_iteration_matrix, HhtIntegrator};
+use super::hht::HhtIntegrator;
 use super::settings::HhtCoefficients;
-use super::start::consistent_start;
 use super::system::DaeSystem;
+
+mod at_start;
+mod projection;
 
 /// Step, in tangent coordinates (rad or m) and in velocities (rad/s or m/s), of the central
 /// differences that form `K_t` and `D_t` when the system does not provide them
@@ -39,11 +45,6 @@ use super::system::DaeSystem;
 /// terms. Smoothed friction (`v_s` = 1e-2 rad/s) is the sharpest nonlinearity in velocity:
 /// (ε/v_s)²/3 ≈ 3e-9 relative on its term.
 pub const JACOBIAN_FD_STEP: f64 = 1e-6;
-
-/// The default of [`DaeSystem::parameter_difference_step`]: a step of 1e-3 in a parameter of natural
-/// scale 1. The 4-point central differences of whole computations (the consistent start, the
-/// velocity projection) then have a truncation error of ~ε⁴/30 ≈ 3e-14 relative.
-pub const PARAMETER_FD_STEP: f64 = 1e-3;
 
 /// Largest tangent step, rad or m, of the directional 4-point central difference of the velocity
 /// projection (docs/sensitivities.md §6): the parameter step is the smaller of the system's
@@ -288,234 +289,6 @@ fn add_scaled(y: &mut [f64], a: f64, x: &[f64]) {
 }
 
 impl HhtSensitivity {
-    /// The sensitivities of the consistent start of `integrator`'s trajectory (docs/sensitivities.md
-    /// §5), which must not have stepped yet; `q0`, `v0` are the values the integrator was started
-    /// from (before projection; they do not depend on the parameters).
-    ///
-    /// - `q0`: dim `nq`; `v0`: dim `nv`.
-    ///
-    /// Errors: [`SensitivityError::NotAtStart`]; [`SensitivityError::ProjectionMetric`] for a
-    /// constrained system whose projection keeps the Newton matrix's `M`; system errors of
-    /// `parameter_jacobians`,
-    /// `set_parameter_offset` (constrained systems) and the start's own errors at a perturbed point.
-    pub fn new<S: DaeSystem + ?Sized>(
-        system: &mut S,
-        integrator: &HhtIntegrator,
-        q0: &DVector<f64>,
-        v0: &DVector<f64>,
-    ) -> Result<Self, SensitivityError> {
-        let state = integrator.state();
-        if state.step != 0 {
-            return Err(SensitivityError::NotAtStart { step: state.step });
-        }
-        let settings = integrator.settings();
-        if system.n_constraints() > 0
-            && settings.velocity_projection
-            && settings.projection_keeps_newton_mass
-        {
-            return Err(SensitivityError::ProjectionMetric);
-        }
-        let (nq, nv, m, p) = (
-            system.nq(),
-            system.nv(),
-            system.n_constraints(),
-            system.n_parameters(),
-        );
-        eval::check_dimensions(system, state.q.len(), state.v.len(), state.lambda.len())?;
-        let mut sensitivity = Self {
-            nq,
-            nv,
-            m,
-            p,
-            coeffs: *integrator.coefficients(),
-            velocity_projection: integrator.settings().velocity_projection,
-            additive: system.position_update_is_additive(),
-            step: 0,
-            s_q: DMatrix::zeros(nv, p),
-            s_v: DMatrix::zeros(nv, p),
-            s_a: DMatrix::zeros(nv, p),
-            s_qdd: DMatrix::zeros(nv, p),
-            s_lambda: DMatrix::zeros(m, p),
-            s_q_start: DMatrix::zeros(nv, p),
-            s_v_reported: DMatrix::zeros(nv, p),
-            reported_fresh: true,
-            q_before: DVector::zeros(nq),
-            v_before: DVector::zeros(nv),
-            a_before: DVector::zeros(nv),
-            stats: SensitivityStats {
-                parameters: p,
-                ..SensitivityStats::default()
-            },
-            ws: Workspace::new(nq, nv, m, p),
-        };
-        if p > 0 {
-            if m == 0 {
-                sensitivity.start_without_constraints(system, integrator)?;
-            } else {
-                sensitivity.start_by_differences(system, integrator, q0, v0)?;
-            }
-        }
-        sensitivity.s_a.copy_from(&sensitivity.s_qdd);
-        sensitivity.s_q_start.copy_from(&sensitivity.s_q);
-        sensitivity.s_v_reported.copy_from(&sensitivity.s_v);
-        Ok(sensitivity)
-    }
-
-    /// Without constraint rows the start is `q_0`, `q̇_0` as given and `M q̈_0 = Q`: `S_q = S_q̇ = 0`
-    /// and `M S_q̈ = −∂r/∂p` (docs/sensitivities.md §5), exactly.
-    fn start_without_constraints<S: DaeSystem + ?Sized>(
-        &mut self,
-        system: &mut S,
-        integrator: &HhtIntegrator,
-    ) -> Result<(), SensitivityError> {
-        let state = integrator.state();
-        let at = At {
-            t: state.t,
-            step: 0,
-        };
-        let ws = &mut self.ws;
-        eval::mass_matrix(system, at, &state.q, &mut ws.mass)?;
-        system
-            .parameter_jacobians(
-                state.t,
-                &state.q,
-                &state.v,
-                &state.qdd,
-                &state.lambda,
-                &mut ws.dynamics_p,
-                &mut ws.constraints_p,
-            )
-            .map_err(at.system_error("parameter_jacobians"))?;
-        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.as_slice())?;
-        ws.matrix.copy_from(&ws.mass);
-        ws.solver
-            .factor(&ws.matrix)
-            .map_err(|b| IntegrateError::SingularMatrix {
-                t: at.t,
-                step: 0,
-                matrix: "mass matrix (start sensitivities)",
-                index: b.index,
-                pivot_relative: b.pivot_relative,
-            })?;
-        for k in 0..self.p {
-            for i in 0..self.nv {
-                ws.rhs[i] = -ws.dynamics_p[(i, k)];
-            }
-            ws.solver.solve_in_place(&mut ws.rhs);
-            at.check_finite("start sensitivity", ws.rhs.as_slice())?;
-            for i in 0..self.nv {
-                self.s_qdd[(i, k)] = ws.rhs[i];
-            }
-        }
-        self.stats.solves += self.p as u64;
-        Ok(())
-    }
-
-    /// With constraint rows, a 4-point central difference of [`consistent_start`] along each
-    /// parameter (docs/sensitivities.md §5): `f' ≈ [−f(2ε) + 8f(ε) − 8f(−ε) + f(−2ε)] / (12ε)` with
-    /// ε the system's [`DaeSystem::parameter_difference_step`]. Index-3 steps turn an error `e` of the
-    /// start velocity's component normal to the constraints into errors of ~`e/(β'h)` in `∂q̈/∂p`
-    /// that decay slowly, so the step is as large as the system allows: the rounding of the
-    /// projected velocity (~u·|q̇|) costs ~u·|q̇|/ε.
-    fn start_by_differences<S: DaeSystem + ?Sized>(
-        &mut self,
-        system: &mut S,
-        integrator: &HhtIntegrator,
-        q0: &DVector<f64>,
-        v0: &DVector<f64>,
-    ) -> Result<(), SensitivityError> {
-        let state = integrator.state();
-        let at = At {
-            t: state.t,
-            step: 0,
-        };
-        let mut dq = DVector::zeros(self.nv);
-        for k in 0..self.p {
-            let eps = system.parameter_difference_step(k);
-            for (steps, weight) in STENCIL {
-                system
-                    .set_parameter_offset(k, steps * eps)
-                    .map_err(at.system_error("set_parameter_offset"))?;
-                let start = consistent_start(system, state.t, q0, v0);
-                // Restore before reporting any error.
-                system
-                    .set_parameter_offset(k, 0.0)
-                    .map_err(at.system_error("set_parameter_offset"))?;
-                let start = start?;
-                self.stats.start_evaluations += 1;
-                system
-                    .difference_position(&state.q, &start.q, &mut dq)
-                    .map_err(at.system_error("difference_position"))?;
-                let w = weight / (12.0 * eps);
-                for i in 0..self.nv {
-                    self.s_q[(i, k)] += w * dq[i];
-                    self.s_v[(i, k)] += w * start.v[i];
-                    self.s_qdd[(i, k)] += w * start.qdd[i];
-                }
-                for j in 0..self.m {
-                    self.s_lambda[(j, k)] += w * start.lambda[j];
-                }
-            }
-        }
-        at.check_finite("start sensitivity", self.s_q.as_slice())?;
-        self.close_start_position(system, integrator)?;
-        at.check_finite("start sensitivity", self.s_v.as_slice())?;
-        at.check_finite("start sensitivity", self.s_qdd.as_slice())?;
-        at.check_finite("start sensitivity", self.s_lambda.as_slice())?;
-        Ok(())
-    }
-
-    /// Removes the central difference's error normal to the constraints from `S_q0`
-    /// (docs/sensitivities.md §5): the exact derivative satisfies `Φ_q S_q + ∂Φ/∂p = 0`, and index-3
-    /// steps turn a residual `r` of it into a jump of `r/(β'h²)` in `∂q̈/∂p` (measured: 1e-13 of
-    /// residual, 2e-9 of jump at h = 10 ms). The least-norm correction `S_q −= Φ_qᵀ (Φ_q Φ_qᵀ)⁻¹ r`
-    /// is at the difference's noise level.
-    fn close_start_position<S: DaeSystem + ?Sized>(
-        &mut self,
-        system: &mut S,
-        integrator: &HhtIntegrator,
-    ) -> Result<(), SensitivityError> {
-        let state = integrator.state();
-        let at = At {
-            t: state.t,
-            step: 0,
-        };
-        let ws = &mut self.ws;
-        eval::constraint_jacobian(system, at, &state.q, &mut ws.phi_q)?;
-        system
-            .parameter_jacobians(
-                state.t,
-                &state.q,
-                &state.v,
-                &state.qdd,
-                &state.lambda,
-                &mut ws.dynamics_p,
-                &mut ws.constraints_p,
-            )
-            .map_err(at.system_error("parameter_jacobians"))?;
-        at.check_finite(
-            "parameter_jacobians.constraints",
-            ws.constraints_p.as_slice(),
-        )?;
-        let mut residual = ws.constraints_p.clone();
-        residual.gemm(1.0, &ws.phi_q, &self.s_q, 1.0);
-        let gram = &ws.phi_q * ws.phi_q.transpose();
-        // Φ_q has full row rank here: consistent_start refused redundant rows already.
-        let Some(gram) = gram.cholesky() else {
-            return Err(IntegrateError::SingularMatrix {
-                t: at.t,
-                step: 0,
-                matrix: "Φ_q Φ_qᵀ (start sensitivities)",
-                index: 0,
-                pivot_relative: 0.0,
-            }
-            .into());
-        };
-        let correction = ws.phi_q.transpose() * gram.solve(&residual);
-        self.s_q -= correction;
-        Ok(())
-    }
-
     /// Number of parameters `P`.
     pub fn n_parameters(&self) -> usize {
         self.p
@@ -552,29 +325,6 @@ impl HhtSensitivity {
     /// Counters so far.
     pub fn stats(&self) -> &SensitivityStats {
         &self.stats
-    }
-
-    /// `∂q̇/∂p` of the velocity the integrator reports (`integrator.state().v`), `nv × P`. With
-    /// constraint rows and velocity projection that velocity is projected onto `Φ_q q̇ + Φ_t = 0`,
-    /// and its sensitivity is the Newmark velocity's plus a directional central difference of the
-    /// projection's correction along each parameter (docs/sensitivities.md §6): `4 P` projections,
-    /// computed once per state (call it at record times only; `4 P` projections). Otherwise the Newmark velocity's.
-    ///
-    /// `integrator` must be the one stepped with these sensitivities.
-    pub fn reported_velocity<S: DaeSystem + ?Sized>(
-        &mut self,
-        system: &mut S,
-        integrator: &HhtIntegrator,
-    ) -> Result<&DMatrix<f64>, SensitivityError> {
-        self.check_in_step(integrator)?;
-        if self.m == 0 || !self.velocity_projection {
-            return Ok(&self.s_v);
-        }
-        if !self.reported_fresh {
-            self.project_velocity_sensitivity(system, integrator)?;
-            self.reported_fresh = true;
-        }
-        Ok(&self.s_v_reported)
     }
 
     fn check_in_step(&self, integrator: &HhtIntegrator) -> Result<(), SensitivityError> {
@@ -906,98 +656,6 @@ impl HhtSensitivity {
         }
         self.stats.jacobian_residual_evaluations += 4 * self.nv as u64;
         Ok(())
-    }
-
-    /// `S_q̇,reported = S_q̇ + ∂Δq̇/∂p` with `Δq̇` the projection's correction, by a directional
-    /// 4-point central difference along `(p_k, q ⊕ ε S_q[:, k], q̇ + ε S_q̇[:, k])` for each
-    /// parameter (docs/sensitivities.md §6).
-    fn project_velocity_sensitivity<S: DaeSystem + ?Sized>(
-        &mut self,
-        system: &mut S,
-        integrator: &HhtIntegrator,
-    ) -> Result<(), SensitivityError> {
-        let state = integrator.state();
-        let v_newmark = integrator.newmark_velocity();
-        let at = At {
-            t: state.t,
-            step: state.step,
-        };
-        for k in 0..self.p {
-            let spread = (0..self.nv)
-                .map(|i| self.s_q[(i, k)].abs())
-                .fold(1.0_f64, f64::max);
-            let eps = system
-                .parameter_difference_step(k)
-                .min(PROJECTION_FD_STEP / spread);
-            self.ws.dv_plus.fill(0.0);
-            for (steps, weight) in STENCIL {
-                let ws = &mut self.ws;
-                let offset = steps * eps;
-                for i in 0..self.nv {
-                    ws.dq[i] = offset * self.s_q[(i, k)];
-                    ws.v_perturbed[i] = v_newmark[i] + offset * self.s_v[(i, k)];
-                }
-                eval::integrate_position(system, at, &state.q, &ws.dq, &mut ws.q_perturbed)?;
-                system
-                    .set_parameter_offset(k, offset)
-                    .map_err(at.system_error("set_parameter_offset"))?;
-                let correction = Self::projection_correction(system, at, ws);
-                system
-                    .set_parameter_offset(k, 0.0)
-                    .map_err(at.system_error("set_parameter_offset"))?;
-                correction?;
-                let w = weight / (12.0 * eps);
-                for i in 0..self.nv {
-                    ws.dv_plus[i] += w * ws.rhs[i];
-                }
-            }
-            for i in 0..self.nv {
-                self.s_v_reported[(i, k)] = self.s_v[(i, k)] + self.ws.dv_plus[i];
-            }
-        }
-        self.stats.projection_evaluations += 4 * self.p as u64;
-        Ok(())
-    }
-
-    /// The velocity projection's correction at `(ws.q_perturbed, ws.v_perturbed)` into
-    /// `ws.rhs[0..nv]`: `[M Φ_qᵀ; Φ_q 0][Δq̇; μ] = [0; −(Φ_q q̇ + Φ_t)]`.
-    fn projection_correction<S: DaeSystem + ?Sized>(
-        system: &mut S,
-        at: At,
-        ws: &mut Workspace,
-    ) -> Result<(), IntegrateError> {
-        let nv = ws.mass.nrows();
-        let m = ws.phi_q_scratch.nrows();
-        eval::mass_matrix(system, at, &ws.q_perturbed, &mut ws.mass_scratch)?;
-        eval::constraint_jacobian(system, at, &ws.q_perturbed, &mut ws.phi_q_scratch)?;
-        eval::constraint_time_derivative(system, at, &ws.q_perturbed, &mut ws.phi_t)?;
-        ws.phi_t.gemv(1.0, &ws.phi_q_scratch, &ws.v_perturbed, 1.0);
-        assemble_iteration_matrix(
-            &ws.mass_scratch,
-            None,
-            &ws.phi_q_scratch,
-            0.0,
-            0.0,
-            1.0,
-            &mut ws.matrix,
-        );
-        ws.solver
-            .factor(&ws.matrix)
-            .map_err(|b| IntegrateError::SingularMatrix {
-                t: at.t,
-                step: at.step,
-                matrix: "velocity projection matrix [M Φ_qᵀ; Φ_q 0] (sensitivities)",
-                index: b.index,
-                pivot_relative: b.pivot_relative,
-            })?;
-        for i in 0..nv {
-            ws.rhs[i] = 0.0;
-        }
-        for j in 0..m {
-            ws.rhs[nv + j] = -ws.phi_t[j];
-        }
-        ws.solver.solve_in_place(&mut ws.rhs);
-        at.check_finite("velocity projection (sensitivities)", ws.rhs.as_slice())
     }
 }
 

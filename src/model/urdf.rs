@@ -111,7 +111,7 @@ fn parse(text: String, path: &str, mut notes: Vec<String>) -> Result<Description
             found: root.tag_name().name().to_string(),
         });
     }
-    reader.version = version::read_version(&reader, root)?;
+    reader.version = version::read_version(root, reader.path, reader.line(root))?;
     let robot_name = match root.attribute("name") {
         Some(name) => name.to_string(),
         None => {

@@ -11,6 +11,15 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::sync::OnceLock;
 
+/// The y-axis label of an output: `name [unit]`.
+pub fn axis_label(name: &str, unit: &str) -> String {
+    if unit.is_empty() {
+        name.to_string()
+    } else {
+        format!("{name} [{unit}]")
+    }
+}
+
 /// The embedded font (DejaVu Sans, subset to Latin, Greek and the symbols of our labels and units).
 const FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-ribbon-subset.ttf");
 /// The family name plots ask for.

@@ -9,7 +9,7 @@
 //! true-model runs of the a-posteriori check per output and time, so they are not drawn.
 
 use super::error::OutputError;
-use super::plot::{Layer, PlotError, TimePlot};
+use super::plot::{axis_label, Layer, PlotError, TimePlot};
 use super::report_html::{html_page, HtmlReport, REPORT_HTML};
 use super::summary::Summary;
 use super::viewer::FOXGLOVE_LAYOUT_NAME;
@@ -56,15 +56,6 @@ pub struct ReportOutput<'a> {
     /// Where the box was split into elements: each leaf's own `(lower, upper)` per record time,
     /// drawn faintly under the union (empty otherwise).
     pub elements: &'a [(&'a [f64], &'a [f64])],
-}
-
-/// The y-axis label of an output: `name [unit]`.
-pub fn axis_label(name: &str, unit: &str) -> String {
-    if unit.is_empty() {
-        name.to_string()
-    } else {
-        format!("{name} [{unit}]")
-    }
 }
 
 /// The band plot of one output; `bound_kind` names the shaded bound (`inner`, `outer`, …).

@@ -14,8 +14,8 @@
 //! (`study_front::warnings`), or write files (`report::write_analyze_report`).
 
 use super::envelope_log::plotted_dimensions;
+use super::plot::axis_label;
 use super::plot::{Layer, PlotError, TimePlot};
-use super::report::axis_label;
 use super::summary::{EnvelopeSeries, Summary};
 use super::viewer::{FOXGLOVE_LAYOUT_NAME, SENSITIVITY_COLOURS};
 use std::fmt::Write as _;

@@ -1,12 +1,11 @@
 //! [`RobotSystem`]: a robot tree plus its scene's effects and constraint rows (loops, mimic joints,
 //! drives), seen by the integrator through [`DaeSystem`]. A tree without rows pays nothing for them.
+//! Its full residual Jacobians are in `system/residual_jacobians.rs`, its tests in `system/tests.rs`.
 
 use super::lie;
 use super::parameters::ParameterDirections;
 use crate::constraints::ConstraintSet;
-use crate::dynamics::{
-    crba, nonlinear_effects, rnea, rnea_at_placements, rnea_derivatives, Data, RneaDerivatives,
-};
+use crate::dynamics::{crba, nonlinear_effects, rnea, rnea_at_placements, Data};
 use crate::effects::Effects;
 use crate::environment::Environment;
 use crate::integrate::{DaeSystem, InverseDynamics, ResidualJacobians, SystemError};
@@ -16,6 +15,9 @@ use crate::scene::Scene;
 use crate::spatial::quaternion::{unit_quaternion_from_xyzw, write_xyzw};
 use crate::spatial::{Transform, Vec3};
 use nalgebra::{DMatrix, DVector};
+use residual_jacobians::JacobianBuffers;
+
+mod residual_jacobians;
 
 /// A robot with its effects and constraint rows as the index-3 DAE
 /// `M(q) q̈ + Φ_qᵀ λ = Q(t, q, q̇)`, `Φ(q, t) = 0`.
@@ -97,37 +99,6 @@ impl MassMatrixKinematics {
             self.holds = false;
         }
         same
-    }
-}
-
-/// Work buffers of the robot's full residual Jacobians.
-#[derive(Clone, Debug)]
-struct JacobianBuffers {
-    rnea: RneaDerivatives,
-    /// Diagonal stiffness and damping of the effects, dim nv.
-    stiffness: DVector<f64>,
-    damping: DVector<f64>,
-    /// Φ_q at a moved configuration, m × nv.
-    phi_q: DMatrix<f64>,
-    /// A moved configuration, dim nq; a tangent step, dim nv; Φ_qᵀ λ at ±ε, dim nv.
-    q_moved: DVector<f64>,
-    tangent: DVector<f64>,
-    plus: DVector<f64>,
-    minus: DVector<f64>,
-}
-
-impl JacobianBuffers {
-    fn new(model: &Model, m: usize) -> Self {
-        Self {
-            rnea: RneaDerivatives::new(model),
-            stiffness: DVector::zeros(model.nv),
-            damping: DVector::zeros(model.nv),
-            phi_q: DMatrix::zeros(m, model.nv),
-            q_moved: DVector::zeros(model.nq),
-            tangent: DVector::zeros(model.nv),
-            plus: DVector::zeros(model.nv),
-            minus: DVector::zeros(model.nv),
-        }
     }
 }
 
@@ -263,43 +234,8 @@ impl RobotSystem {
         out.as_mut_slice().copy_from_slice(tau);
         self.finish_dynamics_residual(q.as_slice(), v.as_slice(), out.as_mut_slice());
     }
-
-    /// Adds `∂(Φ_qᵀ λ)/∂q` (central differences along each tangent coordinate) to `stiffness`.
-    fn add_loop_stiffness(
-        &mut self,
-        q: &DVector<f64>,
-        lambda: &DVector<f64>,
-        buffers: &mut JacobianBuffers,
-        stiffness: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        let eps = crate::integrate::JACOBIAN_FD_STEP;
-        for i in 0..self.model.nv {
-            for sign in [1.0, -1.0] {
-                buffers.tangent.fill(0.0);
-                buffers.tangent[i] = sign * eps;
-                self.integrate_position(q, &buffers.tangent, &mut buffers.q_moved)?;
-                self.constraints.jacobian(
-                    &self.model,
-                    &mut self.data,
-                    buffers.q_moved.as_slice(),
-                    &mut buffers.phi_q,
-                );
-                let out = if sign > 0.0 {
-                    &mut buffers.plus
-                } else {
-                    &mut buffers.minus
-                };
-                out.gemv_tr(1.0, &buffers.phi_q, lambda, 0.0);
-            }
-            for r in 0..self.model.nv {
-                stiffness[(r, i)] += (buffers.plus[r] - buffers.minus[r]) / (2.0 * eps);
-            }
-        }
-        Ok(())
-    }
 }
 
-/// `exp` of a body twist `(v, ω)` as `(translation, rotation)` (SE(3) exponential map).
 /// The velocity jump `Δq̇` of the impact whose limit rows are `rows` (each: the limit and the
 /// jump of its rate `w Δq̇` it imposes), keeping every constraint row's velocity (`Φ_q Δq̇ = 0`).
 fn impact_velocity_jump(
@@ -960,291 +896,5 @@ impl InverseDynamics for RobotSystem {
     }
 }
 
-impl ResidualJacobians for RobotSystem {
-    /// `∂r/∂q`, `∂r/∂q̇` of `r = M q̈ + Φ_qᵀ λ − Q` (docs/sensitivities.md §2): RNEA's analytic
-    /// Jacobians, plus the effects' (each acts on its own coordinate: the diagonal of
-    /// [`DaeSystem::newton_diagonal`], exact), plus `∂(Φ_qᵀ λ)/∂q` of loop closures by central
-    /// differences (step [`JACOBIAN_FD_STEP`](crate::integrate::JACOBIAN_FD_STEP); mimic and drive
-    /// rows have a constant `Φ_q`). Allocates once, on first use.
-    fn residual_jacobians(
-        &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
-        stiffness_out: &mut DMatrix<f64>,
-        damping_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        let mut buffers = match self.jacobians.take() {
-            Some(buffers) => buffers,
-            None => Box::new(JacobianBuffers::new(&self.model, self.constraints.len())),
-        };
-        rnea_derivatives(
-            &self.model,
-            &self.environment.gravity,
-            &mut self.data,
-            &mut buffers.rnea,
-            q.as_slice(),
-            v.as_slice(),
-            qdd.as_slice(),
-            stiffness_out,
-            damping_out,
-        );
-        buffers.stiffness.fill(0.0);
-        buffers.damping.fill(0.0);
-        self.effects.add_newton_diagonal(
-            &self.model,
-            q.as_slice(),
-            v.as_slice(),
-            buffers.stiffness.as_mut_slice(),
-            buffers.damping.as_mut_slice(),
-        );
-        for j in 0..self.model.nv {
-            stiffness_out[(j, j)] += buffers.stiffness[j];
-            damping_out[(j, j)] += buffers.damping[j];
-        }
-        let result = if self.constraints.loops.is_empty() || lambda.is_empty() {
-            Ok(())
-        } else {
-            self.add_loop_stiffness(q, lambda, &mut buffers, stiffness_out)
-        };
-        self.jacobians = Some(buffers);
-        result
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::integrate::tests::alloc_counter::allocations;
-    use crate::integrate::{HhtIntegrator, HhtSettings};
-    use crate::model::{LoadOptions, Model};
-    use crate::scene::{read_sidecar, SceneOverrides};
-    use crate::spatial::Mat3;
-
-    fn robot(name: &str) -> (RobotSystem, Scene) {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("robots")
-            .join(name);
-        let model =
-            Model::from_urdf_file(&root.join(format!("{name}.urdf")), LoadOptions::default())
-                .unwrap();
-        let (file, _) = read_sidecar(&root.join(format!("{name}.uncertainty.toml"))).unwrap();
-        let scene = Scene::resolve(&file, &model, name, SceneOverrides::default()).unwrap();
-        (RobotSystem::new(model, scene.environment(), &scene), scene)
-    }
-
-    /// The residual after a mass matrix reuses its placements only at its configuration, and gives
-    /// the plain residual's bits either way, even when other calls moved `data` in between.
-    #[test]
-    fn residual_after_mass_matrix_equals_the_plain_residual_bitwise() {
-        let (mut system, _) = robot("ur5");
-        let n = system.model.nv;
-        let q1 = DVector::from_fn(n, |i, _| 0.3 + 0.1 * i as f64);
-        let q2 = DVector::from_fn(n, |i, _| -0.2 + 0.15 * i as f64);
-        let v = DVector::from_fn(n, |i, _| 0.5 - 0.2 * i as f64);
-        let qdd = DVector::from_fn(n, |i, _| -0.4 + 0.15 * i as f64);
-        let mut mass = DMatrix::zeros(n, n);
-        let bits = |x: &DVector<f64>| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-        let plain = |system: &mut RobotSystem, q: &DVector<f64>| {
-            let mut out = DVector::zeros(n);
-            system
-                .dynamics_residual(0.0, q, &v, &qdd, &mut out)
-                .unwrap();
-            out
-        };
-        let (at_q1, at_q2) = (plain(&mut system, &q1), plain(&mut system, &q2));
-        assert_ne!(bits(&at_q1), bits(&at_q2));
-        let mut out = DVector::zeros(n);
-        // At the mass matrix's q, with `data` left at another q by a residual in between.
-        system.mass_matrix(0.0, &q1, &mut mass).unwrap();
-        plain(&mut system, &q2);
-        system
-            .dynamics_residual_after_mass_matrix(0.0, &q1, &v, &qdd, &mut out)
-            .unwrap();
-        assert_eq!(bits(&out), bits(&at_q1));
-        // Once more at the same q: the placements went back into `data` and are not held any
-        // more, so this one computes them, with the same bits.
-        system
-            .dynamics_residual_after_mass_matrix(0.0, &q1, &v, &qdd, &mut out)
-            .unwrap();
-        assert_eq!(bits(&out), bits(&at_q1));
-        // At another q: the plain residual there, not the mass matrix's placements.
-        system.mass_matrix(0.0, &q1, &mut mass).unwrap();
-        system
-            .dynamics_residual_after_mass_matrix(0.0, &q2, &v, &qdd, &mut out)
-            .unwrap();
-        assert_eq!(bits(&out), bits(&at_q2));
-    }
-
-    /// The hot path of a study allocates nothing: dynamics kernels, a step with effects (ur5: springs
-    /// and dampers) and with constraint rows (slider-crank: a loop and a drive), and applying a
-    /// parameter point.
-    #[test]
-    fn hot_paths_allocate_nothing() {
-        for name in ["ur5", "slider_crank"] {
-            let (mut system, scene) = robot(name);
-            let q0 = DVector::from_column_slice(&scene.initial_q);
-            let v0 = DVector::from_column_slice(&scene.initial_v);
-            let settings = HhtSettings {
-                alpha: scene.alpha,
-                step_s: scene.step_s,
-                ..HhtSettings::default()
-            };
-            let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).unwrap();
-            hht.step(&mut system).unwrap();
-            let (q, v) = (q0.as_slice().to_vec(), v0.as_slice().to_vec());
-            let before = allocations();
-            for _ in 0..100 {
-                hht.step(&mut system).unwrap();
-            }
-            crba(&system.model, &mut system.data, &q);
-            rnea(
-                &system.model,
-                &system.environment.gravity,
-                &mut system.data,
-                &q,
-                &v,
-                &v,
-            );
-            nonlinear_effects(
-                &system.model,
-                &system.environment.gravity,
-                &mut system.data,
-                &q,
-                &v,
-            );
-            let used = allocations() - before;
-            assert_eq!(
-                used, 0,
-                "{name}: {used} allocations in 100 steps and the kernels"
-            );
-        }
-        let (mut system, _) = robot("double_pendulum");
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/double_pendulum");
-        let (file, _) = read_sidecar(&root.join("double_pendulum.uncertainty.toml")).unwrap();
-        let space = crate::uncertainty::ParameterSpace::from_sidecar(
-            &file,
-            &system.model,
-            &system.environment,
-            "dp",
-        )
-        .unwrap();
-        let xi = [0.3, -0.7];
-        let before = allocations();
-        space.apply(&mut system.model, &mut system.environment, &xi);
-        assert_eq!(allocations() - before, 0, "ParameterSpace::apply allocated");
-    }
-
-    /// A forward-sensitivity step allocates nothing either: ur5 (springs, inertial and symbol
-    /// directions) and slider-crank (loop and drive, directions that move the loop's geometry, the
-    /// projected velocity's sensitivity).
-    #[test]
-    fn sensitivity_steps_allocate_nothing() {
-        use crate::integrate::HhtSensitivity;
-        for name in ["ur5", "slider_crank"] {
-            let (mut system, scene) = robot(name);
-            let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("robots")
-                .join(name);
-            let (file, _) = read_sidecar(&root.join(format!("{name}.uncertainty.toml"))).unwrap();
-            let space = crate::uncertainty::ParameterSpace::from_sidecar(
-                &file,
-                &system.model,
-                &system.environment,
-                name,
-            )
-            .unwrap();
-            let xi = space.nominal_xi();
-            space.apply(&mut system.model, &mut system.environment, &xi);
-            let mut list = Vec::new();
-            let directions: Vec<_> = (0..space.len())
-                .map(|j| {
-                    space.target_derivatives(&xi, j, &mut list);
-                    list.clone()
-                })
-                .collect();
-            system.set_parameter_directions(&directions);
-            let q0 = DVector::from_column_slice(&scene.initial_q);
-            let v0 = DVector::from_column_slice(&scene.initial_v);
-            let settings = crate::integrate::HhtSettings {
-                projection_keeps_newton_mass: false,
-                ..crate::simulate::hht_settings(&scene)
-            };
-            let mut hht = HhtIntegrator::new(&mut system, settings, 0.0, &q0, &v0).unwrap();
-            let mut sensitivity = HhtSensitivity::new(&mut system, &hht, &q0, &v0).unwrap();
-            sensitivity.step(&mut system, &mut hht).unwrap();
-            let before = allocations();
-            for _ in 0..50 {
-                sensitivity.step(&mut system, &mut hht).unwrap();
-                sensitivity.reported_velocity(&mut system, &hht).unwrap();
-            }
-            let used = allocations() - before;
-            assert_eq!(
-                used, 0,
-                "{name}: {used} allocations in 50 sensitivity steps"
-            );
-        }
-    }
-
-    #[test]
-    fn se3_exp_of_pure_rotation_and_translation() {
-        let (t, r) = se3_exp(&Vec3::new(1.0, 2.0, 3.0), &Vec3::zeros());
-        assert_eq!(t, Vec3::new(1.0, 2.0, 3.0));
-        assert_eq!(*r.to_rotation_matrix().matrix(), Mat3::identity());
-        // A screw: rotate π/2 about z while moving 1 along x (body frame) sweeps a quarter circle.
-        let (t, r) = se3_exp(
-            &Vec3::new(1.0, 0.0, 0.0),
-            &Vec3::new(0.0, 0.0, std::f64::consts::FRAC_PI_2),
-        );
-        let radius = 2.0 / std::f64::consts::PI;
-        assert!((t - Vec3::new(radius, radius, 0.0)).norm() < 1e-12, "{t}");
-        assert!((r * Vec3::x() - Vec3::y()).norm() < 1e-12);
-        assert!((r.quaternion().norm() - 1.0).abs() < 1e-15);
-    }
-
-    /// The quaternion form against the matrix exponential `I + a [ω]× + b [ω]×²` and
-    /// `V = I + b [ω]× + c [ω]×²` (closed forms with `sin θ`, `cos θ`), on both sides of the series
-    /// switch and at large angles.
-    #[test]
-    fn se3_exp_matches_the_matrix_exponential() {
-        for (scale, tolerance) in [
-            (1e-6, 1e-15),
-            (9e-5, 1e-15),
-            (2e-4, 1e-13),
-            (0.3, 1e-14),
-            (2.9, 1e-13),
-        ] {
-            let angular = Vec3::new(0.6, -0.48, 0.64) * scale;
-            let linear = Vec3::new(0.3, 1.1, -0.7);
-            let theta = angular.norm();
-            let skew = angular.cross_matrix();
-            let (sin, cos) = theta.sin_cos();
-            let rotation = Mat3::identity()
-                + skew * (sin / theta)
-                + skew * skew * ((1.0 - cos) / (theta * theta));
-            let v = Mat3::identity()
-                + skew * ((1.0 - cos) / (theta * theta))
-                + skew * skew * ((theta - sin) / (theta * theta * theta));
-            let (t, r) = se3_exp(&linear, &angular);
-            let r = *r.to_rotation_matrix().matrix();
-            assert!(
-                (r - rotation).amax() < tolerance,
-                "θ {theta}: rotation off by {:e}",
-                (r - rotation).amax()
-            );
-            // Below ~1e-3 rad the reference's own (θ − sin θ)/θ³ has lost its digits to cancellation.
-            if theta > 1e-3 {
-                let expected = v * linear;
-                assert!(
-                    (t - expected).amax() < tolerance,
-                    "θ {theta}: translation off by {:e}",
-                    (t - expected).amax()
-                );
-            } else {
-                assert!((t - (linear + angular.cross(&linear) * 0.5)).amax() < theta * theta);
-            }
-        }
-    }
-}
+mod tests;

@@ -7,8 +7,9 @@
 //! Does not: compute a row (`compare.rs`) or draw (`output::plot`).
 
 use crate::analysis::StudyReport;
+use crate::output::plot::axis_label;
 use crate::output::plot::{Layer, ScatterPlot, ScatterSeries, TimePlot, PALETTE};
-use crate::output::report::{axis_label, write_plot, BAND_COLOUR, NOMINAL_COLOUR, SECOND_COLOUR};
+use crate::output::report::{write_plot, BAND_COLOUR, NOMINAL_COLOUR, SECOND_COLOUR};
 use crate::output::write_atomically;
 use crate::Error;
 use std::path::Path;

@@ -3,7 +3,6 @@
 //! 1.2 makes `effort` and `velocity` of `<limit>` optional (no limit) and requires
 //! `lower ≤ upper` on revolute and prismatic joints (read by `super::joint`).
 
-use super::xml::Reader;
 use crate::model::error::ModelError;
 use roxmltree::Node;
 
@@ -32,8 +31,8 @@ impl UrdfVersion {
 /// Reads `version` of the `<robot>` element `root`: 1.0 without the attribute; otherwise it must
 /// be `major.minor` (decimal digits) between 1.0 and 1.2. Any other value is an error naming the
 /// line: a newer version may change what a value means, so ribbon does not guess (Pinocchio
-/// refuses these files too).
-pub(super) fn read_version(reader: &Reader, root: Node) -> Result<UrdfVersion, ModelError> {
+/// refuses these files too). `path` and `line` (the root's) name the file and line in that error.
+pub(super) fn read_version(root: Node, path: &str, line: u32) -> Result<UrdfVersion, ModelError> {
     let Some(text) = root.attribute("version") else {
         return Ok(UrdfVersion::V1_0);
     };
@@ -49,8 +48,8 @@ pub(super) fn read_version(reader: &Reader, root: Node) -> Result<UrdfVersion, M
     match version {
         Some(v) if (UrdfVersion::V1_0..=UrdfVersion::NEWEST).contains(&v) => Ok(v),
         _ => Err(ModelError::BadNumber {
-            path: reader.path.to_string(),
-            line: reader.line(root),
+            path: path.to_string(),
+            line,
             element: "<robot>".to_string(),
             attribute: "version",
             text: text.to_string(),
