@@ -17,7 +17,7 @@ use super::adaptive_phase::AdaptiveOutcome;
 use super::bounded_block::BoundedBlock;
 use super::bounds::Bounder;
 use super::check::CheckCandidates;
-use super::elements_phase::ELEMENT_TENSOR_MAX_DIM;
+use super::elements::ELEMENT_TENSOR_MAX_DIM;
 use super::engine::RecordSource;
 use super::envelope::{EnvelopePoint, Side};
 use super::error::StudyError;

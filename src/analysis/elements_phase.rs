@@ -27,8 +27,8 @@ use super::check::{automatic_check_runs, CheckCandidates, CheckPlan, Side};
 use super::check_phase::{check, judge, output_scales, CheckOutcome, CheckRuns};
 use super::design_phase::{known_ranges, DesignBounding, ElementScope};
 use super::elements::{
-    Element, ElementTree, OutputScale, MAX_SPLIT_DIMS, MIN_ELEMENT_ORDER, SCAN_BISECTIONS,
-    SCAN_FEATURE_POINTS, SCAN_OTHER_POINTS,
+    Element, ElementTree, OutputScale, ELEMENT_TENSOR_MAX_DIM, MAX_SPLIT_DIMS, MIN_ELEMENT_ORDER,
+    SCAN_BISECTIONS, SCAN_FEATURE_POINTS, SCAN_OTHER_POINTS,
 };
 use super::error::StudyError;
 use super::method::Method;
@@ -44,12 +44,6 @@ use super::stages::StageCursor;
 use crate::uq::{Design, ElementBox, Family, Truncation};
 use std::sync::Arc;
 use std::time::Instant;
-
-/// Elements of up to this many dimensions get the tensor Gauss grid (scanned), as `auto` gives
-/// the whole box; above, the Leja sparse grid of total degree k (the box optimiser), whose runs
-/// grow polynomially in d. Measured on the vehicle (d = 4): children on the total-degree-4 grid
-/// (70 runs) missed by up to the whole union width, on the order-3 tensor grid (256) by 10–20 %.
-pub const ELEMENT_TENSOR_MAX_DIM: usize = super::auto::AUTO_TENSOR_MAX_DIM;
 
 /// A trusted output's predicted extreme is checked again when it lies more than this fraction
 /// of the output's width past the hull of true runs (`check_overshoots`): below it, the envelope

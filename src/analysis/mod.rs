@@ -11,8 +11,7 @@
 //! Where things are: what a study is asked and will do in `study_plan.rs`; the phase driver in
 //! `study.rs`, each phase in its own `*_phase.rs` over the `PhaseContext` of `phase.rs`; what a
 //! study hands back in `report.rs` and `envelope.rs` (with `bounded_block.rs`, what bounding a
-//! block hands back); its errors in `error.rs`. No file here imports one that imports it, except
-//! `design_phase.rs` and `elements_phase.rs` (`ELEMENT_TENSOR_MAX_DIM`).
+//! block hands back); its errors in `error.rs`. No file here imports one that imports it.
 
 mod accumulator;
 mod adaptive;
@@ -66,11 +65,11 @@ pub use check::{
     SEPARATION_ADVICE_AMPLIFICATION, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
 pub use design_part::{DesignPartRequest, PartSink};
+pub use elements::ELEMENT_TENSOR_MAX_DIM;
 pub use elements::{
     ElementsOptions, DEFAULT_MAX_ELEMENTS, MAX_SPLIT_DIMS, MIN_ELEMENT_HALF_WIDTH,
     MIN_ELEMENT_ORDER, SPLIT_SHARE,
 };
-pub use elements_phase::ELEMENT_TENSOR_MAX_DIM;
 pub use engine::{BlockOutcome, LockStep, RecordSource};
 pub use envelope::{widest_index, widest_record, Envelope, EnvelopePoint, OuterBounds, Side};
 pub use error::{ForeignError, StudyError};
