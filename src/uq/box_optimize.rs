@@ -107,6 +107,53 @@ pub struct BoxOptimizer {
     linear: Vec<f64>,
     univariate: Vec<f64>,
     ranges: Vec<(f64, f64)>,
+    /// The descents of the side being searched, for [`BoxOptimizer::descend`] to recognise a
+    /// point an earlier descent started an iteration from.
+    trail: DescentTrail,
+}
+
+/// The points earlier descents of one side started an iteration from (`k × d`), each with how
+/// many iterations its descent took from there to its end, and the ends (points and values).
+/// A descent's path depends on its point alone, so a later descent that reaches one of these
+/// points bitwise would repeat the earlier one's path from there to the same end: it stops and
+/// takes that end (issue 40; the d = 72 all-values ur5 study's descents from the design points
+/// often join the vertex's).
+#[derive(Debug, Clone, Default)]
+struct DescentTrail {
+    points: Vec<f64>,
+    /// Per point: (iterations from it to its descent's end, index of that end).
+    remaining: Vec<(usize, usize)>,
+    end_points: Vec<f64>,
+    end_values: Vec<f64>,
+    /// The points of the descent under way.
+    current: Vec<f64>,
+}
+
+impl DescentTrail {
+    fn clear(&mut self) {
+        self.points.clear();
+        self.remaining.clear();
+        self.end_points.clear();
+        self.end_values.clear();
+        self.current.clear();
+    }
+
+    /// The earlier point bitwise equal to `x` (its remaining iterations and end), if any.
+    fn find(&self, x: &[f64]) -> Option<(usize, usize)> {
+        self.points
+            .chunks_exact(x.len())
+            .position(|p| p.iter().zip(x).all(|(a, b)| a.to_bits() == b.to_bits()))
+            .map(|i| self.remaining[i])
+    }
+
+    /// Files the current descent's points: it ended at end index `end` after `total` iterations
+    /// in all (the point started at iteration j has `total − j` left).
+    fn file_current(&mut self, d: usize, total: usize, end: usize) {
+        let n = self.current.len() / d;
+        self.points.extend_from_slice(&self.current);
+        self.remaining.extend((0..n).map(|j| (total - j, end)));
+        self.current.clear();
+    }
 }
 
 impl Default for BoxOptimizer {
@@ -133,6 +180,7 @@ impl BoxOptimizer {
             linear: Vec::new(),
             univariate: Vec::new(),
             ranges: Vec::new(),
+            trail: DescentTrail::default(),
         }
     }
 
@@ -223,40 +271,55 @@ impl BoxOptimizer {
         upper_starts: &[f64],
         out: &mut BoxBounds,
     ) -> Result<(), UqError> {
+        let (lower, lower_iterations) =
+            self.extreme_from_starts_into(s, false, lower_starts, &mut out.argmin)?;
+        let (upper, upper_iterations) =
+            self.extreme_from_starts_into(s, true, upper_starts, &mut out.argmax)?;
+        out.lower = lower;
+        out.upper = upper;
+        out.iterations = lower_iterations + upper_iterations;
+        Ok(())
+    }
+
+    /// One side of [`BoxOptimizer::inner_bound_per_side_into`]: the smallest surrogate value
+    /// found (`maximum` false) or the largest (true), searched from that side's vertex of the
+    /// linear part (the centre without one) and `starts` (`k × d` row-major in [−1, 1]^d; a start
+    /// equal to an earlier one is skipped). The point where it is attained goes to `arg` (resized
+    /// to d). Returns the value and the Newton iterations spent. The two sides share nothing, so
+    /// they may run on different threads with the same results.
+    ///
+    /// Errors: as [`BoxOptimizer::bound`].
+    pub fn extreme_from_starts_into(
+        &mut self,
+        s: &SparseSurrogate,
+        maximum: bool,
+        given: &[f64],
+        arg: &mut Vec<f64>,
+    ) -> Result<(f64, usize), UqError> {
         let d = s.dim();
-        check_starts(lower_starts, d)?;
-        check_starts(upper_starts, d)?;
+        check_starts(given, d)?;
         self.resize(d);
         s.linear_part(&mut self.linear)?;
         let has_slope = self.linear.iter().any(|&c| c != 0.0);
-        out.argmin.resize(d, 0.0);
-        out.argmax.resize(d, 0.0);
-        out.iterations = 0;
-        let mut starts = std::mem::take(&mut self.starts);
-        for (sign, given) in [(1.0, lower_starts), (-1.0, upper_starts)] {
-            self.starts.clear();
-            if has_slope {
-                // φ = sign·y falls along −sign·c: the vertex −sign·sgn(c).
-                self.push_sign_vertex(-sign);
-            } else {
-                self.starts.resize(d, 0.0);
-            }
-            for start in given.chunks_exact(d) {
-                if !self.starts.chunks_exact(d).any(|earlier| earlier == start) {
-                    self.starts.extend_from_slice(start);
-                }
-            }
-            std::mem::swap(&mut starts, &mut self.starts);
-            if sign > 0.0 {
-                out.lower =
-                    self.search_side(s, sign, &starts, &mut out.argmin, &mut out.iterations);
-            } else {
-                out.upper =
-                    -self.search_side(s, sign, &starts, &mut out.argmax, &mut out.iterations);
-            }
-            std::mem::swap(&mut starts, &mut self.starts);
+        arg.resize(d, 0.0);
+        let mut iterations = 0;
+        let sign = if maximum { -1.0 } else { 1.0 };
+        self.starts.clear();
+        if has_slope {
+            // φ = sign·y falls along −sign·c: the vertex −sign·sgn(c).
+            self.push_sign_vertex(-sign);
+        } else {
+            self.starts.resize(d, 0.0);
         }
-        Ok(())
+        for start in given.chunks_exact(d) {
+            if !self.starts.chunks_exact(d).any(|earlier| earlier == start) {
+                self.starts.extend_from_slice(start);
+            }
+        }
+        let starts = std::mem::take(&mut self.starts);
+        let phi = self.search_side(s, sign, &starts, arg, &mut iterations);
+        self.starts = starts;
+        Ok((sign * phi, iterations))
     }
 
     /// Appends the vertex `sign · sgn(c_r)` of the linear part `c` (0 where `c_r = 0`) to the
@@ -280,6 +343,7 @@ impl BoxOptimizer {
     ) -> f64 {
         let d = arg.len();
         let mut best_phi = f64::INFINITY;
+        self.trail.clear();
         for start in starts.chunks_exact(d) {
             self.x.copy_from_slice(start);
             let (phi, spent) = self.descend(s, sign);
@@ -392,7 +456,24 @@ impl BoxOptimizer {
         let d = self.x.len();
         let mut f = self.evaluate(s, sign);
         let mut iterations = 0;
-        while iterations < self.max_iterations {
+        self.trail.current.clear();
+        loop {
+            if let Some((remaining, end)) = self.trail.find(&self.x) {
+                // An earlier descent went on from here to `end` within the cap; this one would
+                // take the same path (DescentTrail), if the cap leaves it the same iterations.
+                if iterations + remaining <= self.max_iterations {
+                    self.trail.file_current(d, iterations + remaining, end);
+                    self.x
+                        .copy_from_slice(&self.trail.end_points[end * d..(end + 1) * d]);
+                    return (self.trail.end_values[end], iterations);
+                }
+            }
+            if iterations >= self.max_iterations {
+                // Stopped by the cap: not an end another descent may take.
+                self.trail.current.clear();
+                return (f, iterations);
+            }
+            self.trail.current.extend_from_slice(&self.x);
             iterations += 1;
             self.free.clear();
             for r in 0..d {
@@ -441,6 +522,10 @@ impl BoxOptimizer {
                 break;
             }
         }
+        let end = self.trail.end_values.len();
+        self.trail.end_points.extend_from_slice(&self.x);
+        self.trail.end_values.push(f);
+        self.trail.file_current(d, iterations, end);
         (f, iterations)
     }
 
@@ -463,13 +548,33 @@ impl BoxOptimizer {
             .map(|&r| self.hess[r * d + r].abs())
             .fold(0.0, f64::max)
             .max(f64::MIN_POSITIVE);
-        let mut definite = true;
+        // A pivot of the factorisation never exceeds its diagonal entry: with a diagonal entry
+        // ≤ 0 (or NaN) the unshifted factorisation fails for sure, so it goes straight to the
+        // shift (same decision, same bits; the bilinear parts of high-dimensional surrogates
+        // leave most of the diagonal at 0).
+        let mut definite = self
+            .free
+            .iter()
+            .all(|&r| self.hess[r * d + r] > cholesky::ANY_POSITIVE_PIVOT);
         let mut shift = 0.0;
+        if !definite {
+            shift = self.gershgorin_shift(scale);
+        }
         loop {
-            for (a, &r) in self.free.iter().enumerate() {
-                for (b, &q) in self.free.iter().enumerate() {
-                    self.reduced[b * nf + a] =
-                        self.hess[r * d + q] + if a == b { shift } else { 0.0 };
+            if nf == d {
+                // Every coordinate free: the (symmetric) Hessian as it is, in one pass.
+                for (reduced, &h) in self.reduced[..d * d].iter_mut().zip(&self.hess) {
+                    *reduced = h + 0.0;
+                }
+                for a in 0..d {
+                    self.reduced[a * d + a] = self.hess[a * d + a] + shift;
+                }
+            } else {
+                for (a, &r) in self.free.iter().enumerate() {
+                    for (b, &q) in self.free.iter().enumerate() {
+                        self.reduced[b * nf + a] =
+                            self.hess[r * d + q] + if a == b { shift } else { 0.0 };
+                    }
                 }
             }
             if cholesky::factor_in_place(
@@ -489,24 +594,30 @@ impl BoxOptimizer {
                 return false;
             }
             definite = false;
-            // λ_min ≥ min_a (H_aa − Σ_{b≠a} |H_ab|): shift past it.
-            let mut lowest = f64::INFINITY;
-            for &r in &self.free {
-                let off: f64 = self
-                    .free
-                    .iter()
-                    .filter(|&&q| q != r)
-                    .map(|&q| self.hess[r * d + q].abs())
-                    .sum();
-                lowest = lowest.min(self.hess[r * d + r] - off);
-            }
-            shift = (-lowest).max(0.0) + CURVATURE_TOL * scale + f64::MIN_POSITIVE;
+            shift = self.gershgorin_shift(scale);
         }
         for (a, &r) in self.free.iter().enumerate() {
             self.step[a] = -self.grad[r];
         }
         cholesky::solve_in_place(&self.reduced[..nf * nf], nf, &mut self.step[..nf]);
         definite
+    }
+
+    /// The shift that makes `H_ff` positive definite: λ_min ≥ min_a (H_aa − Σ_{b≠a} |H_ab|)
+    /// (Gershgorin), shifted past it by a margin relative to `scale`.
+    fn gershgorin_shift(&self, scale: f64) -> f64 {
+        let d = self.x.len();
+        let mut lowest = f64::INFINITY;
+        for &r in &self.free {
+            let off: f64 = self
+                .free
+                .iter()
+                .filter(|&&q| q != r)
+                .map(|&q| self.hess[r * d + q].abs())
+                .sum();
+            lowest = lowest.min(self.hess[r * d + r] - off);
+        }
+        (-lowest).max(0.0) + CURVATURE_TOL * scale + f64::MIN_POSITIVE
     }
 
     /// Projected backtracking along `step` (on the free coordinates) from `self.x`; on success

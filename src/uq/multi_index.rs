@@ -96,10 +96,13 @@ pub(crate) struct Pair {
 }
 
 /// Evaluation order of a set's non-constant terms: single-factor and two-factor terms in flat
-/// lists (no per-term slice lookups), the rest by term index.
+/// lists (no per-term slice lookups), the rest by term index. Two-factor terms of degree one in
+/// both dimensions (`P_1(ξ_r) P_1(ξ_s) = ξ_r ξ_s`, the bilinear part, whose Hessian is constant)
+/// are kept apart from the other two-factor terms.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub(crate) struct EvalPlan {
     pub(crate) singles: Vec<Single>,
+    pub(crate) bilinear: Vec<Pair>,
     pub(crate) pairs: Vec<Pair>,
     pub(crate) general: Vec<u32>,
 }
@@ -438,13 +441,20 @@ impl Builder {
                     index: idx[0],
                     dim: f[0].dim,
                 }),
-                2 => plan.pairs.push(Pair {
-                    term: t as u32,
-                    index_a: idx[0],
-                    dim_a: f[0].dim,
-                    index_b: idx[1],
-                    dim_b: f[1].dim,
-                }),
+                2 => {
+                    let pair = Pair {
+                        term: t as u32,
+                        index_a: idx[0],
+                        dim_a: f[0].dim,
+                        index_b: idx[1],
+                        dim_b: f[1].dim,
+                    };
+                    if f[0].degree == 1 && f[1].degree == 1 {
+                        plan.bilinear.push(pair);
+                    } else {
+                        plan.pairs.push(pair);
+                    }
+                }
                 _ => plan.general.push(t as u32),
             }
         }
