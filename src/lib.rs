@@ -13,6 +13,7 @@
 //! - [`dynamics`] — CRBA, RNEA, forward dynamics and frame placements on a per-thread
 //!   [`dynamics::Data`];
 //! - [`linalg`] — the one in-place Cholesky, shared by dynamics, integrator and bound optimisers;
+//! - [`isa`] — which SIMD instruction set a vectorised kernel runs with (baseline or AVX2);
 //! - [`mcap_io`] — the one MCAP layer: a file written whole, its checksums and records read back;
 //! - [`integrate`] — the second-order HHT-I3 integrator for index-3 DAEs;
 //! - [`uq`] — quadrature, Legendre/Chebyshev surrogates and their bounds (pure mathematics);
@@ -44,6 +45,7 @@ mod error;
 pub mod geometry;
 pub mod integrate;
 pub mod interrupt;
+pub mod isa;
 pub mod linalg;
 pub mod mcap_io;
 pub mod model;

@@ -16,7 +16,7 @@
 
 use std::sync::Arc;
 
-use crate::dynamics::batch::{Isa, IsaKind};
+use crate::isa::{Isa, IsaKind};
 use crate::uq::basis::Family;
 use crate::uq::bounds::ErrorEstimate;
 use crate::uq::error::UqError;

@@ -28,6 +28,8 @@ mod model;
 mod rnea;
 mod state;
 
+pub use crate::isa::Isa;
+pub(crate) use crate::isa::IsaKind;
 pub use cholesky::{cholesky_factor, cholesky_factor_with_min_pivots, cholesky_solve};
 pub use crba::crba;
 pub use kinematics::forward_kinematics;
@@ -37,51 +39,3 @@ pub use state::{BatchData, BatchVectors};
 
 /// The default chunk width: 4 `f64` lanes, one AVX2 register (docs/batch.md §3).
 pub const LANES: usize = 4;
-
-/// Which instruction set the batched kernels are compiled for. Only [`Isa::baseline`] and, when the
-/// running CPU reports AVX2, [`Isa::avx2`] can be made, so a kernel never runs instructions the
-/// CPU lacks. Results are bitwise the same with either (IEEE operations are exact per lane and
-/// neither contracts into FMA).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Isa(IsaKind);
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum IsaKind {
-    Baseline,
-    #[cfg(target_arch = "x86_64")]
-    Avx2,
-}
-
-impl Isa {
-    /// The target's baseline (SSE2 on x86-64: 2 `f64` per vector instruction).
-    pub fn baseline() -> Self {
-        Isa(IsaKind::Baseline)
-    }
-
-    /// AVX2 (4 `f64` per vector instruction, no FMA), if this CPU has it.
-    pub fn avx2() -> Option<Self> {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Some(Isa(IsaKind::Avx2));
-        }
-        None
-    }
-
-    /// The fastest available: [`Isa::avx2`] if the CPU has it, else [`Isa::baseline`].
-    pub fn best() -> Self {
-        Self::avx2().unwrap_or_else(Self::baseline)
-    }
-
-    /// A short name (`"baseline"`, `"avx2"`) for reports.
-    pub fn name(&self) -> &'static str {
-        match self.0 {
-            IsaKind::Baseline => "baseline",
-            #[cfg(target_arch = "x86_64")]
-            IsaKind::Avx2 => "avx2",
-        }
-    }
-
-    pub(crate) fn kind(&self) -> IsaKind {
-        self.0
-    }
-}
