@@ -195,6 +195,12 @@ pub fn automatic_check_runs(design_runs: usize) -> usize {
     MIN_CHECK_RUNS.max((CHECK_RUNS_FRACTION * design_runs as f64).ceil() as usize)
 }
 
+/// A coordinate of a candidate point quantised to [`CHECK_POINT_TOLERANCE`]: points whose keys
+/// agree are one run.
+fn point_key(x: f64) -> i64 {
+    (x.clamp(-1.0, 1.0) / CHECK_POINT_TOLERANCE).round() as i64
+}
+
 /// One predicted extreme: output `output` at record `record` takes `predicted` at point `point`.
 #[derive(Clone, Copy, Debug)]
 struct Candidate {
@@ -261,7 +267,7 @@ impl CheckCandidates {
             return;
         }
         for (k, &x) in self.key.iter_mut().zip(point) {
-            *k = (x.clamp(-1.0, 1.0) / CHECK_POINT_TOLERANCE).round() as i64;
+            *k = point_key(x);
         }
         let next = self.unique_points();
         let index = *self.index.entry(self.key.clone()).or_insert(next);
@@ -423,10 +429,7 @@ impl CheckCandidates {
 
     /// The index of the candidate point within [`CHECK_POINT_TOLERANCE`] of `point`, if any.
     fn index_of(&self, point: &[f64]) -> Option<usize> {
-        let key: Vec<i64> = point
-            .iter()
-            .map(|&x| (x.clamp(-1.0, 1.0) / CHECK_POINT_TOLERANCE).round() as i64)
-            .collect();
+        let key: Vec<i64> = point.iter().map(|&x| point_key(x)).collect();
         self.index.get(&key).copied()
     }
 
