@@ -3,14 +3,16 @@
 //! points, then a bisection of each output's steepest cell — judged by the excess of a run past the
 //! grid's hull.
 //!
-//! Does not: choose which leaf to scan or how fine (`elements_phase.rs`: `scan_design`), or run
-//! anything.
+//! Does not: choose which leaf to scan or how fine (`elements_phase.rs`: `scan_design`), or refine
+//! a scan that fails (`scan_refinement.rs`).
 
 use super::accumulator::Accumulator;
 use super::bounds::EnvelopePoint;
 use super::check::{CheckPlan, TRUST_RELATIVE_MISFIT};
-use super::check_phase::excess;
+use super::check_phase::{excess, CheckRuns};
 use super::elements::SCAN_BISECTIONS;
+use super::error::StudyError;
+use super::phase::PhaseContext;
 use super::plan::{grid_point, SplitMix64};
 use crate::uq::ElementBox;
 
@@ -244,6 +246,92 @@ impl Bisection {
             self.from_value = value;
         }
     }
+}
+
+/// A scanned child as its check sees it.
+pub(super) struct ScanCheck<'a> {
+    /// Its grid.
+    pub grid: &'a ScanGrid,
+    /// Its grid's hull, before the check widened it (record-major).
+    pub grid_hull: &'a [EnvelopePoint],
+    /// Its box.
+    pub region: &'a ElementBox,
+    /// Per output: whether the elements are made for it.
+    pub active: &'a [bool],
+}
+
+/// The second part of a scan's check: each active output's steepest cell bisected, one run per
+/// cell and halving, down to where a jump is ([`SCAN_BISECTIONS`] halvings at most). Every run
+/// widens `hull` (the leaf's envelope) and the hull of true runs in `accumulator`, raises
+/// `misfit[o][r]` by its excess past the grid's hull, and joins `runs`. Returns the runs made,
+/// `None` when the study was interrupted.
+pub(super) fn bisect_steepest_cells(
+    context: &mut PhaseContext<'_>,
+    leaf: &ScanCheck<'_>,
+    hull: &mut Accumulator,
+    accumulator: &mut Accumulator,
+    misfit: &mut [Vec<f64>],
+    runs: &mut CheckRuns,
+) -> Result<Option<usize>, StudyError> {
+    let n_outputs = leaf.active.len();
+    let mut made = 0;
+    let mut bisections = leaf.grid.bisections(leaf.grid_hull);
+    for _ in 0..SCAN_BISECTIONS {
+        bisections.retain(|b| !b.resolved(leaf.grid_hull, n_outputs));
+        if bisections.is_empty() {
+            break;
+        }
+        let points: Vec<f64> = bisections
+            .iter()
+            .flat_map(|b| leaf.region.to_whole(&b.middle()))
+            .collect();
+        let mut middle_values = vec![f64::NAN; bisections.len()];
+        let mut checked = Vec::new();
+        context.report.runs += bisections.len();
+        let policy = context.exclusion_policy("check run");
+        let complete =
+            context.run_phase("check", &points, None, policy, &mut |block, _report| {
+                for r in 0..block.count {
+                    let record = block.first + r;
+                    for (run, bisection) in bisections.iter().enumerate() {
+                        if block.lockstep.failed(run) {
+                            continue;
+                        }
+                        let values = block.record(run, r);
+                        judge_scan_run(
+                            accumulator,
+                            leaf.grid_hull,
+                            leaf.active,
+                            record,
+                            values,
+                            misfit,
+                            &mut checked,
+                        );
+                        if record == bisection.record {
+                            middle_values[run] =
+                                accumulator.reported(bisection.output, values[bisection.output]);
+                        }
+                        hull.widen(record, values);
+                        accumulator.widen_runs(record, values);
+                    }
+                }
+                Ok(())
+            })?;
+        if !complete {
+            return Ok(None);
+        }
+        runs.runs += bisections.len();
+        made += bisections.len();
+        runs.unique_candidates += bisections.len();
+        runs.points.extend_from_slice(&points);
+        runs.checked.extend(checked);
+        for (bisection, &value) in bisections.iter_mut().zip(&middle_values) {
+            bisection.halve(value);
+        }
+        // A failed run leaves no value to halve by: that bisection ends.
+        bisections.retain(|b| b.from_value.is_finite() && b.to_value.is_finite());
+    }
+    Ok(Some(made))
 }
 
 /// Seed of the random points that fill a scan's check (fixed, so studies repeat).

@@ -652,3 +652,42 @@ pub fn cube(h: f32) -> Vec<[[f32; 3]; 3]> {
         .flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]])
         .collect()
 }
+
+/// A bar on a spring hinge (k = 100 N·m/rad, no gravity, released from 0.3 rad, 5 s; the
+/// sidecar [`NINE_DECADE_SIDECAR`]): its URDF.
+pub const SPRING_URDF: &str = r#"<?xml version="1.0"?>
+<robot name="spring">
+  <link name="base"/>
+  <link name="bar">
+    <inertial>
+      <origin xyz="0.5 0 0"/>
+      <mass value="1.0"/>
+      <inertia ixx="0.001" iyy="0.001" izz="0.001" ixy="0" ixz="0" iyz="0"/>
+    </inertial>
+  </link>
+  <joint name="hinge" type="continuous">
+    <parent link="base"/>
+    <child link="bar"/>
+    <axis xyz="0 0 1"/>
+  </joint>
+</robot>
+"#;
+
+/// The spring bar's sidecar: its mass over eleven decades, [0.01, 1e9] kg, whose period
+/// spreads from 0.04 s to 10 000 s (tests/check_every_method.rs, tests/elements.rs).
+pub const NINE_DECADE_SIDECAR: &str = r#"[parameters]
+"link.bar.mass" = [0.01, 1e9]
+[scene]
+duration = 5.0
+gravity = [0.0, 0.0, 0.0]
+effects = ["joint_springs"]
+initial.q = { hinge = 0.3 }
+[[scene.spring]]
+joint = "hinge"
+stiffness = 100.0
+rest = 0.0
+[outputs]
+joints = "all"
+velocities = true
+accelerations = true
+"#;
