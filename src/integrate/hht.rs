@@ -156,8 +156,8 @@ impl HhtIntegrator {
         q0: &DVector<f64>,
         v0: &DVector<f64>,
     ) -> Result<Self, IntegrateError> {
-        let (nq, nv, m) = (system.nq(), system.nv(), system.n_constraints());
-        let n_events = system.n_events();
+        let (nq, nv, m) = (system.nq(), system.nv(), eval::n_constraints(system));
+        let n_events = eval::n_events(system);
         let coeffs = settings.validate(m)?;
         let mut integrator = Self {
             settings,

@@ -33,7 +33,7 @@ use super::error::IntegrateError;
 use super::eval::{self, At};
 use super::hht::HhtIntegrator;
 use super::settings::HhtCoefficients;
-use super::system::DaeSystem;
+use super::system::{DaeState, DaeSystem};
 
 mod at_start;
 mod projection;
@@ -48,7 +48,7 @@ pub const JACOBIAN_FD_STEP: f64 = 1e-6;
 
 /// Largest tangent step, rad or m, of the directional 4-point central difference of the velocity
 /// projection (docs/sensitivities.md §6): the parameter step is the smaller of the system's
-/// [`DaeSystem::parameter_difference_step`] and this over `max(1, ‖S_q[:, k]‖∞)`. Configurations are
+/// [`Parameters::parameter_difference_step`] and this over `max(1, ‖S_q[:, k]‖∞)`. Configurations are
 /// nonlinear on the scale of 1 rad or 1 m, so truncation is ~3e-14 relative; the correction is linear
 /// in the velocity. Rounding of `Φ_q q̇` (terms of ~|q̇|) costs ~u·|q̇|/ε.
 pub const PROJECTION_FD_STEP: f64 = 1e-3;
@@ -234,7 +234,7 @@ impl Workspace {
 /// The forward sensitivities `S = ∂(state)/∂p` of one HHT-I3 trajectory, advanced step by step beside
 /// its [`HhtIntegrator`] (docs/sensitivities.md).
 ///
-/// Every sensitivity is a matrix with one column per parameter `p_k` (`P = system.n_parameters()`):
+/// Every sensitivity is a matrix with one column per parameter `p_k` (`P` = the system's [`Parameters::n_parameters`], 0 without them):
 /// positions along the tangent space (`q(p + ε e_k) ≈ q ⊕ ε S_q[:, k]`), velocities, accelerations
 /// and multipliers as plain derivatives. Use it as
 ///
@@ -244,8 +244,9 @@ impl Workspace {
 /// loop { sens.step(&mut system, &mut hht)?; … sens.position(), sens.reported_velocity(…) … }
 /// ```
 ///
-/// The system must implement [`DaeSystem::parameter_jacobians`] (and, with constraint rows,
-/// [`DaeSystem::set_parameter_offset`]); [`DaeSystem::as_residual_jacobians`] is used when provided,
+/// The system provides its [`Parameters`] through [`DaeSystem::as_parameters`] (their Jacobians,
+/// and with constraint rows [`Parameters::set_parameter_offset`]);
+/// [`DaeSystem::as_residual_jacobians`] is used when provided,
 /// otherwise `K_t` and `D_t` come from central differences of the residual ([`JACOBIAN_FD_STEP`]).
 #[derive(Debug, Clone)]
 pub struct HhtSensitivity {
@@ -405,16 +406,14 @@ impl HhtSensitivity {
         }
         if let Some(jacobians) = system.as_residual_jacobians() {
             let ws = &mut self.ws;
-            eval::residual_jacobians(
-                jacobians,
-                at,
-                &state.q,
-                v_newmark,
-                &state.qdd,
-                &state.lambda,
-                &mut ws.stiffness,
-                &mut ws.damping,
-            )?;
+            let point = DaeState {
+                t: state.t,
+                q: &state.q,
+                v: v_newmark,
+                qdd: &state.qdd,
+                lambda: &state.lambda,
+            };
+            eval::residual_jacobians(jacobians, at, &point, &mut ws.stiffness, &mut ws.damping)?;
         } else {
             self.residual_jacobians_by_differences(
                 system,
@@ -432,23 +431,29 @@ impl HhtSensitivity {
                 ws.dq[i] = h * self.v_before[i]
                     + h * h * ((0.5 - beta) * self.a_before[i] + beta * state.a[i]);
             }
-            system
+            let group = system.as_position_group().ok_or_else(|| {
+                eval::capability_withdrawn(at, "integrate_position_jacobians", "as_position_group")
+            })?;
+            group
                 .integrate_position_jacobians(&self.q_before, &ws.dq, &mut ws.wrt_q, &mut ws.wrt_dq)
                 .map_err(at.system_error("integrate_position_jacobians"))?;
             at.check_finite("integrate_position_jacobians", ws.wrt_q.as_slice())?;
             at.check_finite("integrate_position_jacobians", ws.wrt_dq.as_slice())?;
         }
-        system
-            .parameter_jacobians(
-                state.t,
-                &state.q,
-                v_newmark,
-                &state.qdd,
-                &state.lambda,
-                &mut ws.dynamics_p,
-                &mut ws.constraints_p,
-            )
-            .map_err(at.system_error("parameter_jacobians"))?;
+        let point = DaeState {
+            t: state.t,
+            q: &state.q,
+            v: v_newmark,
+            qdd: &state.qdd,
+            lambda: &state.lambda,
+        };
+        eval::parameter_jacobians(
+            system,
+            at,
+            &point,
+            &mut ws.dynamics_p,
+            &mut ws.constraints_p,
+        )?;
         at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.as_slice())?;
         at.check_finite(
             "parameter_jacobians.constraints",
