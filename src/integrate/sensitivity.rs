@@ -194,6 +194,24 @@ struct Workspace {
 }
 
 impl Workspace {
+    /// `dynamics_p = ∂r/∂p` and `constraints_p = ∂Φ/∂p` at `point`, the dynamics checked finite
+    /// (the caller checks the constraints' where it reads them).
+    fn parameter_jacobians_at<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+        point: &DaeState<'_>,
+    ) -> Result<(), IntegrateError> {
+        eval::parameter_jacobians(
+            system,
+            at,
+            point,
+            &mut self.dynamics_p,
+            &mut self.constraints_p,
+        )?;
+        at.check_finite("parameter_jacobians.dynamics", self.dynamics_p.as_slice())
+    }
+
     fn new(nq: usize, nv: usize, m: usize, p: usize) -> Self {
         let n = nv + m;
         Self {
@@ -404,25 +422,18 @@ impl HhtSensitivity {
         if m > 0 {
             eval::constraint_jacobian(system, at, &state.q, &mut self.ws.phi_q)?;
         }
+        let point = DaeState {
+            t: state.t,
+            q: &state.q,
+            v: v_newmark,
+            qdd: &state.qdd,
+            lambda: &state.lambda,
+        };
         if let Some(jacobians) = system.as_residual_jacobians() {
             let ws = &mut self.ws;
-            let point = DaeState {
-                t: state.t,
-                q: &state.q,
-                v: v_newmark,
-                qdd: &state.qdd,
-                lambda: &state.lambda,
-            };
             eval::residual_jacobians(jacobians, at, &point, &mut ws.stiffness, &mut ws.damping)?;
         } else {
-            self.residual_jacobians_by_differences(
-                system,
-                at,
-                &state.q,
-                v_newmark,
-                &state.qdd,
-                &state.lambda,
-            )?;
+            self.residual_jacobians_by_differences(system, at, &point)?;
         }
         let ws = &mut self.ws;
         if !self.additive {
@@ -440,21 +451,7 @@ impl HhtSensitivity {
             at.check_finite("integrate_position_jacobians", ws.wrt_q.as_slice())?;
             at.check_finite("integrate_position_jacobians", ws.wrt_dq.as_slice())?;
         }
-        let point = DaeState {
-            t: state.t,
-            q: &state.q,
-            v: v_newmark,
-            qdd: &state.qdd,
-            lambda: &state.lambda,
-        };
-        eval::parameter_jacobians(
-            system,
-            at,
-            &point,
-            &mut ws.dynamics_p,
-            &mut ws.constraints_p,
-        )?;
-        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.as_slice())?;
+        ws.parameter_jacobians_at(system, at, &point)?;
         at.check_finite(
             "parameter_jacobians.constraints",
             ws.constraints_p.as_slice(),
@@ -573,21 +570,20 @@ impl HhtSensitivity {
         Ok(())
     }
 
-    /// The dynamics residual `r = M q̈ + Φ_qᵀ λ − Q` at `(q, v)` into `out` (dim nv), through the
-    /// system's inverse dynamics when it has one.
-    #[allow(clippy::too_many_arguments)]
+    /// The dynamics residual `r = M q̈ + Φ_qᵀ λ − Q` at `point` into `out` (dim nv), through the
+    /// system's inverse dynamics when it has one; `mass`, `forces` and `phi_q` are work buffers.
     fn residual<S: DaeSystem + ?Sized>(
         system: &mut S,
         at: At,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
+        point: &DaeState<'_>,
         mass: &mut DMatrix<f64>,
         forces: &mut DVector<f64>,
         phi_q: &mut DMatrix<f64>,
         out: &mut DVector<f64>,
     ) -> Result<(), IntegrateError> {
+        let DaeState {
+            q, v, qdd, lambda, ..
+        } = *point;
         if let Some(inverse_dynamics) = system.as_inverse_dynamics() {
             eval::dynamics_residual(inverse_dynamics, at, q, v, qdd, false, out)?;
         } else {
@@ -609,11 +605,9 @@ impl HhtSensitivity {
         &mut self,
         system: &mut S,
         at: At,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
+        point: &DaeState<'_>,
     ) -> Result<(), IntegrateError> {
+        let DaeState { q, v, .. } = *point;
         let eps = JACOBIAN_FD_STEP;
         let ws = &mut self.ws;
         for i in 0..self.nv {
@@ -621,13 +615,14 @@ impl HhtSensitivity {
                 ws.dq.fill(0.0);
                 ws.dq[i] = sign * eps;
                 eval::integrate_position(system, at, q, &ws.dq, &mut ws.q_perturbed)?;
+                let moved = DaeState {
+                    q: &ws.q_perturbed,
+                    ..*point
+                };
                 Self::residual(
                     system,
                     at,
-                    &ws.q_perturbed,
-                    v,
-                    qdd,
-                    lambda,
+                    &moved,
                     &mut ws.mass_scratch,
                     &mut ws.forces,
                     &mut ws.phi_q_scratch,
@@ -642,13 +637,14 @@ impl HhtSensitivity {
             for (sign, out) in [(1.0, &mut ws.r_plus), (-1.0, &mut ws.r_minus)] {
                 ws.v_perturbed.copy_from(v);
                 ws.v_perturbed[i] += sign * eps;
+                let moved = DaeState {
+                    v: &ws.v_perturbed,
+                    ..*point
+                };
                 Self::residual(
                     system,
                     at,
-                    q,
-                    &ws.v_perturbed,
-                    qdd,
-                    lambda,
+                    &moved,
                     &mut ws.mass_scratch,
                     &mut ws.forces,
                     &mut ws.phi_q_scratch,

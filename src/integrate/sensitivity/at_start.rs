@@ -13,7 +13,7 @@ use crate::integrate::error::IntegrateError;
 use crate::integrate::eval::{self, At};
 use crate::integrate::hht::HhtIntegrator;
 use crate::integrate::start::consistent_start;
-use crate::integrate::system::{DaeState, DaeSystem};
+use crate::integrate::system::DaeSystem;
 
 impl HhtSensitivity {
     /// The sensitivities of the consistent start of `integrator`'s trajectory (docs/sensitivities.md
@@ -103,21 +103,7 @@ impl HhtSensitivity {
         };
         let ws = &mut self.ws;
         eval::mass_matrix(system, at, &state.q, &mut ws.mass)?;
-        let point = DaeState {
-            t: state.t,
-            q: &state.q,
-            v: &state.v,
-            qdd: &state.qdd,
-            lambda: &state.lambda,
-        };
-        eval::parameter_jacobians(
-            system,
-            at,
-            &point,
-            &mut ws.dynamics_p,
-            &mut ws.constraints_p,
-        )?;
-        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.as_slice())?;
+        ws.parameter_jacobians_at(system, at, &state.point())?;
         ws.matrix.copy_from(&ws.mass);
         ws.solver
             .factor(&ws.matrix)
@@ -212,20 +198,7 @@ impl HhtSensitivity {
         };
         let ws = &mut self.ws;
         eval::constraint_jacobian(system, at, &state.q, &mut ws.phi_q)?;
-        let point = DaeState {
-            t: state.t,
-            q: &state.q,
-            v: &state.v,
-            qdd: &state.qdd,
-            lambda: &state.lambda,
-        };
-        eval::parameter_jacobians(
-            system,
-            at,
-            &point,
-            &mut ws.dynamics_p,
-            &mut ws.constraints_p,
-        )?;
+        ws.parameter_jacobians_at(system, at, &state.point())?;
         at.check_finite(
             "parameter_jacobians.constraints",
             ws.constraints_p.as_slice(),
