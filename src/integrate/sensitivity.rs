@@ -48,7 +48,7 @@ pub const JACOBIAN_FD_STEP: f64 = 1e-6;
 
 /// Largest tangent step, rad or m, of the directional 4-point central difference of the velocity
 /// projection (docs/sensitivities.md §6): the parameter step is the smaller of the system's
-/// [`Parameters::parameter_difference_step`] and this over `max(1, ‖S_q[:, k]‖∞)`. Configurations are
+/// [`Parameters::parameter_difference_step`](crate::integrate::Parameters::parameter_difference_step) and this over `max(1, ‖S_q[:, k]‖∞)`. Configurations are
 /// nonlinear on the scale of 1 rad or 1 m, so truncation is ~3e-14 relative; the correction is linear
 /// in the velocity. Rounding of `Φ_q q̇` (terms of ~|q̇|) costs ~u·|q̇|/ε.
 pub const PROJECTION_FD_STEP: f64 = 1e-3;
@@ -252,7 +252,7 @@ impl Workspace {
 /// The forward sensitivities `S = ∂(state)/∂p` of one HHT-I3 trajectory, advanced step by step beside
 /// its [`HhtIntegrator`] (docs/sensitivities.md).
 ///
-/// Every sensitivity is a matrix with one column per parameter `p_k` (`P` = the system's [`Parameters::n_parameters`], 0 without them):
+/// Every sensitivity is a matrix with one column per parameter `p_k` (`P` = the system's [`Parameters::n_parameters`](crate::integrate::Parameters::n_parameters), 0 without them):
 /// positions along the tangent space (`q(p + ε e_k) ≈ q ⊕ ε S_q[:, k]`), velocities, accelerations
 /// and multipliers as plain derivatives. Use it as
 ///
@@ -262,8 +262,8 @@ impl Workspace {
 /// loop { sens.step(&mut system, &mut hht)?; … sens.position(), sens.reported_velocity(…) … }
 /// ```
 ///
-/// The system provides its [`Parameters`] through [`DaeSystem::as_parameters`] (their Jacobians,
-/// and with constraint rows [`Parameters::set_parameter_offset`]);
+/// The system provides its [`Parameters`](crate::integrate::Parameters) through [`DaeSystem::as_parameters`] (their Jacobians,
+/// and with constraint rows [`Parameters::set_parameter_offset`](crate::integrate::Parameters::set_parameter_offset));
 /// [`DaeSystem::as_residual_jacobians`] is used when provided,
 /// otherwise `K_t` and `D_t` come from central differences of the residual ([`JACOBIAN_FD_STEP`]).
 #[derive(Debug, Clone)]

@@ -458,7 +458,7 @@ impl ParameterSpace {
     /// - a path dimension: one entry, its radius `r_i` (exact);
     /// - a shared group: one entry per member, `u · amount` (factor) or `amount` (offset), exact;
     /// - a free symbol: one entry per `[bind]` expression that uses it, by central differences in
-    ///   ξ with Richardson extrapolation ([`BIND_DERIVATIVE_STEP`]; about 1e-12 relative for smooth
+    ///   ξ with Richardson extrapolation ([`BIND_DERIVATIVE_STEP`](super::BIND_DERIVATIVE_STEP); about 1e-12 relative for smooth
     ///   expressions; at the faces of the box a one-sided difference into the box, about 1e-9).
     ///
     /// Values written through `link.NAME.scale` appear as [`ParamTarget::LinkScale`] entries: the
