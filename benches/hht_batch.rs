@@ -36,7 +36,7 @@ use std::time::{Duration, Instant};
 use fall::STEPS_PER_FALL;
 use nalgebra::DVector;
 use ribbon::dynamics::batch::LANES;
-use ribbon::integrate::{DaeSystem, HhtIntegrator, HhtSettings};
+use ribbon::integrate::{Constraints, HhtIntegrator, HhtSettings};
 use ribbon::scene::Scene;
 use ribbon::simulate::{hht_settings, BatchStepCounts, BatchStepper, RobotSystem};
 

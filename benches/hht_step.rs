@@ -30,7 +30,8 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, Criterion};
 use nalgebra::{DMatrix, DVector};
 use ribbon::integrate::{
-    DaeSystem, HhtIntegrator, HhtSettings, InverseDynamics, StepControl, SystemError,
+    Constraints, DaeSystem, HhtIntegrator, HhtSettings, InverseDynamics, NewtonDiagonal,
+    PositionGroup, PositionScale, StepControl, SystemError,
 };
 use ribbon::model::{LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, Scene, SceneOverrides};
@@ -198,22 +199,6 @@ impl DaeSystem for Profiled<'_> {
     fn nv(&self) -> usize {
         self.inner.nv()
     }
-    fn n_constraints(&self) -> usize {
-        self.inner.n_constraints()
-    }
-    fn integrate_position(
-        &self,
-        q: &DVector<f64>,
-        dq: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        // `&self`: not timed (a vector addition for these robots); counted through the integrator's
-        // statistics instead.
-        self.inner.integrate_position(q, dq, out)
-    }
-    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>) {
-        self.inner.position_scale(q, out)
-    }
     fn mass_matrix(
         &mut self,
         t: f64,
@@ -238,17 +223,29 @@ impl DaeSystem for Profiled<'_> {
             None
         }
     }
-    fn newton_diagonal(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        stiffness_out: &mut DVector<f64>,
-        damping_out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        self.timed(3, |s| {
-            s.newton_diagonal(t, q, v, stiffness_out, damping_out)
-        })
+    fn as_constraints(&mut self) -> Option<&mut dyn Constraints> {
+        Some(self)
+    }
+    /// `&self`: not timed (a vector addition for these robots); counted through the integrator's
+    /// statistics instead.
+    fn as_position_group(&self) -> Option<&dyn PositionGroup> {
+        self.inner.as_position_group()
+    }
+    fn as_position_scale(&self) -> Option<&dyn PositionScale> {
+        self.inner.as_position_scale()
+    }
+    fn as_newton_diagonal(&mut self) -> Option<&mut dyn NewtonDiagonal> {
+        if self.inner.as_newton_diagonal().is_some() {
+            Some(self)
+        } else {
+            None
+        }
+    }
+}
+
+impl Constraints for Profiled<'_> {
+    fn n_constraints(&self) -> usize {
+        self.inner.n_constraints()
     }
     fn constraints(
         &mut self,
@@ -291,6 +288,23 @@ impl DaeSystem for Profiled<'_> {
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError> {
         self.inner.constraint_acceleration_bias(t, q, v, out)
+    }
+}
+
+impl NewtonDiagonal for Profiled<'_> {
+    fn newton_diagonal(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        stiffness_out: &mut DVector<f64>,
+        damping_out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.timed(3, |s| {
+            s.as_newton_diagonal()
+                .ok_or("the robot stopped providing its Newton diagonal")?
+                .newton_diagonal(t, q, v, stiffness_out, damping_out)
+        })
     }
 }
 
@@ -354,7 +368,9 @@ fn profile(name: &str, fall: &mut Fall, settings: HhtSettings) {
             if run == 0 {
                 history.push(hht.state().qdd.clone());
                 let mut scale = DVector::zeros(system.nv());
-                system.position_scale(&hht.state().q, &mut scale);
+                if let Some(position_scale) = system.as_position_scale() {
+                    position_scale.position_scale(&hht.state().q, &mut scale);
+                }
                 scales.push(scale);
             }
             let start = Instant::now();

@@ -489,7 +489,7 @@ fn bad_constraint_input_is_refused_clearly() {
 #[test]
 fn constraints_and_jacobian_in_one_call_equal_the_separate_calls_bitwise() {
     use nalgebra::DMatrix;
-    use ribbon::integrate::DaeSystem;
+    use ribbon::integrate::{Constraints, DaeSystem};
     for (urdf, sidecar) in [
         (
             "robots/four_bar/four_bar.urdf",
@@ -542,7 +542,7 @@ fn constraints_and_jacobian_in_one_call_equal_the_separate_calls_bitwise() {
 /// the integrator then writes itself); one with drives says they are not.
 #[test]
 fn scleronomic_constraints_have_a_zero_time_derivative() {
-    use ribbon::integrate::DaeSystem;
+    use ribbon::integrate::Constraints;
     for (urdf, sidecar, scleronomic) in [
         (
             "robots/four_bar/four_bar.urdf",

@@ -558,7 +558,7 @@ fn a_resting_limit_driven_in_by_an_impact_joins_it() {
     // stop within its depth. The elbow joins
     // the impact as a plastic row, so the closed form is q̇⁺ = (−e q̇₁⁻, 0): the shoulder's approach
     // speed reversed and scaled, the elbow at rest; kinetic energy ½ M₁₁ (e q̇₁⁻)², never more.
-    use ribbon::integrate::DaeSystem;
+    use ribbon::integrate::UnilateralLimits;
     for restitution in [1.0_f64, 0.5, 0.0] {
         let sidecar =
             format!("[scene]\neffects = [\"joint_limits\"]\nlimit_restitution = {restitution}\n");
@@ -598,7 +598,7 @@ fn the_impact_law_acts_through_the_mass_matrix_and_never_adds_energy() {
     // The impulse law itself, at the elbow's upper limit with both joints moving: closed forms
     // q̇₂⁺ = −e q̇₂⁻ (the elbow's approach speed reversed and scaled), kinetic energy kept at e = 1
     // and lost by ½ (1 − e²) (q̇₂⁻)² / (M⁻¹)₂₂ otherwise; the shoulder responds through M.
-    use ribbon::integrate::DaeSystem;
+    use ribbon::integrate::UnilateralLimits;
     for restitution in [1.0_f64, 0.5, 0.0] {
         let sidecar =
             format!("[scene]\neffects = [\"joint_limits\"]\nlimit_restitution = {restitution}\n");

@@ -156,8 +156,8 @@ impl HhtIntegrator {
         q0: &DVector<f64>,
         v0: &DVector<f64>,
     ) -> Result<Self, IntegrateError> {
-        let (nq, nv, m) = (system.nq(), system.nv(), system.n_constraints());
-        let n_events = system.n_events();
+        let (nq, nv, m) = (system.nq(), system.nv(), eval::n_constraints(system));
+        let n_events = eval::n_events(system);
         let coeffs = settings.validate(m)?;
         let mut integrator = Self {
             settings,
@@ -312,7 +312,7 @@ impl HhtIntegrator {
     /// With [`StepControl::Fixed`](crate::integrate::StepControl::Fixed) this is one HHT step of `h`, and a Newton failure is reported as
     /// it is. With [`StepControl::Adaptive`](crate::integrate::StepControl::Adaptive) the grid interval is covered by sub-steps that follow
     /// the local error estimate, and a failed sub-step is retried with half its size (down to
-    /// `h / 2^`[`HhtSettings::max_step_halvings`]). In both, a crossing of a unilateral limit ([`DaeSystem::n_events`]) is located
+    /// `h / 2^`[`HhtSettings::max_step_halvings`]). In both, a crossing of a unilateral limit ([`UnilateralLimits::n_events`](crate::integrate::UnilateralLimits::n_events)) is located
     /// and the system's impact law applied, after which the trajectory restarts from a consistent
     /// state (docs/step-control.md §3–§4). Every sub-step uses the coefficients of its own size.
     ///
@@ -329,7 +329,7 @@ impl HhtIntegrator {
     /// [`ReportedVelocity::Computed`] into each, which gives every record the bits of `step` at a
     /// fraction of the cost with constraint rows (the velocity projection is a third of the
     /// panda's step; docs/method.md §5, "Velocity drift"). A system with unilateral events
-    /// ([`DaeSystem::n_events`]) always computes it: locating an impact reads the step's start
+    /// ([`UnilateralLimits::n_events`](crate::integrate::UnilateralLimits::n_events)) always computes it: locating an impact reads the step's start
     /// velocity.
     pub fn advance<S: DaeSystem + ?Sized>(
         &mut self,

@@ -71,4 +71,8 @@ pub use start::{
     START_MAX_ITERATIONS,
 };
 pub use system::PARAMETER_FD_STEP;
-pub use system::{DaeSystem, InverseDynamics, ResidualJacobians};
+pub use system::{
+    Constraints, CoordinateMagnitude, DaeState, DaeSystem, InverseDynamics, NewtonCoupling,
+    NewtonDiagonal, NewtonUpdateLimit, Parameters, PositionGroup, PositionScale, ResidualJacobians,
+    UnilateralLimits,
+};

@@ -33,7 +33,7 @@ use super::error::IntegrateError;
 use super::eval::{self, At};
 use super::hht::HhtIntegrator;
 use super::settings::HhtCoefficients;
-use super::system::DaeSystem;
+use super::system::{DaeState, DaeSystem};
 
 mod at_start;
 mod projection;
@@ -48,7 +48,7 @@ pub const JACOBIAN_FD_STEP: f64 = 1e-6;
 
 /// Largest tangent step, rad or m, of the directional 4-point central difference of the velocity
 /// projection (docs/sensitivities.md §6): the parameter step is the smaller of the system's
-/// [`DaeSystem::parameter_difference_step`] and this over `max(1, ‖S_q[:, k]‖∞)`. Configurations are
+/// [`Parameters::parameter_difference_step`](crate::integrate::Parameters::parameter_difference_step) and this over `max(1, ‖S_q[:, k]‖∞)`. Configurations are
 /// nonlinear on the scale of 1 rad or 1 m, so truncation is ~3e-14 relative; the correction is linear
 /// in the velocity. Rounding of `Φ_q q̇` (terms of ~|q̇|) costs ~u·|q̇|/ε.
 pub const PROJECTION_FD_STEP: f64 = 1e-3;
@@ -194,6 +194,24 @@ struct Workspace {
 }
 
 impl Workspace {
+    /// `dynamics_p = ∂r/∂p` and `constraints_p = ∂Φ/∂p` at `point`, the dynamics checked finite
+    /// (the caller checks the constraints' where it reads them).
+    fn parameter_jacobians_at<S: DaeSystem + ?Sized>(
+        &mut self,
+        system: &mut S,
+        at: At,
+        point: &DaeState<'_>,
+    ) -> Result<(), IntegrateError> {
+        eval::parameter_jacobians(
+            system,
+            at,
+            point,
+            &mut self.dynamics_p,
+            &mut self.constraints_p,
+        )?;
+        at.check_finite("parameter_jacobians.dynamics", self.dynamics_p.as_slice())
+    }
+
     fn new(nq: usize, nv: usize, m: usize, p: usize) -> Self {
         let n = nv + m;
         Self {
@@ -234,7 +252,7 @@ impl Workspace {
 /// The forward sensitivities `S = ∂(state)/∂p` of one HHT-I3 trajectory, advanced step by step beside
 /// its [`HhtIntegrator`] (docs/sensitivities.md).
 ///
-/// Every sensitivity is a matrix with one column per parameter `p_k` (`P = system.n_parameters()`):
+/// Every sensitivity is a matrix with one column per parameter `p_k` (`P` = the system's [`Parameters::n_parameters`](crate::integrate::Parameters::n_parameters), 0 without them):
 /// positions along the tangent space (`q(p + ε e_k) ≈ q ⊕ ε S_q[:, k]`), velocities, accelerations
 /// and multipliers as plain derivatives. Use it as
 ///
@@ -244,8 +262,9 @@ impl Workspace {
 /// loop { sens.step(&mut system, &mut hht)?; … sens.position(), sens.reported_velocity(…) … }
 /// ```
 ///
-/// The system must implement [`DaeSystem::parameter_jacobians`] (and, with constraint rows,
-/// [`DaeSystem::set_parameter_offset`]); [`DaeSystem::as_residual_jacobians`] is used when provided,
+/// The system provides its [`Parameters`](crate::integrate::Parameters) through [`DaeSystem::as_parameters`] (their Jacobians,
+/// and with constraint rows [`Parameters::set_parameter_offset`](crate::integrate::Parameters::set_parameter_offset));
+/// [`DaeSystem::as_residual_jacobians`] is used when provided,
 /// otherwise `K_t` and `D_t` come from central differences of the residual ([`JACOBIAN_FD_STEP`]).
 #[derive(Debug, Clone)]
 pub struct HhtSensitivity {
@@ -403,27 +422,18 @@ impl HhtSensitivity {
         if m > 0 {
             eval::constraint_jacobian(system, at, &state.q, &mut self.ws.phi_q)?;
         }
+        let point = DaeState {
+            t: state.t,
+            q: &state.q,
+            v: v_newmark,
+            qdd: &state.qdd,
+            lambda: &state.lambda,
+        };
         if let Some(jacobians) = system.as_residual_jacobians() {
             let ws = &mut self.ws;
-            eval::residual_jacobians(
-                jacobians,
-                at,
-                &state.q,
-                v_newmark,
-                &state.qdd,
-                &state.lambda,
-                &mut ws.stiffness,
-                &mut ws.damping,
-            )?;
+            eval::residual_jacobians(jacobians, at, &point, &mut ws.stiffness, &mut ws.damping)?;
         } else {
-            self.residual_jacobians_by_differences(
-                system,
-                at,
-                &state.q,
-                v_newmark,
-                &state.qdd,
-                &state.lambda,
-            )?;
+            self.residual_jacobians_by_differences(system, at, &point)?;
         }
         let ws = &mut self.ws;
         if !self.additive {
@@ -432,24 +442,16 @@ impl HhtSensitivity {
                 ws.dq[i] = h * self.v_before[i]
                     + h * h * ((0.5 - beta) * self.a_before[i] + beta * state.a[i]);
             }
-            system
+            let group = system.as_position_group().ok_or_else(|| {
+                eval::capability_withdrawn(at, "integrate_position_jacobians", "as_position_group")
+            })?;
+            group
                 .integrate_position_jacobians(&self.q_before, &ws.dq, &mut ws.wrt_q, &mut ws.wrt_dq)
                 .map_err(at.system_error("integrate_position_jacobians"))?;
             at.check_finite("integrate_position_jacobians", ws.wrt_q.as_slice())?;
             at.check_finite("integrate_position_jacobians", ws.wrt_dq.as_slice())?;
         }
-        system
-            .parameter_jacobians(
-                state.t,
-                &state.q,
-                v_newmark,
-                &state.qdd,
-                &state.lambda,
-                &mut ws.dynamics_p,
-                &mut ws.constraints_p,
-            )
-            .map_err(at.system_error("parameter_jacobians"))?;
-        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.as_slice())?;
+        ws.parameter_jacobians_at(system, at, &point)?;
         at.check_finite(
             "parameter_jacobians.constraints",
             ws.constraints_p.as_slice(),
@@ -568,21 +570,20 @@ impl HhtSensitivity {
         Ok(())
     }
 
-    /// The dynamics residual `r = M q̈ + Φ_qᵀ λ − Q` at `(q, v)` into `out` (dim nv), through the
-    /// system's inverse dynamics when it has one.
-    #[allow(clippy::too_many_arguments)]
+    /// The dynamics residual `r = M q̈ + Φ_qᵀ λ − Q` at `point` into `out` (dim nv), through the
+    /// system's inverse dynamics when it has one; `mass`, `forces` and `phi_q` are work buffers.
     fn residual<S: DaeSystem + ?Sized>(
         system: &mut S,
         at: At,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
+        point: &DaeState<'_>,
         mass: &mut DMatrix<f64>,
         forces: &mut DVector<f64>,
         phi_q: &mut DMatrix<f64>,
         out: &mut DVector<f64>,
     ) -> Result<(), IntegrateError> {
+        let DaeState {
+            q, v, qdd, lambda, ..
+        } = *point;
         if let Some(inverse_dynamics) = system.as_inverse_dynamics() {
             eval::dynamics_residual(inverse_dynamics, at, q, v, qdd, false, out)?;
         } else {
@@ -604,11 +605,9 @@ impl HhtSensitivity {
         &mut self,
         system: &mut S,
         at: At,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
+        point: &DaeState<'_>,
     ) -> Result<(), IntegrateError> {
+        let DaeState { q, v, .. } = *point;
         let eps = JACOBIAN_FD_STEP;
         let ws = &mut self.ws;
         for i in 0..self.nv {
@@ -616,13 +615,14 @@ impl HhtSensitivity {
                 ws.dq.fill(0.0);
                 ws.dq[i] = sign * eps;
                 eval::integrate_position(system, at, q, &ws.dq, &mut ws.q_perturbed)?;
+                let moved = DaeState {
+                    q: &ws.q_perturbed,
+                    ..*point
+                };
                 Self::residual(
                     system,
                     at,
-                    &ws.q_perturbed,
-                    v,
-                    qdd,
-                    lambda,
+                    &moved,
                     &mut ws.mass_scratch,
                     &mut ws.forces,
                     &mut ws.phi_q_scratch,
@@ -637,13 +637,14 @@ impl HhtSensitivity {
             for (sign, out) in [(1.0, &mut ws.r_plus), (-1.0, &mut ws.r_minus)] {
                 ws.v_perturbed.copy_from(v);
                 ws.v_perturbed[i] += sign * eps;
+                let moved = DaeState {
+                    v: &ws.v_perturbed,
+                    ..*point
+                };
                 Self::residual(
                     system,
                     at,
-                    q,
-                    &ws.v_perturbed,
-                    qdd,
-                    lambda,
+                    &moved,
                     &mut ws.mass_scratch,
                     &mut ws.forces,
                     &mut ws.phi_q_scratch,

@@ -53,7 +53,7 @@ pub struct HhtSettings {
     /// need (the four-bar's velocity sensitivities differ by 3e-5 relative otherwise).
     pub projection_keeps_newton_mass: bool,
     /// Add the diagonal spring and damper terms `β'h² k_j + γ'h c_j` of
-    /// [`DaeSystem::newton_diagonal`](super::DaeSystem::newton_diagonal) to the iteration matrix
+    /// [`NewtonDiagonal::newton_diagonal`](super::NewtonDiagonal::newton_diagonal) to the iteration matrix
     /// (default `true`). Turning it off only serves to measure what the terms buy: a stiff spring on
     /// a light link then diverges.
     pub newton_diagonal_terms: bool,

@@ -67,7 +67,8 @@ pub fn consistent_start<S: DaeSystem + ?Sized>(
     q0: &DVector<f64>,
     v0: &DVector<f64>,
 ) -> Result<ConsistentStart, IntegrateError> {
-    let (nq, nv, m) = (sys.nq(), sys.nv(), sys.n_constraints());
+    let (nq, nv, m) = (sys.nq(), sys.nv(), eval::n_constraints(sys));
+    eval::check_position_update(sys)?;
     if q0.len() != nq {
         return Err(IntegrateError::DimensionMismatch {
             what: "q0",

@@ -14,7 +14,8 @@
 //! Conventions:
 //! - `q` has `nq` entries, velocities and accelerations `nv` (`nq ≠ nv` for a quaternion floating
 //!   base). Every derivative "with respect to q" is taken along the tangent space: `Φ(q ⊕ δ) ≈ Φ(q) +
-//!   Φ_q δ` with `δ` of dimension `nv` and `⊕` = [`DaeSystem::integrate_position`].
+//!   Φ_q δ` with `δ` of dimension `nv` and `⊕` = [`PositionGroup::integrate_position`] (plain
+//!   addition for a system without a [`PositionGroup`]).
 //! - `Q` is the right-hand side: generalised applied forces minus the bias `C(q, q̇) q̇ + g(q)`.
 //! - `λ` has the sign fixed by `M q̈ + Φ_qᵀ λ = Q`: a drive row `Φ = q_j − f(t)` gives `λ = −τ`.
 //! - Each method overwrites its `out` argument(s) entirely; sizes are checked by the integrator before
@@ -23,28 +24,32 @@
 //!   system detects itself) as an error rather than panicking. The integrator also checks every output
 //!   for NaN/Inf itself.
 //!
-//! Optional groups of methods, all default-implemented so that a system only writes what it uses.
-//! A capability whose methods have no sensible default is a sub-trait the system hands out through
-//! an `Option`-returning hook (`None` by default), so that a system cannot claim it without
-//! implementing it:
-//! - **inverse dynamics** ([`DaeSystem::as_inverse_dynamics`], the sub-trait [`InverseDynamics`]):
-//!   the residual `M q̈ − Q` in one pass, instead of `mass_matrix` and `forces`;
-//! - **full residual Jacobians** ([`DaeSystem::as_residual_jacobians`], the sub-trait
-//!   [`ResidualJacobians`]): `∂r/∂q` and `∂r/∂q̇` of the dynamics residual `r = M q̈ + Φ_qᵀ λ − Q`,
-//!   what a full Newton matrix and the forward sensitivities need (docs/sensitivities.md §2);
-//!   without them users form them by central differences of the residual;
-//! - **the position update on a group** ([`DaeSystem::position_update_is_additive`],
-//!   [`DaeSystem::integrate_position_jacobians`], [`DaeSystem::difference_position`]): how tangent
-//!   perturbations travel through `q ⊕ δ` (docs/sensitivities.md §4);
-//! - **parameters** ([`DaeSystem::n_parameters`], [`DaeSystem::parameter_jacobians`],
-//!   [`DaeSystem::set_parameter_offset`]): the derivatives of the residual and the constraints with
-//!   respect to the system's parameters `p_k`, for forward sensitivities (docs/sensitivities.md §3).
+//! Optional capabilities. A capability whose methods have no sensible default is a sub-trait that
+//! the system hands out through an `Option`-returning hook (`None` by default), so that a system
+//! cannot be asked for what it lacks and no default fails at run time (diffsol's way):
+//!
+//! | hook | sub-trait | what it adds | without it |
+//! |---|---|---|---|
+//! | [`as_constraints`](DaeSystem::as_constraints) | [`Constraints`] | `Φ`, `Φ_q`, `Φ_t`, the acceleration bias | a tree (`m = 0`) |
+//! | [`as_position_group`](DaeSystem::as_position_group) | [`PositionGroup`] | `q ⊕ δ` on a group, its Jacobians, `q₁ ⊖ q₀` (docs/sensitivities.md §4) | `q + δ` (`nq = nv`, checked at the start) |
+//! | [`as_position_scale`](DaeSystem::as_position_scale) | [`PositionScale`] | the Newton test's per-coordinate scale | absolute tolerance only |
+//! | [`as_inverse_dynamics`](DaeSystem::as_inverse_dynamics) | [`InverseDynamics`] | `M q̈ − Q` in one pass | `mass_matrix` and `forces` |
+//! | [`as_newton_diagonal`](DaeSystem::as_newton_diagonal) | [`NewtonDiagonal`] | per-coordinate springs and dampers in the Newton matrix | `M` alone |
+//! | [`as_newton_coupling`](DaeSystem::as_newton_coupling) | [`NewtonCoupling`] | forces coupling coordinates (contacts) in the Newton matrix | nothing added |
+//! | [`as_newton_update_limit`](DaeSystem::as_newton_update_limit) | [`NewtonUpdateLimit`] | shortened Newton corrections (a stiction band) | full corrections |
+//! | [`as_residual_jacobians`](DaeSystem::as_residual_jacobians) | [`ResidualJacobians`] | `∂r/∂q`, `∂r/∂q̇` (docs/sensitivities.md §2) | central differences |
+//! | [`as_unilateral_limits`](DaeSystem::as_unilateral_limits) | [`UnilateralLimits`] | gaps and impact laws (docs/step-control.md §4) | no events |
+//! | [`as_parameters`](DaeSystem::as_parameters) | [`Parameters`] | `∂r/∂p`, `∂Φ/∂p`, moving `p` (docs/sensitivities.md §3) | `P = 0` |
+//!
+//! Two properties with safe defaults remain plain answers, since no method stands behind them:
+//! [`DaeSystem::smooth_between_steps`] (the predictor's order) and
+//! [`Constraints::constraints_are_scleronomic`] (`Φ_t = 0` written by the integrator).
 
 use nalgebra::{DMatrix, DVector};
 
 use super::error::SystemError;
 
-/// The default of [`DaeSystem::parameter_difference_step`]: a step of 1e-3 in a parameter of natural
+/// The default of [`Parameters::parameter_difference_step`]: a step of 1e-3 in a parameter of natural
 /// scale 1. The 4-point central differences of whole computations (the consistent start, the
 /// velocity projection) then have a truncation error of ~ε⁴/30 ≈ 3e-14 relative.
 pub const PARAMETER_FD_STEP: f64 = 1e-3;
@@ -52,11 +57,11 @@ pub const PARAMETER_FD_STEP: f64 = 1e-3;
 /// A multibody system `M(q) q̈ + Φ_qᵀ λ = Q(t, q, q̇)`, `Φ(q, t) = 0`, as the HHT-I3 integrator needs it.
 ///
 /// Required methods: [`nq`](Self::nq), [`nv`](Self::nv), [`mass_matrix`](Self::mass_matrix),
-/// [`forces`](Self::forces). A tree (no constraints) needs nothing else. A system with constraint
-/// rows also implements [`n_constraints`](Self::n_constraints), [`constraints`](Self::constraints),
-/// [`constraint_jacobian`](Self::constraint_jacobian),
-/// [`constraint_acceleration_bias`](Self::constraint_acceleration_bias) and, when a row depends on
-/// time explicitly (drives), [`constraint_time_derivative`](Self::constraint_time_derivative).
+/// [`forces`](Self::forces). A tree (no constraints) with `nq == nv` needs nothing else. Everything
+/// else is an optional capability handed out by an `Option`-returning hook (the module doc's table):
+/// a system with constraint rows returns its [`Constraints`] from
+/// [`as_constraints`](Self::as_constraints), one with a quaternion base its [`PositionGroup`] from
+/// [`as_position_group`](Self::as_position_group).
 ///
 /// Methods take `&mut self` so that an implementation can keep its work buffers (a Pinocchio-style
 /// `Data`) inside. Within one Newton iteration the integrator evaluates everything it needs at one
@@ -68,71 +73,6 @@ pub trait DaeSystem {
 
     /// Number of velocity coordinates `nv` (length of `q̇`, `q̈`, `Q`; size of `M`).
     fn nv(&self) -> usize;
-
-    /// Number of constraint rows `m` (length of `Φ` and `λ`). Default 0 (a tree): then the integrator
-    /// never calls a constraint method and allocates no constraint storage.
-    fn n_constraints(&self) -> usize {
-        0
-    }
-
-    /// `out = q ⊕ dq`: the configuration reached from `q` by the tangent increment `dq`.
-    ///
-    /// - `q`: dim `nq`; `dq`: dim `nv`; `out`: dim `nq`, overwritten.
-    ///
-    /// Default: vector addition, valid when `nq == nv`. A floating base (quaternion) overrides it with
-    /// the exponential map on SE(3)/SO(3) and renormalises the quaternion.
-    fn integrate_position(
-        &self,
-        q: &DVector<f64>,
-        dq: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        if q.len() != dq.len() || out.len() != q.len() {
-            return Err(format!(
-                "default integrate_position needs nq == nv (got q {}, dq {}, out {}); a system with \
-                 nq != nv must implement integrate_position",
-                q.len(),
-                dq.len(),
-                out.len()
-            )
-            .into());
-        }
-        for i in 0..q.len() {
-            out[i] = q[i] + dq[i];
-        }
-        Ok(())
-    }
-
-    /// Whether [`DaeSystem::constraint_time_derivative`] writes `+0` into every row at every
-    /// `(q, t)` (no row depends on time explicitly); the integrator then writes those zeros
-    /// without asking. Default: `false`.
-    fn constraints_are_scleronomic(&self) -> bool {
-        false
-    }
-
-    /// Whether [`DaeSystem::position_scale`] is zero at every `q` (the Newton test weighs every
-    /// coordinate by the absolute tolerance alone); the integrator then need not ask for it at
-    /// every iteration. Default: `false`.
-    fn position_scale_is_zero(&self) -> bool {
-        false
-    }
-
-    /// Magnitude of each velocity coordinate's position, for the error weights of the Newton test
-    /// (`ewt_i = 1 / (reltol · scale_i + abstol)`).
-    ///
-    /// - `q`: dim `nq`; `out`: dim `nv`, overwritten with values ≥ 0.
-    ///
-    /// Default: `|q_i|` when `nq == nv`, otherwise 0 (absolute tolerance only). A floating base may
-    /// return `|x|, |y|, |z|` for its translation and 0 for its rotation.
-    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>) {
-        if q.len() == out.len() {
-            for i in 0..q.len() {
-                out[i] = q[i].abs();
-            }
-        } else {
-            out.fill(0.0);
-        }
-    }
 
     /// The joint-space mass matrix `M(q)` (symmetric positive definite).
     ///
@@ -155,6 +95,29 @@ pub trait DaeSystem {
         out: &mut DVector<f64>,
     ) -> Result<(), SystemError>;
 
+    /// The constraint rows `Φ(q, t) = 0`, when the system has any. Default `None`: a tree, `m = 0`,
+    /// and the integrator allocates no constraint storage. The answer must not change during a
+    /// run (the integrator is sized by it).
+    fn as_constraints(&mut self) -> Option<&mut dyn Constraints> {
+        None
+    }
+
+    /// The position update on a group, when `q ⊕ δ` is not plain vector addition (a floating
+    /// base's quaternion). Default `None`: `q ⊕ δ = q + δ`, `q₁ ⊖ q₀ = q₁ − q₀`, which needs
+    /// `nq == nv` (the consistent start checks it). Tangent perturbations then pass through the
+    /// position update unchanged.
+    fn as_position_group(&self) -> Option<&dyn PositionGroup> {
+        None
+    }
+
+    /// Magnitudes of the coordinates for the Newton test's error weights
+    /// (`ewt_i = 1 / (reltol · scale_i + abstol)`). Default: [`CoordinateMagnitude`] (`|q_i|`
+    /// when `nq == nv`, otherwise 0). `None`: every scale is zero (absolute tolerance only), and
+    /// the integrator asks for nothing.
+    fn as_position_scale(&self) -> Option<&dyn PositionScale> {
+        Some(&CoordinateMagnitude)
+    }
+
     /// The inverse-dynamics residual `M q̈ − Q`, when the system has one (one inverse-dynamics
     /// pass, e.g. RNEA, O(nv), instead of `mass_matrix` + `forces`, CRBA, O(nv²)); the Newton
     /// residual then uses it, and `M` is only evaluated when the iteration matrix is factorised.
@@ -164,28 +127,11 @@ pub trait DaeSystem {
         None
     }
 
-    /// The cheap diagonal parts of `−∂Q/∂q` and `−∂Q/∂q̇`: per velocity coordinate, the stiffness
-    /// `k_j ≥ 0` of springs (and penalty limits) and the damping `c_j ≥ 0` of dampers acting on that
-    /// coordinate alone. The modified Newton matrix adds `β'h² k_j + γ'h c_j` to `M_jj`; without them a
-    /// stiff spring on a light link makes the iteration diverge.
-    ///
-    /// - `t`: time, s; `q`: dim `nq`; `v`: dim `nv`;
-    /// - `stiffness_out`: dim `nv`, overwritten, N·m/rad or N/m;
-    /// - `damping_out`: dim `nv`, overwritten, N·m·s/rad or N·s/m.
-    ///
-    /// Default: zeros (no springs or dampers).
-    fn newton_diagonal(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        stiffness_out: &mut DVector<f64>,
-        damping_out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, q, v);
-        stiffness_out.fill(0.0);
-        damping_out.fill(0.0);
-        Ok(())
+    /// The per-coordinate springs and dampers of the modified Newton matrix, when the system has
+    /// any (springs, dampers, friction, limits) at the current state. Default `None`: the Newton
+    /// matrix is `M` alone (the same bits as adding a zero diagonal).
+    fn as_newton_diagonal(&mut self) -> Option<&mut dyn NewtonDiagonal> {
+        None
     }
 
     /// Which regime of its piecewise forces the system is in at `q` (`q`: dim `nq`), as a
@@ -209,40 +155,17 @@ pub trait DaeSystem {
         true
     }
 
-    /// Whether [`newton_diagonal`](Self::newton_diagonal) can be non-zero (springs, dampers,
-    /// friction, limits). Default `true`; a system that answers `false` is never asked for it and
-    /// its Newton matrix is `M` alone (the same bits as adding a zero diagonal).
-    fn provides_newton_diagonal(&self) -> bool {
-        true
+    /// The forces that couple coordinates in the modified Newton matrix (contacts), when any
+    /// act at the current state. Default `None`: nothing beside the diagonal.
+    fn as_newton_coupling(&mut self) -> Option<&mut dyn NewtonCoupling> {
+        None
     }
 
-    /// Whether [`newton_coupling`](Self::newton_coupling) adds anything. Default `false`.
-    fn provides_newton_coupling(&self) -> bool {
-        false
-    }
-
-    /// The parts of `−∂Q/∂q` and `−∂Q/∂q̇` that couple coordinates — forces acting on several
-    /// joints at once, such as contacts (`Jᵀ K J`, `Jᵀ C J`; docs/contacts.md §4) — which the
-    /// modified Newton matrix adds as `β'h² K + γ'h C` beside the diagonal of
-    /// [`newton_diagonal`](Self::newton_diagonal) (which must not contain them too).
-    ///
-    /// - `t`: s; `q`: dim `nq`; `v`: dim `nv`;
-    /// - `stiffness_out`, `damping_out`: `nv × nv`, overwritten (N·m/rad or N/m; N·m·s/rad or
-    ///   N·s/m per column).
-    ///
-    /// Only called when [`provides_newton_coupling`](Self::provides_newton_coupling) is `true`.
-    fn newton_coupling(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        stiffness_out: &mut DMatrix<f64>,
-        damping_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, q, v);
-        stiffness_out.fill(0.0);
-        damping_out.fill(0.0);
-        Ok(())
+    /// A limit on Newton corrections, when the system has a narrow regularised law active at the
+    /// current state (friction while a contact touches). Default `None`: full corrections, and a
+    /// system without such a law pays nothing.
+    fn as_newton_update_limit(&mut self) -> Option<&mut dyn NewtonUpdateLimit> {
+        None
     }
 
     /// A state check of the adaptive step (docs/step-control.md §3, docs/contacts.md §4): a value
@@ -262,24 +185,45 @@ pub trait DaeSystem {
         Ok(0.0)
     }
 
+    /// The unilateral limits `g_k(q) ≥ 0` the integrator watches for impacts
+    /// (docs/step-control.md §4). Default `None`: no events.
+    fn as_unilateral_limits(&mut self) -> Option<&mut dyn UnilateralLimits> {
+        None
+    }
+
+    /// The full Jacobians of the dynamics residual, when the system has them (what a full Newton
+    /// matrix and the forward sensitivities need). Default `None`: a user that needs them (the
+    /// forward sensitivities of [`HhtSensitivity`](super::HhtSensitivity)) then forms them by
+    /// central differences of the residual, `2 nv` evaluations each (docs/sensitivities.md §2), and
+    /// the integrator keeps to the diagonal Newton matrix.
+    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
+        None
+    }
+
+    /// The parameters the system can be differentiated by, for forward sensitivities
+    /// (docs/sensitivities.md §3). Default `None`: `P = 0`.
+    fn as_parameters(&mut self) -> Option<&mut dyn Parameters> {
+        None
+    }
+}
+
+/// The constraint rows of a system that has them: a [`DaeSystem`] offers them through
+/// [`DaeSystem::as_constraints`]. Required: the count, `Φ`, `Φ_q` and the acceleration bias; a
+/// row that depends on time explicitly (a drive) also needs
+/// [`constraint_time_derivative`](Self::constraint_time_derivative).
+pub trait Constraints {
+    /// Number of constraint rows `m` (length of `Φ` and `λ`).
+    fn n_constraints(&self) -> usize;
+
     /// The constraint values `Φ(q, t)`.
     ///
     /// - `t`: time, s; `q`: dim `nq`; `out`: dim `m`, overwritten (m or rad, per row).
-    ///
-    /// Default: nothing to do for `m = 0`; an error if a system declares rows without implementing it.
     fn constraints(
         &mut self,
         t: f64,
         q: &DVector<f64>,
         out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, q);
-        if out.is_empty() {
-            Ok(())
-        } else {
-            Err("constraints() is not implemented but n_constraints() > 0".into())
-        }
-    }
+    ) -> Result<(), SystemError>;
 
     /// The constraint Jacobian `Φ_q` along the tangent space (`Φ(q ⊕ δ) ≈ Φ + Φ_q δ`).
     ///
@@ -289,14 +233,7 @@ pub trait DaeSystem {
         t: f64,
         q: &DVector<f64>,
         out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, q);
-        if out.is_empty() {
-            Ok(())
-        } else {
-            Err("constraint_jacobian() is not implemented but n_constraints() > 0".into())
-        }
-    }
+    ) -> Result<(), SystemError>;
 
     /// `Φ(q, t)` and `Φ_q(q)` at one configuration, as [`constraints`](Self::constraints) and
     /// [`constraint_jacobian`](Self::constraint_jacobian) would give them (same bits); a system
@@ -314,15 +251,19 @@ pub trait DaeSystem {
         self.constraint_jacobian(t, q, phi_q)
     }
 
+    /// Whether [`constraint_time_derivative`](Self::constraint_time_derivative) writes `+0` into
+    /// every row at every `(q, t)` (no row depends on time explicitly); the integrator then writes
+    /// those zeros without asking. Default: `false`.
+    fn constraints_are_scleronomic(&self) -> bool {
+        false
+    }
+
     /// The explicit time derivative `Φ_t(q, t)` (rheonomic rows such as drives; velocity level:
     /// `Φ̇ = Φ_q q̇ + Φ_t`).
     ///
     /// - `t`: time, s; `q`: dim `nq`; `out`: dim `m`, overwritten.
     ///
     /// Default: zeros (scleronomic constraints).
-    ///
-    /// A system whose `Φ_t` is zero at every `(q, t)` says so with
-    /// [`DaeSystem::constraints_are_scleronomic`], and the integrator writes the zeros itself.
     fn constraint_time_derivative(
         &mut self,
         t: f64,
@@ -334,12 +275,159 @@ pub trait DaeSystem {
         Ok(())
     }
 
-    /// Number of unilateral limits `g_k(q) ≥ 0` the integrator watches for impacts
-    /// (docs/step-control.md §4). Default 0: the integrator then never calls [`event_gaps`](Self::event_gaps) or
-    /// [`apply_impact`](Self::apply_impact).
-    fn n_events(&self) -> usize {
-        0
+    /// The acceleration-level right-hand side `Φ_q q̈ = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt`, used once for
+    /// the consistent initial acceleration and multipliers.
+    ///
+    /// - `t`: time, s; `q`: dim `nq`; `v`: dim `nv`; `out`: dim `m`, overwritten.
+    fn constraint_acceleration_bias(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError>;
+}
+
+/// The position update of a system whose configurations form a group (a quaternion floating
+/// base): a [`DaeSystem`] offers it through [`DaeSystem::as_position_group`].
+pub trait PositionGroup {
+    /// `out = q ⊕ dq`: the configuration reached from `q` by the tangent increment `dq` (on
+    /// SE(3)/SO(3) the exponential map, with the quaternion renormalised).
+    ///
+    /// - `q`: dim `nq`; `dq`: dim `nv`; `out`: dim `nq`, overwritten.
+    fn integrate_position(
+        &self,
+        q: &DVector<f64>,
+        dq: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError>;
+
+    /// How a tangent perturbation passes through the position update `q⁺ = q ⊕ dq`
+    /// (docs/sensitivities.md §4): with `q` perturbed to `q ⊕ δq` and `dq` to `dq + δdq`,
+    ///
+    /// ```text
+    /// q⁺ is perturbed to q⁺ ⊕ (A δq + B δdq)       A = wrt_q_out, B = wrt_dq_out
+    /// ```
+    ///
+    /// (on SE(3) with `q ⊕ δ = q · Exp(δ)`: `A = Ad(Exp(−dq))`, `B` = the right Jacobian of `Exp` at
+    /// `dq`).
+    ///
+    /// - `q`: dim `nq`; `dq`: dim `nv`; `wrt_q_out`, `wrt_dq_out`: `nv × nv`, overwritten.
+    fn integrate_position_jacobians(
+        &self,
+        q: &DVector<f64>,
+        dq: &DVector<f64>,
+        wrt_q_out: &mut DMatrix<f64>,
+        wrt_dq_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError>;
+
+    /// `out = q1 ⊖ q0`: the tangent increment `δ` with `q0 ⊕ δ = q1` (the inverse of
+    /// [`integrate_position`](Self::integrate_position)); used to difference two configurations,
+    /// e.g. the consistent starts of two parameter values.
+    ///
+    /// - `q0`, `q1`: dim `nq`; `out`: dim `nv`, overwritten.
+    fn difference_position(
+        &self,
+        q0: &DVector<f64>,
+        q1: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError>;
+}
+
+/// The per-coordinate magnitudes of the Newton test: a [`DaeSystem`] offers them through
+/// [`DaeSystem::as_position_scale`].
+pub trait PositionScale {
+    /// Magnitude of each velocity coordinate's position, for the error weights of the Newton test
+    /// (`ewt_i = 1 / (reltol · scale_i + abstol)`).
+    ///
+    /// - `q`: dim `nq`; `out`: dim `nv`, overwritten with values ≥ 0.
+    ///
+    /// A floating base may return `|x|, |y|, |z|` for its translation and 0 for its rotation.
+    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>);
+}
+
+/// The default [`PositionScale`]: `|q_i|` when `nq == nv`, otherwise 0 (absolute tolerance only).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CoordinateMagnitude;
+
+impl PositionScale for CoordinateMagnitude {
+    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>) {
+        if q.len() == out.len() {
+            for i in 0..q.len() {
+                out[i] = q[i].abs();
+            }
+        } else {
+            out.fill(0.0);
+        }
     }
+}
+
+/// The cheap diagonal parts of `−∂Q/∂q` and `−∂Q/∂q̇`: a [`DaeSystem`] offers them through
+/// [`DaeSystem::as_newton_diagonal`].
+pub trait NewtonDiagonal {
+    /// Per velocity coordinate, the stiffness `k_j ≥ 0` of springs (and penalty limits) and the
+    /// damping `c_j ≥ 0` of dampers acting on that coordinate alone. The modified Newton matrix
+    /// adds `β'h² k_j + γ'h c_j` to `M_jj`; without them a stiff spring on a light link makes the
+    /// iteration diverge.
+    ///
+    /// - `t`: time, s; `q`: dim `nq`; `v`: dim `nv`;
+    /// - `stiffness_out`: dim `nv`, overwritten, N·m/rad or N/m;
+    /// - `damping_out`: dim `nv`, overwritten, N·m·s/rad or N·s/m.
+    fn newton_diagonal(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        stiffness_out: &mut DVector<f64>,
+        damping_out: &mut DVector<f64>,
+    ) -> Result<(), SystemError>;
+}
+
+/// The parts of `−∂Q/∂q` and `−∂Q/∂q̇` that couple coordinates: a [`DaeSystem`] offers them
+/// through [`DaeSystem::as_newton_coupling`].
+pub trait NewtonCoupling {
+    /// Forces acting on several joints at once, such as contacts (`Jᵀ K J`, `Jᵀ C J`;
+    /// docs/contacts.md §4), which the modified Newton matrix adds as `β'h² K + γ'h C` beside the
+    /// diagonal of [`NewtonDiagonal::newton_diagonal`] (which must not contain them too).
+    ///
+    /// - `t`: s; `q`: dim `nq`; `v`: dim `nv`;
+    /// - `stiffness_out`, `damping_out`: `nv × nv`, overwritten (N·m/rad or N/m; N·m·s/rad or
+    ///   N·s/m per column).
+    fn newton_coupling(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError>;
+}
+
+/// A limit on Newton corrections: a [`DaeSystem`] offers it through
+/// [`DaeSystem::as_newton_update_limit`] while a narrow regularised law is active.
+pub trait NewtonUpdateLimit {
+    /// The fraction in `(0, 1]` of a Newton correction to apply at the iterate `(q, v)` whose full
+    /// correction would change the velocity by `dv` (dim `nv`). For laws with a narrow transition,
+    /// such as regularised friction, whose slope changes by orders of magnitude within a small
+    /// velocity band: a full correction computed with a matrix from outside the band jumps across
+    /// it, and the iteration oscillates from one side to the other (docs/contacts.md §4, "Newton
+    /// across the stiction band").
+    ///
+    /// - `t`: time, s; `q`: dim `nq`; `v`: dim `nv`; `dv`: dim `nv`.
+    fn newton_update_fraction(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        dv: &DVector<f64>,
+    ) -> Result<f64, SystemError>;
+}
+
+/// Unilateral limits `g_k(q) ≥ 0` and their impact laws: a [`DaeSystem`] offers them through
+/// [`DaeSystem::as_unilateral_limits`].
+pub trait UnilateralLimits {
+    /// Number of unilateral limits the integrator watches for impacts (docs/step-control.md §4).
+    fn n_events(&self) -> usize;
 
     /// The gaps `g_k(q)` (allowed side `g ≥ 0`, m or rad) and their rates `ġ_k = ∂g_k/∂q · q̇` of
     /// every unilateral limit. A step that starts with `g_k ≥ 0` and ends with `g_k < 0`, crossing
@@ -354,10 +442,7 @@ pub trait DaeSystem {
         v: &DVector<f64>,
         gaps_out: &mut DVector<f64>,
         rates_out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, q, v, gaps_out, rates_out);
-        Err("event_gaps is not implemented but n_events() > 0".into())
-    }
+    ) -> Result<(), SystemError>;
 
     /// The impact law of limit `event` at the located contact state: moves `q` onto the limit
     /// (`g_event = 0`; a correction of rounding size) and replaces `v` by the post-impact velocity
@@ -371,99 +456,19 @@ pub trait DaeSystem {
         event: usize,
         q: &mut DVector<f64>,
         v: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, event, q, v);
-        Err("apply_impact is not implemented but n_events() > 0".into())
-    }
+    ) -> Result<(), SystemError>;
+}
 
-    /// The full Jacobians of the dynamics residual, when the system has them (what a full Newton
-    /// matrix and the forward sensitivities need). Default `None`: a user that needs them (the
-    /// forward sensitivities of [`HhtSensitivity`](super::HhtSensitivity)) then forms them by
-    /// central differences of the residual, `2 nv` evaluations each (docs/sensitivities.md §2), and
-    /// the integrator keeps to the diagonal Newton matrix.
-    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
-        None
-    }
-
-    /// Whether `q ⊕ δ` is plain vector addition (`nq == nv`, every coordinate additive), so that a
-    /// tangent perturbation passes through the position update unchanged. Default `nq == nv`, which
-    /// matches the default [`integrate_position`](Self::integrate_position); a system that
-    /// overrides `integrate_position` with a group update overrides this too (and
-    /// [`integrate_position_jacobians`](Self::integrate_position_jacobians)).
-    fn position_update_is_additive(&self) -> bool {
-        self.nq() == self.nv()
-    }
-
-    /// How a tangent perturbation passes through the position update `q⁺ = q ⊕ dq`
-    /// (docs/sensitivities.md §4): with `q` perturbed to `q ⊕ δq` and `dq` to `dq + δdq`,
-    ///
-    /// ```text
-    /// q⁺ is perturbed to q⁺ ⊕ (A δq + B δdq)       A = wrt_q_out, B = wrt_dq_out
-    /// ```
-    ///
-    /// (on SE(3) with `q ⊕ δ = q · Exp(δ)`: `A = Ad(Exp(−dq))`, `B` = the right Jacobian of `Exp` at
-    /// `dq`).
-    ///
-    /// - `q`: dim `nq`; `dq`: dim `nv`; `wrt_q_out`, `wrt_dq_out`: `nv × nv`, overwritten.
-    ///
-    /// Only called when [`position_update_is_additive`](Self::position_update_is_additive) is
-    /// `false`. Default: identities when `nq == nv`, an error otherwise.
-    fn integrate_position_jacobians(
-        &self,
-        q: &DVector<f64>,
-        dq: &DVector<f64>,
-        wrt_q_out: &mut DMatrix<f64>,
-        wrt_dq_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        if q.len() != dq.len() {
-            return Err(
-                "integrate_position_jacobians must be implemented by a system with nq != nv".into(),
-            );
-        }
-        wrt_q_out.fill_with_identity();
-        wrt_dq_out.fill_with_identity();
-        Ok(())
-    }
-
-    /// `out = q1 ⊖ q0`: the tangent increment `δ` with `q0 ⊕ δ = q1` (the inverse of
-    /// [`integrate_position`](Self::integrate_position)); used to difference two configurations,
-    /// e.g. the consistent starts of two parameter values.
-    ///
-    /// - `q0`, `q1`: dim `nq`; `out`: dim `nv`, overwritten.
-    ///
-    /// Default: `q1 − q0` when `nq == nv`, an error otherwise.
-    fn difference_position(
-        &self,
-        q0: &DVector<f64>,
-        q1: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        if q0.len() != out.len() || q1.len() != out.len() {
-            return Err(format!(
-                "default difference_position needs nq == nv (got q0 {}, q1 {}, out {}); a system \
-                 with nq != nv must implement difference_position",
-                q0.len(),
-                q1.len(),
-                out.len()
-            )
-            .into());
-        }
-        for i in 0..out.len() {
-            out[i] = q1[i] - q0[i];
-        }
-        Ok(())
-    }
-
-    /// Number of parameters `P` the system can be differentiated by (docs/sensitivities.md §3).
-    /// Default 0.
-    ///
-    /// Parameters are coordinates `p_k` of the system's own choosing, with one convention that
-    /// finite differences rely on: **a parameter's natural scale is 1** (its plausible range is about
-    /// `p_k ± 1`, as for the standard coordinate `ξ ∈ [−1, 1]` of docs/method.md §1), so that a step of
-    /// 1e-3 in `p_k` is a small relative change. The current values are `p = 0`.
-    fn n_parameters(&self) -> usize {
-        0
-    }
+/// The parameters a system can be differentiated by (docs/sensitivities.md §3): a [`DaeSystem`]
+/// offers them through [`DaeSystem::as_parameters`].
+///
+/// Parameters are coordinates `p_k` of the system's own choosing, with one convention that finite
+/// differences rely on: **a parameter's natural scale is 1** (its plausible range is about
+/// `p_k ± 1`, as for the standard coordinate `ξ ∈ [−1, 1]` of docs/method.md §1), so that a step of
+/// 1e-3 in `p_k` is a small relative change. The current values are `p = 0`.
+pub trait Parameters {
+    /// Number of parameters `P`.
+    fn n_parameters(&self) -> usize;
 
     /// The partial derivatives of the residual and of the constraints with respect to every
     /// parameter, at fixed `(t, q, q̇, q̈, λ)` (docs/sensitivities.md §3):
@@ -473,24 +478,14 @@ pub trait DaeSystem {
     /// constraints_out[:, k] = ∂Φ/∂p_k                        (m × P; m or rad per unit p_k)
     /// ```
     ///
-    /// - `t`: time, s; `q`: dim `nq`; `v`, `qdd`: dim `nv`; `lambda`: dim `m`; both outputs
-    ///   overwritten. Called with every parameter at its current value (no offset).
-    ///
-    /// Default: an error (no parameters).
-    #[allow(clippy::too_many_arguments)]
+    /// - `state`: the point; both outputs overwritten. Called with every parameter at its current
+    ///   value (no offset).
     fn parameter_jacobians(
         &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
+        state: &DaeState<'_>,
         dynamics_out: &mut DMatrix<f64>,
         constraints_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, q, v, qdd, lambda, dynamics_out, constraints_out);
-        Err("parameter_jacobians is not implemented by this system".into())
-    }
+    ) -> Result<(), SystemError>;
 
     /// A step in `p_k` for central differences of whole computations (the consistent start, the
     /// velocity projection; docs/sensitivities.md §5, §6): as large as the system's nonlinearity
@@ -508,57 +503,22 @@ pub trait DaeSystem {
     /// (docs/sensitivities.md §5, §6).
     ///
     /// - `k`: `0..n_parameters()`; `offset`: in units of `p_k` (natural scale 1).
-    ///
-    /// Default: an error (no parameters).
-    fn set_parameter_offset(&mut self, k: usize, offset: f64) -> Result<(), SystemError> {
-        let _ = (k, offset);
-        Err("set_parameter_offset is not implemented by this system".into())
-    }
+    fn set_parameter_offset(&mut self, k: usize, offset: f64) -> Result<(), SystemError>;
+}
 
-    /// Whether [`DaeSystem::newton_update_fraction`] may shorten Newton corrections at the current
-    /// state. Default `false`; when `false` the integrator never calls it, so a system without a
-    /// narrow regularised law pays nothing and its iterates are unchanged.
-    fn limits_newton_updates(&self) -> bool {
-        false
-    }
-
-    /// The fraction in `(0, 1]` of a Newton correction to apply at the iterate `(q, v)` whose full
-    /// correction would change the velocity by `dv` (dim `nv`). For laws with a narrow transition,
-    /// such as regularised friction, whose slope changes by orders of magnitude within a small
-    /// velocity band: a full correction computed with a matrix from outside the band jumps across
-    /// it, and the iteration oscillates from one side to the other (docs/contacts.md §4, "Newton
-    /// across the stiction band"). Default 1 (the full correction).
-    ///
-    /// - `t`: time, s; `q`: dim `nq`; `v`: dim `nv`; `dv`: dim `nv`.
-    fn newton_update_fraction(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        dv: &DVector<f64>,
-    ) -> Result<f64, SystemError> {
-        let _ = (t, q, v, dv);
-        Ok(1.0)
-    }
-
-    /// The acceleration-level right-hand side `Φ_q q̈ = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt`, used once for
-    /// the consistent initial acceleration and multipliers.
-    ///
-    /// - `t`: time, s; `q`: dim `nq`; `v`: dim `nv`; `out`: dim `m`, overwritten.
-    fn constraint_acceleration_bias(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        let _ = (t, q, v);
-        if out.is_empty() {
-            Ok(())
-        } else {
-            Err("constraint_acceleration_bias() is not implemented but n_constraints() > 0".into())
-        }
-    }
+/// A point of the DAE at which a residual's derivatives are taken: `(t, q, q̇, q̈, λ)`.
+#[derive(Debug, Clone, Copy)]
+pub struct DaeState<'a> {
+    /// Time, s.
+    pub t: f64,
+    /// Positions, dim `nq`.
+    pub q: &'a DVector<f64>,
+    /// Velocities, dim `nv`.
+    pub v: &'a DVector<f64>,
+    /// Accelerations, dim `nv`.
+    pub qdd: &'a DVector<f64>,
+    /// Multipliers, dim `m`.
+    pub lambda: &'a DVector<f64>,
 }
 
 /// The inverse-dynamics residual of a system that has one: a [`DaeSystem`] offers it through
@@ -605,19 +565,14 @@ pub trait ResidualJacobians {
     ///
     /// `∂/∂q` is taken along the tangent space (column `i`: the derivative along `q ⊕ ε e_i`). These
     /// are what a full Newton matrix `M + β'h² K_t + γ'h D_t` needs; the diagonal of
-    /// [`DaeSystem::newton_diagonal`] is the cheap part of them.
+    /// [`NewtonDiagonal::newton_diagonal`] is the cheap part of them.
     ///
-    /// - `t`: time, s; `q`: dim `nq`; `v`, `qdd`: dim `nv`; `lambda`: dim `m`;
+    /// - `state`: the point (`q`: dim `nq`; `v`, `qdd`: dim `nv`; `lambda`: dim `m`);
     /// - `stiffness_out`: `nv × nv`, overwritten (N·m/rad or N/m per column);
     /// - `damping_out`: `nv × nv`, overwritten (N·m·s/rad or N·s/m per column).
-    #[allow(clippy::too_many_arguments)]
     fn residual_jacobians(
         &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
+        state: &DaeState<'_>,
         stiffness_out: &mut DMatrix<f64>,
         damping_out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError>;

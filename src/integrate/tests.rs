@@ -267,6 +267,12 @@ impl DaeSystem for Oscillator {
         out[0] = -self.stiffness * q[0] - self.damping * v[0];
         Ok(())
     }
+    fn as_newton_diagonal(&mut self) -> Option<&mut dyn NewtonDiagonal> {
+        Some(self)
+    }
+}
+
+impl NewtonDiagonal for Oscillator {
     fn newton_diagonal(
         &mut self,
         _t: f64,
@@ -333,12 +339,6 @@ impl DaeSystem for CartesianPendulum {
     fn nv(&self) -> usize {
         2
     }
-    fn n_constraints(&self) -> usize {
-        match self.variant {
-            PendulumVariant::Plain => 1,
-            _ => 2,
-        }
-    }
     fn mass_matrix(
         &mut self,
         _t: f64,
@@ -359,6 +359,18 @@ impl DaeSystem for CartesianPendulum {
         out[0] = 0.0;
         out[1] = -self.mass_kg * self.gravity;
         Ok(())
+    }
+    fn as_constraints(&mut self) -> Option<&mut dyn Constraints> {
+        Some(self)
+    }
+}
+
+impl Constraints for CartesianPendulum {
+    fn n_constraints(&self) -> usize {
+        match self.variant {
+            PendulumVariant::Plain => 1,
+            _ => 2,
+        }
     }
     fn constraints(
         &mut self,
@@ -443,9 +455,6 @@ impl DaeSystem for Prescribed {
     fn nv(&self) -> usize {
         1
     }
-    fn n_constraints(&self) -> usize {
-        1
-    }
     fn mass_matrix(
         &mut self,
         _t: f64,
@@ -464,6 +473,15 @@ impl DaeSystem for Prescribed {
     ) -> Result<(), SystemError> {
         out[0] = -self.stiffness * q[0] - self.damping * v[0];
         Ok(())
+    }
+    fn as_constraints(&mut self) -> Option<&mut dyn Constraints> {
+        Some(self)
+    }
+}
+
+impl Constraints for Prescribed {
+    fn n_constraints(&self) -> usize {
+        1
     }
     fn constraints(
         &mut self,
@@ -516,22 +534,6 @@ impl DaeSystem for Rotor {
     fn nv(&self) -> usize {
         1
     }
-    fn integrate_position(
-        &self,
-        q: &DVector<f64>,
-        dq: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        let (c, s) = (dq[0].cos(), dq[0].sin());
-        let (x, y) = (q[0] * c - q[1] * s, q[0] * s + q[1] * c);
-        let n = (x * x + y * y).sqrt();
-        out[0] = x / n;
-        out[1] = y / n;
-        Ok(())
-    }
-    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>) {
-        out[0] = q[1].atan2(q[0]).abs();
-    }
     fn mass_matrix(
         &mut self,
         _t: f64,
@@ -550,6 +552,57 @@ impl DaeSystem for Rotor {
     ) -> Result<(), SystemError> {
         out[0] = -3.0 * q[1];
         Ok(())
+    }
+    fn as_position_group(&self) -> Option<&dyn PositionGroup> {
+        Some(self)
+    }
+    fn as_position_scale(&self) -> Option<&dyn PositionScale> {
+        Some(self)
+    }
+}
+
+impl PositionGroup for Rotor {
+    fn integrate_position(
+        &self,
+        q: &DVector<f64>,
+        dq: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        let (c, s) = (dq[0].cos(), dq[0].sin());
+        let (x, y) = (q[0] * c - q[1] * s, q[0] * s + q[1] * c);
+        let n = (x * x + y * y).sqrt();
+        out[0] = x / n;
+        out[1] = y / n;
+        Ok(())
+    }
+    /// The rotation group of the plane is commutative: a perturbation passes through unchanged.
+    fn integrate_position_jacobians(
+        &self,
+        _q: &DVector<f64>,
+        _dq: &DVector<f64>,
+        wrt_q_out: &mut DMatrix<f64>,
+        wrt_dq_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        wrt_q_out.fill_with_identity();
+        wrt_dq_out.fill_with_identity();
+        Ok(())
+    }
+    /// The angle of `q0⁻¹ q1`.
+    fn difference_position(
+        &self,
+        q0: &DVector<f64>,
+        q1: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        let (x, y) = (q0[0] * q1[0] + q0[1] * q1[1], q0[0] * q1[1] - q0[1] * q1[0]);
+        out[0] = y.atan2(x);
+        Ok(())
+    }
+}
+
+impl PositionScale for Rotor {
+    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>) {
+        out[0] = q[1].atan2(q[0]).abs();
     }
 }
 

@@ -409,10 +409,10 @@ impl ParameterDirections {
         refresh.apply(model);
     }
 
-    /// Moves `model` and `environment` to `p = offset · e_k` (see [`DaeSystem::set_parameter_offset`]); `offset = 0`
+    /// Moves `model` and `environment` to `p = offset · e_k` (see [`Parameters::set_parameter_offset`]); `offset = 0`
     /// restores the values exactly. Each call first undoes the previous offset.
     ///
-    /// [`DaeSystem::set_parameter_offset`]: crate::integrate::DaeSystem::set_parameter_offset
+    /// [`Parameters::set_parameter_offset`]: crate::integrate::Parameters::set_parameter_offset
     pub fn set_offset(
         &mut self,
         model: &mut Model,

@@ -23,7 +23,7 @@ use super::{Recorder, RobotSystem};
 use crate::dynamics::{forward_kinematics, link_origin_jacobian, world_from_link};
 use crate::environment::Environment;
 use crate::integrate::{
-    DaeSystem, HhtIntegrator, HhtSensitivity, HhtSettings, HhtStats, SensitivityError,
+    HhtIntegrator, HhtSensitivity, HhtSettings, HhtStats, Parameters, SensitivityError,
     SensitivityStats,
 };
 use crate::model::{JointKind, Model};

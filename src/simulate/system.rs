@@ -8,7 +8,11 @@ use crate::constraints::ConstraintSet;
 use crate::dynamics::{crba, nonlinear_effects, rnea, rnea_at_placements, Data};
 use crate::effects::Effects;
 use crate::environment::Environment;
-use crate::integrate::{DaeSystem, InverseDynamics, ResidualJacobians, SystemError};
+use crate::integrate::{
+    Constraints, DaeState, DaeSystem, InverseDynamics, NewtonCoupling, NewtonDiagonal,
+    NewtonUpdateLimit, Parameters, PositionGroup, PositionScale, ResidualJacobians, SystemError,
+    UnilateralLimits,
+};
 use crate::model::{JointKind, Model};
 use crate::params::ParamTarget;
 use crate::scene::Scene;
@@ -36,7 +40,7 @@ pub struct RobotSystem {
     pub constraints: ConstraintSet,
     has_floating_joint: bool,
     /// Some coordinate is a translation (a prismatic joint or a floating base): the Newton test's
-    /// position scale is not all zeros ([`DaeSystem::position_scale`]).
+    /// position scale is not all zeros ([`PositionScale::position_scale`]).
     has_translation_coordinate: bool,
     /// Adaptive step: the largest growth of the deepest contact penetration over one sub-step, m
     /// (∞ without contacts or with the fixed step).
@@ -177,7 +181,7 @@ impl RobotSystem {
         }
     }
 
-    /// [`DaeSystem::integrate_position`] of a model with a floating joint (`q ⊕ δ = q · exp(δ)` for
+    /// [`PositionGroup::integrate_position`] of a model with a floating joint (`q ⊕ δ = q · exp(δ)` for
     /// it, `q + δ` for the others), kept out of line so that the common case stays small.
     #[inline(never)]
     fn integrate_position_with_floating_joint(&self, q: &[f64], dq: &[f64], out: &mut [f64]) {
@@ -337,136 +341,6 @@ impl DaeSystem for RobotSystem {
         self.model.nv
     }
 
-    fn n_constraints(&self) -> usize {
-        self.constraints.len()
-    }
-
-    fn constraints(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        self.constraints
-            .evaluate(&self.model, &mut self.data, t, q.as_slice(), out);
-        Ok(())
-    }
-
-    fn constraint_jacobian(
-        &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        self.constraints
-            .jacobian(&self.model, &mut self.data, q.as_slice(), out);
-        Ok(())
-    }
-
-    fn constraints_and_jacobian(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        phi: &mut DVector<f64>,
-        phi_q: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        self.constraints.evaluate_with_jacobian(
-            &self.model,
-            &mut self.data,
-            t,
-            q.as_slice(),
-            phi,
-            phi_q,
-        );
-        Ok(())
-    }
-
-    fn constraint_time_derivative(
-        &mut self,
-        t: f64,
-        _q: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        self.constraints.time_derivative(t, out);
-        Ok(())
-    }
-
-    fn constraint_acceleration_bias(
-        &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        self.constraints.acceleration_bias(
-            &self.model,
-            &mut self.data,
-            t,
-            q.as_slice(),
-            v.as_slice(),
-            out,
-        );
-        Ok(())
-    }
-
-    fn integrate_position(
-        &self,
-        q: &DVector<f64>,
-        dq: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        if !self.has_floating_joint {
-            for ((x, q), dq) in out
-                .as_mut_slice()
-                .iter_mut()
-                .zip(q.as_slice())
-                .zip(dq.as_slice())
-            {
-                *x = q + dq;
-            }
-            return Ok(());
-        }
-        self.integrate_position_with_floating_joint(
-            q.as_slice(),
-            dq.as_slice(),
-            out.as_mut_slice(),
-        );
-        Ok(())
-    }
-
-    /// Without translation coordinates every entry of [`DaeSystem::position_scale`] is zero.
-    fn position_scale_is_zero(&self) -> bool {
-        !self.has_translation_coordinate
-    }
-
-    fn constraints_are_scleronomic(&self) -> bool {
-        self.constraints.is_scleronomic()
-    }
-
-    /// Scale of each coordinate for the Newton test's relative tolerance. An angle's size says
-    /// nothing about its precision (a spinning wrist reaches 50 rad; `reltol · 50` would loosen the
-    /// test 10⁵-fold), so revolute joints and base rotations use the absolute tolerance alone;
-    /// translations scale with their size.
-    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>) {
-        if !self.has_translation_coordinate {
-            out.as_mut_slice().fill(0.0);
-            return;
-        }
-        for joint in &self.model.joints {
-            let (qi, vi) = (joint.q_index, joint.v_index);
-            if joint.kind == JointKind::Floating {
-                for k in 0..3 {
-                    out[vi + k] = q[qi + k].abs();
-                    out[vi + 3 + k] = 0.0;
-                }
-            } else if joint.kind == JointKind::Prismatic {
-                out[vi] = q[qi].abs();
-            } else {
-                out[vi] = 0.0;
-            }
-        }
-    }
-
     fn mass_matrix(
         &mut self,
         _t: f64,
@@ -512,87 +386,13 @@ impl DaeSystem for RobotSystem {
         Some(self)
     }
 
-    fn provides_newton_diagonal(&self) -> bool {
-        self.effects.has_newton_diagonal()
-    }
-
-    fn newton_diagonal(
-        &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        stiffness_out: &mut DVector<f64>,
-        damping_out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        stiffness_out.as_mut_slice().fill(0.0);
-        damping_out.as_mut_slice().fill(0.0);
-        self.effects.add_newton_diagonal(
-            &self.model,
-            q.as_slice(),
-            v.as_slice(),
-            stiffness_out.as_mut_slice(),
-            damping_out.as_mut_slice(),
-        );
-        Ok(())
-    }
-
     fn newton_regime(&self, q: &DVector<f64>) -> u64 {
         self.effects.newton_regime(&self.model, q.as_slice())
-    }
-
-    /// Contacts, and only while some pair is near (passed its bounding-sphere test at the last force
-    /// evaluation): otherwise the coupling is zero, and not adding it keeps the Newton matrix
-    /// bitwise that of the same scene without contacts (docs/contacts.md §4).
-    fn provides_newton_coupling(&self) -> bool {
-        self.effects.has_contact_coupling()
     }
 
     /// Not with contacts: touch-downs and stick-slip transitions are kinks within a step.
     fn smooth_between_steps(&self) -> bool {
         !self.effects.has_contacts()
-    }
-
-    /// Contacts: `Jᵀ K J` and `Jᵀ C J` over the touching pairs (docs/contacts.md §4).
-    fn newton_coupling(
-        &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        stiffness_out: &mut DMatrix<f64>,
-        damping_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        stiffness_out.fill(0.0);
-        damping_out.fill(0.0);
-        self.effects.add_newton_matrices(
-            &self.model,
-            &self.environment,
-            &mut self.data,
-            (q.as_slice(), v.as_slice()),
-            stiffness_out,
-            damping_out,
-        );
-        Ok(())
-    }
-
-    /// Contacts with friction, while one touches (docs/contacts.md §4, "Newton across the
-    /// stiction band").
-    fn limits_newton_updates(&self) -> bool {
-        self.effects.limits_newton_updates()
-    }
-
-    fn newton_update_fraction(
-        &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        dv: &DVector<f64>,
-    ) -> Result<f64, SystemError> {
-        Ok(self.effects.newton_update_fraction(
-            &self.environment,
-            q.as_slice(),
-            v.as_slice(),
-            dv.as_slice(),
-        ))
     }
 
     /// How much deeper the deepest contact got over the sub-step, over `[scene.contact]
@@ -616,6 +416,334 @@ impl DaeSystem for RobotSystem {
         Ok((after - before).max(0.0) / self.max_penetration_m)
     }
 
+    /// Not with contacts: their Jacobians here would leave out the geometric terms (the normal
+    /// and the contact point move with `q`; docs/contacts.md §4), so users such as the forward
+    /// sensitivities form the exact Jacobians by central differences of the residual instead.
+    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
+        if !self.effects.has_contacts() {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
+    fn as_constraints(&mut self) -> Option<&mut dyn Constraints> {
+        Some(self)
+    }
+
+    /// A floating joint's quaternion: `q ⊕ δ = q · Exp(δ)` on SE(3); without one, addition.
+    fn as_position_group(&self) -> Option<&dyn PositionGroup> {
+        if self.has_floating_joint {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
+    /// Without translation coordinates every scale is zero (`None`).
+    fn as_position_scale(&self) -> Option<&dyn PositionScale> {
+        if self.has_translation_coordinate {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
+    fn as_newton_diagonal(&mut self) -> Option<&mut dyn NewtonDiagonal> {
+        if self.effects.has_newton_diagonal() {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
+    /// Contacts, and only while some pair is near (passed its bounding-sphere test at the last force
+    /// evaluation): otherwise the coupling is zero, and not adding it keeps the Newton matrix
+    /// bitwise that of the same scene without contacts (docs/contacts.md §4).
+    fn as_newton_coupling(&mut self) -> Option<&mut dyn NewtonCoupling> {
+        if self.effects.has_contact_coupling() {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
+    /// Contacts with friction, while one touches (docs/contacts.md §4, "Newton across the
+    /// stiction band").
+    fn as_newton_update_limit(&mut self) -> Option<&mut dyn NewtonUpdateLimit> {
+        if self.effects.limits_newton_updates() {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
+    fn as_unilateral_limits(&mut self) -> Option<&mut dyn UnilateralLimits> {
+        Some(self)
+    }
+
+    fn as_parameters(&mut self) -> Option<&mut dyn Parameters> {
+        Some(self)
+    }
+}
+
+impl Constraints for RobotSystem {
+    fn n_constraints(&self) -> usize {
+        self.constraints.len()
+    }
+
+    fn constraints(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints
+            .evaluate(&self.model, &mut self.data, t, q.as_slice(), out);
+        Ok(())
+    }
+
+    fn constraint_jacobian(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints
+            .jacobian(&self.model, &mut self.data, q.as_slice(), out);
+        Ok(())
+    }
+
+    fn constraints_and_jacobian(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        phi: &mut DVector<f64>,
+        phi_q: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints.evaluate_with_jacobian(
+            &self.model,
+            &mut self.data,
+            t,
+            q.as_slice(),
+            phi,
+            phi_q,
+        );
+        Ok(())
+    }
+
+    fn constraints_are_scleronomic(&self) -> bool {
+        self.constraints.is_scleronomic()
+    }
+
+    fn constraint_time_derivative(
+        &mut self,
+        t: f64,
+        _q: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints.time_derivative(t, out);
+        Ok(())
+    }
+
+    fn constraint_acceleration_bias(
+        &mut self,
+        t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        self.constraints.acceleration_bias(
+            &self.model,
+            &mut self.data,
+            t,
+            q.as_slice(),
+            v.as_slice(),
+            out,
+        );
+        Ok(())
+    }
+}
+
+impl PositionGroup for RobotSystem {
+    fn integrate_position(
+        &self,
+        q: &DVector<f64>,
+        dq: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        if !self.has_floating_joint {
+            for ((x, q), dq) in out
+                .as_mut_slice()
+                .iter_mut()
+                .zip(q.as_slice())
+                .zip(dq.as_slice())
+            {
+                *x = q + dq;
+            }
+            return Ok(());
+        }
+        self.integrate_position_with_floating_joint(
+            q.as_slice(),
+            dq.as_slice(),
+            out.as_mut_slice(),
+        );
+        Ok(())
+    }
+
+    /// Identity blocks for 1-dof joints; for a floating joint (`q ⊕ δ = q · Exp(δ)` on SE(3)) the
+    /// blocks `Ad(Exp(−dq))` and `J_r(dq)` (docs/sensitivities.md §4).
+    fn integrate_position_jacobians(
+        &self,
+        _q: &DVector<f64>,
+        dq: &DVector<f64>,
+        wrt_q_out: &mut DMatrix<f64>,
+        wrt_dq_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        wrt_q_out.fill_with_identity();
+        wrt_dq_out.fill_with_identity();
+        for joint in &self.model.joints {
+            if joint.kind != JointKind::Floating {
+                continue;
+            }
+            let vi = joint.v_index;
+            let linear = Vec3::new(dq[vi], dq[vi + 1], dq[vi + 2]);
+            let angular = Vec3::new(dq[vi + 3], dq[vi + 4], dq[vi + 5]);
+            let (adjoint, jacobian) = lie::exp_jacobians(&linear, &angular)
+                .map_err(|message| format!("joint '{}': {message}", joint.name))?;
+            wrt_q_out.view_mut((vi, vi), (6, 6)).copy_from(&adjoint);
+            wrt_dq_out.view_mut((vi, vi), (6, 6)).copy_from(&jacobian);
+        }
+        Ok(())
+    }
+
+    /// `q1 ⊖ q0`: differences for 1-dof joints, the SE(3) logarithm of `q0⁻¹ q1` for a floating
+    /// joint (docs/sensitivities.md §4).
+    fn difference_position(
+        &self,
+        q0: &DVector<f64>,
+        q1: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        for joint in &self.model.joints {
+            let (qi, vi) = (joint.q_index, joint.v_index);
+            if joint.kind != JointKind::Floating {
+                out[vi] = q1[qi] - q0[qi];
+                continue;
+            }
+            let pose = |q: &DVector<f64>| {
+                (
+                    Vec3::new(q[qi], q[qi + 1], q[qi + 2]),
+                    unit_quaternion_from_xyzw(&q.as_slice()[qi + 3..qi + 7]),
+                )
+            };
+            let ((p0, r0), (p1, r1)) = (pose(q0), pose(q1));
+            let (linear, angular) = lie::log_between(&p0, &r0, &p1, &r1).ok_or_else(|| {
+                format!(
+                    "joint '{}': the two configurations differ by a rotation whose SE(3) logarithm \
+                     is not defined",
+                    joint.name
+                )
+            })?;
+            for k in 0..3 {
+                out[vi + k] = linear[k];
+                out[vi + 3 + k] = angular[k];
+            }
+        }
+        Ok(())
+    }
+}
+
+impl PositionScale for RobotSystem {
+    /// Scale of each coordinate for the Newton test's relative tolerance. An angle's size says
+    /// nothing about its precision (a spinning wrist reaches 50 rad; `reltol · 50` would loosen the
+    /// test 10⁵-fold), so revolute joints and base rotations use the absolute tolerance alone;
+    /// translations scale with their size.
+    fn position_scale(&self, q: &DVector<f64>, out: &mut DVector<f64>) {
+        if !self.has_translation_coordinate {
+            out.as_mut_slice().fill(0.0);
+            return;
+        }
+        for joint in &self.model.joints {
+            let (qi, vi) = (joint.q_index, joint.v_index);
+            if joint.kind == JointKind::Floating {
+                for k in 0..3 {
+                    out[vi + k] = q[qi + k].abs();
+                    out[vi + 3 + k] = 0.0;
+                }
+            } else if joint.kind == JointKind::Prismatic {
+                out[vi] = q[qi].abs();
+            } else {
+                out[vi] = 0.0;
+            }
+        }
+    }
+}
+
+impl NewtonDiagonal for RobotSystem {
+    fn newton_diagonal(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        stiffness_out: &mut DVector<f64>,
+        damping_out: &mut DVector<f64>,
+    ) -> Result<(), SystemError> {
+        stiffness_out.as_mut_slice().fill(0.0);
+        damping_out.as_mut_slice().fill(0.0);
+        self.effects.add_newton_diagonal(
+            &self.model,
+            q.as_slice(),
+            v.as_slice(),
+            stiffness_out.as_mut_slice(),
+            damping_out.as_mut_slice(),
+        );
+        Ok(())
+    }
+}
+
+impl NewtonCoupling for RobotSystem {
+    /// Contacts: `Jᵀ K J` and `Jᵀ C J` over the touching pairs (docs/contacts.md §4).
+    fn newton_coupling(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        stiffness_out: &mut DMatrix<f64>,
+        damping_out: &mut DMatrix<f64>,
+    ) -> Result<(), SystemError> {
+        stiffness_out.fill(0.0);
+        damping_out.fill(0.0);
+        self.effects.add_newton_matrices(
+            &self.model,
+            &self.environment,
+            &mut self.data,
+            (q.as_slice(), v.as_slice()),
+            stiffness_out,
+            damping_out,
+        );
+        Ok(())
+    }
+}
+
+impl NewtonUpdateLimit for RobotSystem {
+    fn newton_update_fraction(
+        &mut self,
+        _t: f64,
+        q: &DVector<f64>,
+        v: &DVector<f64>,
+        dv: &DVector<f64>,
+    ) -> Result<f64, SystemError> {
+        Ok(self.effects.newton_update_fraction(
+            &self.environment,
+            q.as_slice(),
+            v.as_slice(),
+            dv.as_slice(),
+        ))
+    }
+}
+
+impl UnilateralLimits for RobotSystem {
     fn n_events(&self) -> usize {
         self.effects.n_limit_events()
     }
@@ -733,84 +861,9 @@ impl DaeSystem for RobotSystem {
         q[limit.q_index] = limit.limit;
         Ok(())
     }
+}
 
-    /// Not with contacts: their Jacobians here would leave out the geometric terms (the normal
-    /// and the contact point move with `q`; docs/contacts.md §4), so users such as the forward
-    /// sensitivities form the exact Jacobians by central differences of the residual instead.
-    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
-        if !self.effects.has_contacts() {
-            Some(self)
-        } else {
-            None
-        }
-    }
-
-    fn position_update_is_additive(&self) -> bool {
-        !self.has_floating_joint
-    }
-
-    /// Identity blocks for 1-dof joints; for a floating joint (`q ⊕ δ = q · Exp(δ)` on SE(3)) the
-    /// blocks `Ad(Exp(−dq))` and `J_r(dq)` (docs/sensitivities.md §4).
-    fn integrate_position_jacobians(
-        &self,
-        _q: &DVector<f64>,
-        dq: &DVector<f64>,
-        wrt_q_out: &mut DMatrix<f64>,
-        wrt_dq_out: &mut DMatrix<f64>,
-    ) -> Result<(), SystemError> {
-        wrt_q_out.fill_with_identity();
-        wrt_dq_out.fill_with_identity();
-        for joint in &self.model.joints {
-            if joint.kind != JointKind::Floating {
-                continue;
-            }
-            let vi = joint.v_index;
-            let linear = Vec3::new(dq[vi], dq[vi + 1], dq[vi + 2]);
-            let angular = Vec3::new(dq[vi + 3], dq[vi + 4], dq[vi + 5]);
-            let (adjoint, jacobian) = lie::exp_jacobians(&linear, &angular)
-                .map_err(|message| format!("joint '{}': {message}", joint.name))?;
-            wrt_q_out.view_mut((vi, vi), (6, 6)).copy_from(&adjoint);
-            wrt_dq_out.view_mut((vi, vi), (6, 6)).copy_from(&jacobian);
-        }
-        Ok(())
-    }
-
-    /// `q1 ⊖ q0`: differences for 1-dof joints, the SE(3) logarithm of `q0⁻¹ q1` for a floating
-    /// joint (docs/sensitivities.md §4).
-    fn difference_position(
-        &self,
-        q0: &DVector<f64>,
-        q1: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<(), SystemError> {
-        for joint in &self.model.joints {
-            let (qi, vi) = (joint.q_index, joint.v_index);
-            if joint.kind != JointKind::Floating {
-                out[vi] = q1[qi] - q0[qi];
-                continue;
-            }
-            let pose = |q: &DVector<f64>| {
-                (
-                    Vec3::new(q[qi], q[qi + 1], q[qi + 2]),
-                    unit_quaternion_from_xyzw(&q.as_slice()[qi + 3..qi + 7]),
-                )
-            };
-            let ((p0, r0), (p1, r1)) = (pose(q0), pose(q1));
-            let (linear, angular) = lie::log_between(&p0, &r0, &p1, &r1).ok_or_else(|| {
-                format!(
-                    "joint '{}': the two configurations differ by a rotation whose SE(3) logarithm \
-                     is not defined",
-                    joint.name
-                )
-            })?;
-            for k in 0..3 {
-                out[vi + k] = linear[k];
-                out[vi + 3 + k] = angular[k];
-            }
-        }
-        Ok(())
-    }
-
+impl Parameters for RobotSystem {
     fn n_parameters(&self) -> usize {
         self.parameters.len()
     }
@@ -819,14 +872,17 @@ impl DaeSystem for RobotSystem {
     /// the residual with the model moved (docs/sensitivities.md §3).
     fn parameter_jacobians(
         &mut self,
-        t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
+        state: &DaeState<'_>,
         dynamics_out: &mut DMatrix<f64>,
         constraints_out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError> {
+        let DaeState {
+            t,
+            q,
+            v,
+            qdd,
+            lambda,
+        } = *state;
         self.parameters.jacobians(
             &mut self.model,
             &mut self.environment,

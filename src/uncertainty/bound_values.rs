@@ -6,8 +6,9 @@
 //! — not only the mass matrix that turned non-finite downstream.
 
 use super::consistency::inertia_about_com_in_link;
+use super::dimension::{Binding, DimensionKind};
 use super::error::{BoundValueSource, UncertaintyError};
-use super::space::{quoted_excerpt, Binding, DimensionKind, ParameterSpace};
+use super::space::{quoted_excerpt, ParameterSpace};
 use crate::environment::Environment;
 use crate::model::{check_inertia, Model};
 use crate::params::{self, ParamTarget};

@@ -30,12 +30,24 @@
 //! Merged bodies are not checked separately: a sum of physical rigid-body inertias is physical, so
 //! a body whose links all pass passes too.
 
+use super::dimension::{nominal_xi, Binding, Dimension, DimensionKind, Group};
 use super::error::UncertaintyError;
-use super::space::{nominal_xi, Binding, BoxCheckSummary, Dimension, DimensionKind, Group};
 use crate::model::{check_inertia, InertialSpec, Model};
 use crate::params::{self, ParamTarget};
 use crate::sidecar::key_label;
 use crate::spatial::{rotation_from_rpy, Mat3};
+
+/// What the box check visited (see [`ParameterSpace::box_check`](super::ParameterSpace::box_check)).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BoxCheckSummary {
+    /// Links whose inertia tensor some dimension moves and that were checked.
+    pub links: usize,
+    /// Inertia tensors evaluated over those links (corners, plus grid points for nonlinear
+    /// bindings): with only affine dependence, `Σ_links 2^(dimensions moving the link)`.
+    pub inertia_points: usize,
+    /// Points at which `[bind]` values were validated.
+    pub binding_points: usize,
+}
 
 /// Grid points per dimension of the dense check of nonlinear bindings (−1, −½, 0, ½, 1).
 pub const DENSE_CHECK_POINTS_PER_DIMENSION: usize = 5;

@@ -41,19 +41,19 @@
 
 mod bound_values;
 mod consistency;
+mod dimension;
 mod error;
 mod expression;
 mod space;
 
 pub use crate::sidecar::is_symbol_name;
-pub use consistency::{DENSE_CHECK_MAX_POINTS, DENSE_CHECK_POINTS_PER_DIMENSION};
+pub use consistency::{BoxCheckSummary, DENSE_CHECK_MAX_POINTS, DENSE_CHECK_POINTS_PER_DIMENSION};
+pub use dimension::{
+    Binding, Dimension, DimensionKind, Group, GroupMember, GroupMode, BIND_DERIVATIVE_STEP,
+};
 pub use error::{BoundValueSource, UncertaintyError};
 pub use expression::{Expression, ExpressionError, SQRT};
-pub use space::{
-    Binding, BoxCheckSummary, Dimension, DimensionKind, Group, GroupMember, GroupMode,
-    ParameterSpace, BIND_DERIVATIVE_STEP, BIND_NOMINAL_RELATIVE_TOLERANCE,
-    QUOTED_EXPRESSION_MAX_CHARS,
-};
+pub use space::{ParameterSpace, BIND_NOMINAL_RELATIVE_TOLERANCE, QUOTED_EXPRESSION_MAX_CHARS};
 
 #[cfg(test)]
 mod tests;

@@ -8,6 +8,7 @@
 use std::sync::OnceLock;
 
 use crate::uq::error::UqError;
+pub use crate::uq::family::Family;
 use crate::uq::quadrature::{self, GaussRule};
 
 /// Largest polynomial order per dimension: a fit of order k uses k + 1 Gauss points.
@@ -16,17 +17,6 @@ pub const MAX_ORDER: usize = quadrature::MAX_POINTS - 1;
 /// Bisection on `P_n'` stops when the bracket is this narrow. `P_n` is stationary there, so the
 /// error in `min P_n` is O(width²): far below 1e-16.
 const CRITICAL_POINT_BRACKET: f64 = 1e-14;
-
-/// A family of orthogonal polynomials on [-1, 1].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Family {
-    /// `P_0 = 1`, `P_1 = ξ`, `(n+1) P_{n+1} = (2n+1) ξ P_n − n P_{n−1}`; orthogonal with weight 1;
-    /// fitted on Gauss–Legendre nodes.
-    Legendre,
-    /// `T_0 = 1`, `T_1 = ξ`, `T_{n+1} = 2ξ T_n − T_{n−1}` (`T_n(cos θ) = cos nθ`); orthogonal with
-    /// weight 1/√(1−ξ²); fitted on Gauss–Chebyshev nodes (docs/method.md §4).
-    Chebyshev,
-}
 
 impl Family {
     /// Fills `out[n]` with the n-th basis function at `xi`, for n = 0..out.len().

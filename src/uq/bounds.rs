@@ -12,6 +12,7 @@
 
 use crate::uq::basis::Family;
 use crate::uq::error::UqError;
+pub use crate::uq::surrogate::ErrorEstimate;
 use crate::uq::surrogate::Surrogate;
 
 /// How a bound relates to the range it estimates.
@@ -24,27 +25,6 @@ pub enum BoundKind {
     /// Neither: the exact range of a linearisation (first-order Taylor). It may be too wide where
     /// the response is flat and too narrow where it curves; no containment either way.
     Approximate,
-}
-
-/// How large the error ignored by a bound may be, in the output's unit.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ErrorEstimate {
-    /// Magnitude of the highest retained order: for a surrogate `Σ |c_i|` over terms of
-    /// truncation degree k ([`Surrogate::top_order_magnitude`]); for first-order Taylor, the
-    /// diagonal second-order terms `Σ_r ½ |∂²f/∂ξ_r²|` that the linearisation drops.
-    pub top_order: f64,
-    /// Largest `|model − surrogate|` at extra model runs, when the caller made some.
-    pub misfit: Option<f64>,
-}
-
-impl ErrorEstimate {
-    /// The same estimate with a misfit measured at extra runs.
-    pub fn with_misfit(self, misfit: f64) -> ErrorEstimate {
-        ErrorEstimate {
-            misfit: Some(misfit),
-            ..self
-        }
-    }
 }
 
 /// A lower and upper bound of one output, labelled.

@@ -1,7 +1,7 @@
 //! The one error type of `uq`: every way a caller's input can be refused, with the numbers that
 //! explain why. Bugs inside `uq` are not represented here (they would be panics).
 
-use crate::uq::basis::Family;
+use crate::uq::family::Family;
 
 /// Why a `uq` computation refused its input.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -6,12 +6,32 @@
 //! [`crate::uq::Scanner`]).
 
 use crate::uq::basis::Family;
-use crate::uq::bounds::ErrorEstimate;
 use crate::uq::design::{Design, Truncation};
 use crate::uq::error::UqError;
 use crate::uq::projection::CoefficientMatrix;
 use crate::uq::sobol_indices::{tensor_sobol_indices_into, SobolIndices};
 use crate::uq::tensor_contraction::PointEvaluator;
+
+/// How large the error ignored by a bound may be, in the output's unit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ErrorEstimate {
+    /// Magnitude of the highest retained order: for a surrogate `Σ |c_i|` over terms of
+    /// truncation degree k ([`Surrogate::top_order_magnitude`]); for first-order Taylor, the
+    /// diagonal second-order terms `Σ_r ½ |∂²f/∂ξ_r²|` that the linearisation drops.
+    pub top_order: f64,
+    /// Largest `|model − surrogate|` at extra model runs, when the caller made some.
+    pub misfit: Option<f64>,
+}
+
+impl ErrorEstimate {
+    /// The same estimate with a misfit measured at extra runs.
+    pub fn with_misfit(self, misfit: f64) -> ErrorEstimate {
+        ErrorEstimate {
+            misfit: Some(misfit),
+            ..self
+        }
+    }
+}
 
 /// A polynomial surrogate of one output.
 #[derive(Debug, Clone, PartialEq)]

@@ -158,7 +158,7 @@ impl HhtIntegrator {
         let reuse = self.settings.reuse_newton_matrix
             && self.m == 0
             && !full_first
-            && !system.provides_newton_coupling()
+            && system.as_newton_coupling().is_none()
             && self.trajectory.newton.reusable
             && self.trajectory.newton.h == h
             && self.trajectory.newton.rate <= NEWTON_REUSE_MAX_RATE;

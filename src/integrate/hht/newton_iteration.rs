@@ -140,9 +140,10 @@ impl HhtIntegrator {
         // Weighted RMS of the position-level correction β'h² Δq̈ and of Δλ, at the iterate before
         // the correction; the worst weighted entry is kept for the failure report.
         // A system whose scale is zero everywhere is not asked for it (and `ws.scale` not read).
-        let scale_is_zero = system.position_scale_is_zero();
-        if !scale_is_zero {
-            system.position_scale(&ws.q, &mut ws.scale);
+        let position_scale = system.as_position_scale();
+        let scale_is_zero = position_scale.is_none();
+        if let Some(position_scale) = position_scale {
+            position_scale.position_scale(&ws.q, &mut ws.scale);
         }
         let reltol = self.settings.reltol;
         // The worst weighted entry over coordinates then rows (index ≥ nv: row index − nv); the
@@ -201,13 +202,13 @@ impl HhtIntegrator {
             0.0
         };
 
-        if system.limits_newton_updates() {
+        if let Some(limit) = system.as_newton_update_limit() {
             // The velocity change of the full correction: Δq̇ = γ'h Δq̈.
             let gamma_h = self.coeffs.gamma_h();
             for i in 0..nv {
                 ws.dv_trial[i] = gamma_h * ws.rhs[i];
             }
-            let fraction = eval::newton_update_fraction(system, at, &ws.q, &ws.v, &ws.dv_trial)?;
+            let fraction = eval::newton_update_fraction(limit, at, &ws.q, &ws.v, &ws.dv_trial)?;
             if fraction < 1.0 {
                 self.trajectory.stats.limited_newton_updates += 1;
                 for x in ws.rhs.iter_mut() {

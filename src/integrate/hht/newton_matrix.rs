@@ -8,7 +8,7 @@ use crate::integrate::dense_solver::assemble_constraint_blocks;
 use crate::integrate::error::IntegrateError;
 use crate::integrate::eval::{self, At};
 use crate::integrate::settings::HhtSettings;
-use crate::integrate::system::DaeSystem;
+use crate::integrate::system::{DaeState, DaeSystem};
 use nalgebra::{DMatrix, DVector};
 
 /// Which form of the constraint rows [`iteration_matrix`] returns.
@@ -88,7 +88,7 @@ pub fn iteration_matrix<S: DaeSystem + ?Sized>(
     v: &DVector<f64>,
     scaling: ConstraintRowScaling,
 ) -> Result<DMatrix<f64>, IntegrateError> {
-    let (nq, nv, m) = (system.nq(), system.nv(), system.n_constraints());
+    let (nq, nv, m) = (system.nq(), system.nv(), eval::n_constraints(system));
     let coeffs = settings.validate(m)?;
     if q.len() != nq {
         return Err(IntegrateError::DimensionMismatch {
@@ -110,6 +110,7 @@ pub fn iteration_matrix<S: DaeSystem + ?Sized>(
     let mut stiffness = DVector::zeros(nv);
     let mut damping = DVector::zeros(nv);
     if settings.newton_diagonal_terms {
+        // Without terms the zeros stay (the same bits as adding none).
         eval::newton_diagonal(system, at, q, v, &mut stiffness, &mut damping)?;
     }
     let mut phi_q = DMatrix::zeros(m, nv);
@@ -163,8 +164,12 @@ impl HhtIntegrator {
         let ws = &mut self.ws;
         let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
         let solver = &mut self.trajectory.newton.solver;
-        let factorised = if self.settings.newton_diagonal_terms && system.provides_newton_coupling()
-        {
+        let coupling = if self.settings.newton_diagonal_terms {
+            system.as_newton_coupling()
+        } else {
+            None
+        };
+        let factorised = if let Some(coupling) = coupling {
             assemble_iteration_matrix(
                 &ws.mass,
                 has_diagonal.then_some((&ws.stiffness, &ws.damping)),
@@ -177,7 +182,7 @@ impl HhtIntegrator {
             // Forces that couple joints (contacts): their Jacobians beside the diagonal ones,
             // in the buffers of the full matrix (unused on this path).
             eval::newton_coupling(
-                system,
+                coupling,
                 at,
                 &ws.q,
                 &ws.v,
@@ -236,11 +241,10 @@ impl HhtIntegrator {
             return Ok(false);
         }
         let ws = &mut self.ws;
-        if !system.provides_newton_diagonal() {
+        if !eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)? {
             // No terms: `stiffness` and `damping` are left as they are, and nothing reads them.
             return Ok(false);
         }
-        eval::newton_diagonal(system, at, &ws.q, &ws.v, &mut ws.stiffness, &mut ws.damping)?;
         let (beta_h2, gamma_h) = (self.coeffs.beta_h2(), self.coeffs.gamma_h());
         for ((d, k), c) in ws
             .newton_diagonal
@@ -276,13 +280,17 @@ impl HhtIntegrator {
                 source: "the full Newton matrix needs DaeSystem::as_residual_jacobians".into(),
             });
         };
+        let state = DaeState {
+            t: at.t,
+            q: &ws.q,
+            v: &ws.v,
+            qdd: &ws.qdd,
+            lambda: &ws.lambda,
+        };
         eval::residual_jacobians(
             jacobians,
             at,
-            &ws.q,
-            &ws.v,
-            &ws.qdd,
-            &ws.lambda,
+            &state,
             &mut ws.stiffness_full,
             &mut ws.damping_full,
         )?;

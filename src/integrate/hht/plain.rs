@@ -82,8 +82,8 @@ impl HhtIntegrator {
         !self.settings.reuse_newton_matrix
             && !full_first
             && system.as_inverse_dynamics().is_some()
-            && !system.provides_newton_coupling()
-            && !system.limits_newton_updates()
+            && system.as_newton_coupling().is_none()
+            && system.as_newton_update_limit().is_none()
     }
 
     /// Starts the next grid step as a plain step: the predictor and the first iterate, whose

@@ -142,7 +142,7 @@ impl HhtIntegrator {
     ) -> Result<f64, IntegrateError> {
         let ws = &mut self.ws;
         let s = &self.trajectory.state;
-        if system.constraints_are_scleronomic() {
+        if eval::constraints_are_scleronomic(system) {
             ws.phi_dot.as_mut_slice().fill(0.0);
         } else {
             eval::constraint_time_derivative(system, at, &s.q, &mut ws.phi_dot)?;

@@ -7,6 +7,7 @@ use super::newton::NewtonMemory;
 use super::predictor::{pull, PredictorHistory};
 use super::stats::HhtStats;
 use super::step_size::StepControlState;
+use crate::integrate::system::DaeState;
 use nalgebra::DVector;
 
 /// The integrator's state at time `t` (all vectors in the system's coordinates).
@@ -31,6 +32,19 @@ pub struct HhtState {
     pub qdd: DVector<f64>,
     /// Constraint multipliers `λ`, dim `m` (sign: `M q̈ + Φ_qᵀ λ = Q`; a drive's effort is `−λ`).
     pub lambda: DVector<f64>,
+}
+
+impl HhtState {
+    /// The state as a point of the DAE, `(t, q, q̇, q̈, λ)`, with the reported velocity.
+    pub fn point(&self) -> DaeState<'_> {
+        DaeState {
+            t: self.t,
+            q: &self.q,
+            v: &self.v,
+            qdd: &self.qdd,
+            lambda: &self.lambda,
+        }
+    }
 }
 
 /// Whether a grid step computes the velocity it reports ([`HhtIntegrator::advance`](crate::integrate::HhtIntegrator::advance)). Only systems

@@ -46,7 +46,7 @@ pub struct HhtStats {
     pub error_rejections: u64,
     /// Sub-steps accepted at the smallest step with the error estimate still over the tolerance.
     pub error_limited_steps: u64,
-    /// Impacts with unilateral limits ([`DaeSystem::apply_impact`](crate::integrate::DaeSystem::apply_impact)).
+    /// Impacts with unilateral limits ([`UnilateralLimits::apply_impact`](crate::integrate::UnilateralLimits::apply_impact)).
     pub impacts: u64,
     /// Factorisations of the full Newton matrix `M + β'h² K_t + γ'h D_t`.
     pub full_factorisations: u64,
@@ -59,7 +59,7 @@ pub struct HhtStats {
     /// [`PREDICTOR_MAX_ACCELERATION_DISPLACEMENT`](crate::integrate::PREDICTOR_MAX_ACCELERATION_DISPLACEMENT)).
     pub stiff_predictions: u64,
     /// Newton iterations that applied only part of their correction
-    /// ([`DaeSystem::newton_update_fraction`](crate::integrate::DaeSystem::newton_update_fraction) < 1: an iterate kept from jumping across a
+    /// ([`NewtonUpdateLimit::newton_update_fraction`](crate::integrate::NewtonUpdateLimit::newton_update_fraction) < 1: an iterate kept from jumping across a
     /// regularised law's narrow transition).
     pub limited_newton_updates: u64,
     /// Factorisations made because a Newton iterate left the regime of piecewise forces its

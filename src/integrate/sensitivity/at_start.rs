@@ -37,7 +37,7 @@ impl HhtSensitivity {
             return Err(SensitivityError::NotAtStart { step: state.step });
         }
         let settings = integrator.settings();
-        if system.n_constraints() > 0
+        if eval::n_constraints(system) > 0
             && settings.velocity_projection
             && settings.projection_keeps_newton_mass
         {
@@ -46,8 +46,8 @@ impl HhtSensitivity {
         let (nq, nv, m, p) = (
             system.nq(),
             system.nv(),
-            system.n_constraints(),
-            system.n_parameters(),
+            eval::n_constraints(system),
+            eval::n_parameters(system),
         );
         eval::check_dimensions(system, state.q.len(), state.v.len(), state.lambda.len())?;
         let mut sensitivity = Self {
@@ -57,7 +57,7 @@ impl HhtSensitivity {
             p,
             coeffs: *integrator.coefficients(),
             velocity_projection: integrator.settings().velocity_projection,
-            additive: system.position_update_is_additive(),
+            additive: system.as_position_group().is_none(),
             step: 0,
             s_q: DMatrix::zeros(nv, p),
             s_v: DMatrix::zeros(nv, p),
@@ -103,18 +103,7 @@ impl HhtSensitivity {
         };
         let ws = &mut self.ws;
         eval::mass_matrix(system, at, &state.q, &mut ws.mass)?;
-        system
-            .parameter_jacobians(
-                state.t,
-                &state.q,
-                &state.v,
-                &state.qdd,
-                &state.lambda,
-                &mut ws.dynamics_p,
-                &mut ws.constraints_p,
-            )
-            .map_err(at.system_error("parameter_jacobians"))?;
-        at.check_finite("parameter_jacobians.dynamics", ws.dynamics_p.as_slice())?;
+        ws.parameter_jacobians_at(system, at, &state.point())?;
         ws.matrix.copy_from(&ws.mass);
         ws.solver
             .factor(&ws.matrix)
@@ -141,7 +130,7 @@ impl HhtSensitivity {
 
     /// With constraint rows, a 4-point central difference of [`consistent_start`] along each
     /// parameter (docs/sensitivities.md §5): `f' ≈ [−f(2ε) + 8f(ε) − 8f(−ε) + f(−2ε)] / (12ε)` with
-    /// ε the system's [`DaeSystem::parameter_difference_step`]. Index-3 steps turn an error `e` of the
+    /// ε the system's [`Parameters::parameter_difference_step`](crate::integrate::Parameters::parameter_difference_step). Index-3 steps turn an error `e` of the
     /// start velocity's component normal to the constraints into errors of ~`e/(β'h)` in `∂q̈/∂p`
     /// that decay slowly, so the step is as large as the system allows: the rounding of the
     /// projected velocity (~u·|q̇|) costs ~u·|q̇|/ε.
@@ -159,21 +148,20 @@ impl HhtSensitivity {
         };
         let mut dq = DVector::zeros(self.nv);
         for k in 0..self.p {
-            let eps = system.parameter_difference_step(k);
+            let eps = eval::parameters(system, at, "parameter_difference_step")?
+                .parameter_difference_step(k);
             for (steps, weight) in STENCIL {
-                system
+                eval::parameters(system, at, "set_parameter_offset")?
                     .set_parameter_offset(k, steps * eps)
                     .map_err(at.system_error("set_parameter_offset"))?;
                 let start = consistent_start(system, state.t, q0, v0);
                 // Restore before reporting any error.
-                system
+                eval::parameters(system, at, "set_parameter_offset")?
                     .set_parameter_offset(k, 0.0)
                     .map_err(at.system_error("set_parameter_offset"))?;
                 let start = start?;
                 self.stats.start_evaluations += 1;
-                system
-                    .difference_position(&state.q, &start.q, &mut dq)
-                    .map_err(at.system_error("difference_position"))?;
+                eval::difference_position(system, at, &state.q, &start.q, &mut dq)?;
                 let w = weight / (12.0 * eps);
                 for i in 0..self.nv {
                     self.s_q[(i, k)] += w * dq[i];
@@ -210,17 +198,7 @@ impl HhtSensitivity {
         };
         let ws = &mut self.ws;
         eval::constraint_jacobian(system, at, &state.q, &mut ws.phi_q)?;
-        system
-            .parameter_jacobians(
-                state.t,
-                &state.q,
-                &state.v,
-                &state.qdd,
-                &state.lambda,
-                &mut ws.dynamics_p,
-                &mut ws.constraints_p,
-            )
-            .map_err(at.system_error("parameter_jacobians"))?;
+        ws.parameter_jacobians_at(system, at, &state.point())?;
         at.check_finite(
             "parameter_jacobians.constraints",
             ws.constraints_p.as_slice(),

@@ -56,7 +56,7 @@ impl HhtSensitivity {
             let spread = (0..self.nv)
                 .map(|i| self.s_q[(i, k)].abs())
                 .fold(1.0_f64, f64::max);
-            let eps = system
+            let eps = eval::parameters(system, at, "parameter_difference_step")?
                 .parameter_difference_step(k)
                 .min(PROJECTION_FD_STEP / spread);
             self.ws.dv_plus.fill(0.0);
@@ -68,11 +68,11 @@ impl HhtSensitivity {
                     ws.v_perturbed[i] = v_newmark[i] + offset * self.s_v[(i, k)];
                 }
                 eval::integrate_position(system, at, &state.q, &ws.dq, &mut ws.q_perturbed)?;
-                system
+                eval::parameters(system, at, "set_parameter_offset")?
                     .set_parameter_offset(k, offset)
                     .map_err(at.system_error("set_parameter_offset"))?;
                 let correction = Self::projection_correction(system, at, ws);
-                system
+                eval::parameters(system, at, "set_parameter_offset")?
                     .set_parameter_offset(k, 0.0)
                     .map_err(at.system_error("set_parameter_offset"))?;
                 correction?;

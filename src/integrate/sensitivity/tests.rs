@@ -9,7 +9,9 @@ use nalgebra::{DMatrix, DVector};
 
 use super::*;
 use crate::integrate::tests::alloc_counter::allocations;
-use crate::integrate::{HhtSettings, ResidualJacobians, SystemError};
+use crate::integrate::{
+    Constraints, DaeState, HhtSettings, NewtonDiagonal, Parameters, ResidualJacobians, SystemError,
+};
 
 /// Agreement of direct differentiation with the central-difference reference, relative to
 /// `max(|reference|, floor)` with the floor at `REFERENCE_FLOOR` of the quantity's largest reference
@@ -93,6 +95,22 @@ impl DaeSystem for Oscillator {
             + 0.5 * self.mass() * q[0].sin() * v[0] * v[0];
         Ok(())
     }
+    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
+        if self.analytic_jacobians {
+            Some(self)
+        } else {
+            None
+        }
+    }
+    fn as_newton_diagonal(&mut self) -> Option<&mut dyn NewtonDiagonal> {
+        Some(self)
+    }
+    fn as_parameters(&mut self) -> Option<&mut dyn Parameters> {
+        Some(self)
+    }
+}
+
+impl NewtonDiagonal for Oscillator {
     fn newton_diagonal(
         &mut self,
         _t: f64,
@@ -105,26 +123,19 @@ impl DaeSystem for Oscillator {
         damping_out[0] = Self::DAMPING;
         Ok(())
     }
-    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
-        if self.analytic_jacobians {
-            Some(self)
-        } else {
-            None
-        }
-    }
+}
+
+impl Parameters for Oscillator {
     fn n_parameters(&self) -> usize {
         2
     }
     fn parameter_jacobians(
         &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        _lambda: &DVector<f64>,
+        state: &DaeState<'_>,
         dynamics_out: &mut DMatrix<f64>,
         _constraints_out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError> {
+        let DaeState { q, v, qdd, .. } = *state;
         let (s, c) = q[0].sin_cos();
         dynamics_out[(0, 0)] = 0.1 * Self::MASS * ((2.0 + c) * qdd[0] - 0.5 * s * v[0] * v[0]);
         dynamics_out[(0, 1)] = 0.2 * Self::STIFFNESS * s;
@@ -140,14 +151,11 @@ impl DaeSystem for Oscillator {
 impl ResidualJacobians for Oscillator {
     fn residual_jacobians(
         &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        _lambda: &DVector<f64>,
+        state: &DaeState<'_>,
         stiffness_out: &mut DMatrix<f64>,
         damping_out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError> {
+        let DaeState { q, v, qdd, .. } = *state;
         let (m, k) = (self.mass(), self.stiffness());
         let (s, c) = q[0].sin_cos();
         stiffness_out[(0, 0)] = -m * s * qdd[0] + k * c - 0.5 * m * c * v[0] * v[0];
@@ -184,9 +192,6 @@ impl DaeSystem for Pendulum {
     fn nv(&self) -> usize {
         2
     }
-    fn n_constraints(&self) -> usize {
-        1
-    }
     fn mass_matrix(
         &mut self,
         _t: f64,
@@ -207,6 +212,25 @@ impl DaeSystem for Pendulum {
         out[0] = -Self::DAMPING * v[0];
         out[1] = -self.mass() * Self::GRAVITY - Self::DAMPING * v[1];
         Ok(())
+    }
+    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
+        if self.analytic_jacobians {
+            Some(self)
+        } else {
+            None
+        }
+    }
+    fn as_constraints(&mut self) -> Option<&mut dyn Constraints> {
+        Some(self)
+    }
+    fn as_parameters(&mut self) -> Option<&mut dyn Parameters> {
+        Some(self)
+    }
+}
+
+impl Constraints for Pendulum {
+    fn n_constraints(&self) -> usize {
+        1
     }
     fn constraints(
         &mut self,
@@ -238,26 +262,19 @@ impl DaeSystem for Pendulum {
         out[0] = -2.0 * (v[0] * v[0] + v[1] * v[1]);
         Ok(())
     }
-    fn as_residual_jacobians(&mut self) -> Option<&mut dyn ResidualJacobians> {
-        if self.analytic_jacobians {
-            Some(self)
-        } else {
-            None
-        }
-    }
+}
+
+impl Parameters for Pendulum {
     fn n_parameters(&self) -> usize {
         2
     }
     fn parameter_jacobians(
         &mut self,
-        _t: f64,
-        _q: &DVector<f64>,
-        _v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        _lambda: &DVector<f64>,
+        state: &DaeState<'_>,
         dynamics_out: &mut DMatrix<f64>,
         constraints_out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError> {
+        let DaeState { qdd, .. } = *state;
         // r = m q̈ + Φ_qᵀ λ − Q: Φ_q does not depend on L; Φ does.
         dynamics_out[(0, 0)] = 0.0;
         dynamics_out[(1, 0)] = 0.0;
@@ -277,14 +294,11 @@ impl DaeSystem for Pendulum {
 impl ResidualJacobians for Pendulum {
     fn residual_jacobians(
         &mut self,
-        _t: f64,
-        _q: &DVector<f64>,
-        _v: &DVector<f64>,
-        _qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
+        state: &DaeState<'_>,
         stiffness_out: &mut DMatrix<f64>,
         damping_out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError> {
+        let DaeState { lambda, .. } = *state;
         stiffness_out.fill_with_identity();
         *stiffness_out *= 2.0 * lambda[0];
         damping_out.fill_with_identity();
@@ -363,7 +377,7 @@ fn sensitivities<S: DaeSystem + Clone>(
 }
 
 /// 4-point central difference of whole trajectories along each parameter.
-fn reference<S: DaeSystem + Clone>(
+fn reference<S: DaeSystem + Parameters + Clone>(
     system: &S,
     settings: HhtSettings,
     q0: &DVector<f64>,

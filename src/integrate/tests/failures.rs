@@ -177,3 +177,57 @@ fn sub_step_attempts_per_grid_step_are_bounded() {
         .to_string()
         .contains("smaller step or a looser tolerance"));
 }
+
+/// `q ⊕ δ = q + δ` needs `nq == nv`: a system with more position coordinates than velocities
+/// and no [`PositionGroup`] is refused before the run, naming the mismatch.
+#[test]
+fn a_system_with_nq_above_nv_needs_a_position_group() {
+    /// The [`Rotor`] of `tests.rs` (a unit complex number, nq = 2, nv = 1) without its group.
+    struct RotorWithoutGroup;
+    impl DaeSystem for RotorWithoutGroup {
+        fn nq(&self) -> usize {
+            2
+        }
+        fn nv(&self) -> usize {
+            1
+        }
+        fn mass_matrix(
+            &mut self,
+            _t: f64,
+            _q: &DVector<f64>,
+            out: &mut DMatrix<f64>,
+        ) -> Result<(), SystemError> {
+            out[(0, 0)] = 1.0;
+            Ok(())
+        }
+        fn forces(
+            &mut self,
+            _t: f64,
+            q: &DVector<f64>,
+            _v: &DVector<f64>,
+            out: &mut DVector<f64>,
+        ) -> Result<(), SystemError> {
+            out[0] = -3.0 * q[1];
+            Ok(())
+        }
+    }
+    let (q0, v0) = (dvec(&[1.0, 0.0]), dvec(&[0.2]));
+    let err = HhtIntegrator::new(
+        &mut RotorWithoutGroup,
+        HhtSettings::default(),
+        0.0,
+        &q0,
+        &v0,
+    )
+    .unwrap_err();
+    match err {
+        IntegrateError::DimensionMismatch {
+            what,
+            expected: 1,
+            got: 2,
+        } => assert!(what.contains("without a position group"), "{what}"),
+        other => panic!("expected DimensionMismatch of nq, got {other}"),
+    }
+    // With its group the same system runs.
+    assert!(HhtIntegrator::new(&mut Rotor, HhtSettings::default(), 0.0, &q0, &v0).is_ok());
+}

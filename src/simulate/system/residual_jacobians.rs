@@ -7,7 +7,7 @@
 
 use super::RobotSystem;
 use crate::dynamics::{rnea_derivatives, RneaDerivatives};
-use crate::integrate::{DaeSystem, ResidualJacobians, SystemError};
+use crate::integrate::{DaeState, PositionGroup, ResidualJacobians, SystemError};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
@@ -81,19 +81,18 @@ impl RobotSystem {
 impl ResidualJacobians for RobotSystem {
     /// `∂r/∂q`, `∂r/∂q̇` of `r = M q̈ + Φ_qᵀ λ − Q` (docs/sensitivities.md §2): RNEA's analytic
     /// Jacobians, plus the effects' (each acts on its own coordinate: the diagonal of
-    /// [`DaeSystem::newton_diagonal`], exact), plus `∂(Φ_qᵀ λ)/∂q` of loop closures by central
+    /// [`NewtonDiagonal::newton_diagonal`](crate::integrate::NewtonDiagonal::newton_diagonal), exact), plus `∂(Φ_qᵀ λ)/∂q` of loop closures by central
     /// differences (step [`JACOBIAN_FD_STEP`](crate::integrate::JACOBIAN_FD_STEP); mimic and drive
     /// rows have a constant `Φ_q`). Allocates once, on first use.
     fn residual_jacobians(
         &mut self,
-        _t: f64,
-        q: &DVector<f64>,
-        v: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
+        state: &DaeState<'_>,
         stiffness_out: &mut DMatrix<f64>,
         damping_out: &mut DMatrix<f64>,
     ) -> Result<(), SystemError> {
+        let DaeState {
+            q, v, qdd, lambda, ..
+        } = *state;
         let mut buffers = match self.jacobians.take() {
             Some(buffers) => buffers,
             None => Box::new(JacobianBuffers::new(&self.model, self.constraints.len())),
