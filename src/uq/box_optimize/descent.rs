@@ -23,6 +23,9 @@ const MAX_HALVINGS: usize = 30;
 /// eigenvalue below which curvature counts as negative.
 const CURVATURE_TOL: f64 = 1e-10;
 
+/// Rows of the Hessian whose Gershgorin sums [`BoxOptimizer::gershgorin_shift`] adds side by side.
+const GERSHGORIN_ROWS_AT_ONCE: usize = 4;
+
 /// The points earlier descents of one side started an iteration from (`k × d`), each with how
 /// many iterations its descent took from there to its end, and the ends (points and values).
 /// A descent's path depends on its point alone, so a later descent that reaches one of these
@@ -32,29 +35,67 @@ const CURVATURE_TOL: f64 = 1e-10;
 #[derive(Debug, Clone, Default)]
 pub(super) struct DescentTrail {
     points: Vec<f64>,
+    /// Per point, its [`point_key`]: a lookup compares the keys first and the points only where
+    /// they agree (vertices share most coordinates, so whole points compared long before
+    /// differing).
+    keys: Vec<u64>,
     /// Per point: (iterations from it to its descent's end, index of that end).
     remaining: Vec<(usize, usize)>,
     end_points: Vec<f64>,
     end_values: Vec<f64>,
     /// The points of the descent under way.
     current: Vec<f64>,
+    /// Their keys.
+    current_keys: Vec<u64>,
+}
+
+/// A hash of a point's bits: equal points have equal keys (so a lookup by key first finds every
+/// bitwise-equal point the full comparison would).
+fn point_key(x: &[f64]) -> u64 {
+    x.iter().fold(0x9e37_79b9_7f4a_7c15_u64, |key, v| {
+        (key.rotate_left(23) ^ v.to_bits()).wrapping_mul(0xff51_afd7_ed55_8ccd)
+    })
 }
 
 impl DescentTrail {
     pub(super) fn clear(&mut self) {
         self.points.clear();
+        self.keys.clear();
         self.remaining.clear();
         self.end_points.clear();
         self.end_values.clear();
         self.current.clear();
+        self.current_keys.clear();
     }
 
-    /// The earlier point bitwise equal to `x` (its remaining iterations and end), if any.
-    fn find(&self, x: &[f64]) -> Option<(usize, usize)> {
-        self.points
-            .chunks_exact(x.len())
-            .position(|p| p.iter().zip(x).all(|(a, b)| a.to_bits() == b.to_bits()))
+    /// The earlier point bitwise equal to `x` (key `key`; its remaining iterations and end), if
+    /// any: the first such, as a scan of the points in order finds.
+    fn find(&self, x: &[f64], key: u64) -> Option<(usize, usize)> {
+        let d = x.len();
+        self.keys
+            .iter()
+            .enumerate()
+            .filter(|&(_, &k)| k == key)
+            .map(|(i, _)| i)
+            .find(|&i| {
+                self.points[i * d..(i + 1) * d]
+                    .iter()
+                    .zip(x)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            })
             .map(|i| self.remaining[i])
+    }
+
+    /// Starts an iteration of the descent under way from `x` (key `key`).
+    fn push_current(&mut self, x: &[f64], key: u64) {
+        self.current.extend_from_slice(x);
+        self.current_keys.push(key);
+    }
+
+    /// Forgets the descent under way (stopped by the iteration cap).
+    fn drop_current(&mut self) {
+        self.current.clear();
+        self.current_keys.clear();
     }
 
     /// Files the current descent's points: it ended at end index `end` after `total` iterations
@@ -62,8 +103,10 @@ impl DescentTrail {
     fn file_current(&mut self, d: usize, total: usize, end: usize) {
         let n = self.current.len() / d;
         self.points.extend_from_slice(&self.current);
+        self.keys.extend_from_slice(&self.current_keys);
         self.remaining.extend((0..n).map(|j| (total - j, end)));
         self.current.clear();
+        self.current_keys.clear();
     }
 }
 
@@ -96,9 +139,10 @@ impl BoxOptimizer {
         let d = self.x.len();
         let mut f = self.evaluate(s, sign);
         let mut iterations = 0;
-        self.trail.current.clear();
+        self.trail.drop_current();
         loop {
-            if let Some((remaining, end)) = self.trail.find(&self.x) {
+            let key = point_key(&self.x);
+            if let Some((remaining, end)) = self.trail.find(&self.x, key) {
                 // An earlier descent went on from here to `end` within the cap; this one would
                 // take the same path (DescentTrail), if the cap leaves it the same iterations.
                 if iterations + remaining <= self.max_iterations {
@@ -110,10 +154,10 @@ impl BoxOptimizer {
             }
             if iterations >= self.max_iterations {
                 // Stopped by the cap: not an end another descent may take.
-                self.trail.current.clear();
+                self.trail.drop_current();
                 return (f, iterations);
             }
-            self.trail.current.extend_from_slice(&self.x);
+            self.trail.push_current(&self.x, key);
             iterations += 1;
             self.free.clear();
             for r in 0..d {
@@ -210,10 +254,11 @@ impl BoxOptimizer {
                     self.reduced[a * d + a] = self.hess[a * d + a] + shift;
                 }
             } else {
-                for (a, &r) in self.free.iter().enumerate() {
-                    for (b, &q) in self.free.iter().enumerate() {
-                        self.reduced[b * nf + a] =
-                            self.hess[r * d + q] + if a == b { shift } else { 0.0 };
+                // Column by column of the reduced matrix (contiguous writes); each entry as before.
+                for (b, &q) in self.free.iter().enumerate() {
+                    let column = &mut self.reduced[b * nf..(b + 1) * nf];
+                    for ((a, &r), entry) in self.free.iter().enumerate().zip(column) {
+                        *entry = self.hess[r * d + q] + if a == b { shift } else { 0.0 };
                     }
                 }
             }
@@ -248,13 +293,30 @@ impl BoxOptimizer {
     pub(super) fn gershgorin_shift(&self, scale: f64) -> f64 {
         let d = self.x.len();
         let mut lowest = f64::INFINITY;
-        for &r in &self.free {
-            let off: f64 = self
-                .free
-                .iter()
-                .filter(|&&q| q != r)
-                .map(|&q| self.hess[r * d + q].abs())
-                .sum();
+        // Four rows at a time: each row's sum still adds its terms one by one in the order of
+        // `free` (the bits of one sum per row), but four independent sums overlap instead of
+        // one chain of nf² dependent additions (issue 40).
+        let mut rows = self.free.chunks_exact(GERSHGORIN_ROWS_AT_ONCE);
+        for group in &mut rows {
+            let mut off = [0.0_f64; GERSHGORIN_ROWS_AT_ONCE];
+            for &q in &self.free {
+                for (sum, &r) in off.iter_mut().zip(group) {
+                    if q != r {
+                        *sum += self.hess[r * d + q].abs();
+                    }
+                }
+            }
+            for (sum, &r) in off.iter().zip(group) {
+                lowest = lowest.min(self.hess[r * d + r] - sum);
+            }
+        }
+        for &r in rows.remainder() {
+            let mut off = 0.0_f64;
+            for &q in &self.free {
+                if q != r {
+                    off += self.hess[r * d + q].abs();
+                }
+            }
             lowest = lowest.min(self.hess[r * d + r] - off);
         }
         (-lowest).max(0.0) + CURVATURE_TOL * scale + f64::MIN_POSITIVE
