@@ -124,7 +124,9 @@ impl BoxOptimizer {
 
     /// The Hessian of φ = sign·y at `self.x` into hess (sign applied).
     pub(super) fn evaluate_hessian(&mut self, s: &SparseSurrogate, sign: f64) {
-        s.hessian_unchecked(&self.x, &mut self.hess, &mut self.ws);
+        // The tables hold `self.x` with derivatives: every Hessian follows the gradient at the
+        // same point (`descend` evaluates there and loads nothing else before asking).
+        s.hessian_at_loaded(&mut self.hess, &self.ws);
         if sign < 0.0 {
             self.hess.iter_mut().for_each(|h| *h = -*h);
         }
