@@ -24,14 +24,8 @@ pub(super) fn add_gradient(
     grad: &mut [f64],
 ) {
     match idx.len() {
-        3 => {
-            let (values, firsts) = (gather::<3>(idx, v), gather::<3>(idx, g));
-            gradient(ct, 3, |e| values[e], |e| firsts[e], factors, grad);
-        }
-        4 => {
-            let (values, firsts) = (gather::<4>(idx, v), gather::<4>(idx, g));
-            gradient(ct, 4, |e| values[e], |e| firsts[e], factors, grad);
-        }
+        3 => gradient_gathered::<3>(ct, idx, factors, v, g, grad),
+        4 => gradient_gathered::<4>(ct, idx, factors, v, g, grad),
         m => gradient(
             ct,
             m,
@@ -58,24 +52,8 @@ pub(super) fn add_hessian(
     d: usize,
 ) {
     match idx.len() {
-        3 => {
-            let tables = (
-                gather::<3>(idx, v),
-                gather::<3>(idx, g),
-                gather::<3>(idx, h),
-            );
-            let at = |e: usize| (tables.0[e], tables.1[e], tables.2[e]);
-            hessian(ct, 3, at, factors, hess, d);
-        }
-        4 => {
-            let tables = (
-                gather::<4>(idx, v),
-                gather::<4>(idx, g),
-                gather::<4>(idx, h),
-            );
-            let at = |e: usize| (tables.0[e], tables.1[e], tables.2[e]);
-            hessian(ct, 4, at, factors, hess, d);
-        }
+        3 => hessian_gathered::<3>(ct, idx, factors, (v, g, h), hess, d),
+        4 => hessian_gathered::<4>(ct, idx, factors, (v, g, h), hess, d),
         m => {
             let at = |e: usize| {
                 let i = idx[e] as usize;
@@ -84,6 +62,40 @@ pub(super) fn add_hessian(
             hessian(ct, m, at, factors, hess, d);
         }
     }
+}
+
+/// [`gradient`] of a term of `M` factors from its table values gathered once.
+#[inline(always)]
+fn gradient_gathered<const M: usize>(
+    ct: f64,
+    idx: &[u32],
+    factors: &[Factor],
+    v: &[f64],
+    g: &[f64],
+    grad: &mut [f64],
+) {
+    let (values, firsts) = (gather::<M>(idx, v), gather::<M>(idx, g));
+    gradient(ct, M, |e| values[e], |e| firsts[e], factors, grad);
+}
+
+/// [`hessian`] of a term of `M` factors from its table values (`tables`: values, first and
+/// second derivatives) gathered once.
+#[inline(always)]
+fn hessian_gathered<const M: usize>(
+    ct: f64,
+    idx: &[u32],
+    factors: &[Factor],
+    tables: (&[f64], &[f64], &[f64]),
+    hess: &mut [f64],
+    d: usize,
+) {
+    let (values, firsts, seconds) = (
+        gather::<M>(idx, tables.0),
+        gather::<M>(idx, tables.1),
+        gather::<M>(idx, tables.2),
+    );
+    let at = |e: usize| (values[e], firsts[e], seconds[e]);
+    hessian(ct, M, at, factors, hess, d);
 }
 
 /// The `M` table entries of a term.
