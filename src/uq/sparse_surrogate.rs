@@ -23,6 +23,8 @@ use crate::uq::error::UqError;
 use crate::uq::multi_index::MultiIndexSet;
 use crate::uq::sobol_indices::SobolIndices;
 
+mod general_terms;
+
 /// The bilinear part is kept dense when it has at least `d² / DENSE_BILINEAR_FILL` terms and at
 /// least half of all terms ([`SparseSurrogate::has_dense_bilinear_part`]): a dense row costs d
 /// contiguous multiply-adds that vectorise four at a time, a sparse term two gathered products
@@ -335,16 +337,13 @@ impl SparseSurrogate {
         sum
     }
 
-    /// The Hessian alone at `xi` into `hess` (d × d, overwritten), the same values as
-    /// [`SparseSurrogate::hessian`] gives; lengths already checked. A search that needs the
-    /// Hessian only where a Newton step follows asks for it apart.
-    pub(crate) fn hessian_unchecked(
-        &self,
-        xi: &[f64],
-        hess: &mut [f64],
-        ws: &mut SurrogateWorkspace,
-    ) {
-        ws.load(&self.set, xi, true);
+    /// The Hessian into `hess` (d × d, overwritten) at the point of the last
+    /// [`SparseSurrogate::derivatives_unchecked`] with `ws`, the same values as
+    /// [`SparseSurrogate::hessian`] gives, without loading the tables again. The caller
+    /// guarantees that nothing loaded another point into `ws` since: the box optimiser asks for
+    /// the Hessian apart, only where a Newton step follows, right after the gradient at the same
+    /// point (loading the tables again there cost a second Legendre table per iteration, issue 40).
+    pub(crate) fn hessian_at_loaded(&self, hess: &mut [f64], ws: &SurrogateWorkspace) {
         self.hessian_from_tables(hess, ws);
     }
 
@@ -355,7 +354,6 @@ impl SparseSurrogate {
         grad: &mut [f64],
         ws: &SurrogateWorkspace,
     ) -> f64 {
-        let stride = self.set.max_degree() + 1;
         let (v, g) = (&ws.values, &ws.first);
         let c = &self.coefficients;
         let plan = self.set.plan();
@@ -398,18 +396,7 @@ impl SparseSurrogate {
             let idx = self.set.table_indices(t);
             let product: f64 = idx.iter().map(|&i| v[i as usize]).product();
             sum += ct * product;
-            // Products leaving out one factor, by direct multiplication (supports are at most
-            // the total degree).
-            for (a, &ia) in idx.iter().enumerate() {
-                let ia = ia as usize;
-                let others: f64 = idx
-                    .iter()
-                    .enumerate()
-                    .filter(|&(b, _)| b != a)
-                    .map(|(_, &i)| v[i as usize])
-                    .product();
-                grad[ia / stride] += ct * g[ia] * others;
-            }
+            general_terms::add_gradient(ct, idx, self.set.term(t), v, g, grad);
         }
         sum
     }
@@ -418,7 +405,6 @@ impl SparseSurrogate {
     /// by term (factors are sorted by dimension), mirrored below at the end.
     fn hessian_from_tables(&self, hess: &mut [f64], ws: &SurrogateWorkspace) {
         let d = self.dim();
-        let stride = self.set.max_degree() + 1;
         let (v, g, h) = (&ws.values, &ws.first, &ws.second);
         let c = &self.coefficients;
         let plan = self.set.plan();
@@ -447,29 +433,7 @@ impl SparseSurrogate {
             let t = t as usize;
             let ct = c[t];
             let idx = self.set.table_indices(t);
-            // Products leaving out one or two factors, by direct multiplication.
-            for (a, &ia) in idx.iter().enumerate() {
-                let ia = ia as usize;
-                let others: f64 = idx
-                    .iter()
-                    .enumerate()
-                    .filter(|&(b, _)| b != a)
-                    .map(|(_, &i)| v[i as usize])
-                    .product();
-                let ra = ia / stride;
-                hess[ra * d + ra] += ct * h[ia] * others;
-                for (b, &ib) in idx.iter().enumerate().skip(a + 1) {
-                    let ib = ib as usize;
-                    let rest: f64 = idx
-                        .iter()
-                        .enumerate()
-                        .filter(|&(e, _)| e != a && e != b)
-                        .map(|(_, &i)| v[i as usize])
-                        .product();
-                    let rb = ib / stride;
-                    hess[ra * d + rb] += ct * g[ia] * g[ib] * rest;
-                }
-            }
+            general_terms::add_hessian(ct, idx, self.set.term(t), v, g, h, hess, d);
         }
         if self.bilinear.is_empty() {
             for r in 0..d {

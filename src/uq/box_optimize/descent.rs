@@ -1,0 +1,481 @@
+//! The descent of the box optimiser ([`super::BoxOptimizer`]): projected Newton with an active
+//! set from one start point (the module doc of [`super`] lists its steps) — the Newton direction
+//! on the free coordinates with a Gershgorin shift where the Hessian is indefinite, the projected
+//! Armijo line search and its expansion, the step along negative curvature at a saddle — and the
+//! [`DescentTrail`] that lets a descent reaching an earlier descent's point take that descent's end.
+//!
+//! Does not: choose the starts or keep the best of them (`super::search_side`), or bound the
+//! surrogate from outside (`super::outer`).
+
+use nalgebra::DMatrix;
+
+use super::{BoxOptimizer, STEP_TOL};
+use crate::linalg::cholesky;
+use crate::uq::sparse_surrogate::SparseSurrogate;
+
+/// Armijo sufficient-decrease constant (standard choice).
+const ARMIJO: f64 = 1e-4;
+
+/// Backtracking halvings before giving up on a direction (t ≥ 2⁻³⁰ ≈ 1e-9).
+const MAX_HALVINGS: usize = 30;
+
+/// Relative size (to the Hessian's scale) of the extra shift beyond Gershgorin's, and the
+/// eigenvalue below which curvature counts as negative.
+const CURVATURE_TOL: f64 = 1e-10;
+
+/// Rows of the Hessian whose Gershgorin sums [`BoxOptimizer::gershgorin_shift`] adds side by side.
+const GERSHGORIN_ROWS_AT_ONCE: usize = 4;
+
+/// The points earlier descents of one side started an iteration from (`k × d`), each with how
+/// many iterations its descent took from there to its end, and the ends (points and values).
+/// A descent's path depends on its point alone, so a later descent that reaches one of these
+/// points bitwise would repeat the earlier one's path from there to the same end: it stops and
+/// takes that end (issue 40; the d = 72 all-values ur5 study's descents from the design points
+/// often join the vertex's).
+#[derive(Debug, Clone, Default)]
+pub(super) struct DescentTrail {
+    points: Vec<f64>,
+    /// Per point, its [`point_key`]: a lookup compares the keys first and the points only where
+    /// they agree (vertices share most coordinates, so whole points compared long before
+    /// differing).
+    keys: Vec<u64>,
+    /// Per point: (iterations from it to its descent's end, index of that end).
+    remaining: Vec<(usize, usize)>,
+    end_points: Vec<f64>,
+    end_values: Vec<f64>,
+    /// The points of the descent under way.
+    current: Vec<f64>,
+    /// Their keys.
+    current_keys: Vec<u64>,
+}
+
+/// A hash of a point's bits: equal points have equal keys (so a lookup by key first finds every
+/// bitwise-equal point the full comparison would).
+fn point_key(x: &[f64]) -> u64 {
+    x.iter().fold(0x9e37_79b9_7f4a_7c15_u64, |key, v| {
+        (key.rotate_left(23) ^ v.to_bits()).wrapping_mul(0xff51_afd7_ed55_8ccd)
+    })
+}
+
+impl DescentTrail {
+    pub(super) fn clear(&mut self) {
+        self.points.clear();
+        self.keys.clear();
+        self.remaining.clear();
+        self.end_points.clear();
+        self.end_values.clear();
+        self.current.clear();
+        self.current_keys.clear();
+    }
+
+    /// The earlier point bitwise equal to `x` (key `key`; its remaining iterations and end), if
+    /// any: the first such, as a scan of the points in order finds.
+    fn find(&self, x: &[f64], key: u64) -> Option<(usize, usize)> {
+        let d = x.len();
+        self.keys
+            .iter()
+            .enumerate()
+            .filter(|&(_, &k)| k == key)
+            .map(|(i, _)| i)
+            .find(|&i| {
+                self.points[i * d..(i + 1) * d]
+                    .iter()
+                    .zip(x)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            })
+            .map(|i| self.remaining[i])
+    }
+
+    /// Starts an iteration of the descent under way from `x` (key `key`).
+    fn push_current(&mut self, x: &[f64], key: u64) {
+        self.current.extend_from_slice(x);
+        self.current_keys.push(key);
+    }
+
+    /// Forgets the descent under way (stopped by the iteration cap).
+    fn drop_current(&mut self) {
+        self.current.clear();
+        self.current_keys.clear();
+    }
+
+    /// Files the current descent's points: it ended at end index `end` after `total` iterations
+    /// in all (the point started at iteration j has `total − j` left).
+    fn file_current(&mut self, d: usize, total: usize, end: usize) {
+        let n = self.current.len() / d;
+        self.points.extend_from_slice(&self.current);
+        self.keys.extend_from_slice(&self.current_keys);
+        self.remaining.extend((0..n).map(|j| (total - j, end)));
+        self.current.clear();
+        self.current_keys.clear();
+    }
+}
+
+impl BoxOptimizer {
+    /// φ = sign·y and its gradient at `self.x` into grad (sign applied). The Hessian is left for
+    /// [`BoxOptimizer::evaluate_hessian`]: a descent that stops at this point (no free
+    /// coordinate, or converged) never needs it.
+    pub(super) fn evaluate(&mut self, s: &SparseSurrogate, sign: f64) -> f64 {
+        let y = s.derivatives_unchecked(&self.x, &mut self.grad, None, &mut self.ws);
+        if sign < 0.0 {
+            self.grad.iter_mut().for_each(|g| *g = -*g);
+        }
+        sign * y
+    }
+
+    /// The Hessian of φ = sign·y at `self.x` into hess (sign applied).
+    pub(super) fn evaluate_hessian(&mut self, s: &SparseSurrogate, sign: f64) {
+        // The tables hold `self.x` with derivatives: every Hessian follows the gradient at the
+        // same point (`descend` evaluates there and loads nothing else before asking).
+        s.hessian_at_loaded(&mut self.hess, &self.ws);
+        if sign < 0.0 {
+            self.hess.iter_mut().for_each(|h| *h = -*h);
+        }
+    }
+
+    pub(super) fn phi_at_trial(&mut self, s: &SparseSurrogate, sign: f64) -> f64 {
+        sign * s.value_unchecked(&self.trial, &mut self.ws)
+    }
+
+    /// Projected Newton from `self.x` (overwritten with the best point); returns (φ, iterations).
+    pub(super) fn descend(&mut self, s: &SparseSurrogate, sign: f64) -> (f64, usize) {
+        let d = self.x.len();
+        let mut f = self.evaluate(s, sign);
+        let mut iterations = 0;
+        self.trail.drop_current();
+        loop {
+            let key = point_key(&self.x);
+            if let Some((remaining, end)) = self.trail.find(&self.x, key) {
+                // An earlier descent went on from here to `end` within the cap; this one would
+                // take the same path (DescentTrail), if the cap leaves it the same iterations.
+                if iterations + remaining <= self.max_iterations {
+                    self.trail.file_current(d, iterations + remaining, end);
+                    self.x
+                        .copy_from_slice(&self.trail.end_points[end * d..(end + 1) * d]);
+                    return (self.trail.end_values[end], iterations);
+                }
+            }
+            if iterations >= self.max_iterations {
+                // Stopped by the cap: not an end another descent may take.
+                self.trail.drop_current();
+                return (f, iterations);
+            }
+            self.trail.push_current(&self.x, key);
+            iterations += 1;
+            self.free.clear();
+            for r in 0..d {
+                let (x, g) = (self.x[r], self.grad[r]);
+                if !((x <= -1.0 && g > 0.0) || (x >= 1.0 && g < 0.0)) {
+                    self.free.push(r);
+                }
+            }
+            let nf = self.free.len();
+            if nf == 0 {
+                break;
+            }
+            self.evaluate_hessian(s, sign);
+            let definite = self.newton_direction();
+            let mut moved = false;
+            if let Some(t) = self.line_search(s, sign, f, false, !definite) {
+                moved = true;
+                f = t;
+            } else {
+                // Steepest descent on the free coordinates.
+                for (a, &r) in self.free.iter().enumerate() {
+                    self.step[a] = -self.grad[r];
+                }
+                if self.free.iter().any(|&r| self.grad[r] != 0.0) {
+                    if let Some(t) = self.line_search(s, sign, f, true, true) {
+                        moved = true;
+                        f = t;
+                    }
+                }
+            }
+            if !moved {
+                if definite {
+                    break;
+                }
+                match self.negative_curvature_step(s, sign, f) {
+                    Some(t) => f = t,
+                    None => break,
+                }
+            }
+            let before = self.trial_distance();
+            self.x.copy_from_slice(&self.trial);
+            let check = self.evaluate(s, sign);
+            debug_assert!((check - f).abs() <= 1e-9 * (1.0 + f.abs()));
+            f = check;
+            if before <= STEP_TOL {
+                break;
+            }
+        }
+        let end = self.trail.end_values.len();
+        self.trail.end_points.extend_from_slice(&self.x);
+        self.trail.end_values.push(f);
+        self.trail.file_current(d, iterations, end);
+        (f, iterations)
+    }
+
+    pub(super) fn trial_distance(&self) -> f64 {
+        self.x
+            .iter()
+            .zip(&self.trial)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    }
+
+    /// Newton direction on the free coordinates into `step[..nf]`; true if `H_ff` was positive
+    /// definite without a shift.
+    pub(super) fn newton_direction(&mut self) -> bool {
+        let d = self.x.len();
+        let nf = self.free.len();
+        let scale = self
+            .free
+            .iter()
+            .map(|&r| self.hess[r * d + r].abs())
+            .fold(0.0, f64::max)
+            .max(f64::MIN_POSITIVE);
+        // A pivot of the factorisation never exceeds its diagonal entry: with a diagonal entry
+        // ≤ 0 (or NaN) the unshifted factorisation fails for sure, so it goes straight to the
+        // shift (same decision, same bits; the bilinear parts of high-dimensional surrogates
+        // leave most of the diagonal at 0).
+        let mut definite = self
+            .free
+            .iter()
+            .all(|&r| self.hess[r * d + r] > cholesky::ANY_POSITIVE_PIVOT);
+        let mut shift = 0.0;
+        if !definite {
+            shift = self.gershgorin_shift(scale);
+        }
+        loop {
+            if nf == d {
+                // Every coordinate free: the (symmetric) Hessian as it is, in one pass.
+                for (reduced, &h) in self.reduced[..d * d].iter_mut().zip(&self.hess) {
+                    *reduced = h + 0.0;
+                }
+                for a in 0..d {
+                    self.reduced[a * d + a] = self.hess[a * d + a] + shift;
+                }
+            } else {
+                // Column by column of the reduced matrix (contiguous writes); each entry as before.
+                for (b, &q) in self.free.iter().enumerate() {
+                    let column = &mut self.reduced[b * nf..(b + 1) * nf];
+                    for ((a, &r), entry) in self.free.iter().enumerate().zip(column) {
+                        *entry = self.hess[r * d + q] + if a == b { shift } else { 0.0 };
+                    }
+                }
+            }
+            if cholesky::factor_in_place(
+                &mut self.reduced[..nf * nf],
+                nf,
+                cholesky::ANY_POSITIVE_PIVOT,
+            )
+            .is_ok()
+            {
+                break;
+            }
+            if !definite {
+                // The Gershgorin shift guarantees definiteness; failing again means NaN entries.
+                for a in 0..nf {
+                    self.step[a] = -self.grad[self.free[a]];
+                }
+                return false;
+            }
+            definite = false;
+            shift = self.gershgorin_shift(scale);
+        }
+        for (a, &r) in self.free.iter().enumerate() {
+            self.step[a] = -self.grad[r];
+        }
+        cholesky::solve_in_place(&self.reduced[..nf * nf], nf, &mut self.step[..nf]);
+        definite
+    }
+
+    /// The shift that makes `H_ff` positive definite: λ_min ≥ min_a (H_aa − Σ_{b≠a} |H_ab|)
+    /// (Gershgorin), shifted past it by a margin relative to `scale`.
+    pub(super) fn gershgorin_shift(&self, scale: f64) -> f64 {
+        let d = self.x.len();
+        let mut lowest = f64::INFINITY;
+        // Four rows at a time: each row's sum still adds its terms one by one in the order of
+        // `free` (the bits of one sum per row), but four independent sums overlap instead of
+        // one chain of nf² dependent additions (issue 40).
+        let mut rows = self.free.chunks_exact(GERSHGORIN_ROWS_AT_ONCE);
+        for group in &mut rows {
+            let mut off = [0.0_f64; GERSHGORIN_ROWS_AT_ONCE];
+            for &q in &self.free {
+                for (sum, &r) in off.iter_mut().zip(group) {
+                    if q != r {
+                        *sum += self.hess[r * d + q].abs();
+                    }
+                }
+            }
+            for (sum, &r) in off.iter().zip(group) {
+                lowest = lowest.min(self.hess[r * d + r] - sum);
+            }
+        }
+        for &r in rows.remainder() {
+            let mut off = 0.0_f64;
+            for &q in &self.free {
+                if q != r {
+                    off += self.hess[r * d + q].abs();
+                }
+            }
+            lowest = lowest.min(self.hess[r * d + r] - off);
+        }
+        (-lowest).max(0.0) + CURVATURE_TOL * scale + f64::MIN_POSITIVE
+    }
+
+    /// Projected backtracking along `step` (on the free coordinates) from `self.x`; on success
+    /// `trial` holds the new point and the new φ is returned. With `expand`, an accepted first
+    /// trial is followed by doubled steps while φ keeps dropping: a shifted (indefinite) or
+    /// gradient direction has no natural length, and the projection turns long steps into moves
+    /// onto the faces where such extrema lie.
+    pub(super) fn line_search(
+        &mut self,
+        s: &SparseSurrogate,
+        sign: f64,
+        f: f64,
+        gradient: bool,
+        expand: bool,
+    ) -> Option<f64> {
+        // A gradient step starts at the length that reaches the box's size.
+        let mut t = if gradient {
+            let norm = self
+                .free
+                .iter()
+                .map(|&r| self.grad[r].abs())
+                .fold(0.0, f64::max);
+            if norm > 0.0 {
+                2.0 / norm
+            } else {
+                return None;
+            }
+        } else {
+            1.0
+        };
+        for _ in 0..=MAX_HALVINGS {
+            self.trial.copy_from_slice(&self.x);
+            let mut predicted = 0.0;
+            let mut moved = 0.0_f64;
+            for (a, &r) in self.free.iter().enumerate() {
+                let new = (self.x[r] + t * self.step[a]).clamp(-1.0, 1.0);
+                predicted += self.grad[r] * (new - self.x[r]);
+                moved = moved.max((new - self.x[r]).abs());
+                self.trial[r] = new;
+            }
+            if moved <= STEP_TOL || predicted >= 0.0 || -predicted <= f64::EPSILON * f.abs() {
+                // No move, not a descent direction after projection, or a promised decrease below
+                // the rounding of φ: nothing to gain here.
+                return None;
+            }
+            let f_trial = self.phi_at_trial(s, sign);
+            if f_trial < f && f_trial <= f + ARMIJO * predicted {
+                return Some(if expand {
+                    self.expand(s, sign, t, f_trial)
+                } else {
+                    f_trial
+                });
+            }
+            t *= 0.5;
+        }
+        None
+    }
+
+    /// From an accepted step length `t` (point in `trial`, value `f_accepted`), doubles t while φ
+    /// drops and the projected point still moves; leaves the best point in `trial`.
+    pub(super) fn expand(
+        &mut self,
+        s: &SparseSurrogate,
+        sign: f64,
+        mut t: f64,
+        f_accepted: f64,
+    ) -> f64 {
+        let mut best = f_accepted;
+        // `step` is only read here; the candidate goes to `x_candidate` via swapping buffers.
+        for _ in 0..MAX_HALVINGS {
+            t *= 2.0;
+            std::mem::swap(&mut self.trial, &mut self.spare);
+            self.trial.copy_from_slice(&self.x);
+            let mut changed = false;
+            for (a, &r) in self.free.iter().enumerate() {
+                let new = (self.x[r] + t * self.step[a]).clamp(-1.0, 1.0);
+                changed |= new != self.spare[r];
+                self.trial[r] = new;
+            }
+            if !changed {
+                std::mem::swap(&mut self.trial, &mut self.spare);
+                break;
+            }
+            let f_trial = self.phi_at_trial(s, sign);
+            if f_trial < best {
+                best = f_trial;
+            } else {
+                std::mem::swap(&mut self.trial, &mut self.spare);
+                break;
+            }
+        }
+        best
+    }
+
+    /// At a point with no descent direction from first-order information and an indefinite
+    /// `H_ff`: move along the eigenvector of the most negative eigenvalue, as far as the box allows,
+    /// backtracking until φ drops.
+    pub(super) fn negative_curvature_step(
+        &mut self,
+        s: &SparseSurrogate,
+        sign: f64,
+        f: f64,
+    ) -> Option<f64> {
+        let d = self.x.len();
+        let nf = self.free.len();
+        let h = DMatrix::from_fn(nf, nf, |a, b| self.hess[self.free[a] * d + self.free[b]]);
+        let scale = h.amax().max(f64::MIN_POSITIVE);
+        let eigen = h.symmetric_eigen();
+        let (i, &lambda) = eigen
+            .eigenvalues
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))?;
+        if lambda >= -CURVATURE_TOL * scale {
+            return None;
+        }
+        let u = eigen.eigenvectors.column(i);
+        // Descent along the sign with gᵀu ≤ 0 (both signs when the gradient is orthogonal).
+        let slope: f64 = self
+            .free
+            .iter()
+            .enumerate()
+            .map(|(a, &r)| self.grad[r] * u[a])
+            .sum();
+        let signs: &[f64] = if slope < 0.0 {
+            &[1.0]
+        } else if slope > 0.0 {
+            &[-1.0]
+        } else {
+            &[1.0, -1.0]
+        };
+        let mut best: Option<(f64, f64)> = None;
+        for &dir in signs {
+            let mut t = 2.0;
+            for _ in 0..=MAX_HALVINGS {
+                self.trial.copy_from_slice(&self.x);
+                for (a, &r) in self.free.iter().enumerate() {
+                    self.trial[r] = (self.x[r] + t * dir * u[a]).clamp(-1.0, 1.0);
+                }
+                let f_trial = self.phi_at_trial(s, sign);
+                if f_trial < f && f - f_trial > f64::EPSILON * f.abs() {
+                    if best.is_none_or(|(bf, _)| f_trial < bf) {
+                        best = Some((f_trial, dir * t));
+                    }
+                    break;
+                }
+                t *= 0.5;
+            }
+        }
+        let (f_best, step) = best?;
+        self.trial.copy_from_slice(&self.x);
+        for (a, &r) in self.free.iter().enumerate() {
+            self.trial[r] = (self.x[r] + step * u[a]).clamp(-1.0, 1.0);
+        }
+        Some(f_best)
+    }
+}
