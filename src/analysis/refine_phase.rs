@@ -69,24 +69,58 @@ pub const REFINE_GRADIENT_STEP: f64 = super::plan::TAYLOR_STEP;
 /// that the flips that climb from the best of them keep as many.
 pub const REFINE_VERTEX_SHARE: f64 = 0.5;
 
-/// The best true value found so far for one target at its record, and where.
-#[derive(Clone, Debug)]
-struct BestRun {
-    point: Vec<f64>,
-    value: f64,
+/// For every target and record, the best true value any refinement run took there, and that
+/// run's point: where each stage starts from.
+struct BestRuns {
+    dim: usize,
+    n_records: usize,
+    /// Per target: its output and side.
+    targets: Vec<(usize, Side)>,
+    /// Target-major `targets × records`: the best value and the run (index into `points`).
+    best: Vec<(f64, usize)>,
+    /// Every refinement run's point, row-major.
+    points: Vec<f64>,
 }
 
-impl BestRun {
-    /// Takes `value` at `point` when it is better on `side` (or the first finite one).
-    fn offer(&mut self, side: Side, point: &[f64], value: f64) {
-        let better = match side {
-            Side::Lower => value < self.value,
-            Side::Upper => value > self.value,
-        };
-        if value.is_finite() && (!self.value.is_finite() || better) {
-            self.point = point.to_vec();
-            self.value = value;
+impl BestRuns {
+    fn new(dim: usize, n_records: usize, targets: &[RefineTarget]) -> BestRuns {
+        BestRuns {
+            dim,
+            n_records,
+            targets: targets.iter().map(|t| (t.output, t.side)).collect(),
+            best: vec![(f64::NAN, 0); targets.len() * n_records],
+            points: Vec::new(),
         }
+    }
+
+    /// Registers a batch's points (row-major); returns the index of its first run.
+    fn register(&mut self, points: &[f64]) -> usize {
+        let first = self.points.len() / self.dim.max(1);
+        self.points.extend_from_slice(points);
+        first
+    }
+
+    /// Takes in run `run`'s outputs `values` at `record`, for every target.
+    fn offer(&mut self, run: usize, record: usize, values: &[f64]) {
+        for (t, &(output, side)) in self.targets.iter().enumerate() {
+            let value = values[output];
+            let best = &mut self.best[t * self.n_records + record];
+            let better = match side {
+                Side::Lower => value < best.0,
+                Side::Upper => value > best.0,
+            };
+            if value.is_finite() && (!best.0.is_finite() || better) {
+                *best = (value, run);
+            }
+        }
+    }
+
+    /// Target `t`'s best run at `record`: its point and value (`None` before any).
+    fn at(&self, t: usize, record: usize) -> Option<(&[f64], f64)> {
+        let (value, run) = self.best[t * self.n_records + record];
+        value
+            .is_finite()
+            .then(|| (&self.points[run * self.dim..(run + 1) * self.dim], value))
     }
 }
 
@@ -158,15 +192,10 @@ pub(super) fn refine_extremes(
     // The envelope before any refinement run: a value found beyond it is a miss.
     let before: Vec<EnvelopePoint> = accumulator.points.clone();
     let mut report = RefinementReport::default();
-    let mut best: Vec<BestRun> = targets
-        .iter()
-        .map(|t| BestRun {
-            point: t.start.clone(),
-            value: f64::NAN,
-        })
-        .collect();
+    let mut best = BestRuns::new(d, n_records, targets);
     let settings = ExtremeSearchSettings::default();
     let search_runs = targets.len() * (1 + settings.max_iterations) * (2 * d + 1);
+    let mut flips = None;
     if d > 0 && !targets.is_empty() && budget >= 2 * d + targets.len() {
         // 1. The targets' starts and the centre's stencil, one batch.
         let mut points: Vec<f64> = targets.iter().flat_map(|t| t.start.clone()).collect();
@@ -178,18 +207,15 @@ pub(super) fn refine_extremes(
         // The stencil's values of the untrusted outputs, record-major, run by run.
         let mut stencil = vec![f64::NAN; n_records * 2 * d * outputs.len()];
         let first_stencil = targets.len();
+        let first = best.register(&points);
         let complete = run_batch(
             context,
             "refine",
             &points,
             accumulator,
             &mut |i, record, run| {
-                if i < first_stencil {
-                    let t = &targets[i];
-                    if t.record == record {
-                        best[i].offer(t.side, &t.start, run[t.output]);
-                    }
-                } else {
+                best.offer(first + i, record, run);
+                if i >= first_stencil {
                     let row = (record * 2 * d + i - first_stencil) * outputs.len();
                     for (k, &o) in outputs.iter().enumerate() {
                         stencil[row + k] = run[o];
@@ -234,18 +260,13 @@ pub(super) fn refine_extremes(
         let share = (REFINE_VERTEX_SHARE * (left - reserved) as f64) as usize;
         let plan = vertices.select(share);
         if !plan.points.is_empty() {
+            let first = best.register(&plan.points);
             let complete = run_batch(
                 context,
                 "refine",
                 &plan.points,
                 accumulator,
-                &mut |i, record, run| {
-                    for (b, t) in best.iter_mut().zip(targets) {
-                        if t.record == record {
-                            b.offer(t.side, &plan.points[i * d..(i + 1) * d], run[t.output]);
-                        }
-                    }
-                },
+                &mut |i, record, run| best.offer(first + i, record, run),
             )?;
             report.vertex_runs = plan.points.len() / d;
             report.runs += report.vertex_runs;
@@ -268,7 +289,7 @@ pub(super) fn refine_extremes(
             else {
                 return Ok(None);
             };
-            report.flips = found;
+            flips = Some(found);
         }
     }
     // 4. The gradient search from the starts, while a whole batch fits.
@@ -289,17 +310,17 @@ pub(super) fn refine_extremes(
         }
         let points: Vec<f64> = probes.iter().flat_map(|p| p.point.clone()).collect();
         let mut values = vec![f64::NAN; probes.len()];
+        let first = best.register(&points);
         let complete = run_batch(
             context,
             "refine",
             &points,
             accumulator,
             &mut |i, record, run| {
-                let probe = &probes[i];
-                let target = &targets[probe.label];
+                best.offer(first + i, record, run);
+                let target = &targets[probes[i].label];
                 if target.record == record {
                     values[i] = run[target.output];
-                    best[probe.label].offer(target.side, &probe.point, values[i]);
                 }
             },
         )?;
@@ -324,27 +345,38 @@ pub(super) fn refine_extremes(
             }
         }
     }
-    report.extremes = targets
-        .iter()
-        .zip(&best)
-        .map(|(target, found)| {
-            let p = before[target.record * n_outputs + target.output];
-            RefinedExtreme {
-                output: target.output,
-                record: target.record,
-                side: target.side,
-                start_xi: target.start.clone(),
-                best_xi: found.point.clone(),
-                // The runs' values as recorded; the clamp is monotone, so the best is the best
-                // of the output as reported.
-                value: accumulator.reported(target.output, found.value),
-                envelope: match target.side {
-                    Side::Lower => p.lower,
-                    Side::Upper => p.upper,
-                },
-            }
-        })
+    let extreme = |t: usize, record: usize| {
+        let target = &targets[t];
+        let p = before[record * n_outputs + target.output];
+        let found = best.at(t, record);
+        RefinedExtreme {
+            output: target.output,
+            record,
+            side: target.side,
+            start_xi: target.start.clone(),
+            best_xi: found.map_or_else(|| target.start.clone(), |(x, _)| x.to_vec()),
+            // The runs' values as recorded; the clamp is monotone, so the best is the best
+            // of the output as reported.
+            value: accumulator.reported(target.output, found.map_or(f64::NAN, |(_, v)| v)),
+            envelope: match target.side {
+                Side::Lower => p.lower,
+                Side::Upper => p.upper,
+            },
+        }
+    };
+    report.extremes = (0..targets.len())
+        .map(|t| extreme(t, targets[t].record))
         .collect();
+    if let Some(flips) = flips {
+        report.flips = flips
+            .iter()
+            .enumerate()
+            .map(|(t, &(record, ref start))| RefinedExtreme {
+                start_xi: start.clone(),
+                ..extreme(t, record)
+            })
+            .collect();
+    }
     Ok(Some(report))
 }
 
@@ -356,79 +388,71 @@ fn search_side(side: Side) -> SearchSide {
     }
 }
 
-/// Stage 3: per target output and side, greedy one-flip rounds from the best true run so far at
-/// the output's widest record of the hull of true runs (the best among the targets' own at that
-/// record, else the target's), within `budget`. Returns the searches' results, or `None` when
-/// interrupted.
+/// Stage 3: per target, greedy one-flip rounds ([`FlipSearch`]) at its output's widest record of
+/// the hull of true runs, from the best refinement run there so far (else the target's start),
+/// within `budget`. Returns each search's record and starting point, or `None` when interrupted.
 fn flip_stage(
     context: &mut PhaseContext<'_>,
     targets: &[RefineTarget],
-    best: &mut [BestRun],
+    best: &mut BestRuns,
     budget: usize,
     accumulator: &mut Accumulator,
     report: &mut RefinementReport,
-) -> Result<Option<Vec<RefinedExtreme>>, StudyError> {
+) -> Result<Option<Vec<(usize, Vec<f64>)>>, StudyError> {
     let d = context.space.len();
-    let n_outputs = accumulator.n_outputs;
-    let n_records = accumulator.points.len() / n_outputs.max(1);
-    // One flip search per target, at its output's widest record of the hull.
-    let records: Vec<usize> = targets
+    let n_records = best.n_records;
+    let starts: Vec<(usize, Vec<f64>)> = targets
         .iter()
-        .map(|t| {
+        .enumerate()
+        .map(|(t, target)| {
             let width = |r: usize| {
-                let (lowest, highest) = accumulator.run_hull(r, t.output);
+                let (lowest, highest) = accumulator.run_hull(r, target.output);
                 highest - lowest
             };
-            (0..n_records)
+            let record = (0..n_records)
                 .filter(|&r| width(r).is_finite())
                 .fold(None, |widest: Option<usize>, r| match widest {
                     Some(w) if width(w) >= width(r) => widest,
                     _ => Some(r),
                 })
-                .unwrap_or(t.record)
+                .unwrap_or(target.record);
+            let start = best
+                .at(t, record)
+                .map_or_else(|| target.start.clone(), |(x, _)| x.to_vec());
+            (record, start)
         })
         .collect();
-    // Start: the target's best run when the records agree, else from its best point with
-    // the value unknown (any finite flip improves on it; the start's value at that record
-    // is not known without another run).
     let flip_targets: Vec<FlipTarget> = targets
         .iter()
-        .zip(best.iter())
-        .zip(&records)
+        .zip(&starts)
         .enumerate()
-        .map(|(label, ((t, b), &record))| FlipTarget {
-            label,
-            side: search_side(t.side),
-            start: b.point.clone(),
-            value: if record == t.record {
-                b.value
-            } else {
-                f64::NAN
-            },
+        .map(|(t, (target, (record, start)))| FlipTarget {
+            label: t,
+            side: search_side(target.side),
+            start: start.clone(),
+            // Unknown when no run reached that record (any finite flip then improves on it).
+            value: best.at(t, *record).map_or(f64::NAN, |(_, v)| v),
         })
         .collect();
     let mut search = FlipSearch::new(d, flip_targets);
     loop {
-        let room = budget.saturating_sub(report.flip_runs);
-        let probes = search.next_probes(room);
+        let probes = search.next_probes(budget.saturating_sub(report.flip_runs));
         if probes.is_empty() {
             break;
         }
         let points: Vec<f64> = probes.iter().flat_map(|p| p.point.clone()).collect();
         let mut values = vec![f64::NAN; probes.len()];
+        let first = best.register(&points);
         let complete = run_batch(
             context,
             "refine",
             &points,
             accumulator,
             &mut |i, record, run| {
-                let probe = &probes[i];
-                let target = &targets[probe.label];
-                if records[probe.label] == record {
-                    values[i] = run[target.output];
-                }
-                if target.record == record {
-                    best[probe.label].offer(target.side, &probe.point, run[target.output]);
+                best.offer(first + i, record, run);
+                let t = probes[i].label;
+                if starts[t].0 == record {
+                    values[i] = run[targets[t].output];
                 }
             },
         )?;
@@ -440,28 +464,5 @@ fn flip_stage(
         }
         search.absorb(&values);
     }
-    let before_value = |t: &RefineTarget, record: usize| {
-        let p = accumulator.points[record * n_outputs + t.output];
-        match t.side {
-            Side::Lower => p.lower,
-            Side::Upper => p.upper,
-        }
-    };
-    Ok(Some(
-        targets
-            .iter()
-            .zip(search.best())
-            .zip(&records)
-            .zip(best.iter())
-            .map(|(((t, (point, value)), &record), start)| RefinedExtreme {
-                output: t.output,
-                record,
-                side: t.side,
-                start_xi: start.point.clone(),
-                best_xi: point,
-                value: accumulator.reported(t.output, value),
-                envelope: before_value(t, record),
-            })
-            .collect(),
-    ))
+    Ok(Some(starts))
 }

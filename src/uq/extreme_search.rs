@@ -20,9 +20,12 @@
 //! [`FlipSearch`] is the search for responses whose extremes sit on the box's vertices (a fast
 //! divergence, where a few per cent of every parameter spread the motion to its own size): from a
 //! point with a known value, the `d` points one *flip* away (one coordinate moved to the opposite
-//! face) are evaluated, the best improvement is taken, and the round repeats until none improves.
-//! A round costs `d` evaluations where a central-difference gradient costs `2d`, and it moves by
-//! a whole face where a gradient step moves by a fraction of the half-width.
+//! face) are evaluated; when several improve, the point with *all* of them flipped is evaluated
+//! next (one more evaluation: a response nearly separable at the scale of the box improves on
+//! every flip at once), and the search moves to the better of it and the best single flip; the
+//! rounds repeat until no flip improves. A round costs `d` (+ 1) evaluations where a
+//! central-difference gradient costs `2d`, and it moves by whole faces where a gradient step
+//! moves by a fraction of the half-width.
 //!
 //! What neither does: second-order steps, restarts, or any use of a surrogate.
 
@@ -310,6 +313,9 @@ impl ExtremeSearch {
     }
 }
 
+/// The pending entry of a [`FlipSearch`] probe that is a target's combined flips, not one flip.
+const COMBINED_FLIP: usize = usize::MAX;
+
 /// A target of a [`FlipSearch`]: a point whose value is already known.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FlipTarget {
@@ -331,6 +337,9 @@ struct FlipState {
     current: Vec<f64>,
     value: f64,
     done: bool,
+    /// After a round in which several flips improved: the point with all of them flipped, to be
+    /// evaluated, and the best single flip (point, value) to fall back on.
+    combined: Option<(Vec<f64>, Vec<f64>, f64)>,
 }
 
 /// Greedy one-flip search over the box's vertices for several targets at once (module docs).
@@ -357,6 +366,7 @@ impl FlipSearch {
                 current: t.start.iter().map(|x| x.clamp(-1.0, 1.0)).collect(),
                 value: t.value,
                 done: dim == 0,
+                combined: None,
             })
             .collect();
         FlipSearch {
@@ -386,10 +396,10 @@ impl FlipSearch {
         flipped
     }
 
-    /// The next batch: whole rounds (`d` probes each) of active targets, starting after the
-    /// last target served, while they fit in `max_probes`. Empty when the search is done or not
-    /// one round fits. The previous batch's values must have been given to
-    /// [`FlipSearch::absorb`].
+    /// The next batch: for active targets, starting after the last one served, each its whole
+    /// next step — a round of `d` flips, or the one point of its combined flips — while they fit
+    /// in `max_probes`. Empty when the search is done or not one step fits. The previous batch's
+    /// values must have been given to [`FlipSearch::absorb`].
     pub fn next_probes(&mut self, max_probes: usize) -> Vec<Probe> {
         let n = self.targets.len();
         let mut probes = Vec::new();
@@ -400,14 +410,20 @@ impl FlipSearch {
             if target.done {
                 continue;
             }
-            if probes.len() + self.dim > max_probes {
+            let points: Vec<(usize, Vec<f64>)> = match &target.combined {
+                Some((combined, _, _)) => vec![(COMBINED_FLIP, combined.clone())],
+                None => (0..self.dim)
+                    .map(|j| (j, Self::flipped(&target.current, j)))
+                    .collect(),
+            };
+            if probes.len() + points.len() > max_probes {
                 break;
             }
-            for j in 0..self.dim {
+            for (j, point) in points {
                 probes.push(Probe {
                     target: index,
                     label: target.label,
-                    point: Self::flipped(&target.current, j),
+                    point,
                 });
                 self.pending.push((index, j));
             }
@@ -418,7 +434,9 @@ impl FlipSearch {
     }
 
     /// The values of the last batch's probes, in order (non-finite: that run failed, no
-    /// improvement). Each served target moves to its best improving flip, or stops.
+    /// improvement). A served round's target moves to its only improving flip, waits for the
+    /// evaluation of several combined, or stops when none improves; a served combined point's
+    /// target moves to the better of it and its best single flip.
     pub fn absorb(&mut self, values: &[f64]) {
         assert_eq!(
             values.len(),
@@ -426,28 +444,62 @@ impl FlipSearch {
             "one value per probe of the batch"
         );
         let pending = std::mem::take(&mut self.pending);
-        let mut best: Vec<Option<(f64, usize)>> = vec![None; self.targets.len()];
-        let mut served = vec![false; self.targets.len()];
+        let n = self.targets.len();
+        // Per served target: its improving flips (coordinate, value), or the combined value.
+        let mut improving: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+        let mut combined_value: Vec<Option<f64>> = vec![None; n];
+        let mut served = vec![false; n];
         for (&(t, j), &value) in pending.iter().zip(values) {
             served[t] = true;
             let target = &self.targets[t];
-            let incumbent = best[t].map_or(target.value, |(v, _)| v);
-            let improves = value.is_finite()
-                && (!incumbent.is_finite() || target.side.improves(value, incumbent));
-            if improves {
-                best[t] = Some((value, j));
+            if j == COMBINED_FLIP {
+                combined_value[t] = Some(value);
+            } else if value.is_finite()
+                && (!target.value.is_finite() || target.side.improves(value, target.value))
+            {
+                improving[t].push((j, value));
             }
         }
         for (t, target) in self.targets.iter_mut().enumerate() {
             if !served[t] {
                 continue;
             }
-            match best[t] {
-                Some((value, j)) => {
-                    target.current = Self::flipped(&target.current, j);
+            if let Some(value) = combined_value[t] {
+                let (combined, single, single_value) = target
+                    .combined
+                    .take()
+                    .expect("a combined point was pending");
+                if value.is_finite() && target.side.improves(value, single_value) {
+                    target.current = combined;
                     target.value = value;
+                } else {
+                    target.current = single;
+                    target.value = single_value;
                 }
-                None => target.done = true,
+                continue;
+            }
+            let side = target.side;
+            let Some(&(j, value)) =
+                improving[t]
+                    .iter()
+                    .fold(None, |best: Option<&(usize, f64)>, c| match best {
+                        Some(b) if !side.improves(c.1, b.1) => Some(b),
+                        _ => Some(c),
+                    })
+            else {
+                target.done = true;
+                continue;
+            };
+            let single = Self::flipped(&target.current, j);
+            if improving[t].len() > 1 {
+                let mut combined = target.current.clone();
+                for &(k, _) in &improving[t] {
+                    combined[k] = Self::flipped(&target.current, k)[k];
+                }
+                target.combined = Some((combined, single, value));
+            } else {
+                target.current = single;
+                target.value = value;
             }
         }
     }
@@ -616,5 +668,30 @@ mod tests {
             search.absorb(&values);
         }
         assert_eq!(search.best()[0], (vec![-1.0, -1.0], 1.0));
+    }
+
+    #[test]
+    fn combined_flips_fall_back_to_the_best_single_one() {
+        // Each flip alone improves (−5 → 3); both together do not (−1).
+        let f = |x: &[f64]| x[0] + x[1] - 3.0 * x[0] * x[1];
+        let mut search = FlipSearch::new(
+            2,
+            vec![FlipTarget {
+                label: 0,
+                side: SearchSide::Max,
+                start: vec![-1.0, -1.0],
+                value: -5.0,
+            }],
+        );
+        let mut batches = 0;
+        while !search.is_done() {
+            let probes = search.next_probes(10);
+            let values: Vec<f64> = probes.iter().map(|p| f(&p.point)).collect();
+            search.absorb(&values);
+            batches += 1;
+        }
+        // A round, its combined point, a round that finds nothing.
+        assert_eq!((batches, search.evaluations()), (3, 5));
+        assert_eq!(search.best()[0], (vec![1.0, -1.0], 3.0));
     }
 }
