@@ -30,7 +30,7 @@ use super::error::StudyError;
 use super::phase::PhaseContext;
 use super::report::{RefinedExtreme, RefinementReport};
 use crate::uq::{
-    ExtremeSearch, ExtremeSearchSettings, FlipSearch, FlipTarget, SearchSide, SearchTarget,
+    ExtremeSearch, ExtremeSearchSettings, FlipSearch, FlipTarget, Probe, SearchSide, SearchTarget,
 };
 
 /// One extreme to refine: output `output` at record `record`, on `side`, from `start` (whole-box
@@ -127,19 +127,21 @@ impl BestRuns {
 /// What one stage's batch gives its caller: per run and record, the run's values.
 type OnRun<'a> = dyn FnMut(usize, usize, &[f64]) + 'a;
 
-/// Runs `points` (row-major, `d` per run) as phase `name`: every run widens the hull of true runs
-/// in `accumulator`, then `on_run(run, record, values)`. `Ok(false)` when interrupted.
+/// Runs `points` (row-major, `d` per run) as one batch of the phase "refine": every run widens
+/// the hull of true runs in `accumulator` and is offered to `best`, then
+/// `on_run(run, record, values)`. `Ok(false)` when interrupted.
 fn run_batch(
     context: &mut PhaseContext<'_>,
-    name: &'static str,
     points: &[f64],
+    best: &mut BestRuns,
     accumulator: &mut Accumulator,
     on_run: &mut OnRun<'_>,
 ) -> Result<bool, StudyError> {
     let runs = points.len() / context.space.len().max(1);
     context.report.runs += runs;
+    let first = best.register(points);
     let policy = context.exclusion_policy("refinement run");
-    context.run_phase(name, points, None, policy, &mut |block, _report| {
+    context.run_phase("refine", points, None, policy, &mut |block, _report| {
         for r in 0..block.count {
             let record = block.first + r;
             for i in 0..runs {
@@ -148,11 +150,39 @@ fn run_batch(
                 }
                 let run = block.record(i, r);
                 accumulator.widen_runs(record, run);
+                best.offer(first + i, record, run);
                 on_run(i, record, run);
             }
         }
         Ok(())
     })
+}
+
+/// Runs a search's `probes` (one batch): every run into `best` and the hull of true runs, and
+/// each probe's value of output `at(label).1` at record `at(label).0` (`NaN` where its run
+/// failed). `None` when interrupted.
+fn run_probes(
+    context: &mut PhaseContext<'_>,
+    probes: &[Probe],
+    at: &dyn Fn(usize) -> (usize, usize),
+    best: &mut BestRuns,
+    accumulator: &mut Accumulator,
+) -> Result<Option<Vec<f64>>, StudyError> {
+    let points: Vec<f64> = probes.iter().flat_map(|p| p.point.clone()).collect();
+    let mut values = vec![f64::NAN; probes.len()];
+    let complete = run_batch(
+        context,
+        &points,
+        best,
+        accumulator,
+        &mut |i, record, run| {
+            let (target_record, output) = at(probes[i].label);
+            if target_record == record {
+                values[i] = run[output];
+            }
+        },
+    )?;
+    Ok(complete.then_some(values))
 }
 
 /// The runs the refinement of `outputs` untrusted outputs' extremes may make after `runs_made`
@@ -207,14 +237,12 @@ pub(super) fn refine_extremes(
         // The stencil's values of the untrusted outputs, record-major, run by run.
         let mut stencil = vec![f64::NAN; n_records * 2 * d * outputs.len()];
         let first_stencil = targets.len();
-        let first = best.register(&points);
         let complete = run_batch(
             context,
-            "refine",
             &points,
+            &mut best,
             accumulator,
             &mut |i, record, run| {
-                best.offer(first + i, record, run);
                 if i >= first_stencil {
                     let row = (record * 2 * d + i - first_stencil) * outputs.len();
                     for (k, &o) in outputs.iter().enumerate() {
@@ -260,13 +288,12 @@ pub(super) fn refine_extremes(
         let share = (REFINE_VERTEX_SHARE * (left - reserved) as f64) as usize;
         let plan = vertices.select(share);
         if !plan.points.is_empty() {
-            let first = best.register(&plan.points);
             let complete = run_batch(
                 context,
-                "refine",
                 &plan.points,
+                &mut best,
                 accumulator,
-                &mut |i, record, run| best.offer(first + i, record, run),
+                &mut |_, _, _| {},
             )?;
             report.vertex_runs = plan.points.len() / d;
             report.runs += report.vertex_runs;
@@ -308,28 +335,13 @@ pub(super) fn refine_extremes(
         if probes.is_empty() || report.runs + probes.len() > budget {
             break;
         }
-        let points: Vec<f64> = probes.iter().flat_map(|p| p.point.clone()).collect();
-        let mut values = vec![f64::NAN; probes.len()];
-        let first = best.register(&points);
-        let complete = run_batch(
-            context,
-            "refine",
-            &points,
-            accumulator,
-            &mut |i, record, run| {
-                best.offer(first + i, record, run);
-                let target = &targets[probes[i].label];
-                if target.record == record {
-                    values[i] = run[target.output];
-                }
-            },
-        )?;
+        let at = |label: usize| (targets[label].record, targets[label].output);
+        let Some(values) = run_probes(context, &probes, &at, &mut best, accumulator)? else {
+            return Ok(None);
+        };
         report.runs += probes.len();
         report.search_runs += probes.len();
         report.batches += 1;
-        if !complete {
-            return Ok(None);
-        }
         search.absorb(&values);
     }
     // Misfits: how far the hull of true runs now lies beyond the envelope before, at every
@@ -388,6 +400,9 @@ fn search_side(side: Side) -> SearchSide {
     }
 }
 
+/// Where a flip search ran: its record and its starting point.
+type FlipStart = (usize, Vec<f64>);
+
 /// Stage 3: per target, greedy one-flip rounds ([`FlipSearch`]) at its output's widest record of
 /// the hull of true runs, from the best refinement run there so far (else the target's start),
 /// within `budget`. Returns each search's record and starting point, or `None` when interrupted.
@@ -398,10 +413,10 @@ fn flip_stage(
     budget: usize,
     accumulator: &mut Accumulator,
     report: &mut RefinementReport,
-) -> Result<Option<Vec<(usize, Vec<f64>)>>, StudyError> {
+) -> Result<Option<Vec<FlipStart>>, StudyError> {
     let d = context.space.len();
     let n_records = best.n_records;
-    let starts: Vec<(usize, Vec<f64>)> = targets
+    let starts: Vec<FlipStart> = targets
         .iter()
         .enumerate()
         .map(|(t, target)| {
@@ -440,28 +455,13 @@ fn flip_stage(
         if probes.is_empty() {
             break;
         }
-        let points: Vec<f64> = probes.iter().flat_map(|p| p.point.clone()).collect();
-        let mut values = vec![f64::NAN; probes.len()];
-        let first = best.register(&points);
-        let complete = run_batch(
-            context,
-            "refine",
-            &points,
-            accumulator,
-            &mut |i, record, run| {
-                best.offer(first + i, record, run);
-                let t = probes[i].label;
-                if starts[t].0 == record {
-                    values[i] = run[targets[t].output];
-                }
-            },
-        )?;
+        let at = |label: usize| (starts[label].0, targets[label].output);
+        let Some(values) = run_probes(context, &probes, &at, best, accumulator)? else {
+            return Ok(None);
+        };
         report.runs += probes.len();
         report.flip_runs += probes.len();
         report.batches += 1;
-        if !complete {
-            return Ok(None);
-        }
         search.absorb(&values);
     }
     Ok(Some(starts))
