@@ -36,7 +36,7 @@ use super::error::StudyError;
 use super::nested_design::{nested_design, ElementRuns};
 use super::phase::PhaseContext;
 use super::plan::Plan;
-use super::refine_phase::{refine_extremes, refine_reserve, RefineTarget};
+use super::refine_phase::{refine_budget, refine_extremes, refine_reserve, RefineTarget};
 use super::report::{ElementSummary, ElementsReport};
 use super::sparse::SparseDesign;
 use super::stages::StageCursor;
@@ -419,7 +419,12 @@ pub(super) fn split_into_elements(
     // true runs give (the envelope takes in every value found).
     if !check.untrusted_outputs.is_empty() && stop != "interrupted" {
         let targets = refine_targets(&tree, &check.untrusted_outputs, accumulator);
-        let budget = context.options.max_runs.saturating_sub(context.report.runs);
+        let budget = refine_budget(
+            d,
+            check.untrusted_outputs.len(),
+            context.options.max_runs,
+            context.report.runs,
+        );
         if let Some(refinement) =
             refine_extremes(context, &targets, budget, accumulator, &mut misfit)?
         {

@@ -298,15 +298,26 @@ pub struct RefinedExtreme {
     pub envelope: f64,
 }
 
-/// What refining the untrusted outputs' extremes on the true model did.
-#[derive(Clone, Debug, PartialEq)]
+/// What refining the untrusted outputs' extremes on the true model did (docs/method.md §12).
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct RefinementReport {
-    /// True runs made.
+    /// True runs made, all stages.
     pub runs: usize,
     /// Batches (lock-step phases) run.
     pub batches: usize,
-    /// Every extreme refined.
+    /// Runs of the centre's central-difference stencil (stage 1; the targets' starts besides).
+    pub gradient_runs: usize,
+    /// Runs at the gradients' sign vertices (stage 2).
+    pub vertex_runs: usize,
+    /// Runs of the one-flip searches (stage 3).
+    pub flip_runs: usize,
+    /// Runs of the gradient searches (stage 4).
+    pub search_runs: usize,
+    /// Every extreme refined: per target, the best true value any stage found at its record.
     pub extremes: Vec<RefinedExtreme>,
+    /// The one-flip searches, one per target, at its output's widest record of the true runs
+    /// (empty when stage 3 did not run).
+    pub flips: Vec<RefinedExtreme>,
 }
 
 /// Where a study's time went besides simulating, phase by phase, in seconds. The phases that run

@@ -7,8 +7,8 @@
 
 use super::summary::{EnvelopeSeries, ParameterSummary, SensitivitySummary, SobolSummary, Summary};
 use crate::analysis::{
-    CheckReport, ElementsReport, PhaseSeconds, StudyReport, ADAPTIVE_TOLERANCE,
-    CHAOS_AMPLIFICATION, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
+    CheckReport, ElementsReport, PhaseSeconds, RefinedExtreme, RefinementReport, Side, StudyReport,
+    ADAPTIVE_TOLERANCE, CHAOS_AMPLIFICATION, TRUST_RELATIVE_MISFIT, TRUST_RESOLUTION_FACTOR,
 };
 use crate::scene::LimitExcursion;
 use crate::uncertainty::ParameterSpace;
@@ -151,8 +151,46 @@ impl Summary {
                 elements_json(elements, space, &report.envelope),
             );
         }
+        // Only when the extremes were refined: a trusted study keeps its keys.
+        if let (Some(refinement), Some(stats)) = (&report.refinement, summary.stats.as_object_mut())
+        {
+            stats.insert(
+                "refinement".to_string(),
+                refinement_json(refinement, &report.envelope),
+            );
+        }
         summary
     }
+}
+
+/// The refinement of the extremes on the true model (docs/method.md §12) for the summary: its
+/// runs per stage and, per extreme, where it started, where the best true value was found and
+/// the envelope's bound there before.
+fn refinement_json(
+    refinement: &RefinementReport,
+    envelope: &crate::analysis::Envelope,
+) -> serde_json::Value {
+    let extreme = |x: &RefinedExtreme| {
+        serde_json::json!({
+            "output": envelope.outputs[x.output].name,
+            "time_s": envelope.times.get(x.record).copied(),
+            "side": match x.side { Side::Lower => "lower", Side::Upper => "upper" },
+            "value": x.value,
+            "envelope_before": x.envelope,
+            "start_xi": x.start_xi,
+            "best_xi": x.best_xi,
+        })
+    };
+    serde_json::json!({
+        "runs": refinement.runs,
+        "batches": refinement.batches,
+        "gradient_runs": refinement.gradient_runs,
+        "vertex_runs": refinement.vertex_runs,
+        "flip_runs": refinement.flip_runs,
+        "search_runs": refinement.search_runs,
+        "extremes": refinement.extremes.iter().map(extreme).collect::<Vec<_>>(),
+        "flips": refinement.flips.iter().map(extreme).collect::<Vec<_>>(),
+    })
 }
 
 /// The per-phase seconds of a study ([`PhaseSeconds`]: the worker phases summed over threads).

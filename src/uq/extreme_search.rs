@@ -16,7 +16,18 @@
 //!
 //! The result is a *local* optimum of what was evaluated — never an enclosure: every value it
 //! reports was evaluated by the caller, so it is an inner bound of the function's range.
-//! What it does not do: second-order steps, restarts, or any use of a surrogate.
+//!
+//! [`FlipSearch`] is the search for responses whose extremes sit on the box's vertices (a fast
+//! divergence, where a few per cent of every parameter spread the motion to its own size): from a
+//! point with a known value, the `d` points one *flip* away (one coordinate moved to the opposite
+//! face) are evaluated; when several improve, the point with *all* of them flipped is evaluated
+//! next (one more evaluation: a response nearly separable at the scale of the box improves on
+//! every flip at once), and the search moves to the better of it and the best single flip; the
+//! rounds repeat until no flip improves. A round costs `d` (+ 1) evaluations where a
+//! central-difference gradient costs `2d`, and it moves by whole faces where a gradient step
+//! moves by a fraction of the half-width.
+//!
+//! What neither does: second-order steps, restarts, or any use of a surrogate.
 
 /// Which extreme a target looks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -302,6 +313,206 @@ impl ExtremeSearch {
     }
 }
 
+/// The pending entry of a [`FlipSearch`] probe that is a target's combined flips, not one flip.
+const COMBINED_FLIP: usize = usize::MAX;
+
+/// A target of a [`FlipSearch`]: a point whose value is already known.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FlipTarget {
+    /// The caller's label, returned with each probe.
+    pub label: usize,
+    /// Which side.
+    pub side: SearchSide,
+    /// The starting point (length d; coordinates outside the box are clipped).
+    pub start: Vec<f64>,
+    /// Its value (a non-finite value: any finite value improves on it).
+    pub value: f64,
+}
+
+/// Where a flip target stands.
+#[derive(Clone, Debug)]
+struct FlipState {
+    side: SearchSide,
+    label: usize,
+    current: Vec<f64>,
+    value: f64,
+    done: bool,
+    /// After a round in which several flips improved: the point with all of them flipped, to be
+    /// evaluated, and the best single flip (point, value) to fall back on.
+    combined: Option<(Vec<f64>, Vec<f64>, f64)>,
+}
+
+/// Greedy one-flip search over the box's vertices for several targets at once (module docs).
+#[derive(Clone, Debug)]
+pub struct FlipSearch {
+    dim: usize,
+    targets: Vec<FlipState>,
+    /// The target whose round comes first in the next batch (rounds rotate so that a budget
+    /// too small for every target's round is shared among them).
+    cursor: usize,
+    /// The probes of the batch under way: (target, flipped coordinate).
+    pending: Vec<(usize, usize)>,
+    evaluations: usize,
+}
+
+impl FlipSearch {
+    /// A search of `targets` in `dim` dimensions.
+    pub fn new(dim: usize, targets: Vec<FlipTarget>) -> FlipSearch {
+        let targets = targets
+            .into_iter()
+            .map(|t| FlipState {
+                side: t.side,
+                label: t.label,
+                current: t.start.iter().map(|x| x.clamp(-1.0, 1.0)).collect(),
+                value: t.value,
+                done: dim == 0,
+                combined: None,
+            })
+            .collect();
+        FlipSearch {
+            dim,
+            targets,
+            cursor: 0,
+            pending: Vec::new(),
+            evaluations: 0,
+        }
+    }
+
+    /// Whether every target has stopped.
+    pub fn is_done(&self) -> bool {
+        self.targets.iter().all(|t| t.done)
+    }
+
+    /// Evaluations requested so far.
+    pub fn evaluations(&self) -> usize {
+        self.evaluations
+    }
+
+    /// The flip of coordinate `j` of `point`: to the opposite face (an interior coordinate to the
+    /// face farther from it; the middle to +1).
+    fn flipped(point: &[f64], j: usize) -> Vec<f64> {
+        let mut flipped = point.to_vec();
+        flipped[j] = if point[j] > 0.0 { -1.0 } else { 1.0 };
+        flipped
+    }
+
+    /// The next batch: for active targets, starting after the last one served, each its whole
+    /// next step — a round of `d` flips, or the one point of its combined flips — while they fit
+    /// in `max_probes`. Empty when the search is done or not one step fits. The previous batch's
+    /// values must have been given to [`FlipSearch::absorb`].
+    pub fn next_probes(&mut self, max_probes: usize) -> Vec<Probe> {
+        let n = self.targets.len();
+        let mut probes = Vec::new();
+        self.pending.clear();
+        for k in 0..n {
+            let index = (self.cursor + k) % n;
+            let target = &self.targets[index];
+            if target.done {
+                continue;
+            }
+            let points: Vec<(usize, Vec<f64>)> = match &target.combined {
+                Some((combined, _, _)) => vec![(COMBINED_FLIP, combined.clone())],
+                None => (0..self.dim)
+                    .map(|j| (j, Self::flipped(&target.current, j)))
+                    .collect(),
+            };
+            if probes.len() + points.len() > max_probes {
+                break;
+            }
+            for (j, point) in points {
+                probes.push(Probe {
+                    target: index,
+                    label: target.label,
+                    point,
+                });
+                self.pending.push((index, j));
+            }
+            self.cursor = (index + 1) % n;
+        }
+        self.evaluations += probes.len();
+        probes
+    }
+
+    /// The values of the last batch's probes, in order (non-finite: that run failed, no
+    /// improvement). A served round's target moves to its only improving flip, waits for the
+    /// evaluation of several combined, or stops when none improves; a served combined point's
+    /// target moves to the better of it and its best single flip.
+    pub fn absorb(&mut self, values: &[f64]) {
+        assert_eq!(
+            values.len(),
+            self.pending.len(),
+            "one value per probe of the batch"
+        );
+        let pending = std::mem::take(&mut self.pending);
+        let n = self.targets.len();
+        // Per served target: its improving flips (coordinate, value), or the combined value.
+        let mut improving: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+        let mut combined_value: Vec<Option<f64>> = vec![None; n];
+        let mut served = vec![false; n];
+        for (&(t, j), &value) in pending.iter().zip(values) {
+            served[t] = true;
+            let target = &self.targets[t];
+            if j == COMBINED_FLIP {
+                combined_value[t] = Some(value);
+            } else if value.is_finite()
+                && (!target.value.is_finite() || target.side.improves(value, target.value))
+            {
+                improving[t].push((j, value));
+            }
+        }
+        for (t, target) in self.targets.iter_mut().enumerate() {
+            if !served[t] {
+                continue;
+            }
+            if let Some(value) = combined_value[t] {
+                let (combined, single, single_value) = target
+                    .combined
+                    .take()
+                    .expect("a combined point was pending");
+                if value.is_finite() && target.side.improves(value, single_value) {
+                    target.current = combined;
+                    target.value = value;
+                } else {
+                    target.current = single;
+                    target.value = single_value;
+                }
+                continue;
+            }
+            let side = target.side;
+            let Some(&(j, value)) =
+                improving[t]
+                    .iter()
+                    .fold(None, |best: Option<&(usize, f64)>, c| match best {
+                        Some(b) if !side.improves(c.1, b.1) => Some(b),
+                        _ => Some(c),
+                    })
+            else {
+                target.done = true;
+                continue;
+            };
+            let single = Self::flipped(&target.current, j);
+            if improving[t].len() > 1 {
+                let mut combined = target.current.clone();
+                for &(k, _) in &improving[t] {
+                    combined[k] = Self::flipped(&target.current, k)[k];
+                }
+                target.combined = Some((combined, single, value));
+            } else {
+                target.current = single;
+                target.value = value;
+            }
+        }
+    }
+
+    /// Each target's best point and value so far.
+    pub fn best(&self) -> Vec<(Vec<f64>, f64)> {
+        self.targets
+            .iter()
+            .map(|t| (t.current.clone(), t.value))
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -400,5 +611,87 @@ mod tests {
         );
         assert_eq!(best[0], (vec![1.0, -1.0], 2.0));
         assert_eq!(best[1], (vec![-1.0, 1.0], -2.0));
+    }
+
+    #[test]
+    fn flips_climb_to_the_best_vertex_and_share_a_small_budget() {
+        // A separable response largest at (1, −1, 1): every flip towards it improves.
+        let f = |x: &[f64]| x[0] - 2.0 * x[1] + 0.5 * x[2];
+        let targets = vec![
+            FlipTarget {
+                label: 3,
+                side: SearchSide::Max,
+                start: vec![-1.0, 1.0, -1.0],
+                value: f(&[-1.0, 1.0, -1.0]),
+            },
+            FlipTarget {
+                label: 4,
+                side: SearchSide::Min,
+                start: vec![0.2, 0.0, 0.3],
+                value: f(&[0.2, 0.0, 0.3]),
+            },
+        ];
+        let mut search = FlipSearch::new(3, targets);
+        // A budget of one round per batch: the two targets take turns.
+        let mut served = Vec::new();
+        while !search.is_done() {
+            let probes = search.next_probes(4);
+            assert!(!probes.is_empty() && probes.len() <= 4, "{probes:?}");
+            served.push(probes[0].label);
+            let values: Vec<f64> = probes.iter().map(|p| f(&p.point)).collect();
+            search.absorb(&values);
+            assert!(served.len() < 20, "the search does not stop");
+        }
+        assert_eq!(&served[..2], &[3, 4]);
+        let best = search.best();
+        assert_eq!(best[0], (vec![1.0, -1.0, 1.0], 3.5));
+        assert_eq!(best[1], (vec![-1.0, 1.0, -1.0], -3.5));
+        // A round that does not fit is not started.
+        assert!(FlipSearch::new(3, vec![]).next_probes(2).is_empty());
+    }
+
+    #[test]
+    fn a_failed_flip_never_becomes_the_best() {
+        let f = |x: &[f64]| if x[0] > 0.0 { f64::NAN } else { -x[1] };
+        let mut search = FlipSearch::new(
+            2,
+            vec![FlipTarget {
+                label: 0,
+                side: SearchSide::Max,
+                start: vec![-1.0, 1.0],
+                value: -1.0,
+            }],
+        );
+        while !search.is_done() {
+            let probes = search.next_probes(10);
+            let values: Vec<f64> = probes.iter().map(|p| f(&p.point)).collect();
+            search.absorb(&values);
+        }
+        assert_eq!(search.best()[0], (vec![-1.0, -1.0], 1.0));
+    }
+
+    #[test]
+    fn combined_flips_fall_back_to_the_best_single_one() {
+        // Each flip alone improves (−5 → 3); both together do not (−1).
+        let f = |x: &[f64]| x[0] + x[1] - 3.0 * x[0] * x[1];
+        let mut search = FlipSearch::new(
+            2,
+            vec![FlipTarget {
+                label: 0,
+                side: SearchSide::Max,
+                start: vec![-1.0, -1.0],
+                value: -5.0,
+            }],
+        );
+        let mut batches = 0;
+        while !search.is_done() {
+            let probes = search.next_probes(10);
+            let values: Vec<f64> = probes.iter().map(|p| f(&p.point)).collect();
+            search.absorb(&values);
+            batches += 1;
+        }
+        // A round, its combined point, a round that finds nothing.
+        assert_eq!((batches, search.evaluations()), (3, 5));
+        assert_eq!(search.best()[0], (vec![1.0, -1.0], 3.0));
     }
 }

@@ -76,7 +76,9 @@ pub use design::{Design, Truncation};
 pub use element_box::ElementBox;
 pub use error::UqError;
 pub use error_measure::{envelope_error, EnvelopeError};
-pub use extreme_search::{ExtremeSearch, ExtremeSearchSettings, Probe, SearchSide, SearchTarget};
+pub use extreme_search::{
+    ExtremeSearch, ExtremeSearchSettings, FlipSearch, FlipTarget, Probe, SearchSide, SearchTarget,
+};
 pub use family::Family;
 pub use interval_map::{IntervalMap, ParameterBox};
 pub use leja::{lebesgue_constant, leja_points, MAX_LEJA_POINTS};
