@@ -393,7 +393,12 @@ fn joint_stops_that_jump_across_the_box_are_trusted_once_the_stalled_leaf_is_sca
 #[test]
 fn elements_are_the_same_at_one_and_two_threads() {
     let (urdf, dir) = planted_kink("threads");
-    let urdf = urdf.to_str().unwrap();
+    assert_same_at_one_and_two_threads(urdf.to_str().unwrap(), &dir);
+}
+
+/// `analyze` of `urdf` (its sidecar beside it) exits 0 and writes the same (masked) summary at one
+/// and two threads.
+fn assert_same_at_one_and_two_threads(urdf: &str, dir: &Path) {
     let run = |threads: &str| {
         let file = dir.join(format!("threads-{threads}.json"));
         let outcome = ribbon_outcome(&[
@@ -474,20 +479,7 @@ fn a_refined_scan_is_the_same_at_one_and_two_threads_and_through_shards() {
     std::fs::write(&urdf, SPRING_URDF).unwrap();
     std::fs::write(dir.join("spring.uncertainty.toml"), NINE_DECADE_SIDECAR).unwrap();
     let urdf = urdf.to_str().unwrap();
-    let run = |threads: &str| {
-        let file = dir.join(format!("threads-{threads}.json"));
-        let outcome = ribbon_outcome(&[
-            "analyze",
-            urdf,
-            "--threads",
-            threads,
-            "--summary",
-            file.to_str().unwrap(),
-        ]);
-        assert_eq!(outcome.code, Some(0), "{}", outcome.stderr);
-        masked_summary_file(&file)
-    };
-    assert_eq!(run("1"), run("2"));
+    assert_same_at_one_and_two_threads(urdf, &dir);
     assert_plan_run_merge_is_analyze(urdf, &dir);
 }
 
