@@ -118,14 +118,9 @@ pub(super) struct RefinedScan {
     pub runs: usize,
 }
 
-/// One node of the refined line: its coordinate along the feature dimension and its values
-/// (`lines × records × outputs`).
-struct Node {
-    values: Vec<f64>,
-}
-
-/// A cell between two nodes (indices into the nodes), halved `depth` times below a grid cell,
-/// with the misfit its last test saw (`records × outputs`; empty before any test).
+/// A cell between two nodes (each its coordinate along the feature dimension and its index into
+/// the nodes' values, `lines × records × outputs` per node), halved `depth` times below a grid
+/// cell, with the misfit its last test saw (`records × outputs`; empty before any test).
 struct Cell {
     from: (f64, usize),
     to: (f64, usize),
@@ -177,14 +172,14 @@ pub(super) fn refine_scan(
     other_counts[feature] = 1;
     let lines: Vec<Vec<f64>> = (0..n_lines).map(|l| grid_point(&other_counts, l)).collect();
     let row = n_records * k;
-    let mut nodes: Vec<Node> = (0..n_feature)
+    let mut nodes: Vec<Vec<f64>> = (0..n_feature)
         .map(|a| {
             let mut values = Vec::with_capacity(n_lines * row);
             for l in 0..n_lines {
                 let run = (l / stride) * stride * n_feature + a * stride + l % stride;
                 values.extend_from_slice(&grid.values[run * row..(run + 1) * row]);
             }
-            Node { values }
+            values
         })
         .collect();
     let coordinate = |a: usize| grid_point(&[n_feature], a)[0];
@@ -280,7 +275,7 @@ pub(super) fn refine_scan(
         let mut next = Vec::new();
         for (c, cell) in open.drain(..).enumerate() {
             let middle = &middles[c * n_lines * row..(c + 1) * n_lines * row];
-            let (from, to) = (&nodes[cell.from.1].values, &nodes[cell.to.1].values);
+            let (from, to) = (&nodes[cell.from.1], &nodes[cell.to.1]);
             let mut cell_misfit = vec![0.0_f64; row];
             let mut halve = false;
             let at_resolution = resolved(&cell);
@@ -309,9 +304,7 @@ pub(super) fn refine_scan(
             if halve && !at_resolution {
                 let middle_node = nodes.len();
                 let at = 0.5 * (cell.from.0 + cell.to.0);
-                nodes.push(Node {
-                    values: middle.to_vec(),
-                });
+                nodes.push(middle.to_vec());
                 for (from, to) in [(cell.from, (at, middle_node)), ((at, middle_node), cell.to)] {
                     next.push(Cell {
                         from,

@@ -19,7 +19,6 @@ use crate::uq::ElementBox;
 /// A scan's check of one true run at `record` (`values`, every output): for each `active` output,
 /// how far it lies outside the grid's hull (`grid_hull`, record-major) raises `misfit[o][record]`,
 /// and the value joins `checked`.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn judge_scan_run(
     accumulator: &Accumulator,
     grid_hull: &[EnvelopePoint],
