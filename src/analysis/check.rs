@@ -108,8 +108,23 @@ pub fn untrusted_advice(
     // The check restricted to the records up to some time passes when a shorter run would be
     // judged by the same checks: worth naming only if it is not the start.
     let last = times.len().saturating_sub(1);
-    let shorter = match check.passes_until_record {
-        Some(r) if r > 0 && r < last => {
+    let verified = check
+        .horizon
+        .as_ref()
+        .and_then(|h| h.verified_until_record.map(|r| (h, r)));
+    let shorter = match (verified, check.passes_until_record) {
+        (Some((horizon, r)), _) if r > 0 && r < last => {
+            let t = times[r];
+            parts.push(format!(
+                "checks aimed at the times up to t = {t} s agree with the surrogate ({} more run{} in {} round{}): its envelopes up to then pass the trust test",
+                horizon.runs,
+                if horizon.runs == 1 { "" } else { "s" },
+                horizon.rounds,
+                if horizon.rounds == 1 { "" } else { "s" },
+            ));
+            Some(format!("shorten --duration to {t} s"))
+        }
+        (_, Some(r)) if r > 0 && r < last => {
             let t = times[r];
             parts.push(format!(
                 "judged against the envelope widths up to then, the checks pass up to t = {t} s"
@@ -315,12 +330,36 @@ impl CheckCandidates {
         self.select_after(first, budget)
     }
 
+    /// Chooses at most `budget` distinct points as [`Self::select`] does, but only among the
+    /// predictions at records up to `last_record` and not at the points `ran` (row-major, already
+    /// run: their misfits are known) — the horizon check's selection (docs/method.md §7, "What
+    /// to do about a miss"). Every candidate at a chosen point is checked, at any record.
+    pub fn select_until(&self, last_record: usize, budget: usize, ran: &[f64]) -> CheckPlan {
+        let skip = self.indices_of(ran);
+        self.select_among(Vec::new(), budget, &|c: &Candidate| {
+            c.record <= last_record && !skip.contains(&c.point)
+        })
+    }
+
     /// [`Self::select`] after the points `chosen` (indices into `points`, run first).
-    fn select_after(&self, mut chosen: Vec<usize>, budget: usize) -> CheckPlan {
+    fn select_after(&self, chosen: Vec<usize>, budget: usize) -> CheckPlan {
+        self.select_among(chosen, budget, &|_| true)
+    }
+
+    /// [`Self::select_after`] among the candidates `eligible` accepts.
+    fn select_among(
+        &self,
+        mut chosen: Vec<usize>,
+        budget: usize,
+        eligible: &dyn Fn(&Candidate) -> bool,
+    ) -> CheckPlan {
         let unique_candidates = self.unique_points();
         // Per (output, side): candidates by decreasing width (ties: earlier record first).
         let mut queues: HashMap<(usize, bool), Vec<usize>> = HashMap::new();
         for (c, candidate) in self.candidates.iter().enumerate() {
+            if !eligible(candidate) {
+                continue;
+            }
             queues
                 .entry((candidate.output, candidate.side == Side::Upper))
                 .or_default()
@@ -389,11 +428,7 @@ impl CheckCandidates {
         min_excess: &[f64],
         ran: &[f64],
     ) -> Vec<usize> {
-        let d = self.dim.max(1);
-        let ran: std::collections::HashSet<usize> = ran
-            .chunks_exact(d)
-            .filter_map(|point| self.index_of(point))
-            .collect();
+        let ran = self.indices_of(ran);
         let mut chosen: Vec<usize> = Vec::new();
         for &o in outputs {
             for side in [Side::Lower, Side::Upper] {
@@ -425,6 +460,15 @@ impl CheckCandidates {
             }
         }
         chosen
+    }
+
+    /// The indices of the candidate points within [`CHECK_POINT_TOLERANCE`] of the points
+    /// `points` (row-major).
+    fn indices_of(&self, points: &[f64]) -> std::collections::HashSet<usize> {
+        points
+            .chunks_exact(self.dim.max(1))
+            .filter_map(|point| self.index_of(point))
+            .collect()
     }
 
     /// The index of the candidate point within [`CHECK_POINT_TOLERANCE`] of `point`, if any.
@@ -487,6 +531,7 @@ mod tests {
             first_miss_record,
             checks_before_first_miss: checks_before,
             passes_until_record,
+            horizon: None,
         }
     }
 
@@ -690,6 +735,63 @@ mod tests {
             c.select_with_overshoots(2, &[], &hull, &[0.1, 0.1]).points,
             c.select(2).points,
             "without outputs to look at, the selection is the plain one"
+        );
+    }
+
+    #[test]
+    fn the_horizon_selection_aims_at_records_up_to_its_limit_and_skips_what_ran() {
+        let mut c = CheckCandidates::new(1);
+        // Output 0: its widest record (3) is after the limit; records 1 and 2 are within it.
+        c.add(3, 0, Side::Upper, &[0.9], 2.0, 9.0);
+        c.add(2, 0, Side::Upper, &[0.5], 1.5, 4.0);
+        c.add(1, 0, Side::Upper, &[0.2], 1.0, 2.0);
+        c.add(2, 0, Side::Lower, &[-0.5], -1.5, 4.0);
+        assert_eq!(c.select(1).points, vec![-0.5]);
+        // Up to record 2, widest first per side: the maximum at record 2, the minimum there.
+        let plan = c.select_until(2, 2, &[]);
+        assert_eq!(plan.points, vec![-0.5, 0.5]);
+        // A point already run is not run again: the next widest up to the limit is.
+        assert_eq!(c.select_until(2, 1, &[0.5, -0.5]).points, vec![0.2]);
+        // Nothing up to record 0.
+        assert!(c.select_until(0, 4, &[]).points.is_empty());
+        // Every prediction at a chosen point is checked, whatever its record.
+        c.add(3, 1, Side::Lower, &[0.2], -3.0, 1.0);
+        let plan = c.select_until(1, 1, &[]);
+        assert_eq!(
+            plan.checks[0],
+            vec![(1, 0, Side::Upper, 1.0), (3, 1, Side::Lower, -3.0)]
+        );
+    }
+
+    #[test]
+    fn a_verified_horizon_is_named_with_the_runs_that_verified_it() {
+        let times: Vec<f64> = (0..=10).map(|k| 0.05 * f64::from(k)).collect();
+        let mut check = untrusted_check(Some(6), 2, Some(3));
+        check.horizon = Some(super::super::report::HorizonCheck {
+            rounds: 2,
+            runs: 12,
+            verified_until_record: Some(3),
+        });
+        let advice = untrusted_advice(&check, &times, 38, None, &[], Method::LegendreScan);
+        assert_eq!(
+            advice,
+            "the first miss is at t = 0.3 s (the 2 checks at earlier times agreed); checks aimed \
+             at the times up to t = 0.15 s agree with the surrogate (12 more runs in 2 rounds): its \
+             envelopes up to then pass the trust test; shorten --duration to 0.15 s, raise \
+             --order, narrow the box, or use --method monte-carlo (a scan is out of reach at d = \
+             38)"
+        );
+        // Rounds that confirmed no aim: the prefix as before, to be checked again.
+        check.horizon = Some(super::super::report::HorizonCheck {
+            rounds: 6,
+            runs: 40,
+            verified_until_record: None,
+        });
+        let advice = untrusted_advice(&check, &times, 38, None, &[], Method::LegendreScan);
+        assert!(
+            advice.contains("the checks pass up to t = 0.15 s")
+                && advice.contains("shorten --duration to 0.15 s and check again"),
+            "{advice}"
         );
     }
 

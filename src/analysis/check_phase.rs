@@ -246,6 +246,7 @@ pub(super) fn judge(
         first_miss_record,
         checks_before_first_miss,
         passes_until_record,
+        horizon: None,
     }
 }
 

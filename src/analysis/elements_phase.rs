@@ -33,6 +33,7 @@ use super::elements::{
     PRECISION_SPLIT_SHARE, SCAN_BISECTIONS, SCAN_FEATURE_POINTS, SCAN_OTHER_POINTS,
 };
 use super::error::StudyError;
+use super::horizon_phase::{verify_horizon, HORIZON_MAX_ROUNDS, HORIZON_RUNS_PER_CHECK_RUN};
 use super::nested_design::{nested_design, ElementRuns};
 use super::phase::PhaseContext;
 use super::plan::Plan;
@@ -417,6 +418,7 @@ pub(super) fn split_into_elements(
     let element_runs = context.report.runs - runs_before;
     // Outputs still untrusted: their extremes refined on the true model, the inner bound that
     // true runs give (the envelope takes in every value found).
+    let mut refined = false;
     if !check.untrusted_outputs.is_empty() && stop != "interrupted" {
         let targets = refine_targets(&tree, &check.untrusted_outputs, accumulator);
         let budget = refine_budget(
@@ -429,9 +431,29 @@ pub(super) fn split_into_elements(
             refine_extremes(context, &targets, budget, accumulator, &mut misfit)?
         {
             accumulator.widen_to_runs();
-            check = judge(scene, runs, &misfit, accumulator);
+            check = judge(scene, runs.clone(), &misfit, accumulator);
             context.report.refinement = Some(refinement);
+            refined = true;
         }
+    }
+    // Still untrusted: checks aimed at the records up to where the checks pass, at most twice as
+    // many runs in all as the checks made so far.
+    if refined {
+        let round_runs = (HORIZON_RUNS_PER_CHECK_RUN * runs.runs).div_ceil(HORIZON_MAX_ROUNDS);
+        let candidates: Vec<&CheckCandidates> = tree
+            .leaves()
+            .into_iter()
+            .map(|leaf| &tree.elements[leaf].candidates)
+            .collect();
+        check = verify_horizon(
+            context,
+            &candidates,
+            round_runs,
+            &mut runs,
+            &mut misfit,
+            accumulator,
+            check,
+        )?;
     }
     let scales = output_scales(scene, &accumulator.points);
     let elements = summarize(&tree, &scales);

@@ -30,6 +30,7 @@ mod elements_phase;
 mod engine;
 mod envelope;
 mod error;
+mod horizon_phase;
 mod lyapunov;
 mod method;
 mod nested_design;
@@ -84,8 +85,8 @@ pub use plan::{Plan, SplitMix64, MAX_RUNS, TAYLOR_STEP};
 pub use reference::{VertexReferenceOptions, MAX_FLIP_ROUNDS, MAX_VERTEX_RUNS};
 pub use report::{
     AdaptiveReport, BlockView, CheckReport, CheckSkipped, DesignPart, ElementSummary,
-    ElementsReport, PendingStage, PhaseSeconds, Progress, RefinedExtreme, RefinementReport,
-    SampleFailure, SampleRetry, StudyReport,
+    ElementsReport, HorizonCheck, PendingStage, PhaseSeconds, Progress, RefinedExtreme,
+    RefinementReport, SampleFailure, SampleRetry, StudyReport,
 };
 pub use schedule::{RecordSchedule, BLOCK_VALUE_BUDGET, MAX_BLOCK_RECORDS};
 pub use screening::{DimensionScreening, Screening};

@@ -145,6 +145,24 @@ pub struct CheckReport {
     /// `0..=R`, trusts every output — what the check would say of a run that ended there (the last
     /// record exactly when every output is trusted; `None` when no prefix passes).
     pub passes_until_record: Option<usize>,
+    /// The horizon check, when one ran: checks aimed at the records up to
+    /// [`CheckReport::passes_until_record`] of an untrusted study (`horizon_phase.rs`).
+    pub horizon: Option<HorizonCheck>,
+}
+
+/// What the horizon check of an untrusted study did (docs/method.md §7, "What to do about a
+/// miss"): rounds of checks aimed at the predicted extremes up to the record where the study's
+/// checks passed, until a round confirms that record.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct HorizonCheck {
+    /// Rounds run.
+    pub rounds: usize,
+    /// Runs made over all rounds.
+    pub runs: usize,
+    /// The record up to which checks aimed there agree: the record a round aimed at, when the
+    /// prefix test with every check's misfits still passed there (`None`: no round confirmed
+    /// its aim).
+    pub verified_until_record: Option<usize>,
 }
 
 /// Why a study whose method the check follows made no check runs.

@@ -386,7 +386,7 @@ fn gap_json(report: &StudyReport) -> Option<serde_json::Value> {
 fn check_json(report: &StudyReport, check: &CheckReport, dim: usize) -> serde_json::Value {
     let outputs = &report.envelope.outputs;
     let e_times = &report.envelope.times;
-    serde_json::json!({
+    let mut json = serde_json::json!({
         "runs": check.runs,
         "unique_candidates": check.unique_candidates,
         "complete": check.complete,
@@ -405,7 +405,16 @@ fn check_json(report: &StudyReport, check: &CheckReport, dim: usize) -> serde_js
             "relative_misfit": check.relative_misfit[o],
             "resolution": check.resolution[o],
         })).collect::<Vec<_>>(),
-    })
+    });
+    // Only where one ran: the summaries of studies without one keep every byte.
+    if let Some(horizon) = &check.horizon {
+        json["horizon"] = serde_json::json!({
+            "rounds": horizon.rounds,
+            "runs": horizon.runs,
+            "verified_until_time_s": horizon.verified_until_record.map(|r| e_times[r]),
+        });
+    }
+    json
 }
 
 /// Output `o`'s series of the hull of true runs for the summary, when every record has one (every
