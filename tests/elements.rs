@@ -15,7 +15,8 @@
 mod common;
 
 use common::{
-    fresh_test_scratch_dir, masked_summary_file, ribbon_outcome, NINE_DECADE_SIDECAR, SPRING_URDF,
+    fresh_test_scratch_dir, masked_summary_file, plan_run_merge_in_two_shards, ribbon_outcome,
+    NINE_DECADE_SIDECAR, SPRING_URDF,
 };
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -488,40 +489,18 @@ fn a_refined_scan_is_the_same_at_one_and_two_threads_and_through_shards() {
 /// a round of elements.
 fn assert_plan_run_merge_is_analyze(urdf: &str, dir: &Path) {
     let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
-    let (plan, shards) = (path("stop.plan"), path("shards"));
-    let planned = ribbon_outcome(&["plan", urdf, "--plan", &plan]);
-    assert_eq!(planned.code, Some(0), "{}", planned.stderr);
-    let mut stages_planned = 0;
-    loop {
-        for shard in ["0/2", "1/2"] {
-            let run = ribbon_outcome(&["run", &plan, "--shard", shard, "--into", &shards]);
-            assert_eq!(run.code, Some(0), "{}", run.stderr);
-        }
-        let merged = ribbon_outcome(&[
-            "merge",
-            &plan,
-            &shards,
-            "--summary",
-            &path("merge.json"),
-            "--csv",
-            &path("merge.csv"),
-        ]);
-        match merged.code {
-            Some(3) => {
-                assert!(
-                    merged.stdout.contains("a round of elements"),
-                    "{}",
-                    merged.stdout
-                );
-                stages_planned += 1;
-                assert!(stages_planned < 10, "merge keeps asking for stages");
-            }
-            Some(0) => break,
-            other => panic!("merge exited {other:?}: {}", merged.stderr),
-        }
+    let merges = plan_run_merge_in_two_shards(dir, &[urdf], 10);
+    let (last, stages) = merges.split_last().unwrap();
+    assert_eq!(last.code, Some(0), "{}", last.stderr);
+    for stage in stages {
+        assert!(
+            stage.stdout.contains("a round of elements"),
+            "{}",
+            stage.stdout
+        );
     }
     assert!(
-        stages_planned >= 1,
+        !stages.is_empty(),
         "the kink needs at least one round of elements"
     );
     let analyzed = ribbon_outcome(&[

@@ -112,35 +112,11 @@ fn the_horizon_check_is_the_same_at_any_thread_count_and_through_shards() {
         "1 and 2 threads differ"
     );
 
-    let (plan, shards) = (path("study.plan"), path("shards"));
-    let mut args = vec!["plan", URDF, "--plan", &plan];
-    args.extend_from_slice(&box_args);
-    let planned = ribbon_outcome(&args);
-    assert_eq!(planned.code, Some(0), "{}", planned.stderr);
-    let mut stages = 0;
-    loop {
-        for shard in ["0/2", "1/2"] {
-            let run = ribbon_outcome(&["run", &plan, "--shard", shard, "--into", &shards]);
-            assert_eq!(run.code, Some(0), "{}", run.stderr);
-        }
-        let merged = ribbon_outcome(&[
-            "merge",
-            &plan,
-            &shards,
-            "--summary",
-            &path("merge.json"),
-            "--csv",
-            &path("merge.csv"),
-        ]);
-        match merged.code {
-            Some(3) => {
-                stages += 1;
-                assert!(stages < 20, "merge keeps asking for stages");
-            }
-            Some(4) => break,
-            other => panic!("merge exited {other:?}: {}", merged.stderr),
-        }
-    }
+    let mut plan_args = vec![URDF];
+    plan_args.extend_from_slice(&box_args);
+    let merges = common::plan_run_merge_in_two_shards(&dir, &plan_args, 20);
+    let last = merges.last().unwrap();
+    assert_eq!(last.code, Some(4), "{}", last.stderr);
     assert!(
         std::fs::read(path("merge.csv")).unwrap() == csv,
         "merge's CSV differs from analyze's"

@@ -691,3 +691,43 @@ joints = "all"
 velocities = true
 accelerations = true
 "#;
+
+/// A staged study as a cluster runs it: `ribbon plan PLAN_ARGS --plan DIR/study.plan`, then stage
+/// after stage `ribbon run` in two shards and `ribbon merge` (writing `DIR/merge.json` and
+/// `DIR/merge.csv`) until merge stops asking for a stage (exit 3). Every merge's outcome, in
+/// order; panics when a step fails or merge asks for more than `max_stages` stages.
+pub fn plan_run_merge_in_two_shards(
+    dir: &Path,
+    plan_args: &[&str],
+    max_stages: usize,
+) -> Vec<Outcome> {
+    let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let (plan, shards) = (path("study.plan"), path("shards"));
+    let mut args = vec!["plan"];
+    args.extend_from_slice(plan_args);
+    args.extend_from_slice(&["--plan", &plan]);
+    let planned = ribbon_outcome(&args);
+    assert_eq!(planned.code, Some(0), "{}", planned.stderr);
+    let mut merges = Vec::new();
+    loop {
+        for shard in ["0/2", "1/2"] {
+            let run = ribbon_outcome(&["run", &plan, "--shard", shard, "--into", &shards]);
+            assert_eq!(run.code, Some(0), "{}", run.stderr);
+        }
+        let merged = ribbon_outcome(&[
+            "merge",
+            &plan,
+            &shards,
+            "--summary",
+            &path("merge.json"),
+            "--csv",
+            &path("merge.csv"),
+        ]);
+        let asks = merged.code == Some(3);
+        merges.push(merged);
+        if !asks {
+            return merges;
+        }
+        assert!(merges.len() <= max_stages, "merge keeps asking for stages");
+    }
+}
