@@ -341,6 +341,15 @@ fn the_check_flags_an_untrustworthy_surrogate_and_every_check_run_is_inside() {
         .find("> **Warning:** the surrogate cannot be trusted")
         .unwrap_or_else(|| panic!("no warning in report.md:\n{page}"));
     assert!(warning < page.find("```text").unwrap(), "{page}");
+    // The table's Sobol' indices and ranking carry the caveat, above them.
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let caveat = stdout
+        .find("(the Sobol' indices and the ranking below are the surrogate's, which the check did not trust for")
+        .unwrap_or_else(|| panic!("no caveat on the Sobol' indices:\n{stdout}"));
+    assert!(
+        caveat < stdout.find("Sobol' indices of the surrogate at").unwrap(),
+        "{stdout}"
+    );
     assert!(
         page.contains(&format!(
             "the first miss is at t = {} s",

@@ -138,6 +138,16 @@ pub fn table(
         if report.sobol.is_some() {
             text.push_str("(the Sobol' indices below are the first surrogate's, over the whole box; it was not trusted for the outputs the elements were made for)\n");
         }
+    } else if let Some(check) = report
+        .check
+        .as_ref()
+        .filter(|c| report.sobol.is_some() && !c.untrusted_outputs.is_empty())
+    {
+        text.push_str(&format!(
+            "(the Sobol' indices and the ranking below are the surrogate's, which the check did not trust for {} of {} outputs: for those they rank what the surrogate says, not what true runs do)\n",
+            check.untrusted_outputs.len(),
+            e.outputs.len()
+        ));
     }
     if let Some(series) = &report.sobol {
         let names: Vec<String> = space.dimensions().iter().map(|d| d.name.clone()).collect();
