@@ -9,8 +9,9 @@
 //!                        the centre (2d runs) ⇒ every untrusted output's gradient at every record
 //! 2. sign vertices:      ±sign(∇y) per (output, record, side), deduplicated, widest spread first,
 //!                        round-robin over outputs and sides (CheckCandidates::select)
-//! 3. flips:              from the best run so far at each output's widest record of the hull,
-//!                        greedy one-flip rounds ([`FlipSearch`]) while they fit
+//! 3. flips:              from the best run so far where each output's hull of true runs first
+//!                        reaches 30 % and 60 % of its widest, greedy one-flip rounds
+//!                        ([`FlipSearch`]) while they fit
 //! 4. gradient search:    projected steepest ascent from each start ([`ExtremeSearch`]) — its
 //!                        runs set aside first when a whole search fits in half the budget
 //! ```
@@ -32,6 +33,7 @@ use super::report::{RefinedExtreme, RefinementReport};
 use crate::uq::{
     ExtremeSearch, ExtremeSearchSettings, FlipSearch, FlipTarget, Probe, SearchSide, SearchTarget,
 };
+use std::collections::HashMap;
 
 /// One extreme to refine: output `output` at record `record`, on `side`, from `start` (whole-box
 /// coordinates ξ).
@@ -50,13 +52,26 @@ pub(super) struct RefineTarget {
 /// Most of a study's `--max-runs` the elements leave for refining the extremes: a quarter.
 pub const REFINE_BUDGET_FRACTION: f64 = 0.25;
 
-/// The runs set aside for refining `outputs` untrusted outputs' extremes in `dim` dimensions
-/// within `max_runs`: a full search of both sides of each (its start and
-/// `ExtremeSearchSettings::max_iterations` trials, each with its `2d` differences), at most
-/// [`REFINE_BUDGET_FRACTION`] of `max_runs`.
-pub(super) fn refine_reserve(dim: usize, outputs: usize, max_runs: usize) -> usize {
+/// Most of a study's `--max-runs` the refinement may make beyond what the design and the
+/// elements left: a half, so an untrusted study makes at most 1.5 × `--max-runs` runs. Measured
+/// on the limp iiwa (d = 37, docs/method.md §12), whose adaptive design spends the whole budget:
+/// a quarter (745 refinement runs) left one flip round for 11 of its 28 searches and missed
+/// 29.5 % of the reference; a half (1 470 runs, +3.7 s wall) 19.5 %; the whole `--max-runs`
+/// (2 972 runs, +7.6 s) 17.1 %.
+pub const REFINE_EXTRA_FRACTION: f64 = 0.5;
+
+/// A full search of both sides of `outputs` untrusted outputs' extremes in `dim` dimensions
+/// (its start and `ExtremeSearchSettings::max_iterations` trials, each with its `2d`
+/// differences), at most `fraction` of `max_runs`.
+fn refine_runs(dim: usize, outputs: usize, max_runs: usize, fraction: f64) -> usize {
     let per_search = (1 + ExtremeSearchSettings::default().max_iterations) * (2 * dim + 1);
-    (2 * outputs * per_search).min((REFINE_BUDGET_FRACTION * max_runs as f64) as usize)
+    (2 * outputs * per_search).min((fraction * max_runs as f64) as usize)
+}
+
+/// The runs the elements set aside for refining `outputs` untrusted outputs' extremes in `dim`
+/// dimensions within `max_runs`: [`refine_runs`] at [`REFINE_BUDGET_FRACTION`].
+pub(super) fn refine_reserve(dim: usize, outputs: usize, max_runs: usize) -> usize {
+    refine_runs(dim, outputs, max_runs, REFINE_BUDGET_FRACTION)
 }
 
 /// The step of the centre's central differences in ξ (stage 1): small enough that the sign of a
@@ -158,17 +173,31 @@ fn run_batch(
     })
 }
 
-/// Runs a search's `probes` (one batch): every run into `best` and the hull of true runs, and
-/// each probe's value of output `at(label).1` at record `at(label).0` (`NaN` where its run
-/// failed). `None` when interrupted.
+/// Runs a search's `probes` (one batch), each distinct point once (flip searches that start
+/// from the same run ask for the same flips): every run into `best` and the hull of true runs,
+/// and each probe's value of output `at(label).1` at record `at(label).0` (`NaN` where its run
+/// failed). Returns the values and the runs made, or `None` when interrupted.
 fn run_probes(
     context: &mut PhaseContext<'_>,
     probes: &[Probe],
     at: &dyn Fn(usize) -> (usize, usize),
     best: &mut BestRuns,
     accumulator: &mut Accumulator,
-) -> Result<Option<Vec<f64>>, StudyError> {
-    let points: Vec<f64> = probes.iter().flat_map(|p| p.point.clone()).collect();
+) -> Result<Option<(Vec<f64>, usize)>, StudyError> {
+    // The distinct points in order of first request, and the probes each serves.
+    let mut index: HashMap<Vec<u64>, usize> = HashMap::new();
+    let mut points: Vec<f64> = Vec::new();
+    let mut served: Vec<Vec<usize>> = Vec::new();
+    for (p, probe) in probes.iter().enumerate() {
+        let key: Vec<u64> = probe.point.iter().map(|x| x.to_bits()).collect();
+        let next = served.len();
+        let slot = *index.entry(key).or_insert(next);
+        if slot == next {
+            points.extend_from_slice(&probe.point);
+            served.push(Vec::new());
+        }
+        served[slot].push(p);
+    }
     let mut values = vec![f64::NAN; probes.len()];
     let complete = run_batch(
         context,
@@ -176,29 +205,34 @@ fn run_probes(
         best,
         accumulator,
         &mut |i, record, run| {
-            let (target_record, output) = at(probes[i].label);
-            if target_record == record {
-                values[i] = run[output];
+            for &p in &served[i] {
+                let (target_record, output) = at(probes[p].label);
+                if target_record == record {
+                    values[p] = run[output];
+                }
             }
         },
     )?;
-    Ok(complete.then_some(values))
+    Ok(complete.then_some((values, served.len())))
 }
 
 /// The runs the refinement of `outputs` untrusted outputs' extremes may make after `runs_made`
-/// of a study's `max_runs`: what is left, and at least the reserve ([`refine_reserve`]) even
-/// when the design spent the budget (an adaptive design above d = 4 takes all of it before the
-/// check can say anything), so an untrusted study makes at most
-/// `(1 + REFINE_BUDGET_FRACTION) · max_runs` runs.
+/// of a study's `max_runs`: what is left, and at least [`refine_runs`] at
+/// [`REFINE_EXTRA_FRACTION`] even when the design spent the budget (an adaptive design above
+/// d = 4 takes all of it before the check can say anything), so an untrusted study makes at most
+/// `(1 + REFINE_EXTRA_FRACTION) · max_runs` runs.
 pub(super) fn refine_budget(
     dim: usize,
     outputs: usize,
     max_runs: usize,
     runs_made: usize,
 ) -> usize {
-    max_runs
-        .saturating_sub(runs_made)
-        .max(refine_reserve(dim, outputs, max_runs))
+    max_runs.saturating_sub(runs_made).max(refine_runs(
+        dim,
+        outputs,
+        max_runs,
+        REFINE_EXTRA_FRACTION,
+    ))
 }
 
 /// Runs the refinement of `targets` on the true model (module documentation) within `budget`
@@ -302,7 +336,7 @@ pub(super) fn refine_extremes(
                 return Ok(None);
             }
         }
-        // 3. Flips from the best run so far, at each target output's widest record of the hull.
+        // 3. Flips from the best run so far, at each target output's rising records.
         let flip_budget = budget.saturating_sub(report.runs + reserved);
         if flip_budget >= d {
             let Some(found) = flip_stage(
@@ -336,11 +370,12 @@ pub(super) fn refine_extremes(
             break;
         }
         let at = |label: usize| (targets[label].record, targets[label].output);
-        let Some(values) = run_probes(context, &probes, &at, &mut best, accumulator)? else {
+        let Some((values, runs)) = run_probes(context, &probes, &at, &mut best, accumulator)?
+        else {
             return Ok(None);
         };
-        report.runs += probes.len();
-        report.search_runs += probes.len();
+        report.runs += runs;
+        report.search_runs += runs;
         report.batches += 1;
         search.absorb(&values);
     }
@@ -382,8 +417,7 @@ pub(super) fn refine_extremes(
     if let Some(flips) = flips {
         report.flips = flips
             .iter()
-            .enumerate()
-            .map(|(t, &(record, ref start))| RefinedExtreme {
+            .map(|&(t, record, ref start)| RefinedExtreme {
                 start_xi: start.clone(),
                 ..extreme(t, record)
             })
@@ -400,12 +434,47 @@ fn search_side(side: Side) -> SearchSide {
     }
 }
 
-/// Where a flip search ran: its record and its starting point.
-type FlipStart = (usize, Vec<f64>);
+/// Where a flip search ran: its target, its record and its starting point.
+type FlipStart = (usize, usize, Vec<f64>);
 
-/// Stage 3: per target, greedy one-flip rounds ([`FlipSearch`]) at its output's widest record of
-/// the hull of true runs, from the best refinement run there so far (else the target's start),
-/// within `budget`. Returns each search's record and starting point, or `None` when interrupted.
+/// The shares of its widest spread at which an output's flip searches aim (stage 3): each search
+/// runs at the first record where the hull of true runs is at least that share of its widest.
+/// Not the widest record itself: once a fast divergence has spread the motion, many runs are
+/// extreme there, but while the spread rises the extremes belong to the few runs that diverge
+/// first — where the sign vertices miss most. Measured on the limp iiwa (docs/method.md §12) in a
+/// prototype of these stages driving the true model: aimed at the widest record the searches
+/// converge near a 30 % miss of the reference however many runs they get (30.1 % at 1 500
+/// refinement runs, 29.8 % at 3 000); aimed at 30 % and 60 %, 18.3 % at 1 500.
+pub const FLIP_WIDTH_SHARES: [f64; 2] = [0.3, 0.6];
+
+/// The records an output's flip searches aim at ([`FLIP_WIDTH_SHARES`]), given the width of its
+/// hull of true runs at each of `n_records` records: the first record whose width reaches each
+/// share of the widest, deduplicated; `fallback` alone when no record has a positive finite
+/// width.
+fn flip_records(width: &dyn Fn(usize) -> f64, n_records: usize, fallback: usize) -> Vec<usize> {
+    let widest = (0..n_records)
+        .map(width)
+        .filter(|w| w.is_finite())
+        .fold(0.0_f64, f64::max);
+    if widest <= 0.0 {
+        return vec![fallback];
+    }
+    let mut records: Vec<usize> = Vec::new();
+    for share in FLIP_WIDTH_SHARES {
+        let record = (0..n_records)
+            .find(|&r| width(r) >= share * widest)
+            .unwrap_or(fallback);
+        if !records.contains(&record) {
+            records.push(record);
+        }
+    }
+    records
+}
+
+/// Stage 3: per target, greedy one-flip rounds ([`FlipSearch`]) at its output's records of
+/// [`flip_records`], from the best refinement run there so far (else the target's start), within
+/// `budget`; every target's first record before any target's second. Returns each search's
+/// target, record and starting point, or `None` when interrupted.
 fn flip_stage(
     context: &mut PhaseContext<'_>,
     targets: &[RefineTarget],
@@ -416,37 +485,37 @@ fn flip_stage(
 ) -> Result<Option<Vec<FlipStart>>, StudyError> {
     let d = context.space.len();
     let n_records = best.n_records;
-    let starts: Vec<FlipStart> = targets
+    let records: Vec<Vec<usize>> = targets
         .iter()
-        .enumerate()
-        .map(|(t, target)| {
+        .map(|target| {
             let width = |r: usize| {
                 let (lowest, highest) = accumulator.run_hull(r, target.output);
                 highest - lowest
             };
-            let record = (0..n_records)
-                .filter(|&r| width(r).is_finite())
-                .fold(None, |widest: Option<usize>, r| match widest {
-                    Some(w) if width(w) >= width(r) => widest,
-                    _ => Some(r),
-                })
-                .unwrap_or(target.record);
+            flip_records(&width, n_records, target.record)
+        })
+        .collect();
+    let mut starts: Vec<FlipStart> = Vec::new();
+    for k in 0..FLIP_WIDTH_SHARES.len() {
+        for (t, target) in targets.iter().enumerate() {
+            let Some(&record) = records[t].get(k) else {
+                continue;
+            };
             let start = best
                 .at(t, record)
                 .map_or_else(|| target.start.clone(), |(x, _)| x.to_vec());
-            (record, start)
-        })
-        .collect();
-    let flip_targets: Vec<FlipTarget> = targets
+            starts.push((t, record, start));
+        }
+    }
+    let flip_targets: Vec<FlipTarget> = starts
         .iter()
-        .zip(&starts)
         .enumerate()
-        .map(|(t, (target, (record, start)))| FlipTarget {
-            label: t,
-            side: search_side(target.side),
+        .map(|(label, (t, record, start))| FlipTarget {
+            label,
+            side: search_side(targets[*t].side),
             start: start.clone(),
             // Unknown when no run reached that record (any finite flip then improves on it).
-            value: best.at(t, *record).map_or(f64::NAN, |(_, v)| v),
+            value: best.at(*t, *record).map_or(f64::NAN, |(_, v)| v),
         })
         .collect();
     let mut search = FlipSearch::new(d, flip_targets);
@@ -455,14 +524,44 @@ fn flip_stage(
         if probes.is_empty() {
             break;
         }
-        let at = |label: usize| (starts[label].0, targets[label].output);
-        let Some(values) = run_probes(context, &probes, &at, best, accumulator)? else {
+        let at = |label: usize| (starts[label].1, targets[starts[label].0].output);
+        let Some((values, runs)) = run_probes(context, &probes, &at, best, accumulator)? else {
             return Ok(None);
         };
-        report.runs += probes.len();
-        report.flip_runs += probes.len();
+        report.runs += runs;
+        report.flip_runs += runs;
         report.batches += 1;
         search.absorb(&values);
     }
     Ok(Some(starts))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flips_aim_where_the_spread_rises_not_where_it_is_widest() {
+        // A spread that grows tenfold every ten records: 30 % of the widest is first reached at
+        // record 15 (10^(1.5 − 2) ≈ 0.316), 60 % at record 18 (≈ 0.631); the widest is record 20.
+        let width = |r: usize| 10f64.powf(r as f64 / 10.0);
+        assert_eq!(flip_records(&width, 21, 7), vec![15, 18]);
+        // A spread that jumps at once: both shares land on the same record, searched once.
+        let step = |r: usize| if r >= 4 { 1.0 } else { 0.0 };
+        assert_eq!(flip_records(&step, 10, 7), vec![4]);
+        // No spread at all (or none finite): the target's own record.
+        assert_eq!(flip_records(&|_| 0.0, 10, 7), vec![7]);
+        assert_eq!(flip_records(&|_| f64::NAN, 10, 7), vec![7]);
+    }
+
+    #[test]
+    fn an_untrusted_study_may_refine_with_half_its_budget_beyond_it() {
+        // d = 37, 7 outputs: a full search of each is far above the share, so the share decides.
+        assert_eq!(refine_reserve(37, 7, 3000), 750);
+        assert_eq!(refine_budget(37, 7, 3000, 3000), 1500);
+        // Runs left over count when they are more.
+        assert_eq!(refine_budget(37, 7, 3000, 1000), 2000);
+        // d = 1, one output: the full search (2 · 7 · 3 runs) is below either share.
+        assert_eq!(refine_budget(1, 1, 3000, 3000), 42);
+    }
 }

@@ -333,8 +333,8 @@ pub struct RefinementReport {
     pub search_runs: usize,
     /// Every extreme refined: per target, the best true value any stage found at its record.
     pub extremes: Vec<RefinedExtreme>,
-    /// The one-flip searches, one per target, at its output's widest record of the true runs
-    /// (empty when stage 3 did not run).
+    /// The one-flip searches, one per target and record it aimed at (where its output's hull of
+    /// true runs first reaches 30 % and 60 % of its widest; empty when stage 3 did not run).
     pub flips: Vec<RefinedExtreme>,
 }
 

@@ -212,9 +212,9 @@ pub struct AnalyzeArgs {
     #[arg(long)]
     pub keep_going: bool,
     /// Most model runs `--method auto` plans above d = 4, and `--design adaptive|screened` (design,
-    /// screening and check; default 3000). A study the check does not trust may add up to a
-    /// quarter more to refine its extremes on the true model, and twice its check runs to verify
-    /// the shorter duration it advises.
+    /// screening and check; default 3000). A study the check does not trust may add up to half as
+    /// many again to refine its extremes on the true model, and twice its check runs to verify the
+    /// shorter duration it advises.
     #[arg(long, value_name = "N")]
     pub max_runs: Option<usize>,
     /// True-model runs of the a-posteriori check at the surrogate's predicted extremes (every
