@@ -469,7 +469,8 @@ fn the_sidecar_sets_the_run_budget_and_the_flag_overrides_it() {
     assert_input_error(&out, &["--max-runs", "give at least 2"]);
     // `--method auto` plans within the sidecar's budget, and the flag's wins over it. An
     // untrusted study may refine its extremes with up to half the budget beyond it
-    // (docs/method.md §12): the runs planned, and the refinement's, are counted apart.
+    // (docs/method.md §12) and check its horizon with up to twice its check runs (§7): the runs
+    // planned, and the refinement's and the horizon check's, are counted apart.
     let runs_of = |extra: &[&str]| -> (u64, u64) {
         let tight = with_budget("200");
         let summary = tight.with_extension("json");
@@ -499,7 +500,13 @@ fn the_sidecar_sets_the_run_budget_and_the_flag_overrides_it() {
         let refined = summary["stats"]
             .get("refinement")
             .map_or(0, |r| r["runs"].as_u64().expect("refinement runs"));
-        (samples - refined, refined)
+        let check = &summary["stats"]["check"];
+        let horizon = check
+            .get("horizon")
+            .map_or(0, |h| h["runs"].as_u64().expect("horizon runs"));
+        let checks_before = check["runs"].as_u64().expect("check runs") - horizon;
+        assert!(horizon <= 2 * checks_before + 6, "{check}");
+        (samples - refined - horizon, refined)
     };
     let (within_sidecar, refined) = runs_of(&[]);
     assert!(
