@@ -94,7 +94,7 @@ pub use sobol_indices::{
     has_sobol_indices, sobol_values_per_record, SobolBlock, SobolSeries, TABLE_SOBOL_CONTRIBUTORS,
 };
 pub use sparse::{screened_set, SparseDesign, REGRESSION_OVERSAMPLING, REGRESSION_SEED};
-pub use sparse_bounds::DESIGN_STARTS_PER_SIDE;
+pub use sparse_bounds::{DESIGN_STARTS_PER_SIDE, FRESH_DESIGN_STARTS_PER_SIDE};
 pub use stages::{FirstStage, SimulateHere, StageRecords, StageRequest, StageSource};
 pub use study::Study;
 pub use study_plan::{DesignKind, StudyOptions, StudyPlan};

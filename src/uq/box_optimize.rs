@@ -104,6 +104,11 @@ pub struct BoxOptimizer {
     /// The descents of the side being searched, for [`BoxOptimizer::descend`] to recognise a
     /// point an earlier descent started an iteration from.
     trail: DescentTrail,
+    /// Where each descent of the last side searched ended, `k × d` in the order of its starts.
+    ends: Vec<f64>,
+    /// Per start given to [`BoxOptimizer::extreme_from_starts_into`], the descent (row of
+    /// `ends`) that went from it or from an equal earlier start.
+    given_descents: Vec<usize>,
 }
 
 impl Default for BoxOptimizer {
@@ -131,6 +136,8 @@ impl BoxOptimizer {
             univariate: Vec::new(),
             ranges: Vec::new(),
             trail: DescentTrail::default(),
+            ends: Vec::new(),
+            given_descents: Vec::new(),
         }
     }
 
@@ -261,15 +268,35 @@ impl BoxOptimizer {
         } else {
             self.starts.resize(d, 0.0);
         }
+        self.given_descents.clear();
         for start in given.chunks_exact(d) {
-            if !self.starts.chunks_exact(d).any(|earlier| earlier == start) {
-                self.starts.extend_from_slice(start);
+            match self
+                .starts
+                .chunks_exact(d)
+                .position(|earlier| earlier == start)
+            {
+                Some(earlier) => self.given_descents.push(earlier),
+                None => {
+                    self.given_descents.push(self.starts.len() / d);
+                    self.starts.extend_from_slice(start);
+                }
             }
         }
         let starts = std::mem::take(&mut self.starts);
         let phi = self.search_side(s, sign, &starts, arg, &mut iterations);
         self.starts = starts;
         Ok((sign * phi, iterations))
+    }
+
+    /// Where the descent from given start `i` of the last
+    /// [`BoxOptimizer::extreme_from_starts_into`] ended (length d; a start equal to an earlier
+    /// one shares that one's descent): the point from which a later record time's search may
+    /// follow that descent's basin (`analysis::sparse_bounds`). `None` when `i` was not a start
+    /// of that call.
+    pub fn given_start_end(&self, i: usize) -> Option<&[f64]> {
+        let d = self.x.len();
+        let row = *self.given_descents.get(i)?;
+        self.ends.get(row * d..(row + 1) * d)
     }
 
     /// Appends the vertex `sign · sgn(c_r)` of the linear part `c` (0 where `c_r = 0`) to the
@@ -294,10 +321,12 @@ impl BoxOptimizer {
         let d = arg.len();
         let mut best_phi = f64::INFINITY;
         self.trail.clear();
+        self.ends.clear();
         for start in starts.chunks_exact(d) {
             self.x.copy_from_slice(start);
             let (phi, spent) = self.descend(s, sign);
             *iterations += spent;
+            self.ends.extend_from_slice(&self.x);
             if phi < best_phi {
                 best_phi = phi;
                 arg.copy_from_slice(&self.x);
@@ -594,6 +623,43 @@ mod tests {
         // The model at the predicted extremisers is close to the exact extremes.
         assert!((model(&b.argmin) - lo).abs() < 1e-4 * width);
         assert!((model(&b.argmax) - hi).abs() < 1e-4 * width);
+    }
+
+    /// Each given start's descent end is where that descent stopped, an equal start shares the
+    /// earlier one's, and a start that was not given has none.
+    #[test]
+    fn each_given_start_reports_where_its_descent_ended() {
+        // ξ1² − ξ1/2 + ξ2²: minimum at (1/4, 0) from any start.
+        let set = Arc::new(MultiIndexSet::total_degree(2, 2).unwrap());
+        let mut c = vec![0.0; set.len()];
+        c[0] = 2.0 / 3.0;
+        set_coef(&set, &mut c, &[(0, 1)], -0.5);
+        set_coef(&set, &mut c, &[(0, 2)], 2.0 / 3.0);
+        set_coef(&set, &mut c, &[(1, 2)], 2.0 / 3.0);
+        let s = SparseSurrogate::new(set, c).unwrap();
+        let mut opt = BoxOptimizer::new();
+        let mut arg = Vec::new();
+        let given = [0.9, -0.7, -0.6, 0.8, 0.9, -0.7];
+        let (lower, _) = opt
+            .extreme_from_starts_into(&s, false, &given, &mut arg)
+            .unwrap();
+        assert!((lower + 1.0 / 16.0).abs() < VALUE_TOL, "{lower}");
+        for i in 0..3 {
+            let end = opt.given_start_end(i).unwrap();
+            assert!(
+                (end[0] - 0.25).abs() < 1e-9 && end[1].abs() < 1e-9,
+                "{i}: {end:?}"
+            );
+        }
+        assert_eq!(opt.given_start_end(0), opt.given_start_end(2));
+        assert_eq!(opt.given_start_end(3), None);
+        // Maximum (convex: every vertex is a local one): each start's own end, not the best.
+        let (upper, _) = opt
+            .extreme_from_starts_into(&s, true, &given[..4], &mut arg)
+            .unwrap();
+        assert!((upper - 2.5).abs() < VALUE_TOL, "{upper}");
+        assert_eq!(opt.given_start_end(0).unwrap(), &[1.0, -1.0]);
+        assert_eq!(opt.given_start_end(1).unwrap(), &[-1.0, 1.0]);
     }
 
     #[test]
