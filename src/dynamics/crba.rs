@@ -35,13 +35,14 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::D
 /// A root joint (no parent) that turns about a coordinate axis `e_k` of its frame
 /// ([`Joint::revolute_coordinate_axis`]) reads only entry `k` of each force arriving from its
 /// child and entry `(k, k)` of its composite inertia (`Sᵀ F` and `Sᵀ I^c S` with `S = (0, e_k)`),
-/// so the last carry computes only those ([`Transform::act_force_angular_entry`](crate::spatial::Transform::act_force_angular_entry),
-/// [`Transform::act_inertia_rotational_diagonal`](crate::spatial::Transform::act_inertia_rotational_diagonal): the same products in the same order as the full
-/// transforms' entries) — about a quarter of a fixed-base arm's carries (benches/README.md,
-/// "The CRBA's root carry"). The general projection adds the other entries times an exact zero,
-/// which changes nothing unless the kept entry is itself zero (then the zero's sign can differ)
-/// or not finite; such an entry sends the whole call through the general sweep, so `M` has the
-/// general formulas' bits always (overflow of an unread entry aside, at forces above ~1e300).
+/// so the last carry computes only those ([`Transform::act_force_angular_entry`],
+/// [`Transform::act_inertia_rotational_diagonal`]: the same products in the same order as the
+/// full transforms' entries; our ur5: 5 059 → 4 805 instructions per call, benches/README.md,
+/// "Our ur5 against erd's, and the CRBA's root carry"). The general projection adds the other
+/// entries times an exact zero, which changes nothing unless the kept entry is itself zero (then
+/// the zero's sign can differ) or not finite; such an entry sends the whole call through the
+/// general sweep, so `M` has the general formulas' bits always (overflow of an unread entry aside,
+/// at forces above ~1e300).
 ///
 /// Overwrites `data.composite` (at such a root only its entry `(k, k)` is complete),
 /// `data.column_force`, `data.subtree_velocity_end` and `data.mass_matrix`; returns

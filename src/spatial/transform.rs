@@ -441,6 +441,25 @@ mod tests {
             ),
             Inertia::zero(),
         ];
+        // And 200 pseudo-random transforms, forces and inertias (rounding differs between
+        // summation orders on some of them, as it does not on the exact values above).
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut transforms = transforms.to_vec();
+        let mut forces = forces.to_vec();
+        let mut inertias = inertias.to_vec();
+        for _ in 0..200 {
+            let mut v3 = || Vec3::new(uniform(), uniform(), uniform());
+            let (xyz, rpy) = (v3(), v3() * 3.0);
+            transforms.push(Transform::from_xyz_rpy(xyz.into(), rpy.into()));
+            forces.push(Force::new(v3() * 10.0, v3()));
+            let (com, spread) = (v3() * 0.2, v3());
+            let rotational = Mat3::from_diagonal(&(spread.abs() * 0.1)) + Mat3::identity() * 0.01;
+            inertias.push(Inertia::from_com(1.0 + uniform().abs(), com, rotational));
+        }
         for x in &transforms {
             for k in 0..3 {
                 for f in &forces {
