@@ -445,7 +445,9 @@ mod tests {
         // summation orders on some of them, as it does not on the exact values above).
         let mut state = 0x9e37_79b9_7f4a_7c15_u64;
         let mut uniform = || {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
             (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
         };
         let mut transforms = transforms.to_vec();
