@@ -5,7 +5,7 @@
 
 use super::{joint_placements, Data};
 use crate::model::{Joint, JointKind, Model};
-use crate::spatial::{Force, Inertia, Motion};
+use crate::spatial::{Force, Inertia, Motion, Transform};
 
 /// Joint-space mass matrix: `data.mass_matrix = M(q)` (full, symmetric).
 ///
@@ -32,10 +32,48 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a nalgebra::D
 /// composite inertias' chain of dependent transforms (measured in benches/README.md, "The CRBA in
 /// one sweep").
 ///
-/// Overwrites `data.composite`, `data.column_force`, `data.subtree_velocity_end` and
-/// `data.mass_matrix`; returns `data.mass_matrix`.
+/// A root joint (no parent) that turns about a coordinate axis `e_k` of its frame
+/// ([`Joint::revolute_coordinate_axis`]) reads only entry `k` of each force arriving from its
+/// child and entry `(k, k)` of its composite inertia (`Sᵀ F` and `Sᵀ I^c S` with `S = (0, e_k)`),
+/// so the last carry computes only those ([`Transform::act_force_angular_entry`],
+/// [`Transform::act_inertia_rotational_diagonal`]: the same products in the same order as the
+/// full transforms' entries; our ur5: 5 059 → 4 805 instructions per call, benches/README.md,
+/// "Our ur5 against erd's, and the CRBA's root carry"). The general projection adds the other
+/// entries times an exact zero, which changes nothing unless the kept entry is itself zero (then
+/// the zero's sign can differ) or not finite; such an entry sends the whole call through the
+/// general sweep, so `M` has the general formulas' bits always (overflow of an unread entry aside,
+/// at forces above ~1e300).
+///
+/// Overwrites `data.composite` (at such a root only its entry `(k, k)` is complete),
+/// `data.column_force`, `data.subtree_velocity_end` and `data.mass_matrix`; returns
+/// `data.mass_matrix`.
 pub fn crba_at_placements<'a>(model: &Model, data: &'a mut Data) -> &'a nalgebra::DMatrix<f64> {
-    let n = model.nv;
+    if !sweep::<true>(model, data) {
+        general_sweep(model, data);
+    }
+    &data.mass_matrix
+}
+
+/// [`crba_at_placements`]'s sweep without the root's shortcut: for a root entry that was zero or
+/// not finite (rare, hence out of line).
+#[cold]
+#[inline(never)]
+fn general_sweep(model: &Model, data: &mut Data) {
+    sweep::<false>(model, data);
+}
+
+/// Whether the root's shortcut gives the general formulas' bits for this entry: any finite
+/// nonzero value (see [`crba_at_placements`]).
+#[inline(always)]
+fn shortcut_exact(value: f64) -> bool {
+    value != 0.0 && value.is_finite()
+}
+
+/// The sweep of [`crba_at_placements`]; with `ROOT_SHORTCUT` the root joints about a coordinate
+/// axis take the shortcut, and the return value says whether every entry it gave was exact
+/// (else `M` must be computed again without it). Without, always `true`.
+#[inline(always)]
+fn sweep<const ROOT_SHORTCUT: bool>(model: &Model, data: &mut Data) -> bool {
     let Data {
         parent_from_body,
         composite,
@@ -44,39 +82,85 @@ pub fn crba_at_placements<'a>(model: &Model, data: &'a mut Data) -> &'a nalgebra
         mass_matrix,
         ..
     } = data;
+    sweep_buffers::<ROOT_SHORTCUT>(
+        model,
+        parent_from_body,
+        composite,
+        column_force,
+        subtree_velocity_end,
+        mass_matrix.as_mut_slice(),
+    )
+}
+
+/// [`sweep`] on `Data`'s buffers, each its own argument: the compiler then knows that the
+/// stores to `mass` and the forces never change `parent_from_body` (a reference argument does
+/// not alias another), so the transforms are read where they are, with no copy.
+#[inline(always)]
+fn sweep_buffers<const ROOT_SHORTCUT: bool>(
+    model: &Model,
+    parent_from_body: &[Transform],
+    composite: &mut [Inertia],
+    column_force: &mut [Force],
+    subtree_velocity_end: &mut [usize],
+    mass: &mut [f64],
+) -> bool {
+    let n = model.nv;
     for (composite, body) in composite.iter_mut().zip(&model.bodies) {
         *composite = body.inertia;
     }
     for (end, joint) in subtree_velocity_end.iter_mut().zip(&model.joints) {
         *end = joint.v_index + joint.nv();
     }
+    // The root shortcut's axis of a joint: `Some(k)` for a root about `e_k` (with the shortcut).
+    let shortcut_axis = |joint: &Joint| match ROOT_SHORTCUT && joint.parent.is_none() {
+        true => joint.revolute_coordinate_axis(),
+        false => None,
+    };
+    let mut exact = true;
     // Column-major storage: entry (row, column) at `row + column · n`.
-    let mass = mass_matrix.as_mut_slice();
     mass.fill(0.0);
     for (i, joint) in model.joints.iter().enumerate().rev() {
         // Depth-first coordinates (crate::model): the subtree's columns are the joint's own and
         // then its descendants', one contiguous range. The descendants' entries of this joint's
         // rows were written when their forces came up (below, as the child's parent).
         let subtree_end = subtree_velocity_end[i];
-        for column in joint.v_index..joint.v_index + joint.nv() {
-            let force = apply_to_subspace_column(
-                &composite[i],
-                joint.kind,
-                &joint.subspace_column(column - joint.v_index),
-            );
-            for_each_projection(joint, &force, |row, value| mass[row + column * n] = value);
-            column_force[column] = force;
+        if let Some(k) = shortcut_axis(joint) {
+            // `Sᵀ I^c S` (the root's force goes nowhere).
+            let value = composite[i].rotational[(k, k)];
+            exact &= shortcut_exact(value);
+            mass[joint.v_index * (n + 1)] = value;
+        } else {
+            for column in joint.v_index..joint.v_index + joint.nv() {
+                let force = apply_to_subspace_column(
+                    &composite[i],
+                    joint.kind,
+                    &joint.subspace_column(column - joint.v_index),
+                );
+                for_each_projection(joint, &force, |row, value| mass[row + column * n] = value);
+                column_force[column] = force;
+            }
         }
         if let Some(p) = joint.parent {
             debug_assert!(p < i, "joints come after their parents");
             let parent = &model.joints[p];
-            // A copy: the transform stays in registers while the loop below stores forces and
-            // entries of `M` (which the compiler cannot tell apart from `parent_from_body`).
-            let parent_from_joint = parent_from_body[i];
-            let in_parent = parent_from_joint.act_inertia(&composite[i]);
-            composite[p] += in_parent;
+            let parent_from_joint = &parent_from_body[i];
             let forces = &mut column_force[joint.v_index..subtree_end];
             let columns = joint.v_index..subtree_end;
+            subtree_velocity_end[p] = subtree_velocity_end[p].max(subtree_end);
+            if let Some(k) = shortcut_axis(parent) {
+                composite[p].rotational[(k, k)] +=
+                    parent_from_joint.act_inertia_rotational_diagonal(k, &composite[i]);
+                let row = parent.v_index;
+                for (column, force) in columns.zip(forces.iter()) {
+                    let value = parent_from_joint.act_force_angular_entry(k, force);
+                    exact &= shortcut_exact(value);
+                    mass[row + column * n] = value;
+                    mass[column + row * n] = value;
+                }
+                continue;
+            }
+            let in_parent = parent_from_joint.act_inertia(&composite[i]);
+            composite[p] += in_parent;
             // One loop per kind of parent joint, so that the loop does not ask again per column.
             match parent.kind {
                 JointKind::Revolute | JointKind::Prismatic => {
@@ -104,10 +188,9 @@ pub fn crba_at_placements<'a>(model: &Model, data: &'a mut Data) -> &'a nalgebra
                     }
                 }
             }
-            subtree_velocity_end[p] = subtree_velocity_end[p].max(subtree_end);
         }
     }
-    &data.mass_matrix
+    exact
 }
 
 /// Calls `write(row, value)` for each entry of `Sᵀ f` ([`crate::model::Joint::project_force`]),
@@ -152,6 +235,49 @@ mod tests {
     use crate::dynamics::nonlinear_effects;
     use crate::model::LoadOptions;
     use std::path::Path;
+
+    /// The sweep with the root shortcut gives the general sweep's bits (signs of zero included),
+    /// on our ur5 (a root about `z`) at configurations in every quadrant and on the axes, where
+    /// the joint frames' exact zeros meet sines and cosines of both signs; and an entry that the
+    /// shortcut cannot give exactly (a zero) is refused, so that the general sweep runs.
+    #[test]
+    fn root_shortcut_has_the_bits_of_the_general_sweep() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5/ur5.urdf");
+        let model = Model::from_urdf_file(&path, LoadOptions::default()).unwrap();
+        assert_eq!(model.joints[0].revolute_coordinate_axis(), Some(2));
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        let bits = |m: &nalgebra::DMatrix<f64>| m.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let mut shortcut_taken = 0;
+        for case in 0..64 {
+            let q: Vec<f64> = (0..model.nq)
+                .map(|i| match case % 4 {
+                    0 => 0.0,
+                    1 => half_pi * ((case / 4 + i) % 4) as f64,
+                    _ => 0.3 + 0.7 * (case * 7 + i * 3) as f64,
+                })
+                .collect();
+            let mut data = Data::new(&model);
+            joint_placements(&model, &mut data, &q);
+            let mut general = data.clone();
+            sweep::<false>(&model, &mut general);
+            if sweep::<true>(&model, &mut data) {
+                shortcut_taken += 1;
+                assert_eq!(
+                    bits(&data.mass_matrix),
+                    bits(&general.mass_matrix),
+                    "q {q:?}"
+                );
+            }
+            let mut full = Data::new(&model);
+            assert_eq!(
+                bits(crba(&model, &mut full, &q)),
+                bits(&general.mass_matrix)
+            );
+        }
+        assert!(shortcut_taken > 32, "shortcut taken {shortcut_taken} of 64");
+        assert!(!shortcut_exact(0.0) && !shortcut_exact(-0.0) && !shortcut_exact(f64::NAN));
+        assert!(!shortcut_exact(f64::INFINITY) && shortcut_exact(-1e-300));
+    }
 
     /// `crba_at_placements` after the RNEA at `q` has the bits of `crba` at `q`, on a fixed-base arm
     /// and on a floating-base robot (a six-degree-of-freedom joint's block included).

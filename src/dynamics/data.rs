@@ -19,7 +19,8 @@ pub struct Data {
     pub acceleration: Vec<Motion>,
     /// Body forces (body frame).
     pub force: Vec<Force>,
-    /// Composite inertias (CRBA).
+    /// Composite inertias (CRBA; at a revolute root about a coordinate axis `e_k` only entry
+    /// `(k, k)` of the rotational part is complete: `crba_at_placements`).
     pub composite: Vec<Inertia>,
     /// Each mass-matrix column's force `I^c S` on its way to the root (CRBA; `nv`).
     pub column_force: Vec<Force>,

@@ -223,6 +223,23 @@ impl Transform {
         }
     }
 
+    /// Entry `k` of `self.act_force(f).angular` alone, with the bits of that entry of the full
+    /// call (the same products summed in the same order: `(R f_a)_k + (p × R f_l)_k`, of which
+    /// only the two entries of `R f_l` other than `k` are needed). What a revolute root joint
+    /// about `e_k` reads of a force arriving from its child (the CRBA's last carry).
+    #[inline(always)]
+    pub fn act_force_angular_entry(&self, k: usize, f: &Force) -> f64 {
+        let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+        let r = &self.rotation;
+        let p = &self.translation;
+        let r_row = |i: usize| [r[(i, 0)], r[(i, 1)], r[(i, 2)]];
+        let linear = [f.linear.x, f.linear.y, f.linear.z];
+        let angular = [f.angular.x, f.angular.y, f.angular.z];
+        let (linear_a, linear_b) = (row_dot(r_row(a), linear), row_dot(r_row(b), linear));
+        // nalgebra's cross product: entry k is `p_a q_b − p_b q_a`.
+        row_dot(r_row(k), angular) + (p[a] * linear_b - p[b] * linear_a)
+    }
+
     /// Expresses a child-frame inertia in the parent frame (about the parent origin).
     ///
     /// With `h_r = R h` and `p` the translation: `h' = h_r + m p` and
@@ -239,7 +256,6 @@ impl Transform {
         let m = inertia.mass;
         let h = &inertia.first_moment;
         let inertia_in_child = &inertia.rotational;
-        let row_dot = |a: [f64; 3], b: [f64; 3]| (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2];
         let r_row = |i: usize| [r[(i, 0)], r[(i, 1)], r[(i, 2)]];
         let h_r = [
             row_dot(r_row(0), [h.x, h.y, h.z]),
@@ -275,6 +291,32 @@ impl Transform {
             rotational,
         }
     }
+
+    /// Diagonal entry `(k, k)` of `self.act_inertia(inertia).rotational` alone, with its bits
+    /// (the same products summed in the same order as [`Transform::act_inertia`]'s entry: `h_r`,
+    /// the diagonal shift, row `k` of `R I`): what a revolute root joint about `e_k` reads of a
+    /// composite inertia arriving from its child (`S_kᵀ I S_k`, the CRBA's last carry).
+    #[inline(always)]
+    pub fn act_inertia_rotational_diagonal(&self, k: usize, inertia: &Inertia) -> f64 {
+        let r = &self.rotation;
+        let m = inertia.mass;
+        let h = &inertia.first_moment;
+        let c = &inertia.rotational;
+        let r_row = |i: usize| [r[(i, 0)], r[(i, 1)], r[(i, 2)]];
+        let h_r = [0, 1, 2].map(|i| row_dot(r_row(i), [h.x, h.y, h.z]));
+        let p = [self.translation.x, self.translation.y, self.translation.z];
+        let diag = 2.0 * row_dot(h_r, p) + m * (0.0 + row_dot(p, p));
+        let r_i_k = [0, 1, 2].map(|j| row_dot(r_row(k), [c[(0, j)], c[(1, j)], c[(2, j)]]));
+        let rotated = row_dot(r_i_k, r_row(k));
+        let outer = (h_r[k] * p[k] + p[k] * h_r[k]) + (p[k] * p[k]) * m;
+        (rotated + diag) - outer
+    }
+}
+
+/// A row times a column in nalgebra's order: `(a₀b₀ + a₁b₁) + a₂b₂`.
+#[inline(always)]
+fn row_dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2]
 }
 
 #[cfg(test)]
@@ -367,6 +409,72 @@ mod tests {
         let composed = x.compose(&x.inverse());
         assert!((composed.rotation - Mat3::identity()).abs().max() < EXACT);
         assert!(composed.translation.norm() < EXACT);
+    }
+
+    /// The single entries the CRBA's root carry reads have the bits (sign of zero included) of
+    /// the same entries of the full transforms, for transforms with and without exact zeros and
+    /// forces and inertias with zero entries of either sign.
+    #[test]
+    fn single_entries_have_the_bits_of_the_full_actions() {
+        let transforms = [
+            Transform::from_xyz_rpy([0.1, -0.4, 0.7], [0.3, 0.2, -1.0]),
+            Transform::from_xyz_rpy([0.0, -0.09, 0.0], [std::f64::consts::FRAC_PI_2, 0.0, 0.0]),
+            Transform::from_xyz_rpy([-0.425, 0.0, 0.0], [0.0, 0.0, 0.0]),
+            Transform::identity(),
+        ];
+        let forces = [
+            Force::new(Vec3::new(0.3, -1.7, 2.9), Vec3::new(-0.25, 8.5, 1e-9)),
+            Force::new(Vec3::new(-0.0, 0.0, 5.0), Vec3::new(0.0, -0.0, -3.5)),
+            Force::new(Vec3::new(-0.0, -0.0, -0.0), Vec3::new(-0.0, -0.0, -0.0)),
+            Force::new(Vec3::new(1e-300, -2e-300, 7.0), Vec3::new(-4.0, 0.5, 0.0)),
+        ];
+        let inertias = [
+            Inertia::from_com(
+                2.5,
+                Vec3::new(0.1, -0.2, 0.05),
+                Mat3::new(0.3, 0.01, 0.02, 0.01, 0.2, -0.03, 0.02, -0.03, 0.25),
+            ),
+            Inertia::from_com(
+                1.2,
+                Vec3::new(0.0, -0.0163, 0.0),
+                Mat3::from_diagonal_element(0.002),
+            ),
+            Inertia::zero(),
+        ];
+        // And 200 pseudo-random transforms, forces and inertias (rounding differs between
+        // summation orders on some of them, as it does not on the exact values above).
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut transforms = transforms.to_vec();
+        let mut forces = forces.to_vec();
+        let mut inertias = inertias.to_vec();
+        for _ in 0..200 {
+            let mut v3 = || Vec3::new(uniform(), uniform(), uniform());
+            let (xyz, rpy) = (v3(), v3() * 3.0);
+            transforms.push(Transform::from_xyz_rpy(xyz.into(), rpy.into()));
+            forces.push(Force::new(v3() * 10.0, v3()));
+            let (com, spread) = (v3() * 0.2, v3());
+            let rotational = Mat3::from_diagonal(&(spread.abs() * 0.1)) + Mat3::identity() * 0.01;
+            inertias.push(Inertia::from_com(1.0 + uniform().abs(), com, rotational));
+        }
+        for x in &transforms {
+            for k in 0..3 {
+                for f in &forces {
+                    let full = x.act_force(f).angular[k];
+                    assert_eq!(x.act_force_angular_entry(k, f).to_bits(), full.to_bits());
+                }
+                for inertia in &inertias {
+                    let full = x.act_inertia(inertia).rotational[(k, k)];
+                    let entry = x.act_inertia_rotational_diagonal(k, inertia);
+                    assert_eq!(entry.to_bits(), full.to_bits(), "axis {k}");
+                }
+            }
+        }
     }
 
     #[test]
