@@ -157,6 +157,17 @@ pub(super) struct CheckRuns {
     pub complete: bool,
 }
 
+impl CheckRuns {
+    /// Takes in the runs of a further check (`report`): its runs, points and checked predictions;
+    /// the whole stays complete only if that check was.
+    pub fn absorb(&mut self, report: &CheckReport) {
+        self.runs += report.runs;
+        self.points.extend_from_slice(&report.points);
+        self.checked.extend_from_slice(&report.checked);
+        self.complete &= report.complete;
+    }
+}
+
 /// The verdicts of a check whose runs found `misfit[o][r]`, against the envelopes in
 /// `accumulator` (whose error estimates become at least the misfits): per output the largest
 /// misfit against the envelope's largest width and the output's resolution ([`trust_verdict`]),

@@ -293,11 +293,8 @@ pub(super) fn split_into_elements(
             }
         }
         let probe = overshot.report;
-        runs.runs += probe.runs;
-        runs.points.extend_from_slice(&probe.points);
-        runs.checked.extend_from_slice(&probe.checked);
+        runs.absorb(&probe);
         if !probe.complete {
-            runs.complete = false;
             context.report.check = Some(judge(scene, runs, &root_misfit, accumulator));
             return Ok(());
         }

@@ -44,10 +44,10 @@ pub const HORIZON_BACKOFF: f64 = 0.9;
 pub const HORIZON_RUNS_PER_CHECK_RUN: usize = 2;
 
 /// Runs the horizon check of `verdict` (the study's verdict after its checks, `runs` and `misfit`
-/// behind it) with the predictions of `candidates` (each surrogate's), each round at most `round_runs` runs; the
-/// runs join `runs`, their misfits `misfit`, and every run widens `accumulator`. Returns the
-/// verdict with every check's misfits and [`CheckReport::horizon`] set (the verdict unchanged
-/// when no round ran).
+/// behind it) with the predictions of `candidates` (each surrogate's), each round at most
+/// `round_runs` runs; the runs join `runs`, their misfits `misfit`, and every run widens
+/// `accumulator`. Returns the verdict with every check's misfits and [`CheckReport::horizon`] set
+/// (the verdict unchanged when no round ran).
 pub(super) fn verify_horizon(
     context: &mut PhaseContext<'_>,
     candidates: &[&CheckCandidates],
@@ -92,17 +92,8 @@ pub(super) fn verify_horizon(
                 *w = w.max(m);
             }
         }
-        runs.runs += outcome.report.runs;
-        runs.points.extend_from_slice(&outcome.report.points);
-        runs.checked.extend_from_slice(&outcome.report.checked);
-        runs.complete &= outcome.report.complete;
+        runs.absorb(&outcome.report);
         verdict = judge(context.scene, runs.clone(), misfit, accumulator);
-        if std::env::var("RIBBON_DEBUG_HORIZON").is_ok() {
-            eprintln!(
-                "horizon round aim {aim} runs {} -> passes {:?} first miss {:?}",
-                outcome.report.runs, verdict.passes_until_record, verdict.first_miss_record
-            );
-        }
         if !outcome.report.complete {
             break;
         }
