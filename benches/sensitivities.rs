@@ -11,6 +11,12 @@
 //!   principal moments violate the triangle inequality at a corner, which the box check refuses),
 //!   and every moving joint's origin x/y/z (±0.5 mm): 6 + 18 + 18 + 18.
 //!
+//! A study does not run its points one by one but in lock-step batches (`LockStep`: every sample
+//! advanced step by step together, with batched kernels where the scene allows), so each d also
+//! times the central-difference points `ξ` and `ξ ± h e_j` as one lock-step batch, and gives the
+//! sensitivity run's time over one lock-step run's share of it — what a gradient costs in the
+//! runs a refinement budget counts (docs/method.md §12).
+//!
 //! Every time is the fastest of `SENS_BENCH_REPEATS` (default 3) runs, on one thread. The central
 //! differences are timed twice: at the scene's Newton tolerances (the bare cost of 2d + 1 runs) and
 //! at [`central_difference_settings`] (the checked fallback as shipped, with tolerances near
@@ -27,16 +33,18 @@
 //! Environment: `SENS_BENCH_REPEATS` (default 3), `SENS_BENCH_DIMS` (default `10,60`),
 //! `SENS_BENCH_OUT` (directory of `sensitivities.json`, default `$CARGO_TARGET_DIR` or `target`).
 
+use ribbon::analysis::{LockStep, RecordSchedule};
 use ribbon::model::{LoadOptions, Model};
 use ribbon::scene::{parse_sidecar, read_sidecar, Scene, SceneOverrides};
 use ribbon::sidecar::SidecarFile;
 use ribbon::simulate::{
     central_difference_run_with, central_difference_settings, hht_settings, sensitivity_run,
-    simulate, CENTRAL_DIFFERENCE_STEP_XI,
+    simulate, RobotSystem, CENTRAL_DIFFERENCE_STEP_XI,
 };
 use ribbon::uncertainty::ParameterSpace;
 use serde_json::json;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 /// The moving links of the ur5, in tree order.
@@ -151,9 +159,15 @@ fn main() {
     println!();
     println!(
         "| d | plain run (s) | sensitivity run (s) | ratio | central differences, 2d + 1 runs (s) | \
-         ratio | checked fallback, tight Newton (s) | ratio |"
+         ratio | checked fallback, tight Newton (s) | ratio | lock-step batch of 2d + 1 (s) | \
+         sensitivity run / lock-step run |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("one-thread pool");
+    let n_records = RecordSchedule::of(&scene).len();
     let mut rows = Vec::new();
     for d in dims {
         if d != 10 && d != 60 {
@@ -201,11 +215,38 @@ fn main() {
             .expect("central differences");
             std::hint::black_box(run);
         });
+        // The central differences' points, as a study would run them: one lock-step batch.
+        let mut points = xi.clone();
+        for j in 0..2 * d {
+            let mut point = xi.clone();
+            point[j / 2] += if j % 2 == 0 { 1.0 } else { -1.0 } * CENTRAL_DIFFERENCE_STEP_XI;
+            points.extend_from_slice(&point);
+        }
+        let batch = fastest(repeats, || {
+            let template = RobotSystem::new(model.clone(), environment, &scene);
+            let mut lockstep = LockStep::new(
+                template,
+                &space,
+                &scene,
+                hht_settings(&scene),
+                &points,
+                None,
+            );
+            let outcome = lockstep.advance(0, n_records, &pool, &AtomicBool::new(false));
+            assert!(
+                (0..2 * d + 1).all(|i| !lockstep.failed(i)),
+                "lock-step batch failed"
+            );
+            std::hint::black_box(outcome);
+        });
+        let per_lockstep_run = batch / (2 * d + 1) as f64;
         println!(
-            "| {d} | {plain:.4} | {direct:.4} | {:.1} | {central:.4} | {:.1} | {checked:.4} | {:.1} |",
+            "| {d} | {plain:.4} | {direct:.4} | {:.1} | {central:.4} | {:.1} | {checked:.4} | {:.1} | \
+             {batch:.4} | {:.1} |",
             direct / plain,
             central / plain,
-            checked / plain
+            checked / plain,
+            direct / per_lockstep_run
         );
         let stats = stats.expect("sensitivity statistics");
         rows.push(json!({
@@ -217,6 +258,8 @@ fn main() {
             "central_difference_ratio": central / plain,
             "checked_fallback_seconds": checked,
             "checked_fallback_ratio": checked / plain,
+            "lockstep_batch_seconds": batch,
+            "sensitivity_per_lockstep_run": direct / per_lockstep_run,
             "steps": stats.steps,
             "solves": stats.solves,
             "jacobian_residual_evaluations": stats.jacobian_residual_evaluations,
