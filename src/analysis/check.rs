@@ -346,13 +346,40 @@ impl CheckCandidates {
         self.select_among(chosen, budget, &|_| true)
     }
 
+    /// The points the first check of a study that ended at `last_record` would run with `budget`
+    /// runs ([`Self::select`] among the predictions up to it), less those already run (`ran`,
+    /// row-major: their misfits are known) — the horizon check's confirmation of a duration it
+    /// advises (docs/method.md §7, "What to do about a miss"). Every candidate at a chosen point
+    /// is checked, at any record.
+    pub fn first_check_until(&self, last_record: usize, budget: usize, ran: &[f64]) -> CheckPlan {
+        let skip = self.indices_of(ran);
+        let chosen: Vec<usize> = self
+            .choose_among(Vec::new(), budget, &|c: &Candidate| c.record <= last_record)
+            .into_iter()
+            .filter(|p| !skip.contains(p))
+            .collect();
+        self.plan_of(&chosen, self.unique_points())
+    }
+
     /// [`Self::select_after`] among the candidates `eligible` accepts.
     fn select_among(
+        &self,
+        chosen: Vec<usize>,
+        budget: usize,
+        eligible: &dyn Fn(&Candidate) -> bool,
+    ) -> CheckPlan {
+        let chosen = self.choose_among(chosen, budget, eligible);
+        self.plan_of(&chosen, self.unique_points())
+    }
+
+    /// The points (indices into `points`, in run order) [`Self::select_among`] runs: `chosen`
+    /// first, then round-robin over outputs and sides, widest record first.
+    fn choose_among(
         &self,
         mut chosen: Vec<usize>,
         budget: usize,
         eligible: &dyn Fn(&Candidate) -> bool,
-    ) -> CheckPlan {
+    ) -> Vec<usize> {
         let unique_candidates = self.unique_points();
         // Per (output, side): candidates by decreasing width (ties: earlier record first).
         let mut queues: HashMap<(usize, bool), Vec<usize>> = HashMap::new();
@@ -401,7 +428,7 @@ impl CheckCandidates {
                 break;
             }
         }
-        self.plan_of(&chosen, unique_candidates)
+        chosen
     }
 
     /// The predictions furthest past what true runs showed (docs/method.md §12, "Overshoots"):
@@ -761,6 +788,22 @@ mod tests {
             plan.checks[0],
             vec![(1, 0, Side::Upper, 1.0), (3, 1, Side::Lower, -3.0)]
         );
+    }
+
+    #[test]
+    fn a_confirmation_runs_what_a_shorter_study_would_check_first_less_what_ran() {
+        let mut c = CheckCandidates::new(1);
+        c.add(3, 0, Side::Upper, &[0.9], 2.0, 9.0);
+        c.add(2, 0, Side::Upper, &[0.5], 1.5, 4.0);
+        c.add(1, 0, Side::Upper, &[0.2], 1.0, 2.0);
+        c.add(2, 0, Side::Lower, &[-0.5], -1.5, 4.0);
+        // A study ending at record 2 with two check runs would run the two widest there.
+        assert_eq!(c.first_check_until(2, 2, &[]).points, vec![-0.5, 0.5]);
+        // One of them already ran: only the other, not the next widest in its place (the
+        // horizon's own rounds go deeper: select_until).
+        assert_eq!(c.first_check_until(2, 2, &[0.5]).points, vec![-0.5]);
+        assert_eq!(c.select_until(2, 2, &[0.5]).points, vec![-0.5, 0.2]);
+        assert!(c.first_check_until(2, 2, &[0.5, -0.5]).points.is_empty());
     }
 
     #[test]

@@ -15,6 +15,7 @@ use super::check::{
     output_resolution, trust_verdict, CheckPlan, TrustVerdict, TRUST_RELATIVE_MISFIT,
 };
 use super::elements::OutputScale;
+use super::envelope::EnvelopePoint;
 use super::error::StudyError;
 use super::method::CheckMisfit;
 use super::phase::PhaseContext;
@@ -158,6 +159,17 @@ pub(super) struct CheckRuns {
 }
 
 impl CheckRuns {
+    /// The runs behind a check's `report`, to take further checks in.
+    pub fn of(report: &CheckReport) -> CheckRuns {
+        CheckRuns {
+            runs: report.runs,
+            unique_candidates: report.unique_candidates,
+            points: report.points.clone(),
+            checked: report.checked.clone(),
+            complete: report.complete,
+        }
+    }
+
     /// Takes in the runs of a further check (`report`): its runs, points and checked predictions;
     /// the whole stays complete only if that check was.
     pub fn absorb(&mut self, report: &CheckReport) {
@@ -218,27 +230,11 @@ pub(super) fn judge(
                 .position(|&m| m > TRUST_RELATIVE_MISFIT * widths[o])
         })
         .min();
-    // The trust test of every prefix of the records, with running widths and misfits: the
-    // last prefix it passes is what the check would say of a run that ended there.
-    let mut passes_until_record = None;
-    let mut prefix_width = vec![0.0_f64; n_outputs];
-    let mut prefix_misfit = vec![0.0_f64; n_outputs];
-    for (r, points) in accumulator
-        .points
-        .chunks_exact(n_outputs.max(1))
-        .enumerate()
-    {
-        let mut passes = true;
-        for (o, point) in points.iter().enumerate() {
-            prefix_width[o] = prefix_width[o].max(point.upper - point.lower);
-            prefix_misfit[o] = prefix_misfit[o].max(misfit[o][r]);
-            let (_, verdict) = trust_verdict(prefix_misfit[o], prefix_width[o], resolution[o]);
-            passes &= verdict != TrustVerdict::Untrusted;
-        }
-        if passes {
-            passes_until_record = Some(r);
-        }
-    }
+    // The last prefix the trust test passes is what the check would say of a run that ended
+    // there.
+    let passes_until_record = prefix_verdicts(scene, misfit, accumulator)
+        .iter()
+        .rposition(|&passes| passes);
     let checks_before_first_miss = checked
         .iter()
         .filter(|&&(_, record, _)| first_miss_record.is_none_or(|first| record < first))
@@ -266,9 +262,71 @@ pub(super) fn excess(value: f64, lower: f64, upper: f64) -> f64 {
     (lower - value).max(value - upper).max(0.0)
 }
 
+/// The trust test of every prefix of the records, with running widths and misfits
+/// (`misfit[o][r]`, against the envelopes in `accumulator`): whether a check of a run that ended
+/// at record `r` would trust every output. Not monotone: an envelope that widens fast after a
+/// miss can pass again later.
+pub(super) fn prefix_verdicts(
+    scene: &crate::scene::Scene,
+    misfit: &[Vec<f64>],
+    accumulator: &Accumulator,
+) -> Vec<bool> {
+    let n_outputs = accumulator.n_outputs;
+    let n_records = accumulator.times.len();
+    let resolution: Vec<Option<f64>> =
+        output_scales(scene, &accumulator.points[..n_records * n_outputs])
+            .iter()
+            .map(|s| s.resolution)
+            .collect();
+    prefix_trust(&resolution, misfit, &accumulator.points)
+}
+
+/// [`prefix_verdicts`] of the envelope `points` (record-major, one per output of `resolution`).
+fn prefix_trust(
+    resolution: &[Option<f64>],
+    misfit: &[Vec<f64>],
+    points: &[EnvelopePoint],
+) -> Vec<bool> {
+    let n_outputs = resolution.len();
+    let mut prefix_width = vec![0.0_f64; n_outputs];
+    let mut prefix_misfit = vec![0.0_f64; n_outputs];
+    points
+        .chunks_exact(n_outputs.max(1))
+        .enumerate()
+        .map(|(r, points)| {
+            let mut passes = true;
+            for (o, point) in points.iter().enumerate() {
+                prefix_width[o] = prefix_width[o].max(point.upper - point.lower);
+                prefix_misfit[o] = prefix_misfit[o].max(misfit[o][r]);
+                let (_, verdict) = trust_verdict(prefix_misfit[o], prefix_width[o], resolution[o]);
+                passes &= verdict != TrustVerdict::Untrusted;
+            }
+            passes
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
-    use super::excess;
+    use super::{excess, prefix_trust};
+    use crate::analysis::envelope::EnvelopePoint;
+
+    #[test]
+    fn a_prefix_can_fail_at_a_miss_and_pass_again_when_the_envelope_widens() {
+        // One output: widths 1, 1, 10; a misfit of 0.1 (10 % of the width) at record 1.
+        let point = |width: f64| EnvelopePoint {
+            lower: 0.0,
+            upper: width,
+            error: None,
+            outer: None,
+        };
+        let points = [point(1.0), point(1.0), point(10.0)];
+        let misfit = vec![vec![0.0, 0.1, 0.0]];
+        assert_eq!(
+            prefix_trust(&[None], &misfit, &points),
+            vec![true, false, true]
+        );
+    }
 
     #[test]
     fn the_excess_is_the_distance_outside_the_envelope() {

@@ -33,7 +33,7 @@ use super::elements::{
     PRECISION_SPLIT_SHARE, SCAN_BISECTIONS, SCAN_FEATURE_POINTS, SCAN_OTHER_POINTS,
 };
 use super::error::StudyError;
-use super::horizon_phase::{verify_horizon, HORIZON_MAX_ROUNDS, HORIZON_RUNS_PER_CHECK_RUN};
+use super::horizon_phase::verify_horizon;
 use super::nested_design::{nested_design, ElementRuns};
 use super::phase::PhaseContext;
 use super::plan::Plan;
@@ -271,13 +271,7 @@ pub(super) fn split_into_elements(
     let n_records = accumulator.times.len();
     let d = context.space.len();
     let order = context.options.order;
-    let mut runs = CheckRuns {
-        runs: first_check.runs,
-        unique_candidates: first_check.unique_candidates,
-        points: first_check.points.clone(),
-        checked: first_check.checked.clone(),
-        complete: first_check.complete,
-    };
+    let mut runs = CheckRuns::of(&first_check);
     let mut root_misfit = root.misfit;
     let mut untrusted = first_check.untrusted_outputs.clone();
     // The outputs the first check trusted, checked once more where their surrogates overshoot
@@ -415,7 +409,6 @@ pub(super) fn split_into_elements(
     let element_runs = context.report.runs - runs_before;
     // Outputs still untrusted: their extremes refined on the true model, the inner bound that
     // true runs give (the envelope takes in every value found).
-    let mut refined = false;
     if !check.untrusted_outputs.is_empty() && stop != "interrupted" {
         let targets = refine_targets(&tree, &check.untrusted_outputs, accumulator);
         let budget = refine_budget(
@@ -430,13 +423,10 @@ pub(super) fn split_into_elements(
             accumulator.widen_to_runs();
             check = judge(scene, runs.clone(), &misfit, accumulator);
             context.report.refinement = Some(refinement);
-            refined = true;
         }
     }
-    // Still untrusted: checks aimed at the records up to where the checks pass, at most twice as
-    // many runs in all as the checks made so far.
-    if refined {
-        let round_runs = (HORIZON_RUNS_PER_CHECK_RUN * runs.runs).div_ceil(HORIZON_MAX_ROUNDS);
+    // Still untrusted: checks aimed at the records up to where the checks pass.
+    if stop != "interrupted" && !context.report.partial {
         let candidates: Vec<&CheckCandidates> = tree
             .leaves()
             .into_iter()
@@ -445,7 +435,7 @@ pub(super) fn split_into_elements(
         check = verify_horizon(
             context,
             &candidates,
-            round_runs,
+            first_check.runs,
             &mut runs,
             &mut misfit,
             accumulator,

@@ -32,6 +32,7 @@ use super::elements_phase::{split_into_elements, RootDesign};
 use super::engine::LockStep;
 use super::envelope::EnvelopePoint;
 use super::error::{ForeignError, StudyError};
+use super::horizon_phase::verify_horizon_of_one_surrogate;
 use super::lyapunov::estimate_lyapunov;
 use super::method::Method;
 use super::phase::{lockstep, PhaseContext};
@@ -293,9 +294,10 @@ fn run_phases(
         let check_plan = candidates.select(check_budget);
         context.report.phase_seconds.check_selection += t_select.elapsed().as_secs_f64();
         let outcome = check(context, &check_plan, accumulator)?;
-        context.report.check = Some(outcome.report);
-        // Where the surrogate is not trusted: elements (sub-boxes with their own surrogates).
+        // Where the surrogate is not trusted: elements (sub-boxes with their own surrogates),
+        // whose last step is the horizon check; without them the horizon check alone.
         if context.options.elements.enabled && study_plan.method == Method::LegendreScan {
+            context.report.check = Some(outcome.report);
             let root = RootDesign {
                 plan: &design.plan,
                 runs,
@@ -303,6 +305,10 @@ fn run_phases(
                 candidates,
             };
             split_into_elements(context, stages, root, accumulator)?;
+        } else {
+            let verdict =
+                verify_horizon_of_one_surrogate(context, &candidates, outcome, accumulator)?;
+            context.report.check = Some(verdict);
         }
     } else if study_plan.method.is_checked() && context.options.check_runs == Some(0) {
         context.report.check_skipped = Some(CheckSkipped::TurnedOff);
