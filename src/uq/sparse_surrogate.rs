@@ -753,21 +753,27 @@ mod tests {
             .sum()
     }
 
+    /// Two sets with terms of every kind: the first with a sparse bilinear part and terms of up
+    /// to three factors, the second with a dense bilinear part (45 of 66 terms) and other pairs
+    /// beside it.
+    fn sparse_and_dense_sets() -> [MultiIndexSet; 2] {
+        let mut caps = vec![1; 12];
+        caps[0] = 4;
+        caps[3] = 3;
+        let mut dense_caps = vec![1; 10];
+        dense_caps[0] = 2;
+        [
+            MultiIndexSet::anisotropic(&caps, 5, 3).unwrap(),
+            MultiIndexSet::anisotropic(&dense_caps, 4, 2).unwrap(),
+        ]
+    }
+
     #[test]
     fn value_gradient_hessian_match_brute_force_and_differences() {
         const H: f64 = 1e-5;
         const FD_TOL: f64 = 1e-6;
-        let mut caps = vec![1; 12];
-        caps[0] = 4;
-        caps[3] = 3;
-        // The third set's bilinear part is dense (45 of 66 terms), with other pairs beside it.
-        let mut dense_caps = vec![1; 10];
-        dense_caps[0] = 2;
-        let sets = [
-            MultiIndexSet::total_degree(4, 4).unwrap(),
-            MultiIndexSet::anisotropic(&caps, 5, 3).unwrap(),
-            MultiIndexSet::anisotropic(&dense_caps, 4, 2).unwrap(),
-        ];
+        let [sparse, dense] = sparse_and_dense_sets();
+        let sets = [MultiIndexSet::total_degree(4, 4).unwrap(), sparse, dense];
         let mut ws = SurrogateWorkspace::new();
         let mut rng = SplitMix64::new(1);
         for (i, set) in sets.into_iter().enumerate() {
@@ -808,15 +814,7 @@ mod tests {
     /// bilinear part, the same value to rounding with one, including after other trials.
     #[test]
     fn values_of_moved_points_match_full_evaluations() {
-        let mut caps = vec![1; 12];
-        caps[0] = 4;
-        caps[3] = 3;
-        let mut dense_caps = vec![1; 10];
-        dense_caps[0] = 2;
-        let sets = [
-            MultiIndexSet::anisotropic(&caps, 5, 3).unwrap(),
-            MultiIndexSet::anisotropic(&dense_caps, 4, 2).unwrap(),
-        ];
+        let sets = sparse_and_dense_sets();
         let (mut ws, mut full_ws) = (SurrogateWorkspace::new(), SurrogateWorkspace::new());
         let mut rng = SplitMix64::new(7);
         for (i, set) in sets.into_iter().enumerate() {

@@ -31,12 +31,13 @@ const CURVATURE_TOL: f64 = 1e-10;
 /// value per doubling. Any shift the Cholesky factorisation accepts gives a descent direction, so
 /// trying a sixteenth and a quarter first costs at most two failed factorisations of the free
 /// block and takes longer, more Newton-like steps. Only for a free block small enough that a
-/// failed factorisation costs no more than about one surrogate value (`nf³ ≤ 6 |Λ|`): at d = 72 the
-/// descents from interior design points free all 72 coordinates, and failing there cost more
-/// than the doublings saved. Measured on
-/// the README's scaling rows and the d = 72 study (issue 40): 4–19 % fewer Newton iterations and
-/// 12–28 % fewer step doublings; a sixty-fourth and a 256th as well saved at most 3 % more
-/// iterations.
+/// failed factorisation costs no more than about four surrogate values (`nf³ ≤ 24 |Λ|`): at
+/// d = 72 the descents from interior design points free all 72 coordinates, and with the
+/// fractions there too the search took 3.6 % more instructions than with none (callgrind, the
+/// d = 72 study at 0.5 s); with `nf³ ≤ 6 |Λ|` the d = 32 row saved 13.7 % instead of 17.1 %.
+/// Measured on the README's scaling rows and the d = 72 study (issue 40; fractions at every nf):
+/// 4–19 % fewer Newton iterations and 12–28 % fewer step doublings; a sixty-fourth and a 256th as
+/// well saved at most 3 % more iterations.
 const SHIFT_FRACTIONS: [f64; 3] = [1.0 / 16.0, 0.25, 1.0];
 
 /// Rows of the Hessian whose Gershgorin sums [`BoxOptimizer::gershgorin_shift`] adds side by side.
@@ -266,8 +267,8 @@ impl BoxOptimizer {
         // fractions SHIFT_FRACTIONS of the Gershgorin shift, the last of them the whole shift,
         // which cannot fail.
         // The fractions only where a failed factorisation (up to nf³/6 multiply-adds) costs no
-        // more than about one surrogate value (a few operations per term) that it may save.
-        let first = if nf * nf * nf <= 6 * terms {
+        // more than about four surrogate values (a few operations per term each).
+        let first = if nf * nf * nf <= 24 * terms {
             0
         } else {
             SHIFT_FRACTIONS.len() - 1
