@@ -134,13 +134,10 @@ pub(super) fn verify_horizon(
         if plan.points.is_empty() {
             break;
         }
-        let outcome = check(context, &plan, accumulator)?;
         horizon.rounds += 1;
-        horizon.runs += outcome.report.runs;
-        absorb(misfit, &outcome.misfit);
-        runs.absorb(&outcome.report);
-        verdict = judge(context.scene, runs.clone(), misfit, accumulator);
-        if !outcome.report.complete {
+        let complete;
+        (verdict, complete) = run_plan(context, &plan, runs, misfit, accumulator, &mut horizon)?;
+        if !complete {
             break;
         }
         if !passes_at(context, misfit, accumulator, aim) {
@@ -154,12 +151,16 @@ pub(super) fn verify_horizon(
             surrogate.first_check_until(aim, share, &runs.points)
         });
         if !confirmation.points.is_empty() {
-            let outcome = check(context, &confirmation, accumulator)?;
-            horizon.runs += outcome.report.runs;
-            absorb(misfit, &outcome.misfit);
-            runs.absorb(&outcome.report);
-            verdict = judge(context.scene, runs.clone(), misfit, accumulator);
-            if !outcome.report.complete {
+            let complete;
+            (verdict, complete) = run_plan(
+                context,
+                &confirmation,
+                runs,
+                misfit,
+                accumulator,
+                &mut horizon,
+            )?;
+            if !complete {
                 break;
             }
         }
@@ -189,13 +190,27 @@ fn passes_at(
         .unwrap_or(false)
 }
 
-/// Takes a check's misfits `found[o][r]` into the study's `misfit[o][r]` (the larger of each).
-fn absorb(misfit: &mut [Vec<f64>], found: &[Vec<f64>]) {
-    for (worst, found) in misfit.iter_mut().zip(found) {
+/// Runs the points of `plan`: the runs join `runs` and `horizon.runs`, their misfits
+/// `misfit[o][r]` (the larger of each), every run widens `accumulator`. Returns the study's
+/// verdict with them, and whether the runs covered the whole horizon.
+fn run_plan(
+    context: &mut PhaseContext<'_>,
+    plan: &CheckPlan,
+    runs: &mut CheckRuns,
+    misfit: &mut [Vec<f64>],
+    accumulator: &mut Accumulator,
+    horizon: &mut HorizonCheck,
+) -> Result<(CheckReport, bool), StudyError> {
+    let outcome = check(context, plan, accumulator)?;
+    horizon.runs += outcome.report.runs;
+    for (worst, found) in misfit.iter_mut().zip(&outcome.misfit) {
         for (w, &m) in worst.iter_mut().zip(found) {
             *w = w.max(m);
         }
     }
+    runs.absorb(&outcome.report);
+    let verdict = judge(context.scene, runs.clone(), misfit, accumulator);
+    Ok((verdict, outcome.report.complete))
 }
 
 /// One plan of a horizon round over the study's surrogates (`candidates`: the root's, or every
