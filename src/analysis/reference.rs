@@ -317,17 +317,18 @@ fn greedy_flips(
             &mut |block: &PhaseBlock, _| {
                 for r in 0..block.count {
                     let record = block.first + r;
-                    for i in 0..block.lockstep.len() {
+                    // One run per deduplicated point, in order.
+                    for (i, sharing) in probes_of_point.iter().enumerate() {
                         if block.lockstep.failed(i) {
                             continue;
                         }
                         let run_values = block.record(i, r);
                         hull.add(record, run_values, first + i as u32);
-                        let searched_here = probes_of_point[i]
+                        let searched_here = sharing
                             .iter()
                             .any(|&p| searched_at[probes[p].label].0 == record);
                         if searched_here {
-                            for &p in &probes_of_point[i] {
+                            for &p in sharing {
                                 values[p] = run_values[searched_at[probes[p].label].1];
                             }
                         }
