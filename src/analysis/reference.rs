@@ -23,6 +23,7 @@ use super::plan::TAYLOR_STEP;
 use super::report::{Progress, StudyReport};
 use super::schedule::RecordSchedule;
 use super::study::Study;
+use crate::uq::{FlipSearch, FlipTarget, SearchSide};
 use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -224,7 +225,8 @@ impl Study<'_> {
 
 /// Step 3 of the module documentation: per output and side, from the best run so far at the
 /// output's widest times, the d vertices one flip away, repeated while one improves (at most
-/// `max_rounds` rounds).
+/// `max_rounds` rounds). The search is [`FlipSearch`] without its combined step
+/// ([`FlipSearch::single_flips_only`]); the points that several searches share run once.
 fn greedy_flips(
     context: &mut PhaseContext<'_>,
     hull: &mut Hull,
@@ -233,17 +235,9 @@ fn greedy_flips(
     let d = context.space.len();
     let n_outputs = hull.n_outputs;
     let n_records = hull.points.len() / n_outputs.max(1);
-    // One search per (output, side): the record where the output is widest, the current best
-    // point and value there, whether it is still improving.
-    struct Search {
-        output: usize,
-        upper: bool,
-        record: usize,
-        best: Vec<f64>,
-        value: f64,
-        active: bool,
-    }
-    let mut searches = Vec::new();
+    // Per search (its label): the record and output it looks at.
+    let mut searched_at: Vec<(usize, usize)> = Vec::new();
+    let mut targets: Vec<FlipTarget> = Vec::new();
     for o in 0..n_outputs {
         let width = |r: usize| {
             let p = hull.points[r * n_outputs + o];
@@ -268,47 +262,52 @@ fn greedy_flips(
             for upper in [false, true] {
                 let k = record * n_outputs + o;
                 let run = hull.attained_by[2 * k + usize::from(upper)] as usize;
-                let best = hull.run_points[run * d..(run + 1) * d].to_vec();
                 let p = hull.points[k];
-                searches.push(Search {
-                    output: o,
-                    upper,
-                    record,
-                    best,
+                targets.push(FlipTarget {
+                    label: searched_at.len(),
+                    side: if upper {
+                        SearchSide::Max
+                    } else {
+                        SearchSide::Min
+                    },
+                    start: hull.run_points[run * d..(run + 1) * d].to_vec(),
                     value: if upper { p.upper } else { p.lower },
-                    active: true,
                 });
+                searched_at.push((record, o));
             }
         }
     }
+    let mut search = FlipSearch::new(d, targets).single_flips_only();
     for _round in 0..max_rounds {
-        // The candidates of every active search, deduplicated.
-        let mut index: HashMap<Vec<i8>, usize> = HashMap::new();
-        let mut points: Vec<f64> = Vec::new();
-        let mut owners: Vec<Vec<(usize, usize)>> = Vec::new();
-        for (s, search) in searches.iter().enumerate().filter(|(_, s)| s.active) {
-            for j in 0..d {
-                let mut candidate = search.best.clone();
-                // Flip to the opposite face; an interior coordinate goes to the far face.
-                candidate[j] = if candidate[j] > 0.0 { -1.0 } else { 1.0 };
-                let key: Vec<i8> = candidate
-                    .iter()
-                    .map(|x| (x * 100.0).round() as i8)
-                    .collect();
-                let next = owners.len();
-                let slot = *index.entry(key).or_insert(next);
-                if slot == next {
-                    points.extend_from_slice(&candidate);
-                    owners.push(Vec::new());
-                }
-                owners[slot].push((s, j));
-            }
-        }
-        if points.is_empty() {
+        let probes = search.next_probes(usize::MAX);
+        if probes.is_empty() {
             break;
         }
+        // The probes' points, deduplicated, in the order of the searches (a round serves every
+        // active search; the search only rotates where its round starts).
+        let mut in_search_order: Vec<usize> = (0..probes.len()).collect();
+        in_search_order.sort_by_key(|&p| probes[p].target);
+        let mut index: HashMap<Vec<u64>, usize> = HashMap::new();
+        let mut points: Vec<f64> = Vec::new();
+        let mut probes_of_point: Vec<Vec<usize>> = Vec::new();
+        for p in in_search_order {
+            let point = &probes[p].point;
+            // `+ 0.0` makes −0 and +0 one key.
+            let key: Vec<u64> = point.iter().map(|x| (x + 0.0).to_bits()).collect();
+            let next = probes_of_point.len();
+            let slot = *index.entry(key).or_insert(next);
+            if slot == next {
+                points.extend_from_slice(point);
+                probes_of_point.push(Vec::new());
+            }
+            probes_of_point[slot].push(p);
+        }
         let first = register_points(hull, &points, d);
-        let mut at_record: Vec<Vec<f64>> = vec![Vec::new(); owners.len()];
+        // Each probe's values (NaN: its run failed). A point shared by searches at different
+        // records gives every one of them its values at the latest of those records: a quirk this
+        // reference has always had, kept so that its numbers do not move (reading each search's
+        // own record instead is a change of results, left to a decision of its own).
+        let mut values = vec![f64::NAN; probes.len()];
         let policy = context.exclusion_policy("flip run");
         let complete = context.run_phase(
             "flips",
@@ -318,15 +317,19 @@ fn greedy_flips(
             &mut |block: &PhaseBlock, _| {
                 for r in 0..block.count {
                     let record = block.first + r;
-                    for i in 0..block.lockstep.len() {
+                    // One run per deduplicated point, in order.
+                    for (i, sharing) in probes_of_point.iter().enumerate() {
                         if block.lockstep.failed(i) {
                             continue;
                         }
-                        let values = block.record(i, r);
-                        hull.add(record, values, first + i as u32);
-                        for &(s, _) in &owners[i] {
-                            if searches[s].record == record {
-                                at_record[i] = values.to_vec();
+                        let run_values = block.record(i, r);
+                        hull.add(record, run_values, first + i as u32);
+                        let searched_here = sharing
+                            .iter()
+                            .any(|&p| searched_at[probes[p].label].0 == record);
+                        if searched_here {
+                            for &p in sharing {
+                                values[p] = run_values[searched_at[probes[p].label].1];
                             }
                         }
                     }
@@ -334,48 +337,11 @@ fn greedy_flips(
                 Ok(())
             },
         )?;
-        context.report.runs += owners.len();
+        context.report.runs += probes_of_point.len();
         if !complete {
             return Ok(());
         }
-        let mut improved = vec![None::<(f64, usize)>; searches.len()];
-        for (i, owned) in owners.iter().enumerate() {
-            if at_record[i].is_empty() {
-                continue;
-            }
-            for &(s, _) in owned {
-                let search = &searches[s];
-                let value = at_record[i][search.output];
-                let better = if search.upper {
-                    value > search.value
-                } else {
-                    value < search.value
-                };
-                let best_so_far = improved[s].map_or(search.value, |(v, _)| v);
-                let beats = if search.upper {
-                    value > best_so_far
-                } else {
-                    value < best_so_far
-                };
-                if better && beats {
-                    improved[s] = Some((value, i));
-                }
-            }
-        }
-        let mut any = false;
-        for (s, search) in searches.iter_mut().enumerate() {
-            match improved[s] {
-                Some((value, i)) if search.active => {
-                    search.value = value;
-                    search.best = points[i * d..(i + 1) * d].to_vec();
-                    any = true;
-                }
-                _ => search.active = false,
-            }
-        }
-        if !any {
-            break;
-        }
+        search.absorb(&values);
     }
     Ok(())
 }

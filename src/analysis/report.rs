@@ -486,7 +486,10 @@ impl StudyReport {
 }
 
 /// What simulating a part of a design did (`Study::simulate_design_part`, one shard of
-/// `ribbon run`).
+/// `ribbon run`). Its persisted form is [`crate::distributed::BlockTrailer`]: every field but
+/// `simulate_seconds` (a timing, kept out of the block so that blocks are byte-identical), written
+/// by `study_front/shard.rs` and summed over the shards by the merge. A field added here that the
+/// merge must report goes into both.
 #[derive(Clone, Debug)]
 pub struct DesignPart {
     /// Whether every record time was simulated (false when interrupted).

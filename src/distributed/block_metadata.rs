@@ -102,7 +102,10 @@ impl BlockHeader {
     }
 }
 
-/// What a record block says after the data.
+/// What a record block says after the data: the persisted form of what simulating the shard did
+/// ([`crate::analysis::DesignPart`], less its seconds, which would break byte identity). The two
+/// stay apart because the analysis may not depend on the block format; a field the merge must
+/// report goes into both.
 #[derive(Clone, Debug)]
 pub struct BlockTrailer {
     /// Whether every record time was written.

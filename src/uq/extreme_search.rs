@@ -25,7 +25,9 @@
 //! every flip at once), and the search moves to the better of it and the best single flip; the
 //! rounds repeat until no flip improves. A round costs `d` (+ 1) evaluations where a
 //! central-difference gradient costs `2d`, and it moves by whole faces where a gradient step
-//! moves by a fraction of the half-width.
+//! moves by a fraction of the half-width. [`FlipSearch::single_flips_only`] drops the combined
+//! step: each round moves to the best single flip (the vertex reference of `ribbon compare` keeps
+//! that plain greedy search, so that its numbers stay comparable across versions).
 //!
 //! What neither does: second-order steps, restarts, or any use of a surrogate.
 
@@ -353,6 +355,8 @@ pub struct FlipSearch {
     /// The probes of the batch under way: (target, flipped coordinate).
     pending: Vec<(usize, usize)>,
     evaluations: usize,
+    /// Whether a round in which several flips improve evaluates them all flipped at once.
+    combine_flips: bool,
 }
 
 impl FlipSearch {
@@ -375,7 +379,15 @@ impl FlipSearch {
             cursor: 0,
             pending: Vec::new(),
             evaluations: 0,
+            combine_flips: true,
         }
+    }
+
+    /// The same search without the combined step: a round always moves to its best single flip
+    /// (the first coordinate among equal values) or stops.
+    pub fn single_flips_only(mut self) -> FlipSearch {
+        self.combine_flips = false;
+        self
     }
 
     /// Whether every target has stopped.
@@ -404,8 +416,9 @@ impl FlipSearch {
         let n = self.targets.len();
         let mut probes = Vec::new();
         self.pending.clear();
+        let first = self.cursor;
         for k in 0..n {
-            let index = (self.cursor + k) % n;
+            let index = (first + k) % n;
             let target = &self.targets[index];
             if target.done {
                 continue;
@@ -491,7 +504,7 @@ impl FlipSearch {
                 continue;
             };
             let single = Self::flipped(&target.current, j);
-            if improving[t].len() > 1 {
+            if self.combine_flips && improving[t].len() > 1 {
                 let mut combined = target.current.clone();
                 for &(k, _) in &improving[t] {
                     combined[k] = Self::flipped(&target.current, k)[k];
@@ -693,5 +706,57 @@ mod tests {
         // A round, its combined point, a round that finds nothing.
         assert_eq!((batches, search.evaluations()), (3, 5));
         assert_eq!(search.best()[0], (vec![1.0, -1.0], 3.0));
+    }
+
+    #[test]
+    fn a_batch_with_room_for_every_round_serves_each_target_once() {
+        // Nothing improves: every target is served once, in order, then stops.
+        let targets: Vec<FlipTarget> = (0..5)
+            .map(|label| FlipTarget {
+                label,
+                side: SearchSide::Max,
+                start: vec![1.0, -1.0],
+                value: 10.0,
+            })
+            .collect();
+        let mut search = FlipSearch::new(2, targets);
+        let probes = search.next_probes(usize::MAX);
+        let served: Vec<usize> = probes.iter().map(|p| p.target).collect();
+        assert_eq!(served, vec![0, 0, 1, 1, 2, 2, 3, 3, 4, 4]);
+        search.absorb(&vec![0.0; probes.len()]);
+        assert!(search.is_done());
+    }
+
+    #[test]
+    fn single_flips_only_moves_to_the_best_flip_without_combining() {
+        // Every flip improves from (−1, −1, 1) (−3.5 → −1.5, 0.5, −2.5): the combined search would
+        // next evaluate all three flipped; this one moves to the best single flip, x1.
+        let f = |x: &[f64]| x[0] + 2.0 * x[1] - 0.5 * x[2];
+        let start = vec![-1.0, -1.0, 1.0];
+        let mut search = FlipSearch::new(
+            3,
+            vec![FlipTarget {
+                label: 0,
+                side: SearchSide::Max,
+                value: f(&start),
+                start,
+            }],
+        )
+        .single_flips_only();
+        let mut moves = Vec::new();
+        while !search.is_done() {
+            let probes = search.next_probes(10);
+            assert!(probes.iter().all(|p| p.point.len() == 3), "{probes:?}");
+            assert_eq!(probes.len(), 3, "every batch is a round of single flips");
+            let values: Vec<f64> = probes.iter().map(|p| f(&p.point)).collect();
+            search.absorb(&values);
+            moves.push(search.best()[0].clone());
+        }
+        // One flip per round, the best each time, then a round that finds none.
+        assert_eq!(moves[0], (vec![-1.0, 1.0, 1.0], 0.5));
+        assert_eq!(moves[1], (vec![1.0, 1.0, 1.0], 2.5));
+        assert_eq!(moves[2], (vec![1.0, 1.0, -1.0], 3.5));
+        assert_eq!(moves.len(), 4);
+        assert_eq!(search.evaluations(), 12);
     }
 }
