@@ -35,7 +35,7 @@ use super::report::{CheckReport, HorizonCheck};
 
 /// Most rounds of the horizon check: each moves the aim back to where the prefix test passes
 /// with the new misfits, and a fall that separates fast needs several (a limp iiwa falling from
-/// upright over 1 s: four, 0.65 → 0.52 → 0.32 → 0.25 s, docs/method.md §7).
+/// upright over 1 s: four, to 0.24 s, docs/method.md §7).
 pub const HORIZON_MAX_ROUNDS: usize = 6;
 
 /// After a round that did not confirm its aim, the next aims at most this share of the way to it
