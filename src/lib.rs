@@ -54,6 +54,7 @@ pub mod output;
 pub mod params;
 pub mod ros;
 pub mod scene;
+pub mod set_flags;
 pub mod setup;
 pub mod sidecar;
 pub mod simulate;

@@ -11,10 +11,10 @@
 //! Does not: check or write output files, print statistics, or install signal handlers (the
 //! callers do).
 
-use crate::cli::apply_set_flags_with_symbols;
 use crate::environment::Environment;
 use crate::model::Model;
 use crate::scene::{limit_excursions, LimitExcursion, Scene};
+use crate::set_flags::apply_set_flags_with_symbols;
 use crate::setup::{SceneSetup, SetupMessage, SetupRequest};
 use crate::simulate::{simulate_interruptible, Trajectory};
 use crate::Error;

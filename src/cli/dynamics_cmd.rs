@@ -2,9 +2,9 @@
 //! rigid-body dynamics at one state, in the JSON shape of the design contract.
 
 use super::{print_warnings, write_stdout, DynamicsArgs};
-use crate::cli::values::{apply_set_flags, parse_vector};
 use crate::environment::Environment;
 use crate::model::{LoadOptions, Model};
+use crate::set_flags::{apply_set_flags, parse_vector};
 use crate::state_dynamics::{coordinate_names, StateDynamics, StateRequest};
 use crate::Error;
 use serde_json::{json, Map, Value};

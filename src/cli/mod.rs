@@ -10,9 +10,10 @@ mod params_cmd;
 mod plan_cmd;
 mod run_cmd;
 mod simulate_cmd;
-mod values;
 
-pub use values::{apply_set_flags, apply_set_flags_with_symbols, parse_set, parse_vector};
+pub use crate::set_flags::{
+    apply_set_flags, apply_set_flags_with_symbols, parse_set, parse_vector,
+};
 
 use crate::study_front::{install_interrupt, SceneInputs};
 use crate::Error;

@@ -1,4 +1,6 @@
-//! Parsing command-line values: comma-separated vectors and `PATH=VALUE` overrides.
+//! Parsing command-line values: comma-separated vectors and `PATH=VALUE` overrides (`--set`).
+//! Below `cli/` because a nominal run (`nominal_run.rs`) and the Python package apply the same
+//! overrides; `cli` re-exports it.
 
 use crate::Error;
 
