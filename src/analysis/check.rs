@@ -765,14 +765,21 @@ mod tests {
         );
     }
 
-    #[test]
-    fn the_horizon_selection_aims_at_records_up_to_its_limit_and_skips_what_ran() {
+    /// Four predictions in one dimension, output 0: the maximum at records 3 (width 9), 2 (4) and
+    /// 1 (2), the minimum at record 2 (4).
+    fn candidates_around_record_2() -> CheckCandidates {
         let mut c = CheckCandidates::new(1);
-        // Output 0: its widest record (3) is after the limit; records 1 and 2 are within it.
         c.add(3, 0, Side::Upper, &[0.9], 2.0, 9.0);
         c.add(2, 0, Side::Upper, &[0.5], 1.5, 4.0);
         c.add(1, 0, Side::Upper, &[0.2], 1.0, 2.0);
         c.add(2, 0, Side::Lower, &[-0.5], -1.5, 4.0);
+        c
+    }
+
+    #[test]
+    fn the_horizon_selection_aims_at_records_up_to_its_limit_and_skips_what_ran() {
+        // Output 0: its widest record (3) is after the limit; records 1 and 2 are within it.
+        let mut c = candidates_around_record_2();
         assert_eq!(c.select(1).points, vec![-0.5]);
         // Up to record 2, widest first per side: the maximum at record 2, the minimum there.
         let plan = c.select_until(2, 2, &[]);
@@ -792,11 +799,7 @@ mod tests {
 
     #[test]
     fn a_confirmation_runs_what_a_shorter_study_would_check_first_less_what_ran() {
-        let mut c = CheckCandidates::new(1);
-        c.add(3, 0, Side::Upper, &[0.9], 2.0, 9.0);
-        c.add(2, 0, Side::Upper, &[0.5], 1.5, 4.0);
-        c.add(1, 0, Side::Upper, &[0.2], 1.0, 2.0);
-        c.add(2, 0, Side::Lower, &[-0.5], -1.5, 4.0);
+        let c = candidates_around_record_2();
         // A study ending at record 2 with two check runs would run the two widest there.
         assert_eq!(c.first_check_until(2, 2, &[]).points, vec![-0.5, 0.5]);
         // One of them already ran: only the other, not the next widest in its place (the

@@ -232,7 +232,7 @@ pub(super) fn judge(
         .min();
     // The last prefix the trust test passes is what the check would say of a run that ended
     // there.
-    let passes_until_record = prefix_verdicts(scene, misfit, accumulator)
+    let passes_until_record = prefix_trust(&resolution, misfit, &accumulator.points)
         .iter()
         .rposition(|&passes| passes);
     let checks_before_first_miss = checked

@@ -82,9 +82,9 @@ pub(super) fn verify_horizon_of_one_surrogate(
 /// most an even share of [`HORIZON_RUNS_PER_CHECK_RUN`] times the runs of those checks; a round
 /// whose probes pass at its aim then runs the points a study ending there would check first
 /// with `first_check_runs` runs (those not run yet, within what is left of the budget), and the
-/// aim is verified when the prefix test still passes there. The runs join `runs`, their misfits `misfit`, and
-/// every run widens `accumulator`. Returns the verdict with every check's misfits and [`CheckReport::horizon`] set
-/// (the verdict unchanged when no round ran).
+/// aim is verified when the prefix test still passes there. The runs join `runs`, their misfits
+/// `misfit`, and every run widens `accumulator`. Returns the verdict with every check's misfits
+/// and [`CheckReport::horizon`] set (the verdict unchanged when no round ran).
 pub(super) fn verify_horizon(
     context: &mut PhaseContext<'_>,
     candidates: &[&CheckCandidates],
