@@ -65,6 +65,52 @@ fn without_elements_the_advised_duration_is_verified_and_trusted_when_taken() {
     assert_eq!(shortened["stats"]["check"]["trusted"], true);
 }
 
+/// An arm falling limp (bullet3's kuka_iiwa, 35 values, 0.5 s, `--elements off`): the checks
+/// pass up to 0.44 s, and every extreme the surrogate predicts up to then is among the points the
+/// first check already ran, so the horizon check has nothing left to aim at. That is a verified
+/// horizon, not one to "check again" (measured when written: before, no round ran and the advice
+/// said "shorten --duration to 0.44 s and check again").
+#[test]
+fn a_horizon_whose_predicted_extremes_were_all_checked_is_verified_without_more_runs() {
+    let dir = fresh_test_scratch_dir("horizon_advice", "all_checked");
+    let summary = dir.join("limp.summary.json");
+    let outcome = ribbon_outcome(&[
+        "analyze",
+        "tests/urdf_corpus/bullet3/kuka_iiwa/model.urdf",
+        "--uncertainty",
+        "tests/fixtures/limp_arm/limp.uncertainty.toml",
+        "--elements",
+        "off",
+        "--summary",
+        summary.to_str().unwrap(),
+    ]);
+    assert_eq!(outcome.code, Some(4), "{}", outcome.stderr);
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).expect("read the summary"))
+            .expect("the summary is JSON");
+    let check = &summary["stats"]["check"];
+    let horizon = &check["horizon"];
+    assert_eq!(horizon["runs"], 0, "{horizon}");
+    let verified = horizon["verified_until_time_s"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no horizon verified: {horizon}"));
+    assert_eq!(check["passes_until_time_s"].as_f64(), Some(verified));
+    assert!(verified > 0.0 && verified < 0.5, "{horizon}");
+    let t = ribbon::text::message_time(verified);
+    let stderr = &outcome.stderr;
+    assert!(
+        stderr.contains(&format!(
+            "every extreme the surrogate predicts up to t = {t} s is among the points checked"
+        )),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(&format!("shorten --duration to {t} s,")),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("check again"), "{stderr}");
+}
+
 /// Runs the 3 s study with `options`: untrusted, with a horizon check whose verified horizon the
 /// advice names (within its budget); returns that horizon in seconds.
 fn advised_and_verified(dir: &Path, options: &[&str]) -> f64 {

@@ -115,13 +115,19 @@ pub fn untrusted_advice(
     let shorter = match (verified, check.passes_until_record) {
         (Some((horizon, r)), _) if r > 0 && r < last => {
             let t = times[r];
-            parts.push(format!(
-                "checks aimed at the times up to t = {t} s agree with the surrogate ({} more run{} in {} round{}): its envelopes up to then pass the trust test",
-                horizon.runs,
-                if horizon.runs == 1 { "" } else { "s" },
-                horizon.rounds,
-                if horizon.rounds == 1 { "" } else { "s" },
-            ));
+            parts.push(if horizon.runs == 0 {
+                format!(
+                    "every extreme the surrogate predicts up to t = {t} s is among the points checked, which agree with it: its envelopes up to then pass the trust test"
+                )
+            } else {
+                format!(
+                    "checks aimed at the times up to t = {t} s agree with the surrogate ({} more run{} in {} round{}): its envelopes up to then pass the trust test",
+                    horizon.runs,
+                    if horizon.runs == 1 { "" } else { "s" },
+                    horizon.rounds,
+                    if horizon.rounds == 1 { "" } else { "s" },
+                )
+            });
             Some(format!("shorten --duration to {t} s"))
         }
         (_, Some(r)) if r > 0 && r < last => {

@@ -10,7 +10,8 @@
 //! when its design does not depend on the duration, and then finds no misfit this one has not
 //! judged — the envelopes up to `X` rest on checks aimed there and `X` is *verified*;
 //! otherwise `X` moves back to where the prefix test now passes and the next round aims there,
-//! up to [`HORIZON_MAX_ROUNDS`] rounds.
+//! up to [`HORIZON_MAX_ROUNDS`] rounds. A round with nothing left to aim at (every prediction up
+//! to `X` already ran) goes straight to the confirmation.
 //!
 //! ```text
 //! X = passes_until ─▶ select_until(X) ─▶ check runs (widen, misfits) ─▶ judge ─┬ fails at X ──┐
@@ -131,17 +132,20 @@ pub(super) fn verify_horizon(
             round_runs.min(budget.saturating_sub(horizon.runs)),
             &|surrogate, share| surrogate.select_until(aim, share, &runs.points),
         );
-        if plan.points.is_empty() {
-            break;
-        }
-        horizon.rounds += 1;
-        let complete;
-        (verdict, complete) = run_plan(context, &plan, runs, misfit, accumulator, &mut horizon)?;
-        if !complete {
-            break;
-        }
-        if !passes_at(context, misfit, accumulator, aim) {
-            continue;
+        // No probe left means every prediction up to the aim has been run already: the aim
+        // then rests on those runs, and the confirmation below decides.
+        let probed = !plan.points.is_empty();
+        if probed {
+            horizon.rounds += 1;
+            let complete;
+            (verdict, complete) =
+                run_plan(context, &plan, runs, misfit, accumulator, &mut horizon)?;
+            if !complete {
+                break;
+            }
+            if !passes_at(context, misfit, accumulator, aim) {
+                continue;
+            }
         }
         // Confirmed by this round's probes: then the points a study ending at the aim would
         // check first, so that such a study (the same surrogates up to there) finds no misfit
@@ -151,6 +155,9 @@ pub(super) fn verify_horizon(
             surrogate.first_check_until(aim, share, &runs.points)
         });
         if !confirmation.points.is_empty() {
+            if !probed {
+                horizon.rounds += 1;
+            }
             let complete;
             (verdict, complete) = run_plan(
                 context,
@@ -169,7 +176,7 @@ pub(super) fn verify_horizon(
             break;
         }
     }
-    if horizon.rounds > 0 {
+    if horizon.rounds > 0 || horizon.verified_until_record.is_some() {
         verdict.horizon = Some(horizon);
     }
     Ok(verdict)
