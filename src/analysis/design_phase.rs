@@ -94,7 +94,8 @@ pub(super) fn bound_design(
     if let Plan::Sparse(design) = plan {
         context.report.condition_number = Some(design.condition_number());
     }
-    let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?;
+    let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?
+        .with_block_records(context.report.block_records);
     let surrogate_ranges = crate::scene::surrogate_ranges(context.model, scene);
     let mut bounding = DesignBounding {
         bounder: &bounder,
@@ -110,15 +111,11 @@ pub(super) fn bound_design(
     };
     let complete = match &design.adapted {
         Some(outcome) => {
+            // Every record at once: the bounder works through them in blocks of
+            // `block_records`, the next block's fits beside this block's inner bound.
             let t_bound = Instant::now();
-            let mut first = 0;
-            let block = context.report.block_records.max(1);
-            while first < n_records {
-                let count = block.min(n_records - first);
-                let values = |r: usize| outcome.record(first + r, n_outputs);
-                bounding.absorb(first, count, &values, &|_| false, accumulator)?;
-                first += count;
-            }
+            let values = |r: usize| outcome.record(r, n_outputs);
+            bounding.absorb(0, n_records, &values, &|_| false, accumulator)?;
             context.report.bound_seconds += t_bound.elapsed().as_secs_f64();
             if !outcome.complete {
                 context.report.partial = true;
