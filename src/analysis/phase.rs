@@ -61,6 +61,14 @@ pub(super) struct PhaseContext<'a> {
 pub(super) type OnBlock<'a> =
     dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError> + 'a;
 
+/// What [`PhaseContext::run_source_beside`] does with each block first: `(block, report)` to the
+/// work on it that needs neither (`None`: no work).
+pub(super) type TakeBlock<'a, T> =
+    dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<Option<T>, StudyError> + 'a;
+
+/// The work [`PhaseContext::run_source_beside`] runs beside the next block's simulation.
+pub(super) type BlockWork<'a, T> = dyn FnMut(T) -> Result<(), StudyError> + Send + 'a;
+
 /// Which runs of a phase may be left out when they fail, and what to tell the user.
 #[derive(Clone, Copy)]
 pub(super) struct FailurePolicy {
@@ -190,8 +198,8 @@ impl<'a> PhaseContext<'a> {
         phase: &'static str,
         lockstep: &mut dyn RecordSource,
         policy: FailurePolicy,
-        take: &mut dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<Option<T>, StudyError>,
-        work: &mut (dyn FnMut(T) -> Result<(), StudyError> + Send),
+        take: &mut TakeBlock<'_, T>,
+        work: &mut BlockWork<'_, T>,
     ) -> Result<bool, StudyError> {
         let (threads, interrupt, started) = (self.threads, self.interrupt, self.started);
         let report = &mut *self.report;

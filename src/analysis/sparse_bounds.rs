@@ -220,7 +220,7 @@ impl SparseBounds {
         let mut first = 0;
         while first < records {
             let next_first = first + fitted.len();
-            let next = next_first..(next_first + block_records).min(records);
+            let next = next_first..next_first.saturating_add(block_records).min(records);
             let (sides, next_fitted) = self.run_queue(
                 &fitted,
                 next,
@@ -544,6 +544,88 @@ fn extreme_design_points(
 mod tests {
     use super::*;
     use crate::test_support::SplitMix64;
+
+    /// Bounds `records` record times of a d = 4 total-degree design (three outputs, smooth in ξ
+    /// and drifting in time) in two calls split at `split`, in blocks of `block_records`, on
+    /// `threads` threads; the blocks as text (`{:?}` writes every float exactly).
+    fn bounded_text(records: usize, split: usize, block_records: usize, threads: usize) -> String {
+        let design = Arc::new(SparseDesign::total_degree(4, 3).expect("design"));
+        let (d, n_outputs) = (4, 3);
+        let points = design.points().to_vec();
+        let values = move |r: usize| -> Vec<f64> {
+            let t = r as f64 * 0.3;
+            points
+                .chunks_exact(d)
+                .flat_map(|x| {
+                    [
+                        (t + x[0]).sin() * x[1] + 0.3 * x[2] * x[2] - 0.1 * x[3],
+                        x[0] * x[1] * x[2] + t.cos() * x[3] * x[3],
+                        (x[0] - 0.2 * t).powi(2) - x[1] * x[3],
+                    ]
+                })
+                .collect()
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        let bounds = SparseBounds::new(design, false, true);
+        let clock = BoundClock::default();
+        let none = |_: usize| false;
+        let head = bounds
+            .bound(
+                split,
+                n_outputs,
+                &values,
+                &none,
+                block_records,
+                &clock,
+                &pool,
+            )
+            .expect("first call");
+        let tail = bounds
+            .bound(
+                records - split,
+                n_outputs,
+                &|r| values(split + r),
+                &none,
+                block_records,
+                &clock,
+                &pool,
+            )
+            .expect("second call");
+        let mut all = head;
+        all.points.extend(tail.points);
+        all.extremes.extend(tail.extremes);
+        all.main_indices.extend(tail.main_indices);
+        all.total_indices.extend(tail.total_indices);
+        all.variances.extend(tail.variances);
+        assert_eq!(all.points.len(), records * n_outputs);
+        for point in &all.points {
+            let (outer_lower, outer_upper) = point.outer.expect("an outer bound");
+            assert!(
+                outer_lower <= point.lower
+                    && point.lower <= point.upper
+                    && point.upper <= outer_upper,
+                "{point:?}"
+            );
+        }
+        format!("{all:?}")
+    }
+
+    #[test]
+    fn the_bounds_depend_neither_on_blocks_nor_calls_nor_threads() {
+        let reference = bounded_text(9, 9, usize::MAX, 1);
+        for (split, block_records, threads) in
+            [(9, 1, 2), (4, 2, 2), (0, 4, 1), (5, 50, 2), (3, 3, 3)]
+        {
+            // Not assert_eq!: the texts are long; a difference is all there is to say.
+            assert!(
+                bounded_text(9, split, block_records, threads) == reference,
+                "split {split}, blocks of {block_records}, {threads} threads: other bounds"
+            );
+        }
+    }
 
     #[test]
     fn extreme_design_points_are_the_ends_of_the_sorted_order() {
