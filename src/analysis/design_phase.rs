@@ -9,6 +9,11 @@
 //!            ⇒ + nominal, screening hull ⇒ accumulator; argmin/argmax ⇒ candidates; indices
 //! ```
 //!
+//! A design simulated (or read) here is bounded block by block beside the simulation of the
+//! next block (`PhaseContext::run_source_beside`: the block's values are taken out of the source
+//! first); the adaptive design's runs, all made already, go to the bounder in one call, which
+//! works through them in blocks (`sparse_bounds.rs`).
+//!
 //! Does not: choose the design (`study_plan.rs`, the screening and adaptive phases) or run the
 //! check (`check_phase.rs`).
 

@@ -9,6 +9,9 @@
 //! run_phase:  LockStep of the points (and the nominal run) ─────┴─▶ run_source:
 //!             per block: advance ⇒ failure policy ⇒ on_block(block, report) ⇒ progress
 //!             at the end: counters, contacts, exclusions and retries into the report
+//! run_source_beside: per block: advance (joined with the last block's work) ⇒ failure policy
+//!             ⇒ take(block, report): the work on the block ⇒ progress; after the last block,
+//!             its work
 //! ```
 //!
 //! A phase (`screening_phase.rs`, `adaptive_phase.rs`, `design_phase.rs`, `check_phase.rs`,
