@@ -58,6 +58,9 @@ pub struct Bounder {
     locate_extremes: bool,
     /// The time the workers spent per phase.
     clock: BoundClock,
+    /// Record times the sparse design bounds per block when given more at once
+    /// ([`Bounder::with_block_records`]).
+    block_records: usize,
 }
 
 impl Bounder {
@@ -104,7 +107,17 @@ impl Bounder {
             sparse,
             locate_extremes,
             clock: BoundClock::default(),
+            block_records: usize::MAX,
         })
+    }
+
+    /// The same bounder, bounding a sparse design's records `block_records` at a time when
+    /// [`Bounder::bound_records`] is given more (all by default): two blocks' values and fits are
+    /// in memory at once, and the next block's fits fill the threads while the last side of
+    /// this block's inner bound runs (`sparse_bounds.rs`). The results do not depend on it.
+    pub fn with_block_records(mut self, block_records: usize) -> Bounder {
+        self.block_records = block_records.max(1);
+        self
     }
 
     /// The seconds the workers have spent so far fitting, bounding and computing Sobol' indices
@@ -126,17 +139,15 @@ impl Bounder {
         threads: &rayon::ThreadPool,
     ) -> Result<BoundedBlock, UqError> {
         if let Some(sparse) = &self.sparse {
-            let record_values: Vec<Vec<f64>> =
-                threads.install(|| (0..records).into_par_iter().map(values).collect());
-            let mut block = sparse.bound(&record_values, n_outputs, &self.clock, threads)?;
-            for (points, values) in block
-                .points
-                .chunks_exact_mut(n_outputs.max(1))
-                .zip(&record_values)
-            {
-                include_runs(points, values, n_outputs, excluded);
-            }
-            return Ok(block);
+            return sparse.bound(
+                records,
+                n_outputs,
+                values,
+                excluded,
+                self.block_records,
+                &self.clock,
+                threads,
+            );
         }
         let per_record: Vec<Result<RecordBounds, UqError>> = threads.install(|| {
             (0..records)
@@ -286,7 +297,7 @@ impl Bounder {
 
 /// Widens `points` (one record's outputs) to every run made at that record that is not
 /// `excluded`: each is a true response inside the box. `values` is row-major `samples × outputs`.
-fn include_runs(
+pub(super) fn include_runs(
     points: &mut [EnvelopePoint],
     values: &[f64],
     n_outputs: usize,

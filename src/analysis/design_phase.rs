@@ -9,6 +9,11 @@
 //!            ⇒ + nominal, screening hull ⇒ accumulator; argmin/argmax ⇒ candidates; indices
 //! ```
 //!
+//! A design simulated (or read) here is bounded block by block beside the simulation of the
+//! next block (`PhaseContext::run_source_beside`: the block's values are taken out of the source
+//! first); the adaptive design's runs, all made already, go to the bounder in one call, which
+//! works through them in blocks (`sparse_bounds.rs`).
+//!
 //! Does not: choose the design (`study_plan.rs`, the screening and adaptive phases) or run the
 //! check (`check_phase.rs`).
 
@@ -28,6 +33,8 @@ use super::plan::Plan;
 use super::schedule::RecordSchedule;
 use super::sobol_indices::{has_sobol_indices, SobolSeries};
 use super::stages::StageCursor;
+use rayon::prelude::*;
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 /// What the design phase bounds, once the phases before it are done.
@@ -94,7 +101,8 @@ pub(super) fn bound_design(
     if let Plan::Sparse(design) = plan {
         context.report.condition_number = Some(design.condition_number());
     }
-    let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?;
+    let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?
+        .with_block_records(context.report.block_records);
     let surrogate_ranges = crate::scene::surrogate_ranges(context.model, scene);
     let mut bounding = DesignBounding {
         bounder: &bounder,
@@ -110,15 +118,11 @@ pub(super) fn bound_design(
     };
     let complete = match &design.adapted {
         Some(outcome) => {
+            // Every record at once: the bounder works through them in blocks of
+            // `block_records`, the next block's fits beside this block's inner bound.
             let t_bound = Instant::now();
-            let mut first = 0;
-            let block = context.report.block_records.max(1);
-            while first < n_records {
-                let count = block.min(n_records - first);
-                let values = |r: usize| outcome.record(first + r, n_outputs);
-                bounding.absorb(first, count, &values, &|_| false, accumulator)?;
-                first += count;
-            }
+            let values = |r: usize| outcome.record(r, n_outputs);
+            bounding.absorb(0, n_records, &values, &|_| false, accumulator)?;
             context.report.bound_seconds += t_bound.elapsed().as_secs_f64();
             if !outcome.complete {
                 context.report.partial = true;
@@ -152,28 +156,63 @@ pub(super) fn bound_design(
                     plan_samples.len(),
                 ));
             }
-            let complete = context.run_source("design", source, policy, &mut |block, report| {
-                let t_bound = Instant::now();
-                let lockstep = block.lockstep;
-                for r in 0..block.count {
-                    accumulator.push_nominal(
-                        schedule.time(block.first + r),
-                        block.record(nominal_index, r),
-                        lockstep.nominal_positions(r),
-                    );
-                }
-                let values = |r: usize| -> Vec<f64> {
-                    let mut row = Vec::with_capacity(plan_samples.len() * n_outputs);
-                    for &i in &plan_samples {
-                        row.extend_from_slice(lockstep.record(i, r));
+            // The nominal run and the block's values are taken out of the source at once (the
+            // next block overwrites them); the fit and bound of a block run beside the
+            // simulation of the next (`PhaseContext::run_source_beside`).
+            let threads = context.threads;
+            let shared = Mutex::new((&mut bounding, &mut *accumulator, 0.0_f64));
+            let complete = context.run_source_beside(
+                "design",
+                source,
+                policy,
+                &mut |block, _report| {
+                    let t_take = Instant::now();
+                    let mut guard = shared.lock().unwrap_or_else(PoisonError::into_inner);
+                    let (_, accumulator, bound_seconds) = &mut *guard;
+                    let lockstep = block.lockstep;
+                    for r in 0..block.count {
+                        accumulator.push_nominal(
+                            schedule.time(block.first + r),
+                            block.record(nominal_index, r),
+                            lockstep.nominal_positions(r),
+                        );
                     }
-                    row
-                };
-                let excluded = |i: usize| lockstep.failed(i);
-                bounding.absorb(block.first, block.count, &values, &excluded, accumulator)?;
-                report.bound_seconds += t_bound.elapsed().as_secs_f64();
-                Ok(())
-            })?;
+                    let rows = threads.install(|| {
+                        (0..block.count)
+                            .into_par_iter()
+                            .map(|r| {
+                                let mut row = Vec::with_capacity(plan_samples.len() * n_outputs);
+                                for &i in &plan_samples {
+                                    row.extend_from_slice(lockstep.record(i, r));
+                                }
+                                row
+                            })
+                            .collect()
+                    });
+                    let failed = (0..plan_samples.len())
+                        .map(|i| lockstep.failed(i))
+                        .collect();
+                    *bound_seconds += t_take.elapsed().as_secs_f64();
+                    Ok(Some(TakenBlock {
+                        first: block.first,
+                        count: block.count,
+                        rows,
+                        failed,
+                    }))
+                },
+                &mut |taken: TakenBlock| {
+                    let t_bound = Instant::now();
+                    let mut guard = shared.lock().unwrap_or_else(PoisonError::into_inner);
+                    let (bounding, accumulator, bound_seconds) = &mut *guard;
+                    let values = |r: usize| taken.rows[r].clone();
+                    let excluded = |i: usize| taken.failed[i];
+                    bounding.absorb(taken.first, taken.count, &values, &excluded, accumulator)?;
+                    *bound_seconds += t_bound.elapsed().as_secs_f64();
+                    Ok(())
+                },
+            )?;
+            let (_, _, bound_seconds) = shared.into_inner().unwrap_or_else(PoisonError::into_inner);
+            context.report.bound_seconds += bound_seconds;
             complete
         }
     };
@@ -192,6 +231,19 @@ pub(super) fn bound_design(
         candidates: bounding.candidates,
         runs: bounding.kept.filter(|_| complete),
     })
+}
+
+/// One block of the design's records taken out of the source: bounded while the next block is
+/// simulated.
+struct TakenBlock {
+    /// The block's first record.
+    first: usize,
+    /// Records in the block.
+    count: usize,
+    /// Per record: the design's values, row-major `samples × outputs` (plan order).
+    rows: Vec<Vec<f64>>,
+    /// Per sample (plan order): whether it failed at or before the block's last record.
+    failed: Vec<bool>,
 }
 
 /// Each output's known range ([`crate::scene::OutputKind::known_range`]), by output index.

@@ -51,7 +51,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 /// simulated here ([`LockStep`]) or read from the record blocks of shards simulated elsewhere
 /// (`crate::distributed`). A study's stages only see this interface, so that a merged study and a
 /// single-machine one compute the same numbers from the same values in the same order.
-pub trait RecordSource: Sync {
+pub trait RecordSource: Send + Sync {
     /// Number of samples (the nominal run included).
     fn len(&self) -> usize;
 

@@ -9,6 +9,9 @@
 //! run_phase:  LockStep of the points (and the nominal run) ─────┴─▶ run_source:
 //!             per block: advance ⇒ failure policy ⇒ on_block(block, report) ⇒ progress
 //!             at the end: counters, contacts, exclusions and retries into the report
+//! run_source_beside: per block: advance (joined with the last block's work) ⇒ failure policy
+//!             ⇒ take(block, report): the work on the block ⇒ progress; after the last block,
+//!             its work
 //! ```
 //!
 //! A phase (`screening_phase.rs`, `adaptive_phase.rs`, `design_phase.rs`, `check_phase.rs`,
@@ -60,6 +63,14 @@ pub(super) struct PhaseContext<'a> {
 /// What a phase does with each block of records: `(block, report)`.
 pub(super) type OnBlock<'a> =
     dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<(), StudyError> + 'a;
+
+/// What [`PhaseContext::run_source_beside`] does with each block first: `(block, report)` to the
+/// work on it that needs neither (`None`: no work).
+pub(super) type TakeBlock<'a, T> =
+    dyn FnMut(&PhaseBlock, &mut StudyReport) -> Result<Option<T>, StudyError> + 'a;
+
+/// The work [`PhaseContext::run_source_beside`] runs beside the next block's simulation.
+pub(super) type BlockWork<'a, T> = dyn FnMut(T) -> Result<(), StudyError> + Send + 'a;
 
 /// Which runs of a phase may be left out when they fail, and what to tell the user.
 #[derive(Clone, Copy)]
@@ -170,6 +181,29 @@ impl<'a> PhaseContext<'a> {
         policy: FailurePolicy,
         on_block: &mut OnBlock<'_>,
     ) -> Result<bool, StudyError> {
+        self.run_source_beside(
+            phase,
+            lockstep,
+            policy,
+            &mut |block, report| on_block(block, report).map(|()| None::<()>),
+            &mut |()| Ok(()),
+        )
+    }
+
+    /// [`PhaseContext::run_source`] whose `take` may hand back work on a block's records (taken
+    /// out of the source, which the next block overwrites) that needs neither the source nor the
+    /// report: `work` does it on the same threads while the next block is simulated, or after the
+    /// last block. The blocks' work runs in their order, each after the `take` of its block and
+    /// before the `take` of the next, so what it computes does not depend on the overlap; the
+    /// wall seconds of work beside a simulation go to `report.beside_simulation_seconds`.
+    pub fn run_source_beside<T: Send>(
+        &mut self,
+        phase: &'static str,
+        lockstep: &mut dyn RecordSource,
+        policy: FailurePolicy,
+        take: &mut TakeBlock<'_, T>,
+        work: &mut BlockWork<'_, T>,
+    ) -> Result<bool, StudyError> {
         let (threads, interrupt, started) = (self.threads, self.interrupt, self.started);
         let report = &mut *self.report;
         let progress = &mut *self.progress;
@@ -181,6 +215,7 @@ impl<'a> PhaseContext<'a> {
         let block_records = schedule.block_records(runs, n_outputs);
         let mut first = 0;
         let mut complete = true;
+        let mut pending: Option<T> = None;
         while first < n_records {
             if interrupt.load(Ordering::SeqCst) {
                 complete = false;
@@ -188,8 +223,29 @@ impl<'a> PhaseContext<'a> {
             }
             let count = block_records.min(n_records - first);
             let t_simulate = Instant::now();
-            let outcome = lockstep.advance(first, count, threads, interrupt)?;
-            report.simulate_seconds += t_simulate.elapsed().as_secs_f64();
+            let (outcome, simulate_seconds) = match pending.take() {
+                None => {
+                    let outcome = lockstep.advance(first, count, threads, interrupt)?;
+                    (outcome, t_simulate.elapsed().as_secs_f64())
+                }
+                Some(job) => {
+                    let source = &mut *lockstep;
+                    let ((outcome, simulate_seconds), (worked, work_seconds)) =
+                        threads.install(|| {
+                            rayon::join(
+                                || {
+                                    let outcome = source.advance(first, count, threads, interrupt);
+                                    (outcome, t_simulate.elapsed().as_secs_f64())
+                                },
+                                || (work(job), t_simulate.elapsed().as_secs_f64()),
+                            )
+                        });
+                    report.beside_simulation_seconds += work_seconds.min(simulate_seconds);
+                    worked?;
+                    (outcome?, simulate_seconds)
+                }
+            };
+            report.simulate_seconds += simulate_seconds;
             if outcome == BlockOutcome::Interrupted {
                 complete = false;
                 break;
@@ -218,7 +274,7 @@ impl<'a> PhaseContext<'a> {
                     hint,
                 });
             }
-            on_block(
+            pending = take(
                 &PhaseBlock {
                     first,
                     count,
@@ -234,6 +290,9 @@ impl<'a> PhaseContext<'a> {
                 runs,
                 elapsed_s: started.elapsed().as_secs_f64(),
             });
+        }
+        if let Some(job) = pending {
+            work(job)?;
         }
         let (newton_iterations, steps) = lockstep.counters();
         report.newton_iterations += newton_iterations;

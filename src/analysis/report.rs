@@ -387,8 +387,13 @@ pub struct StudyReport {
     pub partial: bool,
     /// Seconds spent simulating.
     pub simulate_seconds: f64,
-    /// Seconds spent fitting and bounding.
+    /// Seconds spent fitting and bounding (wall: the design's fit and bound of a block may run
+    /// beside the simulation of the next, [`StudyReport::beside_simulation_seconds`]).
     pub bound_seconds: f64,
+    /// The wall seconds of `bound_seconds` during which the next block's simulation ran on the
+    /// same threads: `simulate_seconds + bound_seconds − beside_simulation_seconds` is about the
+    /// wall the two took together.
+    pub beside_simulation_seconds: f64,
     /// Where the arithmetic time went, phase by phase ([`PhaseSeconds`]).
     pub phase_seconds: PhaseSeconds,
     /// Newton iterations of all samples.
@@ -461,6 +466,7 @@ impl StudyReport {
             partial: false,
             simulate_seconds: 0.0,
             bound_seconds: 0.0,
+            beside_simulation_seconds: 0.0,
             phase_seconds: PhaseSeconds::default(),
             newton_iterations: 0,
             steps: 0,

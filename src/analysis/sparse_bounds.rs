@@ -7,28 +7,41 @@
 //! usually one Newton step from the answer).
 //!
 //! ```text
-//! block: records ⇒ (parallel over records) fit: coefficients per record
-//!        ⇒ (parallel over output sides) per output and side, record after record:
-//!            starts (vertex, best design points, previous extreme) ⇒ that side's inner bound
-//!            ⇒ the previous extreme for the next record
-//!        ⇒ (parallel over outputs) per record: outer bound ⇒ Sobol' indices
+//! block 0: (parallel over records) fit ⇒ per output: outer bound, Sobol' indices
+//! block b: one queue for the threads, longest first:
+//!            per output and side, record after record: starts (vertex, best design points,
+//!              previous extreme) ⇒ that side's inner bound ⇒ the previous extreme for the next
+//!            then block b + 1's records: fit ⇒ per output: outer bound, Sobol' indices
+//!          ⇒ per record: outer = the outer bound widened to the inner one, the runs taken in
 //! ```
 //!
 //! Each side of an output runs its records in order on one thread and carries its extreme
 //! across blocks, so the results depend neither on the thread count nor on the block size. The
 //! two sides of an output share nothing, so they are separate tasks: 2 × outputs of them balance
 //! over the threads better than the outputs alone (9 outputs on 2 threads left one thread 5 of
-//! them).
+//! them). The outer bound and the Sobol' indices need only a record's fit, not the inner bound
+//! (the outer bound is widened to the inner one when the block is put together), so they run in
+//! the fit's task per record.
+//!
+//! The schedule (issue 40): the threads take tasks from one queue in a fixed order — the sides,
+//! the longest first by their time on the previous block, then the next block's records, which
+//! are small and fill the gap the last side would leave (a barrier after every phase left a
+//! third of the two threads' time idle). The order changes only which thread runs a task and
+//! when; every task computes the same numbers from the same inputs, so the results do not
+//! depend on it. A caller that has many records at once (the adaptive design) passes them all;
+//! they are bounded in blocks of `block_records`, two blocks in memory at a time.
 //!
 //! Does not: fit or bound tensor designs, `taylor` or the runs-only methods (`bounds.rs`).
 
 use super::bound_clock::{BoundClock, BoundPhase};
 use super::bounded_block::{BoundedBlock, Extremes};
+use super::bounds::include_runs;
 use super::envelope::EnvelopePoint;
 use super::sparse::SparseDesign;
-use crate::uq::{BoxBounds, BoxOptimizer, SobolIndices, SparseSurrogate, UqError};
+use crate::uq::{BoxOptimizer, SobolIndices, SparseSurrogate, UqError};
 use rayon::prelude::*;
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
 
 /// How many of the best design points start each side's search (the lowest values the minimum,
@@ -62,6 +75,9 @@ struct SideChain {
     followed: Vec<usize>,
     /// Where each of their descents ended, `followed.len() × d`.
     followed_ends: Vec<f64>,
+    /// The seconds this side took on the last block: orders the queue (longest first), nothing
+    /// else.
+    last_block_seconds: f64,
 }
 
 /// One side (minimum or maximum) of one output's inner bound at every record of a block.
@@ -87,22 +103,39 @@ pub(super) struct SparseBounds {
     chains: Mutex<Vec<SideChain>>,
 }
 
-/// One output's bounds at every record of a block.
-struct OutputSeries {
-    points: Vec<EnvelopePoint>,
-    extremes: Vec<Option<Extremes>>,
-    /// `records × d`.
+/// One record fitted, with what needs no inner bound: every output's outer bound (not yet
+/// widened to the inner one), error estimate and Sobol' indices.
+struct FittedRecord {
+    /// The design's values at the record, row-major `samples × outputs`.
+    values: Vec<f64>,
+    /// Row-major `terms × outputs` (`LinearFit::fit_into`).
+    coefficients: Vec<f64>,
+    /// Per output: the outer bound `(lower, upper)`.
+    outer: Vec<(f64, f64)>,
+    /// Per output: the magnitude of the top-order coefficients.
+    errors: Vec<f64>,
+    /// `outputs × d`.
     main_indices: Vec<f64>,
-    /// `records × d`.
+    /// `outputs × d`.
     total_indices: Vec<f64>,
+    /// Per output.
     variances: Vec<f64>,
+}
+
+/// One task of a block's queue (module documentation).
+#[derive(Clone, Copy)]
+enum Task {
+    /// One output side (`2·output` the minimum, `2·output + 1` the maximum) at every record of
+    /// the block.
+    Side(usize),
+    /// One record of the next block (its place in that block): fitted, outer bounds, indices.
+    Fit(usize),
 }
 
 /// Per-thread buffers.
 struct Workspace {
     surrogate: SparseSurrogate,
     optimizer: BoxOptimizer,
-    bounds: BoxBounds,
     indices: SobolIndices,
     /// Start points of one side, row-major.
     starts: Vec<f64>,
@@ -111,6 +144,32 @@ struct Workspace {
     /// The design points with the lowest and the highest values.
     lowest: Vec<usize>,
     highest: Vec<usize>,
+}
+
+/// A slot a task fills, read once the queue is done.
+type Slot<T> = Mutex<Option<Result<T, UqError>>>;
+
+/// Locks `mutex`; a poisoned one (a panicking task) still holds its data.
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// What a filled slot holds, in slot order (the first error by slot, whatever the timing).
+fn take_slots<T>(slots: Vec<Slot<T>>, what: &'static str) -> Result<Vec<T>, UqError> {
+    let expected = slots.len();
+    slots
+        .into_iter()
+        .enumerate()
+        .map(|(got, slot)| {
+            slot.into_inner()
+                .unwrap_or_else(PoisonError::into_inner)
+                .unwrap_or(Err(UqError::WrongLength {
+                    what,
+                    expected,
+                    got,
+                }))
+        })
+        .collect()
 }
 
 impl SparseBounds {
@@ -126,94 +185,127 @@ impl SparseBounds {
     }
 
     /// The envelopes of `records` record times after the ones bounded before (in order), from
-    /// `record_values[r]` (row-major `samples × outputs`); the design's runs are not yet in them.
+    /// `values(r)` (row-major `samples × outputs`), widened to every run not `excluded`; in
+    /// blocks of `block_records` (module documentation).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn bound(
         &self,
-        record_values: &[Vec<f64>],
+        records: usize,
         n_outputs: usize,
+        values: &(dyn Fn(usize) -> Vec<f64> + Sync),
+        excluded: &(dyn Fn(usize) -> bool + Sync),
+        block_records: usize,
         clock: &BoundClock,
         threads: &rayon::ThreadPool,
     ) -> Result<BoundedBlock, UqError> {
-        let design = &*self.design;
-        let n_terms = design.set().len();
-        let coefficients = threads.install(|| {
-            record_values
-                .par_iter()
-                .map(|values| {
-                    let lap = Instant::now();
-                    let mut coefficients = vec![0.0; n_terms * n_outputs];
-                    design
-                        .fit()
-                        .fit_into(values, n_outputs, &mut coefficients)?;
-                    clock.lap(BoundPhase::Fit, lap);
-                    Ok(coefficients)
-                })
-                .collect::<Result<Vec<Vec<f64>>, UqError>>()
-        })?;
-        let mut chains = self
-            .chains
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        if chains.len() != 2 * n_outputs {
-            *chains = vec![SideChain::default(); 2 * n_outputs];
-        }
-        let chains: &mut [SideChain] = &mut chains;
-        let sides = if self.inner {
-            threads.install(|| {
-                chains
-                    .par_iter_mut()
-                    .enumerate()
-                    .map_init(
-                        || self.workspace(),
-                        |ws, (side, chain)| {
-                            self.bound_side(
-                                side / 2,
-                                side % 2 == 1,
-                                record_values,
-                                &coefficients,
-                                n_outputs,
-                                chain,
-                                ws,
-                                clock,
-                            )
-                        },
-                    )
-                    .collect::<Result<Vec<SideSeries>, UqError>>()
-            })?
-        } else {
-            Vec::new()
-        };
-        let series = threads.install(|| {
-            (0..n_outputs)
-                .into_par_iter()
-                .map_init(
-                    || self.workspace(),
-                    |ws, o| {
-                        let inner = sides.get(2 * o).zip(sides.get(2 * o + 1));
-                        self.enclose_output(o, &coefficients, n_outputs, inner, ws, clock)
-                    },
-                )
-                .collect::<Result<Vec<OutputSeries>, UqError>>()
-        })?;
-        let d = design.set().dim();
-        let records = record_values.len();
+        let block_records = block_records.max(1);
         let mut out = BoundedBlock {
             points: Vec::with_capacity(records * n_outputs),
             extremes: Vec::with_capacity(records * n_outputs),
             ..BoundedBlock::default()
         };
-        for r in 0..records {
-            for output in &series {
-                out.points.push(output.points[r]);
-                out.extremes.push(output.extremes[r].clone());
-                out.main_indices
-                    .extend_from_slice(&output.main_indices[r * d..(r + 1) * d]);
-                out.total_indices
-                    .extend_from_slice(&output.total_indices[r * d..(r + 1) * d]);
-                out.variances.push(output.variances[r]);
-            }
+        let mut chains = lock(&self.chains);
+        if chains.len() != 2 * n_outputs {
+            *chains = vec![SideChain::default(); 2 * n_outputs];
+        }
+        let mut fitted = threads.install(|| {
+            (0..block_records.min(records))
+                .into_par_iter()
+                .map_init(
+                    || self.workspace(),
+                    |ws, r| self.fit_record(values(r), n_outputs, ws, clock),
+                )
+                .collect::<Result<Vec<FittedRecord>, UqError>>()
+        })?;
+        let mut first = 0;
+        while first < records {
+            let next_first = first + fitted.len();
+            let next = next_first..next_first.saturating_add(block_records).min(records);
+            let (sides, next_fitted) = self.run_queue(
+                &fitted,
+                next,
+                n_outputs,
+                values,
+                &mut chains,
+                clock,
+                threads,
+            )?;
+            self.put_together(&fitted, &sides, n_outputs, excluded, &mut out);
+            first = next_first;
+            fitted = next_fitted;
         }
         Ok(out)
+    }
+
+    /// Runs one block's queue on the threads (module documentation): every side over the
+    /// records `fitted` (when the inner bound is searched), the longest first, then the records
+    /// `next` fitted. Returns the sides' series by side and the next block's records in order.
+    #[allow(clippy::too_many_arguments)]
+    fn run_queue(
+        &self,
+        fitted: &[FittedRecord],
+        next: std::ops::Range<usize>,
+        n_outputs: usize,
+        values: &(dyn Fn(usize) -> Vec<f64> + Sync),
+        chains: &mut [SideChain],
+        clock: &BoundClock,
+        threads: &rayon::ThreadPool,
+    ) -> Result<(Vec<SideSeries>, Vec<FittedRecord>), UqError> {
+        let n_sides = if self.inner { chains.len() } else { 0 };
+        let mut order: Vec<usize> = (0..n_sides).collect();
+        // Stable: sides that took as long (the first block: all) keep their index order.
+        order.sort_by(|&a, &b| {
+            chains[b]
+                .last_block_seconds
+                .total_cmp(&chains[a].last_block_seconds)
+        });
+        let tasks: Vec<Task> = order
+            .into_iter()
+            .map(Task::Side)
+            .chain((0..next.len()).map(Task::Fit))
+            .collect();
+        let chains: Vec<Mutex<&mut SideChain>> = chains.iter_mut().map(Mutex::new).collect();
+        let sides: Vec<Slot<SideSeries>> = (0..n_sides).map(|_| Mutex::new(None)).collect();
+        let fits: Vec<Slot<FittedRecord>> = next.clone().map(|_| Mutex::new(None)).collect();
+        let taken = AtomicUsize::new(0);
+        let worker = || {
+            let mut ws = self.workspace();
+            while let Some(&task) = tasks.get(taken.fetch_add(1, Ordering::Relaxed)) {
+                match task {
+                    Task::Side(side) => {
+                        let started = Instant::now();
+                        let mut chain = lock(&chains[side]);
+                        let series = self.bound_side(
+                            side / 2,
+                            side % 2 == 1,
+                            fitted,
+                            n_outputs,
+                            &mut chain,
+                            &mut ws,
+                            clock,
+                        );
+                        chain.last_block_seconds = started.elapsed().as_secs_f64();
+                        *lock(&sides[side]) = Some(series);
+                    }
+                    Task::Fit(i) => {
+                        let record =
+                            self.fit_record(values(next.start + i), n_outputs, &mut ws, clock);
+                        *lock(&fits[i]) = Some(record);
+                    }
+                }
+            }
+        };
+        let workers = threads.current_num_threads().min(tasks.len());
+        threads.install(|| {
+            rayon::scope(|scope| {
+                for _ in 0..workers {
+                    scope.spawn(|_| worker());
+                }
+            });
+        });
+        let sides = take_slots(sides, "sparse bounds: a side's task did not run")?;
+        let fits = take_slots(fits, "sparse bounds: a record's fit did not run")?;
+        Ok((sides, fits))
     }
 
     fn workspace(&self) -> Workspace {
@@ -221,7 +313,6 @@ impl SparseBounds {
         Workspace {
             surrogate: SparseSurrogate::zeros(Arc::clone(set)),
             optimizer: BoxOptimizer::new(),
-            bounds: BoxBounds::default(),
             indices: SobolIndices::zeros(set.dim()),
             starts: Vec::new(),
             arg: Vec::new(),
@@ -230,15 +321,113 @@ impl SparseBounds {
         }
     }
 
-    /// One side of output `o` (`maximum`: the upper one) at every record, in order, starting
-    /// from what `chain` carries and leaving there what the last record leaves for the next.
+    /// One record's fit from its `values`, and every output's outer bound, error estimate and
+    /// Sobol' indices.
+    fn fit_record(
+        &self,
+        values: Vec<f64>,
+        n_outputs: usize,
+        ws: &mut Workspace,
+        clock: &BoundClock,
+    ) -> Result<FittedRecord, UqError> {
+        let design = &*self.design;
+        let d = design.set().dim();
+        let mut lap = Instant::now();
+        let mut coefficients = vec![0.0; design.set().len() * n_outputs];
+        design
+            .fit()
+            .fit_into(&values, n_outputs, &mut coefficients)?;
+        lap = clock.lap(BoundPhase::Fit, lap);
+        let mut record = FittedRecord {
+            values,
+            coefficients,
+            outer: Vec::with_capacity(n_outputs),
+            errors: Vec::with_capacity(n_outputs),
+            main_indices: Vec::with_capacity(n_outputs * d),
+            total_indices: Vec::with_capacity(n_outputs * d),
+            variances: Vec::with_capacity(n_outputs),
+        };
+        for o in 0..n_outputs {
+            ws.surrogate
+                .set_from_fit(&record.coefficients, n_outputs, o)?;
+            lap = clock.lap(BoundPhase::Fit, lap);
+            record.errors.push(ws.surrogate.top_order_magnitude());
+            record.outer.push(ws.optimizer.outer_bound(&ws.surrogate));
+            lap = clock.lap(BoundPhase::Outer, lap);
+            ws.surrogate.sobol_indices_into(&mut ws.indices);
+            record.main_indices.extend_from_slice(&ws.indices.main);
+            record.total_indices.extend_from_slice(&ws.indices.total);
+            record.variances.push(ws.indices.variance);
+            lap = clock.lap(BoundPhase::Sobol, lap);
+        }
+        Ok(record)
+    }
+
+    /// The block's envelope points into `out`, record after record: the inner bound (`sides`,
+    /// when searched) with the outer bound widened to it, or the outer bound alone
+    /// (`legendre-ia`), then widened to the record's runs not `excluded`.
+    fn put_together(
+        &self,
+        fitted: &[FittedRecord],
+        sides: &[SideSeries],
+        n_outputs: usize,
+        excluded: &(dyn Fn(usize) -> bool + Sync),
+        out: &mut BoundedBlock,
+    ) {
+        let d = self.design.set().dim();
+        for (r, record) in fitted.iter().enumerate() {
+            let first_point = out.points.len();
+            for o in 0..n_outputs {
+                let error = Some(record.errors[o]);
+                let (outer_lower, outer_upper) = record.outer[o];
+                let inner = sides.get(2 * o).zip(sides.get(2 * o + 1));
+                out.extremes.push(inner.map(|(lower, upper)| Extremes {
+                    argmin: lower.args[r * d..(r + 1) * d].to_vec(),
+                    argmax: upper.args[r * d..(r + 1) * d].to_vec(),
+                    at_min: lower.values[r],
+                    at_max: upper.values[r],
+                }));
+                out.points.push(match inner {
+                    Some((lower, upper)) if !self.outer_only => {
+                        let (lower, upper) = (lower.values[r], upper.values[r]);
+                        // As `BoxOptimizer::enclose`: rounding must never put the enclosure
+                        // inside an attained value.
+                        EnvelopePoint {
+                            lower,
+                            upper,
+                            error,
+                            outer: Some((outer_lower.min(lower), outer_upper.max(upper))),
+                        }
+                    }
+                    _ => EnvelopePoint {
+                        lower: outer_lower,
+                        upper: outer_upper,
+                        error,
+                        outer: None,
+                    },
+                });
+            }
+            out.main_indices.extend_from_slice(&record.main_indices);
+            out.total_indices.extend_from_slice(&record.total_indices);
+            out.variances.extend_from_slice(&record.variances);
+            include_runs(
+                &mut out.points[first_point..],
+                &record.values,
+                n_outputs,
+                excluded,
+            );
+        }
+    }
+
+    /// One side of output `o` (`maximum`: the upper one) at every record of `fitted`, in order,
+    /// starting from what `chain` carries and leaving there what the last record leaves for the
+    /// next.
     #[allow(clippy::too_many_arguments)]
     fn bound_side(
         &self,
         o: usize,
         maximum: bool,
-        record_values: &[Vec<f64>],
-        coefficients: &[Vec<f64>],
+        fitted: &[FittedRecord],
         n_outputs: usize,
         chain: &mut SideChain,
         ws: &mut Workspace,
@@ -247,15 +436,16 @@ impl SparseBounds {
         let design = &*self.design;
         let d = design.set().dim();
         let n_points = design.n_points();
-        let records = record_values.len();
+        let records = fitted.len();
         let mut series = SideSeries {
             values: Vec::with_capacity(records),
             args: Vec::with_capacity(records * d),
         };
-        for (values, coefficients) in record_values.iter().zip(coefficients) {
+        for record in fitted {
             let lap = Instant::now();
-            ws.surrogate.set_from_fit(coefficients, n_outputs, o)?;
-            let value = |p: usize| values[p * n_outputs + o];
+            ws.surrogate
+                .set_from_fit(&record.coefficients, n_outputs, o)?;
+            let value = |p: usize| record.values[p * n_outputs + o];
             extreme_design_points(
                 n_points,
                 value,
@@ -315,77 +505,6 @@ impl SparseBounds {
         }
         Ok(series)
     }
-
-    /// Output `o` at every record: the outer bound (widened to the inner one, `inner` = the
-    /// minimum's and the maximum's series when searched) and the Sobol' indices.
-    fn enclose_output(
-        &self,
-        o: usize,
-        coefficients: &[Vec<f64>],
-        n_outputs: usize,
-        inner: Option<(&SideSeries, &SideSeries)>,
-        ws: &mut Workspace,
-        clock: &BoundClock,
-    ) -> Result<OutputSeries, UqError> {
-        let d = self.design.set().dim();
-        let records = coefficients.len();
-        let mut series = OutputSeries {
-            points: Vec::with_capacity(records),
-            extremes: Vec::with_capacity(records),
-            main_indices: Vec::with_capacity(records * d),
-            total_indices: Vec::with_capacity(records * d),
-            variances: Vec::with_capacity(records),
-        };
-        for (r, coefficients) in coefficients.iter().enumerate() {
-            let mut lap = Instant::now();
-            ws.surrogate.set_from_fit(coefficients, n_outputs, o)?;
-            lap = clock.lap(BoundPhase::Fit, lap);
-            let mut extremes = None;
-            if let Some((lower, upper)) = inner {
-                let b = &mut ws.bounds;
-                b.lower = lower.values[r];
-                b.upper = upper.values[r];
-                b.argmin.clear();
-                b.argmin.extend_from_slice(&lower.args[r * d..(r + 1) * d]);
-                b.argmax.clear();
-                b.argmax.extend_from_slice(&upper.args[r * d..(r + 1) * d]);
-                extremes = Some(Extremes {
-                    argmin: b.argmin.clone(),
-                    argmax: b.argmax.clone(),
-                    at_min: b.lower,
-                    at_max: b.upper,
-                });
-            }
-            let error = Some(ws.surrogate.top_order_magnitude());
-            let point = if self.outer_only {
-                let (lower, upper) = ws.optimizer.outer_bound(&ws.surrogate);
-                EnvelopePoint {
-                    lower,
-                    upper,
-                    error,
-                    outer: None,
-                }
-            } else {
-                ws.optimizer.enclose(&ws.surrogate, &mut ws.bounds);
-                let b = &ws.bounds;
-                EnvelopePoint {
-                    lower: b.lower,
-                    upper: b.upper,
-                    error,
-                    outer: Some((b.outer_lower, b.outer_upper)),
-                }
-            };
-            lap = clock.lap(BoundPhase::Outer, lap);
-            series.points.push(point);
-            series.extremes.push(extremes);
-            ws.surrogate.sobol_indices_into(&mut ws.indices);
-            series.main_indices.extend_from_slice(&ws.indices.main);
-            series.total_indices.extend_from_slice(&ws.indices.total);
-            series.variances.push(ws.indices.variance);
-            clock.lap(BoundPhase::Sobol, lap);
-        }
-        Ok(series)
-    }
 }
 
 /// The `k` design points of lowest value into `lowest` and the `k` of highest into `highest`,
@@ -425,6 +544,88 @@ fn extreme_design_points(
 mod tests {
     use super::*;
     use crate::test_support::SplitMix64;
+
+    /// Bounds `records` record times of a d = 4 total-degree design (three outputs, smooth in ξ
+    /// and drifting in time) in two calls split at `split`, in blocks of `block_records`, on
+    /// `threads` threads; the blocks as text (`{:?}` writes every float exactly).
+    fn bounded_text(records: usize, split: usize, block_records: usize, threads: usize) -> String {
+        let design = Arc::new(SparseDesign::total_degree(4, 3).expect("design"));
+        let (d, n_outputs) = (4, 3);
+        let points = design.points().to_vec();
+        let values = move |r: usize| -> Vec<f64> {
+            let t = r as f64 * 0.3;
+            points
+                .chunks_exact(d)
+                .flat_map(|x| {
+                    [
+                        (t + x[0]).sin() * x[1] + 0.3 * x[2] * x[2] - 0.1 * x[3],
+                        x[0] * x[1] * x[2] + t.cos() * x[3] * x[3],
+                        (x[0] - 0.2 * t).powi(2) - x[1] * x[3],
+                    ]
+                })
+                .collect()
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        let bounds = SparseBounds::new(design, false, true);
+        let clock = BoundClock::default();
+        let none = |_: usize| false;
+        let head = bounds
+            .bound(
+                split,
+                n_outputs,
+                &values,
+                &none,
+                block_records,
+                &clock,
+                &pool,
+            )
+            .expect("first call");
+        let tail = bounds
+            .bound(
+                records - split,
+                n_outputs,
+                &|r| values(split + r),
+                &none,
+                block_records,
+                &clock,
+                &pool,
+            )
+            .expect("second call");
+        let mut all = head;
+        all.points.extend(tail.points);
+        all.extremes.extend(tail.extremes);
+        all.main_indices.extend(tail.main_indices);
+        all.total_indices.extend(tail.total_indices);
+        all.variances.extend(tail.variances);
+        assert_eq!(all.points.len(), records * n_outputs);
+        for point in &all.points {
+            let (outer_lower, outer_upper) = point.outer.expect("an outer bound");
+            assert!(
+                outer_lower <= point.lower
+                    && point.lower <= point.upper
+                    && point.upper <= outer_upper,
+                "{point:?}"
+            );
+        }
+        format!("{all:?}")
+    }
+
+    #[test]
+    fn the_bounds_depend_neither_on_blocks_nor_calls_nor_threads() {
+        let reference = bounded_text(9, 9, usize::MAX, 1);
+        for (split, block_records, threads) in
+            [(9, 1, 2), (4, 2, 2), (0, 4, 1), (5, 50, 2), (3, 3, 3)]
+        {
+            // Not assert_eq!: the texts are long; a difference is all there is to say.
+            assert!(
+                bounded_text(9, split, block_records, threads) == reference,
+                "split {split}, blocks of {block_records}, {threads} threads: other bounds"
+            );
+        }
+    }
 
     #[test]
     fn extreme_design_points_are_the_ends_of_the_sorted_order() {

@@ -95,7 +95,7 @@ impl Summary {
             "newton_iterations": report.newton_iterations,
             "simulate_seconds": report.simulate_seconds,
             "bound_seconds": report.bound_seconds,
-            "phase_seconds": phase_seconds_json(&report.phase_seconds),
+            "phase_seconds": phase_seconds_json(&report.phase_seconds, report.beside_simulation_seconds),
             "threads": report.threads,
             "block_records": report.block_records,
             "peak_memory_bytes": peak_memory(),
@@ -193,8 +193,10 @@ fn refinement_json(
     })
 }
 
-/// The per-phase seconds of a study ([`PhaseSeconds`]: the worker phases summed over threads).
-fn phase_seconds_json(p: &PhaseSeconds) -> serde_json::Value {
+/// The per-phase seconds of a study ([`PhaseSeconds`]: the worker phases summed over threads),
+/// and `bound_beside_simulation`: the wall seconds of `stats.bound_seconds` during which the
+/// simulation of the next block ran on the same threads.
+fn phase_seconds_json(p: &PhaseSeconds, beside_simulation_seconds: f64) -> serde_json::Value {
     serde_json::json!({
         "design_choice": p.design_choice,
         "fit": p.fit,
@@ -203,6 +205,7 @@ fn phase_seconds_json(p: &PhaseSeconds) -> serde_json::Value {
         "sobol_indices": p.sobol_indices,
         "check_selection": p.check_selection,
         "summary": p.summary,
+        "bound_beside_simulation": beside_simulation_seconds,
     })
 }
 

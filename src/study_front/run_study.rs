@@ -207,17 +207,34 @@ fn announce(plan: &StudyPlan, options: &StudyOptions, space: &ParameterSpace, sc
     }
 }
 
-/// The study's runs, steps, timings, threads, block size and peak memory on stderr.
+/// The study's runs, steps, timings, threads, block size and peak memory on stderr. Fit + bound
+/// is wall time, part of which may have run beside the simulation (said when it did); the share
+/// of the threads' time its workers took (`stats.phase_seconds` fit, inner and outer bound,
+/// Sobol' indices, in thread-seconds, over threads × wall) stays meaningful either way.
 fn print_statistics(report: &StudyReport, wall_seconds: f64) {
+    let wall = wall_seconds.max(1e-12);
+    let phases = &report.phase_seconds;
+    let worker_seconds =
+        phases.fit + phases.inner_bound + phases.outer_bound + phases.sobol_indices;
+    let beside = if report.beside_simulation_seconds > 0.0 {
+        format!(
+            ", {:.3} s of it beside the simulation",
+            report.beside_simulation_seconds
+        )
+    } else {
+        String::new()
+    };
     eprintln!(
-        "{} runs, {} steps, {} Newton iterations ({:.2} per step); simulate {:.3} s, fit + bound {:.3} s ({:.1} % of the total), {} threads, {} records per block; wall {:.3} s{}",
+        "{} runs, {} steps, {} Newton iterations ({:.2} per step); simulate {:.3} s, fit + bound {:.3} s ({:.1} % of the wall{beside}; its workers {:.3} thread-s, {:.1} % of the threads' time), {} threads, {} records per block; wall {:.3} s{}",
         report.runs,
         report.steps,
         report.newton_iterations,
         report.newton_iterations as f64 / report.steps.max(1) as f64,
         report.simulate_seconds,
         report.bound_seconds,
-        100.0 * report.bound_seconds / wall_seconds.max(1e-12),
+        100.0 * report.bound_seconds / wall,
+        worker_seconds,
+        100.0 * worker_seconds / (wall * report.threads.max(1) as f64),
         report.threads,
         report.block_records,
         wall_seconds,
