@@ -196,9 +196,13 @@ impl BoxOptimizer {
                 break;
             }
             self.evaluate_hessian(s, sign);
-            let definite = self.newton_direction(s.set().len());
+            // Stationary to first order (DECREASE_TOL): no Newton or gradient step, only the
+            // step along negative curvature is left to try.
+            let stationary = self.first_order_gain() <= self.decrease_floor;
+            let definite = !stationary && self.newton_direction(s.set().len());
             let mut moved = false;
-            if let Some(t) = self.line_search(s, sign, f, false, !definite) {
+            if stationary {
+            } else if let Some(t) = self.line_search(s, sign, f, false, !definite) {
                 moved = true;
                 f = t;
             } else {
@@ -236,6 +240,19 @@ impl BoxOptimizer {
         self.trail.end_values.push(f);
         self.trail.file_current(d, iterations, end);
         (f, iterations)
+    }
+
+    /// The largest decrease of φ a step on the free coordinates can promise to first order:
+    /// `Σ_r |g_r|` times the room from `x_r` to the face that φ falls towards (a line search's
+    /// predicted decrease is at most this, whatever its direction and length).
+    pub(super) fn first_order_gain(&self) -> f64 {
+        self.free
+            .iter()
+            .map(|&r| {
+                let (x, g) = (self.x[r], self.grad[r]);
+                g.abs() * if g > 0.0 { x + 1.0 } else { 1.0 - x }
+            })
+            .sum()
     }
 
     pub(super) fn trial_distance(&self) -> f64 {
