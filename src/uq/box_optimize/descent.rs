@@ -132,20 +132,23 @@ impl BoxOptimizer {
     /// [`BoxOptimizer::evaluate_hessian`]: a descent that stops at this point (no free
     /// coordinate, or converged) never needs it.
     pub(super) fn evaluate(&mut self, s: &SparseSurrogate, sign: f64) -> f64 {
-        let y = s.derivatives_unchecked(&self.x, &mut self.grad, None, &mut self.ws);
+        let y = s.derivatives_unchecked(&self.x, &mut self.grad, &mut self.ws);
         if sign < 0.0 {
             self.grad.iter_mut().for_each(|g| *g = -*g);
         }
         sign * y
     }
 
-    /// The Hessian of φ = sign·y at `self.x` into hess (sign applied).
+    /// The Hessian of φ = sign·y at `self.x` on the free coordinates into hess (`nf × nf`
+    /// row-major, entry `(a, b)` for `free[a]`, `free[b]`; sign applied): nothing else of it is
+    /// read.
     pub(super) fn evaluate_hessian(&mut self, s: &SparseSurrogate, sign: f64) {
         // The tables hold `self.x` with derivatives: every Hessian follows the gradient at the
         // same point (`descend` evaluates there and loads nothing else before asking).
-        s.hessian_at_loaded(&mut self.hess, &self.ws);
+        s.free_hessian_at_loaded(&self.free, &mut self.hess, &mut self.ws);
         if sign < 0.0 {
-            self.hess.iter_mut().for_each(|h| *h = -*h);
+            let nf = self.free.len();
+            self.hess[..nf * nf].iter_mut().for_each(|h| *h = -*h);
         }
     }
 
@@ -193,9 +196,13 @@ impl BoxOptimizer {
                 break;
             }
             self.evaluate_hessian(s, sign);
-            let definite = self.newton_direction(s.set().len());
+            // Stationary to first order (DECREASE_TOL): no Newton or gradient step, only the
+            // step along negative curvature is left to try.
+            let stationary = self.first_order_gain() <= self.decrease_floor;
+            let definite = !stationary && self.newton_direction(s.set().len());
             let mut moved = false;
-            if let Some(t) = self.line_search(s, sign, f, false, !definite) {
+            if stationary {
+            } else if let Some(t) = self.line_search(s, sign, f, false, !definite) {
                 moved = true;
                 f = t;
             } else {
@@ -235,6 +242,19 @@ impl BoxOptimizer {
         (f, iterations)
     }
 
+    /// The largest decrease of φ a step on the free coordinates can promise to first order:
+    /// `Σ_r |g_r|` times the room from `x_r` to the face that φ falls towards (a line search's
+    /// predicted decrease is at most this, whatever its direction and length).
+    pub(super) fn first_order_gain(&self) -> f64 {
+        self.free
+            .iter()
+            .map(|&r| {
+                let (x, g) = (self.x[r], self.grad[r]);
+                g.abs() * if g > 0.0 { x + 1.0 } else { 1.0 - x }
+            })
+            .sum()
+    }
+
     pub(super) fn trial_distance(&self) -> f64 {
         self.x
             .iter()
@@ -247,22 +267,16 @@ impl BoxOptimizer {
     /// definite without a shift. `terms`: the surrogate's number of terms, the measure of what a
     /// surrogate value costs (see [`SHIFT_FRACTIONS`]).
     pub(super) fn newton_direction(&mut self, terms: usize) -> bool {
-        let d = self.x.len();
         let nf = self.free.len();
-        let scale = self
-            .free
-            .iter()
-            .map(|&r| self.hess[r * d + r].abs())
+        let scale = (0..nf)
+            .map(|a| self.hess[a * nf + a].abs())
             .fold(0.0, f64::max)
             .max(f64::MIN_POSITIVE);
         // A pivot of the factorisation never exceeds its diagonal entry: with a diagonal entry
         // ≤ 0 (or NaN) the unshifted factorisation fails for sure, so it goes straight to the
         // shift (same decision, same bits; the bilinear parts of high-dimensional surrogates
         // leave most of the diagonal at 0).
-        let definite = self
-            .free
-            .iter()
-            .all(|&r| self.hess[r * d + r] > cholesky::ANY_POSITIVE_PIVOT);
+        let definite = (0..nf).all(|a| self.hess[a * nf + a] > cholesky::ANY_POSITIVE_PIVOT);
         // The shifts tried in turn: none (only when every diagonal entry is positive), then the
         // fractions SHIFT_FRACTIONS of the Gershgorin shift, the last of them the whole shift,
         // which cannot fail.
@@ -281,22 +295,16 @@ impl BoxOptimizer {
         }
         loop {
             let shift = attempt.map_or(0.0, |i| SHIFT_FRACTIONS[i] * gershgorin);
-            if nf == d {
-                // Every coordinate free: the (symmetric) Hessian as it is, in one pass.
-                for (reduced, &h) in self.reduced[..d * d].iter_mut().zip(&self.hess) {
-                    *reduced = h + 0.0;
-                }
-                for a in 0..d {
-                    self.reduced[a * d + a] = self.hess[a * d + a] + shift;
-                }
-            } else {
-                // Column by column of the reduced matrix (contiguous writes); each entry as before.
-                for (b, &q) in self.free.iter().enumerate() {
-                    let column = &mut self.reduced[b * nf..(b + 1) * nf];
-                    for ((a, &r), entry) in self.free.iter().enumerate().zip(column) {
-                        *entry = self.hess[r * d + q] + if a == b { shift } else { 0.0 };
-                    }
-                }
+            // The (symmetric) free block as it is, in one pass (row-major read as column-major),
+            // the shift on its diagonal.
+            for (reduced, &h) in self.reduced[..nf * nf]
+                .iter_mut()
+                .zip(&self.hess[..nf * nf])
+            {
+                *reduced = h + 0.0;
+            }
+            for a in 0..nf {
+                self.reduced[a * nf + a] = self.hess[a * nf + a] + shift;
             }
             if cholesky::factor_in_place(
                 &mut self.reduced[..nf * nf],
@@ -333,33 +341,37 @@ impl BoxOptimizer {
     /// The shift that makes `H_ff` positive definite: λ_min ≥ min_a (H_aa − Σ_{b≠a} |H_ab|)
     /// (Gershgorin), shifted past it by a margin relative to `scale`.
     pub(super) fn gershgorin_shift(&self, scale: f64) -> f64 {
-        let d = self.x.len();
+        let nf = self.free.len();
+        let block = &self.hess[..nf * nf];
         let mut lowest = f64::INFINITY;
         // Four rows at a time: each row's sum still adds its terms one by one in the order of
         // `free` (the bits of one sum per row), but four independent sums overlap instead of
-        // one chain of nf² dependent additions (issue 40).
-        let mut rows = self.free.chunks_exact(GERSHGORIN_ROWS_AT_ONCE);
-        for group in &mut rows {
+        // one chain of nf² dependent additions (issue 40); entry (a, b) is read as the equal
+        // (b, a), so that the four rows' entries of column b are adjacent.
+        let whole = nf - nf % GERSHGORIN_ROWS_AT_ONCE;
+        for first in (0..whole).step_by(GERSHGORIN_ROWS_AT_ONCE) {
             let mut off = [0.0_f64; GERSHGORIN_ROWS_AT_ONCE];
-            for &q in &self.free {
-                for (sum, &r) in off.iter_mut().zip(group) {
-                    if q != r {
-                        *sum += self.hess[r * d + q].abs();
+            for (b, row_b) in block.chunks_exact(nf).enumerate() {
+                let entries = &row_b[first..first + GERSHGORIN_ROWS_AT_ONCE];
+                for (i, (sum, entry)) in off.iter_mut().zip(entries).enumerate() {
+                    if b != first + i {
+                        *sum += entry.abs();
                     }
                 }
             }
-            for (sum, &r) in off.iter().zip(group) {
-                lowest = lowest.min(self.hess[r * d + r] - sum);
+            for (i, sum) in off.iter().enumerate() {
+                let a = first + i;
+                lowest = lowest.min(block[a * nf + a] - sum);
             }
         }
-        for &r in rows.remainder() {
+        for a in whole..nf {
             let mut off = 0.0_f64;
-            for &q in &self.free {
-                if q != r {
-                    off += self.hess[r * d + q].abs();
+            for b in 0..nf {
+                if b != a {
+                    off += block[a * nf + b].abs();
                 }
             }
-            lowest = lowest.min(self.hess[r * d + r] - off);
+            lowest = lowest.min(block[a * nf + a] - off);
         }
         (-lowest).max(0.0) + CURVATURE_TOL * scale + f64::MIN_POSITIVE
     }
@@ -465,9 +477,8 @@ impl BoxOptimizer {
         sign: f64,
         f: f64,
     ) -> Option<f64> {
-        let d = self.x.len();
         let nf = self.free.len();
-        let h = DMatrix::from_fn(nf, nf, |a, b| self.hess[self.free[a] * d + self.free[b]]);
+        let h = DMatrix::from_fn(nf, nf, |a, b| self.hess[a * nf + b]);
         let scale = h.amax().max(f64::MIN_POSITIVE);
         let eigen = h.symmetric_eigen();
         let (i, &lambda) = eigen

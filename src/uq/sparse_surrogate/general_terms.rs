@@ -37,8 +37,9 @@ pub(super) fn add_gradient(
     }
 }
 
-/// Adds the upper triangle of the term's Hessian to `hess` (d × d): `h` the table of second
-/// derivatives, the rest as in [`add_gradient`].
+/// Adds the upper triangle of the term's Hessian to `hess` (n × n): `h` the table of second
+/// derivatives, `place` the row and column of a dimension in `hess` (`None`: not in it, its
+/// entries are skipped), the rest as in [`add_gradient`].
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(super) fn add_hessian(
@@ -49,17 +50,18 @@ pub(super) fn add_hessian(
     g: &[f64],
     h: &[f64],
     hess: &mut [f64],
-    d: usize,
+    n: usize,
+    place: impl Fn(usize) -> Option<usize>,
 ) {
     match idx.len() {
-        3 => hessian_gathered::<3>(ct, idx, factors, (v, g, h), hess, d),
-        4 => hessian_gathered::<4>(ct, idx, factors, (v, g, h), hess, d),
+        3 => hessian_gathered::<3>(ct, idx, factors, (v, g, h), hess, n, place),
+        4 => hessian_gathered::<4>(ct, idx, factors, (v, g, h), hess, n, place),
         m => {
             let at = |e: usize| {
                 let i = idx[e] as usize;
                 (v[i], g[i], h[i])
             };
-            hessian(ct, m, at, factors, hess, d);
+            hessian(ct, m, at, factors, hess, n, place);
         }
     }
 }
@@ -87,7 +89,8 @@ fn hessian_gathered<const M: usize>(
     factors: &[Factor],
     tables: (&[f64], &[f64], &[f64]),
     hess: &mut [f64],
-    d: usize,
+    n: usize,
+    place: impl Fn(usize) -> Option<usize>,
 ) {
     let (values, firsts, seconds) = (
         gather::<M>(idx, tables.0),
@@ -95,7 +98,7 @@ fn hessian_gathered<const M: usize>(
         gather::<M>(idx, tables.2),
     );
     let at = |e: usize| (values[e], firsts[e], seconds[e]);
-    hessian(ct, M, at, factors, hess, d);
+    hessian(ct, M, at, factors, hess, n, place);
 }
 
 /// The `M` table entries of a term.
@@ -132,7 +135,8 @@ fn gradient(
     }
 }
 
-/// `at(e)` = (value, first, second derivative) of factor `e`.
+/// `at(e)` = (value, first, second derivative) of factor `e`; entries of dimensions that `place`
+/// leaves out are neither computed nor written (the others' sums are unchanged).
 #[inline(always)]
 fn hessian(
     ct: f64,
@@ -140,18 +144,23 @@ fn hessian(
     at: impl Fn(usize) -> (f64, f64, f64),
     factors: &[Factor],
     hess: &mut [f64],
-    d: usize,
+    n: usize,
+    place: impl Fn(usize) -> Option<usize>,
 ) {
     let value = |e: usize| at(e).0;
     for a in 0..m {
+        let Some(pa) = place(factors[a].dim as usize) else {
+            continue;
+        };
         let (_, first_a, second_a) = at(a);
         let others = product_leaving_out(m, value, a, a);
-        let ra = factors[a].dim as usize;
-        hess[ra * d + ra] += ct * second_a * others;
+        hess[pa * n + pa] += ct * second_a * others;
         for (b, factor_b) in factors.iter().enumerate().take(m).skip(a + 1) {
+            let Some(pb) = place(factor_b.dim as usize) else {
+                continue;
+            };
             let rest = product_leaving_out(m, value, a, b);
-            let rb = factor_b.dim as usize;
-            hess[ra * d + rb] += ct * first_a * at(b).1 * rest;
+            hess[pa * n + pb] += ct * first_a * at(b).1 * rest;
         }
     }
 }
