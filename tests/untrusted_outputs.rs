@@ -228,7 +228,7 @@ fn an_untrusted_study_shows_its_true_runs_and_the_verdict_in_the_csv_and_the_log
                 p["foxglovePanelTitle"]
                     .as_str()
                     .unwrap()
-                    .starts_with(&format!("{output} [rad]"))
+                    .contains(&format!("{output} [rad]"))
             })
             .unwrap_or_else(|| panic!("no plot of {output}"));
         let title = plot["foxglovePanelTitle"].as_str().unwrap();
@@ -240,7 +240,7 @@ fn an_untrusted_study_shows_its_true_runs_and_the_verdict_in_the_csv_and_the_log
                     .unwrap();
             assert_eq!(
                 title,
-                format!("{output} [rad] — NOT TRUSTED (misfit {misfit:.1} %): true runs dotted")
+                format!("⚠ {output} [rad] — NOT TRUSTED (misfit {misfit:.1} %): true runs dotted")
             );
             let values: Vec<&str> = plot["paths"]
                 .as_array()

@@ -15,7 +15,7 @@ box the robot moves in), and writes a blueprint with:
   parameters whose index ever reaches SENSITIVITY_PLOT_FLOOR (at most four, largest peak first:
   the Foxglove layout's rule and colours, src/output/envelope_log.rs);
 - for a study the a-posteriori check did not trust (the `ribbon` record's `check` entry), each
-  untrusted output's view titled `name [unit] — NOT TRUSTED (misfit X %): true runs dotted` and
+  untrusted output's view titled `⚠ name [unit] — NOT TRUSTED (misfit X %): true runs dotted` and
   holding, beside the envelope, the hull of its true runs (`/ribbon/runs/…/position`) as dots;
 - the time panel on `message_log_time` (seconds from 0 when converted with --timeline-type duration).
 
@@ -147,7 +147,7 @@ def panel_title(name, unit):
 
 def untrusted_title(title, relative_misfit, shows_runs):
     """As src/output/viewer/foxglove_layout.rs untrusted_title."""
-    return f"{title} — NOT TRUSTED (misfit {100.0 * relative_misfit:.1f} %)" + (": true runs dotted" if shows_runs else "")
+    return f"⚠ {title} — NOT TRUSTED (misfit {100.0 * relative_misfit:.1f} %)" + (": true runs dotted" if shows_runs else "")
 
 
 def sensitivity_view(output, topic, shown, dimensions):

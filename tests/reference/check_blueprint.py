@@ -10,7 +10,7 @@ ribbon`), writes the blueprint and its manifest, and checks, each failure collec
   time of its MCAP channel (no empty plotted entity), and is an envelope's `…/position` entity;
 - every view title carries its channel's unit; one tab per channel `group`;
 - for a log of an untrusted study (the `ribbon` record's `check` entry): each untrusted output's
-  view is titled `name [unit] — NOT TRUSTED (misfit X %)…` with its misfit, and plots the hull of
+  view is titled `⚠ name [unit] — NOT TRUSTED (misfit X %)…` with its misfit, and plots the hull of
   its true runs (`/ribbon/runs/…/position`, one row per message of that channel);
 - the robot's URDF geometry root is in the recording; the eye is finite and away from the target;
 - the recording's `message_log_time` timeline is a duration (seconds from 0, not 1970).
@@ -102,7 +102,7 @@ def main():
         unit = metadata.get("unit", "")
         title = f"{metadata['output']} [{unit}]" if unit else metadata["output"]
         if metadata["output"] in misfits:
-            title += f" — NOT TRUSTED (misfit {100.0 * misfits[metadata['output']]:.1f} %)"
+            title = f"⚠ {title} — NOT TRUSTED (misfit {100.0 * misfits[metadata['output']]:.1f} %)"
             if runs_channels:
                 title += ": true runs dotted"
         if title not in titles:

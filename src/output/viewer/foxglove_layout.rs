@@ -80,13 +80,15 @@ pub fn panel_title(name: &str, unit: &str) -> String {
     }
 }
 
-/// The panel title of an output the check did not trust: `q.j1 [rad] — NOT TRUSTED (misfit
+/// The panel title of an output the check did not trust: `⚠ q.j1 [rad] — NOT TRUSTED (misfit
 /// 65.6 %): true runs dotted` (the misfit in % of the output's largest envelope width, as the
-/// exit-4 message words it; the last part only when the plot shows the true runs). The rerun
-/// blueprint (`scripts/viewers/rerun_blueprint.py`) writes the same.
+/// exit-4 message words it; the last part only when the plot shows the true runs). The sign
+/// comes first because a viewer cuts a long title to the panel's width: in a grid of seven plots
+/// rerun shows about twenty characters, the sign and the output's name. The rerun blueprint
+/// (`scripts/viewers/rerun_blueprint.py`) writes the same.
 pub fn untrusted_title(title: &str, relative_misfit: f64, shows_runs: bool) -> String {
     format!(
-        "{title} — NOT TRUSTED (misfit {:.1} %){}",
+        "⚠ {title} — NOT TRUSTED (misfit {:.1} %){}",
         100.0 * relative_misfit,
         if shows_runs { ": true runs dotted" } else { "" }
     )
@@ -390,7 +392,7 @@ mod tests {
         );
         let config = &layout["configById"];
         let elbow = &config["Plot!ribbon0"];
-        let title = "q.elbow_joint [rad] — NOT TRUSTED (misfit 65.6 %): true runs dotted";
+        let title = "⚠ q.elbow_joint [rad] — NOT TRUSTED (misfit 65.6 %): true runs dotted";
         assert_eq!(elbow["foxglovePanelTitle"], title);
         assert_eq!(elbow["lichtblickPanelTitle"], title);
         let paths = elbow["paths"].as_array().unwrap();
@@ -406,7 +408,7 @@ mod tests {
         let wrist = &config["Plot!ribbon1"];
         assert_eq!(
             wrist["foxglovePanelTitle"],
-            "q.wrist_joint [rad] — NOT TRUSTED (misfit 8.0 %)"
+            "⚠ q.wrist_joint [rad] — NOT TRUSTED (misfit 8.0 %)"
         );
         assert_eq!(wrist["paths"].as_array().unwrap().len(), 3);
         // A trusted output's plot is unchanged.
