@@ -250,19 +250,6 @@ struct Time {
 /// One message as read back: log time, JointState names and values (empty for other topics).
 type ReadBack = (u64, Vec<String>, Vec<f64>);
 
-/// The `ribbon` metadata record of the file at `path`.
-fn ribbon_metadata(bytes: &[u8]) -> BTreeMap<String, String> {
-    let summary = mcap::Summary::read(bytes)
-        .unwrap()
-        .expect("a summary section");
-    let index = summary
-        .metadata_indexes
-        .iter()
-        .find(|m| m.name == "ribbon")
-        .expect("a `ribbon` metadata record");
-    mcap::read::metadata(bytes, index).unwrap().metadata
-}
-
 #[test]
 fn every_reader_decodes_what_was_written() {
     let dir = work_dir("every_reader");
@@ -349,7 +336,7 @@ fn every_reader_decodes_what_was_written() {
     assert_eq!(by_topic["/tf"].len(), STEPS + 1);
     assert_eq!(by_topic["/robot_description"].len(), 1);
     assert_eq!(by_topic["/robot_description"][0].0, 0, "the URDF at t = 0");
-    assert_eq!(ribbon_metadata(&bytes)["partial"], "false");
+    assert_eq!(common::ribbon_metadata(&bytes)["partial"], "false");
 
     // The Python readers, foxglove-sdk and rerun.
     let expected_path = dir.join("expected.json");
@@ -391,7 +378,7 @@ fn finish_partial_marks_the_metadata() {
     sink.metadata_mut().runs = 3; // stopped early: fewer runs than planned
     sink.finish(true).unwrap();
     let bytes = std::fs::read(&path).unwrap();
-    let metadata = ribbon_metadata(&bytes);
+    let metadata = common::ribbon_metadata(&bytes);
     assert_eq!(metadata["partial"], "true");
     assert_eq!(metadata["order"], "4");
     assert_eq!(metadata["runs"], "3");

@@ -1,7 +1,8 @@
 //! The viewer files against a fresh log (docs/mcap.md §4–§5): the rerun blueprint written by
 //! `scripts/viewers/rerun_blueprint.py` plots only entities that exist and are non-empty in the
-//! converted recording, titles carry units, the timeline counts seconds from 0
-//! (`tests/reference/check_blueprint.py`). The Foxglove layout attachment is checked by
+//! converted recording, titles carry units, the timeline counts seconds from 0, an untrusted
+//! study's untrusted outputs are titled as such with their true runs' hull plotted beside the
+//! envelope (`tests/reference/check_blueprint.py`). The Foxglove layout attachment is checked by
 //! `tests/mcap_cli.rs` through `tests/reference/check_mcap.py`. No browser and no GPU here: the
 //! screenshot check is `scripts/viewers/screenshots.sh`.
 
@@ -27,11 +28,41 @@ fn rerun_blueprint_plots_only_live_entities_of_a_fresh_log() {
         .status()
         .expect("ribbon runs");
     assert!(status.success());
+    check_blueprint(&out, "blueprint_work");
+}
+
+/// An untrusted study (the double pendulum falling from upright, fixture `refine_chaos`, exit 4):
+/// its untrusted outputs' views say so and plot the hull of their true runs.
+#[test]
+fn rerun_blueprint_shows_an_untrusted_outputs_true_runs() {
+    let out = scratch_file("viewers", "refine_chaos.mcap");
+    let status = Command::new(common::ribbon_bin())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "analyze",
+            "robots/double_pendulum/double_pendulum.urdf",
+            "--uncertainty",
+            "tests/fixtures/refine_chaos/upright.uncertainty.toml",
+            "--max-runs",
+            "600",
+            "--out",
+        ])
+        .arg(&out)
+        .status()
+        .expect("ribbon runs");
+    assert_eq!(status.code(), Some(4), "the study must be untrusted");
+    let report = check_blueprint(&out, "blueprint_untrusted");
+    assert!(report.contains(" 2 true-run hulls"), "{report}");
+}
+
+/// Runs `tests/reference/check_blueprint.py` on the log `out` (work files in the scratch
+/// directory `work`); returns its report line.
+fn check_blueprint(out: &std::path::Path, work: &str) -> String {
     let python = common::reference_python();
     let result = Command::new(&python)
         .arg(common::manifest_dir().join("tests/reference/check_blueprint.py"))
-        .arg(&out)
-        .arg(scratch_file("viewers", "blueprint_work"))
+        .arg(out)
+        .arg(scratch_file("viewers", work))
         .output()
         .expect("python runs");
     assert!(
@@ -40,7 +71,9 @@ fn rerun_blueprint_plots_only_live_entities_of_a_fresh_log() {
         String::from_utf8_lossy(&result.stdout),
         String::from_utf8_lossy(&result.stderr)
     );
-    println!("{}", String::from_utf8_lossy(&result.stdout));
+    let report = String::from_utf8_lossy(&result.stdout).into_owned();
+    println!("{report}");
+    report
 }
 
 #[test]

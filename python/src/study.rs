@@ -393,7 +393,7 @@ impl StudyResult {
     fn write_csv(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         py.detach(|| {
             self.check_output("write_csv", &path)?;
-            write_envelope_csv(&path, &self.report.envelope)
+            write_envelope_csv(&path, &self.report)
         })
         .map_err(to_py)
     }
@@ -420,7 +420,8 @@ impl StudyResult {
                 self.report.sobol.as_ref(),
                 &mut |block| log.write_block(block, &self.model, &mut data),
             )?;
-            close_log(log, &self.report, &self.space)
+            close_log(log, &self.report, &self.space)?;
+            Ok(())
         })
         .map_err(to_py)
     }

@@ -14,6 +14,9 @@ box the robot moves in), and writes a blueprint with:
   with a view per output of its total indices (`/ribbon/sobol/total/…/position`), showing the
   parameters whose index ever reaches SENSITIVITY_PLOT_FLOOR (at most four, largest peak first:
   the Foxglove layout's rule and colours, src/output/envelope_log.rs);
+- for a study the a-posteriori check did not trust (the `ribbon` record's `check` entry), each
+  untrusted output's view titled `⚠ name [unit] — NOT TRUSTED (misfit X %): true runs dotted` and
+  holding, beside the envelope, the hull of its true runs (`/ribbon/runs/…/position`) as dots;
 - the time panel on `message_log_time` (seconds from 0 when converted with --timeline-type duration).
 
 View it with the log converted under the same application id:
@@ -36,6 +39,7 @@ from mcap_ros2.decoder import DecoderFactory
 
 APPLICATION_ID = "ribbon"
 ENVELOPE_PREFIX = "/ribbon/envelope/"
+RUNS_PREFIX = "/ribbon/runs/"
 SOBOL_TOTAL_PREFIX = "/ribbon/sobol/total/"
 # Must match src/output/envelope_log.rs SENSITIVITY_PLOT_FLOOR and foxglove_layout.rs
 # SENSITIVITY_COLOURS: the parameters a sensitivity view shows, and their colours in rank order.
@@ -45,6 +49,9 @@ HIDDEN_SERIES_COLOUR = "#9aa5b1"
 TIMELINE = "message_log_time"
 # Must match src/output/viewer/mod.rs SERIES_COLOURS and foxglove_layout.rs's camera constants.
 SERIES = [("lower", "#0072b2", 1.5), ("nominal", "#009e73", 2.5), ("upper", "#d55e00", 1.5)]
+# Must match src/output/viewer/mod.rs RUNS_HULL_SERIES: the true runs' hull, drawn as dots.
+RUNS_SERIES = [("true runs, lowest", "#cc79a7"), ("true runs, highest", "#cc79a7")]
+RUNS_MARKER_SIZE = 1.5
 CAMERA_ELEVATION_DEG = 30.0
 CAMERA_AZIMUTH_DEG = 45.0
 CAMERA_DISTANCE_IN_RADII = 3.2
@@ -91,8 +98,9 @@ def read_sensitivities(path, channels):
 
 
 def read_log(path):
-    """(outputs [(name, unit, group, topic)], robot name, scene centre, scene radius,
-    sensitivities (read_sensitivities))."""
+    """(outputs [(name, unit, group, topic, untrusted)], robot name, scene centre, scene radius,
+    sensitivities (read_sensitivities)); `untrusted` is None for an output the check trusted (or
+    a log without a verdict), else (relative misfit, the topic of its true runs' hull or None)."""
     with open(path, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
@@ -103,6 +111,11 @@ def read_log(path):
             for c in sorted(summary.channels.values(), key=lambda c: c.id)
             if c.topic.startswith(ENVELOPE_PREFIX) and "output" in c.metadata
         ]
+        runs_topics = {
+            c.metadata["output"]: c.topic
+            for c in summary.channels.values()
+            if c.topic.startswith(RUNS_PREFIX) and "output" in c.metadata
+        }
         totals = [
             c
             for c in sorted(summary.channels.values(), key=lambda c: c.id)
@@ -115,6 +128,14 @@ def read_log(path):
     if not robot:
         sys.exit(f"{path}: no `ribbon` metadata record naming the robot")
     viewer = records.get("ribbon", {})
+    misfits = {
+        entry["name"]: entry["relative_misfit"]
+        for entry in json.loads(viewer.get("check", "{}")).get("untrusted_outputs", [])
+    }
+    outputs = [
+        (name, unit, group, topic, (misfits[name], runs_topics.get(name)) if name in misfits else None)
+        for name, unit, group, topic in outputs
+    ]
     centre = json.loads(viewer.get("scene_centre_m", "[0, 0, 0]"))
     radius = float(viewer.get("scene_radius_m", "1"))
     return outputs, robot, centre, radius, read_sensitivities(path, totals)
@@ -122,6 +143,11 @@ def read_log(path):
 
 def panel_title(name, unit):
     return f"{name} [{unit}]" if unit else name
+
+
+def untrusted_title(title, relative_misfit, shows_runs):
+    """As src/output/viewer/foxglove_layout.rs untrusted_title."""
+    return f"⚠ {title} — NOT TRUSTED (misfit {100.0 * relative_misfit:.1f} %)" + (": true runs dotted" if shows_runs else "")
 
 
 def sensitivity_view(output, topic, shown, dimensions):
@@ -160,8 +186,8 @@ def build(outputs, robot, centre, radius, sensitivities=(), active_tab=None):
         eye_controls=rrb.EyeControls3D(position=eye, look_target=centre, eye_up=[0.0, 0.0, 1.0]),
     )
     groups = {}
-    shown = []
-    for name, unit, group, topic in outputs:
+    shown, runs_shown, titles = [], [], []
+    for name, unit, group, topic, untrusted in outputs:
         entity = f"{topic}/position"
         shown.append(entity)
         lines = rr.SeriesLines(
@@ -169,11 +195,26 @@ def build(outputs, robot, centre, radius, sensitivities=(), active_tab=None):
             names=[label for label, _, _ in SERIES],
             widths=[width for _, _, width in SERIES],
         )
+        title, contents, overrides = panel_title(name, unit), [entity], {entity: lines.visualizer()}
+        if untrusted is not None:
+            misfit, runs_topic = untrusted
+            title = untrusted_title(title, misfit, runs_topic is not None)
+            if runs_topic is not None:
+                runs_entity = f"{runs_topic}/position"
+                runs_shown.append(runs_entity)
+                contents.append(runs_entity)
+                overrides[runs_entity] = rr.SeriesPoints(
+                    colors=[rgba(colour) for _, colour in RUNS_SERIES],
+                    names=[label for label, _ in RUNS_SERIES],
+                    markers=["circle"] * len(RUNS_SERIES),
+                    marker_sizes=[RUNS_MARKER_SIZE] * len(RUNS_SERIES),
+                ).visualizer()
+        titles.append(title)
         view = rrb.TimeSeriesView(
-            origin=entity,
-            contents="$origin",
-            name=panel_title(name, unit),
-            overrides={entity: lines.visualizer()},
+            origin=entity if len(contents) == 1 else "/",
+            contents="$origin" if len(contents) == 1 else contents,
+            name=title,
+            overrides=overrides,
             plot_legend=rrb.Corner2D.RightTop,
         )
         groups.setdefault(group, []).append(view)
@@ -203,8 +244,9 @@ def build(outputs, robot, centre, radius, sensitivities=(), active_tab=None):
         "timeline": TIMELINE,
         "robot_root": robot_root,
         "plotted_entities": shown,
+        "runs_entities": runs_shown,
         "tabs": [group for group, _ in sorted(groups.items(), key=lambda item: (group_rank(item[0]), item[0]))],
-        "titles": [panel_title(name, unit) for name, unit, _, _ in outputs],
+        "titles": titles,
         "sensitivity_entities": sensitivity_entities,
         "sensitivity_tabs": [name for name in names if name.endswith(" · sensitivity")],
         "eye": eye,

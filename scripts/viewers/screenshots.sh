@@ -6,7 +6,8 @@
 # Needs: the reference venv (target/reference-venv, made by `cargo test`), and Debian's
 #   apt-get install xvfb xauth mesa-vulkan-drivers libvulkan1
 # Usage: scripts/viewers/screenshots.sh [OUT_DIR]   (default target/viewer-check; the README's
-# pictures are docs/images/rerun-ur5-*.png, copied from there by hand after a look).
+# pictures are docs/images/rerun-ur5-*.png and rerun-untrusted-double-pendulum.png, copied from
+# there by hand after a look).
 # Foxglove: not automated here; see docs/mcap.md §8.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -38,5 +39,29 @@ for tab in "joint positions" "frame tool0"; do
         fi
         echo "screenshots.sh: try $try of $name failed its check; again" >&2
     done
+done
+# An untrusted study (the double pendulum falling from upright, exit 4): its plots say so in their
+# titles and show the true runs' hull as dots (docs/mcap.md §4).
+set +e
+./target/release/ribbon analyze robots/double_pendulum/double_pendulum.urdf \
+    --uncertainty tests/fixtures/refine_chaos/upright.uncertainty.toml --max-runs 600 \
+    --out "$out/untrusted.mcap" >/dev/null 2>&1
+code=$?
+set -e
+[ "$code" = 4 ] || { echo "screenshots.sh: the untrusted study exited $code, expected 4" >&2; exit 1; }
+"$venv/rerun" mcap convert --timeline-type duration --application-id ribbon "$out/untrusted.mcap" -o "$out/untrusted.rrd" 2>/dev/null
+name=rerun-untrusted-double-pendulum
+"$venv/python" scripts/viewers/rerun_blueprint.py "$out/untrusted.mcap" "$out/$name.rbl"
+for try in 1 2 3; do
+    WGPU_BACKEND=vulkan timeout 300 xvfb-run -a -s "-screen 0 1600x1000x24" \
+        "$venv/rerun" --renderer vulkan "$out/untrusted.rrd" "$out/$name.rbl" \
+        --window-size 1400x800 --screenshot-to "$out/$name.png" >"$out/$name.log" 2>&1 \
+        || { echo "screenshots.sh: rerun failed, see $out/$name.log" >&2; exit 1; }
+    if "$venv/python" scripts/viewers/check_screenshot.py "$out/$name.png" "$out/$name.small.png" --true-runs; then
+        break
+    elif [ "$try" = 3 ]; then
+        exit 1
+    fi
+    echo "screenshots.sh: try $try of $name failed its check; again" >&2
 done
 echo "screenshots in $out"

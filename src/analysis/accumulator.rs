@@ -106,6 +106,13 @@ impl Accumulator {
             .unwrap_or((f64::INFINITY, f64::NEG_INFINITY))
     }
 
+    /// The hull of every true run at `records`, record-major `(lowest, highest)` per output;
+    /// `None` when some of those records never had a run.
+    pub fn run_hulls(&self, records: std::ops::Range<usize>) -> Option<&[(f64, f64)]> {
+        self.runs
+            .get(records.start * self.n_outputs..records.end * self.n_outputs)
+    }
+
     /// Widens every envelope point to the hull of true runs at its record and output (after
     /// runs that only widened the hull).
     pub fn widen_to_runs(&mut self) {

@@ -86,6 +86,10 @@ pub struct BlockView<'a> {
     pub nominal_positions: &'a [f64],
     /// Surrogate methods: the block's Sobol' indices.
     pub sobol: Option<SobolBlock<'a>>,
+    /// The hull of every true run at the block's records, `records × outputs` record-major
+    /// (`(lowest, highest)`), when the study shows it beside its envelope
+    /// ([`StudyReport::shows_runs_hull`]: the check left some output untrusted).
+    pub runs_hull: Option<&'a [(f64, f64)]>,
 }
 
 /// Progress after a block.
@@ -445,6 +449,27 @@ pub struct StudyReport {
 }
 
 impl StudyReport {
+    /// Whether the study's results show the hull of its true runs beside the envelope (the CSV's
+    /// `NAME.runs_lower` / `NAME.runs_upper` columns, the MCAP's `/ribbon/runs/…` channels,
+    /// docs/mcap.md §1): the a-posteriori check left some output untrusted, so the envelope may be
+    /// too narrow or too wide and the true runs are what the study can claim; and every record of
+    /// every output has a true run (always so: the nominal run reaches every record done).
+    /// A trusted study shows no hull, so its files keep every byte they had before.
+    pub fn shows_runs_hull(&self) -> bool {
+        let untrusted = self
+            .check
+            .as_ref()
+            .is_some_and(|check| !check.untrusted_outputs.is_empty());
+        let e = &self.envelope;
+        let finite = |series: &[Vec<f64>]| {
+            series.len() == e.outputs.len()
+                && series
+                    .iter()
+                    .all(|s| s.len() == e.times.len() && s.iter().all(|x| x.is_finite()))
+        };
+        untrusted && finite(&e.runs_lower) && finite(&e.runs_upper)
+    }
+
     /// A report with no runs and empty envelopes over `outputs`, for a study of `method` on
     /// `threads` worker threads.
     pub fn empty(outputs: Vec<Output>, threads: usize, method: Method) -> StudyReport {

@@ -223,7 +223,8 @@ impl Study<'_> {
     }
 
     /// The sinks: moves the accumulated envelopes into the report and hands them to `sink` block
-    /// by block.
+    /// by block (with the hull of true runs where the report shows it,
+    /// [`StudyReport::shows_runs_hull`]).
     fn finish(
         &self,
         mut report: StudyReport,
@@ -234,6 +235,7 @@ impl Study<'_> {
         let n_done = accumulator.times.len();
         let nq = self.model.nq;
         accumulator.fill(&mut report.envelope);
+        let shows_runs_hull = report.shows_runs_hull();
         let block = report.block_records.max(1);
         let mut first = 0;
         while first < n_done {
@@ -248,6 +250,9 @@ impl Study<'_> {
                 nominal: &accumulator.nominal[values],
                 nominal_positions: &accumulator.nominal_positions[positions],
                 sobol: report.sobol.as_ref().and_then(|s| s.block(first, count)),
+                runs_hull: shows_runs_hull
+                    .then(|| accumulator.run_hulls(first..first + count))
+                    .flatten(),
             })
             .map_err(StudyError::Sink)?;
             first += count;

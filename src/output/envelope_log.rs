@@ -1,18 +1,21 @@
 //! An MCAP log of envelopes, one record time at a time: a channel per output (lower, nominal,
 //! upper), optionally an error-estimate channel per output and two Sobol' index channels per output
-//! (main, total; docs/sobol-indices.md §5), and the nominal robot's frames on `/tf`.
+//! (main, total; docs/sobol-indices.md §5), the hull of true runs per output when the block
+//! carries it (an untrusted study's, docs/mcap.md §1), and the nominal robot's frames on `/tf`.
 //! Used by `simulate` (lower = nominal = upper) and `analyze`. On [`finish`](EnvelopeLog::finish)
-//! it adds what the viewers need (docs/mcap.md §4–§5): the Foxglove layout as an attachment and
-//! the box the robot moved in as entries of the `ribbon` metadata record.
+//! it adds what the viewers need (docs/mcap.md §4–§5): the Foxglove layout as an attachment (an
+//! untrusted output's plot titled as such, its true runs beside the envelope) and the box the
+//! robot moved in as entries of the `ribbon` metadata record.
 
 use super::error::OutputError;
 use super::mcap::{
-    EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, ParentFromLink,
-    SobolChannel, SobolIndexKind, ENVELOPE_PREFIX, SOBOL_PREFIX, WORLD_FRAME,
+    EnvelopeChannel, ErrorChannel, McapMetadata, McapSink, OutputName, ParentFromLink, RunsChannel,
+    SobolChannel, SobolIndexKind, ENVELOPE_PREFIX, RUNS_PREFIX, SOBOL_PREFIX, WORLD_FRAME,
 };
+use super::verdict::UntrustedVerdict;
 use super::viewer::{
-    foxglove_layout, LayoutOutput, LayoutSensitivity, SceneExtent, FOXGLOVE_LAYOUT_NAME,
-    SENSITIVITY_COLOURS,
+    foxglove_layout, LayoutOutput, LayoutSensitivity, LayoutUntrusted, SceneExtent,
+    FOXGLOVE_LAYOUT_NAME, SENSITIVITY_COLOURS,
 };
 use crate::analysis::BlockView;
 use crate::dynamics::{forward_kinematics, world_from_link, Data};
@@ -53,6 +56,10 @@ pub struct EnvelopeLog {
     /// Per output, per dimension, the largest total Sobol' index written so far: which
     /// parameters the layout's sensitivity plots show.
     sobol_peaks: Vec<Vec<f64>>,
+    /// Per output, the channel of its hull of true runs (empty until a block carries the hull).
+    runs_channels: Vec<RunsChannel>,
+    /// The check's verdict, when it did not trust the study ([`set_verdict`](Self::set_verdict)).
+    verdict: Option<UntrustedVerdict>,
     /// What the Foxglove layout plots, in channel order.
     layout_outputs: Vec<LayoutOutput>,
     /// The box of every link origin written to `/tf`.
@@ -133,6 +140,7 @@ impl EnvelopeLog {
                     OutputName::from_parts(&output.parts).topic_suffix()
                 ),
                 sensitivity: None,
+                untrusted: None,
             })
             .collect();
         Ok(EnvelopeLog {
@@ -143,6 +151,8 @@ impl EnvelopeLog {
             sobol_channels: Vec::new(),
             sobol_dimensions: Vec::new(),
             sobol_peaks: Vec::new(),
+            runs_channels: Vec::new(),
+            verdict: None,
             layout_outputs,
             extent: SceneExtent::default(),
             parent_links: None,
@@ -299,10 +309,52 @@ impl EnvelopeLog {
         self.sink.write_transforms(t, &frames).map_err(mcap_error)
     }
 
+    /// Adds the channel of every output's hull of true runs (docs/mcap.md §1), once.
+    fn add_runs_channels(&mut self) -> Result<(), OutputError> {
+        if !self.runs_channels.is_empty() {
+            return Ok(());
+        }
+        for output in &self.layout_outputs {
+            let channel = self
+                .sink
+                .add_runs_channel(OutputName::from_parts(&output.parts), &output.unit)
+                .map_err(mcap_error)?;
+            self.runs_channels.push(channel);
+        }
+        Ok(())
+    }
+
+    /// Writes every output's hull of true runs at time `t` (s): `hull[o]` = (lowest, highest). A
+    /// NaN or infinity is refused as in [`write_time`](Self::write_time).
+    fn write_runs(&mut self, t: f64, hull: &[(f64, f64)]) -> Result<(), OutputError> {
+        if let Some(o) = hull
+            .iter()
+            .position(|(lowest, highest)| !(lowest.is_finite() && highest.is_finite()))
+        {
+            let (lowest, highest) = hull[o];
+            return Err(OutputError::NonFinite {
+                what: format!("MCAP '{}'", self.sink.path().display()),
+                output: format!(
+                    "{} (hull of true runs)",
+                    self.names.get(o).map_or("?", String::as_str)
+                ),
+                time_s: t,
+                value: if lowest.is_finite() { highest } else { lowest },
+            });
+        }
+        for (channel, &(lowest, highest)) in self.runs_channels.iter().zip(hull) {
+            self.sink
+                .write_runs(*channel, t, lowest, highest)
+                .map_err(mcap_error)?;
+        }
+        Ok(())
+    }
+
     /// Writes one block of a study: every record time's envelopes (and error estimates, where the
-    /// method has them; Sobol' indices, where the block has them and the log has their channels)
-    /// and the nominal robot's frames, placed by forward kinematics of the nominal
-    /// run's configuration into `data`.
+    /// method has them; the hull of true runs, where the block carries it; Sobol' indices, where
+    /// the block has them and the log has their channels) and the nominal robot's frames, placed
+    /// by forward kinematics of the nominal run's configuration into `data`. Every message of a
+    /// record time is written before the next time's, so a reader gets them in time order.
     pub fn write_block(
         &mut self,
         block: &BlockView,
@@ -311,6 +363,9 @@ impl EnvelopeLog {
     ) -> Result<(), OutputError> {
         let n = self.channels.len();
         let nq = model.nq;
+        if block.runs_hull.is_some() {
+            self.add_runs_channels()?;
+        }
         for (r, t) in block.times.iter().enumerate() {
             let points = &block.points[r * n..(r + 1) * n];
             let lower: Vec<f64> = points.iter().map(|p| p.lower).collect();
@@ -323,6 +378,9 @@ impl EnvelopeLog {
                 &upper,
                 errors.as_deref(),
             )?;
+            if let Some(hull) = block.runs_hull {
+                self.write_runs(*t, &hull[r * n..(r + 1) * n])?;
+            }
             if let (Some(sobol), false) = (&block.sobol, self.sobol_channels.is_empty()) {
                 self.write_sobol(*t, &|o| sobol.main(r, n, o).to_vec(), &|o| {
                     sobol.total(r, n, o).to_vec()
@@ -343,6 +401,17 @@ impl EnvelopeLog {
         self.sink.add_metadata_entries(entries).map_err(mcap_error)
     }
 
+    /// Records the check's verdict on a study it did not trust: the `check` entry of the `ribbon`
+    /// metadata record, and the titles of the untrusted outputs' plots in the Foxglove layout
+    /// (with their true runs beside the envelope when the log has the hull's channels).
+    pub fn set_verdict(&mut self, verdict: UntrustedVerdict) -> Result<(), OutputError> {
+        self.sink
+            .add_metadata_entries(verdict.metadata())
+            .map_err(mcap_error)?;
+        self.verdict = Some(verdict);
+        Ok(())
+    }
+
     /// The metadata to be written at the end (e.g. to correct `runs` after an interruption).
     pub fn metadata_mut(&mut self) -> &mut McapMetadata {
         self.sink.metadata_mut()
@@ -354,8 +423,24 @@ impl EnvelopeLog {
         let mut outputs = self.layout_outputs.clone();
         for (o, output) in outputs.iter_mut().enumerate() {
             output.sensitivity = self.sensitivity(o, output);
+            output.untrusted = self.untrusted(o, output);
         }
         foxglove_layout(&outputs, &self.extent)
+    }
+
+    /// How output `o`'s plot says that the check did not trust it: its relative misfit, and the
+    /// topic of its hull of true runs when the log has it; `None` for a trusted output.
+    fn untrusted(&self, o: usize, output: &LayoutOutput) -> Option<LayoutUntrusted> {
+        let relative_misfit = (*self.verdict.as_ref()?.untrusted_misfit.get(o)?)?;
+        Some(LayoutUntrusted {
+            relative_misfit,
+            runs_topic: (!self.runs_channels.is_empty()).then(|| {
+                format!(
+                    "{RUNS_PREFIX}{}",
+                    OutputName::from_parts(&output.parts).topic_suffix()
+                )
+            }),
+        })
     }
 
     /// What output `o`'s sensitivity plot shows: the parameters whose total Sobol' index reached

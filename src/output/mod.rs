@@ -1,6 +1,7 @@
 //! Sinks for results: CSV series, the summary JSON of the design contract, MCAP logs for Foxglove and
 //! rerun ([`mcap`]) with what the viewers need to show them ([`viewer`]), band and scatter plots
-//! ([`plot`]) and the report directory of `analyze --report` ([`report`], its browser page
+//! ([`plot`]), the check's verdict on an untrusted study as the log carries it
+//! ([`UntrustedVerdict`]) and the report directory of `analyze --report` ([`report`], its browser page
 //! [`report_html`]).
 //!
 //! Every output goes through [`paths`]: checked before any simulation ([`check_outputs`]: never an
@@ -21,6 +22,7 @@ pub mod report;
 pub mod report_html;
 mod study_summary;
 mod summary;
+mod verdict;
 pub mod viewer;
 
 pub use csv::{csv_field, write_csv};
@@ -34,6 +36,7 @@ pub use summary::{
     EnvelopeSeries, OutputSobol, ParameterSummary, SensitivitySummary, SobolDimension,
     SobolSummary, Summary,
 };
+pub use verdict::{UntrustedVerdict, CHECK_METADATA_KEY};
 
 /// The first NaN or infinity of a set of series.
 #[derive(Clone, Copy, Debug, PartialEq)]

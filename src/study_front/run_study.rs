@@ -27,7 +27,7 @@ use crate::analysis::{
 use crate::distributed::{PlanFile, ShardStages};
 use crate::dynamics::Data;
 use crate::output::{
-    check_command_outputs, check_finite, peak_memory, write_csv, write_stdout, EnvelopeLog, Summary,
+    check_command_outputs, check_finite, peak_memory, write_csv, write_stdout, Summary,
 };
 use crate::scene::Scene;
 use crate::setup::{print_message, Setup};
@@ -142,12 +142,12 @@ pub fn run_study(request: &StudyRequest, merge: Option<MergeInput>) -> Result<()
         summary.write(path)?;
     }
     if let Some(path) = &outputs.csv {
-        write_envelope_csv(path, &report.envelope)?;
+        write_envelope_csv(path, &report)?;
     }
-    let foxglove_layout = log.as_ref().map(EnvelopeLog::foxglove_layout);
-    if let Some(log) = log.take() {
-        close_log(log, &report, &space)?;
-    }
+    let foxglove_layout = match log.take() {
+        Some(log) => Some(close_log(log, &report, &space)?),
+        None => None,
+    };
     let table_text = table(&options, &space, &report, wall_seconds);
     if let (Some(dir), Some(stems), Some(summary)) = (&outputs.report, &report_stems, &summary) {
         write_report(
@@ -290,9 +290,21 @@ pub fn check_envelope_finite(envelope: &Envelope) -> Result<(), Error> {
     Ok(check_finite("analyze", &names, &envelope.times, &columns)?)
 }
 
-/// `--csv`: `t`, then `NAME.lower`, `NAME.nominal`, `NAME.upper` per output.
-pub fn write_envelope_csv(path: &Path, envelope: &Envelope) -> Result<(), Error> {
-    let (names, columns) = envelope_columns(envelope, false);
+/// `--csv`: `t`, then `NAME.lower`, `NAME.nominal`, `NAME.upper` per output; then, when the
+/// check did not trust the study ([`StudyReport::shows_runs_hull`]), `NAME.runs_lower`,
+/// `NAME.runs_upper` per output — at the end, so that every column a trusted study's CSV has
+/// keeps its place (a script that reads columns by position reads the same ones).
+pub fn write_envelope_csv(path: &Path, report: &StudyReport) -> Result<(), Error> {
+    let envelope = &report.envelope;
+    let (mut names, mut columns) = envelope_columns(envelope, false);
+    if report.shows_runs_hull() {
+        for (o, output) in envelope.outputs.iter().enumerate() {
+            names.push(format!("{}.runs_lower", output.name));
+            names.push(format!("{}.runs_upper", output.name));
+            columns.push(&envelope.runs_lower[o]);
+            columns.push(&envelope.runs_upper[o]);
+        }
+    }
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     Ok(write_csv(path, &envelope.times, &names, &columns)?)
 }

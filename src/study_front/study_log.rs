@@ -4,8 +4,9 @@
 //! package's `StudyResult.write_mcap`) with the bytes `analyze --out` writes while it runs.
 //!
 //! ```text
-//! plan ⇒ LogHeader ⇒ open ⇒ blocks (streamed by the study, or replayed by RecordedBlocks)
-//!   ⇒ close_log (runs, elements, partial)
+//! plan ⇒ LogHeader ⇒ open ⇒ blocks (streamed by the study, or replayed by RecordedBlocks;
+//!   an untrusted study's carry the hull of its true runs) ⇒ close_log (runs, elements, the
+//!   check's verdict on an untrusted study, partial)
 //! ```
 //!
 //! Does not: format MCAP (`output::EnvelopeLog`), or run anything.
@@ -16,7 +17,7 @@ use crate::analysis::{
     StudyReport,
 };
 use crate::output::mcap::McapMetadata;
-use crate::output::{EnvelopeLog, ParameterSummary};
+use crate::output::{EnvelopeLog, ParameterSummary, UntrustedVerdict};
 use crate::scene::Output;
 use crate::uncertainty::ParameterSpace;
 use crate::Error;
@@ -80,19 +81,26 @@ impl LogHeader {
     }
 }
 
-/// Closes a study's log: the runs made, the elements (when the box was split) and whether the
-/// study stopped early.
+/// Closes a study's log: the runs made, the elements (when the box was split), the check's
+/// verdict (when it did not trust the study: the `check` metadata entry, the untrusted outputs'
+/// plot titles) and whether the study stopped early. Returns the Foxglove layout it attached
+/// (docs/mcap.md §4), for the report directory.
 pub fn close_log(
     mut log: EnvelopeLog,
     report: &StudyReport,
     space: &ParameterSpace,
-) -> Result<(), Error> {
+) -> Result<serde_json::Value, Error> {
     log.metadata_mut().runs = report.runs;
     if let Some(elements) = &report.elements {
         let json = crate::output::elements_json(elements, space, &report.envelope);
         log.add_metadata([("elements".to_string(), json.to_string())].into())?;
     }
-    Ok(log.finish(report.partial)?)
+    if let Some(verdict) = UntrustedVerdict::of_report(report) {
+        log.set_verdict(verdict)?;
+    }
+    let layout = log.foxglove_layout();
+    log.finish(report.partial)?;
+    Ok(layout)
 }
 
 /// The finished blocks a study handed its sink, kept (the Sobol' indices stay in the report).
@@ -106,6 +114,9 @@ pub struct RecordedBlocks {
     nominal_positions: Vec<f64>,
     /// Each block's range of `nominal_positions`.
     position_ranges: Vec<std::ops::Range<usize>>,
+    /// The blocks' hull of true runs, `records × outputs`, when they carry it (every block of a
+    /// study does, or none).
+    runs_hull: Option<Vec<(f64, f64)>>,
 }
 
 impl RecordedBlocks {
@@ -120,6 +131,11 @@ impl RecordedBlocks {
             .extend_from_slice(block.nominal_positions);
         self.position_ranges
             .push(start..self.nominal_positions.len());
+        if let Some(hull) = block.runs_hull {
+            self.runs_hull
+                .get_or_insert_with(Vec::new)
+                .extend_from_slice(hull);
+        }
     }
 
     /// Hands every kept block to `sink` again, in order, with its Sobol' indices from `sobol`
@@ -139,6 +155,10 @@ impl RecordedBlocks {
                 nominal: &self.nominal[done * n_outputs..(done + count) * n_outputs],
                 nominal_positions: &self.nominal_positions[positions.clone()],
                 sobol: sobol.and_then(|s| s.block(first, count)),
+                runs_hull: self
+                    .runs_hull
+                    .as_ref()
+                    .map(|hull| &hull[done * n_outputs..(done + count) * n_outputs]),
             })?;
             done += count;
         }

@@ -731,3 +731,16 @@ pub fn plan_run_merge_in_two_shards(
         assert!(merges.len() <= max_stages, "merge keeps asking for stages");
     }
 }
+
+/// The `ribbon` metadata record of the MCAP log `bytes` (read through its summary section).
+pub fn ribbon_metadata(bytes: &[u8]) -> std::collections::BTreeMap<String, String> {
+    let summary = mcap::Summary::read(bytes)
+        .unwrap()
+        .expect("a summary section");
+    let index = summary
+        .metadata_indexes
+        .iter()
+        .find(|m| m.name == "ribbon")
+        .expect("a `ribbon` metadata record");
+    mcap::read::metadata(bytes, index).unwrap().metadata
+}

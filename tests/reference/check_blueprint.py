@@ -9,6 +9,9 @@ ribbon`), writes the blueprint and its manifest, and checks, each failure collec
 - every entity the blueprint plots exists in the recording with one row of Scalars per record
   time of its MCAP channel (no empty plotted entity), and is an envelope's `…/position` entity;
 - every view title carries its channel's unit; one tab per channel `group`;
+- for a log of an untrusted study (the `ribbon` record's `check` entry): each untrusted output's
+  view is titled `⚠ name [unit] — NOT TRUSTED (misfit X %)…` with its misfit, and plots the hull of
+  its true runs (`/ribbon/runs/…/position`, one row per message of that channel);
 - the robot's URDF geometry root is in the recording; the eye is finite and away from the target;
 - the recording's `message_log_time` timeline is a duration (seconds from 0, not 1970).
 """
@@ -37,6 +40,17 @@ def run(command):
     if result.returncode != 0:
         sys.exit(f"`{' '.join(map(str, command))}` failed ({result.returncode}):\n{result.stderr[-3000:]}")
     return result.stdout
+
+
+def check_rows(entities, channels, rows):
+    """Each `…/position` entity holds one row of Scalars per message of its channel (`channels`:
+    topic → (metadata, message count); `rows`: (entity, column) → rows in the recording)."""
+    for entity in entities:
+        topic = entity.removesuffix("/position")
+        got = rows.get((entity, "Scalars:scalars"), 0)
+        want = channels.get(topic, ({}, -1))[1]
+        if got == 0 or got != want:
+            fail(f"{entity}: {got} rows of Scalars in the recording, expected {want} (its channel's messages)")
 
 
 def main():
@@ -69,21 +83,36 @@ def main():
             for c in summary.channels.values()
             if c.topic.startswith("/ribbon/envelope/")
         }
+        runs_channels = {
+            c.topic: (c.metadata, counts.get(c.id, 0))
+            for c in summary.channels.values()
+            if c.topic.startswith("/ribbon/runs/")
+        }
+        records = {m.name: m.metadata for m in reader.iter_metadata()}
+    verdict = json.loads(records.get("ribbon", {}).get("check", "{}"))
+    misfits = {entry["name"]: entry["relative_misfit"] for entry in verdict.get("untrusted_outputs", [])}
+    if verdict and not misfits:
+        fail(f"the `check` entry names no untrusted output: {verdict}")
     want_entities = {topic + "/position" for topic in channels}
     if set(manifest["plotted_entities"]) != want_entities:
         fail(f"plotted {sorted(manifest['plotted_entities'])}, expected one per envelope channel {sorted(want_entities)}")
-    for entity in manifest["plotted_entities"]:
-        topic = entity.removesuffix("/position")
-        got = rows.get((entity, "Scalars:scalars"), 0)
-        want = channels.get(topic, ({}, -1))[1]
-        if got == 0 or got != want:
-            fail(f"{entity}: {got} rows of Scalars in the recording, expected {want} (its channel's messages)")
+    check_rows(manifest["plotted_entities"], channels, rows)
     titles = manifest["titles"]
     for topic, (metadata, _) in channels.items():
         unit = metadata.get("unit", "")
         title = f"{metadata['output']} [{unit}]" if unit else metadata["output"]
+        if metadata["output"] in misfits:
+            title = f"⚠ {title} — NOT TRUSTED (misfit {100.0 * misfits[metadata['output']]:.1f} %)"
+            if runs_channels:
+                title += ": true runs dotted"
         if title not in titles:
             fail(f"no view titled {title!r} for {topic} (titles: {titles})")
+    want_runs = {
+        topic + "/position" for topic, (metadata, _) in runs_channels.items() if metadata["output"] in misfits
+    }
+    if set(manifest["runs_entities"]) != want_runs:
+        fail(f"true-run entities {sorted(manifest['runs_entities'])}, expected those of the untrusted outputs {sorted(want_runs)}")
+    check_rows(manifest["runs_entities"], runs_channels, rows)
     groups = sorted({metadata["group"] for metadata, _ in channels.values()})
     if sorted(manifest["tabs"]) != groups:
         fail(f"tabs {manifest['tabs']}, expected one per group {groups}")
@@ -125,7 +154,7 @@ def main():
         for message in failures:
             print(f"  - {message}", file=sys.stderr)
         sys.exit(1)
-    print(f"check_blueprint.py: {log}: {len(manifest['plotted_entities'])} plotted entities, tabs {manifest['tabs']}: ok")
+    print(f"check_blueprint.py: {log}: {len(manifest['plotted_entities'])} plotted entities, {len(manifest['runs_entities'])} true-run hulls, tabs {manifest['tabs']}: ok")
 
 
 if __name__ == "__main__":

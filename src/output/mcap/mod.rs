@@ -5,6 +5,8 @@
 //! - per output, topic `/ribbon/envelope/<parts joined by '/'>` (see [`OutputName`]): ROS 2
 //!   `sensor_msgs/msg/JointState` in CDR with `name = ["lower", "nominal", "upper"]` and the
 //!   values in `position`; an error estimate on `/ribbon/error/…` with `name = ["estimate"]`;
+//! - for a study whose check left some output untrusted, per output the hull of its true runs on
+//!   `/ribbon/runs/…` with `name = ["runs_lower", "runs_upper"]` (docs/mcap.md §1);
 //! - for surrogate studies, per output the main and total Sobol' indices on
 //!   `/ribbon/sobol/main/…` and `/ribbon/sobol/total/…`, one JointState series per dimension of
 //!   the box (`name` = the dimensions' names, docs/mcap.md §1);
@@ -50,6 +52,8 @@ use std::path::Path;
 pub const ENVELOPE_PREFIX: &str = "/ribbon/envelope/";
 /// Topic prefix of the error-estimate channels.
 pub const ERROR_PREFIX: &str = "/ribbon/error/";
+/// Topic prefix of the channels of the hull of true runs (an untrusted study's, docs/mcap.md §1).
+pub const RUNS_PREFIX: &str = "/ribbon/runs/";
 /// Topic prefix of the Sobol' index channels (then `main/` or `total/` and the output's parts).
 pub const SOBOL_PREFIX: &str = "/ribbon/sobol/";
 /// Topic of the nominal frames.
@@ -74,6 +78,9 @@ const STUDY_METADATA_KEYS: [&str; 7] = [
 pub const ENVELOPE_SERIES: [&str; 3] = ["lower", "nominal", "upper"];
 /// Series name of an error-estimate message.
 pub const ERROR_SERIES: [&str; 1] = ["estimate"];
+/// Series names of a message of the hull of true runs, in `position` order (the summary's and the
+/// CSV's names for them).
+pub const RUNS_SERIES: [&str; 2] = ["runs_lower", "runs_upper"];
 
 /// Uncompressed size at which a chunk is closed. The `mcap` crate's default (1 MiB): big enough for
 /// lz4 to compress well, small enough that a reader seeking to a time decompresses little.
@@ -124,6 +131,10 @@ pub struct EnvelopeChannel(usize);
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ErrorChannel(usize);
 
+/// Handle of a channel of the hull of true runs, from [`McapSink::add_runs_channel`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct RunsChannel(usize);
+
 /// Handle of a Sobol' index channel, from [`McapSink::add_sobol_channel`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct SobolChannel(usize);
@@ -152,6 +163,7 @@ impl SobolIndexKind {
 enum ChannelKind {
     Envelope,
     Error,
+    Runs,
     Sobol,
     Tf,
     RobotDescription,
@@ -324,6 +336,32 @@ impl McapSink {
     ) -> Result<ErrorChannel, McapError> {
         self.add_joint_state_channel(ChannelKind::Error, ERROR_PREFIX, &name.into(), unit)
             .map(ErrorChannel)
+    }
+
+    /// Registers the channel of an output's hull of true runs (docs/mcap.md §1): topic
+    /// `/ribbon/runs/<parts joined by '/'>`, `sensor_msgs/msg/JointState` with the names
+    /// `runs_lower`, `runs_upper` (in `unit`, the output's), channel metadata as for
+    /// [`add_output`](Self::add_output).
+    pub fn add_runs_channel(
+        &mut self,
+        name: impl Into<OutputName>,
+        unit: &str,
+    ) -> Result<RunsChannel, McapError> {
+        self.add_joint_state_channel(ChannelKind::Runs, RUNS_PREFIX, &name.into(), unit)
+            .map(RunsChannel)
+    }
+
+    /// Writes one output's hull of true runs, `lowest` and `highest`, at simulation time `time_s`
+    /// (s from 0).
+    pub fn write_runs(
+        &mut self,
+        channel: RunsChannel,
+        time_s: f64,
+        lowest: f64,
+        highest: f64,
+    ) -> Result<(), McapError> {
+        self.check_handle(channel.0, ChannelKind::Runs)?;
+        self.write_joint_state(channel.0, time_s, &RUNS_SERIES, &[lowest, highest])
     }
 
     /// Registers an output's Sobol' index channel (docs/mcap.md §1): topic

@@ -2,11 +2,13 @@
 //! (docs/mcap.md §4): the nominal robot in a 3D panel on the left, and on the right one tab per
 //! [`ViewGroup`](super::ViewGroup), each holding one Plot panel per output with the series
 //! lower / nominal / upper in the fixed [`SERIES_COLOURS`](super::SERIES_COLOURS) and the
-//! output's name and unit as the panel title. Lichtblick, the open-source continuation of
+//! output's name and unit as the panel title; an output the a-posteriori check did not trust says
+//! so in its title and shows its true runs as dots beside the envelope ([`untrusted_title`]).
+//! Lichtblick, the open-source continuation of
 //! Foxglove Studio, reads the same layout but takes panel titles from its own key, so both keys
 //! are written (docs/mcap.md §8).
 
-use super::{view_group, SceneExtent, SERIES_COLOURS};
+use super::{view_group, SceneExtent, RUNS_HULL_SERIES, SERIES_COLOURS};
 use crate::output::mcap::{ROBOT_DESCRIPTION_TOPIC, WORLD_FRAME};
 use serde_json::{json, Map, Value};
 
@@ -41,6 +43,15 @@ pub struct LayoutSensitivity {
     pub parameters: Vec<(usize, String)>,
 }
 
+/// How an output's plot says that the check did not trust its surrogate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LayoutUntrusted {
+    /// The output's largest check misfit over its largest envelope width.
+    pub relative_misfit: f64,
+    /// The topic of its hull of true runs (`/ribbon/runs/q/j1`), when the log has it.
+    pub runs_topic: Option<String>,
+}
+
 /// One plotted output.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LayoutOutput {
@@ -55,6 +66,9 @@ pub struct LayoutOutput {
     /// Its total Sobol' indices, when the log has them and some parameter matters (a plot in the
     /// group's sensitivity tab).
     pub sensitivity: Option<LayoutSensitivity>,
+    /// Whether the check did not trust it, and how its plot shows that; `None`: trusted or
+    /// unchecked.
+    pub untrusted: Option<LayoutUntrusted>,
 }
 
 /// The panel title of an output: `frame.tool0.z [m]`, or the name alone when unitless.
@@ -64,6 +78,20 @@ pub fn panel_title(name: &str, unit: &str) -> String {
     } else {
         format!("{name} [{unit}]")
     }
+}
+
+/// The panel title of an output the check did not trust: `⚠ q.j1 [rad] — NOT TRUSTED (misfit
+/// 65.6 %): true runs dotted` (the misfit in % of the output's largest envelope width, as the
+/// exit-4 message words it; the last part only when the plot shows the true runs). The sign
+/// comes first because a viewer cuts a long title to the panel's width: in a grid of seven plots
+/// rerun shows about twenty characters, the sign and the output's name. The rerun blueprint
+/// (`scripts/viewers/rerun_blueprint.py`) writes the same.
+pub fn untrusted_title(title: &str, relative_misfit: f64, shows_runs: bool) -> String {
+    format!(
+        "⚠ {title} — NOT TRUSTED (misfit {:.1} %){}",
+        100.0 * relative_misfit,
+        if shows_runs { ": true runs dotted" } else { "" }
+    )
 }
 
 /// A Foxglove message path into a topic: quoted when the topic holds a character that ends a
@@ -96,9 +124,10 @@ fn mosaic(ids: &[String], direction: &str) -> Value {
     }
 }
 
-/// The Plot panel of one output.
+/// The Plot panel of one output: its envelope and, when the check did not trust it, the hull of
+/// its true runs as dots (no line: the dots tell them from the envelope in any colour scheme).
 fn plot_panel(output: &LayoutOutput) -> Value {
-    let paths: Vec<Value> = SERIES_COLOURS
+    let mut paths: Vec<Value> = SERIES_COLOURS
         .iter()
         .enumerate()
         .map(|(index, (label, colour))| {
@@ -113,7 +142,33 @@ fn plot_panel(output: &LayoutOutput) -> Value {
             })
         })
         .collect();
-    plot_config(&panel_title(&output.name, &output.unit), paths)
+    let mut title = panel_title(&output.name, &output.unit);
+    if let Some(untrusted) = &output.untrusted {
+        if let Some(topic) = &untrusted.runs_topic {
+            paths.extend(
+                RUNS_HULL_SERIES
+                    .iter()
+                    .enumerate()
+                    .map(|(index, (label, colour))| {
+                        json!({
+                            "value": message_path(topic, &format!("position[{index}]")),
+                            "enabled": true,
+                            "timestampMethod": "receiveTime",
+                            "label": label,
+                            "color": colour,
+                            "lineSize": 1.0,
+                            "showLine": false,
+                        })
+                    }),
+            );
+        }
+        title = untrusted_title(
+            &title,
+            untrusted.relative_misfit,
+            untrusted.runs_topic.is_some(),
+        );
+    }
+    plot_config(&title, paths)
 }
 
 /// A Plot panel's configuration: `paths` against time, titled `title` (under both viewers' title
@@ -315,7 +370,51 @@ mod tests {
             parts,
             unit: unit.to_string(),
             sensitivity: None,
+            untrusted: None,
         }
+    }
+
+    #[test]
+    fn an_untrusted_output_says_so_and_shows_its_true_runs_as_dots() {
+        let mut elbow = output("q.elbow_joint", "rad");
+        elbow.untrusted = Some(LayoutUntrusted {
+            relative_misfit: 0.656,
+            runs_topic: Some("/ribbon/runs/q/elbow_joint".to_string()),
+        });
+        let mut wrist = output("q.wrist_joint", "rad");
+        wrist.untrusted = Some(LayoutUntrusted {
+            relative_misfit: 0.08,
+            runs_topic: None,
+        });
+        let layout = foxglove_layout(
+            &[elbow, wrist, output("frame.tool0.z", "m")],
+            &SceneExtent::default(),
+        );
+        let config = &layout["configById"];
+        let elbow = &config["Plot!ribbon0"];
+        let title = "⚠ q.elbow_joint [rad] — NOT TRUSTED (misfit 65.6 %): true runs dotted";
+        assert_eq!(elbow["foxglovePanelTitle"], title);
+        assert_eq!(elbow["lichtblickPanelTitle"], title);
+        let paths = elbow["paths"].as_array().unwrap();
+        assert_eq!(paths.len(), 5);
+        assert_eq!(paths[3]["value"], "/ribbon/runs/q/elbow_joint.position[0]");
+        assert_eq!(paths[4]["value"], "/ribbon/runs/q/elbow_joint.position[1]");
+        assert_eq!(paths[4]["label"], RUNS_HULL_SERIES[1].0);
+        assert_eq!(paths[3]["showLine"], false);
+        for (_, envelope_colour) in SERIES_COLOURS {
+            assert_ne!(paths[3]["color"], envelope_colour);
+        }
+        // Without the hull's channels: the title alone.
+        let wrist = &config["Plot!ribbon1"];
+        assert_eq!(
+            wrist["foxglovePanelTitle"],
+            "⚠ q.wrist_joint [rad] — NOT TRUSTED (misfit 8.0 %)"
+        );
+        assert_eq!(wrist["paths"].as_array().unwrap().len(), 3);
+        // A trusted output's plot is unchanged.
+        let tool = &config["Plot!ribbon2"];
+        assert_eq!(tool["foxglovePanelTitle"], "frame.tool0.z [m]");
+        assert_eq!(tool["paths"].as_array().unwrap().len(), 3);
     }
 
     #[test]

@@ -10,7 +10,8 @@
 mod foxglove_layout;
 
 pub use foxglove_layout::{
-    foxglove_layout, LayoutOutput, LayoutSensitivity, FOXGLOVE_LAYOUT_NAME, SENSITIVITY_COLOURS,
+    foxglove_layout, untrusted_title, LayoutOutput, LayoutSensitivity, LayoutUntrusted,
+    FOXGLOVE_LAYOUT_NAME, SENSITIVITY_COLOURS,
 };
 
 use std::collections::BTreeMap;
@@ -23,6 +24,16 @@ pub const SERIES_COLOURS: [(&str, &str); 3] = [
     ("lower", "#0072b2"),
     ("nominal", "#009e73"),
     ("upper", "#d55e00"),
+];
+
+/// The series of a channel of the hull of true runs (an untrusted output's, docs/mcap.md §4),
+/// in `position` order, with their labels and colour: both reddish purple, the Okabe–Ito colour
+/// the envelope series do not use that reads on the viewers' dark backgrounds and on light ones
+/// (its dots, not its colour, tell it from the envelope; the sensitivity plots that also use it
+/// are in other tabs).
+pub const RUNS_HULL_SERIES: [(&str, &str); 2] = [
+    ("true runs, lowest", "#cc79a7"),
+    ("true runs, highest", "#cc79a7"),
 ];
 
 /// Smallest scene radius used for a camera, m: a robot whose links all sit at one point (a single
