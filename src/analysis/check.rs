@@ -97,14 +97,17 @@ pub fn untrusted_advice(
         .iter()
         .map(|&t| crate::text::message_time(t))
         .collect();
-    if let Some(t) = check.first_miss_record.and_then(|r| times.get(r).copied()) {
-        let earlier = match check.checks_before_first_miss {
-            0 => String::new(),
-            1 => " (the one check at earlier times agreed)".to_string(),
-            n => format!(" (the {n} checks at earlier times agreed)"),
-        };
-        parts.push(format!("the first miss is at t = {t} s{earlier}"));
-    }
+    let first_miss = check
+        .first_miss_record
+        .and_then(|r| times.get(r).copied())
+        .map(|t| {
+            let earlier = match check.checks_before_first_miss {
+                0 => String::new(),
+                1 => " (the one check at earlier times agreed)".to_string(),
+                n => format!(" (the {n} checks at earlier times agreed)"),
+            };
+            format!("the first miss is at t = {t} s{earlier}")
+        });
     // The check restricted to the records up to some time passes when a shorter run would be
     // judged by the same checks: worth naming only if it is not the start.
     let last = times.len().saturating_sub(1);
@@ -139,14 +142,16 @@ pub fn untrusted_advice(
         }
         _ => None,
     };
-    // Beside a shorter horizon, the first miss needs its yardstick: it is judged against the
-    // whole run's envelopes, which a fast-widening motion makes far wider than those up to the
-    // shorter horizon (a limp arm over 1 s: first miss at 0.5 s, verified up to 0.24 s).
-    if shorter.is_some() && check.first_miss_record.is_some() {
-        parts[0] = format!(
-            "judged against the whole run's envelope widths, {}",
-            parts[0]
-        );
+    // The first miss comes first; beside a shorter horizon it needs its yardstick: it is judged
+    // against the whole run's envelopes, which a fast-widening motion makes far wider than those
+    // up to the shorter horizon (a limp arm over 1 s: first miss at 0.5 s, verified to 0.24 s).
+    if let Some(first_miss) = first_miss {
+        let first_miss = if shorter.is_some() {
+            format!("judged against the whole run's envelope widths, {first_miss}")
+        } else {
+            first_miss
+        };
+        parts.insert(0, first_miss);
     }
     if !at_stops.is_empty() {
         parts.push(format!(

@@ -18,7 +18,7 @@
 //!                                                                              └ passes at X  │
 //!     first_check_until(X) ─▶ check runs ─▶ judge ─┬ passes at X: verified          ▼         │
 //!                                                  └ fails at X ─▶ X = min(passes_until,      │
-//!                                                      0.9 · X), the next round ◀─────────────┘
+//!                                                      BACKOFF · X), the next round ◀─────────┘
 //!                                                      (at most HORIZON_MAX_ROUNDS rounds)
 //! ```
 //!

@@ -38,7 +38,7 @@ use super::bounded_block::{BoundedBlock, Extremes};
 use super::bounds::include_runs;
 use super::envelope::EnvelopePoint;
 use super::sparse::SparseDesign;
-use crate::uq::{BoxOptimizer, SobolIndices, SparseSurrogate, UqError};
+use crate::uq::{outer_widened_to_inner, BoxOptimizer, SobolIndices, SparseSurrogate, UqError};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
@@ -390,13 +390,11 @@ impl SparseBounds {
                 out.points.push(match inner {
                     Some((lower, upper)) if !self.outer_only => {
                         let (lower, upper) = (lower.values[r], upper.values[r]);
-                        // As `BoxOptimizer::enclose`: rounding must never put the enclosure
-                        // inside an attained value.
                         EnvelopePoint {
                             lower,
                             upper,
                             error,
-                            outer: Some((outer_lower.min(lower), outer_upper.max(upper))),
+                            outer: Some(outer_widened_to_inner(record.outer[o], lower, upper)),
                         }
                     }
                     _ => EnvelopePoint {

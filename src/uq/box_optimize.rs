@@ -364,10 +364,8 @@ impl BoxOptimizer {
     /// The outer half of [`BoxOptimizer::bound_into`]: `outer_lower` and `outer_upper` of `out`
     /// from the interval enclosure of `s`'s range, widened to the inner bounds already in `out`.
     pub fn enclose(&mut self, s: &SparseSurrogate, out: &mut BoxBounds) {
-        let (lo, hi) = self.outer(s);
-        // Rounding must never put the enclosure inside an attained value.
-        out.outer_lower = lo.min(out.lower);
-        out.outer_upper = hi.max(out.upper);
+        (out.outer_lower, out.outer_upper) =
+            outer_widened_to_inner(self.outer(s), out.lower, out.upper);
     }
 
     /// The outer bound alone (module doc): `(lower, upper)` containing the surrogate's range.
@@ -432,6 +430,16 @@ impl BoxOptimizer {
         }
         (lower, upper)
     }
+}
+
+/// The outer bound `(lower, upper)` widened to contain the inner one `[inner_lower,
+/// inner_upper]`: rounding must never put the enclosure inside an attained value.
+pub fn outer_widened_to_inner(
+    (lower, upper): (f64, f64),
+    inner_lower: f64,
+    inner_upper: f64,
+) -> (f64, f64) {
+    (lower.min(inner_lower), upper.max(inner_upper))
 }
 
 /// Refuses start points that are not `k × d`, not finite or outside [−1, 1].

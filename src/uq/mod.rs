@@ -71,7 +71,7 @@ pub(crate) mod tensor_contraction;
 pub use basis::{legendre_min, MAX_ORDER};
 pub use bernstein::{BernsteinBound, BernsteinBounder, BernsteinOptions, BERNSTEIN_MAX_ORDER};
 pub use bounds::{chebyshev_inclusion, interval_bound, Bound, BoundKind, RangeMode};
-pub use box_optimize::{BoxBounds, BoxOptimizer};
+pub use box_optimize::{outer_widened_to_inner, BoxBounds, BoxOptimizer};
 pub use design::{Design, Truncation};
 pub use element_box::ElementBox;
 pub use error::UqError;
