@@ -10,8 +10,10 @@ origins), writes them as an explicit sidecar with the same scene, and measures:
   true model for d <= 4, `--reference vertex` above: the docs/method.md §4 error and the share of
   the reference's range the envelope misses.
 
-Then it fits `runs ~ d^p` and `wall ~ d^p` by least squares on log-log over d >= 8 and prints a
-Markdown table. Run from the repository root after `cargo build --release`:
+The fit + bound columns: Y = `stats.bound_seconds` over the wall, U = the surrogate arithmetic's
+thread-seconds over threads x wall (README, "What fit + bound means"). Then it fits `runs ~ d^p`
+and `wall ~ d^p` by least squares on log-log over d >= 8 and prints a Markdown
+table. Run from the repository root after `cargo build --release`:
 
     python3 benches/scaling.py [--duration 1.0] [--dims 2,4,8,16,32,64] [--out target/scaling]
 
@@ -66,6 +68,15 @@ def write_sidecar(path, dims):
         f.write("\n".join(lines) + "\n\n" + scene_text())
 
 
+def arithmetic_thread_share(summary):
+    """U of the README's Speed section: the fit, bound, Sobol' and design-choice thread-seconds
+    over (threads x wall), the share of the machine's time spent on surrogate arithmetic."""
+    phases = summary["stats"]["phase_seconds"]
+    spent = sum(phases.get(k, 0.0) for k in
+                ("design_choice", "fit", "inner_bound", "outer_bound", "sobol_indices"))
+    return spent / (summary["stats"]["threads"] * summary["wall_seconds"])
+
+
 def fit_exponent(ds, values):
     xs = [math.log(d) for d in ds]
     ys = [math.log(v) for v in values]
@@ -103,6 +114,8 @@ def main():
             "runs": s["samples"],
             "wall_s": s["wall_seconds"],
             "peak_mib": s["stats"]["peak_memory_bytes"] / 2**20,
+            "bound_share": s["stats"]["bound_seconds"] / s["wall_seconds"],
+            "thread_share": arithmetic_thread_share(s),
             "reference": f'{reference} ({c["reference"]["runs"]} runs)',
             "max_error": row["max_error"],
             "mean_error": row["mean_error"],
@@ -110,11 +123,12 @@ def main():
             "check": max(o["relative_misfit"] for o in s["stats"]["check"]["outputs"]) if s["stats"].get("check") else None,
         })
         print(f"d = {d}: {rows[-1]}", file=sys.stderr)
-    print("| d | design | runs | wall (s) | peak memory (MiB) | reference | max error | mean error | missed | largest check misfit |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| d | design | runs | wall (s) | fit + bound Y / U | peak memory (MiB) | reference | max error | mean error | missed | largest check misfit |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         check = f'{r["check"]:.2e}' if r["check"] is not None else "-"
-        print(f'| {r["d"]} | {r["design"]} | {r["runs"]} | {r["wall_s"]:.2f} | {r["peak_mib"]:.0f} | '
+        print(f'| {r["d"]} | {r["design"]} | {r["runs"]} | {r["wall_s"]:.2f} | '
+              f'{100 * r["bound_share"]:.0f} / {100 * r["thread_share"]:.0f} % | {r["peak_mib"]:.0f} | '
               f'{r["reference"]} | {r["max_error"]:.2e} | {r["mean_error"]:.2e} | {r["missed"]:.2e} | {check} |')
     big = [r for r in rows if r["d"] >= 8]
     if len(big) >= 2:
