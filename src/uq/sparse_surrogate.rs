@@ -630,7 +630,8 @@ impl SparseSurrogate {
     }
 
     /// Main and total Sobol' indices per dimension (docs/sobol-indices.md §2). A constant
-    /// surrogate (variance 0) has every index 0.
+    /// surrogate (variance 0, or a spread of rounding size:
+    /// [`crate::uq::sobol_indices::NEGLIGIBLE_RELATIVE_SPREAD`]) has every index 0.
     pub fn sobol_indices(&self) -> SobolIndices {
         let mut out = SobolIndices::zeros(self.dim());
         self.sobol_indices_into(&mut out);
@@ -650,7 +651,7 @@ impl SparseSurrogate {
                 term.iter().map(|f| f.dim as usize),
             );
         }
-        out.normalise();
+        out.normalise(self.coefficients[0]);
     }
 
     /// Largest `|y − surrogate(ξ)|` over model runs: `points` `n × d` row-major, `values` the n
