@@ -400,6 +400,103 @@ fn an_initial_velocity_the_loop_forbids_is_reported_with_the_numbers() {
     assert!(!out.stderr.contains("initial.v"), "{}", out.stderr);
 }
 
+/// A given position the rows do not allow is reported as a given velocity is: before, a crank
+/// angle the loop could not take was silently moved by the start projection.
+#[test]
+fn an_initial_position_the_loop_forbids_is_reported_with_the_numbers() {
+    let text = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("robots/four_bar/four_bar.uncertainty.toml"),
+    )
+    .unwrap();
+    let given = "initial.q = { crank_joint = 0.0,";
+    assert!(text.contains(given), "the sidecar gives the crank's angle");
+    let moved_crank = text.replace(given, "initial.q = { crank_joint = 0.3,");
+    let sidecar = temp_file("four_bar_moved_crank.toml", &moved_crank);
+    let out = ribbon_outcome(&[
+        "simulate",
+        "robots/four_bar/four_bar.urdf",
+        "--uncertainty",
+        sidecar.to_str().unwrap(),
+        "--duration",
+        "0.01",
+    ]);
+    assert_exit(
+        &out,
+        0,
+        &[
+            "warning:",
+            "initial.q does not satisfy the constraint rows",
+            "crank_joint 0.3 → ",
+            "coupler_joint 0.9479697413828937 → ",
+        ],
+    );
+    // The shipped sidecar closes the loop: no warning.
+    let out = ribbon_outcome(&[
+        "simulate",
+        "robots/four_bar/four_bar.urdf",
+        "--duration",
+        "0.01",
+    ]);
+    assert!(!out.stderr.contains("initial.q"), "{}", out.stderr);
+}
+
+/// A URDF mimic joint left out of `initial.q` starts at its leader's position (times the
+/// multiplier, plus the offset), on bullet3's xarm6 with its gripper (five followers of
+/// `drive_joint`) and the starter sidecar `ribbon init` writes: before, the start projection
+/// averaged the six joints to 0.425 / 6 rad, and the starter's springs pulled the gripper open.
+#[test]
+fn mimic_joints_left_out_of_initial_q_start_at_their_leader() {
+    let dir = common::fresh_scratch_dir("issue12_validation", "mimic_start");
+    let urdf = dir.join("xarm6_with_gripper.urdf");
+    std::fs::copy(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/urdf_corpus/bullet3/xarm/xarm6_with_gripper.urdf"),
+        &urdf,
+    )
+    .unwrap();
+    let urdf = urdf.to_str().unwrap();
+    assert_exit(&ribbon_outcome(&["init", urdf]), 0, &[]);
+    let starter = std::fs::read_to_string(dir.join("xarm6_with_gripper.uncertainty.toml")).unwrap();
+    assert!(
+        starter.contains("drive_joint = 0.425") && !starter.contains("left_finger_joint ="),
+        "the starter gives the leader only:\n{starter}"
+    );
+    let csv = dir.join("start.csv");
+    let out = ribbon_outcome(&[
+        "simulate",
+        urdf,
+        "--duration",
+        "0.01",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_exit(&out, 0, &[]);
+    assert!(!out.stderr.contains("initial.q"), "{}", out.stderr);
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let first: Vec<f64> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    for joint in [
+        "drive_joint",
+        "left_finger_joint",
+        "left_inner_knuckle_joint",
+        "right_outer_knuckle_joint",
+        "right_finger_joint",
+        "right_inner_knuckle_joint",
+    ] {
+        let column = header
+            .iter()
+            .position(|h| *h == format!("q.{joint}"))
+            .unwrap_or_else(|| panic!("no q.{joint} in {header:?}"));
+        assert_eq!(first[column], 0.425, "{joint} at t = 0");
+    }
+}
+
 #[test]
 fn two_outputs_with_one_name_are_refused() {
     let sidecar = temp_file(

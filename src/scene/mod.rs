@@ -217,6 +217,9 @@ pub struct Scene {
     pub initial_q: Vec<f64>,
     /// Initial velocities, dim `nv`.
     pub initial_v: Vec<f64>,
+    /// The position coordinates the sidecar gave (`initial.q`, `initial.base`), ascending: the
+    /// start projection reports when it changes them ([`crate::simulate::check_start`]).
+    pub initial_q_given: Vec<usize>,
     /// The velocity coordinates the sidecar gave (`initial.v`, `initial.base`), ascending: the
     /// start projection reports when it changes them ([`crate::simulate::check_start`]).
     pub initial_v_given: Vec<usize>,
@@ -428,10 +431,13 @@ impl Scene {
         }
         let mut initial_q = model.neutral_configuration();
         let mut initial_v = vec![0.0; model.nv];
+        let mut initial_q_given = Vec::new();
         for (name, value) in &s.initial.q {
             let j = one_dof_joint("[scene] initial.q", name)?;
             initial_q[model.joints[j].q_index] = *value;
+            initial_q_given.push(model.joints[j].q_index);
         }
+        start_followers_where_their_rows_put_them(model, &mut initial_q, &initial_q_given);
         let mut initial_v_given = Vec::new();
         for (name, value) in &s.initial.v {
             let j = one_dof_joint("[scene] initial.v", name)?;
@@ -461,6 +467,7 @@ impl Scene {
             initial_v[vi..vi + 3].copy_from_slice(&base.v);
             initial_v[vi + 3..vi + 6].copy_from_slice(&base.w);
             initial_v_given.extend(vi..vi + 6);
+            initial_q_given.extend(qi..qi + 7);
         }
         if initial_q.iter().chain(&initial_v).any(|x| !x.is_finite()) {
             return Err(invalid(
@@ -516,6 +523,10 @@ impl Scene {
             springs,
             initial_q,
             initial_v,
+            initial_q_given: {
+                initial_q_given.sort_unstable();
+                initial_q_given
+            },
             initial_v_given: {
                 initial_v_given.sort_unstable();
                 initial_v_given
@@ -541,6 +552,40 @@ impl Scene {
     /// Whether step `k` (0 ..= n_steps) is recorded: every `record_every` steps, plus the last.
     pub fn records_step(&self, k: usize) -> bool {
         k.is_multiple_of(self.record_every) || k == self.n_steps
+    }
+}
+
+/// Every URDF mimic follower that `initial.q` does not set (its coordinate not in `given`) starts
+/// where its constraint row puts it, `q = multiplier · q_leader + offset`, rather than at its
+/// neutral position. Otherwise the start projection (docs/method.md §5) closes the row by
+/// least-norm steps that move the leader too: bullet3's xarm6 gripper, its drive joint given at
+/// 0.425 rad and five followers at 0, started every one of the six at 0.425 / 6 = 0.0708 rad, and
+/// the springs of `ribbon init`'s starter, meant to hold the pose, pulled the gripper 0.34 rad
+/// open in the first 0.2 s. A follower of a follower takes its leader's start: each pass settles
+/// one more link of such a chain.
+fn start_followers_where_their_rows_put_them(
+    model: &Model,
+    initial_q: &mut [f64],
+    given: &[usize],
+) {
+    for _ in 0..model.joints.len() {
+        let mut moved = false;
+        for joint in &model.joints {
+            let Some((leader, multiplier, offset)) = joint.mimic else {
+                continue;
+            };
+            if given.contains(&joint.q_index) {
+                continue;
+            }
+            let start = multiplier * initial_q[model.joints[leader].q_index] + offset;
+            if initial_q[joint.q_index] != start {
+                initial_q[joint.q_index] = start;
+                moved = true;
+            }
+        }
+        if !moved {
+            break;
+        }
     }
 }
 
@@ -681,6 +726,27 @@ mod tests {
             "a.urdf",
         )
         .unwrap()
+    }
+
+    #[test]
+    fn a_mimic_follower_left_out_of_initial_q_starts_at_its_leader() {
+        let model = arm_outside_its_limits();
+        let resolve_on = |text: &str| {
+            let file = parse_sidecar(text).unwrap();
+            Scene::resolve(&file, &model, "s.toml", SceneOverrides::default()).unwrap()
+        };
+        let q_of = |scene: &Scene, name: &str| {
+            scene.initial_q[model.joints[model.joint_index(name).unwrap()].q_index]
+        };
+        // `finger` mimics `wrist` (multiplier 1, offset 0).
+        let scene = resolve_on("[scene]\ninitial.q = { wrist = 0.7 }\n");
+        assert_eq!(q_of(&scene, "finger"), 0.7);
+        assert_eq!(q_of(&scene, "wrist"), 0.7);
+        // Given, it is left as given (the start projection reports what it moves).
+        let scene = resolve_on("[scene]\ninitial.q = { wrist = 0.7, finger = 0.3 }\n");
+        assert_eq!(q_of(&scene, "finger"), 0.3);
+        let finger = model.joints[model.joint_index("finger").unwrap()].q_index;
+        assert!(scene.initial_q_given.contains(&finger));
     }
 
     #[test]

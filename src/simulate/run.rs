@@ -76,6 +76,11 @@ pub fn initial_violation(system: &mut RobotSystem, scene: &Scene) -> f64 {
     phi.amax()
 }
 
+/// A given initial position that the start projection changed by more than this (rad or m, plus
+/// the same fraction of its size) is reported, as [`VELOCITY_PROJECTION_NOTE`] for velocities:
+/// positions that already close the rows move only by rounding.
+pub const POSITION_PROJECTION_NOTE: f64 = 1e-9;
+
 /// A given initial velocity that the start projection changed by more than this (rad/s or m/s,
 /// plus the same fraction of its size) is reported: the projection of an already consistent
 /// velocity changes it only by rounding (~1e-15).
@@ -83,7 +88,8 @@ pub const VELOCITY_PROJECTION_NOTE: f64 = 1e-9;
 
 /// Checks that `model` can start `scene` (the consistent start of docs/method.md §5: position and
 /// velocity projection, initial accelerations and multipliers) and returns warnings about what the
-/// start changed: velocities given in `initial.v` that the constraint rows did not allow, with the
+/// start changed: positions given in `initial.q` (or `initial.base`) that the rows moved, and
+/// velocities given in `initial.v` that the constraint rows did not allow, with the
 /// values before and after and, when the given ones can be kept, the velocities of the other
 /// joints that keep them.
 ///
@@ -112,6 +118,30 @@ pub fn check_start(
         })?;
     let state = integrator.state();
     let mut warnings = Vec::new();
+    let moved_positions: Vec<String> = scene
+        .initial_q_given
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let (before, after) = (scene.initial_q[i], state.q[i]);
+            (after - before).abs() > POSITION_PROJECTION_NOTE * (1.0 + before.abs())
+        })
+        .map(|i| {
+            let joint = model
+                .joints
+                .iter()
+                .find(|j| (j.q_index..j.q_index + j.nq()).contains(&i))
+                .map_or("?", |j| j.name.as_str());
+            format!("{joint} {} → {:.6}", scene.initial_q[i], state.q[i])
+        })
+        .collect();
+    if !moved_positions.is_empty() {
+        warnings.push(format!(
+            "{}: [scene] initial.q does not satisfy the constraint rows; the start projection changed it: {}. Give positions that close the loops and mimic rows (a mimic joint left out of initial.q starts at its leader's)",
+            scene.origins.sidecar,
+            moved_positions.join(", ")
+        ));
+    }
     let changed: Vec<usize> = scene
         .initial_v_given
         .iter()
