@@ -168,15 +168,21 @@ fn analyze_log_matches_its_summary_in_every_reader() {
             {"name": "double_pendulum.uncertainty.toml", "media_type": "application/toml", "path": manifest("robots/double_pendulum/double_pendulum.uncertainty.toml")},
         ],
     });
-    let expected_path = scratch_file("mcap_cli", "double_pendulum.expected.json");
+    check_mcap(&out, &expected, "double_pendulum");
+}
+
+/// Runs tests/reference/check_mcap.py on `log` with `expected` (written beside it as
+/// `NAME.expected.json`); fails with its report unless every check passes.
+fn check_mcap(log: &Path, expected: &Value, name: &str) {
+    let expected_path = scratch_file("mcap_cli", &format!("{name}.expected.json"));
     std::fs::write(&expected_path, expected.to_string()).unwrap();
     let python = common::reference_python();
     let result = Command::new(&python)
         .arg(manifest("tests/reference/check_mcap.py"))
-        .arg(&out)
+        .arg(log)
         .arg(&expected_path)
         .arg("--work-dir")
-        .arg(scratch_file("mcap_cli", "check_work"))
+        .arg(scratch_file("mcap_cli", &format!("{name}.check_work")))
         .output()
         .expect("python runs");
     assert!(
@@ -186,6 +192,103 @@ fn analyze_log_matches_its_summary_in_every_reader() {
         String::from_utf8_lossy(&result.stderr)
     );
     println!("{}", String::from_utf8_lossy(&result.stdout));
+}
+
+/// The CSV's columns by name, each value as written.
+fn csv_columns(text: &str) -> std::collections::BTreeMap<String, Vec<f64>> {
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().expect("a header").split(',').collect();
+    let mut columns = std::collections::BTreeMap::<String, Vec<f64>>::new();
+    for line in lines {
+        for (name, value) in header.iter().zip(line.split(',')) {
+            columns
+                .entry(name.to_string())
+                .or_default()
+                .push(value.parse().expect("a number"));
+        }
+    }
+    columns
+}
+
+/// An untrusted study's log (exit 4: the double pendulum from upright, tests/untrusted_outputs.rs)
+/// through check_mcap.py: its hull channels hold the CSV's `NAME.runs_lower` / `NAME.runs_upper`
+/// columns, and every hull series of the layout names one of them, on the untrusted outputs' plots
+/// only, which say NOT TRUSTED.
+#[test]
+fn an_untrusted_log_passes_the_reference_readers_with_its_true_runs() {
+    let dir = common::fresh_test_scratch_dir("mcap_cli", "untrusted");
+    let urdf = "robots/double_pendulum/double_pendulum.urdf";
+    let sidecar = "tests/fixtures/refine_chaos/upright.uncertainty.toml";
+    let (out, csv, summary_path) = (
+        dir.join("untrusted.mcap"),
+        dir.join("untrusted.csv"),
+        dir.join("summary.json"),
+    );
+    let status = Command::new(common::ribbon_bin())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "analyze",
+            urdf,
+            "--uncertainty",
+            sidecar,
+            "--max-runs",
+            "600",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .arg("--csv")
+        .arg(&csv)
+        .arg("--summary")
+        .arg(&summary_path)
+        .stderr(Stdio::null())
+        .status()
+        .expect("ribbon runs");
+    assert_eq!(status.code(), Some(i32::from(ribbon::UNTRUSTED_EXIT_CODE)));
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary_path).unwrap()).unwrap();
+    let columns = csv_columns(&std::fs::read_to_string(&csv).unwrap());
+    let outputs = summary["outputs"].as_array().unwrap();
+    let topic = |kind: &str, name: &str| format!("/ribbon/{kind}/{}", name.replace('.', "/"));
+    let untrusted = summary["stats"]["check"]["untrusted_outputs"].clone();
+    assert!(
+        !untrusted.as_array().unwrap().is_empty(),
+        "the study must be untrusted"
+    );
+    let (_, metadata) = read_with_rust(&out);
+    let expected = json!({
+        "urdf_path": manifest(urdf),
+        "robot": "double_pendulum",
+        "envelopes": outputs.iter().map(|o| json!({
+            "name": o["name"], "unit": o["unit"], "topic": topic("envelope", o["name"].as_str().unwrap()),
+            "time": o["time"], "lower": o["lower"], "nominal": o["nominal"], "upper": o["upper"],
+        })).collect::<Vec<_>>(),
+        "errors": outputs.iter().map(|o| json!({
+            "name": o["name"], "topic": topic("error", o["name"].as_str().unwrap()),
+            "time": o["time"], "estimate": o["error_estimate"],
+        })).collect::<Vec<_>>(),
+        // The hull as the CSV has it (tests/untrusted_outputs.rs: the CSV's is the summary's).
+        "runs": outputs.iter().map(|o| {
+            let name = o["name"].as_str().unwrap();
+            json!({
+                "name": name, "topic": topic("runs", name), "time": o["time"],
+                "runs_lower": columns[&format!("{name}.runs_lower")],
+                "runs_upper": columns[&format!("{name}.runs_upper")],
+            })
+        }).collect::<Vec<_>>(),
+        "untrusted_outputs": untrusted,
+        "sobol": sobol_entries(&summary),
+        "transform_times": outputs[0]["time"],
+        "transform_links": ["base", "bar1", "bar2", "tip"],
+        // The record's keys are checked against the summary in tests/untrusted_outputs.rs.
+        "metadata": metadata[0].metadata,
+        "viewer": true,
+        "attachments": [
+            {"name": "foxglove-layout.json", "media_type": "application/json", "foxglove_layout": true},
+            {"name": "double_pendulum.urdf", "media_type": "application/xml", "path": manifest(urdf)},
+            {"name": "upright.uncertainty.toml", "media_type": "application/toml", "path": manifest(sidecar)},
+        ],
+    });
+    check_mcap(&out, &expected, "untrusted");
 }
 
 #[test]

@@ -400,8 +400,54 @@ fn an_untrusted_studys_page_shows_its_warnings_first() {
             .any(|r| r["untrusted"] == true),
         "an untrusted output is marked"
     );
-    // Without --out the page says how to get a log, and no layout is written.
+    // Each untrusted output's band plot: captioned NOT TRUSTED with its misfit, its true runs'
+    // range drawn (the SVG's legend names it; tests/untrusted_outputs.rs checks where it is drawn).
+    let check = &summary["stats"]["check"];
+    let untrusted: Vec<&str> = check["untrusted_outputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    let bands: Vec<&Value> = seen["pictures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["kind"] == "band")
+        .collect();
+    assert_eq!(bands.len(), summary["outputs"].as_array().unwrap().len());
     let text = fs::read_to_string(&page).unwrap();
+    for band in bands {
+        let output = band["output"].as_str().unwrap();
+        let caption = band["caption"].as_str().unwrap();
+        if untrusted.contains(&output) {
+            let misfit = check["outputs"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|o| o["name"] == output)
+                .unwrap()["relative_misfit"]
+                .as_f64()
+                .unwrap();
+            assert_eq!(band["untrusted"], true, "{band}");
+            assert!(
+                caption.starts_with(&format!(
+                    "⚠ {output} [rad] — NOT TRUSTED (misfit {:.1} %)",
+                    100.0 * misfit
+                )),
+                "{caption}"
+            );
+        } else {
+            assert_eq!(band["untrusted"], false, "{band}");
+            assert!(!caption.contains("NOT TRUSTED"), "{caption}");
+        }
+    }
+    assert!(!untrusted.is_empty());
+    assert!(
+        text.contains("true runs&apos; range ("),
+        "no band plot names the true runs' range"
+    );
+    // Without --out the page says how to get a log, and no layout is written.
     assert!(text.contains("This study wrote no MCAP log"), "{text}");
     assert!(!page.with_file_name("foxglove-layout.json").exists());
 }

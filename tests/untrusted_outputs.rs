@@ -4,8 +4,9 @@
 //! record; the untrusted outputs' plots titled as such in the Foxglove layout, their true runs
 //! beside the envelope; every message in time order; and `plan` / `run` / `merge` writing the same
 //! bytes. The scene: the double pendulum falling from upright (fixture `refine_chaos`), untrusted
-//! over its 3 s. A trusted study's files keep every byte (tests/analyze_bitwise.rs); here, that
-//! it has none of the above.
+//! over its 3 s. Its report (`--report`): each untrusted output's band plot titled NOT TRUSTED,
+//! with the true runs' range drawn dotted where the summary's values map on the plot. A trusted
+//! study's files keep every byte (tests/analyze_bitwise.rs); here, that it has none of the above.
 
 mod common;
 
@@ -32,12 +33,14 @@ struct JointState {
     effort: Vec<f64>,
 }
 
-/// The study's files: (CSV text, MCAP bytes, summary).
+/// The study's files: (CSV text, MCAP bytes, summary); its report is in `dir/report`.
 fn study(dir: &Path, command: &[&str], expected_code: i32) -> (String, Vec<u8>, Value) {
     let file = |name: &str| dir.join(name).to_str().unwrap().to_string();
     let mut args = command.to_vec();
     let (csv, mcap, summary) = (file("out.csv"), file("out.mcap"), file("summary.json"));
+    let report = file("report");
     args.extend(["--csv", &csv, "--out", &mcap, "--summary", &summary]);
+    args.extend(["--report", &report]);
     let outcome = ribbon_outcome(&args);
     assert_eq!(outcome.code, Some(expected_code), "{}", outcome.stderr);
     (
@@ -102,6 +105,162 @@ fn read_topics(bytes: &[u8]) -> (Topics, bool) {
     (topics, in_time_order)
 }
 
+/// Every `points` list of the SVG's elements whose attributes contain `attribute` (e.g.
+/// `stroke="#CC79A7"`), drawn before the legend's box (the `<rect` edged `#A0A0A0`): `(x, y)`
+/// pixels.
+fn plotted_points(svg: &str, attribute: &str) -> Vec<(f64, f64)> {
+    let plot = &svg[..svg.find("stroke=\"#A0A0A0\"").expect("a legend")];
+    plot.split('<')
+        .filter(|element| element.contains(attribute))
+        .filter_map(|element| element.split("points=\"").nth(1))
+        .flat_map(|rest| {
+            rest[..rest.find('"').unwrap()]
+                .split_whitespace()
+                .map(|p| {
+                    let (x, y) = p.split_once(',').unwrap();
+                    (x.parse().unwrap(), y.parse().unwrap())
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// Smallest and largest of `values`.
+fn span(values: impl IntoIterator<Item = f64>) -> (f64, f64) {
+    values
+        .into_iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        })
+}
+
+/// How far (pixels) a dotted line's drawn extreme may be from where its extreme value maps: a dot
+/// and a gap (6 px along the line) may fall on the extreme, plus a pixel of rounding each side.
+const DOTTED_EXTREME_PIXELS: f64 = 8.0;
+
+/// The report of an untrusted study (`--report`): each untrusted output's band plot is titled NOT
+/// TRUSTED with the summary's misfit, names the true runs' range with the study's run count, and
+/// draws it where the summary's `runs_lower` / `runs_upper` map on the plot's axis (the axis read
+/// off the band's own extremes); the axis clips the band exactly when the bounds are more than
+/// four times as tall as the range; the page and `report.md` say so too.
+fn assert_the_report_shows_the_true_runs(dir: &Path, summary: &Value) {
+    let check = &summary["stats"]["check"];
+    // The study's model runs less its excluded samples.
+    let runs = summary["samples"].as_u64().unwrap()
+        - summary["excluded_samples"].as_array().unwrap().len() as u64;
+    let mut cases = Vec::new();
+    for output in OUTPUTS {
+        let svg = std::fs::read_to_string(dir.join(format!("report/{output}.svg"))).unwrap();
+        let misfit = check["outputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|o| o["name"] == output)
+            .unwrap()["relative_misfit"]
+            .as_f64()
+            .unwrap();
+        let title = format!(
+            "{output} [rad] — NOT TRUSTED (misfit {:.1} %): true runs dotted",
+            100.0 * misfit
+        );
+        assert!(svg.contains(&title), "{output}: no title {title:?}");
+        assert!(
+            svg.contains(&format!("true runs&apos; range ({runs} runs)")),
+            "{output}: the range is not named with {runs} runs"
+        );
+        let series = |key: &str| summary_series(summary, output, key);
+        let (hull_lo, hull_hi) = span(series("runs_lower").into_iter().chain(series("runs_upper")));
+        let (all_lo, all_hi) = span(
+            [
+                "lower",
+                "upper",
+                "outer_lower",
+                "outer_upper",
+                "runs_lower",
+                "runs_upper",
+                "nominal",
+            ]
+            .into_iter()
+            .filter(|key| summary["outputs"][0].get(*key).is_some())
+            .flat_map(series),
+        );
+        let clipped = svg.contains("bounds clipped");
+        // The nominal run lies inside the range here, and the check's dots are true runs.
+        assert_eq!(
+            clipped,
+            (hull_hi - hull_lo) < 0.25 * (all_hi - all_lo),
+            "{output}: range {hull_lo} … {hull_hi}, everything {all_lo} … {all_hi}"
+        );
+        cases.push(clipped);
+        // The axis, from the band's polygon: its top is the largest upper bound, its bottom the
+        // smallest lower one, each clipped to the axis where it follows the range (a quarter of
+        // the range's height beyond it, never past the data).
+        let band = plotted_points(&svg, "fill=\"#0072B2\"");
+        let (band_top, band_bottom) = span(band.iter().map(|p| p.1));
+        let (lower, upper) = (series("lower"), series("upper"));
+        let (value_lo, value_hi) = span(lower.iter().chain(&upper).copied());
+        let (value_lo, value_hi) = if clipped {
+            let margin = 0.25 * (hull_hi - hull_lo);
+            let (axis_lo, axis_hi) = (
+                (hull_lo - margin).max(all_lo),
+                (hull_hi + margin).min(all_hi),
+            );
+            (
+                value_lo.clamp(axis_lo, axis_hi),
+                value_hi.clamp(axis_lo, axis_hi),
+            )
+        } else {
+            (value_lo, value_hi)
+        };
+        let pixels_per_unit = (band_bottom - band_top) / (value_hi - value_lo);
+        let pixel_of = |v: f64| band_top + (value_hi - v) * pixels_per_unit;
+        let hull = plotted_points(&svg, "stroke=\"#CC79A7\"");
+        assert!(
+            hull.len() > 100,
+            "{output}: {} hull points drawn",
+            hull.len()
+        );
+        let (drawn_top, drawn_bottom) = span(hull.iter().map(|p| p.1));
+        for (what, drawn, expected) in [
+            ("highest", drawn_top, pixel_of(hull_hi)),
+            ("lowest", drawn_bottom, pixel_of(hull_lo)),
+        ] {
+            assert!(
+                (drawn - expected).abs() <= DOTTED_EXTREME_PIXELS,
+                "{output}: the range's {what} value is drawn at y = {drawn} px, it maps to {expected:.1} px"
+            );
+        }
+        // Over the whole time axis, as the band.
+        let (band_left, band_right) = span(band.iter().map(|p| p.0));
+        let (hull_left, hull_right) = span(hull.iter().map(|p| p.0));
+        assert!(
+            hull_left - band_left <= DOTTED_EXTREME_PIXELS
+                && band_right - hull_right <= DOTTED_EXTREME_PIXELS,
+            "{output}: the range spans x {hull_left} … {hull_right}, the band {band_left} … {band_right}"
+        );
+    }
+    // q.j1's bounds (its outer bound's) are 4.2 times as tall as its range, q.j2's 3.7 times: the
+    // fixture draws both kinds of axis.
+    assert_eq!(cases, [true, false], "clipped, per output");
+    let page = std::fs::read_to_string(dir.join("report/index.html")).unwrap();
+    let markdown = std::fs::read_to_string(dir.join("report/report.md")).unwrap();
+    for output in OUTPUTS {
+        assert!(
+            page.contains(&format!(
+                "<figure class=\"band\" data-untrusted=\"true\" data-output=\"{output}\"><figcaption>⚠ {output} [rad] — NOT TRUSTED"
+            )),
+            "index.html: {output}'s caption"
+        );
+        assert!(
+            markdown.contains(&format!("## {output} [rad] — NOT TRUSTED")),
+            "report.md: {output}'s heading"
+        );
+    }
+    for text in [&page, &markdown] {
+        assert!(text.contains("the true runs&#39; range") || text.contains("the true runs' range"));
+    }
+}
+
 #[test]
 fn an_untrusted_study_shows_its_true_runs_and_the_verdict_in_the_csv_and_the_log() {
     let dir = fresh_test_scratch_dir("untrusted_outputs", "refine_chaos");
@@ -117,6 +276,7 @@ fn an_untrusted_study_shows_its_true_runs_and_the_verdict_in_the_csv_and_the_log
     let check = &summary["stats"]["check"];
     assert_eq!(check["trusted"], false, "the scene must be untrusted");
     let times = summary_series(&summary, OUTPUTS[0], "time");
+    assert_the_report_shows_the_true_runs(&dir, &summary);
 
     // CSV: every column of a trusted study's CSV in its place, then the hull per output.
     let (header, columns) = csv_columns(&csv);
@@ -310,4 +470,19 @@ fn a_trusted_study_shows_no_hull_and_no_verdict() {
     assert!(!topics.keys().any(|t| t.starts_with("/ribbon/runs/")));
     assert!(!ribbon_metadata(&mcap).contains_key("check"));
     assert!(!layout(&mcap).to_string().contains("NOT TRUSTED"));
+    // Its report: no verdict, no range.
+    for entry in std::fs::read_dir(dir.join("report")).unwrap() {
+        let path = entry.unwrap().path();
+        if matches!(
+            path.extension().and_then(|e| e.to_str()),
+            Some("svg" | "html" | "md")
+        ) {
+            let text = std::fs::read_to_string(&path).unwrap();
+            assert!(
+                !text.contains("NOT TRUSTED") && !text.contains("runs&apos; range"),
+                "{}",
+                path.display()
+            );
+        }
+    }
 }

@@ -68,6 +68,26 @@ pub enum PlotError {
     },
 }
 
+/// How a [`Layer::Line`] is stroked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stroke {
+    /// A continuous line.
+    Solid,
+    /// Dashes of [`DASH_LENGTH`] pixels, [`DASH_GAP`] apart.
+    Dashed,
+    /// Dots of [`DOT_LENGTH`] pixels, [`DOT_GAP`] apart.
+    Dotted,
+}
+
+/// Length of a dash of a [`Stroke::Dashed`] line, pixels.
+pub const DASH_LENGTH: u32 = 8;
+/// Gap between dashes, pixels.
+pub const DASH_GAP: u32 = 5;
+/// Length of a dot of a [`Stroke::Dotted`] line, pixels (its width at 3 px: a square dot).
+pub const DOT_LENGTH: u32 = 3;
+/// Gap between dots, pixels.
+pub const DOT_GAP: u32 = 3;
+
 /// One thing drawn on a [`TimePlot`], in drawing order.
 #[derive(Clone, Debug)]
 pub enum Layer<'a> {
@@ -92,8 +112,8 @@ pub enum Layer<'a> {
         colour: HexColour,
         /// Stroke width, pixels.
         width: u32,
-        /// Dashed instead of solid.
-        dashed: bool,
+        /// Solid, dashed or dotted.
+        stroke: Stroke,
     },
     /// Single values as dots, `(time, value)`.
     Points {
@@ -117,6 +137,13 @@ pub struct TimePlot<'a> {
     pub times: &'a [f64],
     /// What is drawn, in order; legend entries in the same order.
     pub layers: Vec<Layer<'a>>,
+    /// Where the y axis is set rather than fitted to every layer: its range, and every layer is
+    /// clipped to it (a value beyond it is drawn on the frame, a dot beyond it is left out);
+    /// `None`: the axis spans every layer's data, padded.
+    pub y_limits: Option<(f64, f64)>,
+    /// A line of text drawn inside the plot at its lower left, on a white box (e.g. what the
+    /// clipping hides); empty for none.
+    pub note: String,
 }
 
 /// One labelled series of a [`ScatterPlot`].
@@ -326,8 +353,19 @@ impl TimePlot<'_> {
                 }
             })
             .ok_or_else(|| PlotError::NoData(self.title.clone()))?;
-        let (y0, y1) = linear_range(self.y_values().into_iter())
-            .ok_or_else(|| PlotError::NoData(self.title.clone()))?;
+        let (y0, y1) = match self.y_limits {
+            Some((lo, hi)) if lo.is_finite() && hi.is_finite() && hi > lo => (lo, hi),
+            _ => linear_range(self.y_values().into_iter())
+                .ok_or_else(|| PlotError::NoData(self.title.clone()))?,
+        };
+        // Within the axis every value is drawn as it is; beyond it, on the frame.
+        let clip = |v: f64| {
+            if self.y_limits.is_some() {
+                v.clamp(y0, y1)
+            } else {
+                v
+            }
+        };
         root.fill(&WHITE).map_err(fail)?;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, (FONT_FAMILY, 20))
@@ -368,8 +406,14 @@ impl TimePlot<'_> {
                     let outline: Vec<(f64, f64)> = times
                         .iter()
                         .zip(lower.iter())
-                        .map(|(t, v)| (*t, *v))
-                        .chain(times.iter().zip(upper.iter()).rev().map(|(t, v)| (*t, *v)))
+                        .map(|(t, v)| (*t, clip(*v)))
+                        .chain(
+                            times
+                                .iter()
+                                .zip(upper.iter())
+                                .rev()
+                                .map(|(t, v)| (*t, clip(*v))),
+                        )
                         .filter(|(_, v)| v.is_finite())
                         .collect();
                     chart
@@ -385,7 +429,7 @@ impl TimePlot<'_> {
                     for edge in [lower, upper] {
                         chart
                             .draw_series(LineSeries::new(
-                                times.iter().copied().zip(edge.iter().copied()),
+                                times.iter().copied().zip(edge.iter().map(|v| clip(*v))),
                                 colour.stroke_width(1),
                             ))
                             .map_err(fail)?;
@@ -396,25 +440,54 @@ impl TimePlot<'_> {
                     values,
                     colour,
                     width,
-                    dashed,
+                    stroke,
                 } => {
                     let style = rgb(colour).stroke_width(*width);
-                    let points = times.iter().copied().zip(values.iter().copied());
-                    let drawn = if *dashed {
-                        chart
-                            .draw_series(DashedLineSeries::new(points, 8, 5, style))
-                            .map_err(fail)?
-                    } else {
-                        chart
+                    let points = times.iter().copied().zip(values.iter().map(|v| clip(*v)));
+                    let drawn = match stroke {
+                        Stroke::Solid => chart
                             .draw_series(LineSeries::new(points, style))
-                            .map_err(fail)?
+                            .map_err(fail)?,
+                        Stroke::Dashed => chart
+                            .draw_series(DashedLineSeries::new(
+                                points,
+                                DASH_LENGTH,
+                                DASH_GAP,
+                                style,
+                            ))
+                            .map_err(fail)?,
+                        Stroke::Dotted => chart
+                            .draw_series(DashedLineSeries::new(points, DOT_LENGTH, DOT_GAP, style))
+                            .map_err(fail)?,
                     };
                     // An empty label (the second edge of a dashed bound) gets no legend entry.
                     if !label.is_empty() {
-                        let length = if *dashed { 8 } else { 20 };
-                        drawn.label(label.as_str()).legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + length, y)], style)
-                        });
+                        let drawn = drawn.label(label.as_str());
+                        match stroke {
+                            // Four dots, so the pattern shows.
+                            Stroke::Dotted => {
+                                let dot = move |k: i32| {
+                                    let from = k * (DOT_LENGTH + DOT_GAP) as i32;
+                                    PathElement::new(
+                                        vec![(from, 0), (from + DOT_LENGTH as i32, 0)],
+                                        style,
+                                    )
+                                };
+                                drawn.legend(move |(x, y)| {
+                                    EmptyElement::at((x, y)) + dot(0) + dot(1) + dot(2) + dot(3)
+                                });
+                            }
+                            Stroke::Solid | Stroke::Dashed => {
+                                let length = if *stroke == Stroke::Dashed {
+                                    DASH_LENGTH as i32
+                                } else {
+                                    20
+                                };
+                                drawn.legend(move |(x, y)| {
+                                    PathElement::new(vec![(x, y), (x + length, y)], style)
+                                });
+                            }
+                        }
                     }
                 }
                 Layer::Points {
@@ -427,7 +500,9 @@ impl TimePlot<'_> {
                         .draw_series(
                             points
                                 .iter()
-                                .filter(|(t, y)| t.is_finite() && y.is_finite())
+                                .filter(|(t, y)| {
+                                    t.is_finite() && y.is_finite() && (y0..=y1).contains(y)
+                                })
                                 .map(|&p| Circle::new(p, 2, colour.filled())),
                         )
                         .map_err(fail)?
@@ -444,6 +519,9 @@ impl TimePlot<'_> {
             .position(SeriesLabelPosition::UpperRight)
             .draw()
             .map_err(fail)?;
+        if !self.note.is_empty() {
+            draw_note(chart.plotting_area(), &self.note).map_err(fail)?;
+        }
         root.present().map_err(fail)
     }
 
@@ -456,6 +534,39 @@ impl TimePlot<'_> {
     pub fn png(&self) -> Result<Vec<u8>, PlotError> {
         render_png(&self.title, |root| self.draw(root))
     }
+}
+
+/// Font size of a plot's note, pixels.
+const NOTE_FONT_SIZE: u32 = 14;
+/// Space between a note's box and the plotting area's frame, and around its text, pixels.
+const NOTE_PADDING: i32 = 6;
+
+/// Draws `note` at the lower left of `area` (the plotting area), on a white box edged grey.
+fn draw_note<DB: DrawingBackend, CT: plotters::coord::CoordTranslate>(
+    area: &DrawingArea<DB, CT>,
+    note: &str,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let font = TextStyle::from((FONT_FAMILY, NOTE_FONT_SIZE).into_font());
+    let (text_w, text_h) = area.estimate_text_size(note, &font)?;
+    let (_, height) = area.dim_in_pixel();
+    let (w, h) = (
+        text_w as i32 + 2 * NOTE_PADDING,
+        text_h as i32 + 2 * NOTE_PADDING,
+    );
+    let top = height as i32 - NOTE_PADDING - h;
+    let origin = (NOTE_PADDING, top);
+    let frame = [origin, (origin.0 + w, origin.1 + h)];
+    let plain = area.strip_coord_spec();
+    plain.draw(&Rectangle::new(frame, WHITE.mix(0.9).filled()))?;
+    plain.draw(&Rectangle::new(
+        frame,
+        RGBColor(160, 160, 160).stroke_width(1),
+    ))?;
+    plain.draw(&Text::new(
+        note.to_string(),
+        (origin.0 + NOTE_PADDING, origin.1 + NOTE_PADDING),
+        font,
+    ))
 }
 
 impl ScatterPlot {
@@ -687,9 +798,11 @@ mod tests {
                     values: &nominal,
                     colour: PALETTE[2],
                     width: 2,
-                    dashed: false,
+                    stroke: Stroke::Solid,
                 },
             ],
+            y_limits: None,
+            note: String::new(),
         };
         let svg = plot.svg().unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("q.j1 [rad]") && svg.contains("<polygon"));
@@ -700,6 +813,8 @@ mod tests {
             y_label: String::new(),
             times: &[],
             layers: vec![],
+            y_limits: None,
+            note: String::new(),
         };
         assert!(matches!(empty.svg(), Err(PlotError::NoData(_))));
     }

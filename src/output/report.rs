@@ -5,14 +5,19 @@
 //!
 //! A band plot shades the region between the lower and upper bound (labelled with the bound's
 //! kind: inner, outer, reference), draws the nominal run as a solid line and, where a sparse
-//! design also gives an outer bound, that bound as dashed lines. The engine does not keep the
-//! true-model runs of the a-posteriori check per output and time, so they are not drawn.
+//! design also gives an outer bound, that bound as dashed lines; dots are the check's true runs
+//! where the surrogate put the extremes. On an output the check did not trust, the plot's title
+//! says so with its misfit, and dotted lines are the lowest and highest value every true-model
+//! run of the study took (the "true runs' range", the summary's `runs_lower` / `runs_upper`):
+//! what the study can claim. Where the bounds are more than 1 / [`HULL_MIN_AXIS_SHARE`] times as
+//! tall as that range, the y axis follows the range instead ([`hull_axis`]) and a note on the plot
+//! says how far the clipped bounds reach (docs/mcap.md §7).
 
 use super::error::OutputError;
-use super::plot::{axis_label, Layer, PlotError, TimePlot};
+use super::plot::{axis_label, Layer, PlotError, Stroke, TimePlot};
 use super::report_html::{html_page, HtmlReport, REPORT_HTML};
 use super::summary::Summary;
-use super::viewer::FOXGLOVE_LAYOUT_NAME;
+use super::viewer::{untrusted_title_words, FOXGLOVE_LAYOUT_NAME, RUNS_HULL_SERIES};
 use super::write_atomically;
 use std::collections::HashSet;
 use std::path::Path;
@@ -31,6 +36,22 @@ pub const TRUE_RUN_COLOUR: &str = "#000000";
 pub const ELEMENT_COLOUR: &str = "#a6bddb";
 /// Colour of a second method's dashed bound (compare's report).
 pub const SECOND_COLOUR: &str = "#cc79a7";
+/// Colour of the dotted lines of the true runs' range: the viewers' colour for the same series
+/// (reddish purple).
+pub const RUNS_HULL_COLOUR: &str = RUNS_HULL_SERIES[0].1;
+/// Stroke width of the true runs' range, pixels: wider than the other lines (2), so its dots read
+/// over the band, the elements' lines and the dashed outer bound.
+pub const RUNS_HULL_WIDTH: u32 = 3;
+/// Smallest share of the y axis's height the true runs' range (with the nominal run and the
+/// check's dots) must fill on an untrusted output's plot: below it (bounds more than four times as
+/// tall as every true run went) the range would be a thin stripe, so the axis follows the range
+/// and clips the bounds.
+pub const HULL_MIN_AXIS_SHARE: f64 = 0.25;
+/// Room left above and below the true runs' range on an axis that follows it, as a share of the
+/// range's height: the clipped band shows beyond the range, so the reader sees it goes on.
+pub const HULL_AXIS_MARGIN: f64 = 0.25;
+/// Significant digits of the numbers in a clipped plot's note.
+const NOTE_DIGITS: usize = 4;
 /// Longest file stem made from an output name (bytes), leaving room for a suffix and extension
 /// under the usual 255-byte file-name limit.
 pub const MAX_STEM_BYTES: usize = 120;
@@ -56,6 +77,107 @@ pub struct ReportOutput<'a> {
     /// Where the box was split into elements: each leaf's own `(lower, upper)` per record time,
     /// drawn faintly under the union (empty otherwise).
     pub elements: &'a [(&'a [f64], &'a [f64])],
+    /// Where the a-posteriori check did not trust this output: its misfit and its true runs'
+    /// range; `None` for a trusted or unchecked output (its plot is then as before).
+    pub untrusted: Option<UntrustedOutput<'a>>,
+}
+
+/// What an untrusted output's plot shows beside its bounds.
+#[derive(Clone, Copy, Debug)]
+pub struct UntrustedOutput<'a> {
+    /// The check's largest misfit over the output's largest envelope width.
+    pub relative_misfit: f64,
+    /// The lowest and highest value of every true-model run of the study per record time, when
+    /// the study has them ([`crate::analysis::StudyReport::shows_runs_hull`]).
+    pub hull: Option<RunsHull<'a>>,
+}
+
+/// The true runs' range of one output: the summary's `runs_lower` / `runs_upper`.
+#[derive(Clone, Copy, Debug)]
+pub struct RunsHull<'a> {
+    /// The lowest value any true-model run took, per record time.
+    pub lower: &'a [f64],
+    /// The highest value, per record time.
+    pub upper: &'a [f64],
+    /// How many true-model runs it covers (the study's model runs, less excluded samples).
+    pub runs: usize,
+}
+
+/// Smallest and largest finite value.
+fn finite_span<'v>(values: impl IntoIterator<Item = &'v f64>) -> Option<(f64, f64)> {
+    let (lo, hi) = values
+        .into_iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// `value` with [`NOTE_DIGITS`] significant digits: fixed notation from 1e-3 to 1e5, otherwise
+/// scientific.
+fn short_number(value: f64) -> String {
+    let magnitude = value.abs();
+    if value == 0.0 || !value.is_finite() {
+        return format!("{value}");
+    }
+    if (1e-3..1e5).contains(&magnitude) {
+        let decimals = (NOTE_DIGITS as i32 - 1 - magnitude.log10().floor() as i32).max(0) as usize;
+        format!("{value:.decimals$}")
+    } else {
+        format!("{value:.digits$e}", digits = NOTE_DIGITS - 1)
+    }
+}
+
+/// The y axis of an untrusted output's plot and its note: `None` when the true runs' range (with
+/// the nominal run and the check's dots) fills at least [`HULL_MIN_AXIS_SHARE`] of the span of
+/// everything drawn, so the whole plot shows; otherwise the range widened by [`HULL_AXIS_MARGIN`]
+/// of its height on each side (never past the data), with a note saying how far the clipped
+/// bounds reach.
+pub fn hull_axis(output: &ReportOutput<'_>, hull: &RunsHull<'_>) -> Option<((f64, f64), String)> {
+    let focus = hull
+        .lower
+        .iter()
+        .chain(hull.upper)
+        .chain(output.nominal)
+        .chain(output.true_runs.iter().map(|(_, y)| y));
+    let (focus_lo, focus_hi) = finite_span(focus.clone())?;
+    let outer = output
+        .outer
+        .map_or(&[][..], |(lower, _)| lower)
+        .iter()
+        .chain(output.outer.map_or(&[][..], |(_, upper)| upper));
+    let elements = output
+        .elements
+        .iter()
+        .flat_map(|(l, u)| l.iter().chain(u.iter()));
+    let bounds = output
+        .lower
+        .iter()
+        .chain(output.upper)
+        .chain(outer)
+        .chain(elements);
+    let (all_lo, all_hi) = finite_span(bounds.chain(focus))?;
+    let focus_span = focus_hi - focus_lo;
+    if focus_span >= HULL_MIN_AXIS_SHARE * (all_hi - all_lo) || focus_span <= 0.0 {
+        return None;
+    }
+    let margin = HULL_AXIS_MARGIN * focus_span;
+    let limits = (
+        (focus_lo - margin).max(all_lo),
+        (focus_hi + margin).min(all_hi),
+    );
+    let unit = if output.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", output.unit)
+    };
+    let note = format!(
+        "bounds clipped: they reach {} … {}{unit}; the axis follows the true runs",
+        short_number(all_lo),
+        short_number(all_hi)
+    );
+    Some((limits, note))
 }
 
 /// The band plot of one output; `bound_kind` names the shaded bound (`inner`, `outer`, …).
@@ -81,7 +203,7 @@ pub fn band_plot<'a>(
                 values,
                 colour: ELEMENT_COLOUR,
                 width: 1,
-                dashed: false,
+                stroke: Stroke::Solid,
             });
         }
     }
@@ -92,7 +214,22 @@ pub fn band_plot<'a>(
                 values,
                 colour: OUTER_COLOUR,
                 width: 2,
-                dashed: true,
+                stroke: Stroke::Dashed,
+            });
+        }
+    }
+    let hull = output.untrusted.and_then(|u| u.hull);
+    if let Some(hull) = &hull {
+        for (label, values) in [
+            (format!("true runs' range ({} runs)", hull.runs), hull.lower),
+            (String::new(), hull.upper),
+        ] {
+            layers.push(Layer::Line {
+                label,
+                values,
+                colour: RUNS_HULL_COLOUR,
+                width: RUNS_HULL_WIDTH,
+                stroke: Stroke::Dotted,
             });
         }
     }
@@ -108,13 +245,24 @@ pub fn band_plot<'a>(
         values: output.nominal,
         colour: NOMINAL_COLOUR,
         width: 2,
-        dashed: false,
+        stroke: Stroke::Solid,
     });
+    let label = axis_label(output.name, output.unit);
+    let title = match output.untrusted {
+        Some(untrusted) => untrusted_title_words(&label, untrusted.relative_misfit, hull.is_some()),
+        None => label.clone(),
+    };
+    let (y_limits, note) = match hull.and_then(|hull| hull_axis(output, &hull)) {
+        Some((limits, note)) => (Some(limits), note),
+        None => (None, String::new()),
+    };
     TimePlot {
-        title: axis_label(output.name, output.unit),
-        y_label: axis_label(output.name, output.unit),
+        title,
+        y_label: label,
         times,
         layers,
+        y_limits,
+        note,
     }
 }
 
@@ -190,6 +338,20 @@ pub fn write_plot(
     write_atomically(&png_path, "plot", &png)
 }
 
+/// What the report page and `index.html` say of an untrusted output's plot (shown only when some
+/// plot has the true runs' range).
+pub fn untrusted_plots_text() -> String {
+    format!(
+        "On an output the check did not trust, the title says NOT TRUSTED with its misfit, and \
+         dotted reddish-purple lines are the lowest and highest value that every true-model run of \
+         the study took (the true runs' range): the motion the study can claim, where the bounds \
+         are the untrusted surrogate's. Where the bounds are more than {:.0} times as tall as that \
+         range, the y axis follows the range and clips the band; a note on the plot says how far \
+         the bounds reach.",
+        1.0 / HULL_MIN_AXIS_SHARE
+    )
+}
+
 /// What an `analyze` report shows.
 #[derive(Clone, Debug)]
 pub struct AnalyzeReport<'a> {
@@ -253,6 +415,14 @@ pub fn write_analyze_report(dir: &Path, report: &AnalyzeReport<'_>) -> Result<()
             ""
         }
     ));
+    if report
+        .outputs
+        .iter()
+        .any(|o| o.untrusted.is_some_and(|u| u.hull.is_some()))
+    {
+        page.push_str(&untrusted_plots_text());
+        page.push_str("\n\n");
+    }
     if let Some(layout) = &report.foxglove_layout {
         write_atomically(
             &dir.join(FOXGLOVE_LAYOUT_NAME),
@@ -273,8 +443,7 @@ pub fn write_analyze_report(dir: &Path, report: &AnalyzeReport<'_>) -> Result<()
         band_svgs.push(svg);
         page.push_str(&format!(
             "## {}\n\n![{}]({stem}.svg)\n\n",
-            axis_label(output.name, output.unit),
-            output.name
+            plot.title, output.name
         ));
     }
     write_atomically(&dir.join(REPORT_PAGE), "report", page.as_bytes())?;
@@ -342,11 +511,18 @@ mod tests {
             outer: Some((&outer_lower, &outer_upper)),
             true_runs: &[],
             elements: &[],
+            untrusted: None,
         };
         let plot = band_plot(&times, &output, "inner");
         assert_eq!(plot.y_label, "q.j1 [rad]");
         assert_eq!(plot.layers.len(), 4);
-        assert!(matches!(plot.layers[1], Layer::Line { dashed: true, .. }));
+        assert!(matches!(
+            plot.layers[1],
+            Layer::Line {
+                stroke: Stroke::Dashed,
+                ..
+            }
+        ));
         let svg = plot.svg().unwrap();
         assert!(
             svg.contains("outer bound") && svg.contains("inner bound") && svg.contains("nominal")
@@ -377,5 +553,170 @@ mod tests {
         let plot = band_plot(&times, &with_elements, "inner");
         assert_eq!(plot.layers.len(), 4 + 4);
         assert!(plot.svg().unwrap().contains("bounds of each of 2 elements"));
+    }
+
+    /// The y coordinates of every point of every polygon and polyline of an SVG, pixels.
+    fn drawn_ys(svg: &str) -> Vec<f64> {
+        svg.split("points=\"")
+            .skip(1)
+            .flat_map(|rest| {
+                let list = &rest[..rest.find('"').unwrap()];
+                list.split_whitespace()
+                    .map(|point| point.split(',').nth(1).unwrap().parse::<f64>().unwrap())
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    }
+
+    /// An untrusted output: its title says so with the misfit, its true runs' range is two dotted
+    /// lines of exactly the hull's values, named once in the legend with the run count; bounds
+    /// 100 times as tall as the range are clipped to an axis that follows it, with a note.
+    #[test]
+    fn an_untrusted_band_plot_draws_the_true_runs_range_and_follows_it() {
+        let times: Vec<f64> = (0..60).map(|k| k as f64 * 0.05).collect();
+        let nominal: Vec<f64> = times.iter().map(|t| t.sin()).collect();
+        let runs_lower: Vec<f64> = nominal.iter().map(|v| v - 0.5).collect();
+        let runs_upper: Vec<f64> = nominal.iter().map(|v| v + 0.5).collect();
+        let exploded_lower: Vec<f64> = times.iter().map(|t| -100.0 * t).collect();
+        let exploded_upper: Vec<f64> = times.iter().map(|t| 90.0 * t).collect();
+        let dots = [(1.0, 1.2)];
+        let hull = RunsHull {
+            lower: &runs_lower,
+            upper: &runs_upper,
+            runs: 742,
+        };
+        let output = ReportOutput {
+            name: "q.j2",
+            unit: "rad",
+            lower: &exploded_lower,
+            upper: &exploded_upper,
+            nominal: &nominal,
+            outer: None,
+            true_runs: &dots,
+            elements: &[],
+            untrusted: Some(UntrustedOutput {
+                relative_misfit: 0.656,
+                hull: Some(hull),
+            }),
+        };
+        let plot = band_plot(&times, &output, "inner");
+        assert_eq!(
+            plot.title,
+            "q.j2 [rad] — NOT TRUSTED (misfit 65.6 %): true runs dotted"
+        );
+        assert_eq!(plot.y_label, "q.j2 [rad]");
+        let dotted: Vec<(&str, &[f64])> = plot
+            .layers
+            .iter()
+            .filter_map(|layer| match layer {
+                Layer::Line {
+                    label,
+                    values,
+                    stroke: Stroke::Dotted,
+                    colour,
+                    ..
+                } if *colour == RUNS_HULL_COLOUR => Some((label.as_str(), *values)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(dotted.len(), 2, "{:?}", plot.layers);
+        assert_eq!(dotted[0].0, "true runs' range (742 runs)");
+        assert_eq!(dotted[1].0, "", "named once");
+        assert!(std::ptr::eq(dotted[0].1, &runs_lower[..]));
+        assert!(std::ptr::eq(dotted[1].1, &runs_upper[..]));
+        // The axis: the hull, the nominal run and the dot, a quarter of the range to spare, and
+        // the bounds clipped (they reach -295 … 265.5).
+        let (lo, hi) = plot.y_limits.expect("the axis follows the true runs");
+        let (hull_lo, hull_hi) = (-1.5, 1.5);
+        let focus_lo = runs_lower.iter().copied().fold(f64::INFINITY, f64::min);
+        let focus_hi = runs_upper.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        assert!(focus_lo > hull_lo && focus_hi < hull_hi);
+        let margin = HULL_AXIS_MARGIN * (focus_hi - focus_lo);
+        assert!((lo - (focus_lo - margin)).abs() < 1e-12, "{lo}");
+        assert!((hi - (focus_hi + margin)).abs() < 1e-12, "{hi}");
+        assert_eq!(
+            plot.note,
+            "bounds clipped: they reach -295.0 … 265.5 rad; the axis follows the true runs"
+        );
+        let svg = plot.svg().unwrap();
+        for text in [
+            "NOT TRUSTED (misfit 65.6 %)",
+            "true runs&apos; range (742 runs)",
+            "bounds clipped",
+        ] {
+            assert!(svg.contains(text), "{text} not in the SVG");
+        }
+        // Clipped, nothing is drawn outside the picture.
+        let (_, height) = crate::output::plot::PLOT_SIZE;
+        let ys = drawn_ys(&svg);
+        assert!(ys.len() > 100);
+        assert!(
+            ys.iter().all(|y| (0.0..=height as f64).contains(y)),
+            "{:?}",
+            ys.iter()
+                .filter(|y| !(0.0..=height as f64).contains(*y))
+                .collect::<Vec<_>>()
+        );
+
+        // Bounds at most four times as tall as the range: the whole plot, no note.
+        let near_lower: Vec<f64> = runs_lower.iter().map(|v| v - 1.0).collect();
+        let near_upper: Vec<f64> = runs_upper.iter().map(|v| v + 1.0).collect();
+        let moderate = ReportOutput {
+            lower: &near_lower,
+            upper: &near_upper,
+            ..output
+        };
+        let plot = band_plot(&times, &moderate, "inner");
+        assert_eq!(plot.y_limits, None);
+        assert!(plot.note.is_empty());
+        assert_eq!(
+            plot.layers
+                .iter()
+                .filter(|l| matches!(
+                    l,
+                    Layer::Line {
+                        stroke: Stroke::Dotted,
+                        ..
+                    }
+                ))
+                .count(),
+            2
+        );
+
+        // Trusted: the plot it always was.
+        let trusted = ReportOutput {
+            untrusted: None,
+            ..output
+        };
+        let plot = band_plot(&times, &trusted, "inner");
+        assert_eq!(plot.title, "q.j2 [rad]");
+        assert!(plot.y_limits.is_none() && plot.note.is_empty());
+        assert!(!plot.layers.iter().any(|l| matches!(
+            l,
+            Layer::Line {
+                stroke: Stroke::Dotted,
+                ..
+            }
+        )));
+        // Untrusted without a hull: said in the title, nothing more drawn.
+        let without_hull = ReportOutput {
+            untrusted: Some(UntrustedOutput {
+                relative_misfit: 0.08,
+                hull: None,
+            }),
+            ..output
+        };
+        let plot = band_plot(&times, &without_hull, "inner");
+        assert_eq!(plot.title, "q.j2 [rad] — NOT TRUSTED (misfit 8.0 %)");
+        assert!(plot.y_limits.is_none());
+    }
+
+    #[test]
+    fn note_numbers_have_four_significant_digits() {
+        assert_eq!(short_number(-2512.345), "-2512");
+        assert_eq!(short_number(17.00592), "17.01");
+        assert_eq!(short_number(0.0123456), "0.01235");
+        assert_eq!(short_number(2.5e6), "2.500e6");
+        assert_eq!(short_number(0.0), "0");
     }
 }

@@ -15,9 +15,10 @@
 
 use super::envelope_log::plotted_dimensions;
 use super::plot::axis_label;
-use super::plot::{Layer, PlotError, TimePlot};
+use super::plot::{Layer, PlotError, Stroke, TimePlot};
+use super::report::untrusted_plots_text;
 use super::summary::{EnvelopeSeries, Summary};
-use super::viewer::{FOXGLOVE_LAYOUT_NAME, SENSITIVITY_COLOURS};
+use super::viewer::{untrusted_title, FOXGLOVE_LAYOUT_NAME, SENSITIVITY_COLOURS};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -134,7 +135,7 @@ pub fn sensitivity_svg(summary: &Summary, o: usize) -> Option<Result<String, Plo
             values,
             colour,
             width: 2,
-            dashed: false,
+            stroke: Stroke::Solid,
         })
         .collect();
     let plot = TimePlot {
@@ -142,6 +143,8 @@ pub fn sensitivity_svg(summary: &Summary, o: usize) -> Option<Result<String, Plo
         y_label: "total Sobol' index".to_string(),
         times: &times[..records.min(times.len())],
         layers,
+        y_limits: None,
+        note: String::new(),
     };
     Some(plot.svg())
 }
@@ -272,12 +275,34 @@ pub fn html_page(report: &HtmlReport<'_>) -> Result<String, PlotError> {
          away from the band's edge is a misfit).</p>\n",
         escape_html(&s.bound_kind)
     );
+    // An untrusted output's plot: what its caption says (None for a trusted one).
+    let untrusted_caption = |output: &EnvelopeSeries| {
+        check_of(s, &output.name)
+            .filter(|&(_, trusted)| !trusted)
+            .map(|(misfit, _)| {
+                untrusted_title(
+                    &axis_label(&output.name, &output.unit),
+                    misfit,
+                    output.runs_lower.is_some() && output.runs_upper.is_some(),
+                )
+            })
+    };
+    if s.outputs
+        .iter()
+        .any(|o| o.runs_lower.is_some() && untrusted_caption(o).is_some())
+    {
+        let _ = writeln!(page, "<p>{}</p>", escape_html(&untrusted_plots_text()));
+    }
     for (output, svg) in s.outputs.iter().zip(report.band_svgs) {
+        let (marker, caption) = match untrusted_caption(output) {
+            Some(caption) => (" data-untrusted=\"true\"", caption),
+            None => ("", axis_label(&output.name, &output.unit)),
+        };
         let _ = writeln!(
             page,
-            "<figure class=\"band\" data-output=\"{}\"><figcaption>{}</figcaption>\n{}\n</figure>",
+            "<figure class=\"band\"{marker} data-output=\"{}\"><figcaption>{}</figcaption>\n{}\n</figure>",
             escape_html(&output.name),
-            escape_html(&axis_label(&output.name, &output.unit)),
+            escape_html(&caption),
             inline_svg(svg)
         );
     }

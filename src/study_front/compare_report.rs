@@ -8,7 +8,7 @@
 
 use crate::analysis::StudyReport;
 use crate::output::plot::axis_label;
-use crate::output::plot::{Layer, ScatterPlot, ScatterSeries, TimePlot, PALETTE};
+use crate::output::plot::{Layer, ScatterPlot, ScatterSeries, Stroke, TimePlot, PALETTE};
 use crate::output::report::{write_plot, BAND_COLOUR, NOMINAL_COLOUR, SECOND_COLOUR};
 use crate::output::write_atomically;
 use crate::Error;
@@ -208,7 +208,7 @@ pub fn write_report(
             values: &r.nominal[widest],
             colour: NOMINAL_COLOUR,
             width: 2,
-            dashed: false,
+            stroke: Stroke::Solid,
         },
     ];
     if let Some((label, report)) = best {
@@ -222,7 +222,7 @@ pub fn write_report(
                 values,
                 colour: SECOND_COLOUR,
                 width: 2,
-                dashed: true,
+                stroke: Stroke::Dashed,
             });
         }
     }
@@ -231,6 +231,8 @@ pub fn write_report(
         y_label: axis_label(&output.name, output.unit),
         times: &r.times,
         layers,
+        y_limits: None,
+        note: String::new(),
     };
     Ok(write_plot(
         dir,

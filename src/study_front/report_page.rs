@@ -1,6 +1,7 @@
 //! The report directory of a study (`--report DIR`, docs/mcap.md §7): checked and created before
 //! the study runs (every file it will hold a valid output), then written from the study's report —
-//! the table and the warnings, a band plot per output with a few of the check's true runs on it,
+//! the table and the warnings, a band plot per output with a few of the check's true runs on it
+//! (and, on an output the check did not trust, the range of every true run of the study),
 //! the page for the browser (`index.html`, from the study's summary) and the log's Foxglove layout.
 //!
 //! Does not: draw or format (`output::report`, `output::plot`).
@@ -8,7 +9,8 @@
 use super::options::StudyOutputs;
 use crate::analysis::StudyReport;
 use crate::output::report::{
-    file_stems, report_files, write_analyze_report, AnalyzeReport, ReportOutput,
+    file_stems, report_files, write_analyze_report, AnalyzeReport, ReportOutput, RunsHull,
+    UntrustedOutput,
 };
 use crate::output::{check_outputs, prepare_output_directory, Summary};
 use crate::scene::Scene;
@@ -99,6 +101,23 @@ pub fn write_report(
             }
         }
     }
+    // Each untrusted output's misfit, and its true runs' range where the study shows it.
+    let shows_hull = report.shows_runs_hull();
+    let hull_runs = report.runs.saturating_sub(report.excluded.len());
+    let untrusted = |o: usize| {
+        let check = report.check.as_ref()?;
+        if !check.untrusted_outputs.contains(&o) {
+            return None;
+        }
+        Some(UntrustedOutput {
+            relative_misfit: *check.relative_misfit.get(o)?,
+            hull: shows_hull.then(|| RunsHull {
+                lower: &e.runs_lower[o],
+                upper: &e.runs_upper[o],
+                runs: hull_runs,
+            }),
+        })
+    };
     let outputs = e
         .outputs
         .iter()
@@ -115,6 +134,7 @@ pub fn write_report(
                 .map(|(lower, upper)| (lower[o].as_slice(), upper[o].as_slice())),
             true_runs: &true_runs[o],
             elements: &element_bounds[o],
+            untrusted: untrusted(o),
         })
         .collect();
     write_analyze_report(

@@ -12,6 +12,11 @@ EXPECTED.json says what was written (numbers exactly as given to the writer):
       "errors":    [{"name": "q.j1", "topic": "/ribbon/error/q/j1", "time": [...], "estimate": [...]}],
       "sobol":     [{"name": "q.j1", "topic": "/ribbon/sobol/main/q/j1", "index": "main",   # optional
                      "dimensions": ["l1", ...], "time": [...], "values": [[...per dimension], ...]}],
+      # An untrusted study's log (exit 4) also has, per output, the hull of its true runs, and
+      # names the outputs the check did not trust (both optional, docs/mcap.md §1, §4):
+      "runs":      [{"name": "q.j1", "topic": "/ribbon/runs/q/j1", "time": [...],
+                     "runs_lower": [...], "runs_upper": [...]}],
+      "untrusted_outputs": ["q.j1", ...],
       "transforms": [{"time": t, "frames": [{"link": "bar1", "parent": "base", "translation": [x, y, z],
                                               "rotation": [x, y, z, w]}]}],   # parent default "world"
       # or, when the poses are not known to the caller (a `ribbon analyze` run), instead of
@@ -26,6 +31,10 @@ EXPECTED.json says what was written (numbers exactly as given to the writer):
       # Plot paths name only envelope topics of the file (fields position[0..2], labelled lower,
       # nominal, upper) — or, in a sensitivity plot, total Sobol' topics of the file (position[j]
       # labelled with dimension j's name) — and whose 3D panel takes the URDF from /robot_description.
+      # The plot of an output in "untrusted_outputs" also has the hull series of the same output
+      # (position[0..1] of its /ribbon/runs/ topic, a topic of the file and of "runs", labelled
+      # "true runs, lowest" / "true runs, highest") and a title that starts with ⚠ and says NOT
+      # TRUSTED; every other plot has neither.
       "viewer": true   # optional: `scene_centre_m` and a positive `scene_radius_m` in the `ribbon` record,
                        # and the first message at log time 0
     }
@@ -34,8 +43,9 @@ Envelope entries may carry "unit": the channel metadata must then hold it (and t
 Checks, each failure collected and reported (exit 1):
 - Python `mcap` reads the file through its summary (lz4 chunks, chunk indexes, statistics) and
   decodes every message: CDR with `mcap-ros2-support`, protobuf with `mcap-protobuf-support`;
-- every JointState decodes to exactly the numbers given, names [lower, nominal, upper] or
-  [estimate] (a Sobol' channel: the dimensions' names, channel metadata `index` and `unit` ""),
+- every JointState decodes to exactly the numbers given, names [lower, nominal, upper],
+  [estimate] or [runs_lower, runs_upper] (a Sobol' channel: the dimensions' names, channel
+  metadata `index` and `unit` ""),
   header.stamp = log time = publish time = round(time * 1e9);
 - every /tf message decodes to the frames given, and re-encoding them with foxglove-sdk's
   `foxglove.messages.FrameTransforms` gives the same bytes;
@@ -43,8 +53,8 @@ Checks, each failure collected and reported (exit 1):
   into an MCAP of its own (and its `get_schema()`);
 - /robot_description holds the URDF once at t = 0; the `ribbon` metadata record and the attachments
   are as given;
-- `rerun mcap convert` accepts the file and `rerun rrd print` shows `Scalars` for every envelope and
-  error channel, `Transform3D` for /tf (one row per frame given), and visual geometry for every URDF
+- `rerun mcap convert` accepts the file and `rerun rrd print` shows `Scalars` for every envelope,
+  error and hull channel, `Transform3D` for /tf (one row per frame given), and visual geometry for every URDF
   link that has a <visual>.
 """
 
@@ -141,8 +151,9 @@ def check_file(mcap_path, expected, work_dir):
         channels_by_topic = {c.topic: c for c in summary.channels.values()}
         schemas = summary.schemas
         sobol = expected.get("sobol", [])
+        runs = expected.get("runs", [])
         expected_topics = {e["topic"] for e in expected["envelopes"]} | {e["topic"] for e in expected["errors"]}
-        expected_topics |= {e["topic"] for e in sobol}
+        expected_topics |= {e["topic"] for e in sobol} | {e["topic"] for e in runs}
         expected_topics |= {"/tf", "/robot_description"}
         if set(channels_by_topic) != expected_topics:
             fail(f"topics {sorted(channels_by_topic)} differ from the expected {sorted(expected_topics)}")
@@ -158,7 +169,7 @@ def check_file(mcap_path, expected, work_dir):
                 channel.metadata.get("index") != entry["index"] or channel.metadata.get("unit") != ""
             ):
                 fail(f"{entry['topic']}: channel metadata {channel.metadata}, expected index = {entry['index']}, unit ''")
-        for entry in expected["envelopes"] + expected["errors"] + sobol:
+        for entry in expected["envelopes"] + expected["errors"] + sobol + runs:
             schema = schema_of(entry["topic"])
             channel = channels_by_topic.get(entry["topic"])
             if schema is None:
@@ -210,6 +221,7 @@ def check_file(mcap_path, expected, work_dir):
             [(e, ["lower", "nominal", "upper"]) for e in expected["envelopes"]]
             + [(e, ["estimate"]) for e in expected["errors"]]
             + [(e, e["dimensions"]) for e in sobol]
+            + [(e, ["runs_lower", "runs_upper"]) for e in runs]
         ):
             topic = entry["topic"]
             got = decoded.get(topic, [])
@@ -393,6 +405,10 @@ def check_chain_against_frame_outputs(tf_messages, times, expected):
 
 PLOT_PATH = re.compile(r'^(?P<topic>/[^.\s"]+)\.position\[(?P<index>\d+)\]$')
 SOBOL_TOTAL_PREFIX = "/ribbon/sobol/total/"
+ENVELOPE_PREFIX = "/ribbon/envelope/"
+RUNS_PREFIX = "/ribbon/runs/"
+# The hull series of an untrusted output's plot, by position index (src/output/viewer/mod.rs).
+RUNS_LABELS = [(0, "true runs, lowest"), (1, "true runs, highest")]
 
 
 def check_sensitivity_panel(panel_id, panel, topics, sobol):
@@ -431,22 +447,46 @@ def check_foxglove_layout(attachment, topics, expected):
     config = layout.get("configById", {})
     plotted = {}
     sobol = {e["topic"]: e for e in expected.get("sobol", [])}
+    runs_topics = {e["topic"] for e in expected.get("runs", [])}
+    untrusted_topics = {
+        e["topic"] for e in expected["envelopes"] if e["name"] in expected.get("untrusted_outputs", [])
+    }
     for panel_id, panel in config.items():
         if not panel_id.startswith("Plot!"):
             continue
         if panel_id.startswith("Plot!ribbon-sobol"):
             check_sensitivity_panel(panel_id, panel, topics, sobol)
             continue
-        labels = []
+        labels, runs_labels, envelope_topics, hull_topics = [], [], set(), set()
         for path in panel.get("paths", []):
             match = PLOT_PATH.match(path.get("value", ""))
             if not match or match["topic"] not in topics:
                 fail(f"layout {panel_id}: path {path.get('value')!r} does not name an envelope topic of the file")
                 continue
+            if match["topic"].startswith(RUNS_PREFIX):
+                if match["topic"] not in runs_topics:
+                    fail(f"layout {panel_id}: path {path.get('value')!r} names a hull topic the study did not write")
+                runs_labels.append((int(match["index"]), path.get("label")))
+                hull_topics.add(match["topic"])
+                continue
             labels.append((int(match["index"]), path.get("label")))
+            envelope_topics.add(match["topic"])
             plotted.setdefault(match["topic"], panel.get("foxglovePanelTitle", ""))
         if sorted(labels) != [(0, "lower"), (1, "nominal"), (2, "upper")]:
             fail(f"layout {panel_id}: series {labels}, expected lower, nominal, upper at position[0..2]")
+        title = panel.get("foxglovePanelTitle", "")
+        untrusted = bool(envelope_topics & untrusted_topics)
+        if untrusted:
+            want_hull = {t.replace(ENVELOPE_PREFIX, RUNS_PREFIX, 1) for t in envelope_topics}
+            if sorted(runs_labels) != RUNS_LABELS or hull_topics != want_hull:
+                fail(
+                    f"layout {panel_id}: hull series {runs_labels} on {sorted(hull_topics)}, expected "
+                    f"{RUNS_LABELS} on {sorted(want_hull)} (an untrusted output's true runs)"
+                )
+            if not (title.startswith("⚠") and "NOT TRUSTED" in title):
+                fail(f"layout {panel_id}: an untrusted output's plot is titled {title!r}, without ⚠ … NOT TRUSTED")
+        elif runs_labels or "NOT TRUSTED" in title:
+            fail(f"layout {panel_id}: a trusted output's plot {title!r} has hull series {runs_labels} or says NOT TRUSTED")
     for entry in expected["envelopes"]:
         title = plotted.get(entry["topic"])
         if title is None:
@@ -505,7 +545,7 @@ def check_rerun(mcap_path, expected, work_dir):
         fail(f"`rerun rrd print` listed no chunks; output head:\n{printed[:2000]}")
         return entities
 
-    for entry in expected["envelopes"] + expected["errors"]:
+    for entry in expected["envelopes"] + expected["errors"] + expected.get("runs", []):
         entity = entry["topic"] + "/position"
         rows = entities.get(entity, {}).get("Scalars:scalars", 0)
         if rows != len(entry["time"]):

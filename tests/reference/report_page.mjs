@@ -114,6 +114,8 @@ try {
             out.push({
                 kind: figure ? figure.className : "svg",
                 output: figure ? figure.dataset.output : null,
+                caption: figure?.querySelector("figcaption")?.textContent ?? null,
+                untrusted: figure?.dataset.untrusted === "true",
                 width: box.width,
                 height: box.height,
                 texts: svg.querySelectorAll("text").length,

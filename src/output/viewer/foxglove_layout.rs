@@ -88,7 +88,17 @@ pub fn panel_title(name: &str, unit: &str) -> String {
 /// (`scripts/viewers/rerun_blueprint.py`) writes the same.
 pub fn untrusted_title(title: &str, relative_misfit: f64, shows_runs: bool) -> String {
     format!(
-        "⚠ {title} — NOT TRUSTED (misfit {:.1} %){}",
+        "⚠ {}",
+        untrusted_title_words(title, relative_misfit, shows_runs)
+    )
+}
+
+/// [`untrusted_title`] without its leading sign: `q.j1 [rad] — NOT TRUSTED (misfit 65.6 %): true
+/// runs dotted`. The report's band plots take this (their embedded font has no ⚠, and a report
+/// plot's title is never cut).
+pub fn untrusted_title_words(title: &str, relative_misfit: f64, shows_runs: bool) -> String {
+    format!(
+        "{title} — NOT TRUSTED (misfit {:.1} %){}",
         100.0 * relative_misfit,
         if shows_runs { ": true runs dotted" } else { "" }
     )

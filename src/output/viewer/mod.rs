@@ -10,8 +10,8 @@
 mod foxglove_layout;
 
 pub use foxglove_layout::{
-    foxglove_layout, untrusted_title, LayoutOutput, LayoutSensitivity, LayoutUntrusted,
-    FOXGLOVE_LAYOUT_NAME, SENSITIVITY_COLOURS,
+    foxglove_layout, untrusted_title, untrusted_title_words, LayoutOutput, LayoutSensitivity,
+    LayoutUntrusted, FOXGLOVE_LAYOUT_NAME, SENSITIVITY_COLOURS,
 };
 
 use std::collections::BTreeMap;
