@@ -19,8 +19,10 @@
 //! 2. on the free ones solve `(H_ff + μI) Δ = −g_f` with μ = 0 if `H_ff` is positive definite, else
 //!    the Gershgorin shift that makes it so (one factorisation, no trial loop);
 //! 3. projected backtracking (Armijo) along `clamp(x + tΔ)`; if it fails, the same along `−g_f`;
-//!    after a shifted or gradient step, t is then doubled while φ keeps dropping (the shift makes
-//!    such steps short, and their extrema lie on faces that the projection reaches);
+//!    after a shifted or gradient step, the step is lengthened by the doubling `2^k t` that the
+//!    quadratic model at x (value, gradient, `H_ff`) predicts lowest, φ evaluated only there
+//!    (and at shorter doublings if that one is not lower): the shift makes such steps short, and
+//!    their extrema lie on faces that the projection reaches;
 //! 4. when no descent step remains and `H_ff` is indefinite (a saddle, e.g. ξ1·ξ2 at the centre,
 //!    where the gradient vanishes), step along the eigenvector of its most negative eigenvalue to
 //!    the box boundary (the only place this allocates).
@@ -132,6 +134,9 @@ pub struct BoxOptimizer {
     /// Per start given to [`BoxOptimizer::extreme_from_starts_into`], the descent (row of
     /// `ends`) that went from it or from an equal earlier start.
     given_descents: Vec<usize>,
+    /// A trial point's move from `x` on the free coordinates (length d), for the expansion's
+    /// quadratic model.
+    moved: Vec<f64>,
 }
 
 impl Default for BoxOptimizer {
@@ -162,6 +167,7 @@ impl BoxOptimizer {
             ends: Vec::new(),
             decrease_floor: 0.0,
             given_descents: Vec::new(),
+            moved: Vec::new(),
         }
     }
 
@@ -381,6 +387,7 @@ impl BoxOptimizer {
         self.trial.resize(d, 0.0);
         self.spare.resize(d, 0.0);
         self.x.resize(d, 0.0);
+        self.moved.resize(d, 0.0);
         self.linear.resize(d, 0.0);
     }
 
@@ -735,6 +742,109 @@ mod tests {
                 "{along_gradient} vs {gain}"
             );
         }
+    }
+
+    /// A random surrogate of total degree `k` in d dimensions, coefficients in [−1, 1].
+    fn random_surrogate(rng: &mut SplitMix64, d: usize, k: usize) -> SparseSurrogate {
+        let set = Arc::new(MultiIndexSet::total_degree(d, k).unwrap());
+        let c: Vec<f64> = (0..set.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        SparseSurrogate::new(set, c).unwrap()
+    }
+
+    /// The expansion's model `g·Δ + ½ Δ·H_ff Δ` is the surrogate's change itself for a
+    /// surrogate of total degree 2, along projected steps that reach the faces too, on a free
+    /// subset of the coordinates; for degree 4 it is not (the model is only a guide there).
+    #[test]
+    fn the_expansion_model_is_exact_for_quadratic_surrogates() {
+        let mut rng = SplitMix64::new(4_009);
+        let mut ws = SurrogateWorkspace::new();
+        let d = 6;
+        let mut largest_quartic_miss = 0.0_f64;
+        for (degree, trials) in [(2, 40), (4, 10)] {
+            for _ in 0..trials {
+                let s = random_surrogate(&mut rng, d, degree);
+                let mut opt = BoxOptimizer::new();
+                opt.resize(d);
+                for sign in [1.0, -1.0] {
+                    for r in 0..d {
+                        opt.x[r] = rng.uniform(-1.0, 1.0);
+                    }
+                    let phi = opt.evaluate(&s, sign);
+                    opt.free = (0..d).filter(|&r| r != 3).collect();
+                    opt.evaluate_hessian(&s, sign);
+                    for a in 0..opt.free.len() {
+                        opt.step[a] = rng.uniform(-1.0, 1.0);
+                    }
+                    for t in [0.01, 0.3, 1.0, 4.0] {
+                        let model = opt.model_change_at(t);
+                        let mut y = opt.x.clone();
+                        for (a, &r) in opt.free.iter().enumerate() {
+                            y[r] = (opt.x[r] + t * opt.step[a]).clamp(-1.0, 1.0);
+                        }
+                        let change = sign * s.eval(&y, &mut ws).unwrap() - phi;
+                        let miss = (model - change).abs();
+                        if degree == 2 {
+                            assert!(miss <= 1e-12 * (1.0 + change.abs()), "{model} vs {change}");
+                        } else {
+                            largest_quartic_miss = largest_quartic_miss.max(miss);
+                        }
+                    }
+                }
+            }
+        }
+        assert!(largest_quartic_miss > 1e-3, "{largest_quartic_miss}");
+    }
+
+    /// After an accepted step, the expansion returns a value attained at the point it leaves
+    /// in `trial`, no higher than the accepted one, and that point lies on the projected path
+    /// at a doubling of the accepted length (or is the accepted point).
+    #[test]
+    fn the_expansion_returns_an_attained_lower_point_on_the_path() {
+        let mut rng = SplitMix64::new(4_010);
+        let mut ws = SurrogateWorkspace::new();
+        let d = 5;
+        let mut moved_on = 0;
+        for _ in 0..200 {
+            let s = random_surrogate(&mut rng, d, 4);
+            let mut opt = BoxOptimizer::new();
+            opt.resize(d);
+            let sign = if rng.uniform(0.0, 1.0) < 0.5 {
+                1.0
+            } else {
+                -1.0
+            };
+            for r in 0..d {
+                opt.x[r] = rng.uniform(-0.5, 0.5);
+            }
+            opt.evaluate(&s, sign);
+            opt.free = (0..d).collect();
+            opt.evaluate_hessian(&s, sign);
+            // A short step along the negative gradient: accepted, with room to go further.
+            let t = 1e-3;
+            for r in 0..d {
+                opt.step[r] = -opt.grad[r];
+            }
+            opt.project_into_trial(t);
+            let accepted = opt.phi_at_trial(&s, sign);
+            let path_point = opt.trial.clone();
+            let value = opt.expand(&s, sign, t, accepted);
+            assert!(value <= accepted);
+            let attained = sign * s.eval(&opt.trial, &mut ws).unwrap();
+            assert!((attained - value).abs() <= 1e-12 * (1.0 + value.abs()));
+            if value < accepted {
+                moved_on += 1;
+                let on_path = (1..=descent::MAX_DOUBLINGS).any(|k| {
+                    let longer = t * (1u64 << k) as f64;
+                    (0..d)
+                        .all(|r| opt.trial[r] == (opt.x[r] + longer * opt.step[r]).clamp(-1.0, 1.0))
+                });
+                assert!(on_path, "{:?}", opt.trial);
+            } else {
+                assert_eq!(opt.trial, path_point);
+            }
+        }
+        // Steps of a thousandth of the gradient are short: most expand.
+        assert!(moved_on > 100, "{moved_on}");
     }
 
     #[test]

@@ -40,6 +40,10 @@ const CURVATURE_TOL: f64 = 1e-10;
 /// well saved at most 3 % more iterations.
 const SHIFT_FRACTIONS: [f64; 3] = [1.0 / 16.0, 0.25, 1.0];
 
+/// The most doublings of an accepted step the expansion's model considers (`2^30 t`, as many
+/// as the backtracking's halvings).
+pub(super) const MAX_DOUBLINGS: usize = MAX_HALVINGS;
+
 /// Rows of the Hessian whose Gershgorin sums [`BoxOptimizer::gershgorin_shift`] adds side by side.
 const GERSHGORIN_ROWS_AT_ONCE: usize = 4;
 
@@ -378,9 +382,9 @@ impl BoxOptimizer {
 
     /// Projected backtracking along `step` (on the free coordinates) from `self.x`; on success
     /// `trial` holds the new point and the new φ is returned. With `expand`, an accepted first
-    /// trial is followed by doubled steps while φ keeps dropping: a shifted (indefinite) or
-    /// gradient direction has no natural length, and the projection turns long steps into moves
-    /// onto the faces where such extrema lie.
+    /// trial is followed by the model's best doubled step ([`BoxOptimizer::expand`]): a shifted
+    /// (indefinite) or gradient direction has no natural length, and the projection turns long
+    /// steps into moves onto the faces where such extrema lie.
     pub(super) fn line_search(
         &mut self,
         s: &SparseSurrogate,
@@ -432,40 +436,104 @@ impl BoxOptimizer {
         None
     }
 
-    /// From an accepted step length `t` (point in `trial`, value `f_accepted`), doubles t while φ
-    /// drops and the projected point still moves; leaves the best point in `trial`.
+    /// From an accepted step length `t` (point in `trial`, value `f_accepted`), the longer step
+    /// `2^k t` along the projected path that the quadratic model at `x` (value, gradient and
+    /// free-block Hessian there; [`BoxOptimizer::model_change_at`]) predicts lowest, found by
+    /// doubling the model's step while the model keeps dropping and the projected point still
+    /// moves ([`MAX_DOUBLINGS`] at most). φ itself is evaluated only there, then at the halved
+    /// counts below it until one is lower than `f_accepted`: the model is exact only for the
+    /// terms of total degree ≤ 2, so it may overshoot. Leaves the best point in `trial` and
+    /// returns its φ (`f_accepted` when no longer step is lower). Before (issue 40), each
+    /// doubling was a surrogate value while φ kept dropping, and the last one, where it rose,
+    /// was spent too: 2.9 values per expansion on the d = 32 scaling row, 58 % of the search's
+    /// values; with the model 0.6 (docs/high-dimension.md §7a).
     pub(super) fn expand(
         &mut self,
         s: &SparseSurrogate,
         sign: f64,
-        mut t: f64,
+        t: f64,
         f_accepted: f64,
     ) -> f64 {
-        let mut best = f_accepted;
-        // `step` is only read here; the candidate goes to `x_candidate` via swapping buffers.
-        for _ in 0..MAX_HALVINGS {
-            t *= 2.0;
-            std::mem::swap(&mut self.trial, &mut self.spare);
-            self.trial.copy_from_slice(&self.x);
-            let mut changed = false;
-            for (a, &r) in self.free.iter().enumerate() {
-                let new = (self.x[r] + t * self.step[a]).clamp(-1.0, 1.0);
-                changed |= new != self.spare[r];
-                self.trial[r] = new;
-            }
-            if !changed {
-                std::mem::swap(&mut self.trial, &mut self.spare);
+        // The accepted point, kept to return to.
+        self.spare.copy_from_slice(&self.trial);
+        let mut predicted_best = self.model_change_at(t);
+        let mut doublings = 0;
+        for k in 1..=MAX_DOUBLINGS {
+            let longer = t * (1u64 << k) as f64;
+            let Some(change) = self.projected_change_if_moved(longer, t * (1u64 << (k - 1)) as f64)
+            else {
                 break;
-            }
-            let f_trial = self.phi_at_trial(s, sign);
-            if f_trial < best {
-                best = f_trial;
+            };
+            if change < predicted_best {
+                predicted_best = change;
+                doublings = k;
             } else {
-                std::mem::swap(&mut self.trial, &mut self.spare);
                 break;
             }
         }
-        best
+        while doublings > 0 {
+            let longer = t * (1u64 << doublings) as f64;
+            self.project_into_trial(longer);
+            let f_trial = self.phi_at_trial(s, sign);
+            if f_trial < f_accepted {
+                return f_trial;
+            }
+            doublings -= 1;
+        }
+        std::mem::swap(&mut self.trial, &mut self.spare);
+        f_accepted
+    }
+
+    /// `trial` = `clamp(x + t·step)` on the free coordinates, `x` elsewhere.
+    pub(super) fn project_into_trial(&mut self, t: f64) {
+        self.trial.copy_from_slice(&self.x);
+        for (a, &r) in self.free.iter().enumerate() {
+            self.trial[r] = (self.x[r] + t * self.step[a]).clamp(-1.0, 1.0);
+        }
+    }
+
+    /// The quadratic model's change of φ from `x` to `clamp(x + t·step)`:
+    /// `g·Δ + ½ Δ·H_ff Δ` with `Δ` the move of the free coordinates (gradient and Hessian at `x`).
+    pub(super) fn model_change_at(&mut self, t: f64) -> f64 {
+        for (a, &r) in self.free.iter().enumerate() {
+            self.moved[a] = (self.x[r] + t * self.step[a]).clamp(-1.0, 1.0) - self.x[r];
+        }
+        self.model_change_of_moved()
+    }
+
+    /// As [`BoxOptimizer::model_change_at`] at step length `t`, or `None` when the projected
+    /// point is the same as at `shorter` (every moving coordinate already on its face).
+    fn projected_change_if_moved(&mut self, t: f64, shorter: f64) -> Option<f64> {
+        let mut changed = false;
+        for (a, &r) in self.free.iter().enumerate() {
+            let x = self.x[r];
+            let new = (x + t * self.step[a]).clamp(-1.0, 1.0);
+            changed |= new != (x + shorter * self.step[a]).clamp(-1.0, 1.0);
+            self.moved[a] = new - x;
+        }
+        changed.then(|| self.model_change_of_moved())
+    }
+
+    /// `g·Δ + ½ Δ·H_ff Δ` for the move `Δ` in `moved[..nf]`.
+    fn model_change_of_moved(&self) -> f64 {
+        let nf = self.free.len();
+        let moved = &self.moved[..nf];
+        let mut linear = 0.0;
+        let mut curvature = 0.0;
+        for ((&r, &delta), row) in self
+            .free
+            .iter()
+            .zip(moved)
+            .zip(self.hess[..nf * nf].chunks_exact(nf))
+        {
+            if delta == 0.0 {
+                continue;
+            }
+            linear += self.grad[r] * delta;
+            let row_times_move: f64 = row.iter().zip(moved).map(|(h, m)| h * m).sum();
+            curvature += delta * row_times_move;
+        }
+        linear + 0.5 * curvature
     }
 
     /// At a point with no descent direction from first-order information and an indefinite
