@@ -118,23 +118,22 @@ pub fn check_start(
         })?;
     let state = integrator.state();
     let mut warnings = Vec::new();
-    let moved_positions: Vec<String> = scene
-        .initial_q_given
-        .iter()
-        .copied()
-        .filter(|&i| {
-            let (before, after) = (scene.initial_q[i], state.q[i]);
-            (after - before).abs() > POSITION_PROJECTION_NOTE * (1.0 + before.abs())
-        })
-        .map(|i| {
-            let joint = model
-                .joints
-                .iter()
-                .find(|j| (j.q_index..j.q_index + j.nq()).contains(&i))
-                .map_or("?", |j| j.name.as_str());
-            format!("{joint} {} → {:.6}", scene.initial_q[i], state.q[i])
-        })
-        .collect();
+    let moved_positions: Vec<String> = moved_by_projection(
+        scene.initial_q_given.iter().copied(),
+        &scene.initial_q,
+        state.q.as_slice(),
+        POSITION_PROJECTION_NOTE,
+    )
+    .into_iter()
+    .map(|i| {
+        let joint = model
+            .joints
+            .iter()
+            .find(|j| (j.q_index..j.q_index + j.nq()).contains(&i))
+            .map_or("?", |j| j.name.as_str());
+        format!("{joint} {} → {:.6}", scene.initial_q[i], state.q[i])
+    })
+    .collect();
     if !moved_positions.is_empty() {
         warnings.push(format!(
             "{}: [scene] initial.q does not satisfy the constraint rows; the start projection changed it: {}. Give positions that close the loops and mimic rows (a mimic joint left out of initial.q starts at its leader's)",
@@ -142,24 +141,23 @@ pub fn check_start(
             moved_positions.join(", ")
         ));
     }
-    let changed: Vec<usize> = scene
-        .initial_v_given
-        .iter()
-        .copied()
-        .filter(|&i| {
-            let (before, after) = (scene.initial_v[i], state.v[i]);
-            (after - before).abs() > VELOCITY_PROJECTION_NOTE * (1.0 + before.abs())
-        })
-        .collect();
+    let changed = moved_by_projection(
+        scene.initial_v_given.iter().copied(),
+        &scene.initial_v,
+        state.v.as_slice(),
+        VELOCITY_PROJECTION_NOTE,
+    );
     if !changed.is_empty() {
         let name = |i: usize| crate::dynamics::joint_of_velocity(model, i).to_string();
-        let moved: Vec<String> = (0..model.nv)
-            .filter(|&i| {
-                (state.v[i] - scene.initial_v[i]).abs()
-                    > VELOCITY_PROJECTION_NOTE * (1.0 + scene.initial_v[i].abs())
-            })
-            .map(|i| format!("{} {} → {:.6}", name(i), scene.initial_v[i], state.v[i]))
-            .collect();
+        let moved: Vec<String> = moved_by_projection(
+            0..model.nv,
+            &scene.initial_v,
+            state.v.as_slice(),
+            VELOCITY_PROJECTION_NOTE,
+        )
+        .into_iter()
+        .map(|i| format!("{} {} → {:.6}", name(i), scene.initial_v[i], state.v[i]))
+        .collect();
         let mut warning = format!(
             "{}: [scene] initial.v does not satisfy the constraint rows; the start projection changed it: {}",
             scene.origins.sidecar,
@@ -182,6 +180,19 @@ pub fn check_start(
         warnings.push(warning);
     }
     Ok(warnings)
+}
+
+/// Of the coordinates `indices`, those the start projection moved from `before` to `after` by more
+/// than `note` (plus the same fraction of the value's size), in order.
+fn moved_by_projection(
+    indices: impl Iterator<Item = usize>,
+    before: &[f64],
+    after: &[f64],
+    note: f64,
+) -> Vec<usize> {
+    indices
+        .filter(|&i| (after[i] - before[i]).abs() > note * (1.0 + before[i].abs()))
+        .collect()
 }
 
 /// The velocities of the joints not given in `initial.v` that make the given ones consistent with
