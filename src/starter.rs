@@ -147,12 +147,8 @@ impl StarterScene {
         for &j in &held {
             q[model.joints[j].q_index] = starting_position(model, j);
         }
-        // Mimic joints follow their leaders at the pose.
-        for joint in &model.joints {
-            if let Some((leader, multiplier, offset)) = joint.mimic {
-                q[joint.q_index] = multiplier * q[model.joints[leader].q_index] + offset;
-            }
-        }
+        // Mimic joints follow their leaders at the pose (as the scene starts them).
+        model.place_mimic_followers(&mut q, &[]);
         let mut data = Data::new(model);
         let inertia_diagonal: Vec<f64> = {
             let m = crba(model, &mut data, &q);

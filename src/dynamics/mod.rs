@@ -66,6 +66,15 @@ pub enum DynamicsError {
     },
 }
 
+/// Name of the joint owning position coordinate `q_index` (a floating joint owns seven).
+pub fn joint_of_position(model: &Model, q_index: usize) -> &str {
+    model
+        .joints
+        .iter()
+        .find(|j| (j.q_index..j.q_index + j.nq()).contains(&q_index))
+        .map_or("?", |j| j.name.as_str())
+}
+
 /// Name of the joint owning velocity coordinate `v_index`.
 pub fn joint_of_velocity(model: &Model, v_index: usize) -> &str {
     model

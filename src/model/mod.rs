@@ -635,6 +635,31 @@ impl Model {
             .find(name, joints.len(), |i| joints[i].name.as_str())
     }
 
+    /// Puts every URDF mimic follower whose position coordinate is not in `kept` where its row
+    /// puts it, `q = multiplier · q_leader + offset` (`q`: dim nq). A follower of a follower takes
+    /// its leader's placed value: each pass settles one more link of such a chain.
+    pub fn place_mimic_followers(&self, q: &mut [f64], kept: &[usize]) {
+        for _ in 0..self.joints.len() {
+            let mut moved = false;
+            for joint in &self.joints {
+                let Some((leader, multiplier, offset)) = joint.mimic else {
+                    continue;
+                };
+                if kept.contains(&joint.q_index) {
+                    continue;
+                }
+                let placed = multiplier * q[self.joints[leader].q_index] + offset;
+                if q[joint.q_index] != placed {
+                    q[joint.q_index] = placed;
+                    moved = true;
+                }
+            }
+            if !moved {
+                break;
+            }
+        }
+    }
+
     /// The neutral configuration: all coordinates 0, identity quaternions (`dim nq`).
     pub fn neutral_configuration(&self) -> Vec<f64> {
         let mut q = vec![0.0; self.nq];

@@ -226,16 +226,20 @@ pub fn tick_label(value: f64, step: f64, largest: f64) -> String {
     format!("{value:.decimals$}")
 }
 
-/// y range of the data, padded; a flat range is widened around its value.
-fn linear_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+/// Smallest and largest finite value; `None` when there is none.
+pub(super) fn finite_span(values: impl IntoIterator<Item = f64>) -> Option<(f64, f64)> {
     let (lo, hi) = values
+        .into_iter()
         .filter(|v| v.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
             (a.min(v), b.max(v))
         });
-    if !lo.is_finite() {
-        return None;
-    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// y range of the data, padded; a flat range is widened around its value.
+fn linear_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let (lo, hi) = finite_span(values)?;
     let span = hi - lo;
     let half = if span > FLAT_RANGE_RELATIVE * lo.abs().max(hi.abs()) {
         0.5 * span * (1.0 + 2.0 * Y_MARGIN)
@@ -248,14 +252,7 @@ fn linear_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
 
 /// Decade-aligned range of the positive data, for a log axis.
 fn log_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
-    let (lo, hi) = values
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(v), b.max(v))
-        });
-    if !lo.is_finite() {
-        return None;
-    }
+    let (lo, hi) = finite_span(values.filter(|v| *v > 0.0))?;
     let lo = 10f64.powf(lo.log10().floor());
     let hi = 10f64.powf(hi.log10().ceil()).max(lo * 10.0);
     Some((lo, hi))

@@ -14,7 +14,7 @@
 //! says how far the clipped bounds reach (docs/mcap.md §7).
 
 use super::error::OutputError;
-use super::plot::{axis_label, Layer, PlotError, Stroke, TimePlot};
+use super::plot::{axis_label, finite_span, Layer, PlotError, Stroke, TimePlot};
 use super::report_html::{html_page, HtmlReport, REPORT_HTML};
 use super::summary::Summary;
 use super::viewer::{untrusted_title_words, FOXGLOVE_LAYOUT_NAME, RUNS_HULL_SERIES};
@@ -103,17 +103,6 @@ pub struct RunsHull<'a> {
     pub runs: usize,
 }
 
-/// Smallest and largest finite value.
-fn finite_span<'v>(values: impl IntoIterator<Item = &'v f64>) -> Option<(f64, f64)> {
-    let (lo, hi) = values
-        .into_iter()
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    (lo <= hi).then_some((lo, hi))
-}
-
 /// `value` with [`NOTE_DIGITS`] significant digits: fixed notation from 1e-3 to 1e5, otherwise
 /// scientific.
 fn short_number(value: f64) -> String {
@@ -141,7 +130,7 @@ pub fn hull_axis(output: &ReportOutput<'_>, hull: &RunsHull<'_>) -> Option<((f64
         .chain(hull.upper)
         .chain(output.nominal)
         .chain(output.true_runs.iter().map(|(_, y)| y));
-    let (focus_lo, focus_hi) = finite_span(focus.clone())?;
+    let (focus_lo, focus_hi) = finite_span(focus.clone().copied())?;
     let outer = output
         .outer
         .map_or(&[][..], |(lower, _)| lower)
@@ -157,7 +146,7 @@ pub fn hull_axis(output: &ReportOutput<'_>, hull: &RunsHull<'_>) -> Option<((f64
         .chain(output.upper)
         .chain(outer)
         .chain(elements);
-    let (all_lo, all_hi) = finite_span(bounds.chain(focus))?;
+    let (all_lo, all_hi) = finite_span(bounds.chain(focus).copied())?;
     let focus_span = focus_hi - focus_lo;
     if focus_span >= HULL_MIN_AXIS_SHARE * (all_hi - all_lo) || focus_span <= 0.0 {
         return None;

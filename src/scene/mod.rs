@@ -437,7 +437,12 @@ impl Scene {
             initial_q[model.joints[j].q_index] = *value;
             initial_q_given.push(model.joints[j].q_index);
         }
-        start_followers_where_their_rows_put_them(model, &mut initial_q, &initial_q_given);
+        // A mimic joint left out starts where its row puts it, not at its neutral position: the
+        // least-norm start projection would move the given leader too (bullet3's xarm6 gripper,
+        // its drive joint given at 0.425 rad and five followers at 0, started all six at
+        // 0.425 / 6 = 0.0708 rad, and the springs of `ribbon init`'s starter, meant to hold the
+        // pose, pulled the gripper 0.34 rad open in the first 0.2 s; docs/method.md §5).
+        model.place_mimic_followers(&mut initial_q, &initial_q_given);
         let mut initial_v_given = Vec::new();
         for (name, value) in &s.initial.v {
             let j = one_dof_joint("[scene] initial.v", name)?;
@@ -552,40 +557,6 @@ impl Scene {
     /// Whether step `k` (0 ..= n_steps) is recorded: every `record_every` steps, plus the last.
     pub fn records_step(&self, k: usize) -> bool {
         k.is_multiple_of(self.record_every) || k == self.n_steps
-    }
-}
-
-/// Every URDF mimic follower that `initial.q` does not set (its coordinate not in `given`) starts
-/// where its constraint row puts it, `q = multiplier · q_leader + offset`, rather than at its
-/// neutral position. Otherwise the start projection (docs/method.md §5) closes the row by
-/// least-norm steps that move the leader too: bullet3's xarm6 gripper, its drive joint given at
-/// 0.425 rad and five followers at 0, started every one of the six at 0.425 / 6 = 0.0708 rad, and
-/// the springs of `ribbon init`'s starter, meant to hold the pose, pulled the gripper 0.34 rad
-/// open in the first 0.2 s. A follower of a follower takes its leader's start: each pass settles
-/// one more link of such a chain.
-fn start_followers_where_their_rows_put_them(
-    model: &Model,
-    initial_q: &mut [f64],
-    given: &[usize],
-) {
-    for _ in 0..model.joints.len() {
-        let mut moved = false;
-        for joint in &model.joints {
-            let Some((leader, multiplier, offset)) = joint.mimic else {
-                continue;
-            };
-            if given.contains(&joint.q_index) {
-                continue;
-            }
-            let start = multiplier * initial_q[model.joints[leader].q_index] + offset;
-            if initial_q[joint.q_index] != start {
-                initial_q[joint.q_index] = start;
-                moved = true;
-            }
-        }
-        if !moved {
-            break;
-        }
     }
 }
 

@@ -126,12 +126,12 @@ pub fn check_start(
     )
     .into_iter()
     .map(|i| {
-        let joint = model
-            .joints
-            .iter()
-            .find(|j| (j.q_index..j.q_index + j.nq()).contains(&i))
-            .map_or("?", |j| j.name.as_str());
-        format!("{joint} {} → {:.6}", scene.initial_q[i], state.q[i])
+        format!(
+            "{} {} → {:.6}",
+            crate::dynamics::joint_of_position(model, i),
+            scene.initial_q[i],
+            state.q[i]
+        )
     })
     .collect();
     if !moved_positions.is_empty() {
