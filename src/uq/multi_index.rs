@@ -22,6 +22,10 @@ use std::collections::HashMap;
 
 use crate::uq::error::UqError;
 
+mod row_lists;
+
+pub(crate) use row_lists::RowLists;
+
 /// Largest number of terms a set may hold: 2²² ≈ 4.2 M (total degree 3 at d = 100 is 176 851).
 /// Bounds the memory of sets and of every matrix built over them.
 pub const MAX_TERMS: usize = 1 << 22;
@@ -105,6 +109,8 @@ pub(crate) struct EvalPlan {
     pub(crate) bilinear: Vec<Pair>,
     pub(crate) pairs: Vec<Pair>,
     pub(crate) general: Vec<u32>,
+    /// The same terms by the Hessian rows they add to.
+    pub(crate) rows: RowLists,
 }
 
 impl MultiIndexSet {
@@ -458,6 +464,9 @@ impl Builder {
                 _ => plan.general.push(t as u32),
             }
         }
+        plan.rows = RowLists::of(&plan, self.dim, |t| {
+            &self.factors[self.offsets[t]..self.offsets[t + 1]]
+        });
         MultiIndexSet {
             dim: self.dim,
             offsets: self.offsets,

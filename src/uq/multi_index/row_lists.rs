@@ -1,0 +1,130 @@
+//! The terms of an [`EvalPlan`] grouped by the Hessian rows they add to, for building the
+//! Hessian block of a few free dimensions without walking every term
+//! (`SparseSurrogate::free_hessian_at_loaded`): a term adds to the rows of the dimensions it
+//! contains, so the block of the free dimensions needs only the terms that contain one of them.
+//! On the README's scaling rows 41–64 % of the terms contain a free dimension of the box
+//! optimiser's iteration, 1.8 to 4.4 free dimensions at its last (issue 40).
+//!
+//! Each list keeps the plan's order, so an entry of the block sums the same terms in the same
+//! order, to the same bits, as the walk over every term.
+//!
+//! Does not: evaluate anything (`SparseSurrogate`), or order the terms (`MultiIndexSet`).
+
+use super::{EvalPlan, Pair, Single};
+
+/// Per dimension r, the plan's terms (bilinear ones aside: each adds one constant entry, walked
+/// as they are) that add to row r of the Hessian (compressed rows:
+/// dimension r's entries are `offsets[r]..offsets[r + 1]` of each list).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub(crate) struct RowLists {
+    singles: Vec<Single>,
+    single_offsets: Vec<usize>,
+    /// Two-factor terms under both of their dimensions.
+    pairs: Vec<Pair>,
+    pair_offsets: Vec<usize>,
+    /// Terms of three or more factors under each of their dimensions: (term, the factor's place
+    /// in the term).
+    general: Vec<GeneralRow>,
+    general_offsets: Vec<usize>,
+}
+
+/// A term of three or more factors seen from one of its dimensions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct GeneralRow {
+    /// The term's index in the set.
+    pub(crate) term: u32,
+    /// Which of the term's factors (0-based, in the term's order) has this row's dimension.
+    pub(crate) factor: u32,
+}
+
+/// `entries` (dimension, item) grouped by dimension, each dimension's items in the order given:
+/// the grouped items and the offsets of each dimension's run (length `dim + 1`).
+fn grouped<T: Copy>(
+    dim: usize,
+    entries: impl Iterator<Item = (u32, T)> + Clone,
+) -> (Vec<T>, Vec<usize>) {
+    let mut offsets = vec![0usize; dim + 1];
+    for (r, _) in entries.clone() {
+        offsets[r as usize + 1] += 1;
+    }
+    for r in 0..dim {
+        offsets[r + 1] += offsets[r];
+    }
+    let mut next = offsets.clone();
+    let mut out: Vec<Option<T>> = vec![None; offsets[dim]];
+    for (r, item) in entries {
+        out[next[r as usize]] = Some(item);
+        next[r as usize] += 1;
+    }
+    (out.into_iter().flatten().collect(), offsets)
+}
+
+impl RowLists {
+    /// The lists of `plan` for a set of dimension `dim`; `term_dims(t)` the dimensions of term
+    /// t's factors, in the term's order.
+    pub(crate) fn of<'a>(
+        plan: &EvalPlan,
+        dim: usize,
+        term_dims: impl Fn(usize) -> &'a [super::Factor],
+    ) -> RowLists {
+        let (singles, single_offsets) = grouped(dim, plan.singles.iter().map(|s| (s.dim, *s)));
+        let (pairs, pair_offsets) = grouped(
+            dim,
+            plan.pairs
+                .iter()
+                .flat_map(|p| [(p.dim_a, *p), (p.dim_b, *p)]),
+        );
+        let (general, general_offsets) = grouped(
+            dim,
+            plan.general.iter().flat_map(|&term| {
+                term_dims(term as usize)
+                    .iter()
+                    .enumerate()
+                    .map(move |(e, f)| {
+                        (
+                            f.dim,
+                            GeneralRow {
+                                term,
+                                factor: e as u32,
+                            },
+                        )
+                    })
+            }),
+        );
+        RowLists {
+            singles,
+            single_offsets,
+            pairs,
+            pair_offsets,
+            general,
+            general_offsets,
+        }
+    }
+
+    /// The single-factor terms of dimension r.
+    pub(crate) fn singles(&self, r: usize) -> &[Single] {
+        &self.singles[self.single_offsets[r]..self.single_offsets[r + 1]]
+    }
+
+    /// The (non-bilinear) two-factor terms containing dimension r.
+    pub(crate) fn pairs(&self, r: usize) -> &[Pair] {
+        &self.pairs[self.pair_offsets[r]..self.pair_offsets[r + 1]]
+    }
+
+    /// The terms of three or more factors containing dimension r.
+    pub(crate) fn general(&self, r: usize) -> &[GeneralRow] {
+        &self.general[self.general_offsets[r]..self.general_offsets[r + 1]]
+    }
+
+    /// How many list entries the rows `free` hold in all: the work of a block built from them.
+    pub(crate) fn entries_of(&self, free: &[usize]) -> usize {
+        free.iter()
+            .map(|&r| {
+                self.single_offsets[r + 1] - self.single_offsets[r] + self.pair_offsets[r + 1]
+                    - self.pair_offsets[r]
+                    + self.general_offsets[r + 1]
+                    - self.general_offsets[r]
+            })
+            .sum()
+    }
+}
