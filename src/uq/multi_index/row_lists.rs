@@ -128,3 +128,74 @@ impl RowLists {
             .sum()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::MultiIndexSet;
+
+    /// Each row lists exactly the plan's terms that contain its dimension, in the plan's order
+    /// (what makes a block built from the rows sum like the walk over every term).
+    #[test]
+    fn each_row_lists_the_terms_of_its_dimension_in_the_plans_order() {
+        let set = MultiIndexSet::anisotropic(&[3, 1, 2, 1, 1, 2], 5, 4).unwrap();
+        let plan = set.plan();
+        let rows = &plan.rows;
+        for r in 0..set.dim() as u32 {
+            let singles: Vec<u32> = plan
+                .singles
+                .iter()
+                .filter(|s| s.dim == r)
+                .map(|s| s.term)
+                .collect();
+            assert_eq!(
+                rows.singles(r as usize)
+                    .iter()
+                    .map(|s| s.term)
+                    .collect::<Vec<_>>(),
+                singles
+            );
+            let pairs: Vec<u32> = plan
+                .pairs
+                .iter()
+                .filter(|p| p.dim_a == r || p.dim_b == r)
+                .map(|p| p.term)
+                .collect();
+            assert_eq!(
+                rows.pairs(r as usize)
+                    .iter()
+                    .map(|p| p.term)
+                    .collect::<Vec<_>>(),
+                pairs
+            );
+            let general: Vec<(u32, u32)> = plan
+                .general
+                .iter()
+                .filter_map(|&t| {
+                    let e = set.term(t as usize).iter().position(|f| f.dim == r)?;
+                    Some((t, e as u32))
+                })
+                .collect();
+            let listed: Vec<(u32, u32)> = rows
+                .general(r as usize)
+                .iter()
+                .map(|g| (g.term, g.factor))
+                .collect();
+            assert_eq!(listed, general);
+            assert!(
+                !general.is_empty(),
+                "dimension {r} is in terms of three or more factors"
+            );
+        }
+        let every: Vec<usize> = (0..set.dim()).collect();
+        assert_eq!(
+            rows.entries_of(&every),
+            plan.singles.len()
+                + 2 * plan.pairs.len()
+                + plan
+                    .general
+                    .iter()
+                    .map(|&t| set.term(t as usize).len())
+                    .sum::<usize>()
+        );
+    }
+}
