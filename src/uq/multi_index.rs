@@ -109,8 +109,21 @@ pub(crate) struct EvalPlan {
     pub(crate) bilinear: Vec<Pair>,
     pub(crate) pairs: Vec<Pair>,
     pub(crate) general: Vec<u32>,
+    /// Per general term, its table indices when it has at most four factors (read without
+    /// the set's offsets).
+    pub(crate) general_inline: Vec<InlineIndices>,
     /// The same terms by the Hessian rows they add to.
     pub(crate) rows: RowLists,
+}
+
+/// A general term's table indices kept in its plan entry: `index[..len]` when `len ≤ 4`
+/// (otherwise `len` alone, and the indices are read from the set).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct InlineIndices {
+    /// The term's number of factors.
+    pub(crate) len: u32,
+    /// Its first (up to) four table indices.
+    pub(crate) index: [u32; 4],
 }
 
 impl MultiIndexSet {
@@ -461,7 +474,17 @@ impl Builder {
                         plan.pairs.push(pair);
                     }
                 }
-                _ => plan.general.push(t as u32),
+                _ => {
+                    plan.general.push(t as u32);
+                    let mut inline = InlineIndices {
+                        len: idx.len() as u32,
+                        index: [0; 4],
+                    };
+                    for (slot, &i) in inline.index.iter_mut().zip(idx) {
+                        *slot = i;
+                    }
+                    plan.general_inline.push(inline);
+                }
             }
         }
         plan.rows = RowLists::of(&plan, self.dim, |t| {

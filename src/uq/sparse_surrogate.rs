@@ -347,9 +347,13 @@ impl SparseSurrogate {
         for p in &plan.pairs {
             sum += c[p.term as usize] * v[p.index_a as usize] * v[p.index_b as usize];
         }
-        for &t in &plan.general {
+        for (&t, inline) in plan.general.iter().zip(&plan.general_inline) {
             let t = t as usize;
-            let product = general_terms::product(self.set.table_indices(t), v);
+            let product = match inline.len {
+                3 => general_terms::product(&inline.index[..3], v),
+                4 => general_terms::product(&inline.index, v),
+                _ => general_terms::product(self.set.table_indices(t), v),
+            };
             sum += c[t] * product;
         }
         sum
