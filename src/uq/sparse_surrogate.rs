@@ -868,7 +868,14 @@ mod tests {
         const H: f64 = 1e-5;
         const FD_TOL: f64 = 1e-6;
         let [sparse, dense] = sparse_and_dense_sets();
-        let sets = [MultiIndexSet::total_degree(4, 4).unwrap(), sparse, dense];
+        // The last with terms of five factors, whose table indices are read through the set
+        // (three and four from the plan's `InlineIndices`).
+        let sets = [
+            MultiIndexSet::total_degree(4, 4).unwrap(),
+            sparse,
+            dense,
+            MultiIndexSet::anisotropic(&[2; 7], 6, 5).unwrap(),
+        ];
         let mut ws = SurrogateWorkspace::new();
         let mut rng = SplitMix64::new(1);
         for (i, set) in sets.into_iter().enumerate() {
