@@ -38,7 +38,10 @@ use super::bounded_block::{BoundedBlock, Extremes};
 use super::bounds::include_runs;
 use super::envelope::EnvelopePoint;
 use super::sparse::SparseDesign;
-use crate::uq::{outer_widened_to_inner, BoxOptimizer, SobolIndices, SparseSurrogate, UqError};
+use crate::uq::{
+    outer_widened_to_inner, BoxOptimizer, SobolIndices, SparseSurrogate, SurrogateWorkspace,
+    UqError,
+};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
@@ -66,6 +69,27 @@ pub const DESIGN_STARTS_PER_SIDE: usize = 2;
 /// times by 3.4e-3 of `frame.tool0.x`'s width.
 pub const FRESH_DESIGN_STARTS_PER_SIDE: usize = 1;
 
+/// The search of a side runs on the record's surrogate less some of its smallest terms
+/// ([`SparseSurrogate::drop_terms`]), whose coefficients' magnitudes sum to at most this
+/// fraction of the spread of the record's runs (the largest value less the smallest, runs not
+/// excluded). The pruned surrogate differs from the fitted one by at most that sum anywhere in
+/// the box, and the extreme reported is the fitted surrogate's value where the search ended, so
+/// it is attained, and it lies within twice that sum of what a search of the fitted surrogate
+/// would reach in the same basin; the envelope contains the runs, so its width is at least the
+/// spread (docs/high-dimension.md §7a).
+pub const PRUNED_MASS_PER_SPREAD: f64 = 1e-5;
+
+/// A side chooses the terms to drop so that they sum to at most this fraction of the budget
+/// ([`PRUNED_MASS_PER_SPREAD`]) and keeps them for the next records while they still fit the
+/// whole budget: the coefficients drift slowly from record to record, and choosing (a sort of
+/// the terms, and the pruned surrogate's evaluation order) every time cost as much as the
+/// search it saved at d = 64.
+const DROPPED_SHARE_AT_CHOICE: f64 = 0.5;
+
+/// A side chooses its dropped terms afresh at least every this many records (the terms that
+/// became small since go too).
+const RECORDS_PER_CHOICE: usize = 16;
+
 /// What one side (minimum or maximum) of one output carries from record time to record time.
 #[derive(Debug, Default, Clone)]
 struct SideChain {
@@ -78,6 +102,13 @@ struct SideChain {
     /// The seconds this side took on the last block: orders the queue (longest first), nothing
     /// else.
     last_block_seconds: f64,
+    /// The terms its searches leave out ([`PRUNED_MASS_PER_SPREAD`]), ascending.
+    dropped: Vec<u32>,
+    /// How many times `dropped` was chosen (a thread's searched surrogate is rebuilt when it
+    /// holds another side's or an older choice).
+    dropped_choices: u64,
+    /// Records bounded since `dropped` was chosen.
+    records_since_choice: usize,
 }
 
 /// One side (minimum or maximum) of one output's inner bound at every record of a block.
@@ -114,6 +145,8 @@ struct FittedRecord {
     outer: Vec<(f64, f64)>,
     /// Per output: the magnitude of the top-order coefficients.
     errors: Vec<f64>,
+    /// Per output: the spread of its runs not excluded ([`runs_spreads`]).
+    spreads: Vec<f64>,
     /// `outputs × d`.
     main_indices: Vec<f64>,
     /// `outputs × d`.
@@ -135,12 +168,19 @@ enum Task {
 /// Per-thread buffers.
 struct Workspace {
     surrogate: SparseSurrogate,
+    /// The surrogate a side's search runs on: `surrogate` without the side's dropped terms
+    /// ([`PRUNED_MASS_PER_SPREAD`]).
+    searched: SparseSurrogate,
+    /// Whose dropped terms `searched` has: (side, `SideChain::dropped_choices`).
+    searched_drops: Option<(usize, u64)>,
     optimizer: BoxOptimizer,
     indices: SobolIndices,
     /// Start points of one side, row-major.
     starts: Vec<f64>,
     /// Where one side's extreme is attained.
     arg: Vec<f64>,
+    /// The fitted surrogate's evaluation buffers.
+    evaluation: SurrogateWorkspace,
     /// The design points with the lowest and the highest values.
     lowest: Vec<usize>,
     highest: Vec<usize>,
@@ -213,7 +253,7 @@ impl SparseBounds {
                 .into_par_iter()
                 .map_init(
                     || self.workspace(),
-                    |ws, r| self.fit_record(values(r), n_outputs, ws, clock),
+                    |ws, r| self.fit_record(values(r), n_outputs, excluded, ws, clock),
                 )
                 .collect::<Result<Vec<FittedRecord>, UqError>>()
         })?;
@@ -226,6 +266,7 @@ impl SparseBounds {
                 next,
                 n_outputs,
                 values,
+                excluded,
                 &mut chains,
                 clock,
                 threads,
@@ -247,6 +288,7 @@ impl SparseBounds {
         next: std::ops::Range<usize>,
         n_outputs: usize,
         values: &(dyn Fn(usize) -> Vec<f64> + Sync),
+        excluded: &(dyn Fn(usize) -> bool + Sync),
         chains: &mut [SideChain],
         clock: &BoundClock,
         threads: &rayon::ThreadPool,
@@ -288,8 +330,13 @@ impl SparseBounds {
                         *lock(&sides[side]) = Some(series);
                     }
                     Task::Fit(i) => {
-                        let record =
-                            self.fit_record(values(next.start + i), n_outputs, &mut ws, clock);
+                        let record = self.fit_record(
+                            values(next.start + i),
+                            n_outputs,
+                            excluded,
+                            &mut ws,
+                            clock,
+                        );
                         *lock(&fits[i]) = Some(record);
                     }
                 }
@@ -312,10 +359,13 @@ impl SparseBounds {
         let set = self.design.set();
         Workspace {
             surrogate: SparseSurrogate::zeros(Arc::clone(set)),
+            searched: SparseSurrogate::zeros(Arc::clone(set)),
+            searched_drops: None,
             optimizer: BoxOptimizer::new(),
             indices: SobolIndices::zeros(set.dim()),
             starts: Vec::new(),
             arg: Vec::new(),
+            evaluation: SurrogateWorkspace::new(),
             lowest: Vec::new(),
             highest: Vec::new(),
         }
@@ -327,6 +377,7 @@ impl SparseBounds {
         &self,
         values: Vec<f64>,
         n_outputs: usize,
+        excluded: &(dyn Fn(usize) -> bool + Sync),
         ws: &mut Workspace,
         clock: &BoundClock,
     ) -> Result<FittedRecord, UqError> {
@@ -338,7 +389,9 @@ impl SparseBounds {
             .fit()
             .fit_into(&values, n_outputs, &mut coefficients)?;
         lap = clock.lap(BoundPhase::Fit, lap);
+        let spreads = runs_spreads(&values, n_outputs, excluded);
         let mut record = FittedRecord {
+            spreads,
             values,
             coefficients,
             outer: Vec::with_capacity(n_outputs),
@@ -444,6 +497,8 @@ impl SparseBounds {
             ws.surrogate
                 .set_from_fit(&record.coefficients, n_outputs, o)?;
             let value = |p: usize| record.values[p * n_outputs + o];
+            let budget = PRUNED_MASS_PER_SPREAD * record.spreads[o];
+            self.prepare_searched(2 * o + usize::from(maximum), budget, chain, ws)?;
             extreme_design_points(
                 n_points,
                 value,
@@ -473,12 +528,14 @@ impl SparseBounds {
             if let Some(previous) = chain.previous.as_ref() {
                 ws.starts.extend_from_slice(previous);
             }
-            let (extreme, _) = ws.optimizer.extreme_from_starts_into(
-                &ws.surrogate,
+            ws.optimizer.extreme_from_starts_into(
+                &ws.searched,
                 maximum,
                 &ws.starts,
                 &mut ws.arg,
             )?;
+            // The fitted surrogate's value where the search of the pruned one ended: attained.
+            let extreme = ws.surrogate.eval(&ws.arg, &mut ws.evaluation)?;
             series.values.push(extreme);
             series.args.extend_from_slice(&ws.arg);
             match &mut chain.previous {
@@ -503,6 +560,64 @@ impl SparseBounds {
         }
         Ok(series)
     }
+}
+
+impl SparseBounds {
+    /// Loads `ws.searched` with `ws.surrogate` (the record's fit) less the side's dropped
+    /// terms, chosen afresh when they no longer fit `budget` or every [`RECORDS_PER_CHOICE`]
+    /// records (`chain` carries them from record to record, so the choice depends on the
+    /// records alone, not on the blocks or the threads).
+    fn prepare_searched(
+        &self,
+        side: usize,
+        budget: f64,
+        chain: &mut SideChain,
+        ws: &mut Workspace,
+    ) -> Result<(), UqError> {
+        let c = ws.surrogate.coefficients();
+        let mass: f64 = chain.dropped.iter().map(|&t| c[t as usize].abs()).sum();
+        chain.records_since_choice += 1;
+        if mass > budget || chain.records_since_choice >= RECORDS_PER_CHOICE {
+            ws.surrogate
+                .smallest_terms_into(DROPPED_SHARE_AT_CHOICE * budget, &mut chain.dropped);
+            chain.dropped_choices += 1;
+            chain.records_since_choice = 0;
+        }
+        let choice = Some((side, chain.dropped_choices));
+        if ws.searched_drops != choice {
+            ws.searched.drop_terms(&chain.dropped)?;
+            ws.searched_drops = choice;
+        }
+        ws.searched.set_coefficients(ws.surrogate.coefficients())
+    }
+}
+
+/// Per output, the largest value of the runs not `excluded` less the smallest (`values`
+/// row-major `runs × n_outputs`; finite values only; 0 without two such runs): a width the
+/// output's envelope is at least as wide as (it contains those runs).
+fn runs_spreads(
+    values: &[f64],
+    n_outputs: usize,
+    excluded: &(dyn Fn(usize) -> bool + Sync),
+) -> Vec<f64> {
+    let mut lowest = vec![f64::INFINITY; n_outputs];
+    let mut highest = vec![f64::NEG_INFINITY; n_outputs];
+    for (run, row) in values.chunks_exact(n_outputs.max(1)).enumerate() {
+        if excluded(run) {
+            continue;
+        }
+        for ((lo, hi), &v) in lowest.iter_mut().zip(&mut highest).zip(row) {
+            if v.is_finite() {
+                *lo = lo.min(v);
+                *hi = hi.max(v);
+            }
+        }
+    }
+    lowest
+        .iter()
+        .zip(&highest)
+        .map(|(&lo, &hi)| if hi >= lo { hi - lo } else { 0.0 })
+        .collect()
 }
 
 /// The `k` design points of lowest value into `lowest` and the `k` of highest into `highest`,

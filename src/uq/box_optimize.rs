@@ -134,9 +134,15 @@ pub struct BoxOptimizer {
     /// Per start given to [`BoxOptimizer::extreme_from_starts_into`], the descent (row of
     /// `ends`) that went from it or from an equal earlier start.
     given_descents: Vec<usize>,
-    /// A trial point's move from `x` on the free coordinates (length d), for the expansion's
-    /// quadratic model.
+    /// Per free coordinate on its face, its offset from `x` there (length d), for the
+    /// expansion's path model.
     moved: Vec<f64>,
+    /// The expansion's path model: `H_ff` times the step on the free coordinates still inside
+    /// the box, times their face offsets on those on a face, and which are on a face (each
+    /// length d; `descent.rs`, `start_path_model`).
+    along_inside: Vec<f64>,
+    along_faces: Vec<f64>,
+    on_face: Vec<bool>,
 }
 
 impl Default for BoxOptimizer {
@@ -168,6 +174,9 @@ impl BoxOptimizer {
             decrease_floor: 0.0,
             given_descents: Vec::new(),
             moved: Vec::new(),
+            along_inside: Vec::new(),
+            along_faces: Vec::new(),
+            on_face: Vec::new(),
         }
     }
 
@@ -388,6 +397,9 @@ impl BoxOptimizer {
         self.spare.resize(d, 0.0);
         self.x.resize(d, 0.0);
         self.moved.resize(d, 0.0);
+        self.along_inside.resize(d, 0.0);
+        self.along_faces.resize(d, 0.0);
+        self.on_face.resize(d, false);
         self.linear.resize(d, 0.0);
     }
 
@@ -774,6 +786,22 @@ mod tests {
                     opt.evaluate_hessian(&s, sign);
                     for a in 0..opt.free.len() {
                         opt.step[a] = rng.uniform(-1.0, 1.0);
+                    }
+                    // The path model kept up to date along doublings gives the direct model's
+                    // value to rounding.
+                    let mut path = opt.start_path_model(0.01);
+                    let mut t = 0.01;
+                    for _ in 0..12 {
+                        let direct = opt.model_change_at(t);
+                        assert!(
+                            (path - direct).abs() <= 1e-12 * (1.0 + direct.abs()),
+                            "{path} vs {direct} at {t}"
+                        );
+                        match opt.advance_path_model(2.0 * t, t) {
+                            Some(next) => path = next,
+                            None => break,
+                        }
+                        t *= 2.0;
                     }
                     for t in [0.01, 0.3, 1.0, 4.0] {
                         let model = opt.model_change_at(t);

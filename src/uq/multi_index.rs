@@ -126,6 +126,37 @@ pub(crate) struct InlineIndices {
     pub(crate) index: [u32; 4],
 }
 
+impl EvalPlan {
+    /// Overwrites `out` with this plan restricted to the terms `keep` accepts, every list in
+    /// the same order (a surrogate evaluated through `out` sums the kept terms as through this
+    /// plan, and skips the others).
+    pub(crate) fn kept_into(&self, keep: impl Fn(u32) -> bool, out: &mut EvalPlan) {
+        out.singles.clear();
+        out.singles
+            .extend(self.singles.iter().filter(|s| keep(s.term)).copied());
+        out.bilinear.clear();
+        out.bilinear
+            .extend(self.bilinear.iter().filter(|p| keep(p.term)).copied());
+        out.pairs.clear();
+        out.pairs
+            .extend(self.pairs.iter().filter(|p| keep(p.term)).copied());
+        out.general.clear();
+        out.general_inline.clear();
+        for (&t, &inline) in self.general.iter().zip(&self.general_inline) {
+            if keep(t) {
+                out.general.push(t);
+                out.general_inline.push(inline);
+            }
+        }
+        self.rows.kept_into(&keep, &mut out.rows);
+    }
+
+    /// The number of non-constant terms the plan evaluates.
+    pub(crate) fn terms(&self) -> usize {
+        self.singles.len() + self.bilinear.len() + self.pairs.len() + self.general.len()
+    }
+}
+
 impl MultiIndexSet {
     /// All α with `|α| ≤ order`: `C(dim + order, order)` terms.
     ///

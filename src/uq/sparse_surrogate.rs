@@ -20,7 +20,7 @@ use crate::isa::{Isa, IsaKind};
 use crate::uq::basis::Family;
 use crate::uq::bounds::ErrorEstimate;
 use crate::uq::error::UqError;
-use crate::uq::multi_index::MultiIndexSet;
+use crate::uq::multi_index::{EvalPlan, MultiIndexSet};
 use crate::uq::sobol_indices::SobolIndices;
 
 mod general_terms;
@@ -32,6 +32,16 @@ mod general_terms;
 /// present; and when most terms are of other kinds they dominate the cost, the dense matrix saves
 /// little and the sums keep their term-by-term order (and bits).
 pub const DENSE_BILINEAR_FILL: usize = 8;
+
+/// How many binades [`SparseSurrogate::smallest_terms_into`] sorts magnitudes into: one per
+/// binary exponent of an f64 (zeros and subnormals in the first).
+const BINADES: usize = 2048;
+
+/// The binade of a magnitude `m ≥ 0`: its biased binary exponent (0 for zeros and subnormals,
+/// 2047 for infinities and NaN), increasing with `m`.
+fn binade(m: f64) -> usize {
+    ((m.to_bits() >> 52) & 0x7ff) as usize
+}
 
 /// Work buffers for evaluating sparse surrogates: per-dimension tables of `P_n`, `P_n'`, `P_n''`.
 /// Grows to the largest set it is used with; reuse it across calls and surrogates.
@@ -128,6 +138,13 @@ pub struct SparseSurrogate {
     /// The bilinear part as a dense symmetric `d × d` matrix with a zero diagonal (module doc),
     /// or empty when the set has too few bilinear terms for it.
     bilinear: Vec<f64>,
+    /// Whether terms were dropped ([`SparseSurrogate::drop_terms`]): then `kept` lists the
+    /// terms evaluated; otherwise the set's plan does.
+    pruned: bool,
+    /// The plan of a pruned surrogate: the set's without the dropped terms.
+    kept: EvalPlan,
+    /// The terms left out ([`SparseSurrogate::drop_terms`]), ascending.
+    dropped: Vec<u32>,
 }
 
 impl SparseSurrogate {
@@ -153,7 +170,141 @@ impl SparseSurrogate {
             set,
             coefficients: vec![0.0; n],
             bilinear: if dense { vec![0.0; d * d] } else { Vec::new() },
+            pruned: false,
+            kept: EvalPlan::default(),
+            dropped: Vec::new(),
         }
+    }
+
+    /// The terms evaluated: the set's plan, or the kept terms of a pruned surrogate.
+    fn plan(&self) -> &EvalPlan {
+        if self.pruned {
+            &self.kept
+        } else {
+            self.set.plan()
+        }
+    }
+
+    /// How many terms an evaluation sums (the constant included): the set's size, or fewer
+    /// for a pruned surrogate — the measure of what a surrogate value costs.
+    pub fn evaluated_terms(&self) -> usize {
+        self.plan().terms() + 1
+    }
+
+    /// Terms (ascending indices) whose coefficients are the smallest in magnitude and sum to at
+    /// most `budget`, into `out` (overwritten): candidates for [`SparseSurrogate::drop_terms`].
+    /// They are whole binades of magnitudes (`[2^e, 2^(e+1))`), from the smallest up, as long
+    /// as their sum fits: no sort of the terms, and within a factor two of the magnitude a
+    /// sorted choice would stop at. The constant and the linear terms `P_1(ξ_r)` are never among
+    /// them (they cost little, and the box optimiser starts from the vertex their signs give).
+    /// Which terms they are depends on the coefficients' values alone (summed in term order),
+    /// so the result is the same on every machine.
+    ///
+    /// ```
+    /// use std::sync::Arc;
+    /// use ribbon::uq::{MultiIndexSet, SparseSurrogate, SurrogateWorkspace};
+    /// let set = Arc::new(MultiIndexSet::total_degree(2, 2)?);
+    /// let mut c = vec![0.0; set.len()];
+    /// c[set.index_of_dense(&[1, 0]).unwrap()] = 1.0;
+    /// c[set.index_of_dense(&[1, 1]).unwrap()] = 1e-9;
+    /// c[set.index_of_dense(&[0, 2]).unwrap()] = 2e-9;
+    /// c[set.index_of_dense(&[2, 0]).unwrap()] = 0.5;
+    /// let full = SparseSurrogate::new(set.clone(), c)?;
+    /// let mut small = Vec::new();
+    /// // 1e-9 fits the budget, 1e-9 + 2e-9 does not; the linear ξ2 stays although it is zero.
+    /// full.smallest_terms_into(1.5e-9, &mut small);
+    /// let mut pruned = full.clone();
+    /// pruned.drop_terms(&small)?;
+    /// assert_eq!(pruned.dropped_terms(), [set.index_of_dense(&[1, 1]).unwrap() as u32]);
+    /// assert_eq!(pruned.evaluated_terms(), 5); // the constant, ξ1, ξ2, P_2(ξ1), P_2(ξ2)
+    /// let mut ws = SurrogateWorkspace::new();
+    /// let x = [0.3, -1.0];
+    /// assert!((full.eval(&x, &mut ws)? - pruned.eval(&x, &mut ws)?).abs() <= 1.5e-9);
+    /// # Ok::<(), ribbon::uq::UqError>(())
+    /// ```
+    pub fn smallest_terms_into(&self, budget: f64, out: &mut Vec<u32>) {
+        let set = &self.set;
+        let droppable = |t: usize| {
+            let term = set.term(t);
+            !(term.len() == 1 && term[0].degree == 1)
+        };
+        // The magnitudes summed per binade (by their binary exponent, subnormals and zeros in
+        // binade 0), in term order: no sort of the terms.
+        let mut per_binade = [0.0_f64; BINADES];
+        for t in 1..self.coefficients.len() {
+            if droppable(t) {
+                let m = self.coefficients[t].abs();
+                per_binade[binade(m)] += m;
+            }
+        }
+        // Whole binades from the smallest up while their sum fits; every term below the first
+        // that does not fit goes.
+        let budget = budget.max(0.0);
+        let mut spent = 0.0;
+        let mut first_kept = BINADES;
+        for (b, &sum) in per_binade.iter().enumerate() {
+            if spent + sum > budget {
+                first_kept = b;
+                break;
+            }
+            spent += sum;
+        }
+        out.clear();
+        out.extend(
+            (1..self.coefficients.len())
+                .filter(|&t| droppable(t) && binade(self.coefficients[t].abs()) < first_kept)
+                .map(|t| t as u32),
+        );
+    }
+
+    /// Leaves the terms `dropped` (ascending term indices, none the constant) out of this
+    /// surrogate: their coefficients are zero, now and after every later
+    /// [`SparseSurrogate::set_coefficients`] or [`SparseSurrogate::set_from_fit`], and evaluation
+    /// skips them, so each costs nothing. A surrogate whose dropped coefficients sum to at most
+    /// `m` in magnitude differs from the one with them by at most `m` anywhere in the box
+    /// (`|P_n| ≤ 1` there; docs/high-dimension.md §7a). An empty list restores every term.
+    ///
+    /// Errors: an index out of range, the constant, or not ascending.
+    pub fn drop_terms(&mut self, dropped: &[u32]) -> Result<(), UqError> {
+        let n = self.coefficients.len();
+        if let Some(i) = (0..dropped.len()).find(|&i| {
+            dropped[i] == 0 || dropped[i] as usize >= n || (i > 0 && dropped[i - 1] >= dropped[i])
+        }) {
+            return Err(UqError::IndexOutOfRange {
+                what: "sparse surrogate: dropped terms (ascending, not the constant)",
+                index: dropped[i] as usize,
+                len: n,
+            });
+        }
+        self.dropped.clear();
+        self.dropped.extend_from_slice(dropped);
+        self.pruned = !dropped.is_empty();
+        if !self.pruned {
+            self.kept = EvalPlan::default();
+        } else {
+            let mut is_dropped = vec![false; n];
+            for &t in dropped {
+                is_dropped[t as usize] = true;
+            }
+            self.set
+                .plan()
+                .kept_into(|t| !is_dropped[t as usize], &mut self.kept);
+        }
+        self.zero_dropped();
+        Ok(())
+    }
+
+    /// The terms left out ([`SparseSurrogate::drop_terms`]; empty when none).
+    pub fn dropped_terms(&self) -> &[u32] {
+        &self.dropped
+    }
+
+    /// Zeroes the dropped terms' coefficients and refreshes the dense bilinear part.
+    fn zero_dropped(&mut self) {
+        for &t in &self.dropped {
+            self.coefficients[t as usize] = 0.0;
+        }
+        self.refresh_bilinear();
     }
 
     /// Whether the bilinear part is kept as a dense matrix ([`DENSE_BILINEAR_FILL`]).
@@ -194,7 +345,7 @@ impl SparseSurrogate {
             });
         }
         self.coefficients.copy_from_slice(coefficients);
-        self.refresh_bilinear();
+        self.zero_dropped();
         Ok(())
     }
 
@@ -232,7 +383,7 @@ impl SparseSurrogate {
                 value: self.coefficients[index],
             });
         }
-        self.refresh_bilinear();
+        self.zero_dropped();
         Ok(())
     }
 
@@ -332,7 +483,7 @@ impl SparseSurrogate {
     fn value_from_tables(&self, bilinear_value: f64, ws: &SurrogateWorkspace) -> f64 {
         let v = &ws.values;
         let c = &self.coefficients;
-        let plan = self.set.plan();
+        let plan = self.plan();
         let mut sum = c[0];
         for s in &plan.singles {
             sum += c[s.term as usize] * v[s.index as usize];
@@ -459,7 +610,7 @@ impl SparseSurrogate {
     fn value_and_gradient_from_tables(&self, grad: &mut [f64], ws: &SurrogateWorkspace) -> f64 {
         let (v, g) = (&ws.values, &ws.first);
         let c = &self.coefficients;
-        let plan = self.set.plan();
+        let plan = self.plan();
         // The same order of sums as `value_unchecked`, so that both give the same value.
         let mut bilinear_value = 0.0;
         if self.bilinear.is_empty() {
@@ -521,7 +672,7 @@ impl SparseSurrogate {
             (slot != NOT_IN_BLOCK).then_some(slot as usize)
         };
         let c = &self.coefficients;
-        let plan = self.set.plan();
+        let plan = self.plan();
         if self.bilinear.is_empty() {
             block.fill(0.0);
             for p in &plan.bilinear {
@@ -593,7 +744,7 @@ impl SparseSurrogate {
             (slot != NOT_IN_BLOCK).then_some(slot as usize)
         };
         let c = &self.coefficients;
-        let rows = &self.set.plan().rows;
+        let rows = &self.plan().rows;
         for (a, &r) in free.iter().enumerate() {
             for s in rows.singles(r) {
                 block[a * nf + a] += c[s.term as usize] * h[s.index as usize];
@@ -990,6 +1141,105 @@ mod tests {
                 }
                 assert!(block[nf * nf..].iter().all(|v| v.is_nan()), "set {i}");
             }
+        }
+    }
+
+    /// A surrogate with terms dropped evaluates (value, gradient, Hessian, Hessian blocks, moved
+    /// points) to the same bits as the same surrogate with those coefficients zero and every term
+    /// walked, keeps them dropped when its coefficients are set again, and stays within the
+    /// dropped magnitudes of the surrogate with them.
+    #[test]
+    fn dropped_terms_are_skipped_to_the_same_bits_as_zero_coefficients() {
+        let [sparse, dense] = sparse_and_dense_sets();
+        let wide = MultiIndexSet::anisotropic(&[2; 7], 6, 5).unwrap();
+        let (mut ws, mut reference_ws) = (SurrogateWorkspace::new(), SurrogateWorkspace::new());
+        let mut rng = SplitMix64::new(9);
+        let linear = |set: &MultiIndexSet, t: u32| {
+            let term = set.term(t as usize);
+            term.len() == 1 && term[0].degree == 1
+        };
+        for (i, set) in [sparse, dense, wide].into_iter().enumerate() {
+            let set = Arc::new(set);
+            let d = set.dim();
+            // Magnitudes over twelve decades, so that a budget drops terms of every kind.
+            let c: Vec<f64> = (0..set.len())
+                .map(|_| rng.uniform(-1.0, 1.0) * 10f64.powf(rng.uniform(-12.0, 0.0)))
+                .collect();
+            let full = SparseSurrogate::new(Arc::clone(&set), c.clone()).unwrap();
+            let budget = 1e-3;
+            let mut dropped = Vec::new();
+            full.smallest_terms_into(budget, &mut dropped);
+            let mass: f64 = dropped.iter().map(|&t| c[t as usize].abs()).sum();
+            assert!(mass <= budget, "set {i}: {mass}");
+            assert!(dropped.len() > set.len() / 4, "set {i}: {}", dropped.len());
+            assert!(dropped.windows(2).all(|w| w[0] < w[1]));
+            assert!(dropped.iter().all(|&t| t != 0 && !linear(&set, t)));
+            // Every other term but the constant and the linear ones is larger than every
+            // dropped one.
+            let largest_dropped = dropped
+                .iter()
+                .map(|&t| c[t as usize].abs())
+                .fold(0.0, f64::max);
+            assert!((1..set.len() as u32)
+                .filter(|t| !linear(&set, *t) && dropped.binary_search(t).is_err())
+                .all(|t| c[t as usize].abs() > largest_dropped));
+
+            let mut pruned = SparseSurrogate::zeros(Arc::clone(&set));
+            pruned.drop_terms(&dropped).unwrap();
+            pruned.set_coefficients(&c).unwrap();
+            let mut zeroed = c.clone();
+            for &t in &dropped {
+                zeroed[t as usize] = 0.0;
+            }
+            assert_eq!(pruned.coefficients(), &zeroed[..], "set {i}");
+            assert_eq!(pruned.evaluated_terms(), set.len() - dropped.len());
+            assert_eq!(pruned.dropped_terms(), &dropped[..]);
+            let reference = SparseSurrogate::new(Arc::clone(&set), zeroed).unwrap();
+            assert_eq!(pruned.has_dense_bilinear_part(), i == 1);
+            for _ in 0..3 {
+                let x: Vec<f64> = (0..d).map(|_| rng.uniform(-1.0, 1.0)).collect();
+                let (mut g, mut h) = (vec![0.0; d], vec![0.0; d * d]);
+                let (mut g_ref, mut h_ref) = (vec![0.0; d], vec![0.0; d * d]);
+                let v = pruned.hessian(&x, &mut g, &mut h, &mut ws).unwrap();
+                let v_ref = reference
+                    .hessian(&x, &mut g_ref, &mut h_ref, &mut reference_ws)
+                    .unwrap();
+                assert_eq!(v.to_bits(), v_ref.to_bits(), "set {i}");
+                assert_eq!(g, g_ref, "set {i}");
+                assert_eq!(h, h_ref, "set {i}");
+                let v_full = full.eval(&x, &mut reference_ws).unwrap();
+                assert!((v - v_full).abs() <= mass + TOL, "set {i}");
+                // A block of a few free dimensions (built from the kept rows) and a moved point.
+                let free: Vec<usize> = (0..d).filter(|r| r % 4 == 1).collect();
+                let nf = free.len();
+                pruned.derivatives_unchecked(&x, &mut g, &mut ws);
+                let mut block = vec![0.0; nf * nf];
+                pruned.free_hessian_at_loaded(&free, &mut block, &mut ws);
+                for (a, &r) in free.iter().enumerate() {
+                    for (b, &q) in free.iter().enumerate() {
+                        assert_eq!(block[a * nf + b].to_bits(), h_ref[r * d + q].to_bits());
+                    }
+                }
+                let mut trial = x.clone();
+                for &r in &free {
+                    trial[r] = rng.uniform(-1.0, 1.0);
+                }
+                let moved = pruned.value_moved_unchecked(&trial, &free, &mut ws);
+                let moved_ref = reference.eval(&trial, &mut reference_ws).unwrap();
+                if pruned.has_dense_bilinear_part() {
+                    assert!((moved - moved_ref).abs() < TOL, "set {i}");
+                } else {
+                    assert_eq!(moved.to_bits(), moved_ref.to_bits(), "set {i}");
+                }
+            }
+            // No term dropped: every term evaluated again.
+            pruned.drop_terms(&[]).unwrap();
+            pruned.set_coefficients(&c).unwrap();
+            assert_eq!(pruned, full);
+        }
+        let mut s = random_surrogate(MultiIndexSet::total_degree(3, 2).unwrap(), 1);
+        for bad in [&[0u32][..], &[3, 2], &[4, 4], &[10]] {
+            assert!(s.drop_terms(bad).is_err(), "{bad:?}");
         }
     }
 

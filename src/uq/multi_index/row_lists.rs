@@ -59,6 +59,29 @@ fn grouped<T: Copy>(
     (out.into_iter().flatten().collect(), offsets)
 }
 
+/// The items of each row (`items[offsets[r]..offsets[r + 1]]`) that `keep` accepts, in order,
+/// into `out_items` with their offsets into `out_offsets` (both overwritten).
+fn kept_rows<T: Copy>(
+    items: &[T],
+    offsets: &[usize],
+    keep: impl Fn(&T) -> bool,
+    out_items: &mut Vec<T>,
+    out_offsets: &mut Vec<usize>,
+) {
+    out_items.clear();
+    out_offsets.clear();
+    out_offsets.push(0);
+    for row in offsets.windows(2) {
+        out_items.extend(
+            items[row[0]..row[1]]
+                .iter()
+                .copied()
+                .filter(|item| keep(item)),
+        );
+        out_offsets.push(out_items.len());
+    }
+}
+
 impl RowLists {
     /// The lists of `plan` for a set of dimension `dim`; `term_dims(t)` the dimensions of term
     /// t's factors, in the term's order.
@@ -114,6 +137,32 @@ impl RowLists {
     /// The terms of three or more factors containing dimension r.
     pub(crate) fn general(&self, r: usize) -> &[GeneralRow] {
         &self.general[self.general_offsets[r]..self.general_offsets[r + 1]]
+    }
+
+    /// Overwrites `out` with these lists restricted to the terms `keep` accepts (each row in
+    /// the same order, so a block built from `out` sums the kept terms as this one does).
+    pub(crate) fn kept_into(&self, keep: impl Fn(u32) -> bool, out: &mut RowLists) {
+        kept_rows(
+            &self.singles,
+            &self.single_offsets,
+            |s| keep(s.term),
+            &mut out.singles,
+            &mut out.single_offsets,
+        );
+        kept_rows(
+            &self.pairs,
+            &self.pair_offsets,
+            |p| keep(p.term),
+            &mut out.pairs,
+            &mut out.pair_offsets,
+        );
+        kept_rows(
+            &self.general,
+            &self.general_offsets,
+            |g| keep(g.term),
+            &mut out.general,
+            &mut out.general_offsets,
+        );
     }
 
     /// How many list entries the rows `free` hold in all: the work of a block built from them.
