@@ -36,12 +36,18 @@ pub struct NonPositivePivot {
     pub pivot: f64,
 }
 
-/// From this size on, [`factor_in_place`] subtracts column by column, every access contiguous,
-/// instead of a dot product per entry, which strides by `n`: at n = 138 (the box optimiser's
-/// Hessians on a 138-parameter study) the strided form missed the cache on every term and the
-/// column form cut that study's wall time by a third. Below it the matrix sits in L1 and the dot
-/// products retire fewer instructions (an HHT step on the ur5, n = 6, retired 1.7 % more with the
-/// column form; on the quadruped, n = 14, 2.1 %). Both orders give the same bits.
+/// From this size on, [`factor_in_place`] computes the entries below a pivot sixteen at a time
+/// (then eight, four, two, one: [`factor_sixteen_entries_at_a_time`]) instead of four, and
+/// forward substitution subtracts column by column ([`forward_column_wise`]). Each entry's dot
+/// product is one chain of dependent subtractions; four entries at a time leave the processor
+/// waiting on them, sixteen keep it busy. Before, the factorisation subtracted column by column
+/// from here on too (every access contiguous, instead of a dot product per entry that strides by
+/// `n`, which at n = 138 missed the cache on every term); sixteen entries read 128 contiguous
+/// bytes per term and took 40–45 % less time than the column form at n = 24 … 138 (0.70 against
+/// 1.52 µs at n = 24, 9.3 against 15.0 µs at n = 64, 78 against 132 µs at n = 138; the box
+/// optimiser's Hessians of up to 72 free coordinates at d = 72, issue 40), and a third fewer
+/// instructions. Below it the matrix sits in L1 and the four-entry form is kept as it was
+/// measured for the HHT step (benches/README.md). Every form gives the same bits.
 pub const COLUMN_WISE_FROM: usize = 24;
 
 /// Factorises the symmetric `n × n` matrix `a` (column-major, `a.len() ≥ n²`; only the lower
@@ -53,7 +59,7 @@ pub fn factor_in_place(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), No
     if n < COLUMN_WISE_FROM {
         factor_four_entries_at_a_time(&mut a[..n * n], n, min_pivot)
     } else {
-        factor_column_wise(a, n, min_pivot)
+        factor_sixteen_entries_at_a_time(&mut a[..n * n], n, min_pivot)
     }
 }
 
@@ -107,11 +113,42 @@ fn factor_four_entries_at_a_time(
     n: usize,
     min_pivot: f64,
 ) -> Result<(), NonPositivePivot> {
+    factor_entries_in_blocks::<4>(a, n, min_pivot)
+}
+
+/// As [`factor_four_entries_at_a_time`], sixteen entries at a time first, then eight (see
+/// [`COLUMN_WISE_FROM`]); the same bits.
+fn factor_sixteen_entries_at_a_time(
+    a: &mut [f64],
+    n: usize,
+    min_pivot: f64,
+) -> Result<(), NonPositivePivot> {
+    factor_entries_in_blocks::<16>(a, n, min_pivot)
+}
+
+/// The factorisation with a dot product per entry, the entries below a pivot in blocks of
+/// `WIDEST` (16 or 4), then of eight (when `WIDEST` is 16), four, two and one.
+#[inline(always)]
+fn factor_entries_in_blocks<const WIDEST: usize>(
+    a: &mut [f64],
+    n: usize,
+    min_pivot: f64,
+) -> Result<(), NonPositivePivot> {
     for j in 0..n {
         let (finished, rest) = a.split_at_mut(j * n);
         let column = &mut rest[..n];
         let diagonal = column_pivot(finished, column, n, j, min_pivot)?;
         let mut i = j + 1;
+        if WIDEST >= 16 {
+            while i + 16 <= n {
+                entries_below_pivot::<16>(finished, column, n, i, j, diagonal);
+                i += 16;
+            }
+            if i + 8 <= n {
+                entries_below_pivot::<8>(finished, column, n, i, j, diagonal);
+                i += 8;
+            }
+        }
         while i + 4 <= n {
             entries_below_pivot::<4>(finished, column, n, i, j, diagonal);
             i += 4;
@@ -177,27 +214,6 @@ fn entries_below_pivot<const W: usize>(
     for (entry, value) in column[i..i + W].iter_mut().zip(values) {
         *entry = value / diagonal;
     }
-}
-
-/// The factorisation column by column (every access contiguous), for large `n`.
-fn factor_column_wise(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), NonPositivePivot> {
-    for j in 0..n {
-        let (finished, rest) = a.split_at_mut(j * n);
-        let diagonal = column_pivot(finished, &mut rest[..n], n, j, min_pivot)?;
-        // Column j below the diagonal: `l_ij = (a_ij − Σ_{k<j} l_ik l_jk) / l_jj`, each entry's
-        // terms subtracted one by one in the order k = 0, 1, …, as the dot products do.
-        let column = &mut rest[j + 1..n];
-        for k in 0..j {
-            let l_jk = finished[k * n + j];
-            for (value, &l_ik) in column.iter_mut().zip(&finished[k * n + j + 1..k * n + n]) {
-                *value -= l_ik * l_jk;
-            }
-        }
-        for value in column.iter_mut() {
-            *value /= diagonal;
-        }
-    }
-    Ok(())
 }
 
 /// Solves `L Lᵀ x = b` in place (`b` of dimension `n` becomes `x`), with `L` in the lower triangle
@@ -311,7 +327,7 @@ mod tests {
 
     /// The factorisation as a dot product per entry (the textbook loop order), for every `n`:
     /// [`factor_in_place`] must give these bits exactly, with its kernels of fixed size and its
-    /// column-wise loop.
+    /// blocks of four and of sixteen entries.
     fn reference_factor(a: &mut [f64], n: usize) -> Result<(), usize> {
         for j in 0..n {
             let mut pivot = a[j * n + j];
