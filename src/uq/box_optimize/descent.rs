@@ -268,8 +268,8 @@ impl BoxOptimizer {
     }
 
     /// Newton direction on the free coordinates into `step[..nf]`; true if `H_ff` was positive
-    /// definite without a shift. `terms`: the surrogate's number of terms, the measure of what a
-    /// surrogate value costs (see [`SHIFT_FRACTIONS`]).
+    /// definite without a shift. `terms`: the terms a surrogate value sums (fewer when terms were
+    /// dropped), the measure of what a surrogate value costs (see [`SHIFT_FRACTIONS`]).
     pub(super) fn newton_direction(&mut self, terms: usize) -> bool {
         let nf = self.free.len();
         let scale = (0..nf)
