@@ -740,6 +740,86 @@ mod tests {
         }
     }
 
+    /// Each side searches the record's surrogate less its smallest terms, but the extreme it
+    /// reports is the fitted surrogate's value where its search ended, bit for bit (so the
+    /// inner bound is attained), inside the envelope.
+    #[test]
+    fn reported_extremes_are_the_fitted_surrogates_values_at_their_points() {
+        let design = Arc::new(SparseDesign::total_degree(5, 3).expect("design"));
+        let (d, n_outputs, records) = (5, 2, 20);
+        let points = design.points().to_vec();
+        // Outputs whose coefficients span many decades, so that terms are dropped.
+        let values = |r: usize| -> Vec<f64> {
+            let t = r as f64 * 0.1;
+            points
+                .chunks_exact(d)
+                .flat_map(|x| {
+                    [
+                        (t + x[0]).sin() + 1e-4 * x[1] * x[2] * x[3] + 1e-9 * x[4].powi(3),
+                        (1.0 + t) * x[0] * x[1] + 1e-7 * (x[2] * x[3]).cos() + 0.3 * x[4],
+                    ]
+                })
+                .collect()
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("pool");
+        let bounds = SparseBounds::new(Arc::clone(&design), false, true);
+        let none = |_: usize| false;
+        let bounded = bounds
+            .bound(
+                records,
+                n_outputs,
+                &values,
+                &none,
+                7,
+                &BoundClock::default(),
+                &pool,
+            )
+            .expect("bounds");
+        let mut fitted = SparseSurrogate::zeros(Arc::clone(design.set()));
+        let mut ws = SurrogateWorkspace::new();
+        let mut coefficients = vec![0.0; design.set().len() * n_outputs];
+        let mut dropped_somewhere = false;
+        for r in 0..records {
+            design
+                .fit()
+                .fit_into(&values(r), n_outputs, &mut coefficients)
+                .expect("fit");
+            for o in 0..n_outputs {
+                fitted
+                    .set_from_fit(&coefficients, n_outputs, o)
+                    .expect("coefficients");
+                let mut small = Vec::new();
+                let spreads = runs_spreads(&values(r), n_outputs, &none);
+                fitted.smallest_terms_into(
+                    DROPPED_SHARE_AT_CHOICE * PRUNED_MASS_PER_SPREAD * spreads[o],
+                    &mut small,
+                );
+                dropped_somewhere |= !small.is_empty();
+                let extremes = bounded.extremes[r * n_outputs + o]
+                    .as_ref()
+                    .expect("extremes");
+                let at_min = fitted.eval(&extremes.argmin, &mut ws).expect("value");
+                let at_max = fitted.eval(&extremes.argmax, &mut ws).expect("value");
+                assert_eq!(
+                    at_min.to_bits(),
+                    extremes.at_min.to_bits(),
+                    "record {r}, output {o}"
+                );
+                assert_eq!(
+                    at_max.to_bits(),
+                    extremes.at_max.to_bits(),
+                    "record {r}, output {o}"
+                );
+                let point = &bounded.points[r * n_outputs + o];
+                assert!(point.lower <= at_min && at_max <= point.upper);
+            }
+        }
+        assert!(dropped_somewhere, "no record had terms to drop");
+    }
+
     #[test]
     fn extreme_design_points_are_the_ends_of_the_sorted_order() {
         let mut rng = SplitMix64::new(40);
