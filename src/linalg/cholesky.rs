@@ -37,8 +37,8 @@ pub struct NonPositivePivot {
 }
 
 /// From this size on, [`factor_in_place`] computes the entries below a pivot sixteen at a time
-/// (then eight, four, two, one: [`factor_sixteen_entries_at_a_time`]) instead of four, and
-/// forward substitution subtracts column by column ([`forward_column_wise`]). Each entry's dot
+/// (then eight, four, two, one: `factor_sixteen_entries_at_a_time`) instead of four, and
+/// forward substitution subtracts column by column (`forward_column_wise`). Each entry's dot
 /// product is one chain of dependent subtractions; four entries at a time leave the processor
 /// waiting on them, sixteen keep it busy. Before, the factorisation subtracted column by column
 /// from here on too (every access contiguous, instead of a dot product per entry that strides by
