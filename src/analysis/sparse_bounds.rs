@@ -4,7 +4,9 @@
 //! design points with that side's best values (the best from itself, the other from where its
 //! descent ended at the previous record time when it was a start there too), and where the
 //! previous record time's extreme was (extremes move continuously in time, so that start is
-//! usually one Newton step from the answer).
+//! usually one Newton step from the answer). The search runs on the record's surrogate less its
+//! smallest terms ([`PRUNED_MASS_PER_SPREAD`]); the extreme reported is the fitted surrogate's
+//! value where it ended.
 //!
 //! ```text
 //! block 0: (parallel over records) fit ⇒ per output: outer bound, Sobol' indices
@@ -81,9 +83,9 @@ pub const PRUNED_MASS_PER_SPREAD: f64 = 1e-5;
 
 /// A side chooses the terms to drop so that they sum to at most this fraction of the budget
 /// ([`PRUNED_MASS_PER_SPREAD`]) and keeps them for the next records while they still fit the
-/// whole budget: the coefficients drift slowly from record to record, and choosing (a sort of
-/// the terms, and the pruned surrogate's evaluation order) every time cost as much as the
-/// search it saved at d = 64.
+/// whole budget: the coefficients drift slowly from record to record, and choosing them (then
+/// by a sort of the terms) and building the pruned surrogate's evaluation order at every record
+/// cost as much as the search it saved at d = 64.
 const DROPPED_SHARE_AT_CHOICE: f64 = 0.5;
 
 /// A side chooses its dropped terms afresh at least every this many records (the terms that

@@ -12,6 +12,10 @@
 //! summed term by term (the d = 72 all-values ur5 study's surrogates have 2 418 such terms of
 //! 2 726, issue 40).
 //!
+//! A surrogate may leave its smallest terms out ([`SparseSurrogate::smallest_terms_into`],
+//! [`SparseSurrogate::drop_terms`]): their coefficients become zero and evaluation skips them,
+//! which the box search uses (docs/high-dimension.md §7a).
+//!
 //! Does not: fit (see [`crate::uq::LinearFit`]) or bound (see [`crate::uq::box_optimize`]).
 
 use std::sync::Arc;
@@ -138,10 +142,8 @@ pub struct SparseSurrogate {
     /// The bilinear part as a dense symmetric `d × d` matrix with a zero diagonal (module doc),
     /// or empty when the set has too few bilinear terms for it.
     bilinear: Vec<f64>,
-    /// Whether terms were dropped ([`SparseSurrogate::drop_terms`]): then `kept` lists the
-    /// terms evaluated; otherwise the set's plan does.
-    pruned: bool,
-    /// The plan of a pruned surrogate: the set's without the dropped terms.
+    /// The plan of a surrogate with dropped terms: the set's without them (unused when none
+    /// are dropped: the set's plan is evaluated then).
     kept: EvalPlan,
     /// The terms left out ([`SparseSurrogate::drop_terms`]), ascending.
     dropped: Vec<u32>,
@@ -170,7 +172,6 @@ impl SparseSurrogate {
             set,
             coefficients: vec![0.0; n],
             bilinear: if dense { vec![0.0; d * d] } else { Vec::new() },
-            pruned: false,
             kept: EvalPlan::default(),
             dropped: Vec::new(),
         }
@@ -178,10 +179,10 @@ impl SparseSurrogate {
 
     /// The terms evaluated: the set's plan, or the kept terms of a pruned surrogate.
     fn plan(&self) -> &EvalPlan {
-        if self.pruned {
-            &self.kept
-        } else {
+        if self.dropped.is_empty() {
             self.set.plan()
+        } else {
+            &self.kept
         }
     }
 
@@ -278,8 +279,7 @@ impl SparseSurrogate {
         }
         self.dropped.clear();
         self.dropped.extend_from_slice(dropped);
-        self.pruned = !dropped.is_empty();
-        if !self.pruned {
+        if dropped.is_empty() {
             self.kept = EvalPlan::default();
         } else {
             let mut is_dropped = vec![false; n];
