@@ -500,7 +500,7 @@ impl SparseBounds {
                 .set_from_fit(&record.coefficients, n_outputs, o)?;
             let value = |p: usize| record.values[p * n_outputs + o];
             let budget = PRUNED_MASS_PER_SPREAD * record.spreads[o];
-            self.prepare_searched(2 * o + usize::from(maximum), budget, chain, ws)?;
+            prepare_searched(2 * o + usize::from(maximum), budget, chain, ws)?;
             extreme_design_points(
                 n_points,
                 value,
@@ -564,34 +564,31 @@ impl SparseBounds {
     }
 }
 
-impl SparseBounds {
-    /// Loads `ws.searched` with `ws.surrogate` (the record's fit) less the side's dropped
-    /// terms, chosen afresh when they no longer fit `budget` or every [`RECORDS_PER_CHOICE`]
-    /// records (`chain` carries them from record to record, so the choice depends on the
-    /// records alone, not on the blocks or the threads).
-    fn prepare_searched(
-        &self,
-        side: usize,
-        budget: f64,
-        chain: &mut SideChain,
-        ws: &mut Workspace,
-    ) -> Result<(), UqError> {
-        let c = ws.surrogate.coefficients();
-        let mass: f64 = chain.dropped.iter().map(|&t| c[t as usize].abs()).sum();
-        chain.records_since_choice += 1;
-        if mass > budget || chain.records_since_choice >= RECORDS_PER_CHOICE {
-            ws.surrogate
-                .smallest_terms_into(DROPPED_SHARE_AT_CHOICE * budget, &mut chain.dropped);
-            chain.dropped_choices += 1;
-            chain.records_since_choice = 0;
-        }
-        let choice = Some((side, chain.dropped_choices));
-        if ws.searched_drops != choice {
-            ws.searched.drop_terms(&chain.dropped)?;
-            ws.searched_drops = choice;
-        }
-        ws.searched.set_coefficients(ws.surrogate.coefficients())
+/// Loads `ws.searched` with `ws.surrogate` (the record's fit) less the side's dropped
+/// terms, chosen afresh when they no longer fit `budget` or every [`RECORDS_PER_CHOICE`]
+/// records (`chain` carries them from record to record, so the choice depends on the
+/// records alone, not on the blocks or the threads).
+fn prepare_searched(
+    side: usize,
+    budget: f64,
+    chain: &mut SideChain,
+    ws: &mut Workspace,
+) -> Result<(), UqError> {
+    let c = ws.surrogate.coefficients();
+    let mass: f64 = chain.dropped.iter().map(|&t| c[t as usize].abs()).sum();
+    chain.records_since_choice += 1;
+    if mass > budget || chain.records_since_choice >= RECORDS_PER_CHOICE {
+        ws.surrogate
+            .smallest_terms_into(DROPPED_SHARE_AT_CHOICE * budget, &mut chain.dropped);
+        chain.dropped_choices += 1;
+        chain.records_since_choice = 0;
     }
+    let choice = Some((side, chain.dropped_choices));
+    if ws.searched_drops != choice {
+        ws.searched.drop_terms(&chain.dropped)?;
+        ws.searched_drops = choice;
+    }
+    ws.searched.set_coefficients(ws.surrogate.coefficients())
 }
 
 /// Per output, the largest value of the runs not `excluded` less the smallest (`values`

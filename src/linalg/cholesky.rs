@@ -37,7 +37,7 @@ pub struct NonPositivePivot {
 }
 
 /// From this size on, [`factor_in_place`] computes the entries below a pivot sixteen at a time
-/// (then eight, four, two, one: `factor_sixteen_entries_at_a_time`) instead of four, and
+/// (then eight, four, two, one: `factor_entries_in_blocks`) instead of four, and
 /// forward substitution subtracts column by column (`forward_column_wise`). Each entry's dot
 /// product is one chain of dependent subtractions; four entries at a time leave the processor
 /// waiting on them, sixteen keep it busy. Before, the factorisation subtracted column by column
@@ -57,24 +57,25 @@ pub const COLUMN_WISE_FROM: usize = 24;
 pub fn factor_in_place(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), NonPositivePivot> {
     return_for_fixed_size!(n, N => factor_fixed::<N>(a, min_pivot));
     if n < COLUMN_WISE_FROM {
-        factor_four_entries_at_a_time(&mut a[..n * n], n, min_pivot)
+        factor_entries_in_blocks::<4>(&mut a[..n * n], n, min_pivot)
     } else {
-        factor_sixteen_entries_at_a_time(&mut a[..n * n], n, min_pivot)
+        factor_entries_in_blocks::<16>(&mut a[..n * n], n, min_pivot)
     }
 }
 
 /// [`factor_entry_by_entry`] or, from [`FOUR_ENTRIES_AT_A_TIME_FROM`] on,
-/// [`factor_four_entries_at_a_time`], compiled for `n = N` (see [`super::FIXED_SIZE_UP_TO`]).
+/// [`factor_entries_in_blocks`] (four at a time), compiled for `n = N` (see
+/// [`super::FIXED_SIZE_UP_TO`]).
 fn factor_fixed<const N: usize>(a: &mut [f64], min_pivot: f64) -> Result<(), NonPositivePivot> {
     if N >= FOUR_ENTRIES_AT_A_TIME_FROM {
-        factor_four_entries_at_a_time(&mut a[..N * N], N, min_pivot)
+        factor_entries_in_blocks::<4>(&mut a[..N * N], N, min_pivot)
     } else {
         factor_entry_by_entry(&mut a[..N * N], N, min_pivot)
     }
 }
 
 /// From this size on, [`factor_in_place`] computes the entries below a pivot four at a time
-/// (`factor_four_entries_at_a_time`) instead of one by one. Per factorisation inside an HHT step
+/// (`factor_entries_in_blocks`) instead of one by one. Per factorisation inside an HHT step
 /// (callgrind, benches/README.md): the quadruped's 14 × 14 matrix retired 2 895 instructions
 /// instead of 4 161, but the panda's 9 × 9 571 instead of 555 and the ur5's 6 × 6 481 instead of 419
 /// (small sizes are unrolled whole one entry at a time). Both forms give the same bits.
@@ -104,30 +105,11 @@ fn factor_entry_by_entry(a: &mut [f64], n: usize, min_pivot: f64) -> Result<(), 
 }
 
 /// The factorisation with a dot product per entry (`a.len() == n²`), the entries below a pivot
-/// computed four at a time (then two, then one): the four dot products share the loads of `l_jk`
-/// and the loop, and the compiler pairs their lanes. Each entry's terms are still subtracted one by
-/// one in the order `k = 0, 1, …`, so the bits are those of [`factor_entry_by_entry`].
-#[inline(always)]
-fn factor_four_entries_at_a_time(
-    a: &mut [f64],
-    n: usize,
-    min_pivot: f64,
-) -> Result<(), NonPositivePivot> {
-    factor_entries_in_blocks::<4>(a, n, min_pivot)
-}
-
-/// As [`factor_four_entries_at_a_time`], sixteen entries at a time first, then eight (see
-/// [`COLUMN_WISE_FROM`]); the same bits.
-fn factor_sixteen_entries_at_a_time(
-    a: &mut [f64],
-    n: usize,
-    min_pivot: f64,
-) -> Result<(), NonPositivePivot> {
-    factor_entries_in_blocks::<16>(a, n, min_pivot)
-}
-
-/// The factorisation with a dot product per entry, the entries below a pivot in blocks of
-/// `WIDEST` (16 or 4), then of eight (when `WIDEST` is 16), four, two and one.
+/// computed in blocks: of `WIDEST` (16 from [`COLUMN_WISE_FROM`] on, else 4), then of eight
+/// (when `WIDEST` is 16), four, two and one. The dot products of a block share the loads of
+/// `l_jk` and the loop, and the compiler pairs their lanes. Each entry's terms are still
+/// subtracted one by one in the order `k = 0, 1, …`, so the bits are those of
+/// [`factor_entry_by_entry`].
 #[inline(always)]
 fn factor_entries_in_blocks<const WIDEST: usize>(
     a: &mut [f64],

@@ -224,11 +224,9 @@ impl SparseSurrogate {
     /// # Ok::<(), ribbon::uq::UqError>(())
     /// ```
     pub fn smallest_terms_into(&self, budget: f64, out: &mut Vec<u32>) {
-        let set = &self.set;
-        let droppable = |t: usize| {
-            let term = set.term(t);
-            !(term.len() == 1 && term[0].degree == 1)
-        };
+        // The linear terms, as `linear_part` reads them.
+        let linear = self.set.terms_of_total_degree(1);
+        let droppable = |t: usize| !linear.contains(&t);
         // The magnitudes summed per binade (by their binary exponent, subnormals and zeros in
         // binade 0), in term order: no sort of the terms.
         let mut per_binade = [0.0_f64; BINADES];

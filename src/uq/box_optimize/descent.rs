@@ -559,7 +559,6 @@ impl BoxOptimizer {
     /// `g·Δ + ½ Δ·(t·along_inside + along_faces)` with `Δ_a = t·step_a` inside the box and the
     /// face offset `moved[a]` on a face.
     fn path_model(&self, t: f64) -> f64 {
-        let nf = self.free.len();
         let mut linear = 0.0;
         let mut curvature = 0.0;
         for (a, &r) in self.free.iter().enumerate() {
@@ -571,7 +570,6 @@ impl BoxOptimizer {
             linear += self.grad[r] * delta;
             curvature += delta * (t * self.along_inside[a] + self.along_faces[a]);
         }
-        debug_assert!(nf <= self.along_inside.len());
         linear + 0.5 * curvature
     }
 
