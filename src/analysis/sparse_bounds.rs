@@ -149,6 +149,10 @@ struct FittedRecord {
     errors: Vec<f64>,
     /// Per output: the spread of its runs not excluded ([`runs_spreads`]).
     spreads: Vec<f64>,
+    /// Per output: its [`DESIGN_STARTS_PER_SIDE`] design points of lowest and of highest value,
+    /// each in increasing order of (value, index) (empty without the inner bound).
+    lowest: Vec<Vec<usize>>,
+    highest: Vec<Vec<usize>>,
     /// `outputs × d`.
     main_indices: Vec<f64>,
     /// `outputs × d`.
@@ -392,8 +396,25 @@ impl SparseBounds {
             .fit_into(&values, n_outputs, &mut coefficients)?;
         lap = clock.lap(BoundPhase::Fit, lap);
         let spreads = runs_spreads(&values, n_outputs, excluded);
+        let (mut lowest, mut highest) = (Vec::new(), Vec::new());
+        if self.inner {
+            for o in 0..n_outputs {
+                extreme_design_points(
+                    design.n_points(),
+                    |p| values[p * n_outputs + o],
+                    DESIGN_STARTS_PER_SIDE,
+                    &mut ws.lowest,
+                    &mut ws.highest,
+                );
+                lowest.push(ws.lowest.clone());
+                highest.push(ws.highest.clone());
+            }
+            lap = clock.lap(BoundPhase::Inner, lap);
+        }
         let mut record = FittedRecord {
             spreads,
+            lowest,
+            highest,
             values,
             coefficients,
             outer: Vec::with_capacity(n_outputs),
@@ -488,7 +509,6 @@ impl SparseBounds {
     ) -> Result<SideSeries, UqError> {
         let design = &*self.design;
         let d = design.set().dim();
-        let n_points = design.n_points();
         let records = fitted.len();
         let mut series = SideSeries {
             values: Vec::with_capacity(records),
@@ -498,19 +518,15 @@ impl SparseBounds {
             let lap = Instant::now();
             ws.surrogate
                 .set_from_fit(&record.coefficients, n_outputs, o)?;
-            let value = |p: usize| record.values[p * n_outputs + o];
             let budget = PRUNED_MASS_PER_SPREAD * record.spreads[o];
             prepare_searched(2 * o + usize::from(maximum), budget, chain, ws)?;
-            extreme_design_points(
-                n_points,
-                value,
-                DESIGN_STARTS_PER_SIDE,
-                &mut ws.lowest,
-                &mut ws.highest,
-            );
             let point = |p: usize| &design.points()[p * d..(p + 1) * d];
             // In increasing order of value: the best of the minimum first, of the maximum last.
-            let chosen = if maximum { &ws.highest } else { &ws.lowest };
+            let chosen = if maximum {
+                &record.highest[o]
+            } else {
+                &record.lowest[o]
+            };
             let fresh = |rank: usize| {
                 if maximum {
                     rank + FRESH_DESIGN_STARTS_PER_SIDE >= chosen.len()
@@ -621,7 +637,10 @@ fn runs_spreads(
 
 /// The `k` design points of lowest value into `lowest` and the `k` of highest into `highest`,
 /// both in increasing order of (value, index) — the first `k` and the last `k` of the points
-/// sorted that way — without sorting all `n`.
+/// sorted that way — without sorting all `n`. The points come in increasing index, so a point
+/// enters `lowest` only with a value strictly below its last one's and `highest` with one not
+/// below its first one's (a tie orders the later index after): one comparison with a kept value
+/// per list and point.
 fn extreme_design_points(
     n: usize,
     value: impl Fn(usize) -> f64,
@@ -636,18 +655,22 @@ fn extreme_design_points(
     if k == 0 {
         return;
     }
+    let (mut lowest_last, mut highest_first) = (f64::NAN, f64::NAN);
     for p in 0..n {
-        if lowest.len() < k || before(p, lowest[k - 1]) {
+        let v = value(p);
+        if lowest.len() < k || v.total_cmp(&lowest_last).is_lt() {
             let at = lowest.partition_point(|&q| before(q, p));
             lowest.insert(at, p);
             lowest.truncate(k);
+            lowest_last = value(lowest[lowest.len() - 1]);
         }
-        if highest.len() < k || before(highest[0], p) {
+        if highest.len() < k || v.total_cmp(&highest_first).is_ge() {
             let at = highest.partition_point(|&q| before(q, p));
             highest.insert(at, p);
             if highest.len() > k {
                 highest.remove(0);
             }
+            highest_first = value(highest[0]);
         }
     }
 }

@@ -36,7 +36,9 @@
 use crate::uq::basis::{Family, MAX_ORDER};
 use crate::uq::error::UqError;
 use crate::uq::legendre_range::legendre_series_range;
+use crate::uq::multi_index::MultiIndexSet;
 use crate::uq::sparse_surrogate::{SparseSurrogate, SurrogateWorkspace};
+use std::sync::Arc;
 
 mod descent;
 
@@ -123,7 +125,9 @@ pub struct BoxOptimizer {
     starts: Vec<f64>,
     linear: Vec<f64>,
     univariate: Vec<f64>,
-    ranges: Vec<(f64, f64)>,
+    /// What the outer bound needs of each term of the set it was last computed for (the set's
+    /// own, not the coefficients'): [`OuterTerms`].
+    outer_terms: Option<OuterTerms>,
     /// The descents of the side being searched, for [`BoxOptimizer::descend`] to recognise a
     /// point an earlier descent started an iteration from.
     trail: DescentTrail,
@@ -168,7 +172,7 @@ impl BoxOptimizer {
             starts: Vec::new(),
             linear: Vec::new(),
             univariate: Vec::new(),
-            ranges: Vec::new(),
+            outer_terms: None,
             trail: DescentTrail::default(),
             ends: Vec::new(),
             decrease_floor: 0.0,
@@ -405,36 +409,28 @@ impl BoxOptimizer {
 
     fn outer(&mut self, s: &SparseSurrogate) -> (f64, f64) {
         let set = s.set();
-        let (d, k) = (set.dim(), set.max_degree());
-        let stride = k + 1;
+        let stride = set.max_degree() + 1;
+        if !self
+            .outer_terms
+            .as_ref()
+            .is_some_and(|terms| Arc::ptr_eq(&terms.set, set))
+        {
+            self.outer_terms = Some(OuterTerms::of(set));
+        }
+        let Some(terms) = self.outer_terms.as_ref() else {
+            unreachable!("the outer terms were just built")
+        };
         self.univariate.clear();
-        self.univariate.resize(d * stride, 0.0);
-        self.ranges.clear();
-        self.ranges.extend((0..=k).map(|n| {
-            if n <= MAX_ORDER {
-                Family::Legendre.exact_range(n).unwrap_or((-1.0, 1.0))
-            } else {
-                // |P_n| ≤ 1 on [−1, 1]: a valid (if crude) enclosure beyond the table.
-                (-1.0, 1.0)
-            }
-        }));
+        self.univariate.resize(set.dim() * stride, 0.0);
         let c = s.coefficients();
         let (mut lower, mut upper) = (c[0], c[0]);
-        for (t, &ct) in c.iter().enumerate().skip(1) {
+        for ((&ct, &slot), &(lo, hi)) in c.iter().zip(&terms.slots).zip(&terms.ranges).skip(1) {
             if ct == 0.0 {
                 continue;
             }
-            let term = set.term(t);
-            if term.len() == 1 {
-                self.univariate[term[0].dim as usize * stride + term[0].degree as usize] = ct;
+            if slot != OuterTerms::PRODUCT {
+                self.univariate[slot as usize] = ct;
                 continue;
-            }
-            let (mut lo, mut hi) = (1.0, 1.0);
-            for f in term {
-                let r = self.ranges[f.degree as usize];
-                let p = [lo * r.0, lo * r.1, hi * r.0, hi * r.1];
-                lo = p.iter().copied().fold(f64::INFINITY, f64::min);
-                hi = p.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             }
             let (a, b) = (ct * lo, ct * hi);
             lower += a.min(b);
@@ -448,6 +444,66 @@ impl BoxOptimizer {
             }
         }
         (lower, upper)
+    }
+}
+
+/// Per term of a multi-index set, what the outer bound needs of it whatever its coefficient:
+/// a term of one factor `P_n(ξ_r)` goes into dimension r's univariate series (its slot
+/// `r·(max degree + 1) + n`), any other term is bounded by the product of its factors' exact
+/// ranges (interval multiplication, factor by factor). Built once per set: the products and the
+/// table lookups were half the outer bound's time at d = 64 (issue 40), the same numbers each
+/// record and output.
+#[derive(Debug, Clone)]
+struct OuterTerms {
+    /// The set these describe.
+    set: Arc<MultiIndexSet>,
+    /// Per term: its univariate slot, or [`OuterTerms::PRODUCT`].
+    slots: Vec<u32>,
+    /// Per term: the range of the product of its factors (unused for univariate terms).
+    ranges: Vec<(f64, f64)>,
+}
+
+impl OuterTerms {
+    /// The slot of a term bounded as a product.
+    const PRODUCT: u32 = u32::MAX;
+
+    fn of(set: &Arc<MultiIndexSet>) -> OuterTerms {
+        let stride = set.max_degree() + 1;
+        let factor_ranges: Vec<(f64, f64)> = (0..stride)
+            .map(|n| {
+                if n <= MAX_ORDER {
+                    Family::Legendre.exact_range(n).unwrap_or((-1.0, 1.0))
+                } else {
+                    // |P_n| ≤ 1 on [−1, 1]: a valid (if crude) enclosure beyond the table.
+                    (-1.0, 1.0)
+                }
+            })
+            .collect();
+        let mut slots = Vec::with_capacity(set.len());
+        let mut ranges = Vec::with_capacity(set.len());
+        for t in 0..set.len() {
+            let term = set.term(t);
+            if term.len() == 1 {
+                let slot = term[0].dim as usize * stride + term[0].degree as usize;
+                slots.push(u32::try_from(slot).unwrap_or(OuterTerms::PRODUCT));
+                ranges.push((-1.0, 1.0));
+                continue;
+            }
+            let (mut lo, mut hi) = (1.0, 1.0);
+            for f in term {
+                let r = factor_ranges[f.degree as usize];
+                let p = [lo * r.0, lo * r.1, hi * r.0, hi * r.1];
+                lo = p.iter().copied().fold(f64::INFINITY, f64::min);
+                hi = p.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            }
+            slots.push(OuterTerms::PRODUCT);
+            ranges.push((lo, hi));
+        }
+        OuterTerms {
+            set: Arc::clone(set),
+            slots,
+            ranges,
+        }
     }
 }
 
@@ -761,6 +817,36 @@ mod tests {
         let set = Arc::new(MultiIndexSet::total_degree(d, k).unwrap());
         let c: Vec<f64> = (0..set.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
         SparseSurrogate::new(set, c).unwrap()
+    }
+
+    /// One optimiser's outer bounds, over surrogates on different sets in turn (its per-set
+    /// table rebuilt when the set changes), equal those of a fresh optimiser bit for bit, and
+    /// contain a dense sample of each surrogate.
+    #[test]
+    fn the_outer_bound_follows_the_set() {
+        let mut rng = SplitMix64::new(4_117);
+        let mut ws = SurrogateWorkspace::new();
+        let first = random_surrogate(&mut rng, 3, 4);
+        let second = random_surrogate(&mut rng, 4, 3);
+        // The first set again, other coefficients: the table is the set's, not the surrogate's.
+        let c: Vec<f64> = (0..first.set().len())
+            .map(|_| rng.uniform(-1.0, 1.0))
+            .collect();
+        let third = SparseSurrogate::new(Arc::clone(first.set()), c).unwrap();
+        let mut reused = BoxOptimizer::new();
+        for s in [&first, &second, &third, &first] {
+            let (lower, upper) = reused.outer_bound(s);
+            let fresh = BoxOptimizer::new().outer_bound(s);
+            assert_eq!(
+                (lower.to_bits(), upper.to_bits()),
+                (fresh.0.to_bits(), fresh.1.to_bits())
+            );
+            for _ in 0..2_000 {
+                let x: Vec<f64> = (0..s.dim()).map(|_| rng.uniform(-1.0, 1.0)).collect();
+                let y = s.eval(&x, &mut ws).unwrap();
+                assert!(lower <= y && y <= upper, "{lower} <= {y} <= {upper}");
+            }
+        }
     }
 
     /// The expansion's model `g·Δ + ½ Δ·H_ff Δ` is the surrogate's change itself for a
