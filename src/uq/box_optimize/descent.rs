@@ -204,6 +204,7 @@ impl BoxOptimizer {
             // step along negative curvature is left to try.
             let stationary = self.first_order_gain() <= self.decrease_floor;
             let definite = !stationary && self.newton_direction(s.set().len());
+            let f_before = f;
             let mut moved = false;
             if stationary {
             } else if let Some(t) = self.line_search(s, sign, f, false, !definite) {
@@ -230,12 +231,18 @@ impl BoxOptimizer {
                     None => break,
                 }
             }
-            let before = self.trial_distance();
+            // The last step when it was tiny (STEP_TOL) or gained too little to go on
+            // (STALLED_DECREASE_TOL): then the point's value alone, no gradient.
+            let last = self.trial_distance() <= STEP_TOL || f_before - f <= self.stalled_floor;
             self.x.copy_from_slice(&self.trial);
-            let check = self.evaluate(s, sign);
+            let check = if last {
+                sign * s.value_unchecked(&self.x, &mut self.ws)
+            } else {
+                self.evaluate(s, sign)
+            };
             debug_assert!((check - f).abs() <= 1e-9 * (1.0 + f.abs()));
             f = check;
-            if before <= STEP_TOL {
+            if last {
                 break;
             }
         }
