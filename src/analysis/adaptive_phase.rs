@@ -75,6 +75,7 @@ pub(super) fn adapt(
     let stride = n_records * n_outputs;
     let mut set = AdaptiveSet::new(d);
     let mut values: Vec<Vec<f64>> = Vec::new();
+    let mut extremes = RunExtremes::new();
     let mut new_terms = set.evaluated().to_vec();
     // The last complete stage's grid and, per grid point, its row of `values`.
     let mut grid: Option<(SparseGrid, Vec<usize>)> = None;
@@ -125,15 +126,11 @@ pub(super) fn adapt(
         }
         // Fit the set evaluated so far and measure the candidates.
         let t_fit = Instant::now();
-        grid = Some(fit_and_measure(
-            &mut set,
-            &values,
-            n_outputs,
-            context.threads,
-        )?);
-        let fit_seconds = t_fit.elapsed().as_secs_f64();
-        context.report.bound_seconds += fit_seconds;
-        context.report.phase_seconds.design_choice += fit_seconds;
+        let (fitted, thread_seconds) =
+            fit_and_measure(&mut set, &values, &mut extremes, n_outputs, context.threads)?;
+        grid = Some(fitted);
+        context.report.bound_seconds += t_fit.elapsed().as_secs_f64();
+        context.report.phase_seconds.design_choice += thread_seconds;
         if set.len() >= budget {
             break ("budget", true);
         }
@@ -176,17 +173,25 @@ pub(super) fn adapt(
 }
 
 /// Fits every output at every record on the runs of `set`'s evaluated terms and measures the
-/// active candidates' indicators; returns the grid and, per grid point, its row of `values`.
+/// active candidates' indicators; returns the grid and, per grid point, its row of `values`,
+/// with the thread-seconds it took (the fit's chunks run on the threads at once, the rest on
+/// the caller's).
 fn fit_and_measure(
     set: &mut AdaptiveSet,
     values: &[Vec<f64>],
+    extremes: &mut RunExtremes,
     n_outputs: usize,
     threads: &rayon::ThreadPool,
-) -> Result<(SparseGrid, Vec<usize>), StudyError> {
+) -> Result<((SparseGrid, Vec<usize>), f64), StudyError> {
+    let started = Instant::now();
     let grid = SparseGrid::new(Arc::new(set.multi_index_set()?))?;
     let rows = rows_of_points(&grid, set)?;
-    let coefficients = fit_all_records(&grid, &rows, values, n_outputs, threads)?;
-    let spread = output_spreads(values, n_outputs);
+    let fit_started = Instant::now();
+    let (coefficients, fit_thread_seconds) =
+        fit_all_records(&grid, &rows, values, n_outputs, threads)?;
+    let fit_wall = fit_started.elapsed().as_secs_f64();
+    extremes.absorb(values, n_outputs);
+    let spread = extremes.spreads(n_outputs);
     let mi = grid.set().clone();
     set.measure(|term| {
         let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
@@ -195,7 +200,8 @@ fn fit_and_measure(
         };
         coefficients.largest_normalised(t, &spread)
     });
-    Ok((grid, rows))
+    let thread_seconds = started.elapsed().as_secs_f64() - fit_wall + fit_thread_seconds;
+    Ok(((grid, rows), thread_seconds))
 }
 
 /// A round's batch: [`ADAPTIVE_BATCH_FRACTION`] of the terms so far, at least
@@ -270,7 +276,7 @@ struct RecordCoefficients {
 
 impl RecordCoefficients {
     /// Term t's largest `|coefficient| / spread` over every record and every output with a
-    /// spread (`spread[o]`, [`output_spreads`]), or 0.
+    /// spread (`spread[o]`, [`RunExtremes::spreads`]), or 0.
     fn largest_normalised(&self, t: usize, spread: &[Option<f64>]) -> f64 {
         let n_outputs = spread.len().max(1);
         let mut largest = 0.0_f64;
@@ -292,13 +298,14 @@ impl RecordCoefficients {
 /// multi-right-hand-side application of the grid's fitting map per chunk of records, read from
 /// the runs' rows in place); `rows` maps the grid's points to rows of `values`
 /// ([`rows_of_points`]). Each coefficient is the one a fit of its record alone gives, to the bit.
+/// Also returns the seconds its chunks took, summed over the threads.
 fn fit_all_records(
     grid: &SparseGrid,
     rows: &[usize],
     values: &[Vec<f64>],
     n_outputs: usize,
     threads: &rayon::ThreadPool,
-) -> Result<RecordCoefficients, StudyError> {
+) -> Result<(RecordCoefficients, f64), StudyError> {
     let n_records = values.first().map_or(0, |v| v.len() / n_outputs.max(1));
     let n_terms = grid.n_points();
     let firsts: Vec<usize> = (0..n_records).step_by(FIT_CHUNK_RECORDS).collect();
@@ -306,6 +313,7 @@ fn fit_all_records(
         firsts
             .par_iter()
             .map(|&first| {
+                let started = Instant::now();
                 let last = (first + FIT_CHUNK_RECORDS).min(n_records);
                 let columns = first * n_outputs..last * n_outputs;
                 let runs: Vec<&[f64]> = rows
@@ -316,41 +324,80 @@ fn fit_all_records(
                 grid.fit()
                     .fit_rows_into(&runs, &mut out)
                     .map_err(StudyError::Uq)?;
-                Ok(out)
+                Ok((out, started.elapsed().as_secs_f64()))
             })
-            .collect::<Result<Vec<Vec<f64>>, StudyError>>()
+            .collect::<Result<Vec<(Vec<f64>, f64)>, StudyError>>()
     })?;
-    Ok(RecordCoefficients { chunks, n_terms })
+    let thread_seconds = chunks.iter().map(|(_, seconds)| seconds).sum();
+    let chunks = chunks.into_iter().map(|(chunk, _)| chunk).collect();
+    Ok((RecordCoefficients { chunks, n_terms }, thread_seconds))
 }
 
-/// Per output: its largest spread (max − min over the runs) over the records, or `None` when that
-/// is below the noise floor ([`ADAPTIVE_NOISE_FLOOR`]).
-fn output_spreads(values: &[Vec<f64>], n_outputs: usize) -> Vec<Option<f64>> {
-    let width = n_outputs.max(1);
-    let stride = values.first().map_or(0, Vec::len);
-    // Run after run (each run's values are contiguous): min and max per record and output.
-    let mut lowest = vec![f64::INFINITY; stride];
-    let mut highest = vec![f64::NEG_INFINITY; stride];
-    let mut magnitude = vec![0.0_f64; width];
-    for run in values {
-        for (k, &v) in run.iter().enumerate() {
-            lowest[k] = lowest[k].min(v);
-            highest[k] = highest[k].max(v);
-        }
-        for record in run.chunks_exact(width) {
-            for (m, v) in magnitude.iter_mut().zip(record) {
-                *m = m.max(v.abs());
-            }
+/// Per record and output the lowest and the highest value of the runs folded in so far, and per
+/// output the largest magnitude: what the outputs' spreads ([`RunExtremes::spreads`]) need. Kept
+/// from stage to stage, so that a stage folds in only its own runs (the d = 32 scaling row's
+/// eight stages went over every run again each time: a fifth of the design choice's work); a
+/// minimum or maximum does not depend on the order its values come in, so the spreads are the
+/// same bits.
+struct RunExtremes {
+    lowest: Vec<f64>,
+    highest: Vec<f64>,
+    magnitude: Vec<f64>,
+    /// How many runs (rows of the values) are folded in.
+    runs: usize,
+}
+
+impl RunExtremes {
+    fn new() -> RunExtremes {
+        RunExtremes {
+            lowest: Vec::new(),
+            highest: Vec::new(),
+            magnitude: Vec::new(),
+            runs: 0,
         }
     }
-    (0..n_outputs)
-        .map(|o| {
-            let spread = (o..stride)
-                .step_by(width)
-                .map(|k| highest[k] - lowest[k])
-                .fold(0.0_f64, f64::max);
-            (spread.is_finite() && spread > ADAPTIVE_NOISE_FLOOR * (1.0 + magnitude[o]))
-                .then_some(spread)
-        })
-        .collect()
+
+    /// Folds in the runs of `values` (`values[row][record · outputs + output]`) not folded in
+    /// yet; starts over if `values` has fewer rows than were folded in.
+    fn absorb(&mut self, values: &[Vec<f64>], n_outputs: usize) {
+        let width = n_outputs.max(1);
+        let stride = values.first().map_or(0, Vec::len);
+        if values.len() < self.runs || self.lowest.len() != stride || self.magnitude.len() != width
+        {
+            self.lowest = vec![f64::INFINITY; stride];
+            self.highest = vec![f64::NEG_INFINITY; stride];
+            self.magnitude = vec![0.0; width];
+            self.runs = 0;
+        }
+        // Run after run (each run's values are contiguous): min and max per record and output.
+        for run in &values[self.runs..] {
+            for ((lowest, highest), &v) in self.lowest.iter_mut().zip(&mut self.highest).zip(run) {
+                *lowest = lowest.min(v);
+                *highest = highest.max(v);
+            }
+            for record in run.chunks_exact(width) {
+                for (m, v) in self.magnitude.iter_mut().zip(record) {
+                    *m = m.max(v.abs());
+                }
+            }
+        }
+        self.runs = values.len();
+    }
+
+    /// Per output: its largest spread (max − min over the runs folded in) over the records, or
+    /// `None` when that is below the noise floor ([`ADAPTIVE_NOISE_FLOOR`]).
+    fn spreads(&self, n_outputs: usize) -> Vec<Option<f64>> {
+        let width = n_outputs.max(1);
+        let stride = self.lowest.len();
+        (0..n_outputs)
+            .map(|o| {
+                let spread = (o..stride)
+                    .step_by(width)
+                    .map(|k| self.highest[k] - self.lowest[k])
+                    .fold(0.0_f64, f64::max);
+                (spread.is_finite() && spread > ADAPTIVE_NOISE_FLOOR * (1.0 + self.magnitude[o]))
+                    .then_some(spread)
+            })
+            .collect()
+    }
 }

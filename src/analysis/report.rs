@@ -343,13 +343,14 @@ pub struct RefinementReport {
 }
 
 /// Where a study's time went besides simulating, phase by phase, in seconds. The phases that run
-/// on the worker threads (`fit`, `inner_bound`, `outer_bound`, `sobol_indices`) are summed over
-/// the threads: on `n` threads they may add up to `n` times the wall they took. The others are
-/// wall time on the study's thread.
+/// on the worker threads (`fit`, `inner_bound`, `outer_bound`, `sobol_indices`, and the adaptive
+/// rounds' fits in `design_choice`) are summed over the threads: on `n` threads they may add up
+/// to `n` times the wall they took. The others are wall time on the study's thread.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PhaseSeconds {
-    /// Choosing the design: the adaptive rounds' fits and term indicators (their runs are
-    /// simulation), or the screening's ranking and the screened set.
+    /// Choosing the design: the adaptive rounds' fits (summed over the threads that ran their
+    /// chunks of records) and term indicators (their runs are simulation), or the screening's
+    /// ranking and the screened set.
     pub design_choice: f64,
     /// Fitting the surrogates of the design (and of the elements) at every record time.
     pub fit: f64,

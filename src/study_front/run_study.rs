@@ -209,13 +209,17 @@ fn announce(plan: &StudyPlan, options: &StudyOptions, space: &ParameterSpace, sc
 
 /// The study's runs, steps, timings, threads, block size and peak memory on stderr. Fit + bound
 /// is wall time, part of which may have run beside the simulation (said when it did); the share
-/// of the threads' time its workers took (`stats.phase_seconds` fit, inner and outer bound,
-/// Sobol' indices, in thread-seconds, over threads × wall) stays meaningful either way.
+/// of the threads' time its workers took (`stats.phase_seconds` design choice, fit, inner and
+/// outer bound, Sobol' indices, in thread-seconds, over threads × wall) stays meaningful either
+/// way.
 fn print_statistics(report: &StudyReport, wall_seconds: f64) {
     let wall = wall_seconds.max(1e-12);
     let phases = &report.phase_seconds;
-    let worker_seconds =
-        phases.fit + phases.inner_bound + phases.outer_bound + phases.sobol_indices;
+    let worker_seconds = phases.design_choice
+        + phases.fit
+        + phases.inner_bound
+        + phases.outer_bound
+        + phases.sobol_indices;
     let beside = if report.beside_simulation_seconds > 0.0 {
         format!(
             ", {:.3} s of it beside the simulation",
