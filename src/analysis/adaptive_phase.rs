@@ -401,3 +401,61 @@ impl RunExtremes {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_support::SplitMix64;
+
+    /// Spreads of every run at once, as each stage computed them before [`RunExtremes`].
+    fn spreads_from_scratch(values: &[Vec<f64>], n_outputs: usize) -> Vec<Option<f64>> {
+        let mut extremes = RunExtremes::new();
+        extremes.absorb(values, n_outputs);
+        extremes.spreads(n_outputs)
+    }
+
+    /// Folding the runs in stage by stage gives every stage the spreads of all its runs at once,
+    /// bit for bit (a NaN among them and an output without signal included), and a shorter set
+    /// of runs (an interrupted stage's truncation) starts over.
+    #[test]
+    fn stage_by_stage_extremes_are_those_of_every_run() {
+        let mut rng = SplitMix64::new(20);
+        let (records, n_outputs) = (5, 3);
+        let mut values: Vec<Vec<f64>> = Vec::new();
+        let mut extremes = RunExtremes::new();
+        for stage in 0..6 {
+            for _ in 0..=stage {
+                let mut run: Vec<f64> = (0..records * n_outputs)
+                    .map(|_| rng.uniform(-2.0, 3.0))
+                    .collect();
+                // Output 2 carries no signal: the same value in every run.
+                for record in run.chunks_exact_mut(n_outputs) {
+                    record[2] = 0.5;
+                }
+                if stage == 3 {
+                    run[4] = f64::NAN;
+                }
+                values.push(run);
+            }
+            extremes.absorb(&values, n_outputs);
+            let expected = spreads_from_scratch(&values, n_outputs);
+            let bits =
+                |s: &[Option<f64>]| s.iter().map(|v| v.map(f64::to_bits)).collect::<Vec<_>>();
+            assert_eq!(
+                bits(&extremes.spreads(n_outputs)),
+                bits(&expected),
+                "stage {stage}"
+            );
+            // One run has no spread; from two on, outputs 0 and 1 have one and output 2 none.
+            assert_eq!(expected[0].is_some(), values.len() > 1);
+            assert!(expected[2].is_none());
+        }
+        values.truncate(4);
+        extremes.absorb(&values, n_outputs);
+        let bits = |s: &[Option<f64>]| s.iter().map(|v| v.map(f64::to_bits)).collect::<Vec<_>>();
+        assert_eq!(
+            bits(&extremes.spreads(n_outputs)),
+            bits(&spreads_from_scratch(&values, n_outputs))
+        );
+    }
+}
