@@ -9,11 +9,13 @@
 //! value where it ended.
 //!
 //! ```text
-//! block 0: (parallel over records) fit ⇒ per output: outer bound, Sobol' indices
+//! block 0: (parallel over records) fit ⇒ per output: best design points, outer bound,
+//!            Sobol' indices
 //! block b: one queue for the threads, longest first:
 //!            per output and side, record after record: starts (vertex, best design points,
 //!              previous extreme) ⇒ that side's inner bound ⇒ the previous extreme for the next
-//!            then block b + 1's records: fit ⇒ per output: outer bound, Sobol' indices
+//!            then block b + 1's records: fit ⇒ per output: best design points, outer bound,
+//!              Sobol' indices
 //!          ⇒ per record: outer = the outer bound widened to the inner one, the runs taken in
 //! ```
 //!
@@ -21,9 +23,9 @@
 //! across blocks, so the results depend neither on the thread count nor on the block size. The
 //! two sides of an output share nothing, so they are separate tasks: 2 × outputs of them balance
 //! over the threads better than the outputs alone (9 outputs on 2 threads left one thread 5 of
-//! them). The outer bound and the Sobol' indices need only a record's fit, not the inner bound
-//! (the outer bound is widened to the inner one when the block is put together), so they run in
-//! the fit's task per record.
+//! them). An output's best design points (both sides'), the outer bound and the Sobol' indices
+//! need only a record's runs and fit, not the inner bound (the outer bound is widened to the
+//! inner one when the block is put together), so they run in the fit's task per record.
 //!
 //! The schedule (issue 40): the threads take tasks from one queue in a fixed order — the sides,
 //! the longest first by their time on the previous block, then the next block's records, which
