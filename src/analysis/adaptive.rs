@@ -180,7 +180,7 @@ impl AdaptiveSet {
     /// Records the indicator of every active term: `indicator(term)` is its own largest normalised
     /// coefficient over outputs and records; the indicator kept is the larger of that and
     /// [`LOOK_AHEAD`] times its backward neighbours' own coefficients.
-    pub fn measure(&mut self, indicator: impl Fn(&[(usize, usize)]) -> f64) {
+    pub fn measure(&mut self, mut indicator: impl FnMut(&[(usize, usize)]) -> f64) {
         self.predicted.clear();
         for (term, _) in &self.active {
             let own = indicator(term);
@@ -257,17 +257,16 @@ impl AdaptiveSet {
                     .map(|(p, (_, eta))| (*eta, true, p)),
             )
             .collect();
-        let term_of = |set: &AdaptiveSet, &(_, pending, i): &(f64, bool, usize)| -> Term {
+        // Compared in place (cloning both terms at every comparison was most of a stage's
+        // proposal at d = 64, with thousands of candidates).
+        let term_of = |&(_, pending, i): &(f64, bool, usize)| -> &Term {
             if pending {
-                set.pending[i].0.clone()
+                &self.pending[i].0
             } else {
-                set.active[i].0.clone()
+                &self.active[i].0
             }
         };
-        order.sort_by(|x, y| {
-            y.0.total_cmp(&x.0)
-                .then_with(|| term_of(self, x).cmp(&term_of(self, y)))
-        });
+        order.sort_by(|x, y| y.0.total_cmp(&x.0).then_with(|| term_of(x).cmp(term_of(y))));
         let room = budget.saturating_sub(self.len());
         let limit = batch.min(room);
         let mut new_terms: Vec<Term> = Vec::new();

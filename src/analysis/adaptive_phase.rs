@@ -142,7 +142,12 @@ pub(super) fn adapt(
         } else {
             ADAPTIVE_ROUNDS_PER_STAGE
         };
+        // Choosing the next terms is part of the design choice too (one thread).
+        let t_propose = Instant::now();
         new_terms = propose_stage(&mut set, per_stage, budget, &mut rounds);
+        let propose_seconds = t_propose.elapsed().as_secs_f64();
+        context.report.bound_seconds += propose_seconds;
+        context.report.phase_seconds.design_choice += propose_seconds;
         if new_terms.is_empty() {
             break ("converged", true);
         }
@@ -193,12 +198,13 @@ fn fit_and_measure(
     extremes.absorb(values, n_outputs);
     let spread = extremes.spreads(n_outputs);
     let mi = grid.set().clone();
+    let mut magnitude = Vec::new();
     set.measure(|term| {
         let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
         let Some(t) = mi.index_of(&factors) else {
             return 0.0;
         };
-        coefficients.largest_normalised(t, &spread)
+        coefficients.largest_normalised(t, &spread, &mut magnitude)
     });
     let thread_seconds = started.elapsed().as_secs_f64() - fit_wall + fit_thread_seconds;
     Ok(((grid, rows), thread_seconds))
@@ -276,21 +282,33 @@ struct RecordCoefficients {
 
 impl RecordCoefficients {
     /// Term t's largest `|coefficient| / spread` over every record and every output with a
-    /// spread (`spread[o]`, [`RunExtremes::spreads`]), or 0.
-    fn largest_normalised(&self, t: usize, spread: &[Option<f64>]) -> f64 {
+    /// spread (`spread[o]`, [`RunExtremes::spreads`]), or 0. Each output's largest magnitude is
+    /// divided once: a correctly rounded division by a positive spread never orders two
+    /// quotients against their dividends, so the largest quotient is the quotient of the largest
+    /// magnitude, the same bits as dividing every coefficient (the division per coefficient was a
+    /// quarter of the d = 32 scaling row's design choice; issue 40).
+    fn largest_normalised(
+        &self,
+        t: usize,
+        spread: &[Option<f64>],
+        magnitude: &mut Vec<f64>,
+    ) -> f64 {
         let n_outputs = spread.len().max(1);
-        let mut largest = 0.0_f64;
+        magnitude.clear();
+        magnitude.resize(n_outputs, 0.0);
         for chunk in &self.chunks {
             let width = chunk.len() / self.n_terms.max(1);
             for record in chunk[t * width..(t + 1) * width].chunks_exact(n_outputs) {
-                for (value, spread) in record.iter().zip(spread) {
-                    if let Some(s) = spread {
-                        largest = largest.max(value.abs() / s);
-                    }
+                for (largest, value) in magnitude.iter_mut().zip(record) {
+                    *largest = largest.max(value.abs());
                 }
             }
         }
-        largest
+        magnitude
+            .iter()
+            .zip(spread)
+            .filter_map(|(&largest, spread)| spread.map(|s| largest / s))
+            .fold(0.0_f64, f64::max)
     }
 }
 

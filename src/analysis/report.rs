@@ -349,8 +349,8 @@ pub struct RefinementReport {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PhaseSeconds {
     /// Choosing the design: the adaptive rounds' fits (summed over the threads that ran their
-    /// chunks of records) and term indicators (their runs are simulation), or the screening's
-    /// ranking and the screened set.
+    /// chunks of records), term indicators and proposals of the next terms (their runs are
+    /// simulation), or the screening's ranking and the screened set.
     pub design_choice: f64,
     /// Fitting the surrogates of the design (and of the elements) at every record time.
     pub fit: f64,
