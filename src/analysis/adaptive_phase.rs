@@ -43,6 +43,9 @@ pub(super) struct AdaptiveOutcome {
     values: Vec<Vec<f64>>,
     /// Grid point t → row of `values`.
     row_of_point: Vec<usize>,
+    /// The last complete stage's fit of every record on the grid: the coefficients the bounding
+    /// would fit again, to the bit.
+    coefficients: RecordCoefficients,
     /// The summary.
     pub(super) report: AdaptiveReport,
     /// Whether every round ran to the end (false: interrupted; the grid is the last complete one).
@@ -53,6 +56,12 @@ impl AdaptiveOutcome {
     /// Record `r`'s values in grid order, row-major `points × outputs`.
     pub(super) fn record(&self, r: usize, n_outputs: usize) -> Vec<f64> {
         gather_record(&self.values, &self.row_of_point, r, n_outputs)
+    }
+
+    /// Record `r`'s Legendre coefficients on the grid, row-major `terms × outputs`: what the
+    /// grid's fit of [`AdaptiveOutcome::record`] gives, to the bit (the last stage fitted them).
+    pub(super) fn record_coefficients(&self, r: usize, n_outputs: usize) -> Vec<f64> {
+        self.coefficients.record(r, n_outputs)
     }
 }
 
@@ -77,8 +86,8 @@ pub(super) fn adapt(
     let mut values: Vec<Vec<f64>> = Vec::new();
     let mut extremes = RunExtremes::new();
     let mut new_terms = set.evaluated().to_vec();
-    // The last complete stage's grid and, per grid point, its row of `values`.
-    let mut grid: Option<(SparseGrid, Vec<usize>)> = None;
+    // The last complete stage's grid, rows and fit.
+    let mut grid: Option<StageFit> = None;
     // Round 0 is proposed with the set; `propose_stage` counts the rest.
     let mut rounds = 1;
     let mut stages_run = 0;
@@ -152,7 +161,11 @@ pub(super) fn adapt(
             break ("converged", true);
         }
     };
-    let (grid, row_of_point) = grid.expect("a complete round built a grid");
+    let StageFit {
+        grid,
+        row_of_point,
+        coefficients,
+    } = grid.expect("a complete round built a grid");
     let set_of_grid = grid.set().clone();
     let interactions = (0..set_of_grid.len())
         .filter(|&t| set_of_grid.term(t).len() >= 2)
@@ -172,22 +185,30 @@ pub(super) fn adapt(
             },
             values,
             row_of_point,
+            coefficients,
             complete,
         },
     )))
 }
 
+/// A stage's fit: the grid on the terms evaluated so far, per grid point its row of the values,
+/// and every record's coefficients.
+struct StageFit {
+    grid: SparseGrid,
+    row_of_point: Vec<usize>,
+    coefficients: RecordCoefficients,
+}
+
 /// Fits every output at every record on the runs of `set`'s evaluated terms and measures the
-/// active candidates' indicators; returns the grid and, per grid point, its row of `values`,
-/// with the thread-seconds it took (the fit's chunks run on the threads at once, the rest on
-/// the caller's).
+/// active candidates' indicators; returns the fit, with the thread-seconds it took (the fit's
+/// chunks run on the threads at once, the rest on the caller's).
 fn fit_and_measure(
     set: &mut AdaptiveSet,
     values: &[Vec<f64>],
     extremes: &mut RunExtremes,
     n_outputs: usize,
     threads: &rayon::ThreadPool,
-) -> Result<((SparseGrid, Vec<usize>), f64), StudyError> {
+) -> Result<(StageFit, f64), StudyError> {
     let started = Instant::now();
     let grid = SparseGrid::new(Arc::new(set.multi_index_set()?))?;
     let rows = rows_of_points(&grid, set)?;
@@ -207,7 +228,12 @@ fn fit_and_measure(
         coefficients.largest_normalised(t, &spread, &mut magnitude)
     });
     let thread_seconds = started.elapsed().as_secs_f64() - fit_wall + fit_thread_seconds;
-    Ok(((grid, rows), thread_seconds))
+    let fit = StageFit {
+        grid,
+        row_of_point: rows,
+        coefficients,
+    };
+    Ok((fit, thread_seconds))
 }
 
 /// A round's batch: [`ADAPTIVE_BATCH_FRACTION`] of the terms so far, at least
@@ -281,6 +307,25 @@ struct RecordCoefficients {
 }
 
 impl RecordCoefficients {
+    /// Record `r`'s coefficients, row-major `terms × outputs` (as
+    /// [`crate::uq::LinearFit::fit_into`] writes one record's); empty past the last record.
+    fn record(&self, r: usize, n_outputs: usize) -> Vec<f64> {
+        let Some(chunk) = self.chunks.get(r / FIT_CHUNK_RECORDS) else {
+            return Vec::new();
+        };
+        let width = chunk.len() / self.n_terms.max(1);
+        let first = (r % FIT_CHUNK_RECORDS) * n_outputs;
+        if first + n_outputs > width {
+            // Past the last record.
+            return Vec::new();
+        }
+        let mut out = Vec::with_capacity(self.n_terms * n_outputs);
+        for row in chunk.chunks_exact(width.max(1)) {
+            out.extend_from_slice(&row[first..first + n_outputs]);
+        }
+        out
+    }
+
     /// Term t's largest `|coefficient| / spread` over every record and every output with a
     /// spread (`spread[o]`, [`RunExtremes::spreads`]), or 0. Each output's largest magnitude is
     /// divided once: a correctly rounded division by a positive spread never orders two
@@ -424,6 +469,49 @@ impl RunExtremes {
 mod tests {
     use super::*;
     use crate::test_support::SplitMix64;
+
+    /// The coefficients a stage's fit of every record at once hands to the bounding are, record
+    /// by record, those the grid's fit of that record's values alone gives, to the bit: records
+    /// in several chunks (the last one short), runs stored out of grid order.
+    #[test]
+    fn a_record_of_the_stage_fit_is_the_fit_of_that_record() {
+        use crate::uq::MultiIndexSet;
+        let grid = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 3).expect("set")))
+            .expect("grid");
+        let (n_points, n_outputs) = (grid.n_points(), 4);
+        let n_records = 2 * FIT_CHUNK_RECORDS + 5;
+        let mut rng = SplitMix64::new(56);
+        let values: Vec<Vec<f64>> = (0..n_points)
+            .map(|_| {
+                (0..n_records * n_outputs)
+                    .map(|_| rng.uniform(-2.0, 2.0))
+                    .collect()
+            })
+            .collect();
+        // Grid point t is run row n − 1 − t.
+        let rows: Vec<usize> = (0..n_points).rev().collect();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("pool");
+        let (coefficients, _) =
+            fit_all_records(&grid, &rows, &values, n_outputs, &pool).expect("fit");
+        for r in 0..n_records {
+            let record = gather_record(&values, &rows, r, n_outputs);
+            let alone = grid
+                .fit()
+                .fit(&record, n_outputs)
+                .expect("fit of one record");
+            let handed = coefficients.record(r, n_outputs);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+            assert_eq!(bits(&handed), bits(&alone), "record {r}");
+        }
+        // Past the last record: in the last chunk's range, and beyond every chunk.
+        assert!(coefficients.record(n_records, n_outputs).is_empty());
+        assert!(coefficients
+            .record(n_records + FIT_CHUNK_RECORDS, n_outputs)
+            .is_empty());
+    }
 
     /// Spreads of every run at once, as each stage computed them before [`RunExtremes`].
     fn spreads_from_scratch(values: &[Vec<f64>], n_outputs: usize) -> Vec<Option<f64>> {

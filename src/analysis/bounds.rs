@@ -21,7 +21,7 @@ use super::bounded_block::{BoundedBlock, Extremes};
 pub(super) use super::envelope::EnvelopePoint;
 use super::plan::Plan;
 use super::report::PhaseSeconds;
-use super::sparse_bounds::SparseBounds;
+use super::sparse_bounds::{RecordFits, SparseBounds};
 use super::Method;
 use crate::uq::{
     chebyshev_inclusion, interval_bound, BernsteinBounder, Bound, BoundKind, CoefficientMatrix,
@@ -128,7 +128,9 @@ impl Bounder {
 
     /// Envelopes of `n_outputs` outputs at each of `records` record times. `values(r)` gives record
     /// `r`'s values of the plan's samples (row-major `samples × outputs`), `excluded(i)` whether
-    /// sample `i` is left out (only `scan` and `monte-carlo` can leave samples out). Returns
+    /// sample `i` is left out (only `scan` and `monte-carlo` can leave samples out); `given_fits(r)`,
+    /// when given, record `r`'s coefficients of a sparse design's fit, which a caller that has
+    /// fitted them already hands over instead of the sparse bounds fitting them again. Returns
     /// `records × outputs` points, record-major, with the predicted extremes.
     pub fn bound_records(
         &self,
@@ -136,6 +138,7 @@ impl Bounder {
         n_outputs: usize,
         values: &(dyn Fn(usize) -> Vec<f64> + Sync),
         excluded: &(dyn Fn(usize) -> bool + Sync),
+        given_fits: Option<&RecordFits<'_>>,
         threads: &rayon::ThreadPool,
     ) -> Result<BoundedBlock, UqError> {
         if let Some(sparse) = &self.sparse {
@@ -144,6 +147,7 @@ impl Bounder {
                 n_outputs,
                 values,
                 excluded,
+                given_fits,
                 self.block_records,
                 &self.clock,
                 threads,

@@ -32,6 +32,7 @@ use super::phase::PhaseContext;
 use super::plan::Plan;
 use super::schedule::RecordSchedule;
 use super::sobol_indices::{has_sobol_indices, SobolSeries};
+use super::sparse_bounds::RecordFits;
 use super::stages::StageCursor;
 use rayon::prelude::*;
 use std::sync::{Mutex, PoisonError};
@@ -122,7 +123,16 @@ pub(super) fn bound_design(
             // `block_records`, the next block's fits beside this block's inner bound.
             let t_bound = Instant::now();
             let values = |r: usize| outcome.record(r, n_outputs);
-            bounding.absorb(0, n_records, &values, &|_| false, accumulator)?;
+            // The last adaptive stage fitted these records on this grid already.
+            let fitted = |r: usize| outcome.record_coefficients(r, n_outputs);
+            bounding.absorb(
+                0,
+                n_records,
+                &values,
+                &|_| false,
+                Some(&fitted),
+                accumulator,
+            )?;
             context.report.bound_seconds += t_bound.elapsed().as_secs_f64();
             if !outcome.complete {
                 context.report.partial = true;
@@ -206,7 +216,14 @@ pub(super) fn bound_design(
                     let (bounding, accumulator, bound_seconds) = &mut *guard;
                     let values = |r: usize| taken.rows[r].clone();
                     let excluded = |i: usize| taken.failed[i];
-                    bounding.absorb(taken.first, taken.count, &values, &excluded, accumulator)?;
+                    bounding.absorb(
+                        taken.first,
+                        taken.count,
+                        &values,
+                        &excluded,
+                        None,
+                        accumulator,
+                    )?;
                     *bound_seconds += t_bound.elapsed().as_secs_f64();
                     Ok(())
                 },
@@ -319,20 +336,27 @@ pub(super) struct DesignBounding<'b> {
 
 impl DesignBounding<'_> {
     /// Bounds records `first..first + count` from the design's `values(r)` (row-major `samples ×
-    /// outputs`); `accumulator` already holds those records' times and nominal values (the whole
-    /// box; an element's accumulator holds no nominal run).
+    /// outputs`; `given_fits(r)` their coefficients when fitted already: [`RecordFits`]);
+    /// `accumulator` already holds those records' times and nominal values (the whole box; an
+    /// element's accumulator holds no nominal run).
     pub fn absorb(
         &mut self,
         first: usize,
         count: usize,
         values: &(dyn Fn(usize) -> Vec<f64> + Sync),
         excluded: &(dyn Fn(usize) -> bool + Sync),
+        given_fits: Option<&RecordFits<'_>>,
         accumulator: &mut Accumulator,
     ) -> Result<(), StudyError> {
         let n_outputs = self.n_outputs;
-        let mut bounded =
-            self.bounder
-                .bound_records(count, n_outputs, values, excluded, self.threads)?;
+        let mut bounded = self.bounder.bound_records(
+            count,
+            n_outputs,
+            values,
+            excluded,
+            given_fits,
+            self.threads,
+        )?;
         clip_to_surrogate_ranges(&mut bounded, self.surrogate_ranges, n_outputs);
         accumulator.points.extend_from_slice(&bounded.points);
         self.sobol.extend(&bounded);

@@ -282,7 +282,7 @@ pub(super) fn run_round(
                         &|i| block.record(i, r),
                     )
                 };
-                bounding.absorb(block.first, block.count, &values, &|_| false, child)?;
+                bounding.absorb(block.first, block.count, &values, &|_| false, None, child)?;
             }
             report.bound_seconds += t_bound.elapsed().as_secs_f64();
             Ok(())

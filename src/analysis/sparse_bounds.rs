@@ -94,6 +94,11 @@ const DROPPED_SHARE_AT_CHOICE: f64 = 0.5;
 /// became small since go too).
 const RECORDS_PER_CHOICE: usize = 16;
 
+/// Record `r`'s coefficients of the design's fit, row-major `terms × outputs`, to the bit what
+/// [`crate::uq::LinearFit::fit_into`] gives for its values: from a caller that fitted the
+/// records already (the adaptive design's last stage), so that they are not fitted twice.
+pub(super) type RecordFits<'a> = dyn Fn(usize) -> Vec<f64> + Sync + 'a;
+
 /// What one side (minimum or maximum) of one output carries from record time to record time.
 #[derive(Debug, Default, Clone)]
 struct SideChain {
@@ -242,6 +247,7 @@ impl SparseBounds {
         n_outputs: usize,
         values: &(dyn Fn(usize) -> Vec<f64> + Sync),
         excluded: &(dyn Fn(usize) -> bool + Sync),
+        given_fits: Option<&RecordFits<'_>>,
         block_records: usize,
         clock: &BoundClock,
         threads: &rayon::ThreadPool,
@@ -261,7 +267,10 @@ impl SparseBounds {
                 .into_par_iter()
                 .map_init(
                     || self.workspace(),
-                    |ws, r| self.fit_record(values(r), n_outputs, excluded, ws, clock),
+                    |ws, r| {
+                        let coefficients = given_fits.map(|fits| fits(r));
+                        self.fit_record(values(r), coefficients, n_outputs, excluded, ws, clock)
+                    },
                 )
                 .collect::<Result<Vec<FittedRecord>, UqError>>()
         })?;
@@ -275,6 +284,7 @@ impl SparseBounds {
                 n_outputs,
                 values,
                 excluded,
+                given_fits,
                 &mut chains,
                 clock,
                 threads,
@@ -297,6 +307,7 @@ impl SparseBounds {
         n_outputs: usize,
         values: &(dyn Fn(usize) -> Vec<f64> + Sync),
         excluded: &(dyn Fn(usize) -> bool + Sync),
+        given_fits: Option<&RecordFits<'_>>,
         chains: &mut [SideChain],
         clock: &BoundClock,
         threads: &rayon::ThreadPool,
@@ -340,6 +351,7 @@ impl SparseBounds {
                     Task::Fit(i) => {
                         let record = self.fit_record(
                             values(next.start + i),
+                            given_fits.map(|fits| fits(next.start + i)),
                             n_outputs,
                             excluded,
                             &mut ws,
@@ -379,11 +391,12 @@ impl SparseBounds {
         }
     }
 
-    /// One record's fit from its `values`, and every output's outer bound, error estimate and
-    /// Sobol' indices.
+    /// One record's fit from its `values` (or its `coefficients`, when the caller has them), and
+    /// every output's outer bound, error estimate and Sobol' indices.
     fn fit_record(
         &self,
         values: Vec<f64>,
+        coefficients: Option<Vec<f64>>,
         n_outputs: usize,
         excluded: &(dyn Fn(usize) -> bool + Sync),
         ws: &mut Workspace,
@@ -392,10 +405,22 @@ impl SparseBounds {
         let design = &*self.design;
         let d = design.set().dim();
         let mut lap = Instant::now();
-        let mut coefficients = vec![0.0; design.set().len() * n_outputs];
-        design
-            .fit()
-            .fit_into(&values, n_outputs, &mut coefficients)?;
+        let n_coefficients = design.set().len() * n_outputs;
+        let coefficients = match coefficients {
+            Some(given) if given.len() == n_coefficients => given,
+            Some(given) => {
+                return Err(UqError::WrongLength {
+                    what: "sparse bounds: a record's coefficients (terms × outputs)",
+                    expected: n_coefficients,
+                    got: given.len(),
+                })
+            }
+            None => {
+                let mut fitted = vec![0.0; n_coefficients];
+                design.fit().fit_into(&values, n_outputs, &mut fitted)?;
+                fitted
+            }
+        };
         lap = clock.lap(BoundPhase::Fit, lap);
         let spreads = runs_spreads(&values, n_outputs, excluded);
         let (mut lowest, mut highest) = (Vec::new(), Vec::new());
@@ -715,6 +740,7 @@ mod tests {
                 n_outputs,
                 &values,
                 &none,
+                None,
                 block_records,
                 &clock,
                 &pool,
@@ -726,6 +752,7 @@ mod tests {
                 n_outputs,
                 &|r| values(split + r),
                 &none,
+                None,
                 block_records,
                 &clock,
                 &pool,
@@ -797,6 +824,7 @@ mod tests {
                 n_outputs,
                 &values,
                 &none,
+                None,
                 7,
                 &BoundClock::default(),
                 &pool,

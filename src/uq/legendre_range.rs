@@ -7,7 +7,7 @@
 //! so it has at most one root there, found by bisection to the last bit. `q` is stationary at its
 //! critical points, so the values there are exact up to rounding. A series whose linear
 //! coefficient outweighs what the others can add to the slope is monotone, and its range is its
-//! values at ±1 without the cascade ([`monotone_with_margin`]).
+//! values at ±1 without the cascade (`monotone_with_margin`).
 //!
 //! Does not: bound multivariate polynomials (see [`crate::uq::box_optimize`]).
 
