@@ -823,6 +823,7 @@ impl SparseSurrogate {
 
     /// `c_α² Π_r 1/(2α_r+1)`: term t's share of the variance (`‖P_n‖² = 1/(2n+1)` under the
     /// uniform probability on [−1, 1]).
+    #[inline]
     fn term_variance(&self, t: usize) -> f64 {
         let c = self.coefficients[t];
         self.set
