@@ -14,7 +14,9 @@
 //! docs/distributed.md §7), and every run's values are kept (the
 //! next round's fit needs them): `runs × outputs × records` values, which `auto` checks against
 //! [`super::auto::ADAPTIVE_VALUE_BUDGET`] before choosing this design. The study then bounds the
-//! final interpolant from the stored values like any other sparse design.
+//! final interpolant from the stored values like any other sparse design, with each record's
+//! coefficients from the last stage's fit ([`AdaptiveOutcome::record_coefficients`]) instead of
+//! a fit of its own.
 
 use super::accumulator::Accumulator;
 use super::adaptive::{

@@ -9,8 +9,8 @@
 //! value where it ended.
 //!
 //! ```text
-//! block 0: (parallel over records) fit ⇒ per output: best design points, outer bound,
-//!            Sobol' indices
+//! block 0: (parallel over records) fit (or the caller's coefficients: RecordFits) ⇒ per
+//!            output: best design points, outer bound, Sobol' indices
 //! block b: one queue for the threads, longest first:
 //!            per output and side, record after record: starts (vertex, best design points,
 //!              previous extreme) ⇒ that side's inner bound ⇒ the previous extreme for the next
