@@ -25,7 +25,9 @@ pub const AUTO_TENSOR_MAX_DIM: usize = 4;
 pub const DEFAULT_MAX_RUNS: usize = 3000;
 
 /// Most stored values (runs × outputs × record times) of an adaptive design: 2 GB of `f64`. Above
-/// it `auto` falls back to the screened design, which holds one block of records at a time.
+/// it `auto` falls back to the screened design, which holds one block of records at a time. An
+/// adaptive study holds a fit of the same size beside its values from its last stage on (the
+/// bounding takes each record's coefficients from it), so its peak is about twice this.
 pub const ADAPTIVE_VALUE_BUDGET: usize = 250_000_000;
 
 /// Lowest order the screened designs keep in every parameter (all pairwise interactions).
