@@ -89,7 +89,7 @@ pub(super) fn adapt(
     let mut extremes = RunExtremes::new();
     let mut new_terms = set.evaluated().to_vec();
     // The last complete stage's grid, rows and fit.
-    let mut grid: Option<StageFit> = None;
+    let mut last_fit: Option<StageFit> = None;
     // Round 0 is proposed with the set; `propose_stage` counts the rest.
     let mut rounds = 1;
     let mut stages_run = 0;
@@ -129,7 +129,7 @@ pub(super) fn adapt(
         )?;
         stages_run += 1;
         if !stage_complete {
-            if grid.is_none() {
+            if last_fit.is_none() {
                 return Ok(None);
             }
             values.truncate(first_row);
@@ -139,7 +139,7 @@ pub(super) fn adapt(
         let t_fit = Instant::now();
         let (fitted, thread_seconds) =
             fit_and_measure(&mut set, &values, &mut extremes, n_outputs, context.threads)?;
-        grid = Some(fitted);
+        last_fit = Some(fitted);
         context.report.bound_seconds += t_fit.elapsed().as_secs_f64();
         context.report.phase_seconds.design_choice += thread_seconds;
         if set.len() >= budget {
@@ -167,7 +167,7 @@ pub(super) fn adapt(
         grid,
         row_of_point,
         coefficients,
-    } = grid.expect("a complete round built a grid");
+    } = last_fit.expect("a complete round built a grid");
     let set_of_grid = grid.set().clone();
     let interactions = (0..set_of_grid.len())
         .filter(|&t| set_of_grid.term(t).len() >= 2)
