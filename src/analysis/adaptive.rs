@@ -180,7 +180,7 @@ impl AdaptiveSet {
     /// Records the indicator of every active term: `indicator(term)` is its own largest normalised
     /// coefficient over outputs and records; the indicator kept is the larger of that and
     /// [`LOOK_AHEAD`] times its backward neighbours' own coefficients.
-    pub fn measure(&mut self, mut indicator: impl FnMut(&[(usize, usize)]) -> f64) {
+    pub fn measure(&mut self, indicator: impl Fn(&[(usize, usize)]) -> f64) {
         self.predicted.clear();
         for (term, _) in &self.active {
             let own = indicator(term);

@@ -221,13 +221,12 @@ fn fit_and_measure(
     extremes.absorb(values, n_outputs);
     let spread = extremes.spreads(n_outputs);
     let mi = grid.set().clone();
-    let mut magnitude = Vec::new();
     set.measure(|term| {
         let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
         let Some(t) = mi.index_of(&factors) else {
             return 0.0;
         };
-        coefficients.largest_normalised(t, &spread, &mut magnitude)
+        coefficients.largest_normalised(t, &spread)
     });
     let thread_seconds = started.elapsed().as_secs_f64() - fit_wall + fit_thread_seconds;
     let fit = StageFit {
@@ -334,15 +333,9 @@ impl RecordCoefficients {
     /// quotients against their dividends, so the largest quotient is the quotient of the largest
     /// magnitude, the same bits as dividing every coefficient (the division per coefficient was a
     /// quarter of the d = 32 scaling row's design choice; issue 40).
-    fn largest_normalised(
-        &self,
-        t: usize,
-        spread: &[Option<f64>],
-        magnitude: &mut Vec<f64>,
-    ) -> f64 {
+    fn largest_normalised(&self, t: usize, spread: &[Option<f64>]) -> f64 {
         let n_outputs = spread.len().max(1);
-        magnitude.clear();
-        magnitude.resize(n_outputs, 0.0);
+        let mut magnitude = vec![0.0_f64; n_outputs];
         for chunk in &self.chunks {
             let width = chunk.len() / self.n_terms.max(1);
             for record in chunk[t * width..(t + 1) * width].chunks_exact(n_outputs) {
