@@ -90,6 +90,8 @@ pub(super) fn adapt(
     let mut new_terms = set.evaluated().to_vec();
     // The last complete stage's grid, rows and fit.
     let mut last_fit: Option<StageFit> = None;
+    // The runs' hierarchical surpluses, kept from stage to stage.
+    let mut surpluses = Surpluses::default();
     // Round 0 is proposed with the set; `propose_stage` counts the rest.
     let mut rounds = 1;
     let mut stages_run = 0;
@@ -137,8 +139,15 @@ pub(super) fn adapt(
         }
         // Fit the set evaluated so far and measure the candidates.
         let t_fit = Instant::now();
-        let (fitted, thread_seconds) =
-            fit_and_measure(&mut set, &values, &mut extremes, n_outputs, context.threads)?;
+        let (fitted, thread_seconds) = fit_and_measure(
+            &mut set,
+            &values,
+            &mut extremes,
+            n_outputs,
+            context.threads,
+            &mut surpluses,
+            last_fit.take(),
+        )?;
         last_fit = Some(fitted);
         context.report.bound_seconds += t_fit.elapsed().as_secs_f64();
         context.report.phase_seconds.design_choice += thread_seconds;
@@ -204,19 +213,24 @@ struct StageFit {
 /// Fits every output at every record on the runs of `set`'s evaluated terms and measures the
 /// active candidates' indicators; returns the fit, with the thread-seconds it took (the fit's
 /// chunks run on the threads at once, the rest on the caller's).
+#[allow(clippy::too_many_arguments)]
 fn fit_and_measure(
     set: &mut AdaptiveSet,
     values: &[Vec<f64>],
     extremes: &mut RunExtremes,
     n_outputs: usize,
     threads: &rayon::ThreadPool,
+    surpluses: &mut Surpluses,
+    earlier: Option<StageFit>,
 ) -> Result<(StageFit, f64), StudyError> {
     let started = Instant::now();
     let grid = SparseGrid::new(Arc::new(set.multi_index_set()?))?;
     let rows = rows_of_points(&grid, set)?;
+    let recycled = earlier.map_or_else(Vec::new, |fit| fit.coefficients.chunks);
     let fit_started = Instant::now();
-    let (coefficients, fit_thread_seconds) =
-        fit_all_records(&grid, &rows, values, n_outputs, threads)?;
+    let (coefficients, fit_thread_seconds) = fit_all_records(
+        &grid, &rows, values, n_outputs, threads, surpluses, recycled,
+    )?;
     let fit_wall = fit_started.elapsed().as_secs_f64();
     extremes.absorb(values, n_outputs);
     let spread = extremes.spreads(n_outputs);
@@ -352,40 +366,112 @@ impl RecordCoefficients {
     }
 }
 
+/// The hierarchical surpluses of every run so far (the first factor of the sparse grid's fit,
+/// `crate::uq::sparse_grid`): per chunk of records ([`FIT_CHUNK_RECORDS`]), row-major by run (the
+/// rows of the values), `runs × (records · outputs)`. A run's surplus depends only on its term and
+/// on the runs of the terms below it, which the set holds from then on, so a later stage computes
+/// the rows of its own runs only and keeps the others, the same bits (issue 40: the d = 32
+/// scaling row's eight stages computed 25 102 first-factor entries' row updates, of which 6 665
+/// once each would do).
+#[derive(Default)]
+struct Surpluses {
+    chunks: Vec<Vec<f64>>,
+    /// Runs whose rows the chunks hold.
+    runs: usize,
+}
+
 /// The Legendre coefficients of every output at every record (docs/high-dimension.md §5: one
 /// multi-right-hand-side application of the grid's fitting map per chunk of records, read from
 /// the runs' rows in place); `rows` maps the grid's points to rows of `values`
 /// ([`rows_of_points`]). Each coefficient is the one a fit of its record alone gives, to the bit.
-/// Also returns the seconds its chunks took, summed over the threads.
+/// The map's first factor is applied to the runs `surpluses` does not hold yet (and they are
+/// added), its second to every term; `recycled` are an earlier stage's chunks, whose memory the
+/// new ones reuse. Also returns the seconds its chunks took, summed over the threads.
 fn fit_all_records(
     grid: &SparseGrid,
     rows: &[usize],
     values: &[Vec<f64>],
     n_outputs: usize,
     threads: &rayon::ThreadPool,
+    surpluses: &mut Surpluses,
+    recycled: Vec<Vec<f64>>,
 ) -> Result<(RecordCoefficients, f64), StudyError> {
     let n_records = values.first().map_or(0, |v| v.len() / n_outputs.max(1));
     let n_terms = grid.n_points();
     let firsts: Vec<usize> = (0..n_records).step_by(FIT_CHUNK_RECORDS).collect();
+    // Grid point of each run: the rows are the runs in the order their terms came.
+    let mut term_of_run = vec![usize::MAX; n_terms];
+    for (t, &row) in rows.iter().enumerate() {
+        if let Some(slot) = term_of_run.get_mut(row) {
+            *slot = t;
+        }
+    }
+    if rows.len() != n_terms || values.len() != n_terms || term_of_run.contains(&usize::MAX) {
+        return Err(StudyError::Uq(UqError::WrongLength {
+            what: "adaptive fit: runs (one per grid point)",
+            expected: n_terms,
+            got: values.len(),
+        }));
+    }
+    let width_of =
+        |first: usize| (first + FIT_CHUNK_RECORDS).min(n_records) * n_outputs - first * n_outputs;
+    let kept = surpluses.runs;
+    let consistent = kept <= n_terms
+        && surpluses.chunks.len() == firsts.len()
+        && surpluses
+            .chunks
+            .iter()
+            .zip(&firsts)
+            .all(|(chunk, &first)| chunk.len() == kept * width_of(first));
+    let kept = if consistent { kept } else { 0 };
+    surpluses.chunks.resize_with(firsts.len(), Vec::new);
+    let new_terms = &term_of_run[kept..];
+    let mut buffers = recycled;
+    buffers.resize_with(firsts.len(), Vec::new);
+    let jobs: Vec<(usize, &mut Vec<f64>, Vec<f64>)> = firsts
+        .iter()
+        .zip(surpluses.chunks.iter_mut())
+        .zip(buffers)
+        .map(|((&first, chunk), buffer)| (first, chunk, buffer))
+        .collect();
+    let fit = grid.fit();
     let chunks = threads.install(|| {
-        firsts
-            .par_iter()
-            .map(|&first| {
+        jobs.into_par_iter()
+            .map(|(first, chunk, mut out)| {
                 let started = Instant::now();
-                let last = (first + FIT_CHUNK_RECORDS).min(n_records);
-                let columns = first * n_outputs..last * n_outputs;
-                let runs: Vec<&[f64]> = rows
-                    .iter()
-                    .map(|&row| &values[row][columns.clone()])
-                    .collect();
-                let mut out = vec![0.0; n_terms * columns.len()];
-                grid.fit()
-                    .fit_rows_into(&runs, &mut out)
-                    .map_err(StudyError::Uq)?;
+                let columns = first * n_outputs..first * n_outputs + width_of(first);
+                let width = columns.len();
+                for (k, &t) in new_terms.iter().enumerate() {
+                    let run = &values[kept + k][columns.clone()];
+                    if let Some(column) = run.iter().position(|v| !v.is_finite()) {
+                        return Err(StudyError::Uq(UqError::NonFinite {
+                            what: "fit: values",
+                            index: t * width + column,
+                            value: run[column],
+                        }));
+                    }
+                }
+                chunk.resize(n_terms * width, 0.0);
+                fit.first_factor_rows_into(
+                    new_terms,
+                    |p| &values[rows[p]][columns.clone()],
+                    width,
+                    &mut chunk[kept * width..],
+                )?;
+                // Every entry is overwritten: only a longer buffer's new part is zeroed first.
+                out.truncate(n_terms * width);
+                out.resize(n_terms * width, 0.0);
+                let by_run = &chunk[..];
+                fit.second_factor_into(
+                    |t| &by_run[rows[t] * width..(rows[t] + 1) * width],
+                    width,
+                    &mut out,
+                )?;
                 Ok((out, started.elapsed().as_secs_f64()))
             })
             .collect::<Result<Vec<(Vec<f64>, f64)>, StudyError>>()
     })?;
+    surpluses.runs = n_terms;
     let thread_seconds = chunks.iter().map(|(_, seconds)| seconds).sum();
     let chunks = chunks.into_iter().map(|(chunk, _)| chunk).collect();
     Ok((RecordCoefficients { chunks, n_terms }, thread_seconds))
@@ -467,45 +553,110 @@ mod tests {
 
     /// The coefficients a stage's fit of every record at once hands to the bounding are, record
     /// by record, those the grid's fit of that record's values alone gives, to the bit: records
-    /// in several chunks (the last one short), runs stored out of grid order.
+    /// in several chunks (the last one short), runs stored out of grid order, and a second stage
+    /// on a grown set that keeps the first stage's surpluses and reuses its chunks' memory.
     #[test]
     fn a_record_of_the_stage_fit_is_the_fit_of_that_record() {
         use crate::uq::MultiIndexSet;
-        let grid = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 3).expect("set")))
+        let small = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 2).expect("set")))
             .expect("grid");
-        let (n_points, n_outputs) = (grid.n_points(), 4);
+        let grown = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 3).expect("set")))
+            .expect("grid");
+        let n_outputs = 4;
         let n_records = 2 * FIT_CHUNK_RECORDS + 5;
+        // Runs in the order their terms came: the small set's last term first, then the grown
+        // set's other terms, again from the last.
+        let mut run_terms: Vec<Vec<Factor>> = (0..small.n_points())
+            .rev()
+            .map(|t| small.set().term(t).to_vec())
+            .collect();
+        for t in (0..grown.n_points()).rev() {
+            let term = grown.set().term(t);
+            if small.set().index_of(term).is_none() {
+                run_terms.push(term.to_vec());
+            }
+        }
         let mut rng = SplitMix64::new(56);
-        let values: Vec<Vec<f64>> = (0..n_points)
+        let values: Vec<Vec<f64>> = run_terms
+            .iter()
             .map(|_| {
                 (0..n_records * n_outputs)
                     .map(|_| rng.uniform(-2.0, 2.0))
                     .collect()
             })
             .collect();
-        // Grid point t is run row n − 1 − t.
-        let rows: Vec<usize> = (0..n_points).rev().collect();
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
             .expect("pool");
-        let (coefficients, _) =
-            fit_all_records(&grid, &rows, &values, n_outputs, &pool).expect("fit");
-        for r in 0..n_records {
-            let record = gather_record(&values, &rows, r, n_outputs);
-            let alone = grid
-                .fit()
-                .fit(&record, n_outputs)
-                .expect("fit of one record");
-            let handed = coefficients.record(r, n_outputs);
-            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
-            assert_eq!(bits(&handed), bits(&alone), "record {r}");
+        let mut surpluses = Surpluses::default();
+        let mut recycled = Vec::new();
+        for grid in [&small, &grown] {
+            let n_points = grid.n_points();
+            let rows: Vec<usize> = (0..n_points)
+                .map(|t| {
+                    let term = grid.set().term(t);
+                    run_terms
+                        .iter()
+                        .position(|r| r.as_slice() == term)
+                        .expect("run")
+                })
+                .collect();
+            let values = &values[..n_points];
+            let (coefficients, _) = fit_all_records(
+                grid,
+                &rows,
+                values,
+                n_outputs,
+                &pool,
+                &mut surpluses,
+                std::mem::take(&mut recycled),
+            )
+            .expect("fit");
+            assert_eq!(surpluses.runs, n_points);
+            for r in 0..n_records {
+                let record = gather_record(values, &rows, r, n_outputs);
+                let alone = grid
+                    .fit()
+                    .fit(&record, n_outputs)
+                    .expect("fit of one record");
+                let handed = coefficients.record(r, n_outputs);
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+                assert_eq!(bits(&handed), bits(&alone), "{n_points} points, record {r}");
+            }
+            // Past the last record: in the last chunk's range, and beyond every chunk.
+            assert!(coefficients.record(n_records, n_outputs).is_empty());
+            assert!(coefficients
+                .record(n_records + FIT_CHUNK_RECORDS, n_outputs)
+                .is_empty());
+            recycled = coefficients.chunks;
         }
-        // Past the last record: in the last chunk's range, and beyond every chunk.
-        assert!(coefficients.record(n_records, n_outputs).is_empty());
-        assert!(coefficients
-            .record(n_records + FIT_CHUNK_RECORDS, n_outputs)
-            .is_empty());
+    }
+
+    /// A run's non-finite value is an error naming it, whether the run is new or not; runs that
+    /// are not one per grid point are an error, not a panic.
+    #[test]
+    fn a_stage_fit_names_a_non_finite_value_and_refuses_mismatched_runs() {
+        use crate::uq::MultiIndexSet;
+        let grid = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(2, 2).expect("set")))
+            .expect("grid");
+        let n = grid.n_points();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("pool");
+        let rows: Vec<usize> = (0..n).collect();
+        let mut values = vec![vec![1.0; 3]; n];
+        values[2][1] = f64::NAN;
+        let mut surpluses = Surpluses::default();
+        let error = fit_all_records(&grid, &rows, &values, 1, &pool, &mut surpluses, Vec::new())
+            .err()
+            .expect("a NaN is an error");
+        assert!(error.to_string().contains("NaN"), "{error}");
+        let short = &values[..n - 1];
+        assert!(
+            fit_all_records(&grid, &rows, short, 1, &pool, &mut surpluses, Vec::new()).is_err()
+        );
     }
 
     /// Spreads of every run at once, as each stage computed them before [`RunExtremes`].

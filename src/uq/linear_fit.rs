@@ -253,6 +253,78 @@ impl LinearFit {
         }
     }
 
+    /// The two steps of [`LinearFit::fit_rows_into`] apart, for a caller that keeps the first
+    /// step's rows from one fit to the next (the adaptive design's stages: a sparse grid's first
+    /// factor gives each point its hierarchical surplus, which depends only on that point's term
+    /// and the points below it, so a grown set's old points keep theirs; `crate::uq::sparse_grid`).
+    /// Step 1: rows `terms` of the first factor applied to the points' rows,
+    /// `out[k, :] = Σ_p lower[terms[k], p] · x_row(p)`, `out` row-major `terms.len() × width`;
+    /// each row the bits [`LinearFit::fit_rows_into`] computes it with.
+    ///
+    /// Errors: a dense map (it has no factors), a term past the last, a length that disagrees.
+    pub(crate) fn first_factor_rows_into<'x>(
+        &self,
+        terms: &[usize],
+        x_row: impl Fn(usize) -> &'x [f64],
+        width: usize,
+        out: &mut [f64],
+    ) -> Result<(), UqError> {
+        let Map::Triangular { lower, .. } = &self.map else {
+            return Err(UqError::Empty {
+                what: "fit: factors of a dense map",
+            });
+        };
+        if let Some(&term) = terms.iter().find(|&&t| t >= self.n_terms) {
+            return Err(UqError::WrongLength {
+                what: "fit: a term of the first factor",
+                expected: self.n_terms,
+                got: term,
+            });
+        }
+        if out.len() != terms.len() * width {
+            return Err(UqError::WrongLength {
+                what: "fit: out (terms × columns)",
+                expected: terms.len() * width,
+                got: out.len(),
+            });
+        }
+        dispatch_row_updates(
+            #[inline(always)]
+            || apply_sparse_rows(lower, |k| terms[k], &x_row, width, out),
+        );
+        Ok(())
+    }
+
+    /// Step 2 of [`LinearFit::first_factor_rows_into`]: the second factor applied to every
+    /// term's row of step 1 (`y_row(t)`, each `width` long), `out` row-major `n_terms × width`:
+    /// the coefficients, the bits [`LinearFit::fit_rows_into`] gives.
+    ///
+    /// Errors: a dense map, a length that disagrees.
+    pub(crate) fn second_factor_into<'y>(
+        &self,
+        y_row: impl Fn(usize) -> &'y [f64],
+        width: usize,
+        out: &mut [f64],
+    ) -> Result<(), UqError> {
+        let Map::Triangular { upper, .. } = &self.map else {
+            return Err(UqError::Empty {
+                what: "fit: factors of a dense map",
+            });
+        };
+        if out.len() != self.n_terms * width {
+            return Err(UqError::WrongLength {
+                what: "fit: out (n_terms × columns)",
+                expected: self.n_terms * width,
+                got: out.len(),
+            });
+        }
+        dispatch_row_updates(
+            #[inline(always)]
+            || apply_upper_from(upper, &y_row, width, out),
+        );
+        Ok(())
+    }
+
     /// Row sums `Σ_p |C[t, p]|` per term (the ∞-norm of the map is their maximum), computed in
     /// blocks of points so the memory stays `n_terms × BLOCK`.
     pub(crate) fn abs_row_sums(&self) -> Vec<f64> {
@@ -300,47 +372,51 @@ fn apply_triangular<'x>(
     width: usize,
     out: &mut [f64],
 ) {
+    dispatch_row_updates(
+        #[inline(always)]
+        || {
+            apply_sparse_rows(lower, |i| i, &x_row, width, out);
+            apply_upper_in_place(upper, width, out);
+        },
+    );
+}
+
+/// Runs `updates` (loops of row updates, inlined into it) compiled for AVX2 when the CPU has it
+/// ([`apply_triangular`]: the same bits), else as they are.
+#[inline(always)]
+fn dispatch_row_updates(updates: impl FnOnce()) {
     match Isa::best().kind() {
         #[cfg(target_arch = "x86_64")]
         IsaKind::Avx2 => {
             // SAFETY: an `Isa` of kind `Avx2` exists only after the running CPU reported AVX2
-            // (`Isa::avx2`), which is all `apply_triangular_avx2` requires.
-            unsafe { apply_triangular_avx2(lower, upper, x_row, width, out) }
+            // (`Isa::avx2`), which is all `run_with_avx2` requires.
+            unsafe { run_with_avx2(updates) }
         }
-        _ => {
-            apply_sparse_rows(lower, x_row, width, out);
-            apply_upper_in_place(upper, width, out);
-        }
+        _ => updates(),
     }
 }
 
-/// [`apply_triangular`] compiled for AVX2 (the same loops, which the compiler widens to four
+/// `updates` compiled for AVX2 (the loops inlined into it, which the compiler widens to four
 /// lanes).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn apply_triangular_avx2<'x>(
-    lower: &SparseRows,
-    upper: &SparseRows,
-    x_row: impl Fn(usize) -> &'x [f64],
-    width: usize,
-    out: &mut [f64],
-) {
-    apply_sparse_rows(lower, x_row, width, out);
-    apply_upper_in_place(upper, width, out);
+fn run_with_avx2(updates: impl FnOnce()) {
+    updates()
 }
 
-/// `out[i, :] = Σ_j a[i, j] · x[j, :]` for sparse `a`, row j of `x` given by `x_row(j)` (each
-/// `width` long), row-major blocks of `width` columns.
+/// `out[k, :] = Σ_j a[row_of(k), j] · x[j, :]` for sparse `a`, row j of `x` given by `x_row(j)`
+/// (each `width` long), row-major blocks of `width` columns.
 #[inline(always)]
 fn apply_sparse_rows<'x>(
     a: &SparseRows,
+    row_of: impl Fn(usize) -> usize,
     x_row: impl Fn(usize) -> &'x [f64],
     width: usize,
     out: &mut [f64],
 ) {
-    for (i, dst) in out.chunks_exact_mut(width).enumerate() {
+    for (k, dst) in out.chunks_exact_mut(width).enumerate() {
         dst.fill(0.0);
-        let (cols, vals) = a.row(i);
+        let (cols, vals) = a.row(row_of(k));
         for (&j, &v) in cols.iter().zip(vals) {
             for (d, &s) in dst.iter_mut().zip(x_row(j as usize)) {
                 *d += v * s;
@@ -377,6 +453,38 @@ fn apply_upper_in_place(u: &SparseRows, width: usize, y: &mut [f64]) {
     }
 }
 
+/// [`apply_upper_in_place`] from rows kept elsewhere (`y_row(j)`) into `out`: the same
+/// operations in the same order (the diagonal's product first, then the other entries'), so the
+/// same bits.
+#[inline(always)]
+fn apply_upper_from<'y>(
+    u: &SparseRows,
+    y_row: impl Fn(usize) -> &'y [f64],
+    width: usize,
+    out: &mut [f64],
+) {
+    for (i, row) in out.chunks_exact_mut(width).enumerate() {
+        let (cols, vals) = u.row(i);
+        let diag = if cols.first() == Some(&(i as u32)) {
+            vals[0]
+        } else {
+            0.0
+        };
+        for (d, &s) in row.iter_mut().zip(y_row(i)) {
+            *d = s * diag;
+        }
+        for (&j, &v) in cols.iter().zip(vals) {
+            let j = j as usize;
+            if j == i {
+                continue;
+            }
+            for (d, &s) in row.iter_mut().zip(y_row(j)) {
+                *d += v * s;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -400,11 +508,95 @@ mod tests {
             let mut dispatched = vec![0.0; upper.n_rows() * width];
             apply_triangular(lower, upper, x_row, width, &mut dispatched);
             let mut baseline = vec![0.0; upper.n_rows() * width];
-            apply_sparse_rows(lower, x_row, width, &mut baseline);
+            apply_sparse_rows(lower, |i| i, x_row, width, &mut baseline);
             apply_upper_in_place(upper, width, &mut baseline);
             let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
             assert_eq!(bits(&dispatched), bits(&baseline), "width {width}");
         }
+    }
+
+    /// The fit in two steps gives the bits of the fit in one, and a point's row of the first
+    /// step is the same in a grown set's grid (the adaptive design's stages keep it): a set, a
+    /// larger downward-closed set containing it, runs stored in the order their terms came.
+    #[test]
+    fn the_two_factor_steps_give_the_fit_and_a_grown_set_keeps_its_first_rows() {
+        use crate::uq::{MultiIndexSet, SparseGrid};
+        use std::sync::Arc;
+        let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
+        let small = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(4, 2).unwrap())).unwrap();
+        let grown = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(4, 4).unwrap())).unwrap();
+        let width = 11;
+        let mut rng = SplitMix64::new(58);
+        // Runs in the order their terms came: the small set's, then the rest of the grown one's.
+        let mut run_terms: Vec<Vec<crate::uq::Factor>> = (0..small.n_points())
+            .map(|t| small.set().term(t).to_vec())
+            .collect();
+        for t in 0..grown.n_points() {
+            let term = grown.set().term(t);
+            if small.set().index_of(term).is_none() {
+                run_terms.push(term.to_vec());
+            }
+        }
+        let runs: Vec<Vec<f64>> = run_terms
+            .iter()
+            .map(|_| (0..width).map(|_| rng.uniform(-3.0, 3.0)).collect())
+            .collect();
+        let mut first_rows: Vec<Vec<f64>> = Vec::new();
+        for grid in [&small, &grown] {
+            let fit = grid.fit();
+            let n = grid.n_points();
+            // Grid point t's run.
+            let run_of: Vec<usize> = (0..n)
+                .map(|t| {
+                    let term = grid.set().term(t);
+                    run_terms.iter().position(|r| r.as_slice() == term).unwrap()
+                })
+                .collect();
+            let x_row = |p: usize| runs[run_of[p]].as_slice();
+            let every: Vec<usize> = (0..n).collect();
+            let mut first = vec![0.0; n * width];
+            fit.first_factor_rows_into(&every, x_row, width, &mut first)
+                .unwrap();
+            let mut two_steps = vec![0.0; n * width];
+            fit.second_factor_into(
+                |t| &first[t * width..(t + 1) * width],
+                width,
+                &mut two_steps,
+            )
+            .unwrap();
+            let rows: Vec<&[f64]> = (0..n).map(x_row).collect();
+            let mut one_step = vec![0.0; fit.n_terms() * width];
+            fit.fit_rows_into(&rows, &mut one_step).unwrap();
+            assert_eq!(bits(&two_steps), bits(&one_step), "{n} points");
+            // The first step's row of each run, by run.
+            let mut by_run = vec![Vec::new(); n];
+            for (t, row) in first.chunks_exact(width).enumerate() {
+                by_run[run_of[t]] = row.to_vec();
+            }
+            // Selected rows alone are the same rows.
+            let some: Vec<usize> = (0..n).step_by(3).collect();
+            let mut selected = vec![0.0; some.len() * width];
+            fit.first_factor_rows_into(&some, x_row, width, &mut selected)
+                .unwrap();
+            for (k, &t) in some.iter().enumerate() {
+                assert_eq!(
+                    bits(&selected[k * width..(k + 1) * width]),
+                    bits(&first[t * width..(t + 1) * width])
+                );
+            }
+            first_rows.push(by_run.concat());
+        }
+        let kept = small.n_points() * width;
+        assert_eq!(bits(&first_rows[1][..kept]), bits(&first_rows[0]));
+        // A dense map has no factors; a term past the last is an error.
+        let dense = LinearFit::dense_transposed(nalgebra::DMatrix::identity(2, 2));
+        assert!(dense
+            .first_factor_rows_into(&[0], |_| &runs[0][..1], 1, &mut [0.0])
+            .is_err());
+        let fit = small.fit();
+        assert!(fit
+            .first_factor_rows_into(&[small.n_points()], |_| &runs[0][..1], 1, &mut [0.0])
+            .is_err());
     }
 
     #[test]
