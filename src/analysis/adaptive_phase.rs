@@ -319,6 +319,11 @@ const FIT_CHUNK_RECORDS: usize = 16;
 struct RecordCoefficients {
     chunks: Vec<Vec<f64>>,
     n_terms: usize,
+    /// Per term and output (`terms × outputs`, row-major), the largest |coefficient| over every
+    /// record: taken in each chunk's task while its coefficients are fresh in the cache (reading
+    /// them all again for the indicators was most of the indicators' time on the d = 32 scaling
+    /// row; issue 40). The largest of the chunks' largest is the largest of all, exactly.
+    largest: Vec<f64>,
 }
 
 impl RecordCoefficients {
@@ -349,20 +354,26 @@ impl RecordCoefficients {
     /// quarter of the d = 32 scaling row's design choice; issue 40).
     fn largest_normalised(&self, t: usize, spread: &[Option<f64>]) -> f64 {
         let n_outputs = spread.len().max(1);
-        let mut magnitude = vec![0.0_f64; n_outputs];
-        for chunk in &self.chunks {
-            let width = chunk.len() / self.n_terms.max(1);
-            for record in chunk[t * width..(t + 1) * width].chunks_exact(n_outputs) {
-                for (largest, value) in magnitude.iter_mut().zip(record) {
-                    *largest = largest.max(value.abs());
-                }
-            }
-        }
-        magnitude
+        self.largest[t * n_outputs..(t + 1) * n_outputs]
             .iter()
             .zip(spread)
             .filter_map(|(&largest, spread)| spread.map(|s| largest / s))
             .fold(0.0_f64, f64::max)
+    }
+}
+
+/// Per term and output of a chunk's coefficients (`terms × width`, `width` a multiple of
+/// `n_outputs`), the largest magnitude over its records, into `largest` (`terms × outputs`).
+fn largest_magnitudes(chunk: &[f64], width: usize, n_outputs: usize, largest: &mut [f64]) {
+    for (row, out) in chunk
+        .chunks_exact(width)
+        .zip(largest.chunks_exact_mut(n_outputs))
+    {
+        for record in row.chunks_exact(n_outputs) {
+            for (m, value) in out.iter_mut().zip(record) {
+                *m = m.max(value.abs());
+            }
+        }
     }
 }
 
@@ -467,14 +478,33 @@ fn fit_all_records(
                     width,
                     &mut out,
                 )?;
-                Ok((out, started.elapsed().as_secs_f64()))
+                let mut largest = vec![0.0; n_terms * n_outputs];
+                if n_outputs > 0 {
+                    largest_magnitudes(&out, width, n_outputs, &mut largest);
+                }
+                Ok((out, largest, started.elapsed().as_secs_f64()))
             })
-            .collect::<Result<Vec<(Vec<f64>, f64)>, StudyError>>()
+            .collect::<Result<Vec<(Vec<f64>, Vec<f64>, f64)>, StudyError>>()
     })?;
     surpluses.runs = n_terms;
-    let thread_seconds = chunks.iter().map(|(_, seconds)| seconds).sum();
-    let chunks = chunks.into_iter().map(|(chunk, _)| chunk).collect();
-    Ok((RecordCoefficients { chunks, n_terms }, thread_seconds))
+    let mut thread_seconds = 0.0;
+    let mut largest = vec![0.0_f64; n_terms * n_outputs];
+    let mut coefficient_chunks = Vec::with_capacity(chunks.len());
+    for (chunk, chunk_largest, seconds) in chunks {
+        thread_seconds += seconds;
+        for (m, &c) in largest.iter_mut().zip(&chunk_largest) {
+            *m = m.max(c);
+        }
+        coefficient_chunks.push(chunk);
+    }
+    Ok((
+        RecordCoefficients {
+            chunks: coefficient_chunks,
+            n_terms,
+            largest,
+        },
+        thread_seconds,
+    ))
 }
 
 /// Per record and output the lowest and the highest value of the runs folded in so far, and per
@@ -614,6 +644,8 @@ mod tests {
             )
             .expect("fit");
             assert_eq!(surpluses.runs, n_points);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+            let mut largest = vec![0.0_f64; n_points * n_outputs];
             for r in 0..n_records {
                 let record = gather_record(values, &rows, r, n_outputs);
                 let alone = grid
@@ -621,9 +653,20 @@ mod tests {
                     .fit(&record, n_outputs)
                     .expect("fit of one record");
                 let handed = coefficients.record(r, n_outputs);
-                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
                 assert_eq!(bits(&handed), bits(&alone), "{n_points} points, record {r}");
+                for (m, c) in largest.iter_mut().zip(&alone) {
+                    *m = m.max(c.abs());
+                }
             }
+            // Each term's and output's largest magnitude over the records, which the indicators
+            // divide by the spreads.
+            assert_eq!(bits(&coefficients.largest), bits(&largest));
+            let spread = vec![Some(0.5); n_outputs];
+            let t = n_points - 1;
+            let want = largest[t * n_outputs..(t + 1) * n_outputs]
+                .iter()
+                .fold(0.0_f64, |m, &c| m.max(c / 0.5));
+            assert_eq!(coefficients.largest_normalised(t, &spread), want);
             // Past the last record: in the last chunk's range, and beyond every chunk.
             assert!(coefficients.record(n_records, n_outputs).is_empty());
             assert!(coefficients
