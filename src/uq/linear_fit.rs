@@ -253,6 +253,16 @@ impl LinearFit {
         }
     }
 
+    /// The triangular map's two factors; a dense map has none (an error).
+    fn factors(&self) -> Result<(&SparseRows, &SparseRows), UqError> {
+        match &self.map {
+            Map::Triangular { lower, upper } => Ok((lower, upper)),
+            Map::Dense(_) => Err(UqError::Empty {
+                what: "fit: factors of a dense map",
+            }),
+        }
+    }
+
     /// The two steps of [`LinearFit::fit_rows_into`] apart, for a caller that keeps the first
     /// step's rows from one fit to the next (the adaptive design's stages: a sparse grid's first
     /// factor gives each point its hierarchical surplus, which depends only on that point's term
@@ -269,11 +279,7 @@ impl LinearFit {
         width: usize,
         out: &mut [f64],
     ) -> Result<(), UqError> {
-        let Map::Triangular { lower, .. } = &self.map else {
-            return Err(UqError::Empty {
-                what: "fit: factors of a dense map",
-            });
-        };
+        let (lower, _) = self.factors()?;
         if let Some(&term) = terms.iter().find(|&&t| t >= self.n_terms) {
             return Err(UqError::WrongLength {
                 what: "fit: a term of the first factor",
@@ -306,11 +312,7 @@ impl LinearFit {
         width: usize,
         out: &mut [f64],
     ) -> Result<(), UqError> {
-        let Map::Triangular { upper, .. } = &self.map else {
-            return Err(UqError::Empty {
-                what: "fit: factors of a dense map",
-            });
-        };
+        let (_, upper) = self.factors()?;
         if out.len() != self.n_terms * width {
             return Err(UqError::WrongLength {
                 what: "fit: out (n_terms × columns)",
