@@ -232,19 +232,27 @@ impl BoxOptimizer {
                 }
             }
             // The last step when it was tiny (STEP_TOL) or gained too little to go on
-            // (STALLED_DECREASE_TOL): then the point's value alone, no gradient.
+            // (STALLED_DECREASE_TOL): then no gradient there.
             let last = self.trial_distance() <= STEP_TOL || f_before - f <= self.stalled_floor;
             self.x.copy_from_slice(&self.trial);
-            let check = if last {
-                sign * s.value_unchecked(&self.x, &mut self.ws)
-            } else {
-                self.evaluate(s, sign)
-            };
-            debug_assert!((check - f).abs() <= 1e-9 * (1.0 + f.abs()));
-            f = check;
             if last {
+                if s.has_dense_bilinear_part() {
+                    // The trial's dense bilinear part was summed from the moved rows: the
+                    // point's value as a whole evaluation sums it.
+                    f = sign * s.value_unchecked(&self.x, &mut self.ws);
+                } else {
+                    // Without one the trial's value is that sum already, to the bit
+                    // (`value_moved_unchecked`); before (issue 40) it was summed again here.
+                    debug_assert_eq!(
+                        f.to_bits(),
+                        (sign * s.value_unchecked(&self.x, &mut self.ws)).to_bits()
+                    );
+                }
                 break;
             }
+            let check = self.evaluate(s, sign);
+            debug_assert!((check - f).abs() <= 1e-9 * (1.0 + f.abs()));
+            f = check;
         }
         let end = self.trail.end_values.len();
         self.trail.end_points.extend_from_slice(&self.x);

@@ -10,20 +10,23 @@
 //!
 //! Does not: evaluate anything (`SparseSurrogate`), or order the terms (`MultiIndexSet`).
 
-use super::{EvalPlan, Pair, Single};
+use super::{EvalPlan, GeneralTerm, Pair, Single};
 
-/// Per dimension r, the plan's terms (bilinear ones aside: each adds one constant entry, walked
-/// as they are) that add to row r of the Hessian (compressed rows:
+/// Per dimension r, the plan's terms that add to row r of the Hessian (compressed rows:
 /// dimension r's entries are `offsets[r]..offsets[r + 1]` of each list).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub(crate) struct RowLists {
+    /// Bilinear terms under their earlier dimension only: each adds one constant to the upper
+    /// entry of its two dimensions, which no other bilinear term adds to.
+    bilinear: Vec<Pair>,
+    bilinear_offsets: Vec<usize>,
     singles: Vec<Single>,
     single_offsets: Vec<usize>,
     /// Two-factor terms under both of their dimensions.
     pairs: Vec<Pair>,
     pair_offsets: Vec<usize>,
-    /// Terms of three or more factors under each of their dimensions: (term, the factor's place
-    /// in the term).
+    /// Terms of three or more factors under each of their dimensions: (the term's plan entry,
+    /// the factor's place in the term).
     general: Vec<GeneralRow>,
     general_offsets: Vec<usize>,
 }
@@ -31,8 +34,8 @@ pub(crate) struct RowLists {
 /// A term of three or more factors seen from one of its dimensions.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct GeneralRow {
-    /// The term's index in the set.
-    pub(crate) term: u32,
+    /// The term's plan entry (its index in the set, table indices and dimensions).
+    pub(crate) general: GeneralTerm,
     /// Which of the term's factors (0-based, in the term's order) has this row's dimension.
     pub(crate) factor: u32,
 }
@@ -88,8 +91,10 @@ impl RowLists {
     pub(crate) fn of<'a>(
         plan: &EvalPlan,
         dim: usize,
-        term_dims: impl Fn(usize) -> &'a [super::Factor],
+        term_dims: impl Fn(usize) -> &'a [u32],
     ) -> RowLists {
+        let (bilinear, bilinear_offsets) =
+            grouped(dim, plan.bilinear.iter().map(|p| (p.dim_a, *p)));
         let (singles, single_offsets) = grouped(dim, plan.singles.iter().map(|s| (s.dim, *s)));
         let (pairs, pair_offsets) = grouped(
             dim,
@@ -99,15 +104,15 @@ impl RowLists {
         );
         let (general, general_offsets) = grouped(
             dim,
-            plan.general.iter().flat_map(|&term| {
-                term_dims(term as usize)
+            plan.general.iter().flat_map(|&general| {
+                term_dims(general.term as usize)
                     .iter()
                     .enumerate()
-                    .map(move |(e, f)| {
+                    .map(move |(e, &dim)| {
                         (
-                            f.dim,
+                            dim,
                             GeneralRow {
-                                term,
+                                general,
                                 factor: e as u32,
                             },
                         )
@@ -115,6 +120,8 @@ impl RowLists {
             }),
         );
         RowLists {
+            bilinear,
+            bilinear_offsets,
             singles,
             single_offsets,
             pairs,
@@ -122,6 +129,11 @@ impl RowLists {
             general,
             general_offsets,
         }
+    }
+
+    /// The bilinear terms whose earlier dimension is r.
+    pub(crate) fn bilinear_from(&self, r: usize) -> &[Pair] {
+        &self.bilinear[self.bilinear_offsets[r]..self.bilinear_offsets[r + 1]]
     }
 
     /// The single-factor terms of dimension r.
@@ -143,6 +155,13 @@ impl RowLists {
     /// the same order, so a block built from `out` sums the kept terms as this one does).
     pub(crate) fn kept_into(&self, keep: impl Fn(u32) -> bool, out: &mut RowLists) {
         kept_rows(
+            &self.bilinear,
+            &self.bilinear_offsets,
+            |p| keep(p.term),
+            &mut out.bilinear,
+            &mut out.bilinear_offsets,
+        );
+        kept_rows(
             &self.singles,
             &self.single_offsets,
             |s| keep(s.term),
@@ -159,7 +178,7 @@ impl RowLists {
         kept_rows(
             &self.general,
             &self.general_offsets,
-            |g| keep(g.term),
+            |g| keep(g.general.term),
             &mut out.general,
             &mut out.general_offsets,
         );
@@ -190,6 +209,19 @@ mod tests {
         let plan = set.plan();
         let rows = &plan.rows;
         for r in 0..set.dim() as u32 {
+            let bilinear: Vec<u32> = plan
+                .bilinear
+                .iter()
+                .filter(|p| p.dim_a == r)
+                .map(|p| p.term)
+                .collect();
+            assert_eq!(
+                rows.bilinear_from(r as usize)
+                    .iter()
+                    .map(|p| p.term)
+                    .collect::<Vec<_>>(),
+                bilinear
+            );
             let singles: Vec<u32> = plan
                 .singles
                 .iter()
@@ -219,15 +251,15 @@ mod tests {
             let general: Vec<(u32, u32)> = plan
                 .general
                 .iter()
-                .filter_map(|&t| {
-                    let e = set.term(t as usize).iter().position(|f| f.dim == r)?;
-                    Some((t, e as u32))
+                .filter_map(|g| {
+                    let e = set.term(g.term as usize).iter().position(|f| f.dim == r)?;
+                    Some((g.term, e as u32))
                 })
                 .collect();
             let listed: Vec<(u32, u32)> = rows
                 .general(r as usize)
                 .iter()
-                .map(|g| (g.term, g.factor))
+                .map(|g| (g.general.term, g.factor))
                 .collect();
             assert_eq!(listed, general);
             assert!(
@@ -243,7 +275,7 @@ mod tests {
                 + plan
                     .general
                     .iter()
-                    .map(|&t| set.term(t as usize).len())
+                    .map(|g| set.term(g.term as usize).len())
                     .sum::<usize>()
         );
     }

@@ -12,31 +12,29 @@
 //! Does not: the value (`SparseSurrogate::value_unchecked`), the singles, pairs and the bilinear
 //! part (`super`).
 
-use crate::uq::multi_index::Factor;
-
 /// Adds the gradient of `ct · Π_e P(ξ_{dim_e})` to `grad` and returns the term's product
-/// `Π_e P(ξ_{dim_e})` ([`product`]'s bits): `idx` the term's table indices, `v` and `g` the
-/// tables of values and first derivatives. Terms of three and four factors read their table
+/// `Π_e P(ξ_{dim_e})` ([`product`]'s bits): `idx` the term's table indices, `dims` its factors'
+/// dimensions, `v` and `g` the tables of values and first derivatives. Terms of three and four factors read their table
 /// entries once for both.
 #[inline(always)]
 pub(super) fn product_adding_gradient(
     ct: f64,
     idx: &[u32],
-    factors: &[Factor],
+    dims: &[u32],
     v: &[f64],
     g: &[f64],
     grad: &mut [f64],
 ) -> f64 {
     match idx.len() {
-        3 => gradient_gathered::<3>(ct, idx, factors, v, g, grad),
-        4 => gradient_gathered::<4>(ct, idx, factors, v, g, grad),
+        3 => gradient_gathered::<3>(ct, idx, dims, v, g, grad),
+        4 => gradient_gathered::<4>(ct, idx, dims, v, g, grad),
         m => {
             gradient(
                 ct,
                 m,
                 |e| v[idx[e] as usize],
                 |e| g[idx[e] as usize],
-                factors,
+                dims,
                 grad,
             );
             product(idx, v)
@@ -64,7 +62,7 @@ pub(super) fn product(idx: &[u32], v: &[f64]) -> f64 {
 pub(super) fn add_hessian(
     ct: f64,
     idx: &[u32],
-    factors: &[Factor],
+    dims: &[u32],
     v: &[f64],
     g: &[f64],
     h: &[f64],
@@ -73,14 +71,14 @@ pub(super) fn add_hessian(
     place: impl Fn(usize) -> Option<usize>,
 ) {
     match idx.len() {
-        3 => hessian_gathered::<3>(ct, idx, factors, (v, g, h), hess, n, place),
-        4 => hessian_gathered::<4>(ct, idx, factors, (v, g, h), hess, n, place),
+        3 => hessian_gathered::<3>(ct, idx, dims, (v, g, h), hess, n, place),
+        4 => hessian_gathered::<4>(ct, idx, dims, (v, g, h), hess, n, place),
         m => {
             let at = |e: usize| {
                 let i = idx[e] as usize;
                 (v[i], g[i], h[i])
             };
-            hessian(ct, m, at, factors, hess, n, place);
+            hessian(ct, m, at, dims, hess, n, place);
         }
     }
 }
@@ -92,7 +90,7 @@ pub(super) fn add_hessian(
 pub(super) fn add_hessian_row(
     ct: f64,
     idx: &[u32],
-    factors: &[Factor],
+    dims: &[u32],
     tables: (&[f64], &[f64], &[f64]),
     a: usize,
     hess: &mut [f64],
@@ -111,9 +109,9 @@ pub(super) fn add_hessian_row(
             );
             let at = |e: usize| (gathered.0[e], gathered.1[e], gathered.2[e]);
             match a {
-                0 => hessian_row(ct, 3, at, factors, 0, hess, n, place),
-                1 => hessian_row(ct, 3, at, factors, 1, hess, n, place),
-                _ => hessian_row(ct, 3, at, factors, 2, hess, n, place),
+                0 => hessian_row(ct, 3, at, dims, 0, hess, n, place),
+                1 => hessian_row(ct, 3, at, dims, 1, hess, n, place),
+                _ => hessian_row(ct, 3, at, dims, 2, hess, n, place),
             }
         }
         4 => {
@@ -124,10 +122,10 @@ pub(super) fn add_hessian_row(
             );
             let at = |e: usize| (gathered.0[e], gathered.1[e], gathered.2[e]);
             match a {
-                0 => hessian_row(ct, 4, at, factors, 0, hess, n, place),
-                1 => hessian_row(ct, 4, at, factors, 1, hess, n, place),
-                2 => hessian_row(ct, 4, at, factors, 2, hess, n, place),
-                _ => hessian_row(ct, 4, at, factors, 3, hess, n, place),
+                0 => hessian_row(ct, 4, at, dims, 0, hess, n, place),
+                1 => hessian_row(ct, 4, at, dims, 1, hess, n, place),
+                2 => hessian_row(ct, 4, at, dims, 2, hess, n, place),
+                _ => hessian_row(ct, 4, at, dims, 3, hess, n, place),
             }
         }
         m => {
@@ -135,7 +133,7 @@ pub(super) fn add_hessian_row(
                 let i = idx[e] as usize;
                 (v[i], g[i], h[i])
             };
-            hessian_row(ct, m, at, factors, a, hess, n, place);
+            hessian_row(ct, m, at, dims, a, hess, n, place);
         }
     }
 }
@@ -146,13 +144,13 @@ pub(super) fn add_hessian_row(
 fn gradient_gathered<const M: usize>(
     ct: f64,
     idx: &[u32],
-    factors: &[Factor],
+    dims: &[u32],
     v: &[f64],
     g: &[f64],
     grad: &mut [f64],
 ) -> f64 {
     let (values, firsts) = (gather::<M>(idx, v), gather::<M>(idx, g));
-    gradient(ct, M, |e| values[e], |e| firsts[e], factors, grad);
+    gradient(ct, M, |e| values[e], |e| firsts[e], dims, grad);
     values.iter().product()
 }
 
@@ -162,7 +160,7 @@ fn gradient_gathered<const M: usize>(
 fn hessian_gathered<const M: usize>(
     ct: f64,
     idx: &[u32],
-    factors: &[Factor],
+    dims: &[u32],
     tables: (&[f64], &[f64], &[f64]),
     hess: &mut [f64],
     n: usize,
@@ -174,7 +172,7 @@ fn hessian_gathered<const M: usize>(
         gather::<M>(idx, tables.2),
     );
     let at = |e: usize| (values[e], firsts[e], seconds[e]);
-    hessian(ct, M, at, factors, hess, n, place);
+    hessian(ct, M, at, dims, hess, n, place);
 }
 
 /// The `M` table entries of a term.
@@ -202,12 +200,12 @@ fn gradient(
     m: usize,
     value: impl Fn(usize) -> f64,
     first: impl Fn(usize) -> f64,
-    factors: &[Factor],
+    dims: &[u32],
     grad: &mut [f64],
 ) {
-    for (a, factor) in factors.iter().enumerate().take(m) {
+    for (a, &dim) in dims.iter().enumerate().take(m) {
         let others = product_leaving_out(m, &value, a, a);
-        grad[factor.dim as usize] += ct * first(a) * others;
+        grad[dim as usize] += ct * first(a) * others;
     }
 }
 
@@ -218,13 +216,13 @@ fn hessian(
     ct: f64,
     m: usize,
     at: impl Fn(usize) -> (f64, f64, f64),
-    factors: &[Factor],
+    dims: &[u32],
     hess: &mut [f64],
     n: usize,
     place: impl Fn(usize) -> Option<usize>,
 ) {
     for a in 0..m {
-        hessian_row(ct, m, &at, factors, a, hess, n, &place);
+        hessian_row(ct, m, &at, dims, a, hess, n, &place);
     }
 }
 
@@ -236,21 +234,21 @@ fn hessian_row(
     ct: f64,
     m: usize,
     at: impl Fn(usize) -> (f64, f64, f64),
-    factors: &[Factor],
+    dims: &[u32],
     a: usize,
     hess: &mut [f64],
     n: usize,
     place: impl Fn(usize) -> Option<usize>,
 ) {
     let value = |e: usize| at(e).0;
-    let Some(pa) = place(factors[a].dim as usize) else {
+    let Some(pa) = place(dims[a] as usize) else {
         return;
     };
     let (_, first_a, second_a) = at(a);
     let others = product_leaving_out(m, value, a, a);
     hess[pa * n + pa] += ct * second_a * others;
-    for (b, factor_b) in factors.iter().enumerate().take(m).skip(a + 1) {
-        let Some(pb) = place(factor_b.dim as usize) else {
+    for (b, &dim_b) in dims.iter().enumerate().take(m).skip(a + 1) {
+        let Some(pb) = place(dim_b as usize) else {
             continue;
         };
         let rest = product_leaving_out(m, value, a, b);
