@@ -159,22 +159,28 @@ impl GeneralTerm {
     /// The term's table indices (`set` its set: read from there beyond [`Self::INLINE`]).
     #[inline(always)]
     pub(crate) fn indices<'a>(&'a self, set: &'a MultiIndexSet) -> &'a [u32] {
-        let len = self.len as usize;
-        if len <= Self::INLINE {
-            &self.index[..len]
-        } else {
-            set.table_indices(self.term as usize)
-        }
+        self.inline_or(&self.index, || set.table_indices(self.term as usize))
     }
 
     /// The term's factors' dimensions, in the term's order (as [`Self::indices`]).
     #[inline(always)]
     pub(crate) fn dims<'a>(&'a self, set: &'a MultiIndexSet) -> &'a [u32] {
+        self.inline_or(&self.dims, || set.factor_dims(self.term as usize))
+    }
+
+    /// The first `len` entries of `inline` when the term fits the entry, else what `in_set`
+    /// reads from the set.
+    #[inline(always)]
+    fn inline_or<'a>(
+        &self,
+        inline: &'a [u32; GeneralTerm::INLINE],
+        in_set: impl FnOnce() -> &'a [u32],
+    ) -> &'a [u32] {
         let len = self.len as usize;
         if len <= Self::INLINE {
-            &self.dims[..len]
+            &inline[..len]
         } else {
-            set.factor_dims(self.term as usize)
+            in_set()
         }
     }
 }

@@ -14,8 +14,8 @@
 
 /// Adds the gradient of `ct · Π_e P(ξ_{dim_e})` to `grad` and returns the term's product
 /// `Π_e P(ξ_{dim_e})` ([`product`]'s bits): `idx` the term's table indices, `dims` its factors'
-/// dimensions, `v` and `g` the tables of values and first derivatives. Terms of three and four factors read their table
-/// entries once for both.
+/// dimensions, `v` and `g` the tables of values and first derivatives. Terms of three and four
+/// factors read their table entries once for both.
 #[inline(always)]
 pub(super) fn product_adding_gradient(
     ct: f64,
