@@ -25,11 +25,23 @@ use nalgebra::DVector;
 
 /// From this many coordinates on, the lanes whose Newton matrix was factorised in the batch also
 /// solve their Newton systems there (`batch::cholesky_solve`, the scalar solve's operations lane by
-/// lane) instead of each with its own copy of the factor. Per sample step of a lock-step fall
-/// (callgrind, benches/README.md): the quadruped's 14 coordinates 14 807 → 14 329 instructions;
-/// below, handing the right-hand sides out and the solutions back costs more than the vectors
-/// save (the ur5's 6: 10 119 → 10 418).
+/// lane) instead of each with its own copy of the factor, however many lanes there are. Per sample
+/// step of a lock-step fall (callgrind, benches/README.md): the quadruped's 14 coordinates
+/// 14 807 → 14 329 instructions. Below it they solve there when [`BATCHED_SOLVE_FROM_LANES`] lanes
+/// or more were factorised in the batch.
 pub const BATCHED_SOLVE_FROM: usize = 12;
+
+/// Below [`BATCHED_SOLVE_FROM`] coordinates, the lanes factorised in the batch solve there when
+/// at least this many were. A triangular solve is a chain of dependent divisions: a lane's solve
+/// waits on their latency alone or in a vector, so four lanes in one vector chain take about the
+/// time of one. In instructions the hand-out and hand-back cost more than the vectors save (the
+/// ur5's 6 coordinates: 10 119 → 10 418 per sample step), which is why small robots had kept their
+/// own solves; in time they gain (`hht_batch --no-mujoco`, the builds alternating three times,
+/// 2026-11-30): ribbon-ur5 batches of 32 0.85–0.86 → 0.80–0.81 µs per sample step, erd-ur5
+/// 0.62–0.64 → 0.59–0.61; the d = 72 study's simulation took 0.91 of its time (median of eight
+/// runs side by side, one per core). A lone lane has nothing to overlap and only pays the copies
+/// (erd-ur5, a batch of 1 solving there: 1.30–1.33 → 1.38–1.50 µs), hence two.
+pub const BATCHED_SOLVE_FROM_LANES: usize = 2;
 
 /// How the lanes' grid steps were taken since the stepper was made.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -440,6 +452,8 @@ impl BatchStepper {
             }
         }
         let mut refused = failures;
+        let solve_in_batch = nv >= BATCHED_SOLVE_FROM
+            || batched.iter().filter(|&&b| b).count() >= BATCHED_SOLVE_FROM_LANES;
         batch::cholesky_factor_with_min_pivots(
             self.batch_model.isa,
             &mut self.batch_data.mass_matrix,
@@ -467,7 +481,7 @@ impl BatchStepper {
             }
             let factors = &self.batch_data.mass_matrix;
             integrator.plain_install_factor(system, plain, |out| factors.copy_sample(lane, out));
-            self.factor_in_batch[lane] = nv >= BATCHED_SOLVE_FROM;
+            self.factor_in_batch[lane] = solve_in_batch;
         }
     }
 
