@@ -35,10 +35,15 @@ const MAX_RUNS: usize = 300;
 /// The model, scene and box; `test` names the sidecar file (tests run in parallel, and a file
 /// rewritten while another test reads it would be read empty).
 fn study_parts(test: &str) -> (Model, Scene, ParameterSpace) {
+    study_parts_of(test, SIDECAR)
+}
+
+/// [`study_parts`] of the sidecar `text`.
+fn study_parts_of(test: &str, text: &str) -> (Model, Scene, ParameterSpace) {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("adaptive_design");
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(format!("{test}.toml"));
-    std::fs::write(&path, SIDECAR).unwrap();
+    std::fs::write(&path, text).unwrap();
     let urdf = Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/ur5/ur5.urdf");
     let (sidecar, _) = read_sidecar(&path).unwrap();
     let model = Model::from_urdf_file(&urdf, LoadOptions::default()).unwrap();
@@ -151,6 +156,98 @@ fn an_interrupted_adaptive_study_keeps_the_rounds_it_finished() {
             assert!(e.lower[o][k] <= e.nominal[o][k] && e.nominal[o][k] <= e.upper[o][k]);
         }
     }
+}
+
+/// The last stage (the one the budget makes last) runs beside its bounding: each block's records
+/// are fitted and bounded while the next block is simulated. Interrupted after its first block,
+/// the study keeps the stages before it, as an interruption of an earlier stage does: what that
+/// block's bounding put into the envelopes is dropped, and the envelopes come from the stage
+/// before's fit. The same with one thread and two, bit for bit.
+#[test]
+fn an_adaptive_study_interrupted_in_its_last_stage_keeps_the_stages_before() {
+    // 151 record times: the last stage runs in several blocks.
+    let text = format!("{SIDECAR}\n[outputs]\nrate = 500.0\n");
+    let (model, scene, space) = study_parts_of("interrupted_last", &text);
+    // A budget the rounds reach before they converge.
+    let study = |threads| Study {
+        model: model.clone(),
+        environment: scene.environment(),
+        scene: &scene,
+        space: &space,
+        options: options(threads, 100),
+    };
+    let interrupt = AtomicBool::new(false);
+    // The stages' runs, from a study that is not interrupted.
+    let mut stage_runs = Vec::new();
+    let mut blocks_of_last = 0;
+    let full = run(&study(1), &interrupt, &mut |p: Progress| {
+        if p.phase == "adaptive" && p.records_done == p.records_total {
+            stage_runs.push(p.runs);
+        }
+    });
+    let full_adaptive = full.adaptive.clone().expect("an adaptive report");
+    assert_eq!(full_adaptive.stop, "budget");
+    assert_eq!(full_adaptive.stages, stage_runs.len());
+    assert!(stage_runs.len() >= 2, "{stage_runs:?}");
+    let last_runs = *stage_runs.last().expect("a stage");
+    let mut reports = Vec::new();
+    for threads in [1, 2] {
+        let interrupt = AtomicBool::new(false);
+        let mut stages_done = 0;
+        let report = run(&study(threads), &interrupt, &mut |p: Progress| {
+            if p.phase != "adaptive" {
+                return;
+            }
+            if p.records_done == p.records_total {
+                stages_done += 1;
+            } else if stages_done + 1 == stage_runs.len() {
+                // The last stage's first block is in; its bounding runs beside the next block,
+                // which the interrupt stops at its first step.
+                blocks_of_last += 1;
+                interrupt.store(true, Ordering::SeqCst);
+            }
+        });
+        assert!(report.partial);
+        let adaptive = report.adaptive.as_ref().expect("an adaptive report");
+        assert_eq!(adaptive.stop, "interrupted");
+        assert_eq!(adaptive.stages, full_adaptive.stages);
+        assert_eq!(adaptive.runs, full_adaptive.runs - last_runs);
+        assert!(report.check.is_none());
+        assert_eq!(
+            report.envelope.times.len(),
+            scene.n_steps.div_ceil(scene.record_every) + 1
+        );
+        let e = &report.envelope;
+        for o in 0..e.outputs.len() {
+            for k in 0..e.times.len() {
+                assert!(e.lower[o][k].is_finite() && e.upper[o][k].is_finite());
+                assert!(e.lower[o][k] <= e.nominal[o][k] && e.nominal[o][k] <= e.upper[o][k]);
+            }
+        }
+        reports.push(report);
+    }
+    assert_eq!(
+        blocks_of_last, 2,
+        "the last stage's first block, once per study"
+    );
+    assert_eq!(reports[0].envelope.lower, reports[1].envelope.lower);
+    assert_eq!(reports[0].envelope.upper, reports[1].envelope.upper);
+    // Interrupted before the last stage's first step instead (nothing of it bounded): the same
+    // envelopes and report, so the dropped bounding left nothing behind.
+    let interrupt = AtomicBool::new(false);
+    let mut stages_done = 0;
+    let at_start = run(&study(1), &interrupt, &mut |p: Progress| {
+        if p.phase == "adaptive" && p.records_done == p.records_total {
+            stages_done += 1;
+            if stages_done + 1 == stage_runs.len() {
+                interrupt.store(true, Ordering::SeqCst);
+            }
+        }
+    });
+    assert_eq!(at_start.adaptive, reports[0].adaptive);
+    assert_eq!(at_start.envelope.lower, reports[0].envelope.lower);
+    assert_eq!(at_start.envelope.upper, reports[0].envelope.upper);
+    assert_ne!(at_start.envelope.upper, full.envelope.upper);
 }
 
 #[test]

@@ -11,6 +11,7 @@ use super::envelope::Envelope;
 use super::envelope::EnvelopePoint;
 
 /// The envelopes under construction, and the hull of every true run.
+#[derive(Clone)]
 pub(super) struct Accumulator {
     /// Outputs per record.
     pub n_outputs: usize,

@@ -17,6 +17,14 @@
 //! final interpolant from the stored values like any other sparse design, with each record's
 //! coefficients from the last stage's fit ([`AdaptiveOutcome::record_coefficients`]) instead of
 //! a fit of its own.
+//!
+//! A stage whose runs reach the budget is the last before it runs. The rounds hand it to the
+//! design phase unrun ([`Adapted::LastStage`], [`LastStage`]), which simulates it block by block
+//! and, beside each next block, fits the chunks of records the blocks completed
+//! ([`LastStage::fit_through`]: the chunks and surpluses of a whole-stage fit, the same bits) and
+//! bounds them; the bounding no longer waits for the whole stage (docs/method.md §11). The first
+//! stage always runs here. A stage that converges instead is not known to be the last until it is
+//! fitted, and is bounded after it as before.
 
 use super::accumulator::Accumulator;
 use super::adaptive::{
@@ -25,9 +33,10 @@ use super::adaptive::{
 };
 use super::error::StudyError;
 use super::method::Method;
-use super::phase::PhaseContext;
+use super::phase::{PhaseBlock, PhaseContext};
 use super::report::AdaptiveReport;
 use super::schedule::RecordSchedule;
+use super::sparse::SparseDesign;
 use super::stages::StageCursor;
 use crate::uq::{Factor, SparseGrid, UqError};
 use rayon::prelude::*;
@@ -67,17 +76,29 @@ impl AdaptiveOutcome {
     }
 }
 
+/// What the adaptive rounds hand the design phase (once per study: the variants' sizes do not
+/// matter).
+#[allow(clippy::large_enum_variant)]
+pub(super) enum Adapted {
+    /// The rounds are over: the interpolation grid on the terms of the complete rounds and the
+    /// runs' values, to be bounded.
+    Done(SparseGrid, AdaptiveOutcome),
+    /// The next stage is the last (its runs reach the budget): the design phase runs it, and fits
+    /// and bounds each block of its records beside the simulation of the next block.
+    LastStage(LastStage),
+}
+
 /// Runs the rounds (module documentation) within `budget` design runs; the first round also
-/// runs the nominal parameters into `accumulator`. Returns the interpolation grid on the terms
-/// of the complete rounds and the runs' values; `None` when interrupted during the first round
-/// (nothing to fit).
+/// runs the nominal parameters into `accumulator`. Returns the rounds' outcome, or the last
+/// stage still to run when the budget ends the rounds after it; `None` when interrupted during
+/// the first round (nothing to fit).
 pub(super) fn adapt(
     context: &mut PhaseContext<'_>,
     stages: &mut StageCursor,
     budget: usize,
     nominal_xi: &[f64],
     accumulator: &mut Accumulator,
-) -> Result<Option<(SparseGrid, AdaptiveOutcome)>, StudyError> {
+) -> Result<Option<Adapted>, StudyError> {
     let d = context.space.len();
     let scene = context.scene;
     let schedule = RecordSchedule::of(scene);
@@ -97,6 +118,27 @@ pub(super) fn adapt(
     let mut stages_run = 0;
     let policy = context.design_failure_policy(Method::LegendreScan);
     let (stop, complete) = loop {
+        // The rounds end after a stage whose runs reach the budget: the design phase runs that
+        // one beside its bounding (the first stage, which has no fit to fall back on when
+        // interrupted, runs here).
+        if set.len() >= budget {
+            if let Some(previous) = last_fit.take() {
+                let last = LastStage::new(LastStageStart {
+                    set,
+                    new_terms,
+                    values,
+                    previous,
+                    surpluses,
+                    extremes,
+                    rounds,
+                    stages_run,
+                    budget,
+                    n_records,
+                    n_outputs,
+                })?;
+                return Ok(Some(Adapted::LastStage(last)));
+            }
+        }
         // Run this stage's points.
         let points = set.points(&new_terms)?;
         let first_row = values.len();
@@ -111,12 +153,9 @@ pub(super) fn adapt(
             policy,
             &mut |block, _| {
                 let lockstep = block.lockstep;
+                copy_block(&mut values[first_row..], block, n_outputs);
                 for r in 0..block.count {
                     let record = block.first + r;
-                    for (i, row) in values[first_row..].iter_mut().enumerate() {
-                        row[record * n_outputs..(record + 1) * n_outputs]
-                            .copy_from_slice(block.record(i, r));
-                    }
                     if with_nominal {
                         let nominal = lockstep.nominal_index().unwrap_or(new_terms.len());
                         accumulator.push_nominal(
@@ -177,29 +216,329 @@ pub(super) fn adapt(
         row_of_point,
         coefficients,
     } = last_fit.expect("a complete round built a grid");
-    let set_of_grid = grid.set().clone();
-    let interactions = (0..set_of_grid.len())
-        .filter(|&t| set_of_grid.term(t).len() >= 2)
-        .count();
-    Ok(Some((
+    let report = adaptive_report(&grid, &set, rounds, stages_run, budget, stop);
+    Ok(Some(Adapted::Done(
         grid,
         AdaptiveOutcome {
-            report: AdaptiveReport {
-                rounds,
-                stages: stages_run,
-                runs: set_of_grid.len(),
-                budget,
-                max_degree: set_of_grid.max_degree(),
-                interactions,
-                largest_remaining_indicator: set.largest_indicator(),
-                stop,
-            },
+            report,
             values,
             row_of_point,
             coefficients,
             complete,
         },
     )))
+}
+
+/// The summary of rounds that ended on `grid`.
+fn adaptive_report(
+    grid: &SparseGrid,
+    set: &AdaptiveSet,
+    rounds: usize,
+    stages: usize,
+    budget: usize,
+    stop: &'static str,
+) -> AdaptiveReport {
+    let set_of_grid = grid.set();
+    let interactions = (0..set_of_grid.len())
+        .filter(|&t| set_of_grid.term(t).len() >= 2)
+        .count();
+    AdaptiveReport {
+        rounds,
+        stages,
+        runs: set_of_grid.len(),
+        budget,
+        max_degree: set_of_grid.max_degree(),
+        interactions,
+        largest_remaining_indicator: set.largest_indicator(),
+        stop,
+    }
+}
+
+/// Copies a block's records of a stage's runs (`rows`, in the stage's order) into their rows.
+fn copy_block(rows: &mut [Vec<f64>], block: &PhaseBlock<'_>, n_outputs: usize) {
+    for r in 0..block.count {
+        let record = block.first + r;
+        for (i, row) in rows.iter_mut().enumerate() {
+            row[record * n_outputs..(record + 1) * n_outputs].copy_from_slice(block.record(i, r));
+        }
+    }
+}
+
+/// The grid of the last stage's design (always a grid: [`LastStage::new`] makes it one).
+fn grid_of(design: &SparseDesign) -> Result<&SparseGrid, StudyError> {
+    match design {
+        SparseDesign::Grid(grid) => Ok(grid),
+        SparseDesign::Regression(_) => Err(StudyError::BadOptions(
+            "internal: the adaptive design's last stage holds no grid".to_string(),
+        )),
+    }
+}
+
+/// What the rounds leave to their last stage ([`LastStage::new`]).
+struct LastStageStart {
+    set: AdaptiveSet,
+    new_terms: Vec<Term>,
+    values: Vec<Vec<f64>>,
+    previous: StageFit,
+    surpluses: Surpluses,
+    extremes: RunExtremes,
+    rounds: usize,
+    stages_run: usize,
+    budget: usize,
+    n_records: usize,
+    n_outputs: usize,
+}
+
+/// The adaptive design's last stage, which the budget makes the last before it runs: its runs
+/// and the final grid, for the design phase to simulate block by block and, beside the next
+/// block, to fit ([`LastStage::fit_through`], the chunks of records complete so far, the same
+/// bits as the fit of every record after the stage) and bound. An interrupted last stage falls
+/// back to the stage before ([`LastStage::interrupted`]), as the rounds do.
+pub(super) struct LastStage {
+    set: AdaptiveSet,
+    /// The stage's points, row-major `runs × d`.
+    points: Vec<f64>,
+    /// Every run's values; the stage's from `first_row` on, filled block by block.
+    values: Vec<Vec<f64>>,
+    first_row: usize,
+    /// The final interpolation grid (every term the rounds evaluated, this stage's included).
+    design: Arc<SparseDesign>,
+    /// Per point of the grid, its row of the values.
+    rows: Vec<usize>,
+    /// Per run, its point of the grid.
+    term_of_run: Vec<usize>,
+    /// Runs whose surplus rows the earlier stages left.
+    kept: usize,
+    surpluses: Surpluses,
+    /// The earlier stage's coefficient chunks, whose memory the new ones reuse.
+    buffers: Vec<Vec<f64>>,
+    /// The chunks fitted so far.
+    coefficients: RecordCoefficients,
+    /// Thread-seconds of the chunks' fits.
+    fit_seconds: f64,
+    extremes: RunExtremes,
+    /// The stage before: its grid and rows (its fit again if this one is interrupted).
+    previous: (SparseGrid, Vec<usize>),
+    rounds: usize,
+    stages_run: usize,
+    budget: usize,
+    n_records: usize,
+    n_outputs: usize,
+}
+
+impl LastStage {
+    /// The last stage of rounds that end with `start`: its points and the final grid.
+    fn new(start: LastStageStart) -> Result<LastStage, StudyError> {
+        let LastStageStart {
+            set,
+            new_terms,
+            mut values,
+            previous,
+            mut surpluses,
+            extremes,
+            rounds,
+            stages_run,
+            budget,
+            n_records,
+            n_outputs,
+        } = start;
+        let points = set.points(&new_terms)?;
+        let first_row = values.len();
+        values.resize_with(first_row + new_terms.len(), || {
+            vec![0.0; n_records * n_outputs]
+        });
+        let grid = SparseGrid::new(Arc::new(set.multi_index_set()?))?;
+        let rows = rows_of_points(&grid, &set)?;
+        let n_terms = grid.n_points();
+        let term_of_run = terms_of_runs(&rows, n_terms, values.len())?;
+        let kept = surpluses.kept_runs(n_terms, n_records, n_outputs);
+        let n_chunks = n_records.div_ceil(FIT_CHUNK_RECORDS);
+        surpluses.chunks.resize_with(n_chunks, Vec::new);
+        let StageFit {
+            grid: previous_grid,
+            row_of_point: previous_rows,
+            coefficients: previous_coefficients,
+        } = previous;
+        let mut buffers = previous_coefficients.chunks;
+        buffers.resize_with(n_chunks, Vec::new);
+        Ok(LastStage {
+            set,
+            points,
+            values,
+            first_row,
+            design: Arc::new(SparseDesign::Grid(grid)),
+            rows,
+            term_of_run,
+            kept,
+            surpluses,
+            buffers,
+            coefficients: RecordCoefficients::empty(n_terms, n_outputs),
+            fit_seconds: 0.0,
+            extremes,
+            previous: (previous_grid, previous_rows),
+            rounds,
+            stages_run,
+            budget,
+            n_records,
+            n_outputs,
+        })
+    }
+
+    /// The stage's points, row-major `runs × d`.
+    pub(super) fn points(&self) -> &[f64] {
+        &self.points
+    }
+
+    /// The stage's runs.
+    pub(super) fn runs(&self) -> usize {
+        self.values.len() - self.first_row
+    }
+
+    /// The final design: the interpolation grid on every term of the rounds.
+    pub(super) fn design(&self) -> &Arc<SparseDesign> {
+        &self.design
+    }
+
+    /// The final grid.
+    fn grid(&self) -> Result<&SparseGrid, StudyError> {
+        grid_of(&self.design)
+    }
+
+    /// The final grid's condition number (computed once).
+    pub(super) fn condition_number(&self) -> f64 {
+        self.design.condition_number()
+    }
+
+    /// Copies a block of the stage's records into the runs' values.
+    pub(super) fn take_block(&mut self, block: &PhaseBlock<'_>) {
+        copy_block(&mut self.values[self.first_row..], block, self.n_outputs);
+    }
+
+    /// Fits the chunks of records that are complete once the first `records_done` records of
+    /// the stage are in (every chunk from the last record on) and not fitted yet; returns the
+    /// records they hold (empty when none).
+    pub(super) fn fit_through(
+        &mut self,
+        records_done: usize,
+        threads: &rayon::ThreadPool,
+    ) -> Result<std::ops::Range<usize>, StudyError> {
+        let n_chunks = self.n_records.div_ceil(FIT_CHUNK_RECORDS);
+        let complete = if records_done >= self.n_records {
+            n_chunks
+        } else {
+            records_done / FIT_CHUNK_RECORDS
+        };
+        let from = self.coefficients.chunks.len();
+        let first_record = (from * FIT_CHUNK_RECORDS).min(self.n_records);
+        if complete <= from {
+            return Ok(first_record..first_record);
+        }
+        let buffers = self.buffers[from..complete]
+            .iter_mut()
+            .map(std::mem::take)
+            .collect();
+        let runs = StageRuns {
+            grid: grid_of(&self.design)?,
+            rows: &self.rows,
+            values: &self.values,
+            n_outputs: self.n_outputs,
+            n_records: self.n_records,
+            kept: self.kept,
+            new_terms: &self.term_of_run[self.kept..],
+        };
+        let fitted = runs.fit_chunks(
+            from,
+            &mut self.surpluses.chunks[from..complete],
+            buffers,
+            threads,
+        )?;
+        for chunk in fitted {
+            self.fit_seconds += self.coefficients.push(chunk);
+        }
+        Ok(first_record..(complete * FIT_CHUNK_RECORDS).min(self.n_records))
+    }
+
+    /// Record `r`'s values in grid order, row-major `points × outputs`.
+    pub(super) fn record(&self, r: usize) -> Vec<f64> {
+        gather_record(&self.values, &self.rows, r, self.n_outputs)
+    }
+
+    /// Record `r`'s coefficients on the final grid (fitted by [`LastStage::fit_through`]).
+    pub(super) fn record_coefficients(&self, r: usize) -> Vec<f64> {
+        self.coefficients.record(r, self.n_outputs)
+    }
+
+    /// The summary of the rounds once every chunk is fitted: the candidates measured on the
+    /// whole fit (the largest term left), and the thread-seconds of the design choice in this
+    /// stage (the fits and the measuring).
+    pub(super) fn finish(mut self) -> Result<(AdaptiveReport, f64), StudyError> {
+        let started = Instant::now();
+        let n_chunks = self.n_records.div_ceil(FIT_CHUNK_RECORDS);
+        if self.coefficients.chunks.len() != n_chunks {
+            return Err(StudyError::BadOptions(format!(
+                "internal: the adaptive design's last stage fitted {} of {n_chunks} chunks of records",
+                self.coefficients.chunks.len()
+            )));
+        }
+        let n_outputs = self.n_outputs;
+        self.extremes.absorb(&self.values, n_outputs);
+        let spread = self.extremes.spreads(n_outputs);
+        let mi = grid_of(&self.design)?.set().clone();
+        let coefficients = &self.coefficients;
+        self.set.measure(|term| {
+            let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
+            let Some(t) = mi.index_of(&factors) else {
+                return 0.0;
+            };
+            coefficients.largest_normalised(t, &spread)
+        });
+        let report = adaptive_report(
+            self.grid()?,
+            &self.set,
+            self.rounds,
+            self.stages_run + 1,
+            self.budget,
+            "budget",
+        );
+        Ok((report, self.fit_seconds + started.elapsed().as_secs_f64()))
+    }
+
+    /// The rounds as they stand when this stage is interrupted: the stage before's grid and its
+    /// runs' values, fitted again, as the rounds keep them when a stage of theirs is.
+    pub(super) fn interrupted(
+        mut self,
+        threads: &rayon::ThreadPool,
+    ) -> Result<(SparseGrid, AdaptiveOutcome), StudyError> {
+        self.values.truncate(self.first_row);
+        let (grid, row_of_point) = self.previous;
+        let (coefficients, _) = fit_all_records(
+            &grid,
+            &row_of_point,
+            &self.values,
+            self.n_outputs,
+            threads,
+            &mut Surpluses::default(),
+            Vec::new(),
+        )?;
+        let report = adaptive_report(
+            &grid,
+            &self.set,
+            self.rounds,
+            self.stages_run + 1,
+            self.budget,
+            "interrupted",
+        );
+        Ok((
+            grid,
+            AdaptiveOutcome {
+                report,
+                values: self.values,
+                row_of_point,
+                coefficients,
+                complete: false,
+            },
+        ))
+    }
 }
 
 /// A stage's fit: the grid on the terms evaluated so far, per grid point its row of the values,
@@ -327,6 +666,24 @@ struct RecordCoefficients {
 }
 
 impl RecordCoefficients {
+    /// No chunk yet, for `n_terms` terms of `n_outputs` outputs.
+    fn empty(n_terms: usize, n_outputs: usize) -> RecordCoefficients {
+        RecordCoefficients {
+            chunks: Vec::new(),
+            n_terms,
+            largest: vec![0.0; n_terms * n_outputs],
+        }
+    }
+
+    /// Appends the next chunk, its largest magnitudes into the largest of all; returns its seconds.
+    fn push(&mut self, chunk: FittedChunk) -> f64 {
+        for (m, &c) in self.largest.iter_mut().zip(&chunk.largest) {
+            *m = m.max(c);
+        }
+        self.chunks.push(chunk.coefficients);
+        chunk.seconds
+    }
+
     /// Record `r`'s coefficients, row-major `terms × outputs` (as
     /// [`crate::uq::LinearFit::fit_into`] writes one record's); empty past the last record.
     fn record(&self, r: usize, n_outputs: usize) -> Vec<f64> {
@@ -391,6 +748,24 @@ struct Surpluses {
     runs: usize,
 }
 
+impl Surpluses {
+    /// How many runs' rows a fit of `n_terms` terms over `n_records` records can keep: all the
+    /// chunks hold, when every chunk holds them for the same records; else 0 (computed again).
+    fn kept_runs(&self, n_terms: usize, n_records: usize, n_outputs: usize) -> usize {
+        let consistent =
+            self.runs <= n_terms
+                && self.chunks.len() == n_records.div_ceil(FIT_CHUNK_RECORDS)
+                && self.chunks.iter().enumerate().all(|(c, chunk)| {
+                    chunk.len() == self.runs * chunk_width(c, n_records, n_outputs)
+                });
+        if consistent {
+            self.runs
+        } else {
+            0
+        }
+    }
+}
+
 /// The Legendre coefficients of every output at every record (docs/high-dimension.md §5: one
 /// multi-right-hand-side application of the grid's fitting map per chunk of records, read from
 /// the runs' rows in place); `rows` maps the grid's points to rows of `values`
@@ -409,7 +784,33 @@ fn fit_all_records(
 ) -> Result<(RecordCoefficients, f64), StudyError> {
     let n_records = values.first().map_or(0, |v| v.len() / n_outputs.max(1));
     let n_terms = grid.n_points();
-    let firsts: Vec<usize> = (0..n_records).step_by(FIT_CHUNK_RECORDS).collect();
+    let term_of_run = terms_of_runs(rows, n_terms, values.len())?;
+    let n_chunks = n_records.div_ceil(FIT_CHUNK_RECORDS);
+    let kept = surpluses.kept_runs(n_terms, n_records, n_outputs);
+    surpluses.chunks.resize_with(n_chunks, Vec::new);
+    let mut buffers = recycled;
+    buffers.resize_with(n_chunks, Vec::new);
+    let runs = StageRuns {
+        grid,
+        rows,
+        values,
+        n_outputs,
+        n_records,
+        kept,
+        new_terms: &term_of_run[kept..],
+    };
+    let chunks = runs.fit_chunks(0, &mut surpluses.chunks, buffers, threads)?;
+    surpluses.runs = n_terms;
+    let mut coefficients = RecordCoefficients::empty(n_terms, n_outputs);
+    let mut thread_seconds = 0.0;
+    for chunk in chunks {
+        thread_seconds += coefficients.push(chunk);
+    }
+    Ok((coefficients, thread_seconds))
+}
+
+/// Per run (row of the values) the grid point it belongs to, checked: one run per grid point.
+fn terms_of_runs(rows: &[usize], n_terms: usize, n_runs: usize) -> Result<Vec<usize>, StudyError> {
     // Grid point of each run: the rows are the runs in the order their terms came.
     let mut term_of_run = vec![usize::MAX; n_terms];
     for (t, &row) in rows.iter().enumerate() {
@@ -417,94 +818,117 @@ fn fit_all_records(
             *slot = t;
         }
     }
-    if rows.len() != n_terms || values.len() != n_terms || term_of_run.contains(&usize::MAX) {
+    if rows.len() != n_terms || n_runs != n_terms || term_of_run.contains(&usize::MAX) {
         return Err(StudyError::Uq(UqError::WrongLength {
             what: "adaptive fit: runs (one per grid point)",
             expected: n_terms,
-            got: values.len(),
+            got: n_runs,
         }));
     }
-    let width_of =
-        |first: usize| (first + FIT_CHUNK_RECORDS).min(n_records) * n_outputs - first * n_outputs;
-    let kept = surpluses.runs;
-    let consistent = kept <= n_terms
-        && surpluses.chunks.len() == firsts.len()
-        && surpluses
-            .chunks
-            .iter()
-            .zip(&firsts)
-            .all(|(chunk, &first)| chunk.len() == kept * width_of(first));
-    let kept = if consistent { kept } else { 0 };
-    surpluses.chunks.resize_with(firsts.len(), Vec::new);
-    let new_terms = &term_of_run[kept..];
-    let mut buffers = recycled;
-    buffers.resize_with(firsts.len(), Vec::new);
-    let jobs: Vec<(usize, &mut Vec<f64>, Vec<f64>)> = firsts
-        .iter()
-        .zip(surpluses.chunks.iter_mut())
-        .zip(buffers)
-        .map(|((&first, chunk), buffer)| (first, chunk, buffer))
-        .collect();
-    let fit = grid.fit();
-    let chunks = threads.install(|| {
-        jobs.into_par_iter()
-            .map(|(first, chunk, mut out)| {
-                let started = Instant::now();
-                let columns = first * n_outputs..first * n_outputs + width_of(first);
-                let width = columns.len();
-                for (k, &t) in new_terms.iter().enumerate() {
-                    let run = &values[kept + k][columns.clone()];
-                    if let Some(column) = run.iter().position(|v| !v.is_finite()) {
-                        return Err(StudyError::Uq(UqError::NonFinite {
-                            what: "fit: values",
-                            index: t * width + column,
-                            value: run[column],
-                        }));
-                    }
-                }
-                chunk.resize(n_terms * width, 0.0);
-                fit.first_factor_rows_into(
-                    new_terms,
-                    |p| &values[rows[p]][columns.clone()],
-                    width,
-                    &mut chunk[kept * width..],
-                )?;
-                // Every entry is overwritten: only a longer buffer's new part is zeroed first.
-                out.truncate(n_terms * width);
-                out.resize(n_terms * width, 0.0);
-                let by_run = &chunk[..];
-                fit.second_factor_into(
-                    |t| &by_run[rows[t] * width..(rows[t] + 1) * width],
-                    width,
-                    &mut out,
-                )?;
-                let mut largest = vec![0.0; n_terms * n_outputs];
-                if n_outputs > 0 {
-                    largest_magnitudes(&out, width, n_outputs, &mut largest);
-                }
-                Ok((out, largest, started.elapsed().as_secs_f64()))
-            })
-            .collect::<Result<Vec<(Vec<f64>, Vec<f64>, f64)>, StudyError>>()
-    })?;
-    surpluses.runs = n_terms;
-    let mut thread_seconds = 0.0;
-    let mut largest = vec![0.0_f64; n_terms * n_outputs];
-    let mut coefficient_chunks = Vec::with_capacity(chunks.len());
-    for (chunk, chunk_largest, seconds) in chunks {
-        thread_seconds += seconds;
-        for (m, &c) in largest.iter_mut().zip(&chunk_largest) {
-            *m = m.max(c);
-        }
-        coefficient_chunks.push(chunk);
+    Ok(term_of_run)
+}
+
+/// Columns (records · outputs) of chunk `c` of `n_records` records.
+fn chunk_width(c: usize, n_records: usize, n_outputs: usize) -> usize {
+    let first = c * FIT_CHUNK_RECORDS;
+    ((first + FIT_CHUNK_RECORDS).min(n_records) - first.min(n_records)) * n_outputs
+}
+
+/// One chunk's coefficients (`terms × width`, row-major), per term and output their largest
+/// magnitude over its records, and the seconds it took.
+struct FittedChunk {
+    coefficients: Vec<f64>,
+    largest: Vec<f64>,
+    seconds: f64,
+}
+
+/// The runs a stage fits: the grid, its points' rows of the values, and which runs are new (the
+/// surpluses hold the first `kept`).
+struct StageRuns<'a> {
+    grid: &'a SparseGrid,
+    rows: &'a [usize],
+    values: &'a [Vec<f64>],
+    n_outputs: usize,
+    n_records: usize,
+    kept: usize,
+    /// The grid point of every run from `kept` on.
+    new_terms: &'a [usize],
+}
+
+impl StageRuns<'_> {
+    /// Fits the chunks `first_chunk ..` (as many as `surpluses`, their surplus rows, which gain
+    /// the new runs' rows; `buffers` their memory to reuse) on the threads.
+    fn fit_chunks(
+        &self,
+        first_chunk: usize,
+        surpluses: &mut [Vec<f64>],
+        buffers: Vec<Vec<f64>>,
+        threads: &rayon::ThreadPool,
+    ) -> Result<Vec<FittedChunk>, StudyError> {
+        let jobs: Vec<(usize, &mut Vec<f64>, Vec<f64>)> = surpluses
+            .iter_mut()
+            .zip(buffers)
+            .enumerate()
+            .map(|(i, (chunk, buffer))| (first_chunk + i, chunk, buffer))
+            .collect();
+        threads.install(|| {
+            jobs.into_par_iter()
+                .map(|(c, chunk, out)| self.fit_chunk(c, chunk, out))
+                .collect::<Result<Vec<FittedChunk>, StudyError>>()
+        })
     }
-    Ok((
-        RecordCoefficients {
-            chunks: coefficient_chunks,
-            n_terms,
+
+    /// Chunk `c`'s fit (see [`fit_all_records`]).
+    fn fit_chunk(
+        &self,
+        c: usize,
+        chunk: &mut Vec<f64>,
+        mut out: Vec<f64>,
+    ) -> Result<FittedChunk, StudyError> {
+        let started = Instant::now();
+        let (n_outputs, kept) = (self.n_outputs, self.kept);
+        let n_terms = self.grid.n_points();
+        let width = chunk_width(c, self.n_records, n_outputs);
+        let first = c * FIT_CHUNK_RECORDS * n_outputs;
+        let columns = first..first + width;
+        for (k, &t) in self.new_terms.iter().enumerate() {
+            let run = &self.values[kept + k][columns.clone()];
+            if let Some(column) = run.iter().position(|v| !v.is_finite()) {
+                return Err(StudyError::Uq(UqError::NonFinite {
+                    what: "fit: values",
+                    index: t * width + column,
+                    value: run[column],
+                }));
+            }
+        }
+        let fit = self.grid.fit();
+        let (values, rows) = (self.values, self.rows);
+        chunk.resize(n_terms * width, 0.0);
+        fit.first_factor_rows_into(
+            self.new_terms,
+            |p| &values[rows[p]][columns.clone()],
+            width,
+            &mut chunk[kept * width..],
+        )?;
+        // Every entry is overwritten: only a longer buffer's new part is zeroed first.
+        out.truncate(n_terms * width);
+        out.resize(n_terms * width, 0.0);
+        let by_run = &chunk[..];
+        fit.second_factor_into(
+            |t| &by_run[rows[t] * width..(rows[t] + 1) * width],
+            width,
+            &mut out,
+        )?;
+        let mut largest = vec![0.0; n_terms * n_outputs];
+        if n_outputs > 0 {
+            largest_magnitudes(&out, width, n_outputs, &mut largest);
+        }
+        Ok(FittedChunk {
+            coefficients: out,
             largest,
-        },
-        thread_seconds,
-    ))
+            seconds: started.elapsed().as_secs_f64(),
+        })
+    }
 }
 
 /// Per record and output the lowest and the highest value of the runs folded in so far, and per
@@ -674,6 +1098,115 @@ mod tests {
                 .is_empty());
             recycled = coefficients.chunks;
         }
+    }
+
+    /// The last stage's fit, chunk group after chunk group as its blocks of records come in
+    /// ([`StageRuns::fit_chunks`] from a later chunk on, as `LastStage::fit_through` calls it),
+    /// gives the coefficients and largest magnitudes of the fit of every record at once, to the
+    /// bit, keeping the earlier stage's surpluses either way.
+    #[test]
+    fn the_last_stage_fitted_chunk_by_chunk_is_the_fit_of_every_record() {
+        use crate::uq::MultiIndexSet;
+        let small = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 2).expect("set")))
+            .expect("grid");
+        let grown = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 3).expect("set")))
+            .expect("grid");
+        let n_outputs = 3;
+        let n_records = 3 * FIT_CHUNK_RECORDS + 7;
+        let mut run_terms: Vec<Vec<Factor>> = (0..small.n_points())
+            .map(|t| small.set().term(t).to_vec())
+            .collect();
+        for t in 0..grown.n_points() {
+            let term = grown.set().term(t);
+            if small.set().index_of(term).is_none() {
+                run_terms.push(term.to_vec());
+            }
+        }
+        let mut rng = SplitMix64::new(91);
+        let values: Vec<Vec<f64>> = run_terms
+            .iter()
+            .map(|_| {
+                (0..n_records * n_outputs)
+                    .map(|_| rng.uniform(-1.0, 3.0))
+                    .collect()
+            })
+            .collect();
+        let rows_of = |grid: &SparseGrid| -> Vec<usize> {
+            (0..grid.n_points())
+                .map(|t| {
+                    let term = grid.set().term(t);
+                    run_terms
+                        .iter()
+                        .position(|r| r.as_slice() == term)
+                        .expect("run")
+                })
+                .collect()
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("pool");
+        let earlier_stage = || {
+            let mut surpluses = Surpluses::default();
+            let small_rows = rows_of(&small);
+            fit_all_records(
+                &small,
+                &small_rows,
+                &values[..small.n_points()],
+                n_outputs,
+                &pool,
+                &mut surpluses,
+                Vec::new(),
+            )
+            .expect("fit");
+            surpluses
+        };
+        let rows = rows_of(&grown);
+        let (whole, _) = fit_all_records(
+            &grown,
+            &rows,
+            &values,
+            n_outputs,
+            &pool,
+            &mut earlier_stage(),
+            Vec::new(),
+        )
+        .expect("fit");
+        // Chunk by chunk: the first chunk alone, then the next two, then the short last one.
+        let mut surpluses = earlier_stage();
+        let n_terms = grown.n_points();
+        let kept = surpluses.kept_runs(n_terms, n_records, n_outputs);
+        assert_eq!(kept, small.n_points());
+        let term_of_run = terms_of_runs(&rows, n_terms, values.len()).expect("runs");
+        let runs = StageRuns {
+            grid: &grown,
+            rows: &rows,
+            values: &values,
+            n_outputs,
+            n_records,
+            kept,
+            new_terms: &term_of_run[kept..],
+        };
+        let mut by_chunks = RecordCoefficients::empty(n_terms, n_outputs);
+        for chunks in [0..1, 1..3, 3..4] {
+            let buffers = chunks.clone().map(|_| Vec::new()).collect();
+            let first = chunks.start;
+            for chunk in runs
+                .fit_chunks(first, &mut surpluses.chunks[chunks], buffers, &pool)
+                .expect("fit")
+            {
+                by_chunks.push(chunk);
+            }
+        }
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+        for r in 0..n_records {
+            assert_eq!(
+                bits(&by_chunks.record(r, n_outputs)),
+                bits(&whole.record(r, n_outputs)),
+                "record {r}"
+            );
+        }
+        assert_eq!(bits(&by_chunks.largest), bits(&whole.largest));
     }
 
     /// A run's non-finite value is an error naming it, whether the run is new or not; runs that

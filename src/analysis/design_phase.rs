@@ -12,13 +12,16 @@
 //! A design simulated (or read) here is bounded block by block beside the simulation of the
 //! next block (`PhaseContext::run_source_beside`: the block's values are taken out of the source
 //! first); the adaptive design's runs, all made already, go to the bounder in one call, which
-//! works through them in blocks (`sparse_bounds.rs`).
+//! works through them in blocks (`sparse_bounds.rs`) — except the stage its budget made the last
+//! (`adaptive_phase::LastStage`), which runs here: each block's records are taken in, and the
+//! chunks of records they complete fitted and bounded beside the next block (`bound_last_stage`;
+//! interrupted, it falls back to the stage before, as the rounds do).
 //!
 //! Does not: choose the design (`study_plan.rs`, the screening and adaptive phases) or run the
 //! check (`check_phase.rs`).
 
 use super::accumulator::Accumulator;
-use super::adaptive_phase::AdaptiveOutcome;
+use super::adaptive_phase::{AdaptiveOutcome, LastStage};
 use super::bounded_block::BoundedBlock;
 use super::bounds::Bounder;
 use super::check::CheckCandidates;
@@ -32,10 +35,12 @@ use super::phase::PhaseContext;
 use super::plan::Plan;
 use super::schedule::RecordSchedule;
 use super::sobol_indices::{has_sobol_indices, SobolSeries};
+use super::sparse::SparseDesign;
 use super::sparse_bounds::RecordFits;
 use super::stages::StageCursor;
+use crate::uq::SparseGrid;
 use rayon::prelude::*;
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
 /// What the design phase bounds, once the phases before it are done.
@@ -44,6 +49,8 @@ pub(super) struct Design {
     pub plan: Plan,
     /// The adaptive design's runs, already made by its rounds (`None`: the design is run here).
     pub adapted: Option<AdaptiveOutcome>,
+    /// The adaptive design's last stage, run here beside its bounding (`plan` is its final grid).
+    pub last_stage: Option<Box<LastStage>>,
     /// Min/max of the screening runs per record and output (empty without screening).
     pub screen_hull: Vec<EnvelopePoint>,
 }
@@ -87,11 +94,38 @@ fn keeps_design_runs(context: &PhaseContext<'_>, plan: &Plan, n_records: usize) 
 pub(super) fn bound_design(
     context: &mut PhaseContext<'_>,
     stages: &mut StageCursor,
-    design: &Design,
+    design: &mut Design,
     method: Method,
     locates_extremes: bool,
     accumulator: &mut Accumulator,
 ) -> Result<Bounded, StudyError> {
+    if let Some(last) = design.last_stage.take() {
+        let plan = &design.plan;
+        match bound_last_stage(
+            context,
+            stages,
+            plan,
+            *last,
+            method,
+            locates_extremes,
+            accumulator,
+        )? {
+            Ok(bounded) => return Ok(bounded),
+            Err(fallback) => {
+                // Interrupted: the rounds' outcome without the last stage, bounded below from
+                // the envelopes as they were before it.
+                let (grid, outcome, before) = *fallback;
+                *accumulator = before;
+                let n_outputs = context.scene.outputs.len();
+                context.report.adaptive = Some(outcome.report.clone());
+                context.report.block_records =
+                    RecordSchedule::of(context.scene).block_records(grid.n_points() + 1, n_outputs);
+                design.plan = Plan::Sparse(Arc::new(SparseDesign::Grid(grid)));
+                design.adapted = Some(outcome);
+            }
+        }
+    }
+    let design = &*design;
     let o = context.options;
     let d = context.space.len();
     let scene = context.scene;
@@ -233,6 +267,19 @@ pub(super) fn bound_design(
             complete
         }
     };
+    Ok(bounded(context, &bounder, bounding, plan, method, complete))
+}
+
+/// What the design phase leaves once its records are bounded; the bounding's timings, largest
+/// total indices (sparse designs) and Sobol' series (surrogate methods) into the report.
+fn bounded(
+    context: &mut PhaseContext<'_>,
+    bounder: &Bounder,
+    bounding: DesignBounding<'_>,
+    plan: &Plan,
+    method: Method,
+    complete: bool,
+) -> Bounded {
     context
         .report
         .phase_seconds
@@ -243,11 +290,136 @@ pub(super) fn bound_design(
     if has_sobol_indices(method) {
         context.report.sobol = Some(bounding.sobol);
     }
-    Ok(Bounded {
+    Bounded {
         complete,
         candidates: bounding.candidates,
         runs: bounding.kept.filter(|_| complete),
-    })
+    }
+}
+
+/// The envelopes an interrupted last stage falls back to: the rounds' outcome without it (and
+/// its grid), and the accumulator as it was before the stage.
+type LastStageFallback = Box<(SparseGrid, AdaptiveOutcome, Accumulator)>;
+
+/// What the blocks of the last stage share with their work beside the simulation.
+struct LastStageShared<'s, 'b> {
+    last: &'s mut LastStage,
+    bounding: &'s mut DesignBounding<'b>,
+    accumulator: &'s mut Accumulator,
+    /// Wall seconds of the work.
+    seconds: f64,
+    /// The final grid's condition number, taken in the first block's work.
+    condition: Option<f64>,
+}
+
+/// The adaptive design's last stage (`adaptive_phase::LastStage`): each block of its runs taken
+/// as it comes, and the chunks of records it completes fitted and bounded beside the simulation
+/// of the next block (`PhaseContext::run_stage_beside`), in record order as the bounding of every
+/// record after the stage would take them (the same bits: the side searches carry their state
+/// from record to record across calls). Returns what the design phase leaves for the check; or,
+/// when the stage was interrupted, the fallback ([`LastStageFallback`]): what was bounded from
+/// the stage is dropped.
+fn bound_last_stage(
+    context: &mut PhaseContext<'_>,
+    stages: &mut StageCursor,
+    plan: &Plan,
+    mut last: LastStage,
+    method: Method,
+    locates_extremes: bool,
+    accumulator: &mut Accumulator,
+) -> Result<Result<Bounded, LastStageFallback>, StudyError> {
+    let o = context.options;
+    let d = context.space.len();
+    let n_outputs = context.scene.outputs.len();
+    let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?
+        .with_block_records(context.report.block_records);
+    let surrogate_ranges = crate::scene::surrogate_ranges(context.model, context.scene);
+    let mut bounding = DesignBounding {
+        bounder: &bounder,
+        threads: context.threads,
+        n_outputs,
+        locates_extremes,
+        candidates: CheckCandidates::new(d),
+        sobol: SobolSeries::new(d, n_outputs),
+        screen_hull: &[],
+        surrogate_ranges: &surrogate_ranges,
+        element: None,
+        kept: None,
+    };
+    let before = accumulator.clone();
+    let points = last.points().to_vec();
+    context.report.runs += last.runs();
+    let policy = context.design_failure_policy(Method::LegendreScan);
+    let threads = context.threads;
+    let shared = Mutex::new(LastStageShared {
+        last: &mut last,
+        bounding: &mut bounding,
+        accumulator: &mut *accumulator,
+        seconds: 0.0,
+        condition: None,
+    });
+    let complete = context.run_stage_beside(
+        stages,
+        "adaptive",
+        &points,
+        None,
+        policy,
+        &mut |block, _report| {
+            let mut guard = shared.lock().unwrap_or_else(PoisonError::into_inner);
+            guard.last.take_block(block);
+            Ok(Some(block.first + block.count))
+        },
+        &mut |records_done: usize| {
+            let started = Instant::now();
+            let mut guard = shared.lock().unwrap_or_else(PoisonError::into_inner);
+            let LastStageShared {
+                last,
+                bounding,
+                accumulator,
+                seconds,
+                condition,
+            } = &mut *guard;
+            if condition.is_none() {
+                *condition = Some(last.condition_number());
+            }
+            let fitted = last.fit_through(records_done, threads)?;
+            if !fitted.is_empty() {
+                let last: &LastStage = last;
+                let first = fitted.start;
+                let values = |r: usize| last.record(first + r);
+                let coefficients = |r: usize| last.record_coefficients(first + r);
+                bounding.absorb(
+                    first,
+                    fitted.len(),
+                    &values,
+                    &|_| false,
+                    Some(&coefficients),
+                    accumulator,
+                )?;
+            }
+            *seconds += started.elapsed().as_secs_f64();
+            Ok(())
+        },
+    )?;
+    let LastStageShared {
+        seconds, condition, ..
+    } = shared.into_inner().unwrap_or_else(PoisonError::into_inner);
+    context.report.bound_seconds += seconds;
+    if !complete {
+        context
+            .report
+            .phase_seconds
+            .add_bounding(&bounder.phase_seconds());
+        let (grid, outcome) = last.interrupted(threads)?;
+        return Ok(Err(Box::new((grid, outcome, before))));
+    }
+    context.report.condition_number = Some(condition.unwrap_or_else(|| last.condition_number()));
+    let t_finish = Instant::now();
+    let (adaptive, design_choice_seconds) = last.finish()?;
+    context.report.bound_seconds += t_finish.elapsed().as_secs_f64();
+    context.report.phase_seconds.design_choice += design_choice_seconds;
+    context.report.adaptive = Some(adaptive);
+    Ok(Ok(bounded(context, &bounder, bounding, plan, method, true)))
 }
 
 /// One block of the design's records taken out of the source: bounded while the next block is

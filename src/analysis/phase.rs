@@ -6,6 +6,7 @@
 //!
 //! ```text
 //! run_stage:  the stage's records from where StageRecords says ─┐ (or simulated here:)
+//!             (run_stage_beside: the same, into run_source_beside)
 //! run_phase:  LockStep of the points (and the nominal run) ─────┴─▶ run_source:
 //!             per block: advance ⇒ failure policy ⇒ on_block(block, report) ⇒ progress
 //!             at the end: counters, contacts, exclusions and retries into the report
@@ -154,6 +155,28 @@ impl<'a> PhaseContext<'a> {
         match stages.source(phase, points, nominal_xi.is_some())? {
             Some(mut source) => self.run_source(phase, &mut *source, policy, on_block),
             None => self.run_phase(phase, points, nominal_xi, policy, on_block),
+        }
+    }
+
+    /// [`PhaseContext::run_source_beside`] of the next stage: its records read from where
+    /// `stages` says, or simulated here.
+    #[allow(clippy::too_many_arguments)]
+    pub fn run_stage_beside<T: Send>(
+        &mut self,
+        stages: &mut StageCursor,
+        phase: &'static str,
+        points: &[f64],
+        nominal_xi: Option<&[f64]>,
+        policy: FailurePolicy,
+        take: &mut TakeBlock<'_, T>,
+        work: &mut BlockWork<'_, T>,
+    ) -> Result<bool, StudyError> {
+        match stages.source(phase, points, nominal_xi.is_some())? {
+            Some(mut source) => self.run_source_beside(phase, &mut *source, policy, take, work),
+            None => {
+                let mut lockstep = self.lockstep(points, nominal_xi);
+                self.run_source_beside(phase, &mut lockstep, policy, take, work)
+            }
         }
     }
 

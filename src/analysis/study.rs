@@ -23,7 +23,7 @@
 //! Every envelope contains every model run the study made, in every phase.
 
 use super::accumulator::Accumulator;
-use super::adaptive_phase::adapt;
+use super::adaptive_phase::{adapt, Adapted};
 use super::auto::AutoDesign;
 use super::check::automatic_check_runs;
 use super::check_phase::check;
@@ -271,7 +271,7 @@ fn run_phases(
     accumulator: &mut Accumulator,
 ) -> Result<(), StudyError> {
     let fixed = study_plan.plan.take();
-    let Some(design) = design_of(context, fixed, &study_plan, stages, accumulator)? else {
+    let Some(mut design) = design_of(context, fixed, &study_plan, stages, accumulator)? else {
         return Ok(());
     };
     let locates_extremes = study_plan.check_runs > 0;
@@ -282,7 +282,7 @@ fn run_phases(
     } = bound_design(
         context,
         stages,
-        &design,
+        &mut design,
         study_plan.method,
         locates_extremes,
         accumulator,
@@ -341,6 +341,7 @@ fn design_of(
     let design_runs = study_plan.design_runs;
     let mut screen_hull: Vec<EnvelopePoint> = Vec::new();
     let mut adapted = None;
+    let mut last_stage = None;
     let plan = match fixed {
         Some(plan) => {
             context.report.runs += design_runs;
@@ -356,17 +357,28 @@ fn design_of(
                 // The adaptive design runs its rounds here and keeps their values; the design
                 // phase then bounds from them.
                 let nominal_xi = context.space.nominal_xi();
-                let Some((grid, outcome)) =
-                    adapt(context, stages, budget, &nominal_xi, accumulator)?
-                else {
+                let Some(rounds) = adapt(context, stages, budget, &nominal_xi, accumulator)? else {
                     return Ok(None);
                 };
                 let n_outputs = context.scene.outputs.len();
-                context.report.adaptive = Some(outcome.report.clone());
-                context.report.block_records =
-                    RecordSchedule::of(context.scene).block_records(grid.n_points() + 1, n_outputs);
-                adapted = Some(outcome);
-                Plan::Sparse(Arc::new(SparseDesign::Grid(grid)))
+                let schedule = RecordSchedule::of(context.scene);
+                match rounds {
+                    Adapted::Done(grid, outcome) => {
+                        context.report.adaptive = Some(outcome.report.clone());
+                        context.report.block_records =
+                            schedule.block_records(grid.n_points() + 1, n_outputs);
+                        adapted = Some(outcome);
+                        Plan::Sparse(Arc::new(SparseDesign::Grid(grid)))
+                    }
+                    // Its last stage runs in the design phase, beside its bounding.
+                    Adapted::LastStage(last) => {
+                        let design = last.design().clone();
+                        context.report.block_records =
+                            schedule.block_records(design.n_points() + 1, n_outputs);
+                        last_stage = Some(Box::new(last));
+                        Plan::Sparse(design)
+                    }
+                }
             } else {
                 // Screening (auto above the budget of a full total-degree set): the star design
                 // ranks the parameters, and the design is built from the ranking.
@@ -388,6 +400,7 @@ fn design_of(
     Ok(Some(Design {
         plan,
         adapted,
+        last_stage,
         screen_hull,
     }))
 }
