@@ -135,6 +135,11 @@ impl AdaptiveSet {
         self.evaluated.push(term);
     }
 
+    /// Number of parameters d.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
     /// Number of terms (= points run).
     pub fn len(&self) -> usize {
         self.evaluated.len()

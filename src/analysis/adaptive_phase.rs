@@ -38,7 +38,7 @@ use super::report::AdaptiveReport;
 use super::schedule::RecordSchedule;
 use super::sparse::SparseDesign;
 use super::stages::StageCursor;
-use crate::uq::{Factor, SparseGrid, UqError};
+use crate::uq::{Factor, MultiIndexSet, SparseGrid, UqError};
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -317,8 +317,6 @@ pub(super) struct LastStage {
     /// Thread-seconds of the chunks' fits.
     fit_seconds: f64,
     extremes: RunExtremes,
-    /// The stage before: its grid and rows (its fit again if this one is interrupted).
-    previous: (SparseGrid, Vec<usize>),
     rounds: usize,
     stages_run: usize,
     budget: usize,
@@ -354,12 +352,9 @@ impl LastStage {
         let kept = surpluses.kept_runs(n_terms, n_records, n_outputs);
         let n_chunks = n_records.div_ceil(FIT_CHUNK_RECORDS);
         surpluses.chunks.resize_with(n_chunks, Vec::new);
-        let StageFit {
-            grid: previous_grid,
-            row_of_point: previous_rows,
-            coefficients: previous_coefficients,
-        } = previous;
-        let mut buffers = previous_coefficients.chunks;
+        // The stage before's grid is not kept (an interrupted last stage builds it again from
+        // the terms run before): it is as large as the final one.
+        let mut buffers = previous.coefficients.chunks;
         buffers.resize_with(n_chunks, Vec::new);
         Ok(LastStage {
             set,
@@ -375,7 +370,6 @@ impl LastStage {
             coefficients: RecordCoefficients::empty(n_terms, n_outputs),
             fit_seconds: 0.0,
             extremes,
-            previous: (previous_grid, previous_rows),
             rounds,
             stages_run,
             budget,
@@ -503,14 +497,18 @@ impl LastStage {
         Ok((report, self.fit_seconds + started.elapsed().as_secs_f64()))
     }
 
-    /// The rounds as they stand when this stage is interrupted: the stage before's grid and its
-    /// runs' values, fitted again, as the rounds keep them when a stage of theirs is.
+    /// The rounds as they stand when this stage is interrupted: the stage before's grid (built
+    /// again from the terms run before this stage, in their order: the grid that stage fitted)
+    /// and its runs' values, fitted again, as the rounds keep them when a stage of theirs is.
     pub(super) fn interrupted(
         mut self,
         threads: &rayon::ThreadPool,
     ) -> Result<(SparseGrid, AdaptiveOutcome), StudyError> {
         self.values.truncate(self.first_row);
-        let (grid, row_of_point) = self.previous;
+        let before =
+            MultiIndexSet::from_terms(self.set.dim(), &self.set.evaluated()[..self.first_row])?;
+        let grid = SparseGrid::new(Arc::new(before))?;
+        let row_of_point = rows_of_points(&grid, &self.set)?;
         let (coefficients, _) = fit_all_records(
             &grid,
             &row_of_point,
