@@ -1007,28 +1007,43 @@ mod tests {
     /// by record, those the grid's fit of that record's values alone gives, to the bit: records
     /// in several chunks (the last one short), runs stored out of grid order, and a second stage
     /// on a grown set that keeps the first stage's surpluses and reuses its chunks' memory.
-    #[test]
-    fn a_record_of_the_stage_fit_is_the_fit_of_that_record() {
+    /// Two stages' runs: the grids of total degree 2 and 3 in three parameters, the runs' terms
+    /// (the small set's first, then the grown set's others; each part from its last term when
+    /// `reversed`) and every run's random values (`n_records × n_outputs`, from `seed`).
+    struct TwoStages {
+        small: SparseGrid,
+        grown: SparseGrid,
+        run_terms: Vec<Vec<Factor>>,
+        values: Vec<Vec<f64>>,
+    }
+
+    fn two_stages(n_outputs: usize, n_records: usize, seed: u64, reversed: bool) -> TwoStages {
         use crate::uq::MultiIndexSet;
-        let small = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 2).expect("set")))
-            .expect("grid");
-        let grown = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 3).expect("set")))
-            .expect("grid");
-        let n_outputs = 4;
-        let n_records = 2 * FIT_CHUNK_RECORDS + 5;
-        // Runs in the order their terms came: the small set's last term first, then the grown
-        // set's other terms, again from the last.
-        let mut run_terms: Vec<Vec<Factor>> = (0..small.n_points())
-            .rev()
+        let grid = |degree| {
+            SparseGrid::new(Arc::new(
+                MultiIndexSet::total_degree(3, degree).expect("set"),
+            ))
+            .expect("grid")
+        };
+        let (small, grown) = (grid(2), grid(3));
+        let order = |n: usize| -> Vec<usize> {
+            if reversed {
+                (0..n).rev().collect()
+            } else {
+                (0..n).collect()
+            }
+        };
+        let mut run_terms: Vec<Vec<Factor>> = order(small.n_points())
+            .into_iter()
             .map(|t| small.set().term(t).to_vec())
             .collect();
-        for t in (0..grown.n_points()).rev() {
+        for t in order(grown.n_points()) {
             let term = grown.set().term(t);
             if small.set().index_of(term).is_none() {
                 run_terms.push(term.to_vec());
             }
         }
-        let mut rng = SplitMix64::new(56);
+        let mut rng = SplitMix64::new(seed);
         let values: Vec<Vec<f64>> = run_terms
             .iter()
             .map(|_| {
@@ -1037,6 +1052,26 @@ mod tests {
                     .collect()
             })
             .collect();
+        TwoStages {
+            small,
+            grown,
+            run_terms,
+            values,
+        }
+    }
+
+    #[test]
+    fn a_record_of_the_stage_fit_is_the_fit_of_that_record() {
+        let n_outputs = 4;
+        let n_records = 2 * FIT_CHUNK_RECORDS + 5;
+        // Runs in the order their terms came: the small set's last term first, then the grown
+        // set's other terms, again from the last.
+        let TwoStages {
+            small,
+            grown,
+            run_terms,
+            values,
+        } = two_stages(n_outputs, n_records, 56, true);
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
@@ -1104,31 +1139,14 @@ mod tests {
     /// bit, keeping the earlier stage's surpluses either way.
     #[test]
     fn the_last_stage_fitted_chunk_by_chunk_is_the_fit_of_every_record() {
-        use crate::uq::MultiIndexSet;
-        let small = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 2).expect("set")))
-            .expect("grid");
-        let grown = SparseGrid::new(Arc::new(MultiIndexSet::total_degree(3, 3).expect("set")))
-            .expect("grid");
         let n_outputs = 3;
         let n_records = 3 * FIT_CHUNK_RECORDS + 7;
-        let mut run_terms: Vec<Vec<Factor>> = (0..small.n_points())
-            .map(|t| small.set().term(t).to_vec())
-            .collect();
-        for t in 0..grown.n_points() {
-            let term = grown.set().term(t);
-            if small.set().index_of(term).is_none() {
-                run_terms.push(term.to_vec());
-            }
-        }
-        let mut rng = SplitMix64::new(91);
-        let values: Vec<Vec<f64>> = run_terms
-            .iter()
-            .map(|_| {
-                (0..n_records * n_outputs)
-                    .map(|_| rng.uniform(-1.0, 3.0))
-                    .collect()
-            })
-            .collect();
+        let TwoStages {
+            small,
+            grown,
+            run_terms,
+            values,
+        } = two_stages(n_outputs, n_records, 91, false);
         let rows_of = |grid: &SparseGrid| -> Vec<usize> {
             (0..grid.n_points())
                 .map(|t| {

@@ -139,18 +139,13 @@ pub(super) fn bound_design(
     let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?
         .with_block_records(context.report.block_records);
     let surrogate_ranges = crate::scene::surrogate_ranges(context.model, scene);
-    let mut bounding = DesignBounding {
-        bounder: &bounder,
-        threads: context.threads,
-        n_outputs,
+    let mut bounding = DesignBounding::of_the_box(
+        &bounder,
+        context,
         locates_extremes,
-        candidates: CheckCandidates::new(d),
-        sobol: SobolSeries::new(d, n_outputs),
-        screen_hull: &design.screen_hull,
-        surrogate_ranges: &surrogate_ranges,
-        element: None,
-        kept: None,
-    };
+        &design.screen_hull,
+        &surrogate_ranges,
+    );
     let complete = match &design.adapted {
         Some(outcome) => {
             // Every record at once: the bounder works through them in blocks of
@@ -330,22 +325,11 @@ fn bound_last_stage(
 ) -> Result<Result<Bounded, LastStageFallback>, StudyError> {
     let o = context.options;
     let d = context.space.len();
-    let n_outputs = context.scene.outputs.len();
     let bounder = Bounder::new(method, plan, d, o.order, o.scan_grid, locates_extremes)?
         .with_block_records(context.report.block_records);
     let surrogate_ranges = crate::scene::surrogate_ranges(context.model, context.scene);
-    let mut bounding = DesignBounding {
-        bounder: &bounder,
-        threads: context.threads,
-        n_outputs,
-        locates_extremes,
-        candidates: CheckCandidates::new(d),
-        sobol: SobolSeries::new(d, n_outputs),
-        screen_hull: &[],
-        surrogate_ranges: &surrogate_ranges,
-        element: None,
-        kept: None,
-    };
+    let mut bounding =
+        DesignBounding::of_the_box(&bounder, context, locates_extremes, &[], &surrogate_ranges);
     let before = accumulator.clone();
     let points = last.points().to_vec();
     context.report.runs += last.runs();
@@ -506,7 +490,30 @@ pub(super) struct DesignBounding<'b> {
     pub kept: Option<ElementRuns>,
 }
 
-impl DesignBounding<'_> {
+impl<'b> DesignBounding<'b> {
+    /// The bounding of a design over the whole box (no element), its runs not kept.
+    fn of_the_box<'c: 'b>(
+        bounder: &'b Bounder,
+        context: &PhaseContext<'c>,
+        locates_extremes: bool,
+        screen_hull: &'b [EnvelopePoint],
+        surrogate_ranges: &'b [Option<(f64, f64)>],
+    ) -> Self {
+        let (d, n_outputs) = (context.space.len(), context.scene.outputs.len());
+        DesignBounding {
+            bounder,
+            threads: context.threads,
+            n_outputs,
+            locates_extremes,
+            candidates: CheckCandidates::new(d),
+            sobol: SobolSeries::new(d, n_outputs),
+            screen_hull,
+            surrogate_ranges,
+            element: None,
+            kept: None,
+        }
+    }
+
     /// Bounds records `first..first + count` from the design's `values(r)` (row-major `samples ×
     /// outputs`; `given_fits(r)` their coefficients when fitted already: [`RecordFits`]);
     /// `accumulator` already holds those records' times and nominal values (the whole box; an

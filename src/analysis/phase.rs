@@ -152,10 +152,15 @@ impl<'a> PhaseContext<'a> {
         policy: FailurePolicy,
         on_block: &mut OnBlock<'_>,
     ) -> Result<bool, StudyError> {
-        match stages.source(phase, points, nominal_xi.is_some())? {
-            Some(mut source) => self.run_source(phase, &mut *source, policy, on_block),
-            None => self.run_phase(phase, points, nominal_xi, policy, on_block),
-        }
+        self.run_stage_beside(
+            stages,
+            phase,
+            points,
+            nominal_xi,
+            policy,
+            &mut |block, report| on_block(block, report).map(|()| None::<()>),
+            &mut |()| Ok(()),
+        )
     }
 
     /// [`PhaseContext::run_source_beside`] of the next stage: its records read from where

@@ -93,26 +93,7 @@ fn factor_with_running_pivots(
         let column = &mut rest[..n];
         let diagonal = checked_root(pivots[j], j, min_pivot)?;
         column[j] = diagonal;
-        let mut i = j + 1;
-        while i + 16 <= n {
-            entries_below_pivot::<16>(finished, column, n, i, j, diagonal);
-            i += 16;
-        }
-        if i + 8 <= n {
-            entries_below_pivot::<8>(finished, column, n, i, j, diagonal);
-            i += 8;
-        }
-        if i + 4 <= n {
-            entries_below_pivot::<4>(finished, column, n, i, j, diagonal);
-            i += 4;
-        }
-        if i + 2 <= n {
-            entries_below_pivot::<2>(finished, column, n, i, j, diagonal);
-            i += 2;
-        }
-        if i < n {
-            entries_below_pivot::<1>(finished, column, n, i, j, diagonal);
-        }
+        column_below_pivot::<16>(finished, column, n, j, diagonal);
         for (pivot, &l) in pivots[j + 1..].iter_mut().zip(&column[j + 1..]) {
             *pivot -= l * l;
         }
@@ -177,30 +158,43 @@ fn factor_entries_in_blocks<const WIDEST: usize>(
         let (finished, rest) = a.split_at_mut(j * n);
         let column = &mut rest[..n];
         let diagonal = column_pivot(finished, column, n, j, min_pivot)?;
-        let mut i = j + 1;
-        if WIDEST >= 16 {
-            while i + 16 <= n {
-                entries_below_pivot::<16>(finished, column, n, i, j, diagonal);
-                i += 16;
-            }
-            if i + 8 <= n {
-                entries_below_pivot::<8>(finished, column, n, i, j, diagonal);
-                i += 8;
-            }
-        }
-        while i + 4 <= n {
-            entries_below_pivot::<4>(finished, column, n, i, j, diagonal);
-            i += 4;
-        }
-        if i + 2 <= n {
-            entries_below_pivot::<2>(finished, column, n, i, j, diagonal);
-            i += 2;
-        }
-        if i < n {
-            entries_below_pivot::<1>(finished, column, n, i, j, diagonal);
-        }
+        column_below_pivot::<WIDEST>(finished, column, n, j, diagonal);
     }
     Ok(())
+}
+
+/// Every entry of column `j` below its pivot `diagonal`, in blocks of `WIDEST` (16 or 4) rows,
+/// then of eight (when `WIDEST` is 16), four, two and one ([`entries_below_pivot`]).
+#[inline(always)]
+fn column_below_pivot<const WIDEST: usize>(
+    finished: &[f64],
+    column: &mut [f64],
+    n: usize,
+    j: usize,
+    diagonal: f64,
+) {
+    let mut i = j + 1;
+    if WIDEST >= 16 {
+        while i + 16 <= n {
+            entries_below_pivot::<16>(finished, column, n, i, j, diagonal);
+            i += 16;
+        }
+        if i + 8 <= n {
+            entries_below_pivot::<8>(finished, column, n, i, j, diagonal);
+            i += 8;
+        }
+    }
+    while i + 4 <= n {
+        entries_below_pivot::<4>(finished, column, n, i, j, diagonal);
+        i += 4;
+    }
+    if i + 2 <= n {
+        entries_below_pivot::<2>(finished, column, n, i, j, diagonal);
+        i += 2;
+    }
+    if i < n {
+        entries_below_pivot::<1>(finished, column, n, i, j, diagonal);
+    }
 }
 
 /// `l_jj = √(a_jj − Σ_{k<j} l_jk²)` for column `j` (`column`, length `n`; `finished`: the `j`
