@@ -135,11 +135,6 @@ impl AdaptiveSet {
         self.evaluated.push(term);
     }
 
-    /// Number of parameters d.
-    pub fn dim(&self) -> usize {
-        self.dim
-    }
-
     /// Number of terms (= points run).
     pub fn len(&self) -> usize {
         self.evaluated.len()
@@ -179,7 +174,13 @@ impl AdaptiveSet {
 
     /// The evaluated set (old ∪ active, downward closed) as a [`MultiIndexSet`].
     pub fn multi_index_set(&self) -> Result<MultiIndexSet, UqError> {
-        MultiIndexSet::from_terms(self.dim, &self.evaluated)
+        self.multi_index_set_of(self.evaluated.len())
+    }
+
+    /// The set of the first `runs` evaluated terms (those run before a later stage, which form a
+    /// downward-closed set of their own) as a [`MultiIndexSet`].
+    pub fn multi_index_set_of(&self, runs: usize) -> Result<MultiIndexSet, UqError> {
+        MultiIndexSet::from_terms(self.dim, &self.evaluated[..runs.min(self.evaluated.len())])
     }
 
     /// Records the indicator of every active term: `indicator(term)` is its own largest normalised

@@ -38,7 +38,7 @@ use super::report::AdaptiveReport;
 use super::schedule::RecordSchedule;
 use super::sparse::SparseDesign;
 use super::stages::StageCursor;
-use crate::uq::{Factor, MultiIndexSet, SparseGrid, UqError};
+use crate::uq::{Factor, SparseGrid, UqError};
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -349,13 +349,11 @@ impl LastStage {
         let rows = rows_of_points(&grid, &set)?;
         let n_terms = grid.n_points();
         let term_of_run = terms_of_runs(&rows, n_terms, values.len())?;
-        let kept = surpluses.kept_runs(n_terms, n_records, n_outputs);
-        let n_chunks = n_records.div_ceil(FIT_CHUNK_RECORDS);
-        surpluses.chunks.resize_with(n_chunks, Vec::new);
+        let kept = surpluses.keep_for(n_terms, n_records, n_outputs);
         // The stage before's grid is not kept (an interrupted last stage builds it again from
         // the terms run before): it is as large as the final one.
         let mut buffers = previous.coefficients.chunks;
-        buffers.resize_with(n_chunks, Vec::new);
+        buffers.resize_with(chunk_count(n_records), Vec::new);
         Ok(LastStage {
             set,
             points,
@@ -393,11 +391,6 @@ impl LastStage {
         &self.design
     }
 
-    /// The final grid.
-    fn grid(&self) -> Result<&SparseGrid, StudyError> {
-        grid_of(&self.design)
-    }
-
     /// The final grid's condition number (computed once).
     pub(super) fn condition_number(&self) -> f64 {
         self.design.condition_number()
@@ -416,7 +409,7 @@ impl LastStage {
         records_done: usize,
         threads: &rayon::ThreadPool,
     ) -> Result<std::ops::Range<usize>, StudyError> {
-        let n_chunks = self.n_records.div_ceil(FIT_CHUNK_RECORDS);
+        let n_chunks = chunk_count(self.n_records);
         let complete = if records_done >= self.n_records {
             n_chunks
         } else {
@@ -467,27 +460,24 @@ impl LastStage {
     /// stage (the fits and the measuring).
     pub(super) fn finish(mut self) -> Result<(AdaptiveReport, f64), StudyError> {
         let started = Instant::now();
-        let n_chunks = self.n_records.div_ceil(FIT_CHUNK_RECORDS);
+        let n_chunks = chunk_count(self.n_records);
         if self.coefficients.chunks.len() != n_chunks {
             return Err(StudyError::BadOptions(format!(
                 "internal: the adaptive design's last stage fitted {} of {n_chunks} chunks of records",
                 self.coefficients.chunks.len()
             )));
         }
-        let n_outputs = self.n_outputs;
-        self.extremes.absorb(&self.values, n_outputs);
-        let spread = self.extremes.spreads(n_outputs);
-        let mi = grid_of(&self.design)?.set().clone();
-        let coefficients = &self.coefficients;
-        self.set.measure(|term| {
-            let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
-            let Some(t) = mi.index_of(&factors) else {
-                return 0.0;
-            };
-            coefficients.largest_normalised(t, &spread)
-        });
+        let grid = grid_of(&self.design)?;
+        measure_candidates(
+            &mut self.set,
+            &mut self.extremes,
+            &self.values,
+            self.n_outputs,
+            grid,
+            &self.coefficients,
+        );
         let report = adaptive_report(
-            self.grid()?,
+            grid,
             &self.set,
             self.rounds,
             self.stages_run + 1,
@@ -505,8 +495,7 @@ impl LastStage {
         threads: &rayon::ThreadPool,
     ) -> Result<(SparseGrid, AdaptiveOutcome), StudyError> {
         self.values.truncate(self.first_row);
-        let before =
-            MultiIndexSet::from_terms(self.set.dim(), &self.set.evaluated()[..self.first_row])?;
+        let before = self.set.multi_index_set_of(self.first_row)?;
         let grid = SparseGrid::new(Arc::new(before))?;
         let row_of_point = rows_of_points(&grid, &self.set)?;
         let (coefficients, _) = fit_all_records(
@@ -569,16 +558,7 @@ fn fit_and_measure(
         &grid, &rows, values, n_outputs, threads, surpluses, recycled,
     )?;
     let fit_wall = fit_started.elapsed().as_secs_f64();
-    extremes.absorb(values, n_outputs);
-    let spread = extremes.spreads(n_outputs);
-    let mi = grid.set().clone();
-    set.measure(|term| {
-        let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
-        let Some(t) = mi.index_of(&factors) else {
-            return 0.0;
-        };
-        coefficients.largest_normalised(t, &spread)
-    });
+    measure_candidates(set, extremes, values, n_outputs, &grid, &coefficients);
     let thread_seconds = started.elapsed().as_secs_f64() - fit_wall + fit_thread_seconds;
     let fit = StageFit {
         grid,
@@ -586,6 +566,29 @@ fn fit_and_measure(
         coefficients,
     };
     Ok((fit, thread_seconds))
+}
+
+/// Measures the active candidates' indicators on the fit `coefficients` of every record on
+/// `grid`: each term's largest coefficient relative to its output's spread over the runs of
+/// `values` (folded into `extremes` first).
+fn measure_candidates(
+    set: &mut AdaptiveSet,
+    extremes: &mut RunExtremes,
+    values: &[Vec<f64>],
+    n_outputs: usize,
+    grid: &SparseGrid,
+    coefficients: &RecordCoefficients,
+) {
+    extremes.absorb(values, n_outputs);
+    let spread = extremes.spreads(n_outputs);
+    let mi = grid.set();
+    set.measure(|term| {
+        let factors: Vec<Factor> = term.iter().map(|&(j, k)| Factor::new(j, k)).collect();
+        let Some(t) = mi.index_of(&factors) else {
+            return 0.0;
+        };
+        coefficients.largest_normalised(t, &spread)
+    });
 }
 
 /// A round's batch: [`ADAPTIVE_BATCH_FRACTION`] of the terms so far, at least
@@ -747,15 +750,17 @@ struct Surpluses {
 }
 
 impl Surpluses {
-    /// How many runs' rows a fit of `n_terms` terms over `n_records` records can keep: all the
-    /// chunks hold, when every chunk holds them for the same records; else 0 (computed again).
-    fn kept_runs(&self, n_terms: usize, n_records: usize, n_outputs: usize) -> usize {
+    /// Readies the chunks for a fit of `n_terms` terms over `n_records` records (one per chunk of
+    /// records) and returns how many runs' rows it keeps: all the chunks hold, when every chunk
+    /// holds them for the same records; else 0 (computed again).
+    fn keep_for(&mut self, n_terms: usize, n_records: usize, n_outputs: usize) -> usize {
         let consistent =
             self.runs <= n_terms
-                && self.chunks.len() == n_records.div_ceil(FIT_CHUNK_RECORDS)
+                && self.chunks.len() == chunk_count(n_records)
                 && self.chunks.iter().enumerate().all(|(c, chunk)| {
                     chunk.len() == self.runs * chunk_width(c, n_records, n_outputs)
                 });
+        self.chunks.resize_with(chunk_count(n_records), Vec::new);
         if consistent {
             self.runs
         } else {
@@ -783,11 +788,9 @@ fn fit_all_records(
     let n_records = values.first().map_or(0, |v| v.len() / n_outputs.max(1));
     let n_terms = grid.n_points();
     let term_of_run = terms_of_runs(rows, n_terms, values.len())?;
-    let n_chunks = n_records.div_ceil(FIT_CHUNK_RECORDS);
-    let kept = surpluses.kept_runs(n_terms, n_records, n_outputs);
-    surpluses.chunks.resize_with(n_chunks, Vec::new);
+    let kept = surpluses.keep_for(n_terms, n_records, n_outputs);
     let mut buffers = recycled;
-    buffers.resize_with(n_chunks, Vec::new);
+    buffers.resize_with(chunk_count(n_records), Vec::new);
     let runs = StageRuns {
         grid,
         rows,
@@ -824,6 +827,11 @@ fn terms_of_runs(rows: &[usize], n_terms: usize, n_runs: usize) -> Result<Vec<us
         }));
     }
     Ok(term_of_run)
+}
+
+/// Chunks of [`FIT_CHUNK_RECORDS`] records that `n_records` records make (the last may be short).
+fn chunk_count(n_records: usize) -> usize {
+    n_records.div_ceil(FIT_CHUNK_RECORDS)
 }
 
 /// Columns (records · outputs) of chunk `c` of `n_records` records.
@@ -1060,35 +1068,43 @@ mod tests {
         }
     }
 
+    impl TwoStages {
+        /// Per point of `grid`, the row of its run.
+        fn rows_of(&self, grid: &SparseGrid) -> Vec<usize> {
+            (0..grid.n_points())
+                .map(|t| {
+                    let term = grid.set().term(t);
+                    self.run_terms
+                        .iter()
+                        .position(|r| r.as_slice() == term)
+                        .expect("run")
+                })
+                .collect()
+        }
+    }
+
     #[test]
     fn a_record_of_the_stage_fit_is_the_fit_of_that_record() {
         let n_outputs = 4;
         let n_records = 2 * FIT_CHUNK_RECORDS + 5;
         // Runs in the order their terms came: the small set's last term first, then the grown
         // set's other terms, again from the last.
+        let stages = two_stages(n_outputs, n_records, 56, true);
         let TwoStages {
             small,
             grown,
-            run_terms,
             values,
-        } = two_stages(n_outputs, n_records, 56, true);
+            ..
+        } = &stages;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
             .expect("pool");
         let mut surpluses = Surpluses::default();
         let mut recycled = Vec::new();
-        for grid in [&small, &grown] {
+        for grid in [small, grown] {
             let n_points = grid.n_points();
-            let rows: Vec<usize> = (0..n_points)
-                .map(|t| {
-                    let term = grid.set().term(t);
-                    run_terms
-                        .iter()
-                        .position(|r| r.as_slice() == term)
-                        .expect("run")
-                })
-                .collect();
+            let rows = stages.rows_of(grid);
             let values = &values[..n_points];
             let (coefficients, _) = fit_all_records(
                 grid,
@@ -1141,32 +1157,22 @@ mod tests {
     fn the_last_stage_fitted_chunk_by_chunk_is_the_fit_of_every_record() {
         let n_outputs = 3;
         let n_records = 3 * FIT_CHUNK_RECORDS + 7;
+        let stages = two_stages(n_outputs, n_records, 91, false);
         let TwoStages {
             small,
             grown,
-            run_terms,
             values,
-        } = two_stages(n_outputs, n_records, 91, false);
-        let rows_of = |grid: &SparseGrid| -> Vec<usize> {
-            (0..grid.n_points())
-                .map(|t| {
-                    let term = grid.set().term(t);
-                    run_terms
-                        .iter()
-                        .position(|r| r.as_slice() == term)
-                        .expect("run")
-                })
-                .collect()
-        };
+            ..
+        } = &stages;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
             .expect("pool");
         let earlier_stage = || {
             let mut surpluses = Surpluses::default();
-            let small_rows = rows_of(&small);
+            let small_rows = stages.rows_of(small);
             fit_all_records(
-                &small,
+                small,
                 &small_rows,
                 &values[..small.n_points()],
                 n_outputs,
@@ -1177,11 +1183,11 @@ mod tests {
             .expect("fit");
             surpluses
         };
-        let rows = rows_of(&grown);
+        let rows = stages.rows_of(grown);
         let (whole, _) = fit_all_records(
-            &grown,
+            grown,
             &rows,
-            &values,
+            values,
             n_outputs,
             &pool,
             &mut earlier_stage(),
@@ -1191,13 +1197,13 @@ mod tests {
         // Chunk by chunk: the first chunk alone, then the next two, then the short last one.
         let mut surpluses = earlier_stage();
         let n_terms = grown.n_points();
-        let kept = surpluses.kept_runs(n_terms, n_records, n_outputs);
+        let kept = surpluses.keep_for(n_terms, n_records, n_outputs);
         assert_eq!(kept, small.n_points());
         let term_of_run = terms_of_runs(&rows, n_terms, values.len()).expect("runs");
         let runs = StageRuns {
-            grid: &grown,
+            grid: grown,
             rows: &rows,
-            values: &values,
+            values,
             n_outputs,
             n_records,
             kept,

@@ -303,8 +303,6 @@ struct LastStageShared<'s, 'b> {
     accumulator: &'s mut Accumulator,
     /// Wall seconds of the work.
     seconds: f64,
-    /// The final grid's condition number, taken in the first block's work.
-    condition: Option<f64>,
 }
 
 /// The adaptive design's last stage (`adaptive_phase::LastStage`): each block of its runs taken
@@ -340,7 +338,6 @@ fn bound_last_stage(
         bounding: &mut bounding,
         accumulator: &mut *accumulator,
         seconds: 0.0,
-        condition: None,
     });
     let complete = context.run_stage_beside(
         stages,
@@ -361,11 +358,10 @@ fn bound_last_stage(
                 bounding,
                 accumulator,
                 seconds,
-                condition,
             } = &mut *guard;
-            if condition.is_none() {
-                *condition = Some(last.condition_number());
-            }
+            // Computed once (the grid keeps it), in the first block's work: beside the
+            // simulation.
+            last.condition_number();
             let fitted = last.fit_through(records_done, threads)?;
             if !fitted.is_empty() {
                 let last: &LastStage = last;
@@ -385,9 +381,8 @@ fn bound_last_stage(
             Ok(())
         },
     )?;
-    let LastStageShared {
-        seconds, condition, ..
-    } = shared.into_inner().unwrap_or_else(PoisonError::into_inner);
+    let LastStageShared { seconds, .. } =
+        shared.into_inner().unwrap_or_else(PoisonError::into_inner);
     context.report.bound_seconds += seconds;
     if !complete {
         context
@@ -397,7 +392,7 @@ fn bound_last_stage(
         let (grid, outcome) = last.interrupted(threads)?;
         return Ok(Err(Box::new((grid, outcome, before))));
     }
-    context.report.condition_number = Some(condition.unwrap_or_else(|| last.condition_number()));
+    context.report.condition_number = Some(last.condition_number());
     let t_finish = Instant::now();
     let (adaptive, design_choice_seconds) = last.finish()?;
     context.report.bound_seconds += t_finish.elapsed().as_secs_f64();

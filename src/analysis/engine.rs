@@ -9,9 +9,8 @@
 //! two threads left one thread alone with a long run of groups at the end of many blocks while the
 //! other waited (the d = 72 study's two threads were busy 92 % of its wall, median of eight runs;
 //! 94 % with a job per group). A thread's worker is made on its first job and kept in its own slot
-//! (`ThreadWorkers`, never contended). The result of a
-//! sample does not depend on which thread ran it, so studies are deterministic for any thread
-//! count.
+//! (`ThreadWorkers`, never contended). The result of a sample does not depend on which thread ran
+//! it, so studies are deterministic for any thread count.
 //!
 //! Scenes the batched step suits ([`BatchStepper::suits`]: no contacts, no reuse of the Newton
 //! matrix) go in groups of four samples instead, each group through the block with one
