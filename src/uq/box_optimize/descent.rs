@@ -30,8 +30,9 @@ const CURVATURE_TOL: f64 = 1e-10;
 /// `−(H_ff + μI)⁻¹ g` shrinks as `1/μ`, and the line search then doubled it back, one surrogate
 /// value per doubling. Any shift the Cholesky factorisation accepts gives a descent direction, so
 /// trying a sixteenth and a quarter first costs at most two failed factorisations of the free
-/// block and takes longer, more Newton-like steps. Only for a free block small enough that a
-/// failed factorisation costs no more than about four surrogate values (`nf³ ≤ 24 |Λ|`): at
+/// block and takes longer, more Newton-like steps. At a descent's first two iterations only for
+/// a free block small enough that a failed factorisation costs no more than about four surrogate
+/// values (`nf³ ≤ 24 |Λ|`; later ones at any size: [`SHIFT_FRACTIONS_AT_ANY_SIZE_FROM`]): at
 /// d = 72 the descents from interior design points free all 72 coordinates, and with the
 /// fractions there too the search took 3.6 % more instructions than with none (callgrind, the
 /// d = 72 study at 0.5 s); with `nf³ ≤ 6 |Λ|` the d = 32 row saved 13.7 % instead of 17.1 %.
@@ -39,6 +40,23 @@ const CURVATURE_TOL: f64 = 1e-10;
 /// 4–19 % fewer Newton iterations and 12–28 % fewer step doublings; a sixty-fourth and a 256th as
 /// well saved at most 3 % more iterations.
 const SHIFT_FRACTIONS: [f64; 3] = [1.0 / 16.0, 0.25, 1.0];
+
+/// From this iteration of a descent on (the first is 1), an indefinite free block is factorised
+/// with the [`SHIFT_FRACTIONS`] whatever its size, not only where a failed factorisation is
+/// cheap. A descent still going at its third iteration is mostly one from an interior design
+/// point crawling along an indefinite valley with all or almost all coordinates free: with the
+/// whole Gershgorin shift alone its steps stay short, and on the README's d = 64 scaling row the
+/// 1.4 % of descents that took 20 iterations or more were a fifth of the search's time (counted
+/// with a temporary log, one thread). Trying the fractions there costs up to two failed
+/// factorisations per iteration and saves more iterations than that (issue 40): the inner
+/// bound's time 0.87–0.89 of before at d = 64, 0.98–0.99 at d = 32 and 1.0 at d = 8, 16 and the
+/// all-values d = 72 study (medians of 6–10 side-by-side rounds, one per core, one thread
+/// each). From the first iteration on (every descent) it was 5 % slower than from the second at
+/// d = 64, from the fourth 2 % slower than from the third. The envelopes of the scaling rows and
+/// the d = 72 study moved by at most 1.5e-5 of an output's width (d = 64, `q.wrist_3_joint`);
+/// runs, check runs and misfits the same. The rule makes an iteration's path depend on its
+/// number, so the [`DescentTrail`] matches a point only in the same [`iteration_regime`].
+const SHIFT_FRACTIONS_AT_ANY_SIZE_FROM: usize = 3;
 
 /// The most doublings of an accepted step the expansion's model considers (`2^30 t`, as many
 /// as the backtracking's halvings).
@@ -49,10 +67,10 @@ const GERSHGORIN_ROWS_AT_ONCE: usize = 4;
 
 /// The points earlier descents of one side started an iteration from (`k × d`), each with how
 /// many iterations its descent took from there to its end, and the ends (points and values).
-/// A descent's path depends on its point alone, so a later descent that reaches one of these
-/// points bitwise would repeat the earlier one's path from there to the same end: it stops and
-/// takes that end (issue 40; the d = 72 all-values ur5 study's descents from the design points
-/// often join the vertex's).
+/// A descent's path depends on its point and on its iteration's [`iteration_regime`] alone, so
+/// a later descent that reaches one of these points bitwise in the same regime would repeat the
+/// earlier one's path from there to the same end: it stops and takes that end (issue 40; the
+/// d = 72 all-values ur5 study's descents from the design points often join the vertex's).
 #[derive(Debug, Clone, Default)]
 pub(super) struct DescentTrail {
     points: Vec<f64>,
@@ -60,6 +78,8 @@ pub(super) struct DescentTrail {
     /// they agree (vertices share most coordinates, so whole points compared long before
     /// differing).
     keys: Vec<u64>,
+    /// Per point, the [`iteration_regime`] of the iteration started from it.
+    regimes: Vec<usize>,
     /// Per point: (iterations from it to its descent's end, index of that end).
     remaining: Vec<(usize, usize)>,
     end_points: Vec<f64>,
@@ -68,6 +88,14 @@ pub(super) struct DescentTrail {
     current: Vec<f64>,
     /// Their keys.
     current_keys: Vec<u64>,
+    /// Their iterations' regimes.
+    current_regimes: Vec<usize>,
+}
+
+/// What of an iteration's number the descent's rules depend on: the number, up to
+/// [`SHIFT_FRACTIONS_AT_ANY_SIZE_FROM`], from which on every iteration is alike.
+pub(super) fn iteration_regime(iteration: usize) -> usize {
+    iteration.min(SHIFT_FRACTIONS_AT_ANY_SIZE_FROM)
 }
 
 /// A hash of a point's bits: equal points have equal keys (so a lookup by key first finds every
@@ -82,21 +110,24 @@ impl DescentTrail {
     pub(super) fn clear(&mut self) {
         self.points.clear();
         self.keys.clear();
+        self.regimes.clear();
         self.remaining.clear();
         self.end_points.clear();
         self.end_values.clear();
         self.current.clear();
         self.current_keys.clear();
+        self.current_regimes.clear();
     }
 
-    /// The earlier point bitwise equal to `x` (key `key`; its remaining iterations and end), if
-    /// any: the first such, as a scan of the points in order finds.
-    fn find(&self, x: &[f64], key: u64) -> Option<(usize, usize)> {
+    /// The earlier point bitwise equal to `x` (key `key`) whose iteration had the regime
+    /// `regime` (its remaining iterations and end), if any: the first such, as a scan of the
+    /// points in order finds.
+    fn find(&self, x: &[f64], key: u64, regime: usize) -> Option<(usize, usize)> {
         let d = x.len();
         self.keys
             .iter()
             .enumerate()
-            .filter(|&(_, &k)| k == key)
+            .filter(|&(i, &k)| k == key && self.regimes[i] == regime)
             .map(|(i, _)| i)
             .find(|&i| {
                 self.points[i * d..(i + 1) * d]
@@ -107,16 +138,18 @@ impl DescentTrail {
             .map(|i| self.remaining[i])
     }
 
-    /// Starts an iteration of the descent under way from `x` (key `key`).
-    fn push_current(&mut self, x: &[f64], key: u64) {
+    /// Starts an iteration of the descent under way from `x` (key `key`) in regime `regime`.
+    fn push_current(&mut self, x: &[f64], key: u64, regime: usize) {
         self.current.extend_from_slice(x);
         self.current_keys.push(key);
+        self.current_regimes.push(regime);
     }
 
     /// Forgets the descent under way (stopped by the iteration cap).
     fn drop_current(&mut self) {
         self.current.clear();
         self.current_keys.clear();
+        self.current_regimes.clear();
     }
 
     /// Files the current descent's points: it ended at end index `end` after `total` iterations
@@ -125,9 +158,11 @@ impl DescentTrail {
         let n = self.current.len() / d;
         self.points.extend_from_slice(&self.current);
         self.keys.extend_from_slice(&self.current_keys);
+        self.regimes.extend_from_slice(&self.current_regimes);
         self.remaining.extend((0..n).map(|j| (total - j, end)));
         self.current.clear();
         self.current_keys.clear();
+        self.current_regimes.clear();
     }
 }
 
@@ -171,7 +206,8 @@ impl BoxOptimizer {
         self.trail.drop_current();
         loop {
             let key = point_key(&self.x);
-            if let Some((remaining, end)) = self.trail.find(&self.x, key) {
+            let regime = iteration_regime(iterations + 1);
+            if let Some((remaining, end)) = self.trail.find(&self.x, key, regime) {
                 // An earlier descent went on from here to `end` within the cap; this one would
                 // take the same path (DescentTrail), if the cap leaves it the same iterations.
                 if iterations + remaining <= self.max_iterations {
@@ -186,7 +222,7 @@ impl BoxOptimizer {
                 self.trail.drop_current();
                 return (f, iterations);
             }
-            self.trail.push_current(&self.x, key);
+            self.trail.push_current(&self.x, key, regime);
             iterations += 1;
             self.free.clear();
             for r in 0..d {
@@ -203,7 +239,7 @@ impl BoxOptimizer {
             // Stationary to first order (DECREASE_TOL): no Newton or gradient step, only the
             // step along negative curvature is left to try.
             let stationary = self.first_order_gain() <= self.decrease_floor;
-            let definite = !stationary && self.newton_direction(s.set().len());
+            let definite = !stationary && self.newton_direction(s.set().len(), iterations);
             let f_before = f;
             let mut moved = false;
             if stationary {
@@ -285,7 +321,7 @@ impl BoxOptimizer {
     /// Newton direction on the free coordinates into `step[..nf]`; true if `H_ff` was positive
     /// definite without a shift. `terms`: the terms a surrogate value sums (fewer when terms were
     /// dropped), the measure of what a surrogate value costs (see [`SHIFT_FRACTIONS`]).
-    pub(super) fn newton_direction(&mut self, terms: usize) -> bool {
+    pub(super) fn newton_direction(&mut self, terms: usize, iteration: usize) -> bool {
         let nf = self.free.len();
         let scale = (0..nf)
             .map(|a| self.hess[a * nf + a].abs())
@@ -301,7 +337,7 @@ impl BoxOptimizer {
         // which cannot fail.
         // The fractions only where a failed factorisation (up to nf³/6 multiply-adds) costs no
         // more than about four surrogate values (a few operations per term each).
-        let first = if nf * nf * nf <= 24 * terms {
+        let first = if nf * nf * nf <= 24 * terms || iteration >= SHIFT_FRACTIONS_AT_ANY_SIZE_FROM {
             0
         } else {
             SHIFT_FRACTIONS.len() - 1
@@ -684,5 +720,89 @@ impl BoxOptimizer {
             self.trial[r] = (self.x[r] + step * u[a]).clamp(-1.0, 1.0);
         }
         Some(f_best)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A trail point is taken only by a descent at an iteration of its regime: the shift rule
+    /// depends on the iteration ([`SHIFT_FRACTIONS_AT_ANY_SIZE_FROM`]), so the same point at
+    /// another iteration need not lead to the same end.
+    #[test]
+    fn a_trail_point_is_found_only_in_its_iterations_regime() {
+        let mut trail = DescentTrail::default();
+        let (first, second) = ([0.5, -1.0, 0.25], [1.0, -1.0, 0.0]);
+        let (k1, k2) = (point_key(&first), point_key(&second));
+        // A descent started iterations 1 and 2 from these points and ended at end 0.
+        trail.push_current(&first, k1, iteration_regime(1));
+        trail.push_current(&second, k2, iteration_regime(2));
+        trail.end_points.extend_from_slice(&[1.0, -1.0, -1.0]);
+        trail.end_values.push(-2.0);
+        trail.file_current(3, 2, 0);
+        assert_eq!(trail.find(&first, k1, iteration_regime(1)), Some((2, 0)));
+        assert_eq!(trail.find(&second, k2, iteration_regime(2)), Some((1, 0)));
+        assert_eq!(trail.find(&first, k1, iteration_regime(2)), None);
+        assert_eq!(trail.find(&second, k2, iteration_regime(5)), None);
+        // From the threshold on every iteration is alike.
+        assert_eq!(
+            iteration_regime(SHIFT_FRACTIONS_AT_ANY_SIZE_FROM),
+            iteration_regime(SHIFT_FRACTIONS_AT_ANY_SIZE_FROM + 7)
+        );
+        assert_ne!(
+            iteration_regime(SHIFT_FRACTIONS_AT_ANY_SIZE_FROM - 1),
+            iteration_regime(SHIFT_FRACTIONS_AT_ANY_SIZE_FROM)
+        );
+    }
+
+    /// A large indefinite free block (where a failed factorisation is dear) is shifted by the
+    /// whole Gershgorin shift at a descent's first iteration and by a fraction of it from
+    /// [`SHIFT_FRACTIONS_AT_ANY_SIZE_FROM`] on when one suffices: the step is then longer, and
+    /// still a descent direction.
+    #[test]
+    fn late_iterations_try_the_shift_fractions_at_any_size() {
+        use crate::test_support::SplitMix64;
+        let nf = 40;
+        let mut optimizer = BoxOptimizer::new();
+        optimizer.resize(nf);
+        optimizer.free = (0..nf).collect();
+        let mut rng = SplitMix64::new(40);
+        let noise: Vec<f64> = (0..nf * nf).map(|_| rng.uniform(-0.1, 0.1)).collect();
+        // (a) Tridiagonal with a zero diagonal: the Gershgorin shift 2 is about the smallest
+        // eigenvalue's magnitude (2 cos(π / 41)), so no fraction of it factorises. (b) A diagonal
+        // of 0.4 and small entries of random sign everywhere else: the Gershgorin shift (about
+        // 1.6) is far larger than the smallest eigenvalue's magnitude (about 0.3).
+        for tridiagonal in [true, false] {
+            for a in 0..nf {
+                for b in 0..nf {
+                    let (lo, hi) = (a.min(b), a.max(b));
+                    optimizer.hess[a * nf + b] = match (tridiagonal, hi - lo) {
+                        (true, 1) => -1.0,
+                        (true, _) => 0.0,
+                        (false, 0) => 0.4,
+                        (false, _) => noise[lo * nf + hi],
+                    };
+                }
+                optimizer.grad[a] = if a % 3 == 0 { 1.0 } else { -0.5 };
+            }
+            // Few terms: nf³ far above 24 per term, so no fractions by size.
+            let terms = 10;
+            let mut steps = Vec::new();
+            for iteration in [1, SHIFT_FRACTIONS_AT_ANY_SIZE_FROM] {
+                assert!(!optimizer.newton_direction(terms, iteration), "indefinite");
+                let step = optimizer.step[..nf].to_vec();
+                let slope: f64 = step.iter().zip(&optimizer.grad).map(|(s, g)| s * g).sum();
+                assert!(slope < 0.0, "a descent direction at iteration {iteration}");
+                steps.push(step.iter().map(|s| s * s).sum::<f64>().sqrt());
+            }
+            if tridiagonal {
+                // Only the whole shift factorises: the same step either way.
+                assert_eq!(steps[0], steps[1]);
+            } else {
+                // A fraction of the shift factorises: a longer step than the whole one's.
+                assert!(steps[1] > 1.5 * steps[0], "{steps:?}");
+            }
+        }
     }
 }
