@@ -80,8 +80,8 @@ pub const DECREASE_TOL: f64 = 1e-11;
 ///
 /// It was 1e-6 until issue 40's d = 32 row needed the margin: a descent from an interior design
 /// point moves onto the faces a few coordinates per iteration, and its last iterations gained
-/// 1e-6 to 1e-5 of the variation each (the variation is about half an envelope's width at
-/// d = 64, so that is below 1e-5 of a width). With 1e-5 the inner bound took 0.92 of its time at
+/// 1e-6 to 1e-5 of the variation each (a temporary per-iteration log of the d = 64 row). With
+/// 1e-5 the inner bound took 0.92 of its time at
 /// d = 32 (two sets of side-by-side rounds, one per core), 0.95 at d = 16, 0.98 at d = 64 and 1.0
 /// on the d = 72 study; the envelopes of the scaling rows and the d = 72 study moved by at most
 /// 1.1e-5 of a width narrower (d = 72, `q.wrist_2_joint`) and 9.8e-5 wider (d = 72,

@@ -336,7 +336,8 @@ impl BoxOptimizer {
         // fractions SHIFT_FRACTIONS of the Gershgorin shift, the last of them the whole shift,
         // which cannot fail.
         // The fractions only where a failed factorisation (up to nf³/6 multiply-adds) costs no
-        // more than about four surrogate values (a few operations per term each).
+        // more than about four surrogate values (a few operations per term each), or where the
+        // descent is a long one (SHIFT_FRACTIONS_AT_ANY_SIZE_FROM).
         let first = if nf * nf * nf <= 24 * terms || iteration >= SHIFT_FRACTIONS_AT_ANY_SIZE_FROM {
             0
         } else {
