@@ -94,7 +94,7 @@ pub(super) struct DescentTrail {
 
 /// What of an iteration's number the descent's rules depend on: the number, up to
 /// [`SHIFT_FRACTIONS_AT_ANY_SIZE_FROM`], from which on every iteration is alike.
-pub(super) fn iteration_regime(iteration: usize) -> usize {
+fn iteration_regime(iteration: usize) -> usize {
     iteration.min(SHIFT_FRACTIONS_AT_ANY_SIZE_FROM)
 }
 
