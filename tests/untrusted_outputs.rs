@@ -239,7 +239,7 @@ fn assert_the_report_shows_the_true_runs(dir: &Path, summary: &Value) {
             "{output}: the range spans x {hull_left} … {hull_right}, the band {band_left} … {band_right}"
         );
     }
-    // q.j1's bounds (its outer bound's) are 4.2 times as tall as its range, q.j2's 3.7 times: the
+    // q.j1's bounds (its outer bound's) are 4.1 times as tall as its range, q.j2's 3.7 times: the
     // fixture draws both kinds of axis.
     assert_eq!(cases, [true, false], "clipped, per output");
     let page = std::fs::read_to_string(dir.join("report/index.html")).unwrap();

@@ -7,6 +7,9 @@
 //! SVGs name the family `sans-serif`. Nothing here writes files: callers pass the bytes to
 //! [`crate::output::write_atomically`].
 
+mod legend_corner;
+
+use legend_corner::{Corner, Ink, PixelBox};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::sync::OnceLock;
@@ -508,18 +511,120 @@ impl TimePlot<'_> {
                 }
             }
         }
+        let note = if self.note.is_empty() {
+            None
+        } else {
+            Some(note_frame(chart.plotting_area(), &self.note).map_err(fail)?)
+        };
+        let corner = {
+            let (base_x, base_y) = chart.plotting_area().get_base_pixel();
+            let pixel = |t: f64, v: f64| {
+                let (x, y) = chart.backend_coord(&(t, v));
+                (f64::from(x - base_x), f64::from(y - base_y))
+            };
+            self.legend_corner(pixel, clip, (y0, y1), chart.plotting_area(), note)
+        };
         chart
             .configure_series_labels()
-            .label_font((FONT_FAMILY, 14))
+            .label_font((FONT_FAMILY, LEGEND_FONT_SIZE))
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(160, 160, 160))
-            .position(SeriesLabelPosition::UpperRight)
+            .position(match corner {
+                Corner::UpperRight => SeriesLabelPosition::UpperRight,
+                Corner::UpperLeft => SeriesLabelPosition::UpperLeft,
+                Corner::LowerRight => SeriesLabelPosition::LowerRight,
+                Corner::LowerLeft => SeriesLabelPosition::LowerLeft,
+            })
             .draw()
             .map_err(fail)?;
-        if !self.note.is_empty() {
-            draw_note(chart.plotting_area(), &self.note).map_err(fail)?;
+        if let Some(frame) = note {
+            draw_note(chart.plotting_area(), &self.note, frame).map_err(fail)?;
         }
         root.present().map_err(fail)
+    }
+
+    /// The legend entries' labels, in drawing order (what `plotters` lists: every band and dot
+    /// layer, the lines with a label).
+    fn legend_labels(&self) -> Vec<&str> {
+        self.layers
+            .iter()
+            .filter_map(|layer| match layer {
+                Layer::Band { label, .. } | Layer::Points { label, .. } => Some(label.as_str()),
+                Layer::Line { label, .. } => (!label.is_empty()).then_some(label.as_str()),
+            })
+            .collect()
+    }
+
+    /// The corner whose legend box hides the least of the layers (`legend_corner`), given the
+    /// data-to-pixel map of the plotting area, the clip of values to the axis, the axis range
+    /// and the note's frame to keep clear. Upper right when the legend's text cannot be measured
+    /// (drawing it then reports the font error).
+    fn legend_corner<DB: DrawingBackend, CT: plotters::coord::CoordTranslate>(
+        &self,
+        pixel: impl Fn(f64, f64) -> (f64, f64),
+        clip: impl Fn(f64) -> f64,
+        (y0, y1): (f64, f64),
+        area: &DrawingArea<DB, CT>,
+        note: Option<[(i32, i32); 2]>,
+    ) -> Corner {
+        let font = TextStyle::from((FONT_FAMILY, LEGEND_FONT_SIZE).into_font());
+        let mut text = MultiLineText::<_, &str>::new((0, 0), &font);
+        for label in self.legend_labels() {
+            text.push_line(label);
+        }
+        let Ok((text_w, text_h)) = text.estimate_dimension() else {
+            return Corner::UpperRight;
+        };
+        let size = (
+            f64::from(text_w + LEGEND_SYMBOL_WIDTH + 2 * LEGEND_MARGIN),
+            f64::from(text_h + 2 * LEGEND_MARGIN),
+        );
+        let (area_w, area_h) = area.dim_in_pixel();
+        let times = self.times;
+        let mut ink = Ink::default();
+        let curve = |values: &[f64]| -> Vec<(f64, f64)> {
+            times
+                .iter()
+                .zip(values)
+                .filter(|(t, v)| t.is_finite() && v.is_finite())
+                .map(|(&t, &v)| pixel(t, clip(v)))
+                .collect()
+        };
+        for layer in &self.layers {
+            match layer {
+                Layer::Band { lower, upper, .. } => {
+                    let (low, high) = (curve(lower), curve(upper));
+                    ink.fill(times.iter().zip(lower.iter().zip(upper.iter())).filter_map(
+                        |(&t, (&a, &b))| {
+                            let ((x, ya), (_, yb)) = (pixel(t, clip(a)), pixel(t, clip(b)));
+                            (t.is_finite() && a.is_finite() && b.is_finite()).then_some((x, ya, yb))
+                        },
+                    ));
+                    ink.line(low);
+                    ink.line(high);
+                }
+                Layer::Line { values, .. } => ink.line(curve(values)),
+                Layer::Points { points, .. } => {
+                    for &(t, v) in points.iter() {
+                        if t.is_finite() && v.is_finite() && (y0..=y1).contains(&v) {
+                            ink.dot(pixel(t, v));
+                        }
+                    }
+                }
+            }
+        }
+        let keep_clear = note.map(|[(left, top), (right, bottom)]| PixelBox {
+            left: f64::from(left),
+            top: f64::from(top),
+            right: f64::from(right),
+            bottom: f64::from(bottom),
+        });
+        legend_corner::least_hiding_corner(
+            &ink,
+            size,
+            (f64::from(area_w), f64::from(area_h)),
+            keep_clear,
+        )
     }
 
     /// The plot as SVG text.
@@ -533,16 +638,24 @@ impl TimePlot<'_> {
     }
 }
 
+/// Font size of a time plot's legend, pixels.
+const LEGEND_FONT_SIZE: u32 = 14;
+/// Width `plotters` gives a legend entry's symbol, and its margin around the entries, pixels (its
+/// `legend_area_size` and `margin` defaults, which the legend is drawn with): with the text's size
+/// they make the legend box's.
+const LEGEND_SYMBOL_WIDTH: i32 = 30;
+/// See [`LEGEND_SYMBOL_WIDTH`].
+const LEGEND_MARGIN: i32 = 10;
 /// Font size of a plot's note, pixels.
 const NOTE_FONT_SIZE: u32 = 14;
 /// Space between a note's box and the plotting area's frame, and around its text, pixels.
 const NOTE_PADDING: i32 = 6;
 
-/// Draws `note` at the lower left of `area` (the plotting area), on a white box edged grey.
-fn draw_note<DB: DrawingBackend, CT: plotters::coord::CoordTranslate>(
+/// The frame of `note`'s box at the lower left of `area` (its pixels), as [`draw_note`] draws it.
+fn note_frame<DB: DrawingBackend, CT: plotters::coord::CoordTranslate>(
     area: &DrawingArea<DB, CT>,
     note: &str,
-) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+) -> Result<[(i32, i32); 2], DrawingAreaErrorKind<DB::ErrorType>> {
     let font = TextStyle::from((FONT_FAMILY, NOTE_FONT_SIZE).into_font());
     let (text_w, text_h) = area.estimate_text_size(note, &font)?;
     let (_, height) = area.dim_in_pixel();
@@ -552,7 +665,18 @@ fn draw_note<DB: DrawingBackend, CT: plotters::coord::CoordTranslate>(
     );
     let top = height as i32 - NOTE_PADDING - h;
     let origin = (NOTE_PADDING, top);
-    let frame = [origin, (origin.0 + w, origin.1 + h)];
+    Ok([origin, (origin.0 + w, origin.1 + h)])
+}
+
+/// Draws `note` at the lower left of `area` (the plotting area), on a white box edged grey in
+/// `frame` ([`note_frame`]).
+fn draw_note<DB: DrawingBackend, CT: plotters::coord::CoordTranslate>(
+    area: &DrawingArea<DB, CT>,
+    note: &str,
+    frame: [(i32, i32); 2],
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let font = TextStyle::from((FONT_FAMILY, NOTE_FONT_SIZE).into_font());
+    let origin = frame[0];
     let plain = area.strip_coord_spec();
     plain.draw(&Rectangle::new(frame, WHITE.mix(0.9).filled()))?;
     plain.draw(&Rectangle::new(
@@ -771,6 +895,73 @@ mod tests {
         assert!(lo < 0.0 && hi > 0.0);
         assert!(linear_range([f64::NAN].into_iter()).is_none());
         assert_eq!(log_range([0.02, 3.0].into_iter()), Some((0.01, 10.0)));
+    }
+
+    /// The legend box of a time plot's SVG (the `<rect` edged `#A0A0A0`): `(x, y, width, height)`.
+    fn legend_box(svg: &str) -> (f64, f64, f64, f64) {
+        let end = svg.find("stroke=\"#A0A0A0\"").expect("a legend box");
+        let start = svg[..end].rfind("<rect").expect("its rect");
+        let attribute = |name: &str| -> f64 {
+            let at = svg[start..end].find(&format!(" {name}=\"")).expect(name) + name.len() + 3;
+            let rest = &svg[start + at..];
+            rest[..rest.find('"').unwrap()].parse().unwrap()
+        };
+        (
+            attribute("x"),
+            attribute("y"),
+            attribute("width"),
+            attribute("height"),
+        )
+    }
+
+    #[test]
+    fn the_legend_goes_where_it_hides_the_least_of_the_band() {
+        // A joint sagging to a new rest high in the plot, the band and the nominal up there from
+        // a tenth of the run on: the lower right is empty, the upper right full.
+        let times: Vec<f64> = (0..=150).map(|k| k as f64 * 0.01).collect();
+        let settle = |t: f64, rest: f64| rest * (1.0 - (-t / 0.05).exp());
+        let lower: Vec<f64> = times.iter().map(|&t| settle(t, 0.0073)).collect();
+        let nominal: Vec<f64> = times.iter().map(|&t| settle(t, 0.0078)).collect();
+        let upper: Vec<f64> = times.iter().map(|&t| settle(t, 0.0083)).collect();
+        let plot = |lower: &[f64], nominal: &[f64], upper: &[f64]| {
+            TimePlot {
+                title: "q.panda_joint2".to_string(),
+                y_label: "q.panda_joint2 [rad]".to_string(),
+                times: &times,
+                layers: vec![
+                    Layer::Band {
+                        label: "lower – upper (inner bound)".to_string(),
+                        lower,
+                        upper,
+                        colour: PALETTE[0],
+                    },
+                    Layer::Line {
+                        label: "nominal".to_string(),
+                        values: nominal,
+                        colour: PALETTE[2],
+                        width: 2,
+                        stroke: Stroke::Solid,
+                    },
+                ],
+                y_limits: None,
+                note: String::new(),
+            }
+            .svg()
+            .unwrap()
+        };
+        let (x, y, width, height) = legend_box(&plot(&lower, &nominal, &upper));
+        let (plot_w, plot_h) = (f64::from(PLOT_SIZE.0), f64::from(PLOT_SIZE.1));
+        assert!(
+            x > plot_w / 2.0 && y > plot_h / 2.0,
+            "the legend at ({x}, {y}) size {width} × {height}: not in the lower right"
+        );
+        // Mirrored (settling low), the upper right is free again and keeps it.
+        let flip = |v: &[f64]| -> Vec<f64> { v.iter().map(|x| -x).collect() };
+        let (x, y, ..) = legend_box(&plot(&flip(&upper), &flip(&nominal), &flip(&lower)));
+        assert!(
+            x > plot_w / 2.0 && y < plot_h / 4.0,
+            "the legend at ({x}, {y}): not in the upper right"
+        );
     }
 
     #[test]
