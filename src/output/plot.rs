@@ -529,12 +529,7 @@ impl TimePlot<'_> {
             .label_font((FONT_FAMILY, LEGEND_FONT_SIZE))
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(160, 160, 160))
-            .position(match corner {
-                Corner::UpperRight => SeriesLabelPosition::UpperRight,
-                Corner::UpperLeft => SeriesLabelPosition::UpperLeft,
-                Corner::LowerRight => SeriesLabelPosition::LowerRight,
-                Corner::LowerLeft => SeriesLabelPosition::LowerLeft,
-            })
+            .position(series_label_position(corner))
             .draw()
             .map_err(fail)?;
         if let Some(frame) = note {
@@ -567,18 +562,9 @@ impl TimePlot<'_> {
         area: &DrawingArea<DB, CT>,
         note: Option<[(i32, i32); 2]>,
     ) -> Corner {
-        let font = TextStyle::from((FONT_FAMILY, LEGEND_FONT_SIZE).into_font());
-        let mut text = MultiLineText::<_, &str>::new((0, 0), &font);
-        for label in self.legend_labels() {
-            text.push_line(label);
-        }
-        let Ok((text_w, text_h)) = text.estimate_dimension() else {
+        let Some(size) = legend_box_size(&self.legend_labels()) else {
             return Corner::UpperRight;
         };
-        let size = (
-            f64::from(text_w + LEGEND_SYMBOL_WIDTH + 2 * LEGEND_MARGIN),
-            f64::from(text_h + 2 * LEGEND_MARGIN),
-        );
         let (area_w, area_h) = area.dim_in_pixel();
         let times = self.times;
         let mut ink = Ink::default();
@@ -646,10 +632,39 @@ const LEGEND_FONT_SIZE: u32 = 14;
 const LEGEND_SYMBOL_WIDTH: i32 = 30;
 /// See [`LEGEND_SYMBOL_WIDTH`].
 const LEGEND_MARGIN: i32 = 10;
+/// Font size of a scatter plot's point labels (`k=4`, `N=300`), pixels.
+const POINT_LABEL_FONT_SIZE: u32 = 12;
+/// Where a point's label starts, relative to the point, pixels (right and up).
+const POINT_LABEL_OFFSET: (i32, i32) = (6, -16);
 /// Font size of a plot's note, pixels.
 const NOTE_FONT_SIZE: u32 = 14;
 /// Space between a note's box and the plotting area's frame, and around its text, pixels.
 const NOTE_PADDING: i32 = 6;
+
+/// The size of the legend box `plotters` draws for `labels` (one entry each, in the legend's font,
+/// with its symbol width and margin), pixels; `None` when the text cannot be measured.
+fn legend_box_size(labels: &[&str]) -> Option<(f64, f64)> {
+    let font = TextStyle::from((FONT_FAMILY, LEGEND_FONT_SIZE).into_font());
+    let mut text = MultiLineText::<_, &str>::new((0, 0), &font);
+    for &label in labels {
+        text.push_line(label);
+    }
+    let (text_w, text_h) = text.estimate_dimension().ok()?;
+    Some((
+        f64::from(text_w + LEGEND_SYMBOL_WIDTH + 2 * LEGEND_MARGIN),
+        f64::from(text_h + 2 * LEGEND_MARGIN),
+    ))
+}
+
+/// The `plotters` position of a legend corner.
+fn series_label_position(corner: Corner) -> SeriesLabelPosition {
+    match corner {
+        Corner::UpperRight => SeriesLabelPosition::UpperRight,
+        Corner::UpperLeft => SeriesLabelPosition::UpperLeft,
+        Corner::LowerRight => SeriesLabelPosition::LowerRight,
+        Corner::LowerLeft => SeriesLabelPosition::LowerLeft,
+    }
+}
 
 /// The frame of `note`'s box at the lower left of `area` (its pixels), as [`draw_note`] draws it.
 fn note_frame<DB: DrawingBackend, CT: plotters::coord::CoordTranslate>(
@@ -787,16 +802,70 @@ impl ScatterPlot {
                     chart
                         .draw_series(labelled.map(|(p, label)| {
                             EmptyElement::at(*p)
-                                + Text::new(label.clone(), (6, -16), (FONT_FAMILY, 12).into_font())
+                                + Text::new(
+                                    label.clone(),
+                                    POINT_LABEL_OFFSET,
+                                    (FONT_FAMILY, POINT_LABEL_FONT_SIZE).into_font(),
+                                )
                         }))
                         .map_err(fail)?;
                 }
+                // The legend's corner: the one hiding the least of the lines, dots and their
+                // labels (as the time plots choose theirs).
+                let corner = {
+                    let (base_x, base_y) = chart.plotting_area().get_base_pixel();
+                    let pixel = |p: &(f64, f64)| {
+                        let (x, y) = chart.backend_coord(p);
+                        (f64::from(x - base_x), f64::from(y - base_y))
+                    };
+                    let label_font =
+                        TextStyle::from((FONT_FAMILY, POINT_LABEL_FONT_SIZE).into_font());
+                    let mut ink = Ink::default();
+                    for series in &self.series {
+                        let points: Vec<(f64, f64)> = series
+                            .points
+                            .iter()
+                            .filter(|p| usable(p))
+                            .map(pixel)
+                            .collect();
+                        ink.line(points.iter().copied());
+                        for &p in &points {
+                            ink.dot(p);
+                        }
+                        // A point's label as a line along its text's middle.
+                        for (p, label) in series.points.iter().zip(&series.point_labels) {
+                            if !usable(p) || label.is_empty() {
+                                continue;
+                            }
+                            let (x, y) = pixel(p);
+                            let (w, h) = chart
+                                .plotting_area()
+                                .estimate_text_size(label, &label_font)
+                                .map_err(fail)?;
+                            let (left, middle) = (
+                                x + f64::from(POINT_LABEL_OFFSET.0),
+                                y + f64::from(POINT_LABEL_OFFSET.1) + 0.5 * f64::from(h),
+                            );
+                            ink.line([(left, middle), (left + f64::from(w), middle)]);
+                        }
+                    }
+                    let labels: Vec<&str> = self.series.iter().map(|s| s.label.as_str()).collect();
+                    let (area_w, area_h) = chart.plotting_area().dim_in_pixel();
+                    legend_box_size(&labels).map_or(Corner::UpperRight, |size| {
+                        legend_corner::least_hiding_corner(
+                            &ink,
+                            size,
+                            (f64::from(area_w), f64::from(area_h)),
+                            None,
+                        )
+                    })
+                };
                 chart
                     .configure_series_labels()
-                    .label_font((FONT_FAMILY, 14))
+                    .label_font((FONT_FAMILY, LEGEND_FONT_SIZE))
                     .background_style(WHITE.mix(0.85))
                     .border_style(RGBColor(160, 160, 160))
-                    .position(SeriesLabelPosition::UpperRight)
+                    .position(series_label_position(corner))
                     .draw()
                     .map_err(fail)?;
             }};
@@ -961,6 +1030,52 @@ mod tests {
         assert!(
             x > plot_w / 2.0 && y < plot_h / 4.0,
             "the legend at ({x}, {y}): not in the upper right"
+        );
+    }
+
+    #[test]
+    fn a_scatter_plots_legend_leaves_its_points_alone() {
+        // Monte Carlo's points climbing into the upper right of a log-log plot: its legend goes
+        // elsewhere; the same points in the lower left leave the upper right free.
+        let series = |points: Vec<(f64, f64)>| ScatterSeries {
+            label: "monte-carlo (inner)".to_string(),
+            point_labels: points.iter().map(|p| format!("N={}", p.0)).collect(),
+            points,
+            colour: PALETTE[5],
+        };
+        let plot = |points: Vec<(f64, f64)>| {
+            ScatterPlot {
+                title: "error vs wall time".to_string(),
+                x_label: "wall time [s]".to_string(),
+                y_label: "max envelope error".to_string(),
+                log_x: true,
+                log_y: true,
+                series: vec![
+                    series(points),
+                    ScatterSeries {
+                        label: "legendre-scan (inner)".to_string(),
+                        points: vec![(0.01, 1e-4), (0.02, 1e-5)],
+                        point_labels: vec!["k=2".to_string(), "k=3".to_string()],
+                        colour: PALETTE[0],
+                    },
+                ],
+            }
+            .svg()
+            .unwrap()
+        };
+        let (plot_w, plot_h) = (f64::from(PLOT_SIZE.0), f64::from(PLOT_SIZE.1));
+        let climbing: Vec<(f64, f64)> = (1..=8)
+            .map(|k| (k as f64 * 0.125, 0.05 * k as f64))
+            .collect();
+        let (x, y, ..) = legend_box(&plot(climbing));
+        assert!(
+            !(x > plot_w / 2.0 && y < plot_h / 4.0),
+            "the legend at ({x}, {y}) covers the upper right's points"
+        );
+        let (x, y, ..) = legend_box(&plot(vec![(0.01, 1e-3), (0.02, 1e-3)]));
+        assert!(
+            x > plot_w / 2.0 && y < plot_h / 4.0,
+            "the legend at ({x}, {y}): not in the free upper right"
         );
     }
 

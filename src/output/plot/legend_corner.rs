@@ -1,5 +1,5 @@
-//! Which corner of a [`super::TimePlot`]'s plotting area its legend box goes in: the one where the
-//! box hides the least of what is drawn. A fixed upper-right legend covered the band and both
+//! Which corner of a plot's plotting area ([`super::TimePlot`], [`super::ScatterPlot`]) its legend
+//! box goes in: the one where the box hides the least of what is drawn. A fixed upper-right legend covered the band and both
 //! bounds of every output that rises and settles high (a Panda joint sagging to a new rest, the
 //! upper hull line of an untrusted study late in its run), while the lower right stood empty.
 //!
@@ -9,8 +9,8 @@
 //! [`DOT_INK`] pixels of line, and a band's faint fill by its area under the box times
 //! [`FILL_INK_PER_PIXEL`].
 //!
-//! Does not: draw the legend or measure its text (`super::TimePlot::draw` does both with the
-//! plot's font and hands the box's size here).
+//! Does not: draw the legend or measure its text (the plots' `draw` do both with the plot's font
+//! and hand the box's size here).
 
 /// A dot (check runs at the predicted extremes) counts as this many pixels of line: about its
 /// diameter and a margin, so a few dots weigh like a short stretch of a bound.
@@ -122,7 +122,8 @@ impl Corner {
     }
 }
 
-/// What a plot draws, in the plotting area's pixels, as far as a legend box can hide it.
+/// What a plot draws, in the plotting area's pixels, as far as a legend box can hide it (a scatter
+/// plot's point labels enter as lines along their text).
 #[derive(Debug, Default)]
 pub(super) struct Ink {
     /// Polylines (bounds, band edges, hull lines): consecutive points are joined.
