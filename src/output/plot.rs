@@ -634,8 +634,9 @@ const LEGEND_SYMBOL_WIDTH: i32 = 30;
 const LEGEND_MARGIN: i32 = 10;
 /// Font size of a scatter plot's point labels (`k=4`, `N=300`), pixels.
 const POINT_LABEL_FONT_SIZE: u32 = 12;
-/// Where a point's label starts, relative to the point, pixels (right and up).
-const POINT_LABEL_OFFSET: (i32, i32) = (6, -16);
+/// Where a point's label starts (its text's upper left), relative to the point, pixels: above
+/// right, or else below right (where above would overlap a label already placed).
+const POINT_LABEL_OFFSETS: [(i32, i32); 2] = [(6, -16), (6, 4)];
 /// Font size of a plot's note, pixels.
 const NOTE_FONT_SIZE: u32 = 14;
 /// Space between a note's box and the plotting area's frame, and around its text, pixels.
@@ -773,7 +774,46 @@ impl ScatterPlot {
                     .bold_line_style(RGBColor(205, 205, 205))
                     .draw()
                     .map_err(fail)?;
-                for series in &self.series {
+                let label_font = TextStyle::from((FONT_FAMILY, POINT_LABEL_FONT_SIZE).into_font());
+                let (base_x, base_y) = chart.plotting_area().get_base_pixel();
+                let to_pixel = |p: &(f64, f64)| {
+                    let (x, y) = chart.backend_coord(p);
+                    (f64::from(x - base_x), f64::from(y - base_y))
+                };
+                // Each point's label, in drawing order: above right of the point, or below right
+                // where that would overlap a label already placed, or left out where both would
+                // (the series' line still orders its points): (series, point, offset, its box).
+                let mut placed: Vec<(usize, usize, (i32, i32), PixelBox)> = Vec::new();
+                for (k, series) in self.series.iter().enumerate() {
+                    for (i, (p, label)) in
+                        series.points.iter().zip(&series.point_labels).enumerate()
+                    {
+                        if !usable(p) || label.is_empty() {
+                            continue;
+                        }
+                        let (x, y) = to_pixel(p);
+                        let (w, h) = chart
+                            .plotting_area()
+                            .estimate_text_size(label, &label_font)
+                            .map_err(fail)?;
+                        let spot = POINT_LABEL_OFFSETS.iter().find_map(|&offset| {
+                            let left = x + f64::from(offset.0);
+                            let top = y + f64::from(offset.1);
+                            let text = PixelBox {
+                                left,
+                                top,
+                                right: left + f64::from(w),
+                                bottom: top + f64::from(h),
+                            };
+                            let free = placed.iter().all(|(.., other)| !other.overlaps(&text));
+                            free.then_some((offset, text))
+                        });
+                        if let Some((offset, text)) = spot {
+                            placed.push((k, i, offset, text));
+                        }
+                    }
+                }
+                for (k, series) in self.series.iter().enumerate() {
                     let colour = rgb(series.colour);
                     let points: Vec<(f64, f64)> = series
                         .points
@@ -794,17 +834,15 @@ impl ScatterPlot {
                         .map_err(fail)?
                         .label(series.label.as_str())
                         .legend(move |(x, y)| Circle::new((x + 8, y), 4, colour.filled()));
-                    let labelled = series
-                        .points
+                    let labelled = placed
                         .iter()
-                        .zip(&series.point_labels)
-                        .filter(|(p, label)| usable(p) && !label.is_empty());
+                        .filter(|(series_index, ..)| *series_index == k);
                     chart
-                        .draw_series(labelled.map(|(p, label)| {
-                            EmptyElement::at(*p)
+                        .draw_series(labelled.map(|&(_, i, offset, _)| {
+                            EmptyElement::at(series.points[i])
                                 + Text::new(
-                                    label.clone(),
-                                    POINT_LABEL_OFFSET,
+                                    series.point_labels[i].clone(),
+                                    offset,
                                     (FONT_FAMILY, POINT_LABEL_FONT_SIZE).into_font(),
                                 )
                         }))
@@ -818,8 +856,6 @@ impl ScatterPlot {
                         let (x, y) = chart.backend_coord(p);
                         (f64::from(x - base_x), f64::from(y - base_y))
                     };
-                    let label_font =
-                        TextStyle::from((FONT_FAMILY, POINT_LABEL_FONT_SIZE).into_font());
                     let mut ink = Ink::default();
                     for series in &self.series {
                         let points: Vec<(f64, f64)> = series
@@ -832,22 +868,11 @@ impl ScatterPlot {
                         for &p in &points {
                             ink.dot(p);
                         }
-                        // A point's label as a line along its text's middle.
-                        for (p, label) in series.points.iter().zip(&series.point_labels) {
-                            if !usable(p) || label.is_empty() {
-                                continue;
-                            }
-                            let (x, y) = pixel(p);
-                            let (w, h) = chart
-                                .plotting_area()
-                                .estimate_text_size(label, &label_font)
-                                .map_err(fail)?;
-                            let (left, middle) = (
-                                x + f64::from(POINT_LABEL_OFFSET.0),
-                                y + f64::from(POINT_LABEL_OFFSET.1) + 0.5 * f64::from(h),
-                            );
-                            ink.line([(left, middle), (left + f64::from(w), middle)]);
-                        }
+                    }
+                    // A point's label as a line along its text's middle.
+                    for (.., text) in &placed {
+                        let middle = 0.5 * (text.top + text.bottom);
+                        ink.line([(text.left, middle), (text.right, middle)]);
                     }
                     let labels: Vec<&str> = self.series.iter().map(|s| s.label.as_str()).collect();
                     let (area_w, area_h) = chart.plotting_area().dim_in_pixel();
@@ -1077,6 +1102,71 @@ mod tests {
             x > plot_w / 2.0 && y < plot_h / 4.0,
             "the legend at ({x}, {y}): not in the free upper right"
         );
+    }
+
+    /// The texts of an SVG with their anchors: `(x, y, text)`.
+    fn svg_texts(svg: &str) -> Vec<(f64, f64, String)> {
+        svg.split("<text ")
+            .skip(1)
+            .map(|element| {
+                let attribute = |name: &str| -> f64 {
+                    let at = element.find(&format!("{name}=\"")).expect(name) + name.len() + 2;
+                    let rest = &element[at..];
+                    rest[..rest.find('"').unwrap()].parse().unwrap()
+                };
+                let body = &element[element.find('>').unwrap() + 1..];
+                let text = body[..body.find('<').unwrap()].trim().to_string();
+                (attribute("x"), attribute("y"), text)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_scatter_plots_point_labels_do_not_overlap() {
+        // Two series whose orders finished within milliseconds of each other: their labels
+        // would sit on one another; each is placed above, below or left out instead.
+        let series = |label: &str, y: f64, colour| ScatterSeries {
+            label: label.to_string(),
+            points: (2..=5).map(|k| (0.0130 + 0.0015 * k as f64, y)).collect(),
+            point_labels: (2..=5).map(|k| format!("k={k}")).collect(),
+            colour,
+        };
+        let svg = ScatterPlot {
+            title: "error vs wall time".to_string(),
+            x_label: "wall time [s]".to_string(),
+            y_label: "max envelope error".to_string(),
+            log_x: true,
+            log_y: true,
+            series: vec![
+                series("legendre-scan (inner)", 6e-5, PALETTE[0]),
+                series("chebyshev-scan (inner)", 6.2e-5, PALETTE[2]),
+                ScatterSeries {
+                    label: "monte-carlo (inner)".to_string(),
+                    points: vec![(0.1, 0.1), (1.0, 0.05)],
+                    point_labels: vec!["N=30".to_string(), "N=100".to_string()],
+                    colour: PALETTE[5],
+                },
+            ],
+        }
+        .svg()
+        .unwrap();
+        let labels: Vec<(f64, f64, String)> = svg_texts(&svg)
+            .into_iter()
+            .filter(|(.., text)| text.starts_with("k=") || text.starts_with("N="))
+            .collect();
+        assert!(labels.len() >= 6, "{labels:?}");
+        assert!(labels.iter().any(|(.., text)| text == "N=100"));
+        // At 12 px a character of these labels is at most 7 px wide and a line 12 px tall.
+        for (i, a) in labels.iter().enumerate() {
+            for b in &labels[i + 1..] {
+                let (left, right) = if a.0 <= b.0 { (a, b) } else { (b, a) };
+                let width = 7.0 * left.2.chars().count() as f64;
+                assert!(
+                    right.0 - left.0 >= width || (a.1 - b.1).abs() >= 12.0,
+                    "labels {a:?} and {b:?} overlap"
+                );
+            }
+        }
     }
 
     #[test]

@@ -560,11 +560,21 @@ pub fn have_program(program: &str) -> bool {
         .is_ok_and(|s| s.success())
 }
 
+/// How long [`ensure_system_programs`]' `apt-get` waits for another apt's lock, seconds.
+const APT_LOCK_WAIT_SECONDS: u32 = 600;
+
 /// Makes sure every one of `programs` is on `PATH`: when one is missing and
 /// [`system_install_allowed`], installs the Debian `packages` (`apt-get install -y`, as root);
 /// when it is not allowed, or the install fails, panics with the exact commands: the one that
 /// opts in to the install, and the install itself. `test` is the test file's name (`slurm`).
 pub fn ensure_system_programs(test: &str, programs: &[&str], packages: &[&str]) {
+    // One install at a time in this test binary: its tests run in parallel, and on a fresh
+    // machine two of them found chromium missing at once, and the second `apt-get` failed on
+    // the first one's lock. The second now waits, then finds the programs installed.
+    static INSTALLING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one_at_a_time = INSTALLING
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let missing: Vec<&str> = programs
         .iter()
         .copied()
@@ -573,8 +583,12 @@ pub fn ensure_system_programs(test: &str, programs: &[&str], packages: &[&str]) 
     if missing.is_empty() {
         return;
     }
+    // Another process's apt (another test binary, the system's own updates) is waited for, up to
+    // APT_LOCK_WAIT_SECONDS, rather than failed on.
     let install = format!(
-        "apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y {}",
+        "apt-get -o DPkg::Lock::Timeout={APT_LOCK_WAIT_SECONDS} update && \
+         DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout={APT_LOCK_WAIT_SECONDS} \
+         install -y {}",
         packages.join(" ")
     );
     if !system_install_allowed() {

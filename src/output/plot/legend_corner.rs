@@ -39,7 +39,7 @@ pub(super) struct PixelBox {
 }
 
 impl PixelBox {
-    fn overlaps(&self, other: &PixelBox) -> bool {
+    pub(super) fn overlaps(&self, other: &PixelBox) -> bool {
         self.left < other.right
             && other.left < self.right
             && self.top < other.bottom
