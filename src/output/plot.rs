@@ -1058,6 +1058,20 @@ mod tests {
         );
     }
 
+    /// Compare's error-vs-time plot of `series` (log-log) as SVG.
+    fn error_vs_time_svg(series: Vec<ScatterSeries>) -> String {
+        ScatterPlot {
+            title: "error vs wall time".to_string(),
+            x_label: "wall time [s]".to_string(),
+            y_label: "max envelope error".to_string(),
+            log_x: true,
+            log_y: true,
+            series,
+        }
+        .svg()
+        .unwrap()
+    }
+
     #[test]
     fn a_scatter_plots_legend_leaves_its_points_alone() {
         // Monte Carlo's points climbing into the upper right of a log-log plot: its legend goes
@@ -1069,24 +1083,15 @@ mod tests {
             colour: PALETTE[5],
         };
         let plot = |points: Vec<(f64, f64)>| {
-            ScatterPlot {
-                title: "error vs wall time".to_string(),
-                x_label: "wall time [s]".to_string(),
-                y_label: "max envelope error".to_string(),
-                log_x: true,
-                log_y: true,
-                series: vec![
-                    series(points),
-                    ScatterSeries {
-                        label: "legendre-scan (inner)".to_string(),
-                        points: vec![(0.01, 1e-4), (0.02, 1e-5)],
-                        point_labels: vec!["k=2".to_string(), "k=3".to_string()],
-                        colour: PALETTE[0],
-                    },
-                ],
-            }
-            .svg()
-            .unwrap()
+            error_vs_time_svg(vec![
+                series(points),
+                ScatterSeries {
+                    label: "legendre-scan (inner)".to_string(),
+                    points: vec![(0.01, 1e-4), (0.02, 1e-5)],
+                    point_labels: vec!["k=2".to_string(), "k=3".to_string()],
+                    colour: PALETTE[0],
+                },
+            ])
         };
         let (plot_w, plot_h) = (f64::from(PLOT_SIZE.0), f64::from(PLOT_SIZE.1));
         let climbing: Vec<(f64, f64)> = (1..=8)
@@ -1131,25 +1136,16 @@ mod tests {
             point_labels: (2..=5).map(|k| format!("k={k}")).collect(),
             colour,
         };
-        let svg = ScatterPlot {
-            title: "error vs wall time".to_string(),
-            x_label: "wall time [s]".to_string(),
-            y_label: "max envelope error".to_string(),
-            log_x: true,
-            log_y: true,
-            series: vec![
-                series("legendre-scan (inner)", 6e-5, PALETTE[0]),
-                series("chebyshev-scan (inner)", 6.2e-5, PALETTE[2]),
-                ScatterSeries {
-                    label: "monte-carlo (inner)".to_string(),
-                    points: vec![(0.1, 0.1), (1.0, 0.05)],
-                    point_labels: vec!["N=30".to_string(), "N=100".to_string()],
-                    colour: PALETTE[5],
-                },
-            ],
-        }
-        .svg()
-        .unwrap();
+        let svg = error_vs_time_svg(vec![
+            series("legendre-scan (inner)", 6e-5, PALETTE[0]),
+            series("chebyshev-scan (inner)", 6.2e-5, PALETTE[2]),
+            ScatterSeries {
+                label: "monte-carlo (inner)".to_string(),
+                points: vec![(0.1, 0.1), (1.0, 0.05)],
+                point_labels: vec!["N=30".to_string(), "N=100".to_string()],
+                colour: PALETTE[5],
+            },
+        ]);
         let labels: Vec<(f64, f64, String)> = svg_texts(&svg)
             .into_iter()
             .filter(|(.., text)| text.starts_with("k=") || text.starts_with("N="))
