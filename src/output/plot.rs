@@ -624,7 +624,7 @@ impl TimePlot<'_> {
     }
 }
 
-/// Font size of a time plot's legend, pixels.
+/// Font size of a plot's legend, pixels.
 const LEGEND_FONT_SIZE: u32 = 14;
 /// Width `plotters` gives a legend entry's symbol, and its margin around the entries, pixels (its
 /// `legend_area_size` and `margin` defaults, which the legend is drawn with): with the text's size
