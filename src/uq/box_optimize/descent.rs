@@ -351,24 +351,7 @@ impl BoxOptimizer {
         }
         loop {
             let shift = attempt.map_or(0.0, |i| SHIFT_FRACTIONS[i] * gershgorin);
-            // The (symmetric) free block as it is, in one pass (row-major read as column-major),
-            // the shift on its diagonal.
-            for (reduced, &h) in self.reduced[..nf * nf]
-                .iter_mut()
-                .zip(&self.hess[..nf * nf])
-            {
-                *reduced = h + 0.0;
-            }
-            for a in 0..nf {
-                self.reduced[a * nf + a] = self.hess[a * nf + a] + shift;
-            }
-            if cholesky::factor_in_place(
-                &mut self.reduced[..nf * nf],
-                nf,
-                cholesky::ANY_POSITIVE_PIVOT,
-            )
-            .is_ok()
-            {
+            if self.factor_shifted_free_block(shift) {
                 break;
             }
             attempt = match attempt {
@@ -392,6 +375,28 @@ impl BoxOptimizer {
         }
         cholesky::solve_in_place(&self.reduced[..nf * nf], nf, &mut self.step[..nf]);
         attempt.is_none()
+    }
+
+    /// Factorises `H_ff + shift·I` (the free block of `hess`) into `reduced`; whether it is
+    /// positive definite (every pivot positive). The block is copied in one pass (symmetric:
+    /// row-major read as column-major), the shift added to its diagonal.
+    fn factor_shifted_free_block(&mut self, shift: f64) -> bool {
+        let nf = self.free.len();
+        for (reduced, &h) in self.reduced[..nf * nf]
+            .iter_mut()
+            .zip(&self.hess[..nf * nf])
+        {
+            *reduced = h + 0.0;
+        }
+        for a in 0..nf {
+            self.reduced[a * nf + a] = self.hess[a * nf + a] + shift;
+        }
+        cholesky::factor_in_place(
+            &mut self.reduced[..nf * nf],
+            nf,
+            cholesky::ANY_POSITIVE_PIVOT,
+        )
+        .is_ok()
     }
 
     /// The shift that makes `H_ff` positive definite: λ_min ≥ min_a (H_aa − Σ_{b≠a} |H_ab|)
@@ -677,26 +682,12 @@ impl BoxOptimizer {
             .max(f64::MIN_POSITIVE);
         let tolerance = CURVATURE_TOL * scale;
         // `H_ff + τI` factorises exactly when its smallest eigenvalue is above −τ: then there is
-        // no negative curvature to follow, and the eigen-decomposition (tridiagonalisation and QR
-        // sweeps with the eigenvectors, many times the factorisation's work) is not needed. Descents end at such points (a local minimum on
-        // its face), so most calls stop here: at d = 136 (the Upkie starter) the
-        // eigen-decompositions were a fifth of a one-thread study (`perf`).
-        for (reduced, &h) in self.reduced[..nf * nf]
-            .iter_mut()
-            .zip(&self.hess[..nf * nf])
-        {
-            *reduced = h;
-        }
-        for a in 0..nf {
-            self.reduced[a * nf + a] += tolerance;
-        }
-        if cholesky::factor_in_place(
-            &mut self.reduced[..nf * nf],
-            nf,
-            cholesky::ANY_POSITIVE_PIVOT,
-        )
-        .is_ok()
-        {
+        // no negative curvature to follow, and the eigen-decomposition (tridiagonalisation and
+        // QR sweeps with the eigenvectors, many times the factorisation's work) is not needed.
+        // Descents end at such points (a local minimum on its face), so most calls stop here:
+        // at d = 136 (the Upkie starter) the eigen-decompositions were a fifth of a one-thread
+        // study (`perf`).
+        if self.factor_shifted_free_block(tolerance) {
             return None;
         }
         let h = DMatrix::from_fn(nf, nf, |a, b| self.hess[a * nf + b]);
