@@ -516,14 +516,13 @@ impl TimePlot<'_> {
         } else {
             Some(note_frame(chart.plotting_area(), &self.note).map_err(fail)?)
         };
-        let corner = {
-            let (base_x, base_y) = chart.plotting_area().get_base_pixel();
-            let pixel = |t: f64, v: f64| {
-                let (x, y) = chart.backend_coord(&(t, v));
-                (f64::from(x - base_x), f64::from(y - base_y))
-            };
-            self.legend_corner(pixel, clip, (y0, y1), chart.plotting_area(), note)
-        };
+        let corner = self.legend_corner(
+            |t, v| area_pixel(&chart, (t, v)),
+            clip,
+            (y0, y1),
+            chart.plotting_area(),
+            note,
+        );
         chart
             .configure_series_labels()
             .label_font((FONT_FAMILY, LEGEND_FONT_SIZE))
@@ -580,12 +579,16 @@ impl TimePlot<'_> {
             match layer {
                 Layer::Band { lower, upper, .. } => {
                     let (low, high) = (curve(lower), curve(upper));
-                    ink.fill(times.iter().zip(lower.iter().zip(upper.iter())).filter_map(
-                        |(&t, (&a, &b))| {
-                            let ((x, ya), (_, yb)) = (pixel(t, clip(a)), pixel(t, clip(b)));
-                            (t.is_finite() && a.is_finite() && b.is_finite()).then_some((x, ya, yb))
-                        },
-                    ));
+                    ink.fill(
+                        times
+                            .iter()
+                            .zip(lower.iter().zip(upper.iter()))
+                            .filter(|(t, (a, b))| t.is_finite() && a.is_finite() && b.is_finite())
+                            .map(|(&t, (&a, &b))| {
+                                let ((x, ya), (_, yb)) = (pixel(t, clip(a)), pixel(t, clip(b)));
+                                (x, ya, yb)
+                            }),
+                    );
                     ink.line(low);
                     ink.line(high);
                 }
@@ -655,6 +658,17 @@ fn legend_box_size(labels: &[&str]) -> Option<(f64, f64)> {
         f64::from(text_w + LEGEND_SYMBOL_WIDTH + 2 * LEGEND_MARGIN),
         f64::from(text_h + 2 * LEGEND_MARGIN),
     ))
+}
+
+/// Where `chart` draws the data point `p`: pixels from its plotting area's upper left (the frame
+/// the legend's corner is chosen in, `legend_corner`).
+fn area_pixel<DB: DrawingBackend, X: Ranged<ValueType = f64>, Y: Ranged<ValueType = f64>>(
+    chart: &ChartContext<'_, DB, Cartesian2d<X, Y>>,
+    p: (f64, f64),
+) -> (f64, f64) {
+    let (base_x, base_y) = chart.plotting_area().get_base_pixel();
+    let (x, y) = chart.backend_coord(&p);
+    (f64::from(x - base_x), f64::from(y - base_y))
 }
 
 /// The `plotters` position of a legend corner.
@@ -775,23 +789,31 @@ impl ScatterPlot {
                     .draw()
                     .map_err(fail)?;
                 let label_font = TextStyle::from((FONT_FAMILY, POINT_LABEL_FONT_SIZE).into_font());
-                let (base_x, base_y) = chart.plotting_area().get_base_pixel();
-                let to_pixel = |p: &(f64, f64)| {
-                    let (x, y) = chart.backend_coord(p);
-                    (f64::from(x - base_x), f64::from(y - base_y))
-                };
+                // What the legend could hide, in the plotting area's pixels: each series' line
+                // and dots, and its labels as lines along their text's middle.
+                let mut ink = Ink::default();
                 // Each point's label, in drawing order: above right of the point, or below right
                 // where that would overlap a label already placed, or left out where both would
                 // (the series' line still orders its points): (series, point, offset, its box).
                 let mut placed: Vec<(usize, usize, (i32, i32), PixelBox)> = Vec::new();
                 for (k, series) in self.series.iter().enumerate() {
+                    let pixels: Vec<(f64, f64)> = series
+                        .points
+                        .iter()
+                        .filter(|p| usable(p))
+                        .map(|&p| area_pixel(&chart, p))
+                        .collect();
+                    ink.line(pixels.iter().copied());
+                    for &p in &pixels {
+                        ink.dot(p);
+                    }
                     for (i, (p, label)) in
                         series.points.iter().zip(&series.point_labels).enumerate()
                     {
                         if !usable(p) || label.is_empty() {
                             continue;
                         }
-                        let (x, y) = to_pixel(p);
+                        let (x, y) = area_pixel(&chart, *p);
                         let (w, h) = chart
                             .plotting_area()
                             .estimate_text_size(label, &label_font)
@@ -809,6 +831,8 @@ impl ScatterPlot {
                             free.then_some((offset, text))
                         });
                         if let Some((offset, text)) = spot {
+                            let middle = 0.5 * (text.top + text.bottom);
+                            ink.line([(text.left, middle), (text.right, middle)]);
                             placed.push((k, i, offset, text));
                         }
                     }
@@ -848,32 +872,9 @@ impl ScatterPlot {
                         }))
                         .map_err(fail)?;
                 }
-                // The legend's corner: the one hiding the least of the lines, dots and their
-                // labels (as the time plots choose theirs).
+                // The legend's corner: the one hiding the least of the ink (as the time plots
+                // choose theirs).
                 let corner = {
-                    let (base_x, base_y) = chart.plotting_area().get_base_pixel();
-                    let pixel = |p: &(f64, f64)| {
-                        let (x, y) = chart.backend_coord(p);
-                        (f64::from(x - base_x), f64::from(y - base_y))
-                    };
-                    let mut ink = Ink::default();
-                    for series in &self.series {
-                        let points: Vec<(f64, f64)> = series
-                            .points
-                            .iter()
-                            .filter(|p| usable(p))
-                            .map(pixel)
-                            .collect();
-                        ink.line(points.iter().copied());
-                        for &p in &points {
-                            ink.dot(p);
-                        }
-                    }
-                    // A point's label as a line along its text's middle.
-                    for (.., text) in &placed {
-                        let middle = 0.5 * (text.top + text.bottom);
-                        ink.line([(text.left, middle), (text.right, middle)]);
-                    }
                     let labels: Vec<&str> = self.series.iter().map(|s| s.label.as_str()).collect();
                     let (area_w, area_h) = chart.plotting_area().dim_in_pixel();
                     legend_box_size(&labels).map_or(Corner::UpperRight, |size| {

@@ -1,7 +1,8 @@
 //! Which corner of a plot's plotting area ([`super::TimePlot`], [`super::ScatterPlot`]) its legend
-//! box goes in: the one where the box hides the least of what is drawn. A fixed upper-right legend covered the band and both
-//! bounds of every output that rises and settles high (a Panda joint sagging to a new rest, the
-//! upper hull line of an untrusted study late in its run), while the lower right stood empty.
+//! box goes in: the one where the box hides the least of what is drawn. A fixed upper-right
+//! legend covered the band and both bounds of every output that rises and settles high (a Panda
+//! joint sagging to a new rest, the upper hull line of an untrusted study late in its run), while
+//! the lower right stood empty.
 //!
 //! Everything here is in the plotting area's pixels (x from its left edge, y down from its top),
 //! so it can be tested without drawing. What is drawn is scored by how much of it a box hides:
